@@ -1,0 +1,134 @@
+/* Stack-based BVH traversal: closest hit and any hit.
+ *
+ * Node layout (struct BVHNode, generated from pyopencl_rt/layout.py, 64 bytes):
+ *
+ *     offset  0  float bmin_left[3]   int child_left     box of the left child, then its index
+ *     offset 16  float bmax_left[3]   int count_left
+ *     offset 32  float bmin_right[3]  int child_right
+ *     offset 48  float bmax_right[3]  int count_right
+ *
+ * Each node holds the boxes of its two children (Aila & Laine 2009), so one 64-byte fetch tests
+ * both children and picks the nearer.  For a child, count == 0 means an inner node whose index
+ * is child; count > 0 means a leaf of triangles [child, child + count) of the reordered triangle
+ * array; count == -1 means no child (its box is empty and never hit).  Node 0 is the root.
+ *
+ * Triangles are stored reordered, three float4 vertices each (48 bytes), so a leaf is a
+ * contiguous range; prim_ids maps a reordered index back to the caller's face index.
+ *
+ * The builder caps the depth at 60, so the 64-entry stack cannot overflow: at most one entry is
+ * pushed per level.
+ */
+#ifndef PYOPENCL_RT_BVH_H
+#define PYOPENCL_RT_BVH_H
+
+#include "intersect.h"
+
+#define BVH_STACK_SIZE 64
+
+typedef struct {
+    float t, u, v;
+    int tri; /* reordered triangle index, -1 for a miss */
+} Hit;
+
+
+inline void intersect_leaf(float3 o, float3 d, RayShear sh, __global const float4 *tris, int first, int count,
+                           float tmin, Hit *hit)
+{
+    for (int i = first; i < first + count; ++i) {
+        float t, u, v;
+        if (intersect_triangle(o, d, sh, tris[3 * i].xyz, tris[3 * i + 1].xyz, tris[3 * i + 2].xyz,
+                               tmin, hit->t, &t, &u, &v)) {
+            hit->t = t; hit->u = u; hit->v = v; hit->tri = i;
+        }
+    }
+}
+
+inline int occluded_leaf(float3 o, float3 d, RayShear sh, __global const float4 *tris, int first, int count,
+                         float tmin, float tmax)
+{
+    for (int i = first; i < first + count; ++i) {
+        float t, u, v;
+        if (intersect_triangle(o, d, sh, tris[3 * i].xyz, tris[3 * i + 1].xyz, tris[3 * i + 2].xyz,
+                               tmin, tmax, &t, &u, &v))
+            return 1;
+    }
+    return 0;
+}
+
+/* Closest hit in (tmin, tmax).  hit->tri = -1 when nothing is hit. */
+inline Hit bvh_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
+                           float3 o, float3 d, float tmin, float tmax)
+{
+    Hit hit; hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.tri = -1;
+    const RayShear sh = ray_shear(d);
+    const float3 inv_d = safe_rcp3(d);
+    int stack_node[BVH_STACK_SIZE];
+    float stack_t[BVH_STACK_SIZE];
+    int sp = 0;
+    int idx = 0;
+    for (;;) {
+        __global const BVHNode *n = nodes + idx;
+        const int cl = n->count_left, cr = n->count_right;
+        /* an absent child (count -1) has an empty box, min=+inf > max=-inf, which the slab
+         * test's fmin/fmax would turn into an infinite interval: skip it explicitly */
+        float tl = cl < 0 ? INFINITY : intersect_box(o, inv_d, vload3(0, n->bmin_left), vload3(0, n->bmax_left), tmin, hit.t);
+        float tr = cr < 0 ? INFINITY : intersect_box(o, inv_d, vload3(0, n->bmin_right), vload3(0, n->bmax_right), tmin, hit.t);
+        if (tl != INFINITY && cl > 0) { intersect_leaf(o, d, sh, tris, n->child_left, cl, tmin, &hit); tl = INFINITY; }
+        if (tr != INFINITY && cr > 0) { intersect_leaf(o, d, sh, tris, n->child_right, cr, tmin, &hit); tr = INFINITY; }
+        const int left = n->child_left, right = n->child_right;
+        if (tl != INFINITY && tr != INFINITY) {
+            if (tl <= tr) { stack_node[sp] = right; stack_t[sp] = tr; idx = left; }
+            else          { stack_node[sp] = left;  stack_t[sp] = tl; idx = right; }
+            ++sp;
+            continue;
+        }
+        if (tl != INFINITY) { idx = left; continue; }
+        if (tr != INFINITY) { idx = right; continue; }
+        /* pop, skipping nodes entered beyond the closest hit found since they were pushed */
+        for (;;) {
+            if (sp == 0) return hit;
+            --sp;
+            if (stack_t[sp] <= hit.t) { idx = stack_node[sp]; break; }
+        }
+    }
+}
+
+/* Any hit in (tmin, tmax): returns 1 as soon as one triangle is hit. */
+inline int bvh_any_hit(__global const BVHNode *nodes, __global const float4 *tris,
+                       float3 o, float3 d, float tmin, float tmax)
+{
+    const RayShear sh = ray_shear(d);
+    const float3 inv_d = safe_rcp3(d);
+    int stack_node[BVH_STACK_SIZE];
+    int sp = 0;
+    int idx = 0;
+    for (;;) {
+        __global const BVHNode *n = nodes + idx;
+        const int cl = n->count_left, cr = n->count_right;
+        const float tl = cl < 0 ? INFINITY : intersect_box(o, inv_d, vload3(0, n->bmin_left), vload3(0, n->bmax_left), tmin, tmax);
+        const float tr = cr < 0 ? INFINITY : intersect_box(o, inv_d, vload3(0, n->bmin_right), vload3(0, n->bmax_right), tmin, tmax);
+        int go_left = tl != INFINITY, go_right = tr != INFINITY;
+        if (go_left && cl > 0) {
+            if (occluded_leaf(o, d, sh, tris, n->child_left, cl, tmin, tmax)) return 1;
+            go_left = 0;
+        }
+        if (go_right && cr > 0) {
+            if (occluded_leaf(o, d, sh, tris, n->child_right, cr, tmin, tmax)) return 1;
+            go_right = 0;
+        }
+        if (go_left && go_right) { stack_node[sp++] = n->child_right; idx = n->child_left; continue; }
+        if (go_left) { idx = n->child_left; continue; }
+        if (go_right) { idx = n->child_right; continue; }
+        if (sp == 0) return 0;
+        idx = stack_node[--sp];
+    }
+}
+
+/* Unit geometric normal (v1 - v0) x (v2 - v0) of reordered triangle i (Embree's orientation). */
+inline float3 triangle_normal(__global const float4 *tris, int i)
+{
+    const float3 p0 = tris[3 * i].xyz, p1 = tris[3 * i + 1].xyz, p2 = tris[3 * i + 2].xyz;
+    return normalize(cross(p1 - p0, p2 - p0));
+}
+
+#endif

@@ -1,0 +1,29 @@
+/* Small helpers shared by every kernel. */
+#ifndef PYOPENCL_RT_COMMON_H
+#define PYOPENCL_RT_COMMON_H
+
+/* OpenCL C lets the compiler fuse a*b - c*d into fma(a, b, -c*d) unless told otherwise.  The
+ * watertight triangle test relies on the edge function of a shared edge being computed as the
+ * exact negation in both triangles; a fused multiply-add breaks that symmetry and lets rays
+ * through the edge miss both (found by tests/test_intersect.py). */
+#pragma OPENCL FP_CONTRACT OFF
+
+#ifdef cl_khr_fp64
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+#endif
+
+#define PI_F 3.14159265358979323846f
+#define INV_PI_F 0.31830988618379067154f
+
+inline float3 load3(__global const float *p, int i) { return vload3(i, p); }
+inline void store3(__global float *p, int i, float3 v) { vstore3(v, i, p); }
+
+/* Reciprocal of a direction for slab tests.  Components below 1e-18 in magnitude are clamped to
+ * +-1e-18 first (as Embree's rcp_safe does): with a true 1/0 = inf, a ray lying exactly in the
+ * plane of a box face computes 0 * inf = NaN and misses the box, leaking through edges that lie
+ * in that plane.  With the clamp the product is 0 and the slab contains the ray. */
+#define RCP_MIN_INPUT 1e-18f
+inline float safe_rcp(float x) { return 1.0f / (fabs(x) < RCP_MIN_INPUT ? copysign(RCP_MIN_INPUT, x) : x); }
+inline float3 safe_rcp3(float3 d) { return (float3)(safe_rcp(d.x), safe_rcp(d.y), safe_rcp(d.z)); }
+
+#endif

@@ -1,0 +1,138 @@
+/* Ray/primitive intersection: triangle (watertight), box (slab test), sphere (stable quadratic).
+ *
+ * Rays are o + t*d with t in [tmin, tmax].  Directions need not be normalised.
+ */
+#ifndef PYOPENCL_RT_INTERSECT_H
+#define PYOPENCL_RT_INTERSECT_H
+
+#include "common.h"
+
+/* ---------------------------------------------------------------------------------------------
+ * Watertight ray/triangle intersection (Woop, Benthin & Wald, JCGT 2013).
+ *
+ * The ray is transformed so that it runs along +z from the origin (a shear and a permutation of
+ * axes that depend on the ray alone).  The 2D edge functions U, V, W of the projected triangle are
+ * then evaluated in a way that gives the same value for an edge shared by two triangles, so a ray
+ * through an edge or a vertex hits at least one of them.  When an edge function rounds to exactly
+ * zero the paper recomputes it in double precision; we do the same where the device has fp64.
+ * --------------------------------------------------------------------------------------------- */
+typedef struct {
+    int kx, ky, kz;   /* permutation of axes: kz is the dominant axis of d */
+    float sx, sy, sz; /* shear constants */
+} RayShear;
+
+inline float comp3(float3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
+
+inline RayShear ray_shear(float3 d)
+{
+    RayShear r;
+    float3 ad = fabs(d);
+    r.kz = (ad.x > ad.y) ? ((ad.x > ad.z) ? 0 : 2) : ((ad.y > ad.z) ? 1 : 2);
+    r.kx = r.kz + 1; if (r.kx == 3) r.kx = 0;
+    r.ky = r.kx + 1; if (r.ky == 3) r.ky = 0;
+    float dz = comp3(d, r.kz);
+    if (dz < 0.0f) { int tmp = r.kx; r.kx = r.ky; r.ky = tmp; } /* keep the winding */
+    r.sx = comp3(d, r.kx) / dz;
+    r.sy = comp3(d, r.ky) / dz;
+    r.sz = 1.0f / dz;
+    return r;
+}
+
+/* Returns 1 and sets *t, *u, *v (barycentrics of v1 and v2) on a hit with tmin < t < tmax. */
+inline int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, float3 p1, float3 p2,
+                              float tmin, float tmax, float *t, float *u, float *v)
+{
+    const float3 a = p0 - o, b = p1 - o, c = p2 - o;
+    const float az = comp3(a, s.kz), bz = comp3(b, s.kz), cz = comp3(c, s.kz);
+    const float ax = comp3(a, s.kx) - s.sx * az, ay = comp3(a, s.ky) - s.sy * az;
+    const float bx = comp3(b, s.kx) - s.sx * bz, by = comp3(b, s.ky) - s.sy * bz;
+    const float cx = comp3(c, s.kx) - s.sx * cz, cy = comp3(c, s.ky) - s.sy * cz;
+    float U = cx * by - cy * bx;
+    float V = ax * cy - ay * cx;
+    float W = bx * ay - by * ax;
+#ifdef cl_khr_fp64
+    if (U == 0.0f || V == 0.0f || W == 0.0f) {
+        U = (float)((double)cx * (double)by - (double)cy * (double)bx);
+        V = (float)((double)ax * (double)cy - (double)ay * (double)cx);
+        W = (float)((double)bx * (double)ay - (double)by * (double)ax);
+    }
+#endif
+    if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f))
+        return 0;
+    const float det = U + V + W;
+    if (det == 0.0f)
+        return 0;
+    /* The distance comes from the plane equation with the normal built from edge vectors, not
+     * from the paper's T = U*Az + V*Bz + W*Cz: for a long sliver whose far vertices are much
+     * farther than the hit, T cancels catastrophically and its sign can flip, so a ray leaving a
+     * thin closed mesh from inside was judged "behind" and escaped (tests/test_traversal.py). */
+    const float3 n = cross(p1 - p0, p2 - p0);
+    const float den = dot(n, d);
+    if (den == 0.0f)
+        return 0;
+    const float tt = dot(n, a) / den;
+    if (!(tt > tmin && tt < tmax))
+        return 0;
+    const float rcp = 1.0f / det;
+    *t = tt;
+    *u = V * rcp;
+    *v = W * rcp;
+    return 1;
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * Ray/box slab test.  inv_d = safe_rcp3(d) (finite, so no 0*inf = NaN for a ray in the plane of
+ * a face: such a ray is inside that slab).  Returns the entry distance, or INFINITY on a miss.
+ *
+ * Conservative on purpose.  Rounding in the box test alone is covered by widening the far
+ * distance by 1 + 2*gamma(3) (Ize 2013), but the watertight triangle test has its own rounding,
+ * of a few ulp of |vertex - origin|: a ray that crosses exactly at a triangle edge lying on its
+ * leaf box's boundary can be "inside" the triangle yet "outside" its box, and leak between two
+ * triangles (found on long slivers by tests/test_traversal.py).  So the far distance is widened
+ * by 2^-20 (relative, which covers origins far from the box), and the host pads every box by
+ * 2^-20 of the scene's largest coordinate (pyopencl_rt/trace.py: DeviceBVH), which covers
+ * origins near or inside it.
+ * --------------------------------------------------------------------------------------------- */
+#define SLAB_FAR_SCALE 1.00000095367431640625f /* 1 + 2^-20 */
+
+inline float intersect_box(float3 o, float3 inv_d, float3 bmin, float3 bmax, float tmin, float tmax)
+{
+    const float3 t0 = (bmin - o) * inv_d;
+    const float3 t1 = (bmax - o) * inv_d;
+    const float3 tn = fmin(t0, t1), tf = fmax(t0, t1);
+    const float enter = fmax(fmax(tn.x, tn.y), fmax(tn.z, tmin));
+    const float leave = fmin(fmin(tf.x, tf.y), tf.z) * SLAB_FAR_SCALE;
+    return (enter <= fmin(leave, tmax)) ? enter : INFINITY;
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * Ray/sphere with a numerically stable quadratic.
+ *
+ * |o + t d - c|^2 = r^2 with f = o - c gives a t^2 + 2 b' t + cc = 0, where a = d.d, b' = f.d
+ * (half the usual b, so the discriminant is b'^2 - a cc, with no factor 4), cc = f.f - r^2.
+ * The discriminant is evaluated as a (r^2 - |f - (b'/a) d|^2) = a (r - l)(r + l), which avoids the
+ * cancellation of b'^2 - a cc for a small sphere far away; the roots are q/a and cc/q with
+ * q = -(b' + sign(b') sqrt(disc)), which avoids cancellation in -b' +- sqrt(disc)
+ * (Haines et al., Ray Tracing Gems ch. 7).  Returns 1 with the nearest root in (tmin, tmax).
+ * --------------------------------------------------------------------------------------------- */
+inline int intersect_sphere(float3 o, float3 d, float3 center, float radius, float tmin, float tmax, float *t)
+{
+    const float3 f = o - center;
+    const float a = dot(d, d);
+    const float bh = dot(f, d);
+    const float cc = dot(f, f) - radius * radius;
+    const float3 lvec = f - (bh / a) * d;
+    const float l = length(lvec);
+    const float disc = a * (radius - l) * (radius + l);
+    if (disc < 0.0f)
+        return 0;
+    const float q = -(bh + copysign(sqrt(disc), bh));
+    float t0 = q / a, t1 = cc / q;
+    if (q == 0.0f) { t0 = 0.0f; t1 = 0.0f; } /* ray origin at the centre's tangent point: both roots 0 */
+    if (t0 > t1) { float tmp = t0; t0 = t1; t1 = tmp; }
+    if (t0 > tmin && t0 < tmax) { *t = t0; return 1; }
+    if (t1 > tmin && t1 < tmax) { *t = t1; return 1; }
+    return 0;
+}
+
+#endif

@@ -1,0 +1,161 @@
+"""Benchmarks: OpenCL traversal against embreex on identical rays, and BVH build time.
+
+Timing rules (the machine is shared and noisy): every figure is the median of ``repeat`` runs,
+and the OpenCL and Embree timings of one ray set are taken alternately in the same loop, so a
+burst of background load hits both.
+"""
+from __future__ import annotations
+
+import json
+import platform
+import statistics
+import time
+
+import numpy as np
+
+
+def parse_sizes(text: str) -> list[int]:
+    out = []
+    for part in text.split(","):
+        part = part.strip().lower()
+        if not part:
+            continue
+        mult = 1
+        if part.endswith("k"):
+            mult, part = 1_000, part[:-1]
+        elif part.endswith("m"):
+            mult, part = 1_000_000, part[:-1]
+        out.append(int(float(part) * mult))
+    return out
+
+
+def bench_mesh(n_triangles: int):
+    """A torus with about ``n_triangles`` triangles (2 * major * minor), slightly bumpy so that
+    triangles are not all alike; deterministic."""
+    import trimesh
+
+    minor = max(3, int(round(np.sqrt(n_triangles / 8.0))))
+    major = max(3, int(round(n_triangles / (2 * minor))))
+    mesh = trimesh.creation.torus(major_radius=1.0, minor_radius=0.35, major_sections=major, minor_sections=minor)
+    v = np.asarray(mesh.vertices, np.float64)
+    ang = np.arctan2(v[:, 1], v[:, 0])
+    v *= (1.0 + 0.03 * np.sin(7 * ang))[:, None]
+    return v.astype(np.float32), np.asarray(mesh.faces, np.int32)
+
+
+def primary_rays(bounds, n: int):
+    """Pinhole camera rays (coherent: neighbouring rays are neighbouring pixels) framing ``bounds``."""
+    side = int(np.sqrt(n))
+    center = bounds.mean(axis=0)
+    radius = float(np.linalg.norm(bounds[1] - bounds[0])) / 2
+    eye = center + np.array([0.3, -0.8, 0.6]) * (2.2 * radius / np.linalg.norm([0.3, -0.8, 0.6]))
+    forward = center - eye
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0, 0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    s = (np.arange(side) + 0.5) / side * 2 - 1
+    x, y = np.meshgrid(s * 0.5, -s * 0.5)
+    d = forward + x.reshape(-1, 1) * right + y.reshape(-1, 1) * up
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o = np.broadcast_to(eye, d.shape)
+    return np.ascontiguousarray(o, np.float32), np.ascontiguousarray(d, np.float32)
+
+
+def diffuse_rays(hits, o, d, rng):
+    """Incoherent rays: from each primary hit point, a cosine-distributed direction about the
+    normal facing the incoming ray."""
+    hit = hits["prim_id"] >= 0
+    p = o[hit] + hits["t"][hit, None] * d[hit]
+    n = hits["normal"][hit]
+    n = np.where((np.sum(n * d[hit], axis=1) > 0)[:, None], -n, n)
+    u1, u2 = rng.random(len(p)), rng.random(len(p))
+    r, phi = np.sqrt(u1), 2 * np.pi * u2
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u1)], axis=1)
+    a = np.where(np.abs(n[:, :1]) > 0.9, [[0, 1.0, 0]], [[1.0, 0, 0]])
+    t1 = np.cross(n, a)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(n, t1)
+    dirs = local[:, :1] * t1 + local[:, 1:2] * t2 + local[:, 2:3] * n
+    scale = np.abs(p).max(axis=1, keepdims=True) + 1.0
+    origins = p + n * (scale * 1e-4)
+    return np.ascontiguousarray(origins, np.float32), np.ascontiguousarray(dirs, np.float32)
+
+
+def _median_time(fn, repeat):
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def run_ray_bench(devices=None, sizes=(10_000, 100_000, 1_000_000), n_rays=1_000_000, repeat=3,
+                  embree=True, json_path=None, echo=print) -> dict:
+    from . import devices as dv
+    from .bvh import build_bvh
+    from .trace import embree_scene, trace
+
+    chosen = dv.resolve(devices)
+    rng = np.random.default_rng(7)
+    results = {
+        "machine": {"platform": platform.platform(), "processor": platform.processor(), "python": platform.python_version()},
+        "devices": [dv.device_label(d) for d in chosen],
+        "repeat": repeat,
+        "meshes": [],
+    }
+    header = f"{'mesh':>10} {'rays':>10} {'set':>8} {'backend':<40} {'Mrays/s':>9} {'vs embree':>9}"
+    echo(header)
+    for size in sizes:
+        v, f = bench_mesh(size)
+        build_times = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            bvh = build_bvh(v, f)
+            build_times.append(time.perf_counter() - t0)
+        entry = {"triangles": int(len(f)), "bvh_build_seconds": statistics.median(build_times),
+                 "bvh_stats": {k: val for k, val in bvh.stats.items() if k != "leaf_size_histogram"}, "sets": []}
+        if embree:
+            t0 = time.perf_counter()
+            embree_scene(bvh)
+            entry["embree_build_seconds"] = time.perf_counter() - t0
+        echo(f"{len(f):>10} triangles: BVH build {entry['bvh_build_seconds']:.3f} s (median of {repeat}), "
+             f"SAH cost {bvh.stats['sah_cost']:.2f}"
+             + (f"; embree build {entry['embree_build_seconds']:.3f} s" if embree else ""))
+        o, d = primary_rays(bvh.bounds.astype(np.float64), n_rays)
+        ref = trace(bvh, o, d, backend="embree")
+        o2, d2 = diffuse_rays(ref, o, d, rng)
+        for set_name, (ro, rd) in (("primary", (o, d)), ("diffuse", (o2, d2))):
+            n = len(ro)
+            row = {"set": set_name, "rays": n, "backends": {}}
+            for device in chosen:  # warm-up: kernel build and BVH upload are not timed
+                trace(bvh, ro[:1024], rd[:1024], device=device)
+            timings = {dv.device_label(dev): [] for dev in chosen}
+            if embree:
+                timings["embree"] = []
+            for _ in range(repeat):
+                for dev in chosen:
+                    t0 = time.perf_counter()
+                    trace(bvh, ro, rd, device=dev)
+                    timings[dv.device_label(dev)].append(time.perf_counter() - t0)
+                if embree:  # embreex's own call alone, so Embree is not charged for our wrapper
+                    scene = embree_scene(bvh)
+                    t0 = time.perf_counter()
+                    scene.run(ro, rd, output=1)
+                    timings["embree"].append(time.perf_counter() - t0)
+            emb = statistics.median(timings["embree"]) if embree else None
+            for name, ts in timings.items():
+                med = statistics.median(ts)
+                rate = n / med
+                row["backends"][name] = {"seconds_median": med, "rays_per_second": rate,
+                                         "ratio_to_embree": (emb / med) if emb else None}
+                ratio = f"{emb / med:9.2f}" if emb else f"{'-':>9}"
+                echo(f"{len(f):>10} {n:>10} {set_name:>8} {name[:40]:<40} {rate / 1e6:9.3f} {ratio}")
+            entry["sets"].append(row)
+        results["meshes"].append(entry)
+    if json_path:
+        with open(json_path, "w") as fh:
+            json.dump(results, fh, indent=2)
+        echo(f"wrote {json_path}")
+    return results

@@ -1,0 +1,69 @@
+"""One definition of every struct shared between host and device.
+
+Each layout is a numpy structured dtype; :func:`cl_struct` turns it into the matching OpenCL C
+``typedef struct``, and :func:`cl_header` concatenates them into the header that is prepended to
+every program build.  Fields are 4-byte scalars or arrays of them, so numpy's packed layout and
+OpenCL's natural alignment agree byte for byte (checked by ``tests/test_layout.py``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+# ---------------------------------------------------------------------------------------------
+# BVH node (64 bytes).  A binary BVH in which each node stores the boxes of *both* children
+# (the layout of Aila & Laine 2009), so one node fetch gives the traversal loop everything it needs to
+# test two boxes and decide the order.  Node 0 is the root.
+#
+#   child_left / child_right : when the matching count is 0, index of the child node;
+#                              when count > 0, the child is a leaf holding triangles
+#                              [child, child + count) of the reordered triangle array.
+#   count_left / count_right : 0 for an inner child, the number of triangles for a leaf,
+#                              and -1 for an absent child (its box is empty: min=+inf, max=-inf).
+# ---------------------------------------------------------------------------------------------
+BVH_NODE = np.dtype(
+    [
+        ("bmin_left", np.float32, 3), ("child_left", np.int32),
+        ("bmax_left", np.float32, 3), ("count_left", np.int32),
+        ("bmin_right", np.float32, 3), ("child_right", np.int32),
+        ("bmax_right", np.float32, 3), ("count_right", np.int32),
+    ]
+)
+assert BVH_NODE.itemsize == 64
+
+# A triangle as the traversal kernels read it: three vertices, each padded to a float4 (48 bytes).
+TRIANGLE = np.dtype([("v0", np.float32, 4), ("v1", np.float32, 4), ("v2", np.float32, 4)])
+assert TRIANGLE.itemsize == 48
+
+_CL_SCALAR = {
+    np.dtype(np.float32): "float",
+    np.dtype(np.int32): "int",
+    np.dtype(np.uint32): "uint",
+}
+
+
+def cl_struct(name: str, dtype: np.dtype) -> str:
+    """Return ``typedef struct {...} name;`` for a structured dtype of 4-byte fields."""
+    lines = []
+    for field in dtype.names:
+        ftype, offset = dtype.fields[field][:2]
+        base, shape = (ftype.subdtype if ftype.subdtype else (ftype, ()))
+        if base not in _CL_SCALAR:
+            raise TypeError(f"{name}.{field}: unsupported base type {base}")
+        count = int(np.prod(shape)) if shape else 0
+        suffix = f"[{count}]" if count else ""
+        lines.append(f"    {_CL_SCALAR[base]} {field}{suffix};  /* offset {offset} */")
+    body = "\n".join(lines)
+    return f"typedef struct {{\n{body}\n}} {name};  /* {dtype.itemsize} bytes */\n"
+
+
+# Registry of every shared struct: name -> dtype.  Add new shared structs here.
+STRUCTS: dict[str, np.dtype] = {
+    "BVHNode": BVH_NODE,
+}
+
+
+def cl_header() -> str:
+    """OpenCL C declarations of every shared struct, generated from the dtypes above."""
+    return "/* generated from pyopencl_rt/layout.py: do not edit */\n" + "\n".join(
+        cl_struct(name, dt) for name, dt in STRUCTS.items()
+    )

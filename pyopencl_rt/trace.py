@@ -1,0 +1,194 @@
+"""The ray-casting API: ``trace`` (closest hit) and ``occluded`` (any hit).
+
+Both take the same geometry (a trimesh mesh or scene, a ``(vertices, faces)`` pair, or a built
+:class:`~pyopencl_rt.bvh.BVH`) and the same rays, and run either on an OpenCL device
+(``backend="opencl"``) or through Intel Embree (``backend="embree"``, the reference).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .bvh import BVH, build_bvh
+from .errors import UserError
+from .mesh import flatten
+
+
+def as_bvh(geometry) -> BVH:
+    """A BVH for ``geometry``; a BVH is returned as is, so repeated calls don't rebuild."""
+    if isinstance(geometry, BVH):
+        return geometry
+    vertices, faces = flatten(geometry, name="geometry")
+    return build_bvh(vertices, faces)
+
+
+def _rays(origins, directions, tmin, tmax):
+    o = np.ascontiguousarray(np.asarray(origins, dtype=np.float32).reshape(-1, 3))
+    d = np.ascontiguousarray(np.asarray(directions, dtype=np.float32).reshape(-1, 3))
+    if o.shape != d.shape:
+        if len(o) == 1:
+            o = np.ascontiguousarray(np.broadcast_to(o, d.shape))
+        elif len(d) == 1:
+            d = np.ascontiguousarray(np.broadcast_to(d, o.shape))
+        else:
+            raise UserError(f"origins {o.shape} and directions {d.shape} differ in length")
+    n = len(o)
+    tmin = np.ascontiguousarray(np.broadcast_to(np.asarray(tmin, dtype=np.float32), (n,)))
+    tmax = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, dtype=np.float32), (n,)))
+    return o, d, tmin, tmax
+
+
+BOX_PAD_RELATIVE = 2.0**-20  # see "Conservative on purpose" in cl/intersect.h
+
+
+def padded_nodes(bvh: BVH) -> np.ndarray:
+    """Node boxes grown by 2^-20 of the scene's largest coordinate, so that the box test is
+    conservative with respect to the triangle test's rounding (cl/intersect.h)."""
+    nodes = bvh.nodes.copy()
+    if len(bvh.triangles) == 0:
+        return nodes
+    scale = float(np.abs(bvh.bounds).max())
+    pad = np.float32(scale * BOX_PAD_RELATIVE)
+    for side in ("left", "right"):
+        present = nodes[f"count_{side}"] >= 0
+        lo, hi = nodes[f"bmin_{side}"], nodes[f"bmax_{side}"]
+        lo[present] = np.nextafter(lo[present] - pad, np.float32(-np.inf))
+        hi[present] = np.nextafter(hi[present] + pad, np.float32(np.inf))
+    return nodes
+
+
+class DeviceBVH:
+    """A BVH uploaded to one device (kept on the BVH object, one per device)."""
+
+    def __init__(self, bvh: BVH, rt):
+        import pyopencl as cl
+
+        mf = cl.mem_flags
+        ctx = rt.context
+
+        def upload(a):
+            a = np.ascontiguousarray(a)
+            if a.nbytes == 0:  # OpenCL forbids empty buffers
+                a = np.zeros(16, np.uint8)
+            return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
+
+        self.nodes = upload(padded_nodes(bvh))
+        self.triangles = upload(bvh.triangles)
+        self.prim_ids = upload(bvh.prim_ids.astype(np.int32))
+
+
+def device_bvh(bvh: BVH, rt) -> DeviceBVH:
+    cache = bvh.__dict__.setdefault("_device_cache", {})
+    key = id(rt)
+    if key not in cache:
+        cache[key] = DeviceBVH(bvh, rt)
+    return cache[key]
+
+
+def _opencl(bvh, o, d, tmin, tmax, device, any_hit):
+    import pyopencl as cl
+
+    from .devices import select_device
+    from .kernels import runtime
+
+    rt = runtime(select_device(device))
+    dev = device_bvh(bvh, rt)
+    n = len(o)
+    mf = cl.mem_flags
+    ctx, queue = rt.context, rt.queue
+    if n == 0:
+        return None if not any_hit else np.zeros(0, bool)
+
+    def inbuf(a):
+        return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
+
+    bo, bd, bmin, bmax = inbuf(o), inbuf(d), inbuf(tmin), inbuf(tmax)
+    gsize = (n,)
+    if any_hit:
+        out = np.empty(n, np.uint8)
+        bout = cl.Buffer(ctx, mf.WRITE_ONLY, out.nbytes)
+        rt.kernel(("trace.cl",), "trace_any")(queue, gsize, None, dev.nodes, dev.triangles, bo, bd, bmin, bmax, np.int32(n), bout)
+        cl.enqueue_copy(queue, out, bout)
+        return out.astype(bool)
+    res = {
+        "t": np.empty(n, np.float32),
+        "prim_id": np.empty(n, np.int32),
+        "u": np.empty(n, np.float32),
+        "v": np.empty(n, np.float32),
+        "normal": np.empty((n, 3), np.float32),
+    }
+    bufs = {k: cl.Buffer(ctx, mf.WRITE_ONLY, a.nbytes) for k, a in res.items()}
+    rt.kernel(("trace.cl",), "trace_closest")(
+        queue, gsize, None, dev.nodes, dev.triangles, dev.prim_ids, bo, bd, bmin, bmax, np.int32(n),
+        bufs["t"], bufs["prim_id"], bufs["u"], bufs["v"], bufs["normal"],
+    )
+    for k, a in res.items():
+        cl.enqueue_copy(queue, a, bufs[k])
+    queue.finish()
+    return res
+
+
+def embree_scene(bvh: BVH):
+    """The embreex scene of a BVH's original triangles (cached on the BVH)."""
+    scene = bvh.__dict__.get("_embree_scene")
+    if scene is None:
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+
+        scene = rtcore_scene.EmbreeScene(robust=True)  # watertight mode: the fair reference
+        if len(bvh.faces):
+            TriangleMesh(scene, np.ascontiguousarray(bvh.vertices, np.float32), np.ascontiguousarray(bvh.faces, np.int32))
+        bvh.__dict__["_embree_scene"] = scene
+    return scene
+
+
+def _embree(bvh, o, d, tmin, tmax, any_hit):
+    n = len(o)
+    if len(bvh.faces) == 0 or n == 0:
+        if any_hit:
+            return np.zeros(n, bool)
+        return {"t": np.full(n, np.inf, np.float32), "prim_id": np.full(n, -1, np.int32),
+                "u": np.zeros(n, np.float32), "v": np.zeros(n, np.float32), "normal": np.zeros((n, 3), np.float32)}
+    scene = embree_scene(bvh)
+    # embreex has no tnear argument: start the ray at tmin instead, and add tmin back.
+    start = np.ascontiguousarray(o + tmin[:, None] * d, dtype=np.float32)
+    span = np.ascontiguousarray(tmax - tmin, dtype=np.float32)
+    if any_hit:
+        return scene.run(start, d, dists=span, query="OCCLUDED") != -1
+    r = scene.run(start, d, dists=span, output=1)
+    hit = r["primID"] >= 0
+    t = np.where(hit, r["tfar"] + tmin, np.inf).astype(np.float32)
+    ng = r["Ng"].astype(np.float32)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ng = np.where(hit[:, None], ng / np.linalg.norm(ng, axis=1, keepdims=True), 0.0).astype(np.float32)
+    return {"t": t, "prim_id": r["primID"].astype(np.int32), "u": np.where(hit, r["u"], 0).astype(np.float32),
+            "v": np.where(hit, r["v"], 0).astype(np.float32), "normal": ng}
+
+
+def trace(geometry, origins, directions, tmin=0.0, tmax=np.inf, device=None, backend="opencl") -> dict:
+    """Closest hit of each ray o + t d, t in (tmin, tmax).
+
+    Returns a dict of arrays: ``t`` (inf on a miss), ``prim_id`` (face index, -1 on a miss),
+    ``u``, ``v`` (barycentrics of the face's 2nd and 3rd vertex) and ``normal`` (unit geometric
+    normal (v1 - v0) x (v2 - v0), zero on a miss).
+    """
+    bvh = as_bvh(geometry)
+    o, d, tmin, tmax = _rays(origins, directions, tmin, tmax)
+    if backend == "embree":
+        return _embree(bvh, o, d, tmin, tmax, any_hit=False)
+    if backend != "opencl":
+        raise UserError(f"unknown backend {backend!r}: use 'opencl' or 'embree'")
+    res = _opencl(bvh, o, d, tmin, tmax, device, any_hit=False)
+    if res is None:
+        return _embree(bvh, o, d, tmin, tmax, any_hit=False)  # zero rays: the empty result
+    return res
+
+
+def occluded(geometry, origins, directions, tmin=0.0, tmax=np.inf, device=None, backend="opencl") -> np.ndarray:
+    """True for each ray that hits anything with t in (tmin, tmax)."""
+    bvh = as_bvh(geometry)
+    o, d, tmin, tmax = _rays(origins, directions, tmin, tmax)
+    if backend == "embree":
+        return _embree(bvh, o, d, tmin, tmax, any_hit=True)
+    if backend != "opencl":
+        raise UserError(f"unknown backend {backend!r}: use 'opencl' or 'embree'")
+    return _opencl(bvh, o, d, tmin, tmax, device, any_hit=True)
