@@ -7,18 +7,20 @@ children's boxes):
 ``method="binned"``
     Binned SAH over all three axes, **level-synchronous**: every node of a tree level is handled
     by the same few whole-array numpy calls (``np.bincount`` for bin counts, the numpy-2 fast
-    ``np.minimum.at`` / ``np.maximum.at`` for per-(node, axis, bin) bounds, ``accumulate`` over a
-    ``(..., bins)`` array for the prefix/suffix sweeps, and a stable partition by ``cumsum`` of
-    the side flags).  Nodes holding more than ``_SAMPLE`` triangles (only the top few levels)
+    ``np.minimum.at`` / ``np.maximum.at`` for per-(node, axis, bin) bounds, stored bin-major
+    ``(axis, bin, node)`` so the prefix/suffix sweeps are ``bins`` vector ops over all nodes, and
+    a stable partition by ``cumsum`` of the side flags).  Nodes holding more than ``_SAMPLE`` triangles (only the top few levels)
     evaluate the SAH on an evenly strided sample of ``_SAMPLE`` of their triangles; the split
     itself and the child boxes always use every triangle.  ``bins`` is the number of bins per
     axis while nodes are big; on levels whose mean node size is small it drops to the power of
     two below that mean (at least ``_MIN_BINS``), so the per-node SAH work stays below the
     per-triangle work.  Child boxes come exactly from the bins (float32 min/max, no arithmetic).
 
-    Speed (2-core machine): ~0.6 s for 100k triangles, ~6-9 s for 1M; the 2 s / 1M goal is not
-    met.  Most of the time is ~60 whole-array passes per level (binning keys, 18 ``ufunc.at``
-    passes, partition, compaction) times ~20 levels.
+    Speed (2-core machine): ~0.6 s for 100k triangles, ~7.5-10 s for 1M; the 2 s / 1M goal is
+    not met.  Most of the time is ~60 whole-array passes per level (binning keys, 18 ``ufunc.at``
+    passes, partition, compaction) times ~20 levels.  A Morton-sorted, fixed-order variant
+    (splits only at octree-cell boundaries of the Morton order, SAH-chosen, reduceat boxes, no
+    partition) was tried: ~4 s for 1M but 8-15% worse SAH than the sweep, so it was dropped.
 
 ``method="sweep"``
     Full-sweep SAH: every split position between centroids sorted along each of the three
@@ -316,29 +318,33 @@ def _build_binned(lo0, hi0, max_leaf_size, bins, ct, ci):
             bint = b.astype(np.intp)
             if not sampled_any:
                 binarr[p] = bint
-            key = eseg * (A * Bl) + (p * Bl) + bint
+            key = (p * Bl) * K + bint * K + eseg        # bin-major: (A, Bl, K)
             counts += np.bincount(key, minlength=nkey)
             for d in range(3):
                 np.minimum.at(bmin[d], key, elo[d])
                 np.maximum.at(bmax[d], key, ehi[d])
-        counts = counts.reshape(K, A, Bl)
-        bmin = bmin.reshape(3, K, A, Bl)
-        bmax = bmax.reshape(3, K, A, Bl)
-        pmin = np.minimum.accumulate(bmin, axis=-1)
-        pmax = np.maximum.accumulate(bmax, axis=-1)
-        smin = np.minimum.accumulate(bmin[..., ::-1], axis=-1)[..., ::-1]
-        smax = np.maximum.accumulate(bmax[..., ::-1], axis=-1)[..., ::-1]
-        nl = np.cumsum(counts, axis=-1)[..., :-1]
-        nr = nl[..., -1:] + counts[..., -1:] - nl
-        w = (cnt / m).astype(np.float64)[:, None, None]   # sample -> node count
-        cost = _area32(pmin[..., :-1], pmax[..., :-1]) * nl
-        cost += _area32(smin[..., 1:], smax[..., 1:]) * nr
+        counts = counts.reshape(A, Bl, K)
+        bmin = bmin.reshape(3, A, Bl, K)
+        bmax = bmax.reshape(3, A, Bl, K)
+        # prefix / suffix boxes over the bins (bin axis outermost: each step is one vector op)
+        pmin, pmax, smin, smax = bmin.copy(), bmax.copy(), bmin.copy(), bmax.copy()
+        for j in range(1, Bl):
+            np.minimum(pmin[:, :, j - 1], pmin[:, :, j], out=pmin[:, :, j])
+            np.maximum(pmax[:, :, j - 1], pmax[:, :, j], out=pmax[:, :, j])
+            np.minimum(smin[:, :, Bl - j], smin[:, :, Bl - 1 - j], out=smin[:, :, Bl - 1 - j])
+            np.maximum(smax[:, :, Bl - j], smax[:, :, Bl - 1 - j], out=smax[:, :, Bl - 1 - j])
+        nl = np.cumsum(counts, axis=1)[:, :-1]
+        nr = nl[:, -1:] + counts[:, -1:] - nl
+        w = (cnt / m).astype(np.float32)                  # sample -> node count
+        cost = _area32(pmin[:, :, :-1], pmax[:, :, :-1]) * nl.astype(np.float32)
+        cost += _area32(smin[:, :, 1:], smax[:, :, 1:]) * nr.astype(np.float32)
         cost *= w
         cost[(nl == 0) | (nr == 0)] = np.inf
-        cost[sc_l[ax_tab, kk[:, None]] == 0] = np.inf   # degenerate axis: nothing to split
-        flat = cost.reshape(K, -1)
-        bi = np.argmin(flat, axis=1)
-        best = flat[kk, bi]
+        degen = (sc_l[ax_tab, kk[:, None]] == 0).T[:, None, :]   # degenerate axis: nothing to split
+        cost[np.broadcast_to(degen, cost.shape)] = np.inf
+        flat = cost.reshape(A * (Bl - 1), K)
+        bi = np.argmin(flat, axis=0)
+        best = flat[bi, kk].astype(np.float64)
         bslot, bbin = bi // (Bl - 1), bi % (Bl - 1)
         bax = ax_tab[kk, bslot]
         node_area = _area(box[:, :3].T, box[:, 3:].T)
@@ -362,17 +368,17 @@ def _build_binned(lo0, hi0, max_leaf_size, bins, ct, ci):
         goleft |= dn == 1
         # child boxes: exact from the bins for full-data SAH splits, else recomputed
         child_box = np.empty((K, 2, 6), np.float32)
-        child_box[:, 0, :3] = pmin[:, kk, bslot, bbin].T
-        child_box[:, 0, 3:] = pmax[:, kk, bslot, bbin].T
-        child_box[:, 1, :3] = smin[:, kk, bslot, bbin + 1].T
-        child_box[:, 1, 3:] = smax[:, kk, bslot, bbin + 1].T
+        child_box[:, 0, :3] = pmin[:, bslot, bbin, kk].T
+        child_box[:, 0, 3:] = pmax[:, bslot, bbin, kk].T
+        child_box[:, 1, :3] = smin[:, bslot, bbin + 1, kk].T
+        child_box[:, 1, 3:] = smax[:, bslot, bbin + 1, kk].T
         redo = (decision == 2) | ((decision == 0) & sampled)
         if redo.any():
             sel = np.flatnonzero(redo[seg])
             slot = 2 * seg[sel] + (~goleft[sel])
-            u, inv = np.unique(slot, return_inverse=True)
-            bx = _exact_boxes(inv, len(u), lo[:, sel], hi[:, sel])
-            child_box.reshape(2 * K, 6)[u] = bx
+            rows = np.flatnonzero(np.repeat(redo, 2))
+            bx = _exact_boxes(slot, 2 * K, lo[:, sel], hi[:, sel])
+            child_box.reshape(2 * K, 6)[rows] = bx[rows]
         rank, nl = _partition(seg, start, cnt, goleft)
         slot_base, slot_out, nxt = _advance(tree, node["ids"], node["off"], cnt, nl, decision, depth,
                                             child_box.reshape(2 * K, 6), max_leaf_size)
@@ -382,205 +388,6 @@ def _build_binned(lo0, hi0, max_leaf_size, bins, ct, ci):
         n_next = int(nxt["cnt"].sum())
         (idx,), (lo, hi) = _compact(dest, out_m, n_next, [idx], [lo, hi])
         node = nxt
-        depth += 1
-    return tree, order
-
-
-# ---------------------------------------------------------------------------------------------
-# Morton-range SAH ("binned")
-# ---------------------------------------------------------------------------------------------
-_G = 32            # candidate split positions per node (octree-cell boundaries / all positions)
-
-
-def _spread21(x):
-    """Spread the low 21 bits of uint64 x so that bit i moves to bit 3i."""
-    x = x & np.uint64(0x1FFFFF)
-    x = (x | (x << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
-    x = (x | (x << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
-    x = (x | (x << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
-    x = (x | (x << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
-    x = (x | (x << np.uint64(2))) & np.uint64(0x1249249249249249)
-    return x
-
-
-def _morton63(lo, hi):
-    """63-bit Morton codes of the box centroids (uniform scale over the centroid bounds)."""
-    T = lo.shape[1]
-    c = lo.astype(np.float64)
-    c += hi
-    cmin = c.min(axis=1)
-    ext = float((c.max(axis=1) - cmin).max())
-    scale = (2.0 ** 21 - 1) / ext if ext > 0 else 0.0
-    code = np.zeros(T, np.uint64)
-    for a in range(3):
-        q = c[a] - cmin[a]
-        q *= scale
-        np.minimum(q, 2.0 ** 21 - 1, out=q)
-        code |= _spread21(q.astype(np.uint64)) << np.uint64(2 - a)
-    return code
-
-
-def _highbit(x):
-    """Index of the highest set bit of uint64 x > 0 (int64)."""
-    d = np.clip(np.floor(np.log2(x.astype(np.float64))), 0, 63).astype(np.int64)
-    d -= (x >> d.astype(np.uint64)) == 0                      # float rounding up
-    d += (d < 63) & ((x >> np.minimum(d + 1, 63).astype(np.uint64)) != 0)
-    return d
-
-
-def _ragged_arange(cnt):
-    """concat(arange(c) for c in cnt)."""
-    n = int(cnt.sum())
-    r = np.arange(n, dtype=np.intp)
-    r -= np.repeat(np.cumsum(cnt) - cnt, cnt)
-    return r
-
-
-def _build_morton(lo0, hi0, max_leaf_size, bins, ct, ci):
-    T = lo0.shape[1]
-    G = int(bins) if bins else _G
-    if G < 2:
-        raise ValueError("bins must be >= 2")
-    tree = _Tree(T)
-    root_box = np.concatenate([lo0.min(axis=1, initial=np.inf), hi0.max(axis=1, initial=-np.inf)])[None]
-    root_leaf = T <= max_leaf_size
-    tree.add(root_box, np.array([T]), np.array([0]), 0, np.array([root_leaf]))
-    if root_leaf:
-        return tree, np.arange(T)
-    code = _morton63(lo0, hi0)
-    order = np.argsort(code, kind="stable")
-    code = code[order]
-    # padded (one dummy column) so that reduceat may be given index T
-    lo = np.empty((3, T + 1), np.float32)
-    hi = np.empty((3, T + 1), np.float32)
-    np.take(lo0, order, axis=1, out=lo[:, :T])
-    np.take(hi0, order, axis=1, out=hi[:, :T])
-    lo[:, T] = 0
-    hi[:, T] = 0
-    gmin = root_box[0, :3].astype(np.float64)
-    gext = float(np.max(root_box[0, 3:].astype(np.float64) - gmin))
-    ginv = 1.0 / gext if gext > 0 else 1.0
-    s = np.array([0], np.intp)
-    e = np.array([T], np.intp)
-    ids = np.array([0])
-    depth = 0
-    jj = np.arange(1, G, dtype=np.int64)
-    while len(s):
-        K = len(s)
-        m = e - s
-        small = m <= G
-        # ---- candidate split positions (ragged, node-major, increasing, in (s, e))
-        big = np.flatnonzero(~small)
-        ncand = np.where(small, m - 1, 0)
-        if len(big):
-            sb, eb, mb = s[big], e[big], m[big]
-            a, b = code[sb], code[eb - 1]
-            x = a ^ b
-            same = x == 0
-            d = _highbit(np.where(same, np.uint64(1), x))          # highest differing bit
-            # G-1 octree-cell boundaries of the node's Morton range (cells 1..log2 G bits below d)
-            gb = max(1, int(np.log2(G)))
-            sh = np.maximum(d + 1 - gb, 0)
-            nj = np.minimum(d + 1, gb)                              # bits enumerated
-            pref = (a >> (d + 1).astype(np.uint64)) << (d + 1).astype(np.uint64)
-            jb = jj[None, :]
-            valid_j = jb < (np.int64(1) << nj)[:, None]
-            thr = pref[:, None] | (np.minimum(jb, (np.int64(1) << nj)[:, None] - 1).astype(np.uint64)
-                                   << sh.astype(np.uint64)[:, None])
-            pos = np.searchsorted(code, thr.ravel(), side="left").reshape(thr.shape)
-            # equal codes: evenly spaced index positions
-            if same.any():
-                pos[same] = sb[same, None] + (jb * mb[same, None]) // G
-                valid_j[same] = True
-            pos = np.clip(pos, sb[:, None], eb[:, None])
-            ok = valid_j & (pos > sb[:, None]) & (pos < eb[:, None])
-            ok[:, 1:] &= pos[:, 1:] != pos[:, :-1]
-            # a position equal to an earlier, masked one is a duplicate too: positions are
-            # nondecreasing along j, so comparing with the previous column suffices
-            ncand[big] = ok.sum(axis=1)
-        nsub = ncand + 1
-        sub0 = np.cumsum(nsub) - nsub                              # first sub-range of each node
-        Nsub = int(nsub.sum())
-        sstart = np.empty(Nsub, np.intp)                           # sub-range start positions
-        sstart[sub0] = s
-        sidx = np.flatnonzero(small)
-        if len(sidx):
-            r = _ragged_arange(ncand[sidx])
-            dst = np.repeat(sub0[sidx] + 1, ncand[sidx]) + r
-            sstart[dst] = np.repeat(s[sidx] + 1, ncand[sidx]) + r
-        if len(big):
-            rank = np.cumsum(ok, axis=1) - 1
-            rows = np.broadcast_to(sub0[big][:, None] + 1, ok.shape)
-            sstart[(rows + rank)[ok]] = pos[ok]
-        seg = np.repeat(np.arange(K, dtype=np.intp), nsub)
-        send = np.empty(Nsub, np.intp)
-        send[:-1] = sstart[1:]
-        send[sub0 + nsub - 1] = e
-        # ---- exact float32 boxes of the sub-ranges
-        ridx = np.empty(Nsub + K, np.intp)
-        slot = np.arange(Nsub) + seg
-        ridx[slot] = sstart
-        ridx[sub0 + nsub + np.arange(K)] = e
-        sbox = np.zeros((6, Nsub + 1), np.float32)           # one dummy column for reduceat
-        sbox[:3, :Nsub] = np.minimum.reduceat(lo, ridx, axis=1)[:, slot]
-        sbox[3:, :Nsub] = np.maximum.reduceat(hi, ridx, axis=1)[:, slot]
-        # ---- SAH over the candidates: segmented prefix / suffix boxes (normalised float64)
-        nb = (sbox[:, :Nsub].astype(np.float64) - np.concatenate([gmin, gmin])[:, None]) * ginv
-        pre = np.empty_like(nb)
-        suf = np.empty_like(nb)
-        offp = 2.0 * seg
-        offn = 2.0 * (K - 1 - seg)
-        for c in range(6):
-            if c < 3:
-                pre[c] = np.minimum.accumulate(nb[c] + offn) - offn
-                suf[c] = (np.minimum.accumulate((nb[c] + offp)[::-1]) )[::-1] - offp
-            else:
-                pre[c] = np.maximum.accumulate(nb[c] + offp) - offp
-                suf[c] = (np.maximum.accumulate((nb[c] + offn)[::-1]))[::-1] - offn
-        al = _area(pre[:3], pre[3:])
-        ar = np.empty(Nsub)
-        ar[:-1] = _area(suf[:3, 1:], suf[3:, 1:])
-        ar[-1] = 0.0
-        sn = s[seg]
-        cost = al * (send - sn) + ar * (e[seg] - send)
-        last = sub0 + nsub - 1
-        cost[last] = np.inf
-        best = np.minimum.reduceat(cost, sub0)
-        node_area = al[last]
-        decision = _decide(m, node_area, best, depth, max_leaf_size, ct, ci)
-        hit = np.where(cost == best[seg], np.arange(Nsub), Nsub)
-        jbest = np.minimum.reduceat(hit, sub0)                   # first best sub-range
-        jbest = np.minimum(jbest, last - 1)
-        p = send[jbest]
-        # ---- apply
-        is_leaf = decision == 1
-        tree.leaf[ids[is_leaf]] = True
-        sp = np.flatnonzero(~is_leaf)
-        if not len(sp):
-            break
-        cbox = np.empty((len(sp), 2, 6), np.float32)
-        bidx = np.stack([sub0[sp], jbest[sp] + 1, sub0[sp] + nsub[sp]], axis=1).ravel()
-        cbox[:, :, :3] = np.minimum.reduceat(sbox[:3], bidx, axis=1).reshape(3, -1, 3)[:, :, :2].transpose(1, 2, 0)
-        cbox[:, :, 3:] = np.maximum.reduceat(sbox[3:], bidx, axis=1).reshape(3, -1, 3)[:, :, :2].transpose(1, 2, 0)
-        med = np.flatnonzero(decision[sp] == 2)
-        psp = p[sp]
-        if len(med):
-            k2 = sp[med]
-            psp[med] = s[k2] + m[k2] // 2
-            tri = np.stack([s[k2], psp[med], e[k2]], axis=1).ravel()
-            mlo = np.minimum.reduceat(lo, tri, axis=1).reshape(3, -1, 3)[:, :, :2]
-            mhi = np.maximum.reduceat(hi, tri, axis=1).reshape(3, -1, 3)[:, :, :2]
-            cbox[med, :, :3] = mlo.transpose(1, 2, 0)
-            cbox[med, :, 3:] = mhi.transpose(1, 2, 0)
-        cs = np.stack([s[sp], psp], axis=1)
-        ce = np.stack([psp, e[sp]], axis=1)
-        ccnt = ce - cs
-        cleaf = (ccnt <= max_leaf_size) | (depth + 1 >= MAX_DEPTH)
-        cids = tree.add(cbox.reshape(-1, 6), ccnt.ravel(), cs.ravel(), depth + 1, cleaf.ravel()).reshape(-1, 2)
-        tree.left[ids[sp]] = cids[:, 0]
-        tree.right[ids[sp]] = cids[:, 1]
-        act = ~cleaf
-        s, e, ids = cs[act], ce[act], cids[act]
         depth += 1
     return tree, order
 
@@ -818,8 +625,6 @@ def build_bvh(vertices, faces, *, method="binned", max_leaf_size=4, bins=16,
     lo = np.ascontiguousarray(tv.min(axis=1).T)            # (3, T)
     hi = np.ascontiguousarray(tv.max(axis=1).T)
     if method == "binned":
-        tree, order = _build_morton(lo, hi, max_leaf_size, bins, traversal_cost, intersection_cost)
-    elif method == "binned_ufunc":
         tree, order = _build_binned(lo, hi, max_leaf_size, bins, traversal_cost, intersection_cost)
     elif method == "sweep":
         tree, order = _build_sweep(lo, hi, max_leaf_size, traversal_cost, intersection_cost)

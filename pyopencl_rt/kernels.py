@@ -31,18 +31,22 @@ def assemble(*names: str, extra: str = "") -> str:
     """Concatenate the named sources, then ``extra`` source text, with every ``#include "x.h"``
     expanded from ``cl/`` (each file included once)."""
     root = cl_dir()
-    seen: set[str] = set()
+    seen: set[Path] = set()
 
-    def expand(name: str) -> str:
-        if name in seen:
+    def expand(name: str, base: Path) -> str:
+        # an include is looked up next to the including file first, then in cl/
+        path = (base / name).resolve()
+        if not path.is_file():
+            path = (root / name).resolve()
+        if path in seen:
             return ""
-        seen.add(name)
-        text = (root / name).read_text()
-        return _INCLUDE.sub(lambda m: expand(m.group(1)), text)
+        seen.add(path)
+        text = path.read_text()
+        return _INCLUDE.sub(lambda m: expand(m.group(1), path.parent), text)
 
-    body = "\n".join(expand(n) for n in names)
+    body = "\n".join(expand(n, root) for n in names)
     if extra:
-        body += "\n" + _INCLUDE.sub(lambda m: expand(m.group(1)), extra)
+        body += "\n" + _INCLUDE.sub(lambda m: expand(m.group(1), root), extra)
     return layout.cl_header() + "\n" + body
 
 

@@ -34,6 +34,37 @@ assert BVH_NODE.itemsize == 64
 TRIANGLE = np.dtype([("v0", np.float32, 4), ("v1", np.float32, 4), ("v2", np.float32, 4)])
 assert TRIANGLE.itemsize == 48
 
+# A material (32 bytes).  type: MATERIAL_DIFFUSE (Lambertian) for now; later issues add more.
+# flags: bit 0 = emission on both sides (default: only on the side the geometric normal faces).
+MATERIAL_DIFFUSE = 0
+MATERIAL_FLAG_TWO_SIDED = 1
+MATERIAL = np.dtype(
+    [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32)]
+)
+assert MATERIAL.itemsize == 32
+
+# A sphere (16 bytes): centre and radius.
+SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
+
+# An emitter that next-event estimation samples (16 bytes).
+#   kind: LIGHT_TRIANGLE (prim = original face index) or LIGHT_SPHERE (prim = sphere index)
+#   pmf: probability that the light sampler picks this light (proportional to power)
+#   alias, alias_prob: Walker/Vose alias table entry for O(1) sampling
+LIGHT_TRIANGLE = 0
+LIGHT_SPHERE = 1
+LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), ("alias_prob", np.float32),
+                  ("alias", np.int32), ("material", np.int32), ("area", np.float32), ("pad", np.int32)])
+assert LIGHT.itemsize == 32
+
+# The pinhole camera (64 bytes).  A pixel (x, y) with jitter (jx, jy) in [0,1)^2 maps to the
+# direction forward + ((x+jx)/W*2-1) * right + (1-(y+jy)/H*2) * up, where right and up are
+# already scaled by tan(fov/2) (and the aspect ratio, for right).
+CAMERA = np.dtype(
+    [("origin", np.float32, 3), ("width", np.int32), ("forward", np.float32, 3), ("height", np.int32),
+     ("right", np.float32, 3), ("pad0", np.int32), ("up", np.float32, 3), ("pad1", np.int32)]
+)
+assert CAMERA.itemsize == 64
+
 _CL_SCALAR = {
     np.dtype(np.float32): "float",
     np.dtype(np.int32): "int",
@@ -59,6 +90,10 @@ def cl_struct(name: str, dtype: np.dtype) -> str:
 # Registry of every shared struct: name -> dtype.  Add new shared structs here.
 STRUCTS: dict[str, np.dtype] = {
     "BVHNode": BVH_NODE,
+    "Material": MATERIAL,
+    "Sphere": SPHERE,
+    "Light": LIGHT,
+    "Camera": CAMERA,
 }
 
 

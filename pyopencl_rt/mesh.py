@@ -27,11 +27,39 @@ def load_trimesh(path):
         raise MeshError(f"{path}: no such file")
     if p.is_dir():
         raise MeshError(f"{path}: is a folder, not a mesh file")
+    _reject_binary_text_format(p)
     try:
         loaded = trimesh.load(str(p), process=False)
     except Exception as exc:  # trimesh raises many types for malformed input
         raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from None
     return loaded
+
+
+_TEXT_FORMATS = {".obj", ".off", ".mtl"}
+
+
+def _reject_binary_text_format(p: Path) -> None:
+    """trimesh decodes any bytes as text (through charset_normalizer when installed), so a
+    corrupt OBJ loads as an empty mesh instead of failing: check text formats ourselves."""
+    ext = p.suffix.lower()
+    if ext not in _TEXT_FORMATS and ext != ".stl":
+        return
+    head = p.read_bytes()[:65536]
+    if ext == ".stl":
+        # binary STL: 80-byte header, uint32 count, 50 bytes per triangle
+        size = p.stat().st_size
+        if size >= 84 and 84 + 50 * int.from_bytes(p.read_bytes()[80:84], "little") == size:
+            return
+        if head.lstrip().lower().startswith(b"solid"):
+            return
+        raise MeshError(f"{p}: not a valid STL file (neither ASCII 'solid' nor a consistent binary header)")
+    if b"\0" in head:
+        raise MeshError(f"{p}: not a valid {ext} file (binary data)")
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if exc.start < len(head) - 4:  # not merely a multi-byte character cut at the end
+            raise MeshError(f"{p}: not a valid {ext} file (not UTF-8 text)") from None
 
 
 def flatten(geometry, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:

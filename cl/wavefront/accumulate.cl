@@ -1,0 +1,20 @@
+/* Stage 5: finished paths.  The radiance goes to its pass's buffer in the ring (one write per
+ * pixel and pass, so no float atomics and no order dependence), non-finite values are counted
+ * and dropped, and the slot returns to the free stack.  a4 = free-stack length before. */
+#include "../lights.h"
+
+__kernel void wf_accumulate(WAVE_PARAMS)
+{
+    const int i = get_global_id(0);
+    if (i >= counters[COUNTER_TERM]) return;
+    const int slot = term_q[i];
+    float3 L = load3(radiance, slot);
+    if (!(isfinite(L.x) && isfinite(L.y) && isfinite(L.z))) {
+        atomic_inc(&counters[COUNTER_NONFINITE]);
+        L = (float3)(0.0f);
+    }
+    const int ring = path_pass[slot] % ring_size;
+    store3(pass_ring, ring * n_pixels + path_pixel[slot], L);
+    atomic_inc(&counters[COUNTER_PASS_DONE + ring]);
+    free_q[a4 + i] = slot;
+}

@@ -1,0 +1,31 @@
+/* Stage 1: new camera paths into free slots.
+ * a0 = number of new paths, a1 = pass of the first, a2 = pixel of the first (later paths take
+ * the following pixels, wrapping into the next pass), a3 = active-queue length before,
+ * a4 = free-stack length before.  Pixel jitter: box filter over the pixel. */
+#include "../lights.h"
+
+__kernel void wf_generate(WAVE_PARAMS)
+{
+    const int i = get_global_id(0);
+    if (i >= a0) return;
+    const int linear = a2 + i;
+    const int pass = a1 + linear / n_pixels;
+    const int pixel = linear % n_pixels;
+    const int slot = free_q[a4 - 1 - i];
+    queue_in[a3 + i] = slot;
+
+    const Camera cam = *camera;
+    const int x = pixel % cam.width, y = pixel / cam.width;
+    const float2 jitter = rng_uniform2(seed, (uint)pixel, (uint)pass, DIM_PIXEL);
+    const float sx = ((float)x + jitter.x) / (float)cam.width * 2.0f - 1.0f;
+    const float sy = 1.0f - ((float)y + jitter.y) / (float)cam.height * 2.0f;
+    const float3 d = normalize(vload3(0, cam.forward) + sx * vload3(0, cam.right) + sy * vload3(0, cam.up));
+    store3(ray_o, slot, vload3(0, cam.origin));
+    store3(ray_d, slot, d);
+    store3(throughput, slot, (float3)(1.0f));
+    store3(radiance, slot, (float3)(0.0f));
+    path_pixel[slot] = pixel;
+    path_pass[slot] = pass;
+    path_depth[slot] = 0;
+    path_pdf[slot] = 0.0f; /* 0 = "specular/camera": emission seen directly gets full weight */
+}

@@ -1,0 +1,131 @@
+/* Stage 3: shading of every active path at its new hit point.
+ *
+ *   emission   Le of an emitter hit by the path, weighted by MIS against light sampling
+ *              (power heuristic; weight 1 for camera rays), or by 1 (INTEGRATOR 1, BSDF
+ *              sampling only) or 0 after the first segment (INTEGRATOR 2, light sampling only);
+ *   light      one light sample (picked by power with the alias table): its contribution,
+ *              weighted by MIS, is queued with a shadow ray (not with INTEGRATOR 1);
+ *   BSDF       one BSDF sample continues the path; Russian roulette after rr_depth bounces
+ *              keeps it with probability min(max(throughput), 0.95).
+ *
+ * max_depth counts path segments, as in Mitsuba: 1 shows emitters only, 2 adds direct
+ * lighting; a negative value means no limit (Russian roulette ends paths).
+ * a0 = active-queue length.
+ */
+#include "../lights.h"
+
+#ifndef INTEGRATOR
+#define INTEGRATOR 0
+#endif
+
+inline float max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
+
+__kernel void wf_shade(WAVE_PARAMS)
+{
+    const int i = get_global_id(0);
+    if (i >= a0) return;
+    const int slot = queue_in[i];
+    const int prim = hit_prim[slot];
+    const int depth = path_depth[slot];
+    const int pixel = path_pixel[slot];
+    const uint pass = (uint)path_pass[slot];
+    float3 beta = load3(throughput, slot);
+    float3 L = load3(radiance, slot);
+    int alive = 0;
+
+    if (prim != PRIM_MISS) {
+        const float3 o = load3(ray_o, slot), d = load3(ray_d, slot);
+        const float3 p = o + hit_t[slot] * d;
+        const float3 ng = hit_normal(tris, spheres, prim, p);
+        const float3 wo = -d;
+        const float3 n = dot(ng, wo) >= 0.0f ? ng : -ng; /* normal on the viewer's side */
+        int mat_index, light_index;
+#ifdef HAS_SPHERES
+        if (IS_SPHERE(prim)) {
+            mat_index = sphere_material[SPHERE_INDEX(prim)];
+            light_index = sphere_light[SPHERE_INDEX(prim)];
+        } else
+#endif
+        {
+            mat_index = tri_material[prim];
+            light_index = tri_light[prim];
+        }
+        __global const Material *m = materials + mat_index;
+        const uint dim = 2 + DIMS_PER_BOUNCE * (uint)depth;
+
+        /* -- emission seen by the path -------------------------------------------------- */
+        const float3 Le = emitted(m, ng, wo);
+        if (max3(Le) > 0.0f) {
+            float w = 1.0f;
+            const float prev_pdf = path_pdf[slot];
+#if INTEGRATOR == 2
+            if (prev_pdf > 0.0f) w = 0.0f;
+#elif INTEGRATOR == 0 && defined(HAS_LIGHTS)
+            if (prev_pdf > 0.0f && light_index >= 0) {
+                __global const Light *lt = lights + light_index;
+                w = power_heuristic(prev_pdf, lt->pmf * light_pdf(spheres, lt, o, p, ng));
+            }
+#endif
+            L += beta * Le * w;
+        }
+
+        const int segments = depth + 1;
+        if (max_depth < 0 || segments < max_depth) {
+            /* -- next-event estimation ------------------------------------------------------ */
+#if defined(HAS_LIGHTS) && INTEGRATOR != 1
+            float pick_pmf;
+            const int li = sample_alias(lights, n_lights, rng_uniform(seed, (uint)pixel, pass, dim + DIM_LIGHT_PICK), &pick_pmf);
+            LightSample ls;
+            if (pick_pmf > 0.0f &&
+                light_sample(tris, spheres, materials, lights + li, p,
+                             rng_uniform2(seed, (uint)pixel, pass, dim + DIM_LIGHT_POINT), &ls) &&
+                ls.pdf > 0.0f && max3(ls.Le) > 0.0f) {
+                float3 wi = ls.p - p;
+                const float dist = length(wi);
+                wi /= dist;
+                float bpdf;
+                const float3 f = bsdf_eval(m, n, wo, wi, &bpdf);
+                if (max3(f) > 0.0f && dist > 0.0f) {
+                    const float lpdf = pick_pmf * ls.pdf;
+#if INTEGRATOR == 0
+                    const float w = power_heuristic(lpdf, bpdf);
+#else
+                    const float w = 1.0f;
+#endif
+                    const float3 so = offset_ray_origin(p, dot(ng, wi) > 0.0f ? ng : -ng);
+                    const float3 sp = offset_ray_origin(ls.p, ls.n);
+                    store3(sh_o, slot, so);
+                    store3(sh_d, slot, sp - so);
+                    store3(sh_contrib, slot, beta * f * ls.Le * (w / lpdf));
+                    shadow_q[atomic_inc(&counters[COUNTER_SHADOW])] = slot;
+                }
+            }
+#endif
+            /* -- BSDF sampling continues the path -------------------------------------------- */
+            float3 wi;
+            float pdf;
+            const float3 weight = bsdf_sample(m, n, wo, rng_uniform2(seed, (uint)pixel, pass, dim + DIM_BSDF), &wi, &pdf);
+            if (pdf > 0.0f && max3(weight) > 0.0f) {
+                beta *= weight;
+                alive = 1;
+                if (segments >= rr_depth) {
+                    const float q = fmin(max3(beta), 0.95f);
+                    if (rng_uniform(seed, (uint)pixel, pass, dim + DIM_RR) >= q) alive = 0;
+                    else beta /= q;
+                }
+                if (alive) {
+                    store3(ray_o, slot, offset_ray_origin(p, dot(ng, wi) > 0.0f ? ng : -ng));
+                    store3(ray_d, slot, wi);
+                    store3(throughput, slot, beta);
+                    path_pdf[slot] = pdf;
+                    path_depth[slot] = segments;
+                }
+            }
+        }
+    }
+    store3(radiance, slot, L);
+    if (alive)
+        queue_out[atomic_inc(&counters[COUNTER_QUEUE_OUT])] = slot;
+    else
+        term_q[atomic_inc(&counters[COUNTER_TERM])] = slot;
+}

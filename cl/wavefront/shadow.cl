@@ -1,0 +1,12 @@
+/* Stage 4: any-hit test of every queued light sample; unoccluded ones add their contribution.
+ * The shadow ray runs from the offset surface point to the offset light point, t in (0, 1). */
+#include "../lights.h"
+
+__kernel void wf_shadow(WAVE_PARAMS)
+{
+    const int i = get_global_id(0);
+    if (i >= counters[COUNTER_SHADOW]) return;
+    const int slot = shadow_q[i];
+    if (!scene_occluded(nodes, tris, spheres, n_spheres, load3(sh_o, slot), load3(sh_d, slot), 0.0f, 1.0f))
+        store3(radiance, slot, load3(radiance, slot) + load3(sh_contrib, slot));
+}

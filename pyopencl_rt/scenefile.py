@@ -1,0 +1,784 @@
+"""Scene files in, :class:`~pyopencl_rt.scene.Scene` out.
+
+``load_scene(path)`` reads
+
+* a **TOML scene file** (``.toml``), described below and in ``docs/SCENE_FORMAT.md``;
+* an **OBJ file** (``.obj``) with its MTL materials: ``Kd`` becomes the albedo, ``Ke`` the
+  emission, one material per face (``usemtl``); a camera framing the scene and default settings;
+* **any other mesh file** trimesh reads (PLY, STL, GLB/glTF, OFF, ...) with one default diffuse
+  material (albedo 0.8) and the framing camera.
+
+Every problem with the input raises a :class:`SceneError` (a :class:`~pyopencl_rt.errors.UserError`)
+whose message is one line and starts with the scene file's name.
+
+TOML scene format (summary; the full reference is ``docs/SCENE_FORMAT.md``)::
+
+    [camera]                      # optional; without it a camera frames the whole scene
+    eye = [278, 273, -800]        # required in [camera]
+    look_at = [278, 273, 0]       # required in [camera]
+    up = [0, 1, 0]                # default [0, 1, 0]
+    fov = 39.3077                 # vertical field of view in degrees, default 40
+
+    [film]
+    width = 512                   # pixels, default 512
+    height = 512                  # pixels, default 512
+
+    [render]
+    spp = 64                      # samples per pixel, default 64
+    max_depth = 8                 # path length limit, default 8
+    integrator = "path"           # "path" | "bsdf" | "nee", default "path"
+    seed = 0                      # default 0
+    rr_depth = 3                  # Russian roulette starts after this many bounces, default 3
+
+    [materials.white]             # one table per material, referred to by NAME
+    type = "diffuse"              # the only type for now (default)
+    albedo = [0.725, 0.71, 0.68]  # linear RGB in [0, 1] (or one number for grey), default 0.8
+    emission = [0, 0, 0]          # linear RGB radiance >= 0 (or one number), default 0
+    two_sided = false             # emit from both sides, default false
+
+    [[shape]]                     # one table per shape, numbered #1, #2, ... in messages
+    type = "quad"                 # "mesh" | "quad" | "triangle" | "box" | "sphere"
+    material = "white"            # default: the built-in "default" material (albedo 0.8)
+    points = [[0,0,0], [1,0,0], [1,1,0], [0,1,0]]
+
+Shape keys:
+
+* ``mesh``: ``file`` (relative to the scene file; any format trimesh loads),
+  ``use_file_materials = true`` (OBJ only: take the MTL materials; a ``[materials.NAME]``
+  with the same name overrides one, ``material`` is used for faces without ``usemtl``).
+* ``quad``: ``points``: four corners in order, split into triangles (p0, p1, p2) and
+  (p0, p2, p3); the emitting/front side is that of the normal (p1 - p0) x (p2 - p0), i.e. the
+  corners run counter-clockwise seen from the front (right-hand rule).
+* ``triangle``: ``points``: three corners; front side (p1 - p0) x (p2 - p0).
+* ``box``: ``size`` (3-vector or number, default 1) centred on ``center`` (default origin);
+  faces point outwards.
+* ``sphere``: ``center``, ``radius``; emits outwards. No transforms.
+
+Triangle shapes (mesh, quad, triangle, box) take an optional transform: ``scale`` (number or
+3-vector), ``rotate`` (``{axis = [x, y, z], angle = DEGREES}`` or a list of them, applied in
+order), ``translate`` (3-vector), applied in that order (scale, rotate, translate); or instead
+``matrix``, a 4x4 affine matrix (rows) applied to column vectors [x, y, z, 1].  A transform that
+mirrors (negative determinant) keeps each face's front side on the transformed normal's side.
+``flip_normals = true`` swaps the front side of every face of the shape.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .errors import UserError
+from .mesh import MeshError, check_triangles, flatten, load_trimesh
+from .scene import INTEGRATORS, Camera, Material, RenderSettings, Scene
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    try:
+        import tomli as tomllib
+    except ModuleNotFoundError:
+        tomllib = None
+
+__all__ = ["load_scene", "SceneError", "framing_camera", "parse_obj", "parse_mtl"]
+
+MATERIAL_TYPES = ("diffuse",)
+SHAPE_TYPES = ("mesh", "quad", "triangle", "box", "sphere")
+DEFAULT_FOV = 40.0
+
+_TOP_KEYS = {"camera", "film", "render", "materials", "shape"}
+_CAMERA_KEYS = {"eye", "look_at", "up", "fov"}
+_FILM_KEYS = {"width", "height"}
+_RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth"}
+_MATERIAL_KEYS = {"type", "albedo", "emission", "two_sided"}
+_TRANSFORM_KEYS = {"translate", "scale", "rotate", "matrix", "flip_normals"}
+_SHAPE_KEYS = {
+    "mesh": {"type", "material", "file", "use_file_materials"} | _TRANSFORM_KEYS,
+    "quad": {"type", "material", "points"} | _TRANSFORM_KEYS,
+    "triangle": {"type", "material", "points"} | _TRANSFORM_KEYS,
+    "box": {"type", "material", "size", "center"} | _TRANSFORM_KEYS,
+    "sphere": {"type", "material", "center", "radius"},
+}
+
+
+class SceneError(UserError):
+    """A scene file that cannot be loaded; the message is one line naming the file."""
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+# --------------------------------------------------------------------------------------------
+# entry point
+
+
+def load_scene(path) -> Scene:
+    """Load a ``.toml`` scene file, an ``.obj`` (+ ``.mtl``) file or any mesh trimesh reads."""
+    p = Path(path)
+    name = str(path)
+    if not p.exists():
+        raise SceneError(f"{name}: no such file")
+    if p.is_dir():
+        raise SceneError(f"{name}: is a folder, not a scene file")
+    suffix = p.suffix.lower()
+    try:
+        if suffix == ".toml":
+            return _load_toml(p, name)
+        if suffix == ".obj":
+            return _load_obj_scene(p, name)
+        return _load_mesh_scene(p, name)
+    except SceneError:
+        raise
+    except UserError as exc:  # MeshError from mesh.py: already names the file, make sure it is one line
+        raise type(exc)(_one_line(str(exc))) from None
+
+
+# --------------------------------------------------------------------------------------------
+# OBJ / MTL
+
+
+def parse_mtl(path, name: str | None = None) -> dict:
+    """{material name: Material} from an MTL file: ``Kd`` -> albedo, ``Ke`` -> emission."""
+    name = name or str(path)
+    materials: dict[str, Material] = {}
+    current = None
+    try:
+        text = Path(path).read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise SceneError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        key, _, rest = line.partition(" ")
+        key = key.strip()
+        rest = rest.strip()
+        if key == "newmtl":
+            current = Material(name=rest or f"material{len(materials)}")
+            materials[current.name] = current
+        elif key in ("Kd", "Ke") and current is not None:
+            fields = rest.split()
+            if fields and fields[0] in ("spectral", "xyz"):
+                warnings.warn(f"{name}:{lineno}: '{key} {fields[0]}' is not supported; ignored", stacklevel=3)
+                continue
+            try:
+                values = [float(f) for f in fields]
+            except ValueError:
+                raise SceneError(f"{name}:{lineno}: {key} needs numbers, got '{rest}'") from None
+            if len(values) == 1:
+                values = values * 3
+            if len(values) != 3 or not all(math.isfinite(v) for v in values):
+                raise SceneError(f"{name}:{lineno}: {key} needs 1 or 3 finite numbers, got '{rest}'")
+            if key == "Kd":
+                clipped = tuple(min(max(v, 0.0), 1.0) for v in values)
+                if clipped != tuple(values):
+                    warnings.warn(f"{name}:{lineno}: Kd {rest} clamped to [0, 1]", stacklevel=3)
+                current.albedo = clipped
+            else:
+                if min(values) < 0:
+                    raise SceneError(f"{name}:{lineno}: Ke must not be negative, got '{rest}'")
+                current.emission = tuple(values)
+    return materials
+
+
+def parse_obj(path, name: str | None = None):
+    """(vertices (V,3) float64, faces (F,3) int64, face material names list[str|None], mtllib paths).
+
+    Polygons are fan-triangulated (as trimesh does); negative (relative) indices and
+    ``v/vt/vn`` forms are accepted; only ``v``, ``f``, ``usemtl`` and ``mtllib`` matter.
+    """
+    name = name or str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise SceneError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    text = text.replace("\\\r\n", " ").replace("\\\n", " ")
+    vertex_text: list[str] = []
+    vertex_lines: list[int] = []
+    corners: list[int] = []  # 3 raw OBJ indices per triangle
+    tri_nv: list[int] = []  # vertices defined when the face was read (for relative indices)
+    tri_line: list[int] = []
+    tri_mtl: list[int] = []
+    mtl_names: list[str | None] = [None]
+    mtl_lookup = {None: 0}
+    current = 0
+    mtllibs: list[str] = []
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        if "#" in raw:
+            raw = raw.split("#", 1)[0]
+        key, _, rest = raw.strip().partition(" ")
+        if key == "v":
+            fields = rest.split()
+            if len(fields) < 3:
+                raise SceneError(f"{name}:{lineno}: a vertex needs 3 coordinates, got '{raw.strip()}'")
+            vertex_text.append(rest if len(fields) == 3 else " ".join(fields[:3]))
+            vertex_lines.append(lineno)
+        elif key == "f":
+            toks = rest.split()
+            if "/" in rest:
+                toks = [t.split("/", 1)[0] for t in toks]
+            try:
+                idx = list(map(int, toks))
+            except ValueError:
+                raise SceneError(f"{name}:{lineno}: bad face '{raw.strip()}'") from None
+            n = len(idx)
+            if n < 3:
+                raise SceneError(f"{name}:{lineno}: a face needs at least 3 vertices, got '{raw.strip()}'")
+            if n == 3:
+                corners.extend(idx)
+            else:
+                first = idx[0]
+                for k in range(1, n - 1):
+                    corners.extend((first, idx[k], idx[k + 1]))
+            nv = len(vertex_text)
+            tri_nv.extend([nv] * (n - 2))
+            tri_line.extend([lineno] * (n - 2))
+            tri_mtl.extend([current] * (n - 2))
+        elif key == "usemtl":
+            mname = rest.strip() or None
+            if mname not in mtl_lookup:
+                mtl_lookup[mname] = len(mtl_names)
+                mtl_names.append(mname)
+            current = mtl_lookup[mname]
+        elif key == "mtllib":
+            rest = rest.strip()
+            if (Path(path).parent / rest).exists() or " " not in rest:
+                mtllibs.append(rest)
+            else:
+                mtllibs.extend(rest.split())
+    try:
+        v = np.array(" ".join(vertex_text).split(), dtype=np.float64).reshape(-1, 3)
+    except ValueError:
+        for lineno, t in zip(vertex_lines, vertex_text):
+            try:
+                [float(x) for x in t.split()]
+            except ValueError:
+                raise SceneError(f"{name}:{lineno}: bad vertex 'v {t}'") from None
+        raise
+    f = np.asarray(corners, np.int64).reshape(-1, 3)
+    if len(f):
+        nv = np.asarray(tri_nv, np.int64)[:, None]
+        resolved = np.where(f < 0, nv + f, f - 1)
+        bad = (resolved < 0) | (resolved >= nv) | (f == 0)
+        if bad.any():
+            row, col = np.argwhere(bad)[0]
+            raise SceneError(f"{name}:{tri_line[row]}: face index {f[row, col]} refers to no vertex defined before it")
+        f = resolved
+    names = [mtl_names[i] for i in tri_mtl]
+    return v, f, names, mtllibs
+
+
+def _obj_with_materials(path: Path, name: str, overrides: dict | None = None, fallback: Material | None = None):
+    """vertices, faces, face material indices (into the returned list), materials list."""
+    vertices, faces, face_names, mtllibs = parse_obj(path, name)
+    library: dict[str, Material] = {}
+    libraries_missing = False
+    for lib in mtllibs:
+        lib_path = path.parent / lib
+        if not lib_path.exists():
+            libraries_missing = True
+            warnings.warn(f"{name}: material library '{lib}' not found ({lib_path}); using default materials", stacklevel=3)
+            continue
+        library.update(parse_mtl(lib_path, str(lib_path)))
+    overrides = overrides or {}
+    materials: list[Material] = []
+    index: dict[str | None, int] = {}
+    missing = []
+    for mname in dict.fromkeys(face_names):  # in order of first use
+        if mname is None:
+            mat = fallback or Material()
+        elif mname in overrides:
+            mat = overrides[mname]
+        elif mname in library:
+            mat = library[mname]
+        else:
+            missing.append(mname)
+            mat = Material(name=mname)
+        index[mname] = len(materials)
+        materials.append(mat)
+    if missing and not libraries_missing:
+        warnings.warn(f"{name}: materials {', '.join(map(repr, missing))} not defined in any MTL; using albedo 0.8", stacklevel=3)
+    face_mat = np.fromiter((index[n] for n in face_names), np.int32, count=len(face_names))
+    return vertices, faces, face_mat, materials
+
+
+def _load_obj_scene(p: Path, name: str) -> Scene:
+    vertices, faces, face_mat, materials = _obj_with_materials(p, name)
+    if len(faces) == 0:
+        raise SceneError(f"{name}: contains no faces")
+    v32, f32, face_mat = _checked(vertices, faces, face_mat, name)
+    if not materials:
+        materials = [Material()]
+    scene = Scene(vertices=v32, faces=f32, face_materials=face_mat, materials=materials, source=name)
+    scene.camera = framing_camera(*_bounds(scene), scene.settings.width, scene.settings.height)
+    return scene
+
+
+def _load_mesh_scene(p: Path, name: str) -> Scene:
+    vertices, faces = flatten(load_trimesh(p), name=name)
+    if len(faces) == 0:
+        raise SceneError(f"{name}: contains no triangles")
+    scene = Scene(
+        vertices=vertices, faces=faces, face_materials=np.zeros(len(faces), np.int32),
+        materials=[Material()], source=name,
+    )
+    scene.camera = framing_camera(*_bounds(scene), scene.settings.width, scene.settings.height)
+    return scene
+
+
+def _checked(vertices, faces, face_mat, name):
+    """check_triangles, keeping face_materials aligned with faces it may drop."""
+    faces = np.asarray(faces, np.int64)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        v32, f32 = check_triangles(vertices, faces, name)
+    for w in caught:
+        warnings.warn(w.message, stacklevel=3)
+    face_mat = np.asarray(face_mat, np.int32)
+    if len(f32) != len(faces):
+        with np.errstate(over="ignore", invalid="ignore"):
+            finite = np.isfinite(np.asarray(vertices, np.float64).astype(np.float32)).all(axis=1)
+        keep = finite[faces].all(axis=1)
+        face_mat = face_mat[keep]
+    return v32, f32, np.ascontiguousarray(face_mat)
+
+
+# --------------------------------------------------------------------------------------------
+# framing camera
+
+
+def _bounds(scene: Scene):
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    if len(scene.faces):
+        used = scene.vertices[np.unique(scene.faces)].astype(np.float64)
+        lo = np.minimum(lo, used.min(axis=0))
+        hi = np.maximum(hi, used.max(axis=0))
+    if len(scene.spheres):
+        s = scene.spheres.astype(np.float64)
+        lo = np.minimum(lo, (s[:, :3] - s[:, 3:4]).min(axis=0))
+        hi = np.maximum(hi, (s[:, :3] + s[:, 3:4]).max(axis=0))
+    if not np.isfinite(lo).all():
+        lo = hi = np.zeros(3)
+    return lo, hi
+
+
+def framing_camera(lo, hi, width: int = 512, height: int = 512, fov: float = DEFAULT_FOV) -> Camera:
+    """A camera looking along -z at the centre of the box [lo, hi], far enough back that the
+    box's bounding sphere fits the narrower of the vertical and horizontal fields of view."""
+    lo = np.asarray(lo, np.float64)
+    hi = np.asarray(hi, np.float64)
+    centre = (lo + hi) / 2
+    radius = float(np.linalg.norm(hi - lo)) / 2
+    if not radius > 0:
+        radius = 1.0
+    half_v = math.radians(fov) / 2
+    half_h = math.atan(math.tan(half_v) * width / height)
+    half = min(half_v, half_h)
+    distance = 1.05 * radius / math.sin(half)
+    eye = centre + np.array([0.0, 0.0, distance])
+    return Camera(
+        eye=tuple(float(x) for x in eye), look_at=tuple(float(x) for x in centre),
+        up=(0.0, 1.0, 0.0), fov=float(fov),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# TOML
+
+
+class _Ctx:
+    """Error helper: every message is '<file>: <where>: <what>'."""
+
+    def __init__(self, name: str):
+        self.name = name
+
+    def error(self, where: str, what: str) -> SceneError:
+        prefix = f"{self.name}: {where}: " if where else f"{self.name}: "
+        return SceneError(_one_line(prefix + what))
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _describe(x) -> str:
+    if isinstance(x, bool):
+        return f"boolean {str(x).lower()}"
+    if isinstance(x, str):
+        return f"string {x!r}"
+    if isinstance(x, list):
+        return f"a list of {len(x)}"
+    if isinstance(x, dict):
+        return "a table"
+    return f"{type(x).__name__} {x!r}"
+
+
+def _check_keys(ctx: _Ctx, where: str, table, allowed: set):
+    if not isinstance(table, dict):
+        raise ctx.error(where, f"must be a table, got {_describe(table)}")
+    for key in table:
+        if key not in allowed:
+            raise ctx.error(where, f"unknown key '{key}' (expected one of: {', '.join(sorted(allowed))})")
+
+
+def _number(ctx, where, key, value, *, minimum=None, positive=False, maximum=None) -> float:
+    if not _is_number(value) or not math.isfinite(value):
+        raise ctx.error(where, f"'{key}' must be a number, got {_describe(value)}")
+    value = float(value)
+    if positive and not value > 0:
+        raise ctx.error(where, f"'{key}' must be > 0, got {value:g}")
+    if minimum is not None and value < minimum:
+        raise ctx.error(where, f"'{key}' must be >= {minimum:g}, got {value:g}")
+    if maximum is not None and value > maximum:
+        raise ctx.error(where, f"'{key}' must be <= {maximum:g}, got {value:g}")
+    return value
+
+
+def _integer(ctx, where, key, value, *, minimum=None, maximum=None) -> int:
+    if not isinstance(value, int) or isinstance(value, bool):
+        raise ctx.error(where, f"'{key}' must be an integer, got {_describe(value)}")
+    if minimum is not None and value < minimum:
+        raise ctx.error(where, f"'{key}' must be >= {minimum}, got {value}")
+    if maximum is not None and value > maximum:
+        raise ctx.error(where, f"'{key}' must be <= {maximum}, got {value}")
+    return value
+
+
+def _boolean(ctx, where, key, value) -> bool:
+    if not isinstance(value, bool):
+        raise ctx.error(where, f"'{key}' must be true or false, got {_describe(value)}")
+    return value
+
+
+def _vector(ctx, where, key, value, n=3, *, allow_scalar=False) -> np.ndarray:
+    if allow_scalar and _is_number(value):
+        value = [value] * n
+    if not isinstance(value, list) or len(value) != n or not all(_is_number(x) for x in value):
+        shape = f"{n} numbers" + (" or one number" if allow_scalar else "")
+        raise ctx.error(where, f"'{key}' must be a list of {shape}, got {_describe(value)}")
+    arr = np.asarray(value, np.float64)
+    if not np.isfinite(arr).all():
+        raise ctx.error(where, f"'{key}' must be finite, got {value}")
+    return arr
+
+
+def _points(ctx, where, key, value, n) -> np.ndarray:
+    if not isinstance(value, list) or len(value) != n:
+        raise ctx.error(where, f"'{key}' must be a list of {n} points [x, y, z], got {_describe(value)}")
+    return np.stack([_vector(ctx, where, f"{key}[{i}]", p) for i, p in enumerate(value)])
+
+
+def _load_toml(p: Path, name: str) -> Scene:
+    ctx = _Ctx(name)
+    if tomllib is None:  # pragma: no cover - Python 3.10 without tomli
+        raise ctx.error("", "reading TOML scene files needs Python >= 3.11 or the 'tomli' package")
+    try:
+        with open(p, "rb") as fh:
+            doc = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ctx.error("", f"not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise ctx.error("", f"cannot read ({exc.strerror or exc})") from None
+    for key in doc:
+        if key not in _TOP_KEYS:
+            hint = " (did you mean [[shape]]?)" if key in ("shapes", "shape_") else ""
+            raise ctx.error("", f"unknown key '{key}' (expected one of: {', '.join(sorted(_TOP_KEYS))}){hint}")
+
+    settings = _parse_settings(ctx, doc.get("film", {}), doc.get("render", {}))
+    materials, material_index = _parse_materials(ctx, doc.get("materials", {}))
+
+    shapes = doc.get("shape", [])
+    if not isinstance(shapes, list):
+        raise ctx.error("shape", "must be an array of tables written [[shape]]")
+    if not shapes:
+        raise ctx.error("", "defines no shapes (add [[shape]] tables)")
+
+    def material_for(where, table) -> int:
+        if "material" not in table:
+            if "default" not in material_index:
+                material_index["default"] = len(materials)
+                materials.append(Material())
+            return material_index["default"]
+        mname = table["material"]
+        if not isinstance(mname, str):
+            raise ctx.error(where, f"'material' must be a material name, got {_describe(mname)}")
+        if mname not in material_index:
+            if mname == "default":
+                material_index["default"] = len(materials)
+                materials.append(Material())
+            else:
+                known = ", ".join(sorted(material_index)) or "none defined"
+                raise ctx.error(where, f"unknown material '{mname}' (materials: {known})")
+        return material_index[mname]
+
+    tri_vertices, tri_faces, tri_mats = [], [], []
+    n_vertices = 0
+    spheres, sphere_mats = [], []
+    for number, table in enumerate(shapes, 1):
+        where = f"[[shape]] #{number}"
+        if not isinstance(table, dict):
+            raise ctx.error(where, f"must be a table, got {_describe(table)}")
+        stype = table.get("type")
+        if stype is None:
+            raise ctx.error(where, f"missing 'type' (one of: {', '.join(SHAPE_TYPES)})")
+        if not isinstance(stype, str) or stype not in SHAPE_TYPES:
+            shown = repr(stype) if isinstance(stype, str) else _describe(stype)
+            raise ctx.error(where, f"unknown type {shown} (expected one of: {', '.join(SHAPE_TYPES)})")
+        where = f"[[shape]] #{number} ({stype})"
+        _check_keys(ctx, where, table, _SHAPE_KEYS[stype])
+
+        if stype == "sphere":
+            for req in ("center", "radius"):
+                if req not in table:
+                    raise ctx.error(where, f"missing '{req}'")
+            centre = _vector(ctx, where, "center", table["center"])
+            radius = _number(ctx, where, "radius", table["radius"], positive=True)
+            spheres.append([*centre, radius])
+            sphere_mats.append(material_for(where, table))
+            continue
+
+        face_mat = None
+        if stype == "mesh":
+            v, f, face_mat = _mesh_shape(ctx, where, p, table, materials, material_index, material_for)
+        elif stype == "quad":
+            if "points" not in table:
+                raise ctx.error(where, "missing 'points' (four corners [[x,y,z], ...])")
+            v = _points(ctx, where, "points", table["points"], 4)
+            f = np.array([[0, 1, 2], [0, 2, 3]], np.int64)
+        elif stype == "triangle":
+            if "points" not in table:
+                raise ctx.error(where, "missing 'points' (three corners [[x,y,z], ...])")
+            v = _points(ctx, where, "points", table["points"], 3)
+            f = np.array([[0, 1, 2]], np.int64)
+        else:  # box
+            import trimesh
+
+            size = _vector(ctx, where, "size", table.get("size", 1.0), allow_scalar=True)
+            if not (size > 0).all():
+                raise ctx.error(where, f"'size' must be > 0 in every axis, got {size.tolist()}")
+            centre = _vector(ctx, where, "center", table.get("center", [0.0, 0.0, 0.0]))
+            box = trimesh.creation.box(extents=size)
+            v = np.asarray(box.vertices, np.float64) + centre
+            f = np.asarray(box.faces, np.int64)
+
+        if stype in ("quad", "triangle"):
+            areas = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+            if not (areas > 0).all():
+                raise ctx.error(where, "degenerate: its corners do not span an area (repeated or collinear points)")
+
+        matrix = _transform(ctx, where, table)
+        if matrix is not None:
+            v = v @ matrix[:3, :3].T + matrix[:3, 3]
+            if np.linalg.det(matrix[:3, :3]) < 0:
+                f = f[:, ::-1]
+        if _boolean(ctx, where, "flip_normals", table.get("flip_normals", False)):
+            f = f[:, ::-1]
+        if face_mat is None:
+            face_mat = np.full(len(f), material_for(where, table), np.int32)
+        tri_vertices.append(v)
+        tri_faces.append(f + n_vertices)
+        tri_mats.append(face_mat)
+        n_vertices += len(v)
+
+    if tri_faces:
+        vertices = np.concatenate(tri_vertices)
+        faces = np.concatenate(tri_faces)
+        face_mat = np.concatenate(tri_mats)
+    else:
+        vertices = np.zeros((0, 3))
+        faces = np.zeros((0, 3), np.int64)
+        face_mat = np.zeros(0, np.int32)
+    v32, f32, face_mat = _checked(vertices, faces, face_mat, name)
+    scene = Scene(
+        vertices=v32, faces=f32, face_materials=face_mat, materials=materials or [Material()],
+        spheres=np.asarray(spheres, np.float32).reshape(-1, 4),
+        sphere_materials=np.asarray(sphere_mats, np.int32),
+        settings=settings, source=name,
+    )
+    if "camera" in doc:
+        scene.camera = _parse_camera(ctx, doc["camera"])
+    else:
+        scene.camera = framing_camera(*_bounds(scene), settings.width, settings.height)
+    return scene
+
+
+def _parse_settings(ctx, film, render) -> RenderSettings:
+    s = RenderSettings()
+    _check_keys(ctx, "[film]", film, _FILM_KEYS)
+    _check_keys(ctx, "[render]", render, _RENDER_KEYS)
+    if "width" in film:
+        s.width = _integer(ctx, "[film]", "width", film["width"], minimum=1, maximum=65536)
+    if "height" in film:
+        s.height = _integer(ctx, "[film]", "height", film["height"], minimum=1, maximum=65536)
+    if "spp" in render:
+        s.spp = _integer(ctx, "[render]", "spp", render["spp"], minimum=1)
+    if "max_depth" in render:
+        s.max_depth = _integer(ctx, "[render]", "max_depth", render["max_depth"], minimum=1)
+    if "rr_depth" in render:
+        s.rr_depth = _integer(ctx, "[render]", "rr_depth", render["rr_depth"], minimum=0)
+    if "seed" in render:
+        s.seed = _integer(ctx, "[render]", "seed", render["seed"], minimum=0, maximum=2**32 - 1)
+    if "integrator" in render:
+        integ = render["integrator"]
+        if not isinstance(integ, str) or integ not in INTEGRATORS:
+            shown = repr(integ) if isinstance(integ, str) else _describe(integ)
+            raise ctx.error("[render]", f"unknown integrator {shown} (expected one of: {', '.join(INTEGRATORS)})")
+        s.integrator = integ
+    return s
+
+
+def _parse_materials(ctx, table):
+    if not isinstance(table, dict):
+        raise ctx.error("materials", f"must be tables written [materials.NAME], got {_describe(table)}")
+    materials: list[Material] = []
+    index: dict[str, int] = {}
+    for mname, spec in table.items():
+        where = f"[materials.{mname}]"
+        _check_keys(ctx, where, spec, _MATERIAL_KEYS)
+        mtype = spec.get("type", "diffuse")
+        if not isinstance(mtype, str) or mtype not in MATERIAL_TYPES:
+            shown = repr(mtype) if isinstance(mtype, str) else _describe(mtype)
+            raise ctx.error(where, f"unknown type {shown} (expected one of: {', '.join(MATERIAL_TYPES)})")
+        albedo = _vector(ctx, where, "albedo", spec.get("albedo", 0.8), allow_scalar=True)
+        if albedo.min() < 0 or albedo.max() > 1:
+            raise ctx.error(where, f"'albedo' components must lie in [0, 1], got {albedo.tolist()}")
+        emission = _vector(ctx, where, "emission", spec.get("emission", 0.0), allow_scalar=True)
+        if emission.min() < 0:
+            raise ctx.error(where, f"'emission' must not be negative, got {emission.tolist()}")
+        two_sided = _boolean(ctx, where, "two_sided", spec.get("two_sided", False))
+        index[mname] = len(materials)
+        materials.append(Material(
+            name=mname, albedo=tuple(float(x) for x in albedo), emission=tuple(float(x) for x in emission),
+            two_sided=two_sided, type=mtype,
+        ))
+    return materials, index
+
+
+def _parse_camera(ctx, table) -> Camera:
+    where = "[camera]"
+    _check_keys(ctx, where, table, _CAMERA_KEYS)
+    for req in ("eye", "look_at"):
+        if req not in table:
+            raise ctx.error(where, f"missing '{req}' (or leave out [camera] to frame the scene automatically)")
+    eye = _vector(ctx, where, "eye", table["eye"])
+    look_at = _vector(ctx, where, "look_at", table["look_at"])
+    up = _vector(ctx, where, "up", table.get("up", [0.0, 1.0, 0.0]))
+    fov = _number(ctx, where, "fov", table.get("fov", DEFAULT_FOV))
+    if not 0 < fov < 180:
+        raise ctx.error(where, f"'fov' must be between 0 and 180 degrees, got {fov:g}")
+    forward = look_at - eye
+    if not np.linalg.norm(forward) > 0:
+        raise ctx.error(where, "'eye' and 'look_at' are the same point")
+    if not np.linalg.norm(np.cross(forward / np.linalg.norm(forward), up)) > 1e-9:
+        raise ctx.error(where, "'up' must not be zero or parallel to the viewing direction look_at - eye")
+    return Camera(
+        eye=tuple(float(x) for x in eye), look_at=tuple(float(x) for x in look_at),
+        up=tuple(float(x) for x in up), fov=float(fov),
+    )
+
+
+def rotation_matrix(axis, angle_degrees) -> np.ndarray:
+    """3x3 right-handed rotation by ``angle_degrees`` about ``axis`` (Rodrigues)."""
+    axis = np.asarray(axis, np.float64)
+    axis = axis / np.linalg.norm(axis)
+    a = math.radians(angle_degrees)
+    x, y, z = axis
+    k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
+    return np.eye(3) + math.sin(a) * k + (1 - math.cos(a)) * (k @ k)
+
+
+def _transform(ctx, where, table) -> np.ndarray | None:
+    """4x4 matrix from the shape's transform keys, or None."""
+    trs = [k for k in ("translate", "scale", "rotate") if k in table]
+    if "matrix" in table:
+        if trs:
+            raise ctx.error(where, f"give either 'matrix' or translate/scale/rotate, not both ('{trs[0]}')")
+        m = table["matrix"]
+        if not isinstance(m, list) or len(m) != 4:
+            raise ctx.error(where, f"'matrix' must be 4 rows of 4 numbers, got {_describe(m)}")
+        rows = [_vector(ctx, where, f"matrix[{i}]", r, 4) for i, r in enumerate(m)]
+        matrix = np.stack(rows)
+        if not np.allclose(matrix[3], [0, 0, 0, 1]):
+            raise ctx.error(where, f"'matrix' must be affine: its last row must be [0, 0, 0, 1], got {matrix[3].tolist()}")
+        if abs(np.linalg.det(matrix[:3, :3])) < 1e-12:
+            raise ctx.error(where, "'matrix' is singular (it flattens the shape)")
+        return matrix
+    if not trs:
+        return None
+    m3 = np.eye(3)
+    if "scale" in table:
+        s = _vector(ctx, where, "scale", table["scale"], allow_scalar=True)
+        if (s == 0).any():
+            raise ctx.error(where, f"'scale' must not be 0 in any axis, got {s.tolist()}")
+        m3 = np.diag(s) @ m3
+    if "rotate" in table:
+        rot = table["rotate"]
+        steps = rot if isinstance(rot, list) else [rot]
+        if not steps:
+            raise ctx.error(where, "'rotate' is an empty list")
+        for i, step in enumerate(steps):
+            key = "rotate" if not isinstance(rot, list) else f"rotate[{i}]"
+            if not isinstance(step, dict):
+                raise ctx.error(where, f"'{key}' must be {{axis = [x, y, z], angle = DEGREES}}, got {_describe(step)}")
+            for k in step:
+                if k not in ("axis", "angle"):
+                    raise ctx.error(where, f"'{key}': unknown key '{k}' (expected axis, angle)")
+            if "axis" not in step or "angle" not in step:
+                raise ctx.error(where, f"'{key}' needs both 'axis' and 'angle' (degrees)")
+            axis = _vector(ctx, where, f"{key}.axis", step["axis"])
+            if not np.linalg.norm(axis) > 0:
+                raise ctx.error(where, f"'{key}.axis' must not be zero")
+            angle = _number(ctx, where, f"{key}.angle", step["angle"])
+            m3 = rotation_matrix(axis, angle) @ m3
+    matrix = np.eye(4)
+    matrix[:3, :3] = m3
+    if "translate" in table:
+        matrix[:3, 3] = _vector(ctx, where, "translate", table["translate"])
+    return matrix
+
+
+def _mesh_shape(ctx, where, scene_path: Path, table, materials, material_index, material_for):
+    if "file" not in table:
+        raise ctx.error(where, "missing 'file' (a mesh path relative to the scene file)")
+    fname = table["file"]
+    if not isinstance(fname, str) or not fname:
+        raise ctx.error(where, f"'file' must be a path, got {_describe(fname)}")
+    mesh_path = scene_path.parent / Path(fname).expanduser()
+    if not mesh_path.exists():
+        raise ctx.error(where, f"mesh file '{fname}' not found (looked for {mesh_path})")
+    if mesh_path.is_dir():
+        raise ctx.error(where, f"mesh file '{fname}' is a folder ({mesh_path})")
+    use_file = _boolean(ctx, where, "use_file_materials", table.get("use_file_materials", False))
+    if use_file:
+        if mesh_path.suffix.lower() != ".obj":
+            raise ctx.error(where, f"use_file_materials is only supported for OBJ files, not '{fname}'")
+        fallback_index = material_for(where, table)
+        overrides = {n: materials[i] for n, i in material_index.items()}
+        try:
+            v, f, local_mat, local_materials = _obj_with_materials(
+                mesh_path, f"{ctx.name}: {where}: {fname}", overrides, fallback=materials[fallback_index])
+        except SceneError as exc:
+            raise SceneError(_one_line(str(exc))) from None
+        # map the OBJ's material list into the scene's, reusing entries already there
+        remap = np.empty(max(1, len(local_materials)), np.int32)
+        for i, mat in enumerate(local_materials):
+            for j, existing in enumerate(materials):
+                if existing is mat:
+                    remap[i] = j
+                    break
+            else:
+                remap[i] = len(materials)
+                materials.append(mat)
+        face_mat = remap[local_mat] if len(local_mat) else np.zeros(0, np.int32)
+    else:
+        try:
+            v, f = flatten(load_trimesh(mesh_path), name=str(mesh_path))
+        except MeshError as exc:
+            raise ctx.error(where, str(exc)) from None
+        face_mat = None
+    if len(f) == 0:
+        raise ctx.error(where, f"mesh file '{fname}' contains no triangles")
+    return np.asarray(v, np.float64), np.asarray(f, np.int64), face_mat

@@ -1,0 +1,119 @@
+"""The ``pyopencl-rt`` command line, run as a separate process (``python -m pyopencl_rt.cli``)."""
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pyopencl as cl
+import pytest
+
+from pyopencl_rt import devices as dv
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def run_cli(*args, cwd, timeout=300):
+    env = dict(os.environ)
+    env.pop("PYOPENCL_CTX", None)
+    env["PYTHONPATH"] = str(REPO) + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    return subprocess.run(
+        [sys.executable, "-m", "pyopencl_rt.cli", *args],
+        cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout,
+    )
+
+
+@pytest.fixture(scope="module")
+def pocl_info():
+    for e, info in zip(dv.all_devices(), dv.list_devices()):
+        if "portable computing language" in info.platform.lower() and e[2].type & cl.device_type.CPU:
+            return info
+    pytest.fail("PoCL CPU device not found")
+
+
+def test_devices_lists_pocl(tmp_path, pocl_info):
+    r = run_cli("devices", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    out = r.stdout
+    assert f"[{pocl_info.index}] {pocl_info.name}" in out
+    block = out.split(f"[{pocl_info.index}] {pocl_info.name}", 1)[1].split("\n[", 1)[0]
+    assert f"platform: {pocl_info.platform}" in block
+    assert "type: CPU" in block
+    assert f"compute units: {pocl_info.compute_units}" in block
+    assert f"memory: {pocl_info.global_mem_bytes / 2**30:.1f} GiB" in block
+    assert pocl_info.opencl_version in block
+    # one entry per device
+    assert out.count("platform: ") == len(dv.all_devices())
+
+
+def test_devices_json(tmp_path, pocl_info):
+    r = run_cli("devices", "--json", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    data = json.loads(r.stdout)
+    assert isinstance(data, list) and len(data) == len(dv.all_devices())
+    entry = next(d for d in data if d["index"] == pocl_info.index)
+    assert entry == pocl_info.as_dict()
+    assert entry["type"] == "CPU"
+    assert isinstance(entry["compute_units"], int) and entry["compute_units"] > 0
+    assert isinstance(entry["global_mem_bytes"], int) and entry["global_mem_bytes"] > 0
+    assert entry["opencl_version"].startswith("OpenCL ")
+
+
+def test_devices_json_filtered_by_device(tmp_path, pocl_info):
+    r = run_cli("devices", "--json", "--device", "cpu", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout) == [pocl_info.as_dict()]
+
+
+@pytest.mark.parametrize("command", [["devices"], ["bench", "rays", "--sizes", "1k", "--rays", "16"]],
+                         ids=["devices", "bench-rays"])
+def test_unknown_device_is_one_line_error(tmp_path, command, pocl_info):
+    r = run_cli(*command, "--device", "nosuchdevice", cwd=tmp_path)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    assert lines[0].startswith("pyopencl-rt: error:")
+    assert "nosuchdevice" in lines[0]
+    assert pocl_info.name in lines[0] and pocl_info.index in lines[0]
+    assert "Traceback" not in r.stderr + r.stdout
+    assert not list(tmp_path.iterdir())  # nothing was written
+
+
+@pytest.mark.parametrize("command, expected", [
+    ([], ["devices", "bench"]),
+    (["devices"], ["--json", "--device"]),
+    (["bench"], ["rays"]),
+    (["bench", "rays"], ["--sizes", "--rays", "--repeat", "--json", "--device", "--no-embree"]),
+], ids=["top", "devices", "bench", "bench-rays"])
+def test_help(tmp_path, command, expected):
+    r = run_cli(*command, "--help", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "Usage:" in r.stdout
+    for word in expected:
+        assert word in r.stdout
+
+
+def test_bench_rays_smoke(tmp_path, pocl_info):
+    """Smoke test of the command on a tiny mesh: the JSON is complete (no timing asserts)."""
+    out = tmp_path / "out.json"
+    r = run_cli("bench", "rays", "--device", "cpu", "--sizes", "2k", "--rays", "4096", "--repeat", "1",
+                "--json", str(out), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    data = json.loads(out.read_text())
+    label = dv.describe(next(e for e in dv.all_devices() if dv.describe(e).index == pocl_info.index)).label()
+    assert data["devices"] == [label]
+    assert data["repeat"] == 1
+    (mesh,) = data["meshes"]
+    assert 1500 <= mesh["triangles"] <= 2500
+    assert mesh["bvh_build_seconds"] > 0
+    assert [s["set"] for s in mesh["sets"]] == ["primary", "diffuse"]
+    primary = mesh["sets"][0]
+    assert primary["rays"] == 4096
+    assert 0 < mesh["sets"][1]["rays"] <= 4096  # one diffuse ray per primary hit
+    for s in mesh["sets"]:
+        assert set(s["backends"]) == {label, "embree"}
+        for b in s["backends"].values():
+            assert math.isfinite(b["rays_per_second"]) and b["rays_per_second"] > 0
+            assert b["rays_per_second"] == pytest.approx(s["rays"] / b["seconds_median"])
+    assert f"wrote {out}" in r.stdout
