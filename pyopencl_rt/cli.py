@@ -52,6 +52,100 @@ def devices(as_json, device):
         )
 
 
+class Progress:
+    """A one-line progress bar on stderr: passes, elapsed, ETA, samples/s."""
+
+    def __init__(self, total_passes, time_limit, n_pixels, quiet):
+        self.total, self.time_limit, self.n_pixels, self.quiet = total_passes, time_limit, n_pixels, quiet
+        self.last = 0.0
+        self.tty = sys.stderr.isatty()
+
+    def __call__(self, passes, elapsed):
+        if self.quiet or (elapsed - self.last < 0.5 and passes != self.total):
+            return
+        self.last = elapsed
+        rate = passes * self.n_pixels / elapsed if elapsed > 0 else 0.0
+        if self.total:
+            frac = passes / self.total
+            eta = elapsed * (1 - frac) / frac if frac > 0 else 0.0
+        else:
+            frac = min(1.0, elapsed / self.time_limit)
+            eta = max(0.0, self.time_limit - elapsed)
+        bar = "#" * int(24 * frac) + "-" * (24 - int(24 * frac))
+        total = self.total if self.total else "?"
+        line = (f"[{bar}] {passes}/{total} spp  {_clock(elapsed)} elapsed  ETA {_clock(eta)}  "
+                f"{rate / 1e6:.3f} Msamples/s")
+        click.echo(("\r" + line) if self.tty else line, err=True, nl=not self.tty)
+
+    def done(self):
+        if self.tty and not self.quiet:
+            click.echo("", err=True)
+
+
+def _clock(seconds):
+    seconds = int(seconds)
+    return f"{seconds // 60:02d}:{seconds % 60:02d}" if seconds < 3600 else f"{seconds // 3600}h{seconds // 60 % 60:02d}m"
+
+
+@cli.command()
+@click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", default="out/render.exr", show_default=True, type=click.Path(dir_okay=False),
+              help="Output OpenEXR (linear); a .png (sRGB) and a .json sidecar are written beside it.")
+@click.option("--spp", type=int, help="Samples per pixel (default: the scene's).")
+@click.option("--time-limit", type=float, metavar="SECONDS", help="Render for this long (whole passes).")
+@click.option("--width", type=int)
+@click.option("--height", type=int)
+@click.option("--max-depth", type=int, help="Path segments at most (1: emitters only; -1: unlimited).")
+@click.option("--seed", type=int)
+@click.option("--integrator", type=click.Choice(["path", "bsdf", "nee"]),
+              help="path: MIS of light and BSDF sampling (default); bsdf or nee alone.")
+@click.option("--wave-size", type=int, help="Paths in flight (default: 2^20 on a GPU, 2^16 on a CPU).")
+@click.option("--profile", is_flag=True, help="Print the time spent in each wavefront stage.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@device_option
+def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, integrator, wave_size, profile,
+           quiet, device):
+    """Render SCENE (a .toml scene file, or any mesh file such as model.obj) to OUTPUT."""
+    from .imageio import write_outputs
+    from .render import check_settings, render_full
+    from .scenefile import load_scene
+
+    check_settings(width if width is not None else 1, height if height is not None else 1, spp, max_depth,
+                   integrator, time_limit)
+    if not str(output).lower().endswith(".exr"):
+        raise UserError(f"{output}: the output must be an .exr file (a .png and a .json are written beside it)")
+    scene = load_scene(scene_path)
+    w = width or scene.settings.width
+    h = height or scene.settings.height
+    check_settings(w, h, None, None, None, None)
+    total = spp if spp is not None else (None if time_limit is not None else scene.settings.spp)
+    bar = Progress(total, time_limit, w * h, quiet)
+    result = render_full(scene, spp=total, time_limit=time_limit, device=list(device) or None, seed=seed,
+                         width=w, height=h, max_depth=max_depth, integrator=integrator, wave_size=wave_size,
+                         progress=bar, profile=profile)
+    bar.done()
+    info = result.info
+    if result.stats.passes == 0:
+        raise UserError("interrupted before the first pass completed: nothing to write")
+    paths = write_outputs(output, result.image, info)
+    if profile:
+        stages = info["stage_seconds"]
+        total_s = sum(stages.values()) or 1.0
+        click.echo("stage         seconds   share", err=True)
+        for name, sec in stages.items():
+            click.echo(f"{name:<12} {sec:8.3f}  {100 * sec / total_s:5.1f}%", err=True)
+        click.echo(f"extend: {info['rays_extend'] / max(stages['extend'], 1e-9) / 1e6:.3f} Mrays/s, "
+                   f"shadow: {info['rays_shadow'] / max(stages['shadow'], 1e-9) / 1e6:.3f} Mrays/s", err=True)
+    note = " (interrupted)" if info["interrupted"] else ""
+    click.echo(
+        f"{paths['exr']}: {info['width']}x{info['height']}, {info['spp']} spp in {info['render_seconds']:.2f} s "
+        f"({info['samples_per_second'] / 1e6:.3f} Msamples/s) on {info['device']}; "
+        f"non-finite samples: {info['nonfinite_samples']}{note}"
+    )
+    if info["interrupted"]:
+        sys.exit(130)
+
+
 @cli.group()
 def bench():
     """Benchmarks (results as a table and as JSON)."""

@@ -23,6 +23,7 @@ class RenderResult:
     image: np.ndarray  # H x W x 3 float32, linear radiance
     stats: RunStats
     info: dict  # everything the JSON sidecar records
+    film: Film  # sums behind the image (variance_of_mean() gives each pixel's standard error^2)
 
 
 def check_settings(width, height, spp, max_depth, integrator, time_limit):
@@ -88,7 +89,7 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
     }
     if profile:
         info["stage_seconds"] = dict(stats.stage_seconds)
-    return RenderResult(film.image(), stats, info)
+    return RenderResult(film.image(), stats, info, film)
 
 
 def render(scene: Scene, spp=None, device=None, seed=None, **kwargs) -> np.ndarray:

@@ -37,24 +37,39 @@ def default_wave_size(device) -> int:
 
 @dataclass
 class Film:
-    """Radiance summed over completed passes (float64), and how many passes that is."""
+    """Radiance summed over completed passes (float64), its sum of squares (for the variance of
+    each pixel's estimate), and how many passes that is.  Films of the same size add up."""
 
     width: int
     height: int
     sum: np.ndarray = None
+    sum_sq: np.ndarray = None
     passes: int = 0
 
     def __post_init__(self):
         if self.sum is None:
             self.sum = np.zeros((self.height * self.width, 3), np.float64)
+        if self.sum_sq is None:
+            self.sum_sq = np.zeros((self.height * self.width, 3), np.float64)
 
     def add_pass(self, radiance: np.ndarray) -> None:
-        self.sum += radiance
+        r = radiance.astype(np.float64)
+        self.sum += r
+        self.sum_sq += r * r
         self.passes += 1
 
     def image(self) -> np.ndarray:
         scale = 1.0 / max(self.passes, 1)
         return (self.sum * scale).astype(np.float32).reshape(self.height, self.width, 3)
+
+    def variance_of_mean(self) -> np.ndarray:
+        """Unbiased estimate of the variance of each pixel's mean (H x W x 3 float64)."""
+        n = self.passes
+        if n < 2:
+            return np.full((self.height, self.width, 3), np.inf)
+        mean = self.sum / n
+        var = np.maximum(self.sum_sq / n - mean * mean, 0.0) * (n / (n - 1))
+        return (var / n).reshape(self.height, self.width, 3)
 
 
 @dataclass

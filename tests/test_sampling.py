@@ -106,6 +106,13 @@ __kernel void h_alias_all(__global const Light *lights, int n, int per, __global
     }
 }
 
+/* per-item cos_max: cone samples at the given u */
+__kernel void h_cone(__global const float *u, __global const float *cos_max, __global float *out)
+{
+    const int i = get_global_id(0);
+    store3(out, i, sample_uniform_cone(vload2(i, u), cos_max[i]));
+}
+
 __kernel void h_power(__global const float *a, __global const float *b, __global float *out)
 {
     const int i = get_global_id(0);
@@ -337,6 +344,20 @@ def test_direction_pdf_integrates_to_one(runtime, name):
     ints = bin_pdf_integrals(runtime, which, param, edges, np.linspace(0, 2 * np.pi, N_PHI + 1))
     assert abs(ints.sum() - 1.0) < 1e-5
     assert np.all(ints[N_THETA:] == 0.0)
+
+
+def test_cone_rim_and_axis(runtime, rng):
+    """At the extremes u.x = 0 and u.x = 1 - 2^-24, for 100k cos_max in (-1, 1) (many near +-1):
+    z = 1 on the axis, z >= cos_max at the rim, unit length."""
+    n = 100_000
+    c = np.concatenate([rng.uniform(-1, 1, n // 2), 1 - 10 ** rng.uniform(-7, 0, n // 4),
+                        -1 + 10 ** rng.uniform(-7, 0, n // 4)]).astype(np.float32)
+    c = np.clip(c, np.nextafter(np.float32(-1), np.float32(0)), np.nextafter(np.float32(1), np.float32(0)))
+    u = np.stack([np.where(np.arange(n) % 2 == 0, 1 - 2.0 ** -24, 0.0), uniforms(rng, n)], 1).astype(np.float32)
+    w = call(runtime, "h_cone", n, [u, c], [((n, 3), np.float32)])
+    assert np.all(w[1::2, 2] == 1.0)
+    assert np.all(w[:, 2] >= c)
+    assert np.abs(np.linalg.norm(w.astype(np.float64), axis=1) - 1).max() < 2e-6
 
 
 def test_closed_form_pdfs(runtime):

@@ -73,14 +73,19 @@ __kernel void wf_shade(WAVE_PARAMS)
         if (max_depth < 0 || segments < max_depth) {
             /* -- next-event estimation ------------------------------------------------------ */
 #if defined(HAS_LIGHTS) && INTEGRATOR != 1
+            /* The reference point is the spawn point on the viewer's side, not p itself: for an
+             * emitter whose own surface holds p (the inside of an emissive sphere), p is neither
+             * inside nor outside it.  It is also the origin that a BSDF-sampled ray leaves from,
+             * so light_pdf() at a BSDF hit sees the same point. */
+            const float3 ref = offset_ray_origin(p, n);
             float pick_pmf;
             const int li = sample_alias(lights, n_lights, rng_uniform(seed, (uint)pixel, pass, dim + DIM_LIGHT_PICK), &pick_pmf);
             LightSample ls;
             if (pick_pmf > 0.0f &&
-                light_sample(tris, spheres, materials, lights + li, p,
+                light_sample(tris, spheres, materials, lights + li, ref,
                              rng_uniform2(seed, (uint)pixel, pass, dim + DIM_LIGHT_POINT), &ls) &&
                 ls.pdf > 0.0f && max3(ls.Le) > 0.0f) {
-                float3 wi = ls.p - p;
+                float3 wi = ls.p - ref;
                 const float dist = length(wi);
                 wi /= dist;
                 float bpdf;
@@ -92,7 +97,7 @@ __kernel void wf_shade(WAVE_PARAMS)
 #else
                     const float w = 1.0f;
 #endif
-                    const float3 so = offset_ray_origin(p, dot(ng, wi) > 0.0f ? ng : -ng);
+                    const float3 so = dot(n, wi) > 0.0f ? ref : offset_ray_origin(p, -n);
                     const float3 sp = offset_ray_origin(ls.p, ls.n);
                     store3(sh_o, slot, so);
                     store3(sh_d, slot, sp - so);
