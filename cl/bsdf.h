@@ -8,18 +8,18 @@
 
 #define MATERIAL_DIFFUSE 0
 
-inline float3 material_albedo(__global const Material *m) { return vload3(0, m->albedo); }
-inline float3 material_emission(__global const Material *m) { return vload3(0, m->emission); }
+RT_INLINE float3 material_albedo(__global const Material *m) { return vload3(0, m->albedo); }
+RT_INLINE float3 material_emission(__global const Material *m) { return vload3(0, m->emission); }
 
 /* f * |cos(theta_i)| for directions wo (toward the viewer) and wi (toward the light); n is the
  * unit geometric normal flipped to wo's side.  *pdf: solid-angle pdf of sampling wi. */
-inline float3 bsdf_eval(__global const Material *m, float3 n, float3 wo, float3 wi, float *pdf)
+RT_INLINE float3 bsdf_eval(__global const Material *m, float3 n, float3 wo, float3 wi, float *pdf)
 {
     return diffuse_eval(material_albedo(m), n, wi, pdf);
 }
 
 /* Samples wi; returns f * |cos| / pdf, sets *wi and *pdf (0 when the sample failed). */
-inline float3 bsdf_sample(__global const Material *m, float3 n, float3 wo, float2 u, float3 *wi, float *pdf)
+RT_INLINE float3 bsdf_sample(__global const Material *m, float3 n, float3 wo, float2 u, float3 *wi, float *pdf)
 {
     return diffuse_sample(material_albedo(m), n, u, wi, pdf);
 }

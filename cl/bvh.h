@@ -24,6 +24,8 @@
 #include "intersect.h"
 
 #define BVH_STACK_SIZE 64
+#define FAST_MIN(a, b) ((a) < (b) ? (a) : (b))
+#define FAST_MAX(a, b) ((a) > (b) ? (a) : (b))
 
 typedef struct {
     float t, u, v;
@@ -31,7 +33,7 @@ typedef struct {
 } Hit;
 
 
-inline void intersect_leaf(float3 o, float3 d, RayShear sh, __global const float4 *tris, int first, int count,
+RT_INLINE void intersect_leaf(float3 o, float3 d, RayShear sh, __global const float4 *tris, int first, int count,
                            float tmin, Hit *hit)
 {
     for (int i = first; i < first + count; ++i) {
@@ -43,7 +45,7 @@ inline void intersect_leaf(float3 o, float3 d, RayShear sh, __global const float
     }
 }
 
-inline int occluded_leaf(float3 o, float3 d, RayShear sh, __global const float4 *tris, int first, int count,
+RT_INLINE int occluded_leaf(float3 o, float3 d, RayShear sh, __global const float4 *tris, int first, int count,
                          float tmin, float tmax)
 {
     for (int i = first; i < first + count; ++i) {
@@ -55,13 +57,37 @@ inline int occluded_leaf(float3 o, float3 d, RayShear sh, __global const float4 
     return 0;
 }
 
+/* Both child boxes of a node in one 8-wide slab test (lanes 0-2: left child, 4-6: right).
+ * The node is read as four aligned float4s: (bmin_left, child_left), (bmax_left, count_left),
+ * (bmin_right, child_right), (bmax_right, count_right) -- the BVHNode layout above.
+ * Sets *tl / *tr to the entry distances, INFINITY for a miss or an absent child. */
+RT_INLINE void intersect_children(__global const float4 *node, float8 o8, float8 inv8, float tmin, float tmax,
+                               float *tl, float *tr)
+{
+    const float4 q0 = node[0], q1 = node[1], q2 = node[2], q3 = node[3];
+    const uint8 pick = (uint8)(0, 1, 2, 2, 4, 5, 6, 6); /* lanes 3 and 7 repeat z: harmless */
+    const float8 t0 = (shuffle2(q0, q2, pick) - o8) * inv8;
+    const float8 t1 = (shuffle2(q1, q3, pick) - o8) * inv8;
+    /* No operand here can be NaN (safe_rcp3 keeps inv_d finite; empty boxes give +-inf), so
+     * the plain comparisons below equal fmin/fmax, without IEEE fmin's NaN handling, which
+     * costs a compare-and-blend per call on x86. */
+    const float8 tn = select(t1, t0, t0 < t1), tf = select(t0, t1, t0 < t1);
+    const float enter_l = FAST_MAX(FAST_MAX(tn.s0, tn.s1), FAST_MAX(tn.s2, tmin));
+    const float enter_r = FAST_MAX(FAST_MAX(tn.s4, tn.s5), FAST_MAX(tn.s6, tmin));
+    const float leave_l = FAST_MIN(FAST_MIN(tf.s0, tf.s1), tf.s2) * SLAB_FAR_SCALE;
+    const float leave_r = FAST_MIN(FAST_MIN(tf.s4, tf.s5), tf.s6) * SLAB_FAR_SCALE;
+    *tl = (as_int(q1.w) >= 0 && enter_l <= FAST_MIN(leave_l, tmax)) ? enter_l : INFINITY;
+    *tr = (as_int(q3.w) >= 0 && enter_r <= FAST_MIN(leave_r, tmax)) ? enter_r : INFINITY;
+}
+
 /* Closest hit in (tmin, tmax).  hit->tri = -1 when nothing is hit. */
-inline Hit bvh_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
+RT_INLINE Hit bvh_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
                            float3 o, float3 d, float tmin, float tmax)
 {
     Hit hit; hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.tri = -1;
     const RayShear sh = ray_shear(d);
     const float3 inv_d = safe_rcp3(d);
+    const float8 o8 = (float8)(o, o.z, o, o.z), inv8 = (float8)(inv_d, inv_d.z, inv_d, inv_d.z);
     int stack_node[BVH_STACK_SIZE];
     float stack_t[BVH_STACK_SIZE];
     int sp = 0;
@@ -70,9 +96,9 @@ inline Hit bvh_closest_hit(__global const BVHNode *nodes, __global const float4 
         __global const BVHNode *n = nodes + idx;
         const int cl = n->count_left, cr = n->count_right;
         /* an absent child (count -1) has an empty box, min=+inf > max=-inf, which the slab
-         * test's fmin/fmax would turn into an infinite interval: skip it explicitly */
-        float tl = cl < 0 ? INFINITY : intersect_box(o, inv_d, vload3(0, n->bmin_left), vload3(0, n->bmax_left), tmin, hit.t);
-        float tr = cr < 0 ? INFINITY : intersect_box(o, inv_d, vload3(0, n->bmin_right), vload3(0, n->bmax_right), tmin, hit.t);
+         * test's fmin/fmax would turn into an infinite interval: intersect_children skips it */
+        float tl, tr;
+        intersect_children((__global const float4 *)n, o8, inv8, tmin, hit.t, &tl, &tr);
         if (tl != INFINITY && cl > 0) { intersect_leaf(o, d, sh, tris, n->child_left, cl, tmin, &hit); tl = INFINITY; }
         if (tr != INFINITY && cr > 0) { intersect_leaf(o, d, sh, tris, n->child_right, cr, tmin, &hit); tr = INFINITY; }
         const int left = n->child_left, right = n->child_right;
@@ -94,19 +120,20 @@ inline Hit bvh_closest_hit(__global const BVHNode *nodes, __global const float4 
 }
 
 /* Any hit in (tmin, tmax): returns 1 as soon as one triangle is hit. */
-inline int bvh_any_hit(__global const BVHNode *nodes, __global const float4 *tris,
+RT_INLINE int bvh_any_hit(__global const BVHNode *nodes, __global const float4 *tris,
                        float3 o, float3 d, float tmin, float tmax)
 {
     const RayShear sh = ray_shear(d);
     const float3 inv_d = safe_rcp3(d);
+    const float8 o8 = (float8)(o, o.z, o, o.z), inv8 = (float8)(inv_d, inv_d.z, inv_d, inv_d.z);
     int stack_node[BVH_STACK_SIZE];
     int sp = 0;
     int idx = 0;
     for (;;) {
         __global const BVHNode *n = nodes + idx;
         const int cl = n->count_left, cr = n->count_right;
-        const float tl = cl < 0 ? INFINITY : intersect_box(o, inv_d, vload3(0, n->bmin_left), vload3(0, n->bmax_left), tmin, tmax);
-        const float tr = cr < 0 ? INFINITY : intersect_box(o, inv_d, vload3(0, n->bmin_right), vload3(0, n->bmax_right), tmin, tmax);
+        float tl, tr;
+        intersect_children((__global const float4 *)n, o8, inv8, tmin, tmax, &tl, &tr);
         int go_left = tl != INFINITY, go_right = tr != INFINITY;
         if (go_left && cl > 0) {
             if (occluded_leaf(o, d, sh, tris, n->child_left, cl, tmin, tmax)) return 1;
@@ -125,7 +152,7 @@ inline int bvh_any_hit(__global const BVHNode *nodes, __global const float4 *tri
 }
 
 /* Unit geometric normal (v1 - v0) x (v2 - v0) of reordered triangle i (Embree's orientation). */
-inline float3 triangle_normal(__global const float4 *tris, int i)
+RT_INLINE float3 triangle_normal(__global const float4 *tris, int i)
 {
     const float3 p0 = tris[3 * i].xyz, p1 = tris[3 * i + 1].xyz, p2 = tris[3 * i + 2].xyz;
     return normalize(cross(p1 - p0, p2 - p0));

@@ -17,36 +17,41 @@
  * zero the paper recomputes it in double precision; we do the same where the device has fp64.
  * --------------------------------------------------------------------------------------------- */
 typedef struct {
-    int kx, ky, kz;   /* permutation of axes: kz is the dominant axis of d */
+    uint4 perm;       /* (kx, ky, kz, 3): kz is the dominant axis of d; applied with shuffle() */
     float sx, sy, sz; /* shear constants */
 } RayShear;
 
-inline float comp3(float3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
+RT_INLINE float comp3(float3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
 
-inline RayShear ray_shear(float3 d)
+RT_INLINE RayShear ray_shear(float3 d)
 {
     RayShear r;
-    float3 ad = fabs(d);
-    r.kz = (ad.x > ad.y) ? ((ad.x > ad.z) ? 0 : 2) : ((ad.y > ad.z) ? 1 : 2);
-    r.kx = r.kz + 1; if (r.kx == 3) r.kx = 0;
-    r.ky = r.kx + 1; if (r.ky == 3) r.ky = 0;
-    float dz = comp3(d, r.kz);
-    if (dz < 0.0f) { int tmp = r.kx; r.kx = r.ky; r.ky = tmp; } /* keep the winding */
-    r.sx = comp3(d, r.kx) / dz;
-    r.sy = comp3(d, r.ky) / dz;
+    const float3 ad = fabs(d);
+    const uint kz = (ad.x > ad.y) ? ((ad.x > ad.z) ? 0u : 2u) : ((ad.y > ad.z) ? 1u : 2u);
+    uint kx = kz == 2u ? 0u : kz + 1u;
+    uint ky = kx == 2u ? 0u : kx + 1u;
+    const float dz = comp3(d, (int)kz);
+    if (dz < 0.0f) { const uint tmp = kx; kx = ky; ky = tmp; } /* keep the winding */
+    r.perm = (uint4)(kx, ky, kz, 3u);
+    const float4 dp = shuffle((float4)(d, 0.0f), r.perm);
+    r.sx = dp.x / dz;
+    r.sy = dp.y / dz;
     r.sz = 1.0f / dz;
     return r;
 }
 
 /* Returns 1 and sets *t, *u, *v (barycentrics of v1 and v2) on a hit with tmin < t < tmax. */
-inline int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, float3 p1, float3 p2,
+RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, float3 p1, float3 p2,
                               float tmin, float tmax, float *t, float *u, float *v)
 {
     const float3 a = p0 - o, b = p1 - o, c = p2 - o;
-    const float az = comp3(a, s.kz), bz = comp3(b, s.kz), cz = comp3(c, s.kz);
-    const float ax = comp3(a, s.kx) - s.sx * az, ay = comp3(a, s.ky) - s.sy * az;
-    const float bx = comp3(b, s.kx) - s.sx * bz, by = comp3(b, s.ky) - s.sy * bz;
-    const float cx = comp3(c, s.kx) - s.sx * cz, cy = comp3(c, s.ky) - s.sy * cz;
+    /* vertices relative to the origin, axes permuted to (kx, ky, kz) */
+    const float4 ap = shuffle((float4)(a, 0.0f), s.perm);
+    const float4 bp = shuffle((float4)(b, 0.0f), s.perm);
+    const float4 cp = shuffle((float4)(c, 0.0f), s.perm);
+    const float ax = ap.x - s.sx * ap.z, ay = ap.y - s.sy * ap.z;
+    const float bx = bp.x - s.sx * bp.z, by = bp.y - s.sy * bp.z;
+    const float cx = cp.x - s.sx * cp.z, cy = cp.y - s.sy * cp.z;
     float U = cx * by - cy * bx;
     float V = ax * cy - ay * cx;
     float W = bx * ay - by * ax;
@@ -95,7 +100,7 @@ inline int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, float3 
  * --------------------------------------------------------------------------------------------- */
 #define SLAB_FAR_SCALE 1.00000095367431640625f /* 1 + 2^-20 */
 
-inline float intersect_box(float3 o, float3 inv_d, float3 bmin, float3 bmax, float tmin, float tmax)
+RT_INLINE float intersect_box(float3 o, float3 inv_d, float3 bmin, float3 bmax, float tmin, float tmax)
 {
     const float3 t0 = (bmin - o) * inv_d;
     const float3 t1 = (bmax - o) * inv_d;
@@ -115,7 +120,7 @@ inline float intersect_box(float3 o, float3 inv_d, float3 bmin, float3 bmax, flo
  * q = -(b' + sign(b') sqrt(disc)), which avoids cancellation in -b' +- sqrt(disc)
  * (Haines et al., Ray Tracing Gems ch. 7).  Returns 1 with the nearest root in (tmin, tmax).
  * --------------------------------------------------------------------------------------------- */
-inline int intersect_sphere(float3 o, float3 d, float3 center, float radius, float tmin, float tmax, float *t)
+RT_INLINE int intersect_sphere(float3 o, float3 d, float3 center, float radius, float tmin, float tmax, float *t)
 {
     const float3 f = o - center;
     const float a = dot(d, d);

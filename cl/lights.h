@@ -31,21 +31,21 @@ typedef struct {
 } LightSample;
 
 /* Radiance leaving an emitter with material m at a point of geometric normal ng toward w. */
-inline float3 emitted(__global const Material *m, float3 ng, float3 w)
+RT_INLINE float3 emitted(__global const Material *m, float3 ng, float3 w)
 {
     if ((m->flags & MATERIAL_FLAG_TWO_SIDED) == 0 && dot(ng, w) <= 0.0f)
         return (float3)(0.0f);
     return material_emission(m);
 }
 
-inline float sphere_one_minus_cos_max(float r, float dc2)
+RT_INLINE float sphere_one_minus_cos_max(float r, float dc2)
 {
     const float sin2 = fmin(r * r / dc2, 1.0f);
     const float cos_max = sqrt(fmax(0.0f, 1.0f - sin2));
     return sin2 / (1.0f + cos_max);
 }
 
-inline int light_sample(__global const float4 *tris, __global const Sphere *spheres,
+RT_INLINE int light_sample(__global const float4 *tris, __global const Sphere *spheres,
                         __global const Material *materials, __global const Light *light,
                         float3 ref, float2 u, LightSample *ls)
 {
@@ -101,7 +101,7 @@ inline int light_sample(__global const float4 *tris, __global const Sphere *sphe
 }
 
 /* Density light_sample() would have had for point p (normal ng) on light `light`. */
-inline float light_pdf(__global const Sphere *spheres, __global const Light *light, float3 ref, float3 p, float3 ng)
+RT_INLINE float light_pdf(__global const Sphere *spheres, __global const Light *light, float3 ref, float3 p, float3 ng)
 {
     if (light->kind == LIGHT_SPHERE) {
         __global const Sphere *s = spheres + light->prim;

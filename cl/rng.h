@@ -16,7 +16,7 @@
 #define RNG_KEY_OFFSET 0x9E3779B9u
 
 /* Chris Wellons' "lowbias32" integer finaliser (a bijection on 32 bits with low avalanche bias). */
-inline uint hash_u32(uint x)
+RT_INLINE uint hash_u32(uint x)
 {
     x ^= x >> 16;
     x *= 0x7feb352du;
@@ -27,9 +27,9 @@ inline uint hash_u32(uint x)
 }
 
 /* The top 24 bits as a float in [0, 1): exact (24 bits fit the mantissa), at most 1 - 2^-24. */
-inline float u32_to_unit_float(uint h) { return (float)(h >> 8) * 0x1.0p-24f; }
+RT_INLINE float u32_to_unit_float(uint h) { return (float)(h >> 8) * 0x1.0p-24f; }
 
-inline uint rng_hash(uint seed, uint pixel, uint sample, uint dim)
+RT_INLINE uint rng_hash(uint seed, uint pixel, uint sample, uint dim)
 {
     uint h = hash_u32(dim + RNG_KEY_OFFSET);
     h = hash_u32(sample ^ h);
@@ -38,13 +38,13 @@ inline uint rng_hash(uint seed, uint pixel, uint sample, uint dim)
 }
 
 /* Uniform in [0, 1), strictly below 1. */
-inline float rng_uniform(uint seed, uint pixel, uint sample, uint dim)
+RT_INLINE float rng_uniform(uint seed, uint pixel, uint sample, uint dim)
 {
     return u32_to_unit_float(rng_hash(seed, pixel, sample, dim));
 }
 
 /* Dimensions dim and dim + 1. */
-inline float2 rng_uniform2(uint seed, uint pixel, uint sample, uint dim)
+RT_INLINE float2 rng_uniform2(uint seed, uint pixel, uint sample, uint dim)
 {
     return (float2)(rng_uniform(seed, pixel, sample, dim), rng_uniform(seed, pixel, sample, dim + 1u));
 }

@@ -52,7 +52,7 @@
 #define DIM_BSDF 3        /* and 4 */
 #define DIM_RR 5
 
-inline Hit scene_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
+RT_INLINE Hit scene_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
                              __global const Sphere *spheres, int n_spheres,
                              float3 o, float3 d, float tmin, float tmax)
 {
@@ -73,7 +73,7 @@ inline Hit scene_closest_hit(__global const BVHNode *nodes, __global const float
     return hit;
 }
 
-inline int scene_occluded(__global const BVHNode *nodes, __global const float4 *tris,
+RT_INLINE int scene_occluded(__global const BVHNode *nodes, __global const float4 *tris,
                           __global const Sphere *spheres, int n_spheres,
                           float3 o, float3 d, float tmin, float tmax)
 {
@@ -92,7 +92,7 @@ inline int scene_occluded(__global const BVHNode *nodes, __global const float4 *
 }
 
 /* Unit geometric normal at a hit (triangles: (v1-v0)x(v2-v0); spheres: outward). */
-inline float3 hit_normal(__global const float4 *tris, __global const Sphere *spheres, int prim, float3 p)
+RT_INLINE float3 hit_normal(__global const float4 *tris, __global const Sphere *spheres, int prim, float3 p)
 {
 #ifdef HAS_SPHERES
     if (IS_SPHERE(prim)) {

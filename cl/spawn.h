@@ -15,7 +15,7 @@
 #define SPAWN_FLOAT_SCALE 1.52587890625e-05f /* 2^-16: absolute offset near the origin */
 #define SPAWN_INT_SCALE 256.0f         /* ulps per unit of normal */
 
-inline float spawn_component(float p, float n)
+RT_INLINE float spawn_component(float p, float n)
 {
     const int of = (int)(SPAWN_INT_SCALE * n);
     const float pi = as_float(as_int(p) + (p < 0.0f ? -of : of));
@@ -23,7 +23,7 @@ inline float spawn_component(float p, float n)
 }
 
 /* p moved off the surface to the side n points to (n: unit geometric normal on that side). */
-inline float3 offset_ray_origin(float3 p, float3 n)
+RT_INLINE float3 offset_ray_origin(float3 p, float3 n)
 {
     return (float3)(spawn_component(p.x, n.x), spawn_component(p.y, n.y), spawn_component(p.z, n.z));
 }

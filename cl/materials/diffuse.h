@@ -13,7 +13,7 @@
 #include "../sampling.h"
 
 /* n is the unit normal on the side of wo.  Returns f * |cos(theta_i)|, sets *pdf. */
-inline float3 diffuse_eval(float3 albedo, float3 n, float3 wi, float *pdf)
+RT_INLINE float3 diffuse_eval(float3 albedo, float3 n, float3 wi, float *pdf)
 {
     const float cos_i = dot(n, wi);
     if (cos_i <= 0.0f) { *pdf = 0.0f; return (float3)(0.0f); }
@@ -22,7 +22,7 @@ inline float3 diffuse_eval(float3 albedo, float3 n, float3 wi, float *pdf)
 }
 
 /* Samples wi; returns the weight f * cos / pdf (= albedo) and sets *pdf. */
-inline float3 diffuse_sample(float3 albedo, float3 n, float2 u, float3 *wi, float *pdf)
+RT_INLINE float3 diffuse_sample(float3 albedo, float3 n, float2 u, float3 *wi, float *pdf)
 {
     float3 t, b;
     make_onb(n, &t, &b);
