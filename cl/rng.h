@@ -13,6 +13,8 @@
 #ifndef PYOPENCL_RT_RNG_H
 #define PYOPENCL_RT_RNG_H
 
+#include "common.h"
+
 #define RNG_KEY_OFFSET 0x9E3779B9u
 
 /* Chris Wellons' "lowbias32" integer finaliser (a bijection on 32 bits with low avalanche bias). */
