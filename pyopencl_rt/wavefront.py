@@ -200,6 +200,16 @@ class Wavefront:
         size = max(LOCAL_SIZE, (count + LOCAL_SIZE - 1) // LOCAL_SIZE * LOCAL_SIZE)
         return cl.enqueue_nd_range_kernel(self.rt.queue, k, (size,), (LOCAL_SIZE,))
 
+    # -- the two ray-casting stages, overridable (e.g. by an Embree-backed subclass) -----------
+    def extend(self, n_active: int, qin, qout):
+        """Closest hit for the n_active paths of queue qin into hit_t/prim/u/v. Returns an event
+        (or None when the work was done synchronously on the host)."""
+        return self._launch("extend", n_active, qin, qout, n_active)
+
+    def shadow(self, n_active: int, qin, qout):
+        """Any-hit test of the counters[COUNTER_SHADOW] queued shadow rays (at most n_active)."""
+        return self._launch("shadow", n_active, qin, qout)
+
     def run(self, film: Film, passes: int | None = None, time_limit: float | None = None,
             progress=None, profile: bool = False, first_pass: int = 0) -> RunStats:
         """Render passes [first_pass, first_pass + passes) (or until time_limit seconds) into film.
@@ -247,9 +257,9 @@ class Wavefront:
                     continue
                 cl.enqueue_copy(queue, self.counters, zeros3)
                 n = self.n_active
-                events.append(("extend", self._launch("extend", n, qin, qout, n)))
+                events.append(("extend", self.extend(n, qin, qout)))
                 events.append(("shade", self._launch("shade", n, qin, qout, n)))
-                events.append(("shadow", self._launch("shadow", n, qin, qout)))
+                events.append(("shadow", self.shadow(n, qin, qout)))
                 events.append(("accumulate", self._launch("accumulate", n, qin, qout, 0, 0, 0, 0, self.n_free)))
                 cl.enqueue_copy(queue, self.counters_host, self.counters)  # blocking: the only sync
                 c = self.counters_host
@@ -261,7 +271,8 @@ class Wavefront:
                 qin, qout = qout, qin
                 if profile:
                     for name, ev in events:
-                        stats.stage_seconds[name] += (ev.profile.end - ev.profile.start) * 1e-9
+                        if ev is not None:
+                            stats.stage_seconds[name] += (ev.profile.end - ev.profile.start) * 1e-9
                 events.clear()
                 # completed passes, in order, into the film
                 while c[N_COUNTERS + self.oldest_pass % self.ring_size] == P:
