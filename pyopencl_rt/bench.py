@@ -159,3 +159,51 @@ def run_ray_bench(devices=None, sizes=(10_000, 100_000, 1_000_000), n_rays=1_000
             json.dump(results, fh, indent=2)
         echo(f"wrote {json_path}")
     return results
+
+
+def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, max_depth=8, repeat=3,
+                     wave_size=None, json_path=None, echo=print) -> dict:
+    """Samples/s of the path tracer on each device: one warm-up render (kernel build, BVH upload,
+    not timed), then ``repeat`` timed renders of ``spp`` passes; the median is reported, and the
+    devices are interleaved within each repetition so background load hits them alike."""
+    from . import devices as dv
+    from .render import render_full
+    from .scenefile import load_scene
+    from .wavefront import Wavefront
+
+    scene = load_scene(scene_path)
+    chosen = dv.resolve(devices)
+    wfs = {}
+    results = {"scene": str(scene_path), "width": width, "height": height, "spp": spp, "max_depth": max_depth,
+               "repeat": repeat, "machine": {"platform": platform.platform(), "python": platform.python_version()},
+               "devices": {}}
+    for dev in chosen:
+        t0 = time.perf_counter()
+        wf = Wavefront(scene, dev, width=width, height=height, max_depth=max_depth, wave_size=wave_size)
+        setup = time.perf_counter() - t0
+        render_full(scene, spp=1, wavefront=wf)  # warm-up
+        wfs[dv.device_label(dev)] = (wf, setup)
+    rates = {name: [] for name in wfs}
+    stages = {}
+    for _ in range(repeat):
+        for name, (wf, _setup) in wfs.items():
+            r = render_full(scene, spp=spp, wavefront=wf, profile=True)
+            rates[name].append(r.info["samples_per_second"])
+            stages[name] = r.info
+    echo(f"{'device':<60} {'Msamples/s':>10} {'rays/sample':>11} {'setup s':>8}")
+    for name, (wf, setup) in wfs.items():
+        info = stages[name]
+        med = statistics.median(rates[name])
+        rays = (info["rays_extend"] + info["rays_shadow"]) / max(info["samples"], 1)
+        results["devices"][name] = {
+            "samples_per_second_median": med, "samples_per_second_all": rates[name],
+            "setup_seconds": setup, "kernel_build_seconds": wf.timings.get("build_seconds"),
+            "bvh_seconds": wf.timings.get("bvh_seconds"), "wave_size": wf.wave_size,
+            "rays_per_sample": rays, "stage_seconds": info.get("stage_seconds"), "features": info["features"],
+        }
+        echo(f"{name[:60]:<60} {med / 1e6:10.3f} {rays:11.2f} {setup:8.2f}")
+    if json_path:
+        with open(json_path, "w") as fh:
+            json.dump(results, fh, indent=2)
+        echo(f"wrote {json_path}")
+    return results

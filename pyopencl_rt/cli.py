@@ -168,6 +168,24 @@ def bench_rays(device, sizes, n_rays, repeat, no_embree, json_path):
     )
 
 
+@bench.command("render")
+@click.argument("scene_path", metavar="SCENE", default="scenes/cornell-box.toml", type=click.Path(dir_okay=False))
+@device_option
+@click.option("--width", default=512, show_default=True)
+@click.option("--height", default=512, show_default=True)
+@click.option("--spp", default=16, show_default=True, help="Samples per pixel per timed render.")
+@click.option("--max-depth", default=8, show_default=True)
+@click.option("--repeat", default=3, show_default=True, help="Timed renders per device (median reported).")
+@click.option("--wave-size", type=int)
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
+def bench_render(scene_path, device, width, height, spp, max_depth, repeat, wave_size, json_path):
+    """Samples/s of the path tracer on each device (kernel build and BVH not timed)."""
+    from .bench import run_render_bench
+
+    run_render_bench(scene_path, devices=list(device) or None, width=width, height=height, spp=spp,
+                     max_depth=max_depth, repeat=repeat, wave_size=wave_size, json_path=json_path, echo=click.echo)
+
+
 def main(argv=None):
     """Entry point: user errors become one line on stderr and a non-zero exit code."""
     try:

@@ -1,5 +1,6 @@
 """The ``pyopencl-rt`` command line, run as a separate process (``python -m pyopencl_rt.cli``)."""
 import json
+import re
 import math
 import os
 import subprocess
@@ -32,6 +33,11 @@ def pocl_info():
     pytest.fail("PoCL CPU device not found")
 
 
+def without_memory(entry: dict) -> dict:
+    """PoCL's memory sizes follow the system's free memory, which changes between processes."""
+    return {k: v for k, v in entry.items() if k not in ("global_mem_bytes", "max_alloc_bytes")}
+
+
 def test_devices_lists_pocl(tmp_path, pocl_info):
     r = run_cli("devices", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
@@ -41,7 +47,8 @@ def test_devices_lists_pocl(tmp_path, pocl_info):
     assert f"platform: {pocl_info.platform}" in block
     assert "type: CPU" in block
     assert f"compute units: {pocl_info.compute_units}" in block
-    assert f"memory: {pocl_info.global_mem_bytes / 2**30:.1f} GiB" in block
+    # PoCL reports a share of the memory free at the time, so it differs between processes
+    assert re.search(r"memory: \d+\.\d GiB", block)
     assert pocl_info.opencl_version in block
     # one entry per device
     assert out.count("platform: ") == len(dv.all_devices())
@@ -53,7 +60,7 @@ def test_devices_json(tmp_path, pocl_info):
     data = json.loads(r.stdout)
     assert isinstance(data, list) and len(data) == len(dv.all_devices())
     entry = next(d for d in data if d["index"] == pocl_info.index)
-    assert entry == pocl_info.as_dict()
+    assert without_memory(entry) == without_memory(pocl_info.as_dict())
     assert entry["type"] == "CPU"
     assert isinstance(entry["compute_units"], int) and entry["compute_units"] > 0
     assert isinstance(entry["global_mem_bytes"], int) and entry["global_mem_bytes"] > 0
@@ -63,7 +70,9 @@ def test_devices_json(tmp_path, pocl_info):
 def test_devices_json_filtered_by_device(tmp_path, pocl_info):
     r = run_cli("devices", "--json", "--device", "cpu", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
-    assert json.loads(r.stdout) == [pocl_info.as_dict()]
+    data = json.loads(r.stdout)
+    assert [without_memory(d) for d in data] == [without_memory(pocl_info.as_dict())]
+    assert data[0]["global_mem_bytes"] > 0 and data[0]["max_alloc_bytes"] > 0
 
 
 @pytest.mark.parametrize("command", [["devices"], ["bench", "rays", "--sizes", "1k", "--rays", "16"]],
