@@ -37,6 +37,11 @@
     const int max_depth, const int rr_depth, const uint seed,                                      \
     const int a0, const int a1, const int a2, const int a3, const int a4
 
+/* Work-group size of every wavefront launch (the host's LOCAL_SIZE, pyopencl_rt/wavefront.py). */
+#ifndef WAVE_LOCAL_SIZE
+#define WAVE_LOCAL_SIZE 64
+#endif
+
 /* counters[] slots (the pass completion counts of the ring follow at COUNTER_PASS_DONE) */
 #define COUNTER_QUEUE_OUT 0
 #define COUNTER_SHADOW 1

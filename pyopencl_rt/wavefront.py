@@ -89,7 +89,7 @@ def scene_features(scene: Scene, n_lights: int, integrator: str) -> dict:
     """Preprocessor defines: only what the scene uses is compiled."""
     if integrator not in INTEGRATORS:
         raise ValueError(f"integrator must be one of {INTEGRATORS}")
-    defines = {"INTEGRATOR": INTEGRATORS.index(integrator)}
+    defines = {"INTEGRATOR": INTEGRATORS.index(integrator), "WAVE_LOCAL_SIZE": LOCAL_SIZE}
     if len(scene.faces):
         defines["HAS_TRIANGLES"] = True
     if len(scene.spheres):
