@@ -34,14 +34,34 @@ assert BVH_NODE.itemsize == 64
 TRIANGLE = np.dtype([("v0", np.float32, 4), ("v1", np.float32, 4), ("v2", np.float32, 4)])
 assert TRIANGLE.itemsize == 48
 
-# A material (32 bytes).  type: MATERIAL_DIFFUSE (Lambertian) for now; later issues add more.
-# flags: bit 0 = emission on both sides (default: only on the side the geometric normal faces).
+# A material (80 bytes).  type selects the BSDF (cl/bsdf.h dispatches on it; each type is
+# documented at the top of cl/materials/<name>.h); every type may also emit.
+#   albedo    diffuse: reflectance; gltf: baseColor
+#   emission  emitted radiance (any type)
+#   flags     bit 0: emission on both sides (default: only on the side the geometric normal
+#             faces); bit 1: conductor Fresnel from `specular` as F0 (Schlick) instead of eta, k
+#   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes
+#   alpha     GGX roughness alpha (conductor, dielectric, gltf); < 1e-3 is perfectly smooth
+#   eta, k    conductor: complex index of refraction eta + i k per channel
+#   metallic  gltf
+#   ior       dielectric: index of the inside relative to the outside; gltf: the dielectric's
+#             index (F0 = ((ior - 1) / (ior + 1))^2)
+# The type and flag constants are #defined again in cl/bsdf.h (tests/test_materials.py checks
+# that they agree).
 MATERIAL_DIFFUSE = 0
+MATERIAL_CONDUCTOR = 1
+MATERIAL_DIELECTRIC = 2
+MATERIAL_GLTF = 3
+MATERIAL_TYPES = {"diffuse": MATERIAL_DIFFUSE, "conductor": MATERIAL_CONDUCTOR,
+                  "dielectric": MATERIAL_DIELECTRIC, "gltf": MATERIAL_GLTF}
 MATERIAL_FLAG_TWO_SIDED = 1
+MATERIAL_FLAG_CONDUCTOR_F0 = 2
 MATERIAL = np.dtype(
-    [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32)]
+    [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
+     ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
+     ("k", np.float32, 3), ("ior", np.float32)]
 )
-assert MATERIAL.itemsize == 32
+assert MATERIAL.itemsize == 80
 
 # A sphere (16 bytes): centre and radius.
 SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
@@ -87,6 +107,24 @@ def cl_struct(name: str, dtype: np.dtype) -> str:
     return f"typedef struct {{\n{body}\n}} {name};  /* {dtype.itemsize} bytes */\n"
 
 
+# A 4-wide BVH node (128 bytes; pyopencl_rt/bvh_wide.py builds it, cl/bvh_wide.h traverses it):
+# the boxes of up to four children in structure-of-arrays form (each field is one float4, so one
+# slab test covers all four), then per child slot:
+#   child : float4 offset into the wide buffer of the child node (count 0) or of its first
+#           Tri4 packet (count > 0); 0 for an absent child
+#   count : 0 = inner node, > 0 = leaf of `count` Tri4 packets, -1 = absent (box +inf / -inf)
+WIDE_NODE = np.dtype(
+    [(f"{b}_{c}", np.float32, 4) for b in ("bmin", "bmax") for c in "xyz"]
+    + [("child", np.int32, 4), ("count", np.int32, 4)]
+)
+assert WIDE_NODE.itemsize == 128
+
+# Four triangles in structure-of-arrays form (160 bytes): vertex k's coordinate c of the four
+# lanes in v{k}{c}, and each lane's index into the binary BVH's reordered triangle array in tri
+# (-1 for a padding lane, whose vertices are NaN so that it can never hit).
+TRI4 = np.dtype([(f"v{k}{c}", np.float32, 4) for k in range(3) for c in "xyz"] + [("tri", np.int32, 4)])
+assert TRI4.itemsize == 160
+
 # Registry of every shared struct: name -> dtype.  Add new shared structs here.
 STRUCTS: dict[str, np.dtype] = {
     "BVHNode": BVH_NODE,
@@ -94,6 +132,8 @@ STRUCTS: dict[str, np.dtype] = {
     "Sphere": SPHERE,
     "Light": LIGHT,
     "Camera": CAMERA,
+    "WideNode": WIDE_NODE,
+    "Tri4": TRI4,
 }
 
 

@@ -15,17 +15,76 @@ from . import layout
 INTEGRATORS = ("path", "bsdf", "nee")
 
 
+# Complex indices of refraction eta + i k of named conductors at the RGB wavelengths 650, 550
+# and 450 nm (sampled from the refractiveindex.info data sets, as tabulated in Chaos Group's
+# "Understanding metalness", 2014).
+CONDUCTORS = {
+    "gold": ((0.18299, 0.42108, 1.3734), (3.4242, 2.3459, 1.7704)),
+    "silver": ((0.16262, 0.14512, 0.13550), (4.0728, 3.1900, 2.1997)),
+    "copper": ((0.27105, 0.67693, 1.3164), (3.6092, 2.6248, 2.2921)),
+    "aluminium": ((1.3456, 0.96521, 0.61722), (7.4746, 6.3995, 5.3031)),
+}
+
+
 @dataclass
 class Material:
+    """A material; ``type`` is one of :data:`MATERIAL_TYPES` (documented in docs/SCENE_FORMAT.md
+    and at the top of each ``cl/materials/<type>.h``).  Every type may emit.
+
+    * ``diffuse``: ``albedo``.
+    * ``conductor``: ``alpha`` (GGX; 0 = mirror) and either ``eta``/``k`` (complex IOR per RGB
+      channel) or, when ``eta`` is None, ``f0`` (Schlick; default 1 = a perfect mirror).
+    * ``dielectric``: ``ior`` (inside relative to outside), ``alpha``, ``tint``.
+    * ``gltf``: ``albedo`` (baseColor), ``metallic``, ``alpha`` (= roughness^2), ``ior``.
+    """
+
     name: str = "default"
     albedo: tuple = (0.8, 0.8, 0.8)
     emission: tuple = (0.0, 0.0, 0.0)
     two_sided: bool = False
     type: str = "diffuse"
+    alpha: float = 0.0  # GGX alpha (the scene format's roughness squared)
+    metallic: float = 0.0
+    ior: float = 1.5
+    f0: tuple = (1.0, 1.0, 1.0)
+    eta: tuple | None = None
+    k: tuple | None = None
+    tint: tuple = (1.0, 1.0, 1.0)
 
     @property
     def is_emissive(self) -> bool:
         return max(self.emission) > 0.0
+
+    @property
+    def roughness(self) -> float:
+        """Perceptual roughness sqrt(alpha)."""
+        return float(np.sqrt(self.alpha))
+
+    def record(self) -> np.ndarray:
+        """The MATERIAL struct."""
+        if self.type not in layout.MATERIAL_TYPES:
+            raise ValueError(f"material {self.name!r}: unknown type {self.type!r}")
+        rec = np.zeros((), layout.MATERIAL)
+        rec["type"] = layout.MATERIAL_TYPES[self.type]
+        rec["albedo"] = self.albedo
+        rec["emission"] = self.emission
+        flags = layout.MATERIAL_FLAG_TWO_SIDED if self.two_sided else 0
+        rec["alpha"] = self.alpha
+        rec["metallic"] = self.metallic
+        rec["ior"] = self.ior
+        rec["specular"] = self.tint
+        if self.type == "conductor":
+            if self.eta is None:
+                flags |= layout.MATERIAL_FLAG_CONDUCTOR_F0
+                rec["specular"] = self.f0
+            else:
+                rec["eta"] = self.eta
+                rec["k"] = self.k if self.k is not None else (0.0, 0.0, 0.0)
+        rec["flags"] = flags
+        return rec
+
+
+MATERIAL_TYPES = tuple(layout.MATERIAL_TYPES)
 
 
 @dataclass
@@ -80,11 +139,17 @@ class Scene:
     def material_records(self) -> np.ndarray:
         recs = np.zeros(max(1, len(self.materials)), layout.MATERIAL)
         for i, m in enumerate(self.materials):
-            recs[i]["albedo"] = m.albedo
-            recs[i]["emission"] = m.emission
-            recs[i]["type"] = layout.MATERIAL_DIFFUSE
-            recs[i]["flags"] = layout.MATERIAL_FLAG_TWO_SIDED if m.two_sided else 0
+            recs[i] = m.record()
         return recs
+
+    def material_defines(self) -> dict:
+        """Preprocessor defines that compile only the material types this scene uses
+        (MATERIALS_SELECTED + HAS_MATERIAL_<TYPE>; see cl/bsdf.h)."""
+        defines = {"MATERIALS_SELECTED": True}
+        for m in self.materials:
+            if m.type != "diffuse":
+                defines[f"HAS_MATERIAL_{m.type.upper()}"] = True
+        return defines
 
     def sphere_records(self) -> np.ndarray:
         recs = np.zeros(len(self.spheres), layout.SPHERE)

@@ -4,7 +4,9 @@
 
 * a **TOML scene file** (``.toml``), described below and in ``docs/SCENE_FORMAT.md``;
 * an **OBJ file** (``.obj``) with its MTL materials: ``Kd`` becomes the albedo, ``Ke`` the
-  emission, one material per face (``usemtl``); a camera framing the scene and default settings;
+  emission, one material per face (``usemtl``); ``Ks``, ``Ns``, ``Ni``, ``d``/``Tr``, ``illum``
+  and the PBR extension's ``Pr``/``Pm`` choose glossy, metal and glass materials (see
+  :func:`parse_mtl`); a camera framing the scene and default settings;
 * **any other mesh file** trimesh reads (PLY, STL, GLB/glTF, OFF, ...) with one default diffuse
   material (albedo 0.8) and the framing camera.
 
@@ -31,10 +33,21 @@ TOML scene format (summary; the full reference is ``docs/SCENE_FORMAT.md``)::
     rr_depth = 3                  # Russian roulette starts after this many bounces, default 3
 
     [materials.white]             # one table per material, referred to by NAME
-    type = "diffuse"              # the only type for now (default)
+    type = "diffuse"              # "diffuse" (default) | "conductor" | "dielectric" | "gltf"
     albedo = [0.725, 0.71, 0.68]  # linear RGB in [0, 1] (or one number for grey), default 0.8
-    emission = [0, 0, 0]          # linear RGB radiance >= 0 (or one number), default 0
+    emission = [0, 0, 0]          # linear RGB radiance >= 0 (or one number), default 0; any type
     two_sided = false             # emit from both sides, default false
+
+    [materials.gold]              # rough metal: roughness (alpha = roughness^2) or alpha, and
+    type = "conductor"            #   metal = "gold" | "silver" | "copper" | "aluminium",
+    metal = "gold"                #   or eta = [...] and k = [...], or f0 = [...];
+    roughness = 0.3               #   default: a perfect mirror (f0 = 1, roughness 0)
+
+    [materials.glass]             # ior (inside / outside, default 1.5), roughness, tint
+    type = "dielectric"
+
+    [materials.plastic]           # glTF metallic-roughness: base_color, metallic, roughness, ior
+    type = "gltf"
 
     [[shape]]                     # one table per shape, numbered #1, #2, ... in messages
     type = "quad"                 # "mesh" | "quad" | "triangle" | "box" | "sphere"
@@ -71,7 +84,7 @@ import numpy as np
 
 from .errors import UserError
 from .mesh import MeshError, check_triangles, flatten, load_trimesh
-from .scene import INTEGRATORS, Camera, Material, RenderSettings, Scene
+from .scene import CONDUCTORS, INTEGRATORS, Camera, Material, RenderSettings, Scene
 
 try:  # Python >= 3.11
     import tomllib
@@ -83,7 +96,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 
 __all__ = ["load_scene", "SceneError", "framing_camera", "parse_obj", "parse_mtl"]
 
-MATERIAL_TYPES = ("diffuse",)
+MATERIAL_TYPES = ("diffuse", "conductor", "dielectric", "gltf")
 SHAPE_TYPES = ("mesh", "quad", "triangle", "box", "sphere")
 DEFAULT_FOV = 40.0
 
@@ -91,7 +104,14 @@ _TOP_KEYS = {"camera", "film", "render", "materials", "shape"}
 _CAMERA_KEYS = {"eye", "look_at", "up", "fov"}
 _FILM_KEYS = {"width", "height"}
 _RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth"}
-_MATERIAL_KEYS = {"type", "albedo", "emission", "two_sided"}
+_MATERIAL_COMMON_KEYS = {"type", "emission", "two_sided"}
+_ROUGHNESS_KEYS = {"roughness", "alpha"}
+_MATERIAL_KEYS = {
+    "diffuse": _MATERIAL_COMMON_KEYS | {"albedo"},
+    "conductor": _MATERIAL_COMMON_KEYS | _ROUGHNESS_KEYS | {"metal", "eta", "k", "f0"},
+    "dielectric": _MATERIAL_COMMON_KEYS | _ROUGHNESS_KEYS | {"ior", "tint"},
+    "gltf": _MATERIAL_COMMON_KEYS | _ROUGHNESS_KEYS | {"base_color", "metallic", "ior"},
+}
 _TRANSFORM_KEYS = {"translate", "scale", "rotate", "matrix", "flip_normals"}
 _SHAPE_KEYS = {
     "mesh": {"type", "material", "file", "use_file_materials"} | _TRANSFORM_KEYS,
@@ -140,9 +160,26 @@ def load_scene(path) -> Scene:
 
 
 def parse_mtl(path, name: str | None = None) -> dict:
-    """{material name: Material} from an MTL file: ``Kd`` -> albedo, ``Ke`` -> emission."""
+    """{material name: Material} from an MTL file.
+
+    ``Kd`` -> albedo (clamped to [0, 1]), ``Ke`` -> emission; then the material's type:
+
+    * ``d`` < 1, ``Tr`` > 0 or ``illum`` 4, 6, 7 or 9 (transparency / refraction): a dielectric
+      of IOR ``Ni`` (default 1.5);
+    * ``Pm`` given (the PBR extension): ``gltf`` with baseColor ``Kd``, metallic ``Pm``;
+    * ``illum 3`` (ray-traced reflection) with ``Kd`` = 0 and ``Ks`` > 0: a conductor with
+      F0 = ``Ks`` (Schlick);
+    * ``illum 2`` (highlights) with ``Ks`` > 0: ``gltf`` plastic (metallic 0, baseColor ``Kd``,
+      IOR ``Ni`` or 1.5);
+    * anything else: diffuse.
+
+    Roughness: ``Pr`` (perceptual, alpha = Pr^2) if given, else from the Phong exponent ``Ns``
+    by Walter et al.'s (2007) correspondence alpha = sqrt(2 / (Ns + 2)); without either, 0
+    (smooth) for glass and mirrors and 1 for gltf.
+    """
     name = name or str(path)
     materials: dict[str, Material] = {}
+    props: dict[str, dict] = {}
     current = None
     try:
         text = Path(path).read_text(encoding="utf-8", errors="replace")
@@ -158,7 +195,8 @@ def parse_mtl(path, name: str | None = None) -> dict:
         if key == "newmtl":
             current = Material(name=rest or f"material{len(materials)}")
             materials[current.name] = current
-        elif key in ("Kd", "Ke") and current is not None:
+            props[current.name] = {}
+        elif key in ("Kd", "Ke", "Ks") and current is not None:
             fields = rest.split()
             if fields and fields[0] in ("spectral", "xyz"):
                 warnings.warn(f"{name}:{lineno}: '{key} {fields[0]}' is not supported; ignored", stacklevel=3)
@@ -171,16 +209,55 @@ def parse_mtl(path, name: str | None = None) -> dict:
                 values = values * 3
             if len(values) != 3 or not all(math.isfinite(v) for v in values):
                 raise SceneError(f"{name}:{lineno}: {key} needs 1 or 3 finite numbers, got '{rest}'")
-            if key == "Kd":
+            if key in ("Kd", "Ks"):
                 clipped = tuple(min(max(v, 0.0), 1.0) for v in values)
                 if clipped != tuple(values):
-                    warnings.warn(f"{name}:{lineno}: Kd {rest} clamped to [0, 1]", stacklevel=3)
-                current.albedo = clipped
+                    warnings.warn(f"{name}:{lineno}: {key} {rest} clamped to [0, 1]", stacklevel=3)
+                if key == "Kd":
+                    current.albedo = clipped
+                else:
+                    props[current.name]["Ks"] = clipped
             else:
                 if min(values) < 0:
                     raise SceneError(f"{name}:{lineno}: Ke must not be negative, got '{rest}'")
                 current.emission = tuple(values)
+        elif key in ("Ns", "Ni", "d", "Tr", "illum", "Pr", "Pm") and current is not None:
+            try:
+                value = float(rest.split()[0])
+            except (ValueError, IndexError):
+                raise SceneError(f"{name}:{lineno}: {key} needs a number, got '{rest}'") from None
+            if not math.isfinite(value):
+                raise SceneError(f"{name}:{lineno}: {key} needs a finite number, got '{rest}'")
+            props[current.name][key] = value
+    for mname, mat in materials.items():
+        _mtl_type(mat, props[mname])
     return materials
+
+
+def _mtl_type(mat: Material, p: dict) -> None:
+    """Choose the material type from the MTL statements (see parse_mtl)."""
+    ks = p.get("Ks", (0.0, 0.0, 0.0))
+    illum = int(p["illum"]) if "illum" in p else None
+    opacity = p.get("d", 1.0 - p.get("Tr", 0.0))
+    ior = p.get("Ni", 1.5)
+    if not ior > 0:
+        ior = 1.5
+    if "Pr" in p:
+        alpha = min(max(p["Pr"], 0.0), 1.0) ** 2
+    elif "Ns" in p:
+        alpha = min(1.0, math.sqrt(2.0 / (max(p["Ns"], 0.0) + 2.0)))
+    else:
+        alpha = None
+    if opacity < 1.0 or illum in (4, 6, 7, 9):
+        mat.type, mat.ior, mat.alpha = "dielectric", ior, alpha or 0.0
+    elif "Pm" in p:
+        mat.type, mat.metallic, mat.ior = "gltf", min(max(p["Pm"], 0.0), 1.0), ior
+        mat.alpha = 1.0 if alpha is None else alpha
+    elif illum == 3 and max(mat.albedo) == 0.0 and max(ks) > 0.0:
+        mat.type, mat.f0, mat.alpha = "conductor", ks, alpha or 0.0
+    elif illum == 2 and max(ks) > 0.0:
+        mat.type, mat.metallic, mat.ior = "gltf", 0.0, ior
+        mat.alpha = 1.0 if alpha is None else alpha
 
 
 def parse_obj(path, name: str | None = None):
@@ -630,30 +707,81 @@ def _parse_settings(ctx, film, render) -> RenderSettings:
     return s
 
 
+def _rgb01(ctx, where, key, value) -> tuple:
+    v = _vector(ctx, where, key, value, allow_scalar=True)
+    if v.min() < 0 or v.max() > 1:
+        raise ctx.error(where, f"'{key}' components must lie in [0, 1], got {v.tolist()}")
+    return tuple(float(x) for x in v)
+
+
+def _alpha(ctx, where, spec) -> float:
+    """GGX alpha from 'roughness' (perceptual, alpha = roughness^2) or 'alpha'; default 0."""
+    if "roughness" in spec and "alpha" in spec:
+        raise ctx.error(where, "give 'roughness' or 'alpha', not both")
+    if "alpha" in spec:
+        return _number(ctx, where, "alpha", spec["alpha"], minimum=0.0, maximum=1.0)
+    return _number(ctx, where, "roughness", spec.get("roughness", 0.0), minimum=0.0, maximum=1.0) ** 2
+
+
+def _parse_material(ctx, where, mname, spec) -> Material:
+    if not isinstance(spec, dict):
+        raise ctx.error(where, f"must be a table, got {_describe(spec)}")
+    mtype = spec.get("type", "diffuse")
+    if not isinstance(mtype, str) or mtype not in MATERIAL_TYPES:
+        shown = repr(mtype) if isinstance(mtype, str) else _describe(mtype)
+        raise ctx.error(where, f"unknown type {shown} (expected one of: {', '.join(MATERIAL_TYPES)})")
+    _check_keys(ctx, where, spec, _MATERIAL_KEYS[mtype])
+    emission = _vector(ctx, where, "emission", spec.get("emission", 0.0), allow_scalar=True)
+    if emission.min() < 0:
+        raise ctx.error(where, f"'emission' must not be negative, got {emission.tolist()}")
+    two_sided = _boolean(ctx, where, "two_sided", spec.get("two_sided", False))
+    mat = Material(name=mname, emission=tuple(float(x) for x in emission), two_sided=two_sided, type=mtype)
+    if mtype == "diffuse":
+        mat.albedo = _rgb01(ctx, where, "albedo", spec.get("albedo", 0.8))
+        return mat
+    mat.alpha = _alpha(ctx, where, spec)
+    if mtype == "conductor":
+        given = [k for k in ("metal", "f0") if k in spec] + (["eta/k"] if "eta" in spec or "k" in spec else [])
+        if len(given) > 1:
+            raise ctx.error(where, f"give only one of 'metal', 'eta' and 'k', or 'f0' (got {', '.join(given)})")
+        if "metal" in spec:
+            metal = spec["metal"]
+            if not isinstance(metal, str) or metal not in CONDUCTORS:
+                shown = repr(metal) if isinstance(metal, str) else _describe(metal)
+                raise ctx.error(where, f"unknown metal {shown} (expected one of: {', '.join(CONDUCTORS)})")
+            mat.eta, mat.k = CONDUCTORS[metal]
+        elif "eta" in spec or "k" in spec:
+            if "eta" not in spec or "k" not in spec:
+                raise ctx.error(where, "'eta' and 'k' (the complex index of refraction eta + i k) go together")
+            eta = _vector(ctx, where, "eta", spec["eta"], allow_scalar=True)
+            k = _vector(ctx, where, "k", spec["k"], allow_scalar=True)
+            if not (eta > 0).all():
+                raise ctx.error(where, f"'eta' must be > 0, got {eta.tolist()}")
+            if k.min() < 0:
+                raise ctx.error(where, f"'k' must not be negative, got {k.tolist()}")
+            mat.eta, mat.k = tuple(float(x) for x in eta), tuple(float(x) for x in k)
+        else:
+            mat.f0 = _rgb01(ctx, where, "f0", spec.get("f0", 1.0))
+    elif mtype == "dielectric":
+        mat.ior = _number(ctx, where, "ior", spec.get("ior", 1.5), positive=True)
+        mat.tint = _rgb01(ctx, where, "tint", spec.get("tint", 1.0))
+    else:  # gltf
+        mat.albedo = _rgb01(ctx, where, "base_color", spec.get("base_color", 1.0))
+        mat.metallic = _number(ctx, where, "metallic", spec.get("metallic", 1.0), minimum=0.0, maximum=1.0)
+        mat.ior = _number(ctx, where, "ior", spec.get("ior", 1.5), positive=True)
+        if "roughness" not in spec and "alpha" not in spec:
+            mat.alpha = 1.0  # glTF's default roughnessFactor
+    return mat
+
+
 def _parse_materials(ctx, table):
     if not isinstance(table, dict):
         raise ctx.error("materials", f"must be tables written [materials.NAME], got {_describe(table)}")
     materials: list[Material] = []
     index: dict[str, int] = {}
     for mname, spec in table.items():
-        where = f"[materials.{mname}]"
-        _check_keys(ctx, where, spec, _MATERIAL_KEYS)
-        mtype = spec.get("type", "diffuse")
-        if not isinstance(mtype, str) or mtype not in MATERIAL_TYPES:
-            shown = repr(mtype) if isinstance(mtype, str) else _describe(mtype)
-            raise ctx.error(where, f"unknown type {shown} (expected one of: {', '.join(MATERIAL_TYPES)})")
-        albedo = _vector(ctx, where, "albedo", spec.get("albedo", 0.8), allow_scalar=True)
-        if albedo.min() < 0 or albedo.max() > 1:
-            raise ctx.error(where, f"'albedo' components must lie in [0, 1], got {albedo.tolist()}")
-        emission = _vector(ctx, where, "emission", spec.get("emission", 0.0), allow_scalar=True)
-        if emission.min() < 0:
-            raise ctx.error(where, f"'emission' must not be negative, got {emission.tolist()}")
-        two_sided = _boolean(ctx, where, "two_sided", spec.get("two_sided", False))
         index[mname] = len(materials)
-        materials.append(Material(
-            name=mname, albedo=tuple(float(x) for x in albedo), emission=tuple(float(x) for x in emission),
-            two_sided=two_sided, type=mtype,
-        ))
+        materials.append(_parse_material(ctx, f"[materials.{mname}]", mname, spec))
     return materials, index
 
 

@@ -96,6 +96,7 @@ def scene_features(scene: Scene, n_lights: int, integrator: str) -> dict:
         defines["HAS_SPHERES"] = True
     if n_lights:
         defines["HAS_LIGHTS"] = True
+    defines.update(scene.material_defines())  # only the material types the scene uses
     return defines
 
 
@@ -107,6 +108,7 @@ class Wavefront:
         import pyopencl as cl
 
         from .kernels import runtime
+        from .trace import bvh_layout, layout_defines
 
         st = scene.settings
         self.scene = scene
@@ -127,6 +129,8 @@ class Wavefront:
         lights, tri_light, sphere_light = build_lights(scene, self.bvh)
         self.n_lights = len(lights)
         self.features = scene_features(scene, self.n_lights, self.integrator)
+        self.bvh_layout = bvh_layout(device)  # wide (cl/bvh_wide.h) on CPUs; $PYOPENCL_RT_BVH_LAYOUT overrides
+        self.features.update(layout_defines(self.bvh_layout))
 
         self.rt = runtime(device)
         t0 = time.perf_counter()
@@ -146,7 +150,7 @@ class Wavefront:
         def scratch(nbytes):
             return cl.Buffer(ctx, mf.READ_WRITE, max(int(nbytes), 16))
 
-        from .trace import padded_nodes
+        from .trace import node_buffer
 
         prim = self.bvh.prim_ids
         tri_material = scene.face_materials[prim].astype(np.int32) if len(prim) else np.zeros(0, np.int32)
@@ -156,7 +160,7 @@ class Wavefront:
         self.ring_size = int(min(max(2, math.ceil(W / P) + 2), 1 << 12))
         f4, i4 = 4, 4
         self.buffers = [
-            const(padded_nodes(self.bvh)), const(self.bvh.triangles), const(tri_material), const(tri_light),
+            const(node_buffer(self.bvh, self.bvh_layout)), const(self.bvh.triangles), const(tri_material), const(tri_light),
             const(scene.sphere_records()), const(scene.sphere_materials.astype(np.int32)),
             const(sphere_light), const(scene.material_records()), const(lights), const(cam),
             scratch(3 * f4 * W), scratch(3 * f4 * W), scratch(3 * f4 * W), scratch(3 * f4 * W),  # ray o/d, beta, L
@@ -211,11 +215,13 @@ class Wavefront:
         return self._launch("shadow", n_active, qin, qout)
 
     def run(self, film: Film, passes: int | None = None, time_limit: float | None = None,
-            progress=None, profile: bool = False, first_pass: int = 0) -> RunStats:
+            progress=None, profile: bool = False, first_pass: int = 0, cancel=None) -> RunStats:
         """Render passes [first_pass, first_pass + passes) (or until time_limit seconds) into film.
 
         Returns when every started pass is complete; on KeyboardInterrupt the passes in flight are
-        dropped and what is complete stays in the film (stats.interrupted is set).
+        dropped and what is complete stays in the film (stats.interrupted is set).  ``cancel``, a
+        callable checked once per iteration (between whole passes' film updates), does the same
+        when it returns true: signal handlers and other threads stop a render at a safe point.
         """
         import pyopencl as cl
 
@@ -234,6 +240,8 @@ class Wavefront:
         events = []
         try:
             while True:
+                if cancel is not None and cancel():
+                    raise KeyboardInterrupt
                 now = time.perf_counter() - start
                 if time_limit is not None and now >= time_limit and end_sample is None or (
                     time_limit is not None and now >= time_limit and self.next_sample < (end_sample or 0)

@@ -455,3 +455,124 @@ def test_error_broken_mesh_file(tmp_path):
 def test_error_broken_obj(tmp_path):
     msg = _error(tmp_path, "v 0 0 0\nv 1 0 0\nf 1 2 7\n", name="bad.obj")
     assert "bad.obj:3" in msg
+
+
+# ---------------------------------------------------------------------------------------------
+# material types
+
+
+def _materials(tmp_path, text):
+    (tmp_path / "m.toml").write_text(text + '[[shape]]\ntype = "sphere"\ncenter = [0,0,0]\nradius = 1\n')
+    return {m.name: m for m in load_scene(tmp_path / "m.toml").materials}
+
+
+def test_material_types_parse(tmp_path):
+    from pyopencl_rt.scene import CONDUCTORS
+
+    m = _materials(tmp_path, """
+[materials.mirror]
+type = "conductor"
+[materials.gold]
+type = "conductor"
+metal = "gold"
+roughness = 0.5
+emission = 2
+[materials.custom]
+type = "conductor"
+eta = [0.2, 0.9, 1.1]
+k = 3
+alpha = 0.1
+[materials.schlick]
+type = "conductor"
+f0 = [0.9, 0.6, 0.3]
+[materials.glass]
+type = "dielectric"
+ior = 1.33
+roughness = 0.2
+[materials.plastic]
+type = "gltf"
+base_color = [0.8, 0.1, 0.1]
+metallic = 0
+roughness = 0.4
+[materials.defaults]
+type = "gltf"
+""")
+    assert m["mirror"].type == "conductor" and m["mirror"].eta is None and m["mirror"].f0 == (1, 1, 1)
+    assert m["mirror"].alpha == 0.0
+    assert m["gold"].eta == CONDUCTORS["gold"][0] and m["gold"].k == CONDUCTORS["gold"][1]
+    assert m["gold"].alpha == pytest.approx(0.25) and m["gold"].emission == (2.0, 2.0, 2.0)
+    assert m["custom"].eta == (0.2, 0.9, 1.1) and m["custom"].k == (3.0, 3.0, 3.0) and m["custom"].alpha == 0.1
+    assert m["schlick"].f0 == (0.9, 0.6, 0.3)
+    assert m["glass"].type == "dielectric" and m["glass"].ior == 1.33 and m["glass"].alpha == pytest.approx(0.04)
+    assert m["plastic"].albedo == (0.8, 0.1, 0.1) and m["plastic"].metallic == 0 and m["plastic"].alpha == pytest.approx(0.16)
+    assert (m["defaults"].albedo, m["defaults"].metallic, m["defaults"].alpha, m["defaults"].ior) == ((1, 1, 1), 1, 1, 1.5)
+    from pyopencl_rt import layout
+    rec = m["schlick"].record()
+    assert rec["type"] == layout.MATERIAL_CONDUCTOR and rec["flags"] & layout.MATERIAL_FLAG_CONDUCTOR_F0
+    assert m["gold"].record()["flags"] & layout.MATERIAL_FLAG_CONDUCTOR_F0 == 0
+
+
+@pytest.mark.parametrize("text, needle", [
+    ('type = "conductor"\nmetal = "brass"\n', "unknown metal 'brass'"),
+    ('type = "conductor"\nmetal = "gold"\nf0 = 1\n', "only one of"),
+    ('type = "conductor"\neta = 1.5\n', "go together"),
+    ('type = "conductor"\neta = 0\nk = 1\n', "'eta'"),
+    ('type = "conductor"\neta = 1\nk = -1\n', "'k'"),
+    ('type = "conductor"\nroughness = 1.5\n', "'roughness'"),
+    ('type = "conductor"\nroughness = 0.1\nalpha = 0.1\n', "not both"),
+    ('type = "conductor"\nalbedo = 0.5\n', "unknown key 'albedo'"),
+    ('type = "dielectric"\nior = 0\n', "'ior'"),
+    ('type = "dielectric"\nmetal = "gold"\n', "unknown key 'metal'"),
+    ('type = "gltf"\nmetallic = 2\n', "'metallic'"),
+    ('type = "gltf"\nbase_color = [1, 2, 0]\n', "'base_color'"),
+    ('type = "diffuse"\nior = 1.5\n', "unknown key 'ior'"),
+])
+def test_material_errors(tmp_path, text, needle):
+    msg = _error(tmp_path, "[materials.m]\n" + text + '[[shape]]\ntype = "sphere"\ncenter = [0,0,0]\nradius = 1\n')
+    assert needle in msg and "[materials.m]" in msg and "\n" not in msg
+
+
+def test_mtl_material_types(tmp_path):
+    from pyopencl_rt.scenefile import parse_mtl
+
+    (tmp_path / "x.mtl").write_text("""
+newmtl glass
+Kd 0 0 0
+Ni 1.45
+illum 7
+newmtl fade
+d 0.5
+newmtl mirror
+Kd 0 0 0
+Ks 0.9 0.9 0.9
+illum 3
+newmtl plastic
+Kd 0.5 0.1 0.1
+Ks 0.5 0.5 0.5
+Ns 98
+illum 2
+newmtl pbr
+Kd 0.7 0.7 0.2
+Pm 1
+Pr 0.5
+newmtl matte
+Kd 0.3 0.3 0.3
+Ks 0 0 0
+illum 2
+""")
+    m = parse_mtl(tmp_path / "x.mtl")
+    assert m["glass"].type == "dielectric" and m["glass"].ior == 1.45 and m["glass"].alpha == 0.0
+    assert m["fade"].type == "dielectric" and m["fade"].ior == 1.5
+    assert m["mirror"].type == "conductor" and m["mirror"].f0 == (0.9, 0.9, 0.9) and m["mirror"].eta is None
+    assert m["plastic"].type == "gltf" and m["plastic"].metallic == 0.0
+    assert m["plastic"].alpha == pytest.approx(math.sqrt(2 / 100))
+    assert m["pbr"].type == "gltf" and m["pbr"].metallic == 1.0 and m["pbr"].alpha == pytest.approx(0.25)
+    assert m["matte"].type == "diffuse"
+
+
+@pytest.mark.parametrize("name", ["cornell-jensen.toml", "veach-mis.toml"])
+def test_material_scenes_load(name):
+    scene = load_scene(SCENES / name)
+    types = {m.type for m in scene.materials}
+    assert types >= ({"conductor", "dielectric"} if "jensen" in name else {"conductor"})
+    scene.material_records()

@@ -6,13 +6,22 @@
  *   light      one light sample (picked by power with the alias table): its contribution,
  *              weighted by MIS, is queued with a shadow ray (not with INTEGRATOR 1);
  *   BSDF       one BSDF sample continues the path; Russian roulette after rr_depth bounces
- *              keeps it with probability min(max(throughput), 0.95).
+ *              keeps it with probability min(max(throughput), 0.95).  A delta (perfectly
+ *              specular) sample stores path_pdf = 0, which marks the next segment like a camera
+ *              ray: the emitter it hits gets MIS weight 1 (light sampling cannot find it).
+ *              Materials with delta lobes only skip light sampling.
  *
  * max_depth counts path segments, as in Mitsuba: 1 shows emitters only, 2 adds direct
  * lighting; a negative value means no limit (Russian roulette ends paths).
  * a0 = active-queue length.
  */
 #include "../lights.h"
+
+/* random dimension of the BSDF's lobe choice (reflection or refraction, specular or diffuse);
+ * the direction uses DIM_BSDF and DIM_BSDF + 1 */
+#ifndef DIM_BSDF_LOBE
+#define DIM_BSDF_LOBE 6
+#endif
 
 #ifndef INTEGRATOR
 #define INTEGRATOR 0
@@ -22,13 +31,15 @@ RT_INLINE float max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
 
 __kernel void wf_shade(WAVE_PARAMS)
 {
-    /* Queue pushes are counted per work-group in local memory, then reserved with one global
-     * atomic per queue and group: three contended global atomics per path cost ~20% of this
-     * stage on two CPU cores. */
-    __local int group_count[3], group_base[3];
+    /* Queue pushes are gathered per work-group: each work-item leaves a flag in local memory,
+     * work-item 0 turns the flags into offsets (a serial exclusive scan) and reserves room with
+     * one global atomic per queue.  Three contended global atomics per path cost ~20% of this
+     * stage on two CPU cores, and local atomics still cost a locked instruction each on PoCL
+     * (15% in perf), while the scan is a short loop. */
+    __local uchar group_flags[WAVE_LOCAL_SIZE];
+    __local int group_offset[WAVE_LOCAL_SIZE], group_offset_shadow[WAVE_LOCAL_SIZE];
+    __local int group_base[3];
     const int lid = get_local_id(0);
-    if (lid < 3) group_count[lid] = 0;
-    barrier(CLK_LOCAL_MEM_FENCE);
 
     const int i = get_global_id(0);
     const int active = i < a0;
@@ -47,7 +58,8 @@ __kernel void wf_shade(WAVE_PARAMS)
             const float3 p = o + hit_t[slot] * d;
             const float3 ng = hit_normal(tris, spheres, prim, p);
             const float3 wo = -d;
-            const float3 n = dot(ng, wo) >= 0.0f ? ng : -ng; /* normal on the viewer's side */
+            const int front = dot(ng, wo) >= 0.0f; /* the viewer is outside (dielectrics) */
+            const float3 n = front ? ng : -ng;      /* normal on the viewer's side */
             int mat_index, light_index;
     #ifdef HAS_SPHERES
             if (IS_SPHERE(prim)) {
@@ -82,6 +94,7 @@ __kernel void wf_shade(WAVE_PARAMS)
             if (max_depth < 0 || segments < max_depth) {
                 /* -- next-event estimation ------------------------------------------------------ */
     #if defined(HAS_LIGHTS) && INTEGRATOR != 1
+              if (bsdf_has_nondelta_lobes(m)) {
                 /* The reference point is the spawn point on the viewer's side, not p itself: for an
                  * emitter whose own surface holds p (the inside of an emissive sphere), p is neither
                  * inside nor outside it.  It is also the origin that a BSDF-sampled ray leaves from,
@@ -98,7 +111,7 @@ __kernel void wf_shade(WAVE_PARAMS)
                     const float dist = length(wi);
                     wi /= dist;
                     float bpdf;
-                    const float3 f = bsdf_eval(m, n, wo, wi, &bpdf);
+                    const float3 f = bsdf_eval(m, n, front, wo, wi, &bpdf);
                     if (max3(f) > 0.0f && dist > 0.0f) {
                         const float lpdf = pick_pmf * ls.pdf;
     #if INTEGRATOR == 0
@@ -114,12 +127,16 @@ __kernel void wf_shade(WAVE_PARAMS)
                         queued_shadow = 1;
                     }
                 }
+              }
     #endif
                 /* -- BSDF sampling continues the path -------------------------------------------- */
                 float3 wi;
                 float pdf;
-                const float3 weight = bsdf_sample(m, n, wo, rng_uniform2(seed, (uint)pixel, pass, dim + DIM_BSDF), &wi, &pdf);
-                if (pdf > 0.0f && max3(weight) > 0.0f) {
+                int delta;
+                const float2 ud = rng_uniform2(seed, (uint)pixel, pass, dim + DIM_BSDF);
+                const float3 u = (float3)(ud.x, ud.y, rng_uniform(seed, (uint)pixel, pass, dim + DIM_BSDF_LOBE));
+                const float3 weight = bsdf_sample(m, n, front, wo, u, &wi, &pdf, &delta);
+                if ((pdf > 0.0f || delta) && max3(weight) > 0.0f) {
                     beta *= weight;
                     alive = 1;
                     if (segments >= rr_depth) {
@@ -131,7 +148,7 @@ __kernel void wf_shade(WAVE_PARAMS)
                         store3(ray_o, slot, offset_ray_origin(p, dot(ng, wi) > 0.0f ? ng : -ng));
                         store3(ray_d, slot, wi);
                         store3(throughput, slot, beta);
-                        path_pdf[slot] = pdf;
+                        path_pdf[slot] = delta ? 0.0f : pdf;
                         path_depth[slot] = segments;
                     }
                 }
@@ -140,16 +157,28 @@ __kernel void wf_shade(WAVE_PARAMS)
         store3(radiance, slot, L);
     } /* active */
 
-    /* COUNTER_QUEUE_OUT, COUNTER_SHADOW and COUNTER_TERM are counters[0..2] */
-    const int which = alive ? COUNTER_QUEUE_OUT : COUNTER_TERM;
-    const int pos = active ? atomic_inc(&group_count[which]) : 0;
-    const int pos_shadow = queued_shadow ? atomic_inc(&group_count[COUNTER_SHADOW]) : 0;
+    /* flags: bit 0 = active, bit 1 = alive (else terminated), bit 2 = shadow ray queued */
+    group_flags[lid] = (uchar)(active | (alive << 1) | (queued_shadow << 2));
     barrier(CLK_LOCAL_MEM_FENCE);
-    if (lid < 3 && group_count[lid] > 0) group_base[lid] = atomic_add(&counters[lid], group_count[lid]);
+    if (lid == 0) {
+        int n_alive = 0, n_term = 0, n_shadow = 0;
+        for (int k = 0; k < (int)get_local_size(0); ++k) {
+            const uchar f = group_flags[k];
+            group_offset[k] = (f & 2) ? n_alive : n_term;
+            group_offset_shadow[k] = n_shadow;
+            n_alive += (f & 3) == 3;
+            n_term += (f & 3) == 1;
+            n_shadow += (f >> 2) & 1;
+        }
+        /* COUNTER_QUEUE_OUT, COUNTER_SHADOW and COUNTER_TERM are counters[0..2] */
+        group_base[COUNTER_QUEUE_OUT] = n_alive ? atomic_add(&counters[COUNTER_QUEUE_OUT], n_alive) : 0;
+        group_base[COUNTER_TERM] = n_term ? atomic_add(&counters[COUNTER_TERM], n_term) : 0;
+        group_base[COUNTER_SHADOW] = n_shadow ? atomic_add(&counters[COUNTER_SHADOW], n_shadow) : 0;
+    }
     barrier(CLK_LOCAL_MEM_FENCE);
     if (active) {
-        if (alive) queue_out[group_base[COUNTER_QUEUE_OUT] + pos] = slot;
-        else term_q[group_base[COUNTER_TERM] + pos] = slot;
+        if (alive) queue_out[group_base[COUNTER_QUEUE_OUT] + group_offset[lid]] = slot;
+        else term_q[group_base[COUNTER_TERM] + group_offset[lid]] = slot;
     }
-    if (queued_shadow) shadow_q[group_base[COUNTER_SHADOW] + pos_shadow] = slot;
+    if (queued_shadow) shadow_q[group_base[COUNTER_SHADOW] + group_offset_shadow[lid]] = slot;
 }
