@@ -1,0 +1,161 @@
+"""The same scene for Mitsuba 3: the peer renderer of ``pyopencl-rt bench convergence --compare mitsuba``.
+
+Mitsuba usually lives in its own virtual environment, so the export has two halves:
+
+* :func:`scene_arrays` (this process, numpy only) turns a :class:`~pyopencl_rt.scene.Scene` into
+  plain arrays and numbers, saved with :func:`save_scene_npz`;
+* :func:`dict_from_arrays` (in the Mitsuba process) turns them into a dict for
+  ``mi.load_dict``; :func:`to_mitsuba_dict` does both in one go where Mitsuba imports here.
+
+This module imports nothing but numpy at module level and nothing from the package, so that
+``pyopencl_rt/mitsuba_runner.py`` can load it by file path in an interpreter that has Mitsuba
+and numpy but not pyopencl.
+
+Correspondence (checked by tests/test_convergence.py against our renderer):
+
+* triangles: one PLY mesh per material (``face_normals = true``: flat shading on the geometric
+  normal, as ours), BSDF ``twosided`` ``diffuse`` with our albedo as ``rgb`` reflectance;
+* emitters: ``area`` emitter with our radiance.  Ours is one-sided along the geometric normal
+  (v1 - v0) x (v2 - v0); Mitsuba's area emitter emits on the side of the mesh normal, which for
+  a PLY without normals is the same cross product (same winding): verified with a one-quad
+  scene.  Mitsuba has no two-sided area emitter: a two-sided emissive material is refused;
+* spheres: ``sphere`` shapes (emitting outwards, as ours);
+* camera: ``perspective``, ``to_world = look_at(eye, look_at, up)``, ``fov_axis = 'y'`` (our
+  fov is vertical), ``hdrfilm`` with a ``box`` filter (our pixel jitter is uniform over the pixel)
+  and ``pixel_format = 'rgb'``;
+* integrator: ``path`` with our ``max_depth`` (both count path segments: 1 = emitters only) and
+  ``rr_depth`` = our ``rr_depth`` (default 3, not Mitsuba's 5): both apply Russian roulette from
+  the ``rr_depth``-th surface interaction on, keeping a path with probability
+  min(max(throughput), 0.95).  Mitsuba's ``path`` is MIS of BSDF and emitter sampling, as our
+  ``path`` integrator.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+
+import numpy as np
+
+RR_DEPTH_DEFAULT = 3
+
+
+def scene_arrays(scene, width=None, height=None, spp=None, max_depth=None, rr_depth=None) -> dict:
+    """Plain arrays and numbers describing ``scene`` for :func:`dict_from_arrays`."""
+    st = scene.settings
+    for m in scene.materials:
+        if m.is_emissive and m.two_sided:
+            raise ValueError(f"material {m.name!r}: Mitsuba 3 has no two-sided area emitter")
+        if getattr(m, "type", "diffuse") != "diffuse":
+            raise ValueError(f"material {m.name!r}: type {m.type!r} is not exported to Mitsuba yet")
+    cam = scene.camera
+    settings = {
+        "width": int(width or st.width), "height": int(height or st.height),
+        "spp": int(spp or st.spp),
+        "max_depth": int(st.max_depth if max_depth is None else max_depth),
+        "rr_depth": int(getattr(st, "rr_depth", RR_DEPTH_DEFAULT) if rr_depth is None else rr_depth),
+        "eye": [float(x) for x in cam.eye], "look_at": [float(x) for x in cam.look_at],
+        "up": [float(x) for x in cam.up], "fov": float(cam.fov),
+        "materials": [{"name": m.name, "albedo": [float(x) for x in m.albedo],
+                       "emission": [float(x) for x in m.emission]} for m in scene.materials],
+    }
+    return {
+        "vertices": np.asarray(scene.vertices, np.float32),
+        "faces": np.asarray(scene.faces, np.int32),
+        "face_materials": np.asarray(scene.face_materials, np.int32),
+        "spheres": np.asarray(scene.spheres, np.float32).reshape(-1, 4),
+        "sphere_materials": np.asarray(scene.sphere_materials, np.int32),
+        "settings": json.dumps(settings),
+    }
+
+
+def save_scene_npz(path, arrays: dict) -> None:
+    np.savez(path, **{k: (np.array(v) if isinstance(v, str) else v) for k, v in arrays.items()})
+
+
+def load_scene_npz(path) -> dict:
+    with np.load(path) as z:
+        out = {k: z[k] for k in z.files}
+    out["settings"] = str(out["settings"])
+    return out
+
+
+def write_ply(path, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """A binary little-endian PLY with float vertices and int triangle indices."""
+    v = np.ascontiguousarray(vertices, "<f4")
+    f = np.ascontiguousarray(faces, "<i4")
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(v)}\n"
+              "property float x\nproperty float y\nproperty float z\n"
+              f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n").encode("ascii")
+    rec = np.zeros(len(f), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+    rec["n"] = 3
+    rec["i"] = f
+    with open(path, "wb") as fh:
+        fh.write(header)
+        fh.write(v.tobytes())
+        fh.write(rec.tobytes())
+
+
+def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
+    """The ``mi.load_dict`` dict of :func:`scene_arrays` output; meshes go to PLY files in tmpdir."""
+    s = json.loads(arrays["settings"]) if isinstance(arrays["settings"], str) else arrays["settings"]
+    tmpdir = tmpdir or tempfile.mkdtemp(prefix="pyopencl_rt_mi_")
+    T = mi.ScalarTransform4f
+    look_at = T.look_at(origin=s["eye"], target=s["look_at"], up=s["up"])
+    d = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": int(s["max_depth"]), "rr_depth": int(s["rr_depth"])},
+        "sensor": {
+            "type": "perspective", "fov": float(s["fov"]), "fov_axis": "y", "to_world": look_at,
+            "near_clip": 1e-3 * _scene_scale(arrays), "far_clip": 1e3 * _scene_scale(arrays),
+            "sampler": {"type": "independent", "sample_count": int(s["spp"])},
+            "film": {"type": "hdrfilm", "width": int(s["width"]), "height": int(s["height"]),
+                     "rfilter": {"type": "box"}, "pixel_format": "rgb"},
+        },
+    }
+    mats = s["materials"]
+
+    def bsdf(m):
+        return {"type": "twosided", "material": {"type": "diffuse",
+                                                 "reflectance": {"type": "rgb", "value": m["albedo"]}}}
+
+    def emitter(m):
+        return {"type": "area", "radiance": {"type": "rgb", "value": m["emission"]}}
+
+    verts, faces, fmat = arrays["vertices"], arrays["faces"], arrays["face_materials"]
+    for mi_index in np.unique(fmat):
+        sel = faces[fmat == mi_index]
+        used, local = np.unique(sel.ravel(), return_inverse=True)
+        path = os.path.join(tmpdir, f"mesh_{int(mi_index)}.ply")
+        write_ply(path, verts[used], local.reshape(-1, 3))
+        m = mats[int(mi_index)]
+        shape = {"type": "ply", "filename": path, "face_normals": True, "bsdf": bsdf(m)}
+        if max(m["emission"]) > 0:
+            shape["emitter"] = emitter(m)
+        d[f"mesh_{int(mi_index)}"] = shape
+    for i, (sp, mi_index) in enumerate(zip(arrays["spheres"], arrays["sphere_materials"])):
+        m = mats[int(mi_index)]
+        shape = {"type": "sphere", "center": [float(x) for x in sp[:3]], "radius": float(sp[3]), "bsdf": bsdf(m)}
+        if max(m["emission"]) > 0:
+            shape["emitter"] = emitter(m)
+        d[f"sphere_{i}"] = shape
+    return d
+
+
+def _scene_scale(arrays) -> float:
+    pts = [np.asarray(arrays["vertices"], np.float64).reshape(-1, 3)]
+    sp = np.asarray(arrays["spheres"], np.float64).reshape(-1, 4)
+    if len(sp):
+        pts.append(sp[:, :3] + sp[:, 3:])
+        pts.append(sp[:, :3] - sp[:, 3:])
+    pts.append(np.asarray([json.loads(arrays["settings"])["eye"]], np.float64))
+    allp = np.concatenate(pts)
+    return float(max(np.ptp(allp, axis=0).max(), 1e-6))
+
+
+def to_mitsuba_dict(scene, width=None, height=None, spp=None, max_depth=None, rr_depth=None, tmpdir=None) -> dict:
+    """``mi.load_dict`` input for ``scene`` (needs ``import mitsuba`` to work in this process,
+    with a variant set)."""
+    import mitsuba as mi
+
+    return dict_from_arrays(scene_arrays(scene, width, height, spp, max_depth, rr_depth), mi, tmpdir)
