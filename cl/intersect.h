@@ -71,11 +71,26 @@ RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, floa
      * from the paper's T = U*Az + V*Bz + W*Cz: for a long sliver whose far vertices are much
      * farther than the hit, T cancels catastrophically and its sign can flip, so a ray leaving a
      * thin closed mesh from inside was judged "behind" and escaped (tests/test_traversal.py). */
-    const float3 n = cross(p1 - p0, p2 - p0);
+    const float3 e1 = p1 - p0, e2 = p2 - p0;
+    const float3 n = cross(e1, e2);
     const float den = dot(n, d);
     if (den == 0.0f)
         return 0;
-    const float tt = dot(n, a) / den;
+    /* On a sliver the float32 cross product's direction is off by ~eps / sin(angle), so from an
+     * origin near the plane the sign of n.a (and of t) can be wrong: a spawned ray re-hit its
+     * own triangle (tests/test_robustness.py).  When n.a is within its rounding bound of zero,
+     * recompute it in double; without fp64, reject the hit as pbrt does (t not provably > 0). */
+    float num = dot(n, a);
+    const float3 n_abs = fabs(e1.yzx * e2.zxy) + fabs(e1.zxy * e2.yzx);
+    if (fabs(num) <= 3.814697265625e-06f * dot(n_abs, fabs(a))) { /* 2^-18: the sign is in doubt */
+#ifdef cl_khr_fp64
+        const double3 q0 = convert_double3(p0), q1 = convert_double3(p1), q2 = convert_double3(p2);
+        num = (float)dot(cross(q1 - q0, q2 - q0), q0 - convert_double3(o));
+#else
+        return 0;
+#endif
+    }
+    const float tt = num / den;
     if (!(tt > tmin && tt < tmax))
         return 0;
     const float rcp = 1.0f / det;

@@ -12,6 +12,9 @@
 #define PYOPENCL_RT_SCENE_H
 
 #include "bvh.h"
+#ifdef BVH_WIDE /* the 4-wide layout (CPU devices): replaces bvh_closest_hit / bvh_any_hit */
+#include "bvh_wide.h"
+#endif
 #include "spawn.h"
 #include "bsdf.h"
 #include "rng.h"
@@ -21,7 +24,11 @@
 #define IS_SPHERE(prim) ((prim) <= -2)
 #define SPHERE_INDEX(prim) (-2 - (prim))
 
-/* Every wavefront kernel takes the same parameters, so the host binds buffers once. */
+/* Every wavefront kernel takes the same parameters, so the host binds buffers once.
+ * Textures (cl/textures.h): tri_uv (3 UVs per reordered triangle), the Texture table, the float4
+ * texels and mat_scratch (one effective Material per path slot); dummies without HAS_TEXTURES.
+ * env_map, env_cdf: the environment map and its sampling CDFs (cl/lights.h); dummies without
+ * HAS_ENVIRONMENT. */
 #define WAVE_PARAMS                                                                                 \
     __global const BVHNode *nodes, __global const float4 *tris, __global const int *tri_material,  \
     __global const int *tri_light, __global const Sphere *spheres, __global const int *sphere_material, \
@@ -31,8 +38,11 @@
     __global int *path_pixel, __global int *path_pass, __global int *path_depth, __global float *path_pdf, \
     __global float *hit_t, __global int *hit_prim, __global float *hit_u, __global float *hit_v,    \
     __global float *sh_o, __global float *sh_d, __global float *sh_contrib,                         \
+    __global const float2 *tri_uv, __global const Texture *textures, __global const float4 *tex_data, \
+    __global Material *mat_scratch,                                                                 \
     __global int *queue_in, __global int *queue_out, __global int *shadow_q, __global int *term_q,  \
     __global int *free_q, __global int *counters, __global float *pass_ring,                        \
+    __global const float *env_map, __global const float *env_cdf,                                   \
     const int n_spheres, const int n_lights, const int n_pixels, const int ring_size,               \
     const int max_depth, const int rr_depth, const uint seed,                                      \
     const int a0, const int a1, const int a2, const int a3, const int a4
@@ -51,6 +61,7 @@
 
 /* random-number dimensions: 2 for the pixel jitter, then DIMS_PER_BOUNCE per bounce */
 #define DIM_PIXEL 0
+#define DIM_LENS 0xFFFFFFF0u /* and + 1: the thin lens, far from every bounce's dimensions */
 #define DIMS_PER_BOUNCE 8
 #define DIM_LIGHT_PICK 0
 #define DIM_LIGHT_POINT 1 /* and 2 */
@@ -94,6 +105,28 @@ RT_INLINE int scene_occluded(__global const BVHNode *nodes, __global const float
 #else
     return 0;
 #endif
+}
+
+/* The hit point and a bound on its rounding error per coordinate.  Triangles interpolate the
+ * vertices with the hit's barycentrics (error: a few ulps of the vertices, pbrt's bound), not
+ * o + t*d, whose error is a few ulps of |o| + t|d|: in the millimetre Cornell box that was
+ * larger than the spawn offset near x = 0 and y = 0, rays re-hit their own wall and the direct
+ * light there was 27% too dark (found by the Mitsuba comparison, docs/CONVERGENCE.md).
+ * Spheres re-project o + t*d onto the surface (pbrt-v4, 6.8.5). */
+#define HIT_GAMMA5 2.98023259e-07f /* 5 * 2^-24 / (1 - 5 * 2^-24), rounded up */
+RT_INLINE float3 hit_point(__global const float4 *tris, __global const Sphere *spheres, int prim,
+                           float3 o, float3 d, float t, float u, float v, float3 *err)
+{
+#ifdef HAS_SPHERES
+    if (IS_SPHERE(prim)) {
+        __global const Sphere *s = spheres + SPHERE_INDEX(prim);
+        const float3 c = vload3(0, s->center);
+        const float3 p = c + s->radius * normalize(o + t * d - c);
+        *err = HIT_GAMMA5 * (fabs(p) + fabs(c));
+        return p;
+    }
+#endif
+    return triangle_point(tris[3 * prim].xyz, tris[3 * prim + 1].xyz, tris[3 * prim + 2].xyz, u, v, err);
 }
 
 /* Unit geometric normal at a hit (triangles: (v1-v0)x(v2-v0); spheres: outward). */

@@ -4,6 +4,9 @@
  * tmin/tmax are per ray.
  */
 #include "bvh.h"
+#ifdef BVH_WIDE /* the 4-wide layout (CPU devices): replaces bvh_closest_hit / bvh_any_hit */
+#include "bvh_wide.h"
+#endif
 
 __kernel void trace_closest(__global const BVHNode *nodes, __global const float4 *tris,
                             __global const int *prim_ids,

@@ -92,12 +92,17 @@ def _median_time(fn, repeat):
 
 
 def run_ray_bench(devices=None, sizes=(10_000, 100_000, 1_000_000), n_rays=1_000_000, repeat=3,
-                  embree=True, json_path=None, echo=print) -> dict:
+                  embree=True, json_path=None, echo=print, layouts=None) -> dict:
+    """``layouts``: BVH layouts to time on each device (e.g. ``("binary", "wide")``; their rows are
+    labelled "<layout>: <device>"); None times each device's default layout under its plain label."""
     from . import devices as dv
     from .bvh import build_bvh
-    from .trace import embree_scene, trace
+    from .trace import bvh_layout, embree_scene, trace
 
     chosen = dv.resolve(devices)
+    # (row label, device, layout) of every OpenCL configuration timed
+    configs = [(dv.device_label(dev), dev, bvh_layout(dev)) for dev in chosen] if not layouts else \
+        [(f"{lay}: {dv.device_label(dev)}", dev, bvh_layout(dev, lay)) for dev in chosen for lay in layouts]
     rng = np.random.default_rng(7)
     results = {
         "machine": {"platform": platform.platform(), "processor": platform.processor(), "python": platform.python_version()},
@@ -129,16 +134,16 @@ def run_ray_bench(devices=None, sizes=(10_000, 100_000, 1_000_000), n_rays=1_000
         for set_name, (ro, rd) in (("primary", (o, d)), ("diffuse", (o2, d2))):
             n = len(ro)
             row = {"set": set_name, "rays": n, "backends": {}}
-            for device in chosen:  # warm-up: kernel build and BVH upload are not timed
-                trace(bvh, ro[:1024], rd[:1024], device=device)
-            timings = {dv.device_label(dev): [] for dev in chosen}
+            for _name, dev, lay in configs:  # warm-up: kernel build, BVH collapse and upload are not timed
+                trace(bvh, ro[:1024], rd[:1024], device=dev, layout=lay)
+            timings = {name: [] for name, _dev, _lay in configs}
             if embree:
                 timings["embree"] = []
             for _ in range(repeat):
-                for dev in chosen:
+                for name, dev, lay in configs:
                     t0 = time.perf_counter()
-                    trace(bvh, ro, rd, device=dev)
-                    timings[dv.device_label(dev)].append(time.perf_counter() - t0)
+                    trace(bvh, ro, rd, device=dev, layout=lay)
+                    timings[name].append(time.perf_counter() - t0)
                 if embree:  # embreex's own call alone, so Embree is not charged for our wrapper
                     scene = embree_scene(bvh)
                     t0 = time.perf_counter()
@@ -150,6 +155,9 @@ def run_ray_bench(devices=None, sizes=(10_000, 100_000, 1_000_000), n_rays=1_000
                 rate = n / med
                 row["backends"][name] = {"seconds_median": med, "rays_per_second": rate,
                                          "ratio_to_embree": (emb / med) if emb else None}
+                lay = next((c[2] for c in configs if c[0] == name), None)
+                if lay:
+                    row["backends"][name]["layout"] = lay
                 ratio = f"{emb / med:9.2f}" if emb else f"{'-':>9}"
                 echo(f"{len(f):>10} {n:>10} {set_name:>8} {name[:40]:<40} {rate / 1e6:9.3f} {ratio}")
             entry["sets"].append(row)

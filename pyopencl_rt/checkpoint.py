@@ -69,6 +69,11 @@ def scene_hash(scene) -> str:
     add("spheres", scene.spheres)
     add("sphere_materials", scene.sphere_materials)
     add("camera", scene.camera.record(1, 1))  # the aspect ratio is a setting (width, height)
+    if getattr(scene, "lights", None) or getattr(scene, "environment", None) is not None:
+        from .lights import environment_buffers, other_lights
+
+        add("lights", other_lights(scene)[0])
+        add("environment", environment_buffers(scene)[0])
     return h.hexdigest()
 
 

@@ -34,7 +34,7 @@ assert BVH_NODE.itemsize == 64
 TRIANGLE = np.dtype([("v0", np.float32, 4), ("v1", np.float32, 4), ("v2", np.float32, 4)])
 assert TRIANGLE.itemsize == 48
 
-# A material (80 bytes).  type selects the BSDF (cl/bsdf.h dispatches on it; each type is
+# A material (96 bytes).  type selects the BSDF (cl/bsdf.h dispatches on it; each type is
 # documented at the top of cl/materials/<name>.h); every type may also emit.
 #   albedo    diffuse: reflectance; gltf: baseColor
 #   emission  emitted radiance (any type)
@@ -59,29 +59,58 @@ MATERIAL_FLAG_CONDUCTOR_F0 = 2
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
-     ("k", np.float32, 3), ("ior", np.float32)]
+     ("k", np.float32, 3), ("ior", np.float32),
+     ("tex_base", np.int32), ("tex_mr", np.int32), ("tex_emission", np.int32), ("tex_pad", np.int32)]
 )
-assert MATERIAL.itemsize == 80
+assert MATERIAL.itemsize == 96
+# Texture indices (into the TEXTURE table; -1 = none), used only when the program is built with
+# HAS_TEXTURES (cl/textures.h):
+#   tex_base      RGB multiplies albedo (diffuse, gltf baseColor) or tint (dielectric)
+#   tex_mr        glTF metallicRoughness: G multiplies roughness (alpha *= G^2), B multiplies metallic
+#   tex_emission  RGB multiplies emission
+
+# A texture (32 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row
+# by row from the top of the image (v = 0 is the top row, as in glTF; OBJ's v is flipped at load),
+# already linear (sRGB images that hold colours are decoded at load: flags bit 0 records that).
+# channels: the source image's channel count (informative).
+TEXTURE_FLAG_SRGB = 1
+TEXTURE = np.dtype([("offset", np.int32), ("width", np.int32), ("height", np.int32), ("channels", np.int32),
+                    ("flags", np.int32), ("pad0", np.int32), ("pad1", np.int32), ("pad2", np.int32)])
+assert TEXTURE.itemsize == 32
 
 # A sphere (16 bytes): centre and radius.
 SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 
-# An emitter that next-event estimation samples (16 bytes).
-#   kind: LIGHT_TRIANGLE (prim = original face index) or LIGHT_SPHERE (prim = sphere index)
+# An emitter that next-event estimation samples (80 bytes; cl/lights.h documents each kind).
+#   kind: LIGHT_TRIANGLE (prim = original face index) or LIGHT_SPHERE (prim = sphere index),
+#         LIGHT_POINT, LIGHT_DIRECTIONAL (delta lights: sampled, never hit) or LIGHT_ENVIRONMENT
+#         (prim = the map's width, material = its height; 0 x 0 = constant radiance)
 #   pmf: probability that the light sampler picks this light (proportional to power)
 #   alias, alias_prob: Walker/Vose alias table entry for O(1) sampling
+#   p:      point: position; directional, environment: centre of the scene's bounding sphere
+#   radius: directional, environment: radius of the scene's bounding sphere (shadow-ray length)
+#   dir:    directional: unit direction in which the light travels
+#   rgb:    point: intensity [W/sr]; directional: irradiance on a perpendicular surface;
+#           environment: radiance (constant) or the map's scale
 LIGHT_TRIANGLE = 0
 LIGHT_SPHERE = 1
+LIGHT_POINT = 2
+LIGHT_DIRECTIONAL = 3
+LIGHT_ENVIRONMENT = 4
 LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), ("alias_prob", np.float32),
-                  ("alias", np.int32), ("material", np.int32), ("area", np.float32), ("pad", np.int32)])
-assert LIGHT.itemsize == 32
+                  ("alias", np.int32), ("material", np.int32), ("area", np.float32), ("pad", np.int32),
+                  ("p", np.float32, 3), ("radius", np.float32), ("dir", np.float32, 3), ("pad1", np.int32),
+                  ("rgb", np.float32, 3), ("pad2", np.int32)])
+assert LIGHT.itemsize == 80
 
-# The pinhole camera (64 bytes).  A pixel (x, y) with jitter (jx, jy) in [0,1)^2 maps to the
+# The camera (64 bytes): pinhole or thin lens.  A pixel (x, y) with jitter (jx, jy) in [0,1)^2 maps to the
 # direction forward + ((x+jx)/W*2-1) * right + (1-(y+jy)/H*2) * up, where right and up are
-# already scaled by tan(fov/2) (and the aspect ratio, for right).
+# already scaled by tan(fov/2) (and the aspect ratio, for right).  Thin lens when lens_radius > 0:
+# the ray leaves a point of the lens disk (radius lens_radius, spanned by the unit right and up)
+# toward the pinhole ray's point at distance focus_distance along forward.
 CAMERA = np.dtype(
     [("origin", np.float32, 3), ("width", np.int32), ("forward", np.float32, 3), ("height", np.int32),
-     ("right", np.float32, 3), ("pad0", np.int32), ("up", np.float32, 3), ("pad1", np.int32)]
+     ("right", np.float32, 3), ("lens_radius", np.float32), ("up", np.float32, 3), ("focus_distance", np.float32)]
 )
 assert CAMERA.itemsize == 64
 
@@ -134,6 +163,7 @@ STRUCTS: dict[str, np.dtype] = {
     "Camera": CAMERA,
     "WideNode": WIDE_NODE,
     "Tri4": TRI4,
+    "Texture": TEXTURE,
 }
 
 

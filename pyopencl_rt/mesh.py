@@ -29,7 +29,10 @@ def load_trimesh(path):
         raise MeshError(f"{path}: is a folder, not a mesh file")
     _reject_binary_text_format(p)
     try:
-        loaded = trimesh.load(str(p), process=False)
+        # a coordinate beyond float32 (a PLY "float" of 1e39) becomes inf here, silently: the
+        # non-finite vertices are reported by check_triangles, naming the file
+        with np.errstate(over="ignore", invalid="ignore"):
+            loaded = trimesh.load(str(p), process=False)
     except Exception as exc:  # trimesh raises many types for malformed input
         raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from None
     return loaded

@@ -56,6 +56,11 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
     from .devices import device_label, select_device
 
     st = scene.settings
+    if wavefront is not None:  # a prepared wavefront fixes the image's settings
+        width, height = width or wavefront.width, height or wavefront.height
+        integrator = integrator or wavefront.integrator
+        max_depth = wavefront.max_depth if max_depth is None else max_depth
+        seed = wavefront.seed if seed is None else seed
     width = int(width or st.width)
     height = int(height or st.height)
     check_settings(width, height, spp, max_depth, integrator, time_limit)

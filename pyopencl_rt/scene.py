@@ -50,6 +50,23 @@ class Material:
     eta: tuple | None = None
     k: tuple | None = None
     tint: tuple = (1.0, 1.0, 1.0)
+    # Image textures (pyopencl_rt.textures.Texture; None = none), looked up at the hit's UV on
+    # triangles (spheres have no UVs and use the factors alone).  base_texture multiplies albedo
+    # (diffuse, gltf) or tint (dielectric); mr_texture is glTF's metallicRoughness (G scales the
+    # roughness, B the metallic); emission_texture multiplies emission.
+    base_texture: object = None
+    mr_texture: object = None
+    emission_texture: object = None
+
+    def textures(self) -> list:
+        return [t for t in (self.base_texture, self.mr_texture, self.emission_texture) if t is not None]
+
+    def mean_emission(self) -> np.ndarray:
+        """Emission averaged over the emission texture (the light sampler's power estimate)."""
+        e = np.asarray(self.emission, np.float64)
+        if self.emission_texture is not None:
+            e = e * self.emission_texture.mean_rgb()
+        return e
 
     @property
     def is_emissive(self) -> bool:
@@ -60,8 +77,9 @@ class Material:
         """Perceptual roughness sqrt(alpha)."""
         return float(np.sqrt(self.alpha))
 
-    def record(self) -> np.ndarray:
-        """The MATERIAL struct."""
+    def record(self, texture_index: dict | None = None) -> np.ndarray:
+        """The MATERIAL struct; ``texture_index`` maps id(texture) to its index in the scene's
+        texture table (without it, or for a texture not in it, no texture is used)."""
         if self.type not in layout.MATERIAL_TYPES:
             raise ValueError(f"material {self.name!r}: unknown type {self.type!r}")
         rec = np.zeros((), layout.MATERIAL)
@@ -81,6 +99,11 @@ class Material:
                 rec["eta"] = self.eta
                 rec["k"] = self.k if self.k is not None else (0.0, 0.0, 0.0)
         rec["flags"] = flags
+        ti = texture_index or {}
+        for fld, tex in (("tex_base", self.base_texture), ("tex_mr", self.mr_texture),
+                         ("tex_emission", self.emission_texture)):
+            rec[fld] = ti.get(id(tex), -1) if tex is not None else -1
+        rec["tex_pad"] = -1
         return rec
 
 
@@ -93,6 +116,10 @@ class Camera:
     look_at: tuple = (0.0, 0.0, 0.0)
     up: tuple = (0.0, 1.0, 0.0)
     fov: float = 40.0  # degrees, along the vertical axis
+    # thin lens (depth of field) when aperture_radius > 0: the lens radius, and the distance
+    # along the viewing direction of the plane in focus (None: |look_at - eye|)
+    aperture_radius: float = 0.0
+    focus_distance: float | None = None
 
     def record(self, width: int, height: int) -> np.ndarray:
         """The CAMERA struct for an image of width x height."""
@@ -110,7 +137,39 @@ class Camera:
         rec["up"] = up * tan_half
         rec["width"] = width
         rec["height"] = height
+        rec["lens_radius"] = max(float(self.aperture_radius), 0.0)
+        focus = self.focus_distance if self.focus_distance is not None else np.linalg.norm(
+            np.asarray(self.look_at, np.float64) - eye)
+        rec["focus_distance"] = focus
         return rec
+
+
+@dataclass
+class PointLight:
+    """An isotropic point light of radiant intensity ``intensity`` [W/sr] (RGB)."""
+
+    position: tuple = (0.0, 0.0, 0.0)
+    intensity: tuple = (1.0, 1.0, 1.0)
+
+
+@dataclass
+class DirectionalLight:
+    """A light infinitely far away, travelling along ``direction``, that gives a surface facing
+    it the irradiance ``irradiance`` (RGB)."""
+
+    direction: tuple = (0.0, -1.0, 0.0)
+    irradiance: tuple = (1.0, 1.0, 1.0)
+
+
+@dataclass
+class Environment:
+    """Radiance arriving from infinitely far in every direction: ``radiance`` (RGB) times, when
+    given, the equirectangular map ``image`` (H x W x 3 linear RGB, row 0 = up (+y); cl/lights.h
+    gives the direction of each texel)."""
+
+    radiance: tuple = (1.0, 1.0, 1.0)
+    image: np.ndarray | None = None
+    source: str | None = None  # the map's file, for messages
 
 
 @dataclass
@@ -135,11 +194,37 @@ class Scene:
     sphere_materials: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     settings: RenderSettings = field(default_factory=RenderSettings)
     source: str = "<memory>"
+    # lights besides emissive surfaces: PointLight / DirectionalLight, and one Environment or None
+    lights: list = field(default_factory=list)
+    environment: Environment | None = None
+    # per-face texture coordinates (F, 3, 2) float32 (corner k of face f), or None (all 0)
+    uvs: np.ndarray | None = None
+
+    def textures(self) -> list:
+        """The distinct textures the materials use, in order of first use."""
+        seen = {}
+        for m in self.materials:
+            for t in m.textures():
+                seen.setdefault(id(t), t)
+        return list(seen.values())
+
+    def has_textures(self) -> bool:
+        return len(self.faces) > 0 and any(m.textures() for m in self.materials)
+
+    def face_uvs(self) -> np.ndarray:
+        """(F, 3, 2) float32 texture coordinates (zeros where the scene has none)."""
+        if self.uvs is None:
+            return np.zeros((len(self.faces), 3, 2), np.float32)
+        uv = np.asarray(self.uvs, np.float32).reshape(len(self.faces), 3, 2)
+        return np.where(np.isfinite(uv), uv, np.float32(0))
 
     def material_records(self) -> np.ndarray:
         recs = np.zeros(max(1, len(self.materials)), layout.MATERIAL)
+        for f in ("tex_base", "tex_mr", "tex_emission", "tex_pad"):
+            recs[f] = -1
+        index = {id(t): i for i, t in enumerate(self.textures())}
         for i, m in enumerate(self.materials):
-            recs[i] = m.record()
+            recs[i] = m.record(index)
         return recs
 
     def material_defines(self) -> dict:
@@ -149,6 +234,8 @@ class Scene:
         for m in self.materials:
             if m.type != "diffuse":
                 defines[f"HAS_MATERIAL_{m.type.upper()}"] = True
+        if self.has_textures():
+            defines["HAS_TEXTURES"] = True  # cl/textures.h
         return defines
 
     def sphere_records(self) -> np.ndarray:

@@ -7,8 +7,13 @@
   emission, one material per face (``usemtl``); ``Ks``, ``Ns``, ``Ni``, ``d``/``Tr``, ``illum``
   and the PBR extension's ``Pr``/``Pm`` choose glossy, metal and glass materials (see
   :func:`parse_mtl`); a camera framing the scene and default settings;
-* **any other mesh file** trimesh reads (PLY, STL, GLB/glTF, OFF, ...) with one default diffuse
+* a **glTF 2.0 file** (``.gltf`` / ``.glb``, read by :mod:`pyopencl_rt.gltf`) with its PBR
+  materials, textures, UVs and camera (or the framing camera);
+* **any other mesh file** trimesh reads (PLY, STL, OFF, ...) with one default diffuse
   material (albedo 0.8) and the framing camera.
+
+OBJ ``vt`` / ``map_Kd`` / ``map_Ke`` and TOML ``*_texture`` keys give textures
+(:mod:`pyopencl_rt.textures`; docs/SCENE_FORMAT.md, "Textures and UVs").
 
 Every problem with the input raises a :class:`SceneError` (a :class:`~pyopencl_rt.errors.UserError`)
 whose message is one line and starts with the scene file's name.
@@ -100,17 +105,21 @@ MATERIAL_TYPES = ("diffuse", "conductor", "dielectric", "gltf")
 SHAPE_TYPES = ("mesh", "quad", "triangle", "box", "sphere")
 DEFAULT_FOV = 40.0
 
-_TOP_KEYS = {"camera", "film", "render", "materials", "shape"}
-_CAMERA_KEYS = {"eye", "look_at", "up", "fov"}
+_TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environment"}
+_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance"}
+LIGHT_TYPES = ("point", "directional")
+_LIGHT_KEYS = {"point": {"type", "position", "intensity"}, "directional": {"type", "direction", "irradiance"}}
+_ENVIRONMENT_KEYS = {"radiance", "file", "scale"}
 _FILM_KEYS = {"width", "height"}
 _RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth"}
-_MATERIAL_COMMON_KEYS = {"type", "emission", "two_sided"}
+_MATERIAL_COMMON_KEYS = {"type", "emission", "two_sided", "emission_texture"}
 _ROUGHNESS_KEYS = {"roughness", "alpha"}
 _MATERIAL_KEYS = {
-    "diffuse": _MATERIAL_COMMON_KEYS | {"albedo"},
+    "diffuse": _MATERIAL_COMMON_KEYS | {"albedo", "albedo_texture"},
     "conductor": _MATERIAL_COMMON_KEYS | _ROUGHNESS_KEYS | {"metal", "eta", "k", "f0"},
     "dielectric": _MATERIAL_COMMON_KEYS | _ROUGHNESS_KEYS | {"ior", "tint"},
-    "gltf": _MATERIAL_COMMON_KEYS | _ROUGHNESS_KEYS | {"base_color", "metallic", "ior"},
+    "gltf": _MATERIAL_COMMON_KEYS | _ROUGHNESS_KEYS | {"base_color", "metallic", "ior", "base_color_texture",
+                                                       "metallic_roughness_texture"},
 }
 _TRANSFORM_KEYS = {"translate", "scale", "rotate", "matrix", "flip_normals"}
 _SHAPE_KEYS = {
@@ -148,6 +157,8 @@ def load_scene(path) -> Scene:
             return _load_toml(p, name)
         if suffix == ".obj":
             return _load_obj_scene(p, name)
+        if suffix in (".gltf", ".glb"):
+            return _load_gltf_scene(p, name)
         return _load_mesh_scene(p, name)
     except SceneError:
         raise
@@ -221,6 +232,23 @@ def parse_mtl(path, name: str | None = None) -> dict:
                 if min(values) < 0:
                     raise SceneError(f"{name}:{lineno}: Ke must not be negative, got '{rest}'")
                 current.emission = tuple(values)
+        elif key in ("map_Kd", "map_Ke") and current is not None:
+            # options (-s, -o, -bm ...) are ignored: the file name is the last field
+            fields = rest.split()
+            if not fields:
+                raise SceneError(f"{name}:{lineno}: {key} needs an image file")
+            tex_path = Path(path).parent / fields[-1].replace("\\", "/")
+            if not tex_path.exists():
+                warnings.warn(f"{name}:{lineno}: texture '{fields[-1]}' not found ({tex_path}); ignored", stacklevel=3)
+                continue
+            try:
+                tex = _load_texture(tex_path)
+            except Exception as exc:
+                raise SceneError(f"{name}:{lineno}: cannot read texture '{fields[-1]}' ({type(exc).__name__}: {exc})") from None
+            if key == "map_Kd":
+                current.base_texture = tex
+            else:
+                current.emission_texture = tex
         elif key in ("Ns", "Ni", "d", "Tr", "illum", "Pr", "Pm") and current is not None:
             try:
                 value = float(rest.split()[0])
@@ -260,11 +288,14 @@ def _mtl_type(mat: Material, p: dict) -> None:
         mat.alpha = 1.0 if alpha is None else alpha
 
 
-def parse_obj(path, name: str | None = None):
-    """(vertices (V,3) float64, faces (F,3) int64, face material names list[str|None], mtllib paths).
+def parse_obj(path, name: str | None = None, *, with_uvs: bool = False):
+    """(vertices (V,3) float64, faces (F,3) int64, face material names list[str|None], mtllib paths),
+    and with ``with_uvs`` a fifth item: per-corner texture coordinates (F, 3, 2) float32 from
+    ``vt`` (v flipped to the top-down image convention of pyopencl_rt.textures), or None when
+    the file has none (corners without a ``vt`` index get (0, 0)).
 
     Polygons are fan-triangulated (as trimesh does); negative (relative) indices and
-    ``v/vt/vn`` forms are accepted; only ``v``, ``f``, ``usemtl`` and ``mtllib`` matter.
+    ``v/vt/vn`` forms are accepted; only ``v``, ``vt``, ``f``, ``usemtl`` and ``mtllib`` matter.
     """
     name = name or str(path)
     try:
@@ -275,6 +306,8 @@ def parse_obj(path, name: str | None = None):
     vertex_text: list[str] = []
     vertex_lines: list[int] = []
     corners: list[int] = []  # 3 raw OBJ indices per triangle
+    uv_text: list[str] = []
+    uv_corners: list[int] = []  # 3 resolved vt indices per triangle (-1: none)
     tri_nv: list[int] = []  # vertices defined when the face was read (for relative indices)
     tri_line: list[int] = []
     tri_mtl: list[int] = []
@@ -292,10 +325,27 @@ def parse_obj(path, name: str | None = None):
                 raise SceneError(f"{name}:{lineno}: a vertex needs 3 coordinates, got '{raw.strip()}'")
             vertex_text.append(rest if len(fields) == 3 else " ".join(fields[:3]))
             vertex_lines.append(lineno)
+        elif key == "vt":
+            fields = rest.split()
+            uv_text.append(" ".join((fields + ["0", "0"])[:2]))
         elif key == "f":
             toks = rest.split()
             if "/" in rest:
+                if with_uvs:
+                    tidx = []
+                    for t in toks:
+                        parts = t.split("/")
+                        try:
+                            k = int(parts[1]) if len(parts) > 1 and parts[1] else 0
+                        except ValueError:
+                            raise SceneError(f"{name}:{lineno}: bad face '{raw.strip()}'") from None
+                        k = len(uv_text) + k if k < 0 else k - 1
+                        tidx.append(k if 0 <= k < len(uv_text) else -1)
+                    for k in range(1, len(tidx) - 1):
+                        uv_corners.extend((tidx[0], tidx[k], tidx[k + 1]))
                 toks = [t.split("/", 1)[0] for t in toks]
+            elif with_uvs:
+                uv_corners.extend([-1] * (3 * max(len(toks) - 2, 0)))
             try:
                 idx = list(map(int, toks))
             except ValueError:
@@ -344,12 +394,25 @@ def parse_obj(path, name: str | None = None):
             raise SceneError(f"{name}:{tri_line[row]}: face index {f[row, col]} refers to no vertex defined before it")
         f = resolved
     names = [mtl_names[i] for i in tri_mtl]
-    return v, f, names, mtllibs
+    if not with_uvs:
+        return v, f, names, mtllibs
+    uvs = None
+    if uv_text and uv_corners:
+        try:
+            table = np.array(" ".join(uv_text).split(), dtype=np.float64).reshape(-1, 2)
+        except ValueError:
+            raise SceneError(f"{name}: bad texture coordinate (vt)") from None
+        table = np.vstack([table, [[0.0, 1.0]]])  # index -1: (0, 0) after the flip below
+        uvs = table[np.asarray(uv_corners, np.int64).reshape(-1, 3)]
+        uvs[..., 1] = 1.0 - uvs[..., 1]
+        uvs = uvs.astype(np.float32)
+    return v, f, names, mtllibs, uvs
 
 
 def _obj_with_materials(path: Path, name: str, overrides: dict | None = None, fallback: Material | None = None):
-    """vertices, faces, face material indices (into the returned list), materials list."""
-    vertices, faces, face_names, mtllibs = parse_obj(path, name)
+    """vertices, faces, face material indices (into the returned list), materials list, uvs
+    ((F, 3, 2) or None)."""
+    vertices, faces, face_names, mtllibs, uvs = parse_obj(path, name, with_uvs=True)
     library: dict[str, Material] = {}
     libraries_missing = False
     for lib in mtllibs:
@@ -378,17 +441,18 @@ def _obj_with_materials(path: Path, name: str, overrides: dict | None = None, fa
     if missing and not libraries_missing:
         warnings.warn(f"{name}: materials {', '.join(map(repr, missing))} not defined in any MTL; using albedo 0.8", stacklevel=3)
     face_mat = np.fromiter((index[n] for n in face_names), np.int32, count=len(face_names))
-    return vertices, faces, face_mat, materials
+    return vertices, faces, face_mat, materials, uvs
 
 
 def _load_obj_scene(p: Path, name: str) -> Scene:
-    vertices, faces, face_mat, materials = _obj_with_materials(p, name)
+    vertices, faces, face_mat, materials, uvs = _obj_with_materials(p, name)
     if len(faces) == 0:
         raise SceneError(f"{name}: contains no faces")
+    uvs = _kept_uvs(vertices, faces, uvs)
     v32, f32, face_mat = _checked(vertices, faces, face_mat, name)
     if not materials:
         materials = [Material()]
-    scene = Scene(vertices=v32, faces=f32, face_materials=face_mat, materials=materials, source=name)
+    scene = Scene(vertices=v32, faces=f32, face_materials=face_mat, materials=materials, source=name, uvs=uvs)
     scene.camera = framing_camera(*_bounds(scene), scene.settings.width, scene.settings.height)
     return scene
 
@@ -402,6 +466,51 @@ def _load_mesh_scene(p: Path, name: str) -> Scene:
         materials=[Material()], source=name,
     )
     scene.camera = framing_camera(*_bounds(scene), scene.settings.width, scene.settings.height)
+    return scene
+
+
+def _load_texture(path):
+    from .textures import texture_from_image
+
+    return texture_from_image(path, srgb=True)
+
+
+def _kept_uvs(vertices, faces, uvs):
+    """uvs (F, 3, 2) for the faces that _checked keeps (those with finite vertices), or None."""
+    if uvs is None:
+        return None
+    with np.errstate(over="ignore", invalid="ignore"):
+        finite = np.isfinite(np.asarray(vertices, np.float64).astype(np.float32)).all(axis=1)
+    faces = np.asarray(faces, np.int64)
+    keep = finite[faces].all(axis=1) if len(faces) else np.zeros(0, bool)
+    return np.ascontiguousarray(np.asarray(uvs, np.float32)[keep])
+
+
+def _read_gltf(path: Path, name: str):
+    from .gltf import load_gltf
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        g = load_gltf(path, name)
+    for w in caught:
+        warnings.warn(w.message, stacklevel=4)
+    return g
+
+
+def _load_gltf_scene(p: Path, name: str) -> Scene:
+    """A glTF 2.0 file (.gltf / .glb) with its materials, textures and camera (pyopencl_rt/gltf.py);
+    without a camera in the file, one that frames the scene."""
+    g = _read_gltf(p, name)
+    if len(g.faces) == 0:
+        raise SceneError(f"{name}: contains no triangles")
+    uvs = _kept_uvs(g.vertices, g.faces, g.uvs)
+    v32, f32, face_mat = _checked(g.vertices, g.faces, g.face_materials, name)
+    scene = Scene(vertices=v32, faces=f32, face_materials=face_mat, materials=g.materials or [Material()],
+                  source=name, uvs=uvs)
+    if g.aspect_ratio and g.aspect_ratio > 0:
+        st = scene.settings
+        st.width = max(1, int(round(st.height * float(g.aspect_ratio))))
+    scene.camera = g.camera or framing_camera(*_bounds(scene), scene.settings.width, scene.settings.height)
     return scene
 
 
@@ -591,7 +700,7 @@ def _load_toml(p: Path, name: str) -> Scene:
                 raise ctx.error(where, f"unknown material '{mname}' (materials: {known})")
         return material_index[mname]
 
-    tri_vertices, tri_faces, tri_mats = [], [], []
+    tri_vertices, tri_faces, tri_mats, tri_uvs = [], [], [], []
     n_vertices = 0
     spheres, sphere_mats = [], []
     for number, table in enumerate(shapes, 1):
@@ -618,18 +727,21 @@ def _load_toml(p: Path, name: str) -> Scene:
             continue
 
         face_mat = None
+        uvc = None  # per-corner texture coordinates (F, 3, 2), None = zeros
         if stype == "mesh":
-            v, f, face_mat = _mesh_shape(ctx, where, p, table, materials, material_index, material_for)
+            v, f, face_mat, uvc = _mesh_shape(ctx, where, p, table, materials, material_index, material_for)
         elif stype == "quad":
             if "points" not in table:
                 raise ctx.error(where, "missing 'points' (four corners [[x,y,z], ...])")
             v = _points(ctx, where, "points", table["points"], 4)
             f = np.array([[0, 1, 2], [0, 2, 3]], np.int64)
+            uvc = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)[f]  # p0..p3 -> uv corners
         elif stype == "triangle":
             if "points" not in table:
                 raise ctx.error(where, "missing 'points' (three corners [[x,y,z], ...])")
             v = _points(ctx, where, "points", table["points"], 3)
             f = np.array([[0, 1, 2]], np.int64)
+            uvc = np.array([[[0, 0], [1, 0], [0, 1]]], np.float32)
         else:  # box
             import trimesh
 
@@ -651,11 +763,14 @@ def _load_toml(p: Path, name: str) -> Scene:
             v = v @ matrix[:3, :3].T + matrix[:3, 3]
             if np.linalg.det(matrix[:3, :3]) < 0:
                 f = f[:, ::-1]
+                uvc = uvc[:, ::-1] if uvc is not None else None
         if _boolean(ctx, where, "flip_normals", table.get("flip_normals", False)):
             f = f[:, ::-1]
+            uvc = uvc[:, ::-1] if uvc is not None else None
         if face_mat is None:
             face_mat = np.full(len(f), material_for(where, table), np.int32)
         tri_vertices.append(v)
+        tri_uvs.append(np.zeros((len(f), 3, 2), np.float32) if uvc is None else np.asarray(uvc, np.float32))
         tri_faces.append(f + n_vertices)
         tri_mats.append(face_mat)
         n_vertices += len(v)
@@ -664,7 +779,9 @@ def _load_toml(p: Path, name: str) -> Scene:
         vertices = np.concatenate(tri_vertices)
         faces = np.concatenate(tri_faces)
         face_mat = np.concatenate(tri_mats)
+        uvs = _kept_uvs(vertices, faces, np.concatenate(tri_uvs))
     else:
+        uvs = None
         vertices = np.zeros((0, 3))
         faces = np.zeros((0, 3), np.int64)
         face_mat = np.zeros(0, np.int32)
@@ -673,13 +790,90 @@ def _load_toml(p: Path, name: str) -> Scene:
         vertices=v32, faces=f32, face_materials=face_mat, materials=materials or [Material()],
         spheres=np.asarray(spheres, np.float32).reshape(-1, 4),
         sphere_materials=np.asarray(sphere_mats, np.int32),
-        settings=settings, source=name,
+        settings=settings, source=name, uvs=uvs,
     )
     if "camera" in doc:
         scene.camera = _parse_camera(ctx, doc["camera"])
     else:
         scene.camera = framing_camera(*_bounds(scene), settings.width, settings.height)
+    scene.lights = _parse_lights(ctx, doc.get("light", []))
+    if "environment" in doc:
+        scene.environment = _parse_environment(ctx, p, doc["environment"])
     return scene
+
+
+def _color(ctx, where, key, value) -> tuple:
+    c = _vector(ctx, where, key, value, allow_scalar=True)
+    if (c < 0).any():
+        raise ctx.error(where, f"'{key}' must be >= 0, got {c.tolist()}")
+    return tuple(float(x) for x in c)
+
+
+def _parse_lights(ctx, lights) -> list:
+    from .scene import DirectionalLight, PointLight
+
+    if not isinstance(lights, list):
+        raise ctx.error("light", "must be an array of tables written [[light]]")
+    out = []
+    for number, table in enumerate(lights, 1):
+        where = f"[[light]] #{number}"
+        if not isinstance(table, dict):
+            raise ctx.error(where, f"must be a table, got {_describe(table)}")
+        ltype = table.get("type")
+        if not isinstance(ltype, str) or ltype not in LIGHT_TYPES:
+            shown = "missing 'type'" if ltype is None else f"unknown type {ltype!r}"
+            raise ctx.error(where, f"{shown} (expected one of: {', '.join(LIGHT_TYPES)})")
+        where = f"[[light]] #{number} ({ltype})"
+        _check_keys(ctx, where, table, _LIGHT_KEYS[ltype])
+        if ltype == "point":
+            if "position" not in table:
+                raise ctx.error(where, "missing 'position'")
+            out.append(PointLight(position=tuple(float(x) for x in _vector(ctx, where, "position", table["position"])),
+                                  intensity=_color(ctx, where, "intensity", table.get("intensity", 1.0))))
+        else:
+            if "direction" not in table:
+                raise ctx.error(where, "missing 'direction' (the way the light travels)")
+            d = _vector(ctx, where, "direction", table["direction"])
+            if not np.linalg.norm(d) > 0:
+                raise ctx.error(where, "'direction' must not be zero")
+            out.append(DirectionalLight(direction=tuple(float(x) for x in d / np.linalg.norm(d)),
+                                        irradiance=_color(ctx, where, "irradiance", table.get("irradiance", 1.0))))
+    return out
+
+
+def _parse_environment(ctx, scene_path: Path, table):
+    from .scene import Environment
+
+    where = "[environment]"
+    if not isinstance(table, dict):
+        raise ctx.error(where, f"must be a table, got {_describe(table)}")
+    _check_keys(ctx, where, table, _ENVIRONMENT_KEYS)
+    if "file" in table:
+        if "radiance" in table:
+            raise ctx.error(where, "give 'radiance' (a constant) or 'file' (a map, with 'scale'), not both")
+        fname = table["file"]
+        if not isinstance(fname, str):
+            raise ctx.error(where, f"'file' must be a file name, got {_describe(fname)}")
+        path = (scene_path.parent / fname)
+        if not path.is_file():
+            raise ctx.error(where, f"environment map '{fname}' not found (looked for {path})")
+        from .imageio import read_exr
+
+        try:
+            image = read_exr(path)
+        except UserError as exc:
+            raise ctx.error(where, _one_line(str(exc))) from None
+        image = np.asarray(image, np.float32)
+        if image.ndim != 3 or image.shape[2] != 3:
+            raise ctx.error(where, f"environment map '{fname}' must be an RGB image, got shape {image.shape}")
+        if not np.isfinite(image).all() or (image < 0).any():
+            warnings.warn(f"{ctx.name}: {where}: '{fname}' has negative or non-finite texels; they are treated as 0",
+                          stacklevel=3)
+        return Environment(radiance=_color(ctx, where, "scale", table.get("scale", 1.0)), image=image,
+                           source=str(path))
+    if "scale" in table:
+        raise ctx.error(where, "'scale' multiplies a map: use it with 'file' (or give 'radiance')")
+    return Environment(radiance=_color(ctx, where, "radiance", table.get("radiance", 1.0)))
 
 
 def _parse_settings(ctx, film, render) -> RenderSettings:
@@ -736,8 +930,10 @@ def _parse_material(ctx, where, mname, spec) -> Material:
         raise ctx.error(where, f"'emission' must not be negative, got {emission.tolist()}")
     two_sided = _boolean(ctx, where, "two_sided", spec.get("two_sided", False))
     mat = Material(name=mname, emission=tuple(float(x) for x in emission), two_sided=two_sided, type=mtype)
+    mat.emission_texture = _texture_key(ctx, where, spec, "emission_texture", srgb=True)
     if mtype == "diffuse":
         mat.albedo = _rgb01(ctx, where, "albedo", spec.get("albedo", 0.8))
+        mat.base_texture = _texture_key(ctx, where, spec, "albedo_texture", srgb=True)
         return mat
     mat.alpha = _alpha(ctx, where, spec)
     if mtype == "conductor":
@@ -771,7 +967,27 @@ def _parse_material(ctx, where, mname, spec) -> Material:
         mat.ior = _number(ctx, where, "ior", spec.get("ior", 1.5), positive=True)
         if "roughness" not in spec and "alpha" not in spec:
             mat.alpha = 1.0  # glTF's default roughnessFactor
+        mat.base_texture = _texture_key(ctx, where, spec, "base_color_texture", srgb=True)
+        mat.mr_texture = _texture_key(ctx, where, spec, "metallic_roughness_texture", srgb=False)
     return mat
+
+
+def _texture_key(ctx, where, spec, key, *, srgb):
+    """The image file named by spec[key] (relative to the scene file) as a Texture, or None."""
+    if key not in spec:
+        return None
+    fname = spec[key]
+    if not isinstance(fname, str) or not fname:
+        raise ctx.error(where, f"'{key}' must be an image file path, got {_describe(fname)}")
+    path = Path(ctx.name).parent / Path(fname).expanduser()
+    if not path.is_file():
+        raise ctx.error(where, f"{key} '{fname}' not found (looked for {path})")
+    from .textures import texture_from_image
+
+    try:
+        return texture_from_image(path, srgb=srgb)
+    except Exception as exc:
+        raise ctx.error(where, f"cannot read {key} '{fname}' ({type(exc).__name__}: {exc})") from None
 
 
 def _parse_materials(ctx, table):
@@ -802,9 +1018,13 @@ def _parse_camera(ctx, table) -> Camera:
         raise ctx.error(where, "'eye' and 'look_at' are the same point")
     if not np.linalg.norm(np.cross(forward / np.linalg.norm(forward), up)) > 1e-9:
         raise ctx.error(where, "'up' must not be zero or parallel to the viewing direction look_at - eye")
+    aperture = _number(ctx, where, "aperture_radius", table.get("aperture_radius", 0.0), minimum=0.0)
+    focus = None
+    if "focus_distance" in table:
+        focus = _number(ctx, where, "focus_distance", table["focus_distance"], positive=True)
     return Camera(
         eye=tuple(float(x) for x in eye), look_at=tuple(float(x) for x in look_at),
-        up=tuple(float(x) for x in up), fov=float(fov),
+        up=tuple(float(x) for x in up), fov=float(fov), aperture_radius=float(aperture), focus_distance=focus,
     )
 
 
@@ -880,16 +1100,28 @@ def _mesh_shape(ctx, where, scene_path: Path, table, materials, material_index, 
     if mesh_path.is_dir():
         raise ctx.error(where, f"mesh file '{fname}' is a folder ({mesh_path})")
     use_file = _boolean(ctx, where, "use_file_materials", table.get("use_file_materials", False))
+    suffix = mesh_path.suffix.lower()
+    uvs = None
+    if suffix in (".gltf", ".glb"):
+        try:
+            g = _read_gltf(mesh_path, f"{ctx.name}: {where}: {fname}")
+        except UserError as exc:
+            raise SceneError(_one_line(str(exc))) from None
+        v, f, uvs = g.vertices, g.faces, g.uvs
     if use_file:
-        if mesh_path.suffix.lower() != ".obj":
-            raise ctx.error(where, f"use_file_materials is only supported for OBJ files, not '{fname}'")
+        if suffix not in (".obj", ".gltf", ".glb"):
+            raise ctx.error(where, f"use_file_materials is only supported for OBJ and glTF files, not '{fname}'")
         fallback_index = material_for(where, table)
         overrides = {n: materials[i] for n, i in material_index.items()}
-        try:
-            v, f, local_mat, local_materials = _obj_with_materials(
-                mesh_path, f"{ctx.name}: {where}: {fname}", overrides, fallback=materials[fallback_index])
-        except SceneError as exc:
-            raise SceneError(_one_line(str(exc))) from None
+        if suffix == ".obj":
+            try:
+                v, f, local_mat, local_materials, uvs = _obj_with_materials(
+                    mesh_path, f"{ctx.name}: {where}: {fname}", overrides, fallback=materials[fallback_index])
+            except SceneError as exc:
+                raise SceneError(_one_line(str(exc))) from None
+        else:  # glTF: a [materials.NAME] with a glTF material's name replaces it
+            local_mat = g.face_materials
+            local_materials = [overrides.get(m.name, m) for m in g.materials]
         # map the OBJ's material list into the scene's, reusing entries already there
         remap = np.empty(max(1, len(local_materials)), np.int32)
         for i, mat in enumerate(local_materials):
@@ -901,12 +1133,30 @@ def _mesh_shape(ctx, where, scene_path: Path, table, materials, material_index, 
                 remap[i] = len(materials)
                 materials.append(mat)
         face_mat = remap[local_mat] if len(local_mat) else np.zeros(0, np.int32)
-    else:
+    elif suffix not in (".gltf", ".glb"):
         try:
-            v, f = flatten(load_trimesh(mesh_path), name=str(mesh_path))
+            loaded = load_trimesh(mesh_path)
+            v, f = flatten(loaded, name=str(mesh_path))
         except MeshError as exc:
             raise ctx.error(where, str(exc)) from None
+        uvs = _trimesh_uvs(loaded, v, f)
+        face_mat = None
+    else:
         face_mat = None
     if len(f) == 0:
         raise ctx.error(where, f"mesh file '{fname}' contains no triangles")
-    return np.asarray(v, np.float64), np.asarray(f, np.int64), face_mat
+    return np.asarray(v, np.float64), np.asarray(f, np.int64), face_mat, uvs
+
+
+def _trimesh_uvs(loaded, v, f):
+    """Per-corner UVs (v flipped to the top-down convention) of a single trimesh mesh that
+    carries them (e.g. a PLY with s/t or texture_u/v), if flatten() kept its faces as they were."""
+    uv = getattr(getattr(loaded, "visual", None), "uv", None)
+    try:
+        if uv is None or len(uv) != len(loaded.vertices) or len(loaded.faces) != len(f):
+            return None
+        out = np.asarray(uv, np.float32)[np.asarray(loaded.faces)][..., :2].copy()
+    except (AttributeError, TypeError, ValueError, IndexError):
+        return None
+    out[..., 1] = 1.0 - out[..., 1]
+    return out

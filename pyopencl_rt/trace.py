@@ -56,10 +56,44 @@ def padded_nodes(bvh: BVH) -> np.ndarray:
     return nodes
 
 
-class DeviceBVH:
-    """A BVH uploaded to one device (kept on the BVH object, one per device)."""
+LAYOUTS = ("binary", "wide")
+LAYOUT_ENV = "PYOPENCL_RT_BVH_LAYOUT"
 
-    def __init__(self, bvh: BVH, rt):
+
+def bvh_layout(device, layout: str | None = None) -> str:
+    """The BVH layout the kernels traverse on ``device``: ``layout`` if given, else the
+    ``PYOPENCL_RT_BVH_LAYOUT`` environment variable, else ``"wide"`` (4-wide nodes, Tri4 leaves:
+    cl/bvh_wide.h) on CPU devices and ``"binary"`` (cl/bvh.h) on the others."""
+    import os
+
+    layout = layout or os.environ.get(LAYOUT_ENV) or None
+    if layout is None:
+        import pyopencl as cl
+
+        layout = "wide" if device.type & cl.device_type.CPU else "binary"
+    if layout not in LAYOUTS:
+        raise UserError(f"unknown BVH layout {layout!r}: use 'binary' or 'wide' (argument or ${LAYOUT_ENV})")
+    return layout
+
+
+def layout_defines(layout: str) -> dict:
+    """Preprocessor defines that make cl/trace.cl and cl/scene.h traverse ``layout``."""
+    return {"BVH_WIDE": True} if layout == "wide" else {}
+
+
+def node_buffer(bvh: BVH, layout: str) -> np.ndarray:
+    """What the kernels' first (nodes) buffer holds for ``layout``, boxes padded either way."""
+    if layout == "wide":
+        from .bvh_wide import device_blob, wide_bvh
+
+        return device_blob(wide_bvh(bvh))
+    return padded_nodes(bvh)
+
+
+class DeviceBVH:
+    """A BVH uploaded to one device in one layout (kept on the BVH object, one per device and layout)."""
+
+    def __init__(self, bvh: BVH, rt, layout: str = "binary"):
         import pyopencl as cl
 
         mf = cl.mem_flags
@@ -71,27 +105,29 @@ class DeviceBVH:
                 a = np.zeros(16, np.uint8)
             return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
 
-        self.nodes = upload(padded_nodes(bvh))
+        self.layout = layout
+        self.defines = layout_defines(layout)
+        self.nodes = upload(node_buffer(bvh, layout))
         self.triangles = upload(bvh.triangles)
         self.prim_ids = upload(bvh.prim_ids.astype(np.int32))
 
 
-def device_bvh(bvh: BVH, rt) -> DeviceBVH:
+def device_bvh(bvh: BVH, rt, layout: str = "binary") -> DeviceBVH:
     cache = bvh.__dict__.setdefault("_device_cache", {})
-    key = id(rt)
+    key = (id(rt), layout)
     if key not in cache:
-        cache[key] = DeviceBVH(bvh, rt)
+        cache[key] = DeviceBVH(bvh, rt, layout)
     return cache[key]
 
 
-def _opencl(bvh, o, d, tmin, tmax, device, any_hit):
+def _opencl(bvh, o, d, tmin, tmax, device, any_hit, layout=None):
     import pyopencl as cl
 
     from .devices import select_device
     from .kernels import runtime
 
     rt = runtime(select_device(device))
-    dev = device_bvh(bvh, rt)
+    dev = device_bvh(bvh, rt, bvh_layout(rt.device, layout))
     n = len(o)
     mf = cl.mem_flags
     ctx, queue = rt.context, rt.queue
@@ -102,11 +138,13 @@ def _opencl(bvh, o, d, tmin, tmax, device, any_hit):
         return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
 
     bo, bd, bmin, bmax = inbuf(o), inbuf(d), inbuf(tmin), inbuf(tmax)
-    gsize = (n,)
+    gsize, lsize = (n,), None
+    if dev.layout == "wide":  # small work-groups: PoCL keeps a private stack per work-item of a group
+        gsize, lsize = ((n + 63) // 64 * 64,), (64,)
     if any_hit:
         out = np.empty(n, np.uint8)
         bout = cl.Buffer(ctx, mf.WRITE_ONLY, out.nbytes)
-        rt.kernel(("trace.cl",), "trace_any")(queue, gsize, None, dev.nodes, dev.triangles, bo, bd, bmin, bmax, np.int32(n), bout)
+        rt.kernel(("trace.cl",), "trace_any", dev.defines)(queue, gsize, lsize, dev.nodes, dev.triangles, bo, bd, bmin, bmax, np.int32(n), bout)
         cl.enqueue_copy(queue, out, bout)
         return out.astype(bool)
     res = {
@@ -117,8 +155,8 @@ def _opencl(bvh, o, d, tmin, tmax, device, any_hit):
         "normal": np.empty((n, 3), np.float32),
     }
     bufs = {k: cl.Buffer(ctx, mf.WRITE_ONLY, a.nbytes) for k, a in res.items()}
-    rt.kernel(("trace.cl",), "trace_closest")(
-        queue, gsize, None, dev.nodes, dev.triangles, dev.prim_ids, bo, bd, bmin, bmax, np.int32(n),
+    rt.kernel(("trace.cl",), "trace_closest", dev.defines)(
+        queue, gsize, lsize, dev.nodes, dev.triangles, dev.prim_ids, bo, bd, bmin, bmax, np.int32(n),
         bufs["t"], bufs["prim_id"], bufs["u"], bufs["v"], bufs["normal"],
     )
     for k, a in res.items():
@@ -164,12 +202,14 @@ def _embree(bvh, o, d, tmin, tmax, any_hit):
             "v": np.where(hit, r["v"], 0).astype(np.float32), "normal": ng}
 
 
-def trace(geometry, origins, directions, tmin=0.0, tmax=np.inf, device=None, backend="opencl") -> dict:
+def trace(geometry, origins, directions, tmin=0.0, tmax=np.inf, device=None, backend="opencl",
+          layout=None) -> dict:
     """Closest hit of each ray o + t d, t in (tmin, tmax).
 
     Returns a dict of arrays: ``t`` (inf on a miss), ``prim_id`` (face index, -1 on a miss),
     ``u``, ``v`` (barycentrics of the face's 2nd and 3rd vertex) and ``normal`` (unit geometric
-    normal (v1 - v0) x (v2 - v0), zero on a miss).
+    normal (v1 - v0) x (v2 - v0), zero on a miss).  ``layout``: the BVH layout the OpenCL kernel
+    traverses, ``"binary"`` or ``"wide"`` (default: :func:`bvh_layout`, i.e. wide on CPUs).
     """
     bvh = as_bvh(geometry)
     o, d, tmin, tmax = _rays(origins, directions, tmin, tmax)
@@ -177,18 +217,19 @@ def trace(geometry, origins, directions, tmin=0.0, tmax=np.inf, device=None, bac
         return _embree(bvh, o, d, tmin, tmax, any_hit=False)
     if backend != "opencl":
         raise UserError(f"unknown backend {backend!r}: use 'opencl' or 'embree'")
-    res = _opencl(bvh, o, d, tmin, tmax, device, any_hit=False)
+    res = _opencl(bvh, o, d, tmin, tmax, device, any_hit=False, layout=layout)
     if res is None:
         return _embree(bvh, o, d, tmin, tmax, any_hit=False)  # zero rays: the empty result
     return res
 
 
-def occluded(geometry, origins, directions, tmin=0.0, tmax=np.inf, device=None, backend="opencl") -> np.ndarray:
-    """True for each ray that hits anything with t in (tmin, tmax)."""
+def occluded(geometry, origins, directions, tmin=0.0, tmax=np.inf, device=None, backend="opencl",
+             layout=None) -> np.ndarray:
+    """True for each ray that hits anything with t in (tmin, tmax) (``layout`` as for :func:`trace`)."""
     bvh = as_bvh(geometry)
     o, d, tmin, tmax = _rays(origins, directions, tmin, tmax)
     if backend == "embree":
         return _embree(bvh, o, d, tmin, tmax, any_hit=True)
     if backend != "opencl":
         raise UserError(f"unknown backend {backend!r}: use 'opencl' or 'embree'")
-    return _opencl(bvh, o, d, tmin, tmax, device, any_hit=True)
+    return _opencl(bvh, o, d, tmin, tmax, device, any_hit=True, layout=layout)

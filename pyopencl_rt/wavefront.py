@@ -15,7 +15,7 @@ import numpy as np
 
 from . import layout
 from .bvh import build_bvh
-from .lights import build_lights
+from .lights import build_lights, environment_buffers, light_features
 from .scene import INTEGRATORS, Scene
 
 STAGES = ("generate", "extend", "shade", "shadow", "accumulate")
@@ -129,6 +129,11 @@ class Wavefront:
         lights, tri_light, sphere_light = build_lights(scene, self.bvh)
         self.n_lights = len(lights)
         self.features = scene_features(scene, self.n_lights, self.integrator)
+        self.features.update(light_features(lights))  # point/directional/environment code, if used
+        if self.n_lights == 0:
+            import warnings
+
+            warnings.warn("scene has no lights: the image will be black", stacklevel=2)
         self.bvh_layout = bvh_layout(device)  # wide (cl/bvh_wide.h) on CPUs; $PYOPENCL_RT_BVH_LAYOUT overrides
         self.features.update(layout_defines(self.bvh_layout))
 
@@ -167,6 +172,7 @@ class Wavefront:
             scratch(i4 * W), scratch(i4 * W), scratch(i4 * W), scratch(f4 * W),  # pixel, pass, depth, pdf
             scratch(f4 * W), scratch(i4 * W), scratch(f4 * W), scratch(f4 * W),  # hit t/prim/u/v
             scratch(3 * f4 * W), scratch(3 * f4 * W), scratch(3 * f4 * W),  # shadow o/d/contrib
+            *self._texture_buffers(const, scratch, W),  # tri_uv, textures, tex_data, mat_scratch
         ]
         self.queue_a, self.queue_b = scratch(i4 * W), scratch(i4 * W)
         self.shadow_q, self.term_q = scratch(i4 * W), scratch(i4 * W)
@@ -174,7 +180,9 @@ class Wavefront:
         self.counters_host = np.zeros(N_COUNTERS + self.ring_size, np.int32)
         self.counters = cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host)
         self.pass_ring = scratch(3 * f4 * P * self.ring_size)
+        self.env_buffers = [const(a) for a in environment_buffers(scene)]  # env_map, env_cdf (kept alive here)
         fixed = self.buffers + [None, None, self.shadow_q, self.term_q, self.free_q, self.counters, self.pass_ring,
+                                *self.env_buffers,
                                 np.int32(len(scene.spheres)), np.int32(self.n_lights), np.int32(P),
                                 np.int32(self.ring_size), np.int32(self.max_depth), np.int32(self.rr_depth),
                                 np.uint32(self.seed)]
@@ -189,6 +197,17 @@ class Wavefront:
         self.n_free = W
         self.next_sample = 0  # linear index pass * P + pixel of the next sample to start
         self.oldest_pass = 0  # the first pass not yet added to the film
+
+    def _texture_buffers(self, const, scratch, W):
+        """tri_uv (3 UVs per reordered triangle), the TEXTURE table, the float4 texels and the
+        per-slot scratch Material (cl/textures.h); 16-byte dummies when the scene has no textures."""
+        if not self.scene.has_textures():
+            return [const(np.zeros(0, np.uint8)) for _ in range(3)] + [scratch(0)]
+        from .textures import pack_textures
+
+        uv = self.scene.face_uvs()[self.bvh.prim_ids].reshape(-1, 2)
+        table, texels = pack_textures(self.scene.textures())
+        return [const(uv), const(table), const(texels), scratch(layout.MATERIAL.itemsize * W)]
 
     # -- one stage launch ------------------------------------------------------------------
     def _launch(self, stage, count, qin, qout, a0=0, a1=0, a2=0, a3=0, a4=0):

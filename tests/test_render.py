@@ -169,3 +169,15 @@ def test_max_depth_one_shows_only_emitters(device, cornell):
     lit = (img > 0).any(axis=2)
     assert 0 < lit.sum() < 0.05 * lit.size  # the light alone: a few per cent of the frame
     assert np.allclose(img[lit].max(axis=0), [17.0, 12.0, 4.0], rtol=1e-6)
+
+
+def test_prepared_wavefront_sets_the_image(device, cornell):
+    """A Wavefront built once (as `bench render` and the convergence bench do) fixes the
+    resolution, seed and settings; it used to be given the scene's 512x512 film (a crash)."""
+    from pyopencl_rt.wavefront import Wavefront
+
+    wf = Wavefront(cornell, device, width=20, height=12, seed=5)
+    a = render_full(cornell, spp=2, wavefront=wf).image
+    b = render_full(cornell, spp=2, device=device, width=20, height=12, seed=5).image
+    assert a.shape == (12, 20, 3)
+    assert np.array_equal(a, b)

@@ -251,7 +251,11 @@ def test_mesh_formats_default_material_and_camera(tmp_path, ext):
     scene = load_scene(path)
     assert len(scene.faces) == 12
     assert len(scene.materials) == 1
-    assert scene.materials[0].albedo == (0.8, 0.8, 0.8) and not scene.materials[0].is_emissive
+    if ext == "glb":  # glTF: the file's material (glTF's default white one here; tests/test_textures.py)
+        assert scene.materials[0].type == "gltf" and scene.materials[0].albedo == (1.0, 1.0, 1.0)
+    else:
+        assert scene.materials[0].albedo == (0.8, 0.8, 0.8)
+    assert not scene.materials[0].is_emissive
     np.testing.assert_array_equal(scene.face_materials, 0)
     np.testing.assert_allclose(scene.vertices.min(axis=0), [8, -3.5, 4], atol=1e-5)
     assert scene.camera.fov == 40.0

@@ -1,5 +1,6 @@
 """Whole traversal (BVH + triangle test) against Embree in its robust (watertight) mode, and
-against brute force in float64, on every available device."""
+against brute force in float64, on every available device and for both BVH layouts (binary:
+cl/bvh.h; wide: cl/bvh_wide.h), held to identical bounds."""
 import numpy as np
 import pytest
 
@@ -61,19 +62,24 @@ def brute_force_hit(vertices, faces, o, d):
     return hit, margin
 
 
+@pytest.fixture(params=["binary", "wide"])
+def layout(request):
+    return request.param
+
+
 @pytest.fixture(scope="module")
 def bvhs():
     return {name: (make(), build_bvh(*make())) for name, make in MESHES.items()}
 
 
 @pytest.mark.parametrize("mesh", list(MESHES))
-def test_closest_hit_matches_embree(device, bvhs, mesh, rng):
+def test_closest_hit_matches_embree(device, layout, bvhs, mesh, rng):
     (v, f), bvh = bvhs[mesh]
     o1, d1 = coherent_rays(v, N_COHERENT)
     o2, d2 = incoherent_rays(v, f, N_INCOHERENT, rng)
     o, d = np.concatenate([o1, o2]), np.concatenate([d1, d2])
     n = len(o)
-    ours = trace(bvh, o, d, device=device)
+    ours = trace(bvh, o, d, device=device, layout=layout)
     ref = trace(bvh, o, d, backend="embree")
     hit, ref_hit = ours["prim_id"] >= 0, ref["prim_id"] >= 0
 
@@ -143,11 +149,11 @@ def test_closest_hit_matches_embree(device, bvhs, mesh, rng):
 
 
 @pytest.mark.parametrize("mesh", ["torus", "grid"])
-def test_any_hit_matches_embree(device, bvhs, mesh, rng):
+def test_any_hit_matches_embree(device, layout, bvhs, mesh, rng):
     (v, f), bvh = bvhs[mesh]
     o, d = incoherent_rays(v, f, 300_000, rng)
     tmax = rng.uniform(0, 3, len(o)).astype(np.float32)
-    ours = occluded(bvh, o, d, tmax=tmax, device=device)
+    ours = occluded(bvh, o, d, tmax=tmax, device=device, layout=layout)
     ref = occluded(bvh, o, d, tmax=tmax, backend="embree")
     # rays whose closest hit lies within 1e-5 of tmax are a tie between "hit" and "miss"
     closest = trace(bvh, o, d, backend="embree")["t"]
@@ -161,7 +167,7 @@ def test_any_hit_matches_embree(device, bvhs, mesh, rng):
     assert 0.05 < ours.mean() < 0.95  # the set exercises both answers
 
 
-def test_tmin_tmax_against_brute_force(device, rng):
+def test_tmin_tmax_against_brute_force(device, layout, rng):
     """A small scene traced with random [tmin, tmax] windows: every answer equals a float64 brute
     force over all triangles (closest t inside the window)."""
     v, f = MESHES["soup"](n=300, seed=5)
@@ -171,7 +177,7 @@ def test_tmin_tmax_against_brute_force(device, rng):
     d = rng.normal(size=(n, 3)).astype(np.float32)
     tmin = rng.uniform(0, 1, n).astype(np.float32)
     tmax = (tmin + rng.uniform(0, 2, n)).astype(np.float32)
-    ours = trace(bvh, o, d, tmin=tmin, tmax=tmax, device=device)
+    ours = trace(bvh, o, d, tmin=tmin, tmax=tmax, device=device, layout=layout)
     p = v[f].astype(np.float64)
     e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
     best_t = np.full(n, np.inf)
@@ -201,13 +207,13 @@ def test_tmin_tmax_against_brute_force(device, rng):
     assert ((ours["t"][hit] > tmin[hit]) & (ours["t"][hit] < tmax[hit])).all()
 
 
-def test_degenerate_trees(device):
+def test_degenerate_trees(device, layout):
     """An empty mesh misses everything; a single triangle (one leaf at the root) is hit."""
     empty = build_bvh(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32))
-    res = trace(empty, [[0, 0, -1]], [[0, 0, 1]], device=device)
+    res = trace(empty, [[0, 0, -1]], [[0, 0, 1]], device=device, layout=layout)
     assert res["prim_id"][0] == -1 and res["t"][0] == np.inf
     one = build_bvh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]], np.int32))
-    res = trace(one, [[0.25, 0.25, -1]], [[0, 0, 1]], device=device)
+    res = trace(one, [[0.25, 0.25, -1]], [[0, 0, 1]], device=device, layout=layout)
     assert res["prim_id"][0] == 0 and res["t"][0] == 1.0
     assert res["u"][0] == 0.25 and res["v"][0] == 0.25
     assert res["normal"][0].tolist() == [0.0, 0.0, 1.0]

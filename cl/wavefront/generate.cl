@@ -1,7 +1,9 @@
 /* Stage 1: new camera paths into free slots.
  * a0 = number of new paths, a1 = pass of the first, a2 = pixel of the first (later paths take
  * the following pixels, wrapping into the next pass), a3 = active-queue length before,
- * a4 = free-stack length before.  Pixel jitter: box filter over the pixel. */
+ * a4 = free-stack length before.  Pixel jitter: box filter over the pixel.  A thin-lens camera
+ * (lens_radius > 0, pyopencl_rt/layout.py) also samples the lens; lens_radius 0 is the pinhole,
+ * bit for bit. */
 #include "../lights.h"
 
 __kernel void wf_generate(WAVE_PARAMS)
@@ -19,8 +21,17 @@ __kernel void wf_generate(WAVE_PARAMS)
     const float2 jitter = rng_uniform2(seed, (uint)pixel, (uint)pass, DIM_PIXEL);
     const float sx = ((float)x + jitter.x) / (float)cam.width * 2.0f - 1.0f;
     const float sy = 1.0f - ((float)y + jitter.y) / (float)cam.height * 2.0f;
-    const float3 d = normalize(vload3(0, cam.forward) + sx * vload3(0, cam.right) + sy * vload3(0, cam.up));
-    store3(ray_o, slot, vload3(0, cam.origin));
+    const float3 dir = vload3(0, cam.forward) + sx * vload3(0, cam.right) + sy * vload3(0, cam.up);
+    float3 d = normalize(dir), o = vload3(0, cam.origin);
+    if (cam.lens_radius > 0.0f) {
+        /* thin lens: from a point of the lens disk (concentric map, rng dims DIM_LENS and + 1)
+         * through the point of the pinhole ray at distance focus_distance along forward */
+        const float2 l = cam.lens_radius * sample_concentric_disk(rng_uniform2(seed, (uint)pixel, (uint)pass, DIM_LENS));
+        const float3 lens = l.x * normalize(vload3(0, cam.right)) + l.y * normalize(vload3(0, cam.up));
+        d = normalize(cam.focus_distance * dir - lens);
+        o += lens;
+    }
+    store3(ray_o, slot, o);
     store3(ray_d, slot, d);
     store3(throughput, slot, (float3)(1.0f));
     store3(radiance, slot, (float3)(0.0f));

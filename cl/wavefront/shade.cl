@@ -1,10 +1,13 @@
 /* Stage 3: shading of every active path at its new hit point.
  *
- *   emission   Le of an emitter hit by the path, weighted by MIS against light sampling
+ *   emission   Le of an emitter hit by the path (or of the environment, HAS_ENVIRONMENT, when
+ *              the path left the scene), weighted by MIS against light sampling
  *              (power heuristic; weight 1 for camera rays), or by 1 (INTEGRATOR 1, BSDF
  *              sampling only) or 0 after the first segment (INTEGRATOR 2, light sampling only);
  *   light      one light sample (picked by power with the alias table): its contribution,
- *              weighted by MIS, is queued with a shadow ray (not with INTEGRATOR 1);
+ *              weighted by MIS (weight 1 for delta lights: point, directional), is queued with a
+ *              shadow ray (not with INTEGRATOR 1); infinitely distant lights (directional,
+ *              environment) get a shadow ray of length ls.far along their exact direction;
  *   BSDF       one BSDF sample continues the path; Russian roulette after rr_depth bounces
  *              keeps it with probability min(max(throughput), 0.95).  A delta (perfectly
  *              specular) sample stores path_pdf = 0, which marks the next segment like a camera
@@ -16,6 +19,9 @@
  * a0 = active-queue length.
  */
 #include "../lights.h"
+#ifdef HAS_TEXTURES
+#include "../textures.h"
+#endif
 
 /* random dimension of the BSDF's lobe choice (reflection or refraction, specular or diffuse);
  * the direction uses DIM_BSDF and DIM_BSDF + 1 */
@@ -55,7 +61,8 @@ __kernel void wf_shade(WAVE_PARAMS)
 
         if (prim != PRIM_MISS) {
             const float3 o = load3(ray_o, slot), d = load3(ray_d, slot);
-            const float3 p = o + hit_t[slot] * d;
+            float3 p_err;
+            const float3 p = hit_point(tris, spheres, prim, o, d, hit_t[slot], hit_u[slot], hit_v[slot], &p_err);
             const float3 ng = hit_normal(tris, spheres, prim, p);
             const float3 wo = -d;
             const int front = dot(ng, wo) >= 0.0f; /* the viewer is outside (dielectrics) */
@@ -72,6 +79,14 @@ __kernel void wf_shade(WAVE_PARAMS)
                 light_index = tri_light[prim];
             }
             __global const Material *m = materials + mat_index;
+    #ifdef HAS_TEXTURES
+            /* textured material: shade with its effective copy in this path's scratch slot */
+            if (!IS_SPHERE(prim) && material_has_textures(m)) {
+                mat_scratch[slot] = texture_material(m, textures, tex_data,
+                                                     triangle_uv(tri_uv, prim, hit_u[slot], hit_v[slot]));
+                m = mat_scratch + slot;
+            }
+    #endif
             const uint dim = 2 + DIMS_PER_BOUNCE * (uint)depth;
 
             /* -- emission seen by the path -------------------------------------------------- */
@@ -99,30 +114,39 @@ __kernel void wf_shade(WAVE_PARAMS)
                  * emitter whose own surface holds p (the inside of an emissive sphere), p is neither
                  * inside nor outside it.  It is also the origin that a BSDF-sampled ray leaves from,
                  * so light_pdf() at a BSDF hit sees the same point. */
-                const float3 ref = offset_ray_origin(p, n);
+                const float3 ref = offset_ray_origin_bound(p, p_err, n);
                 float pick_pmf;
                 const int li = sample_alias(lights, n_lights, rng_uniform(seed, (uint)pixel, pass, dim + DIM_LIGHT_PICK), &pick_pmf);
                 LightSample ls;
-                if (pick_pmf > 0.0f &&
-                    light_sample(tris, spheres, materials, lights + li, ref,
-                                 rng_uniform2(seed, (uint)pixel, pass, dim + DIM_LIGHT_POINT), &ls) &&
-                    ls.pdf > 0.0f && max3(ls.Le) > 0.0f) {
+                const float2 ul = rng_uniform2(seed, (uint)pixel, pass, dim + DIM_LIGHT_POINT);
+                int sampled = pick_pmf > 0.0f && light_sample_all(tris, spheres, materials, env_map, env_cdf, lights + li, ref, ul, &ls);
+    #ifdef HAS_TEXTURES
+                if (sampled) texture_light_emission(tri_uv, textures, tex_data, materials, lights + li, ul, &ls);
+    #endif
+                if (sampled && ls.pdf > 0.0f && max3(ls.Le) > 0.0f) {
                     float3 wi = ls.p - ref;
-                    const float dist = length(wi);
+                    float dist = length(wi);
                     wi /= dist;
+    #ifdef HAS_INFINITE_LIGHTS
+                    if (ls.far > 0.0f) { wi = ls.n; dist = ls.far; } /* exact direction, far end */
+    #endif
                     float bpdf;
                     const float3 f = bsdf_eval(m, n, front, wo, wi, &bpdf);
                     if (max3(f) > 0.0f && dist > 0.0f) {
                         const float lpdf = pick_pmf * ls.pdf;
     #if INTEGRATOR == 0
-                        const float w = power_heuristic(lpdf, bpdf);
+                        const float w = ls.delta ? 1.0f : power_heuristic(lpdf, bpdf);
     #else
                         const float w = 1.0f;
     #endif
-                        const float3 so = dot(n, wi) > 0.0f ? ref : offset_ray_origin(p, -n);
-                        const float3 sp = offset_ray_origin(ls.p, ls.n);
+                        const float3 so = dot(n, wi) > 0.0f ? ref : offset_ray_origin_bound(p, p_err, -n);
+                        const float3 sp = offset_ray_origin_bound(ls.p, ls.err, ls.n);
                         store3(sh_o, slot, so);
+    #ifdef HAS_INFINITE_LIGHTS
+                        store3(sh_d, slot, ls.far > 0.0f ? wi * ls.far : sp - so);
+    #else
                         store3(sh_d, slot, sp - so);
+    #endif
                         store3(sh_contrib, slot, beta * f * ls.Le * (w / lpdf));
                         queued_shadow = 1;
                     }
@@ -145,7 +169,7 @@ __kernel void wf_shade(WAVE_PARAMS)
                         else beta /= q;
                     }
                     if (alive) {
-                        store3(ray_o, slot, offset_ray_origin(p, dot(ng, wi) > 0.0f ? ng : -ng));
+                        store3(ray_o, slot, offset_ray_origin_bound(p, p_err, dot(ng, wi) > 0.0f ? ng : -ng));
                         store3(ray_d, slot, wi);
                         store3(throughput, slot, beta);
                         path_pdf[slot] = delta ? 0.0f : pdf;
@@ -154,6 +178,24 @@ __kernel void wf_shade(WAVE_PARAMS)
                 }
             }
         }
+    #ifdef HAS_ENVIRONMENT
+        else {
+            /* -- the environment seen by a path that left the scene, weighted as emission above */
+            const float3 d = load3(ray_d, slot);
+            __global const Light *lt = lights + ENV_LIGHT;
+            const float3 Le = env_radiance(lt, env_map, d);
+            if (max3(Le) > 0.0f) {
+                float w = 1.0f;
+                const float prev_pdf = path_pdf[slot];
+        #if INTEGRATOR == 2
+                if (prev_pdf > 0.0f) w = 0.0f;
+        #elif INTEGRATOR == 0
+                if (prev_pdf > 0.0f) w = power_heuristic(prev_pdf, lt->pmf * env_pdf(lt, env_cdf, d));
+        #endif
+                L += beta * Le * w;
+            }
+        }
+    #endif
         store3(radiance, slot, L);
     } /* active */
 

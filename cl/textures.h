@@ -1,0 +1,102 @@
+/* Image textures (compiled only with HAS_TEXTURES; pyopencl_rt/textures.py loads and packs them).
+ *
+ * Storage: one float4 texel buffer (linear RGBA: sRGB colour images are decoded at load) and a
+ * table of Texture records (offset, width, height; pyopencl_rt/layout.py).  Texture coordinates:
+ * (0, 0) is the top-left corner of the image, texel (x, y) covers [x, x+1)/W x [y, y+1)/H.
+ *
+ * Lookup: bilinear filtering between the four nearest texel centres, wrap (repeat) addressing in
+ * both directions (u and v are reduced to [0, 1) first, so large coordinates keep precision);
+ * a non-finite coordinate reads as 0.  No mipmapping.
+ *
+ * Per-triangle UVs: tri_uv holds 3 float2 per BVH-reordered triangle; a hit's uv is
+ * (1 - u - v) uv0 + u uv1 + v uv2 with (u, v) the hit's barycentrics (weights of v1 and v2).
+ *
+ * Textured materials (Material.tex_base / tex_mr / tex_emission >= 0, triangles only):
+ *   tex_base      albedo *= rgb (diffuse, gltf); tint *= rgb (dielectric)
+ *   tex_mr        glTF metallicRoughness: metallic *= b, roughness *= g (alpha *= g^2)
+ *   tex_emission  emission *= rgb
+ * texture_material() returns that effective material; shade.cl stores it in its path slot of a
+ * scratch Material buffer and shades with it, so the BSDF and emission code is unchanged.
+ * For next-event estimation texture_light_emission() re-derives the sampled point's barycentrics
+ * from the same random numbers light_sample() used and applies the emission texture there.
+ */
+#ifndef PYOPENCL_RT_TEXTURES_H
+#define PYOPENCL_RT_TEXTURES_H
+
+#include "common.h"
+
+RT_INLINE float4 tex_fetch(__global const float4 *data, __global const Texture *t, int x, int y)
+{
+    return data[t->offset + y * t->width + x];
+}
+
+/* Bilinear, wrap-addressed lookup of texture `index` at uv. */
+RT_INLINE float4 tex_sample(__global const Texture *textures, __global const float4 *data, int index, float2 uv)
+{
+    __global const Texture *t = textures + index;
+    const int w = t->width, h = t->height;
+    float2 c = (float2)(isfinite(uv.x) ? uv.x : 0.0f, isfinite(uv.y) ? uv.y : 0.0f);
+    c -= floor(c);
+    const float fx = c.x * (float)w - 0.5f, fy = c.y * (float)h - 0.5f;
+    const float x0f = floor(fx), y0f = floor(fy);
+    const float ax = fx - x0f, ay = fy - y0f;
+    int x0 = (int)x0f, y0 = (int)y0f;
+    x0 = x0 < 0 ? x0 + w : (x0 >= w ? x0 - w : x0);
+    y0 = y0 < 0 ? y0 + h : (y0 >= h ? y0 - h : y0);
+    const int x1 = x0 + 1 >= w ? 0 : x0 + 1, y1 = y0 + 1 >= h ? 0 : y0 + 1;
+    const float4 top = mix(tex_fetch(data, t, x0, y0), tex_fetch(data, t, x1, y0), ax);
+    const float4 bot = mix(tex_fetch(data, t, x0, y1), tex_fetch(data, t, x1, y1), ax);
+    return mix(top, bot, ay);
+}
+
+RT_INLINE float2 triangle_uv(__global const float2 *tri_uv, int prim, float u, float v)
+{
+    return (1.0f - u - v) * tri_uv[3 * prim] + u * tri_uv[3 * prim + 1] + v * tri_uv[3 * prim + 2];
+}
+
+RT_INLINE int material_has_textures(__global const Material *m)
+{
+    return m->tex_base >= 0 || m->tex_mr >= 0 || m->tex_emission >= 0;
+}
+
+/* The material m with its textures applied at uv. */
+RT_INLINE Material texture_material(__global const Material *m, __global const Texture *textures,
+                                    __global const float4 *data, float2 uv)
+{
+    Material e = *m;
+    if (m->tex_base >= 0) {
+        const float3 c = tex_sample(textures, data, m->tex_base, uv).xyz;
+        if (m->type == 2 /* MATERIAL_DIELECTRIC: the tint */) {
+            e.specular[0] *= c.x; e.specular[1] *= c.y; e.specular[2] *= c.z;
+        } else {
+            e.albedo[0] *= c.x; e.albedo[1] *= c.y; e.albedo[2] *= c.z;
+        }
+    }
+    if (m->tex_mr >= 0) {
+        const float4 c = tex_sample(textures, data, m->tex_mr, uv);
+        e.metallic *= c.z;
+        e.alpha *= c.y * c.y;
+    }
+    if (m->tex_emission >= 0) {
+        const float3 c = tex_sample(textures, data, m->tex_emission, uv).xyz;
+        e.emission[0] *= c.x; e.emission[1] *= c.y; e.emission[2] *= c.z;
+    }
+    e.tex_base = e.tex_mr = e.tex_emission = -1;
+    return e;
+}
+
+#ifdef PYOPENCL_RT_LIGHTS_H /* included after lights.h (shade.cl): next-event estimation */
+/* After light_sample(..., u, ls) on `light`: the emission texture at the sampled point. */
+RT_INLINE void texture_light_emission(__global const float2 *tri_uv, __global const Texture *textures,
+                                      __global const float4 *data, __global const Material *materials,
+                                      __global const Light *light, float2 u, LightSample *ls)
+{
+    __global const Material *m = materials + light->material;
+    if (light->kind != LIGHT_TRIANGLE || m->tex_emission < 0) return;
+    const float2 b = sample_triangle_barycentrics(u);
+    const float3 c = tex_sample(textures, data, m->tex_emission, triangle_uv(tri_uv, light->prim, b.x, b.y)).xyz;
+    ls->Le *= c;
+}
+#endif
+
+#endif

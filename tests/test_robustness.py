@@ -1,0 +1,810 @@
+"""Numerical robustness: watertightness, self-intersection, scale and translation invariance,
+bad geometry, adversarial kernel inputs, and the NaN guard (issue 5; docs/ROBUSTNESS.md).
+
+The quick version runs in ``make test``; ``PYOPENCL_RT_STRESS=1`` (``make stress``, which runs
+``tools/stress.py``) runs the same tests with more rays, scales and seeds.  Every size is a
+module-level constant below.
+"""
+from __future__ import annotations
+
+import math
+import os
+import warnings
+import zlib
+
+import numpy as np
+import pyopencl as cl
+import pytest
+import trimesh
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from meshes import slivers
+from pyopencl_rt import build_bvh, load_scene, trace
+from pyopencl_rt.errors import UserError
+from pyopencl_rt.mesh import load_mesh
+from pyopencl_rt.render import render_full
+from pyopencl_rt.scene import Camera, Material, RenderSettings, Scene
+
+STRESS = os.environ.get("PYOPENCL_RT_STRESS", "") not in ("", "0")
+
+# ---- sizes: quick (make test) / long (make stress) -------------------------------------------
+WATERTIGHT_RAYS = 10_000_000 if STRESS else 500_000          # per mesh, untransformed
+WATERTIGHT_RAYS_TRANSFORMED = 10_000_000 if STRESS else 100_000  # per mesh and transform
+WATERTIGHT_CHUNK = 2_000_000
+SPAWN_TRIALS = 2_000_000 if STRESS else 200_000               # per seed
+SPAWN_SEEDS = (1, 2, 3, 4, 5) if STRESS else (1,)
+INVARIANCE_SPP = 1024 if STRESS else 256
+INVARIANCE_RES = 32
+INVARIANCE_CASES = ((1e-3, 0.0), (1e3, 0.0), (1.0, 1e5), (1e-3, 1e5), (1.0, 1e6)) if STRESS else ((1e-3, 0.0), (1.0, 1e5))
+HYPOTHESIS_EXAMPLES = 300 if STRESS else 25
+HYPOTHESIS_BATCH = 4096 if STRESS else 1024
+SCENE_SPP = 16 if STRESS else 4
+SCENE_RES = 32 if STRESS else 16
+
+
+# ================================================================================================
+# 1. Watertightness: rays from inside closed meshes never escape
+# ================================================================================================
+def _cone(sections):
+    """A cone whose apex (and base centre) is shared by `sections` triangles."""
+    return trimesh.creation.cone(radius=1.0, height=2.0, sections=sections)
+
+
+def _box(subdiv):
+    m = trimesh.creation.box(extents=(2.0, 1.0, 0.5))
+    for _ in range(subdiv):
+        m = m.subdivide()
+    return m
+
+
+def _mesh_specs():
+    """name -> (builder, kind).  kind 'convex' or 'torus' selects how interior points are made."""
+    ico = (1, 4) if not STRESS else (1, 2, 3, 4, 5, 6)
+    specs = {f"icosphere{s}": (lambda s=s: trimesh.creation.icosphere(subdivisions=s), "convex") for s in ico}
+    specs["uvsphere256"] = (lambda: trimesh.creation.uv_sphere(radius=1.0, count=[256, 256] if STRESS else [64, 256]), "convex")
+    specs["cone4096"] = (lambda: _cone(4096 if STRESS else 1024), "convex")
+    specs["box-subdiv3"] = (lambda: _box(3), "convex")
+    specs["slivers"] = (lambda: trimesh.Trimesh(*slivers(), process=False), "convex")
+    tori = ((160, 64),) if not STRESS else ((8, 3), (32, 8), (160, 64), (1024, 256))
+    for M, m in tori:
+        specs[f"torus{M}x{m}"] = (
+            lambda M=M, m=m: trimesh.creation.torus(major_radius=1.0, minor_radius=0.3, major_sections=M, minor_sections=m),
+            "torus")
+    return specs
+
+
+MESH_SPECS = _mesh_specs()
+# (scale, translation): the translated meshes are scaled to 1/100 of the translation so that
+# float32 still resolves them (a unit sphere at 1e6 is quantised to 1/16 and is another mesh).
+TRANSFORMS = [(1e-4, 0.0), (1e4, 0.0), (1e3, 1e5)] + ([(1e4, 1e6), (1.0, 1e2)] if STRESS else [])
+
+
+def _convex_interior(v, f, n, rng, eps_lo=1e-4):
+    """Origins strictly inside a convex mesh, and aim points on its vertices and edges.
+
+    A third at the centroid, a third uniform in a ball of half the inradius around it, a third
+    near the surface: q + eps (c - q) for q on a random edge or at a vertex, eps = 10^U(-4,-1)
+    (a convex combination with an interior point: strictly inside; checked in float64 against
+    the faces around q's edge after rounding to float32)."""
+    c = v.mean(0)
+    p = v[f]
+    nrm = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    plane = np.einsum("ij,ij->i", nrm, p[:, 0] - c)  # > 0: outward normals
+    assert (plane > 0).all(), "mesh is not convex with outward normals around its centroid"
+    r_in = plane.min()
+    k = n // 3
+    o = np.empty((n, 3))
+    o[:k] = c
+    u = rng.normal(size=(k, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    o[k:2 * k] = c + u * (0.5 * r_in * rng.random((k, 1)) ** (1 / 3))
+    m = n - 2 * k
+    fi = rng.integers(0, len(f), m)
+    e = rng.integers(0, 3, m)
+    s = rng.random(m)
+    s[: m // 4] = 0.0  # at a vertex
+    a, b = p[fi, e], p[fi, (e + 1) % 3]
+    q = a + s[:, None] * (b - a)
+    eps = 10 ** rng.uniform(math.log10(eps_lo), -1, m)
+    near = q + eps[:, None] * (c - q)
+    o[2 * k:] = near
+    # check (float64, after rounding to float32): a sample of 500 near-surface origins lies
+    # strictly inside every face plane
+    near32 = near.astype(np.float32).astype(np.float64)
+    pick = near32[rng.integers(0, m, min(m, 500))]
+    for lo in range(0, len(f), 20_000):
+        side = (pick @ nrm[lo:lo + 20_000].T) - np.einsum("ij,ij->i", nrm[lo:lo + 20_000], p[lo:lo + 20_000, 0])
+        assert (side < 0).all(), "a near-surface origin is not strictly inside"
+    return o, c
+
+
+def _torus_interior(v, f, n, rng, R=1.0, r=0.3):
+    """Origins inside a tessellated torus: within 0.6 r of its tube's centre circle (the
+    tessellated tube's inradius is r cos(pi/m) cos(pi/M) >= 0.61 r for m, M >= 8, and >= 0.43 r
+    for the 8x3 torus, which gets 0.4 r)."""
+    sections = len(v)
+    o = np.empty((n, 3))
+    phi = rng.uniform(0, 2 * np.pi, n)
+    ctr = np.stack([R * np.cos(phi), R * np.sin(phi), np.zeros(n)], 1)
+    lim = 0.4 if sections < 40 else 0.6
+    w = rng.normal(size=(n, 3))
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    rad = lim * r * rng.random(n)
+    o = ctr + w * rad[:, None]
+    return o, None
+
+
+def watertight_rays(v, f, kind, n, rng, eps_lo=1e-4):
+    """(origins, aim-or-direction) in float64: half random directions, half aimed at random
+    vertices and edge points of the mesh (where leaks happen)."""
+    if kind == "convex":
+        o, _ = _convex_interior(v, f, n, rng, eps_lo)
+    else:
+        o, _ = _torus_interior(v, f, n, rng)
+    d = rng.normal(size=(n, 3))
+    h = n // 2
+    p = v[f[rng.integers(0, len(f), n - h)]]
+    e = rng.integers(0, 3, n - h)
+    s = rng.random(n - h)
+    s[: (n - h) // 3] = 0.0
+    i = np.arange(n - h)
+    target = p[i, e] + s[:, None] * (p[i, (e + 1) % 3] - p[i, e])
+    d[h:] = target - o[h:]
+    return o, d
+
+
+def count_escapes(v, f, kind, n, rng, device, scale=1.0, shift=0.0):
+    """Rays from inside; returns (escapes, rays).  Mesh and rays transformed together in float64,
+    then rounded to float32."""
+    v32 = (v * scale + shift).astype(np.float32)
+    bvh = build_bvh(v32, f.astype(np.int32))
+    esc = 0
+    done = 0
+    while done < n:
+        m = min(WATERTIGHT_CHUNK, n - done)
+        # far from the origin, float32 resolves 2^-24 (|shift| + extent): stay 1e3 x that inside
+        eps_lo = max(1e-4, 1e3 * 2.0**-24 * (abs(shift) + scale * np.abs(v).max()) / (scale * np.abs(v).max()))
+        o, d = watertight_rays(v, f, kind, m, rng, min(eps_lo, 0.05))
+        o = (o * scale + shift).astype(np.float32)
+        d = (d * scale).astype(np.float32)
+        res = trace(bvh, o, d, device=device)
+        esc += int(np.count_nonzero(res["prim_id"] < 0))
+        done += m
+    return esc, done
+
+
+@pytest.fixture(scope="module")
+def closed_meshes():
+    out = {}
+    for name, (make, kind) in MESH_SPECS.items():
+        m = make()
+        v, f = np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
+        if name == "slivers":
+            v = v.astype(np.float32).astype(np.float64)
+        out[name] = (v, f, kind)
+    return out
+
+
+TRANSFORM_CASES = [(1.0, 0.0)] + TRANSFORMS
+def _watertight_params():
+    out = []
+    for mesh in MESH_SPECS:
+        for scale, shift in TRANSFORM_CASES:
+            out.append(pytest.param(mesh, scale, shift, id=f"{mesh}-x{scale:g}+{shift:g}"))
+    return out
+
+
+@pytest.mark.parametrize("mesh,scale,shift", _watertight_params())
+def test_watertight_no_escape(device, closed_meshes, mesh, scale, shift):
+    """0 escapes among the rays from inside (centre, interior, 1e-4..1e-1 from the surface),
+    half of them aimed exactly at vertices and edges: WATERTIGHT_RAYS for the mesh as built,
+    WATERTIGHT_RAYS_TRANSFORMED for it scaled by 1e-4 and 1e4 and translated far away."""
+    v, f, kind = closed_meshes[mesh]
+    assert trimesh.Trimesh(v, f, process=False).is_watertight
+    rng = np.random.default_rng(zlib.crc32(f"{mesh} {scale} {shift}".encode()))
+    n = WATERTIGHT_RAYS if (scale, shift) == (1.0, 0.0) else WATERTIGHT_RAYS_TRANSFORMED
+    esc, n = count_escapes(v, f, kind, n, rng, device, scale, shift)
+    print(f"watertight {mesh} x{scale:g} +{shift:g}: {esc} escapes / {n} rays")
+    assert esc == 0, f"{mesh} scaled {scale:g}, shifted {shift:g}: {esc} of {n} rays escaped"
+
+
+def test_watertight_counter_detects_a_hole(device, closed_meshes):
+    """The escape count is not vacuous: remove 1% of an icosphere's faces and rays leak."""
+    v, f, kind = closed_meshes["icosphere4"]
+    rng = np.random.default_rng(9)
+    holed = f[rng.random(len(f)) > 0.01]
+    esc, n = count_escapes(v, holed, kind, 100_000, rng, device)
+    assert esc > 100
+
+
+# ================================================================================================
+# 2. Self-intersection: spawned rays never hit their own surface
+# ================================================================================================
+SPAWN_HARNESS = r"""
+#include "intersect.h"
+#include "spawn.h"
+
+RT_INLINE int hits(float3 o, float3 d, float3 p0, float3 p1, float3 p2, float tmax)
+{
+    float t, u, v;
+    return intersect_triangle(o, d, ray_shear(d), p0, p1, p2, 0.0f, tmax, &t, &u, &v);
+}
+
+/* For trial i: triangle tri[3i..3i+2]; a camera-like ray from oh[i] at the point with
+ * barycentrics bary[i] finds the hit (t, u, v); the hit point is rebuilt from (u, v) as the
+ * renderer should (triangle_point), or taken as o + t*d as shade.cl does (MODE 1); a ray leaves
+ * it along w[i] (on either side) from offset_ray_origin_bound.  Then a shadow ray runs from the
+ * spawn point to a point on a light triangle lt[3i..3i+2] (barycentrics bary[i] again), itself
+ * offset toward the shading point as shade.cl does.
+ * out[i]: -1 no valid trial (degenerate triangle or the camera ray missed);
+ *         bit 0: the leaving ray hit its own triangle; bit 1: the shadow ray hit the source
+ *         triangle; bit 2: the shadow ray hit the light triangle before reaching it. */
+__kernel void h_spawn(__global const float *tri, __global const float *bary, __global const float *w,
+                      __global const float *oh, __global const float *lt, int mode, float light_tmax,
+                      __global int *out)
+{
+    const int i = get_global_id(0);
+    const float3 p0 = load3(tri, 3 * i), p1 = load3(tri, 3 * i + 1), p2 = load3(tri, 3 * i + 2);
+    const float3 c = cross(p1 - p0, p2 - p0);
+    const float cc = dot(c, c);
+    const float3 wi = load3(w, i);
+    const float b1 = bary[2 * i], b2 = bary[2 * i + 1];
+    float3 err;
+    const float3 target = triangle_point(p0, p1, p2, b1, b2, &err);
+    const float3 o = load3(oh, i), d = target - o;
+    float t, u, v;
+    if (!(cc > 0.0f && isfinite(cc)) ||
+        !intersect_triangle(o, d, ray_shear(d), p0, p1, p2, 0.0f, INFINITY, &t, &u, &v)) {
+        out[i] = -1;
+        return;
+    }
+    const float3 ng = normalize(c);
+    float3 p = triangle_point(p0, p1, p2, u, v, &err);
+    if (mode == 1) { p = o + t * d; err = (float3)(0.0f); }
+    int res = 0;
+    const float3 n = dot(ng, wi) > 0.0f ? ng : -ng;
+    const float3 so = offset_ray_origin_bound(p, err, n);
+    if (hits(so, wi, p0, p1, p2, INFINITY)) res |= 1;
+    /* shadow ray toward the light triangle's point */
+    const float3 l0 = load3(lt, 3 * i), l1 = load3(lt, 3 * i + 1), l2 = load3(lt, 3 * i + 2);
+    const float3 lc = cross(l1 - l0, l2 - l0);
+    if (dot(lc, lc) > 0.0f) {
+        float3 lerr;
+        const float3 lp = triangle_point(l0, l1, l2, b1, b2, &lerr);
+        float3 ln = normalize(lc);
+        if (dot(ln, so - lp) < 0.0f) ln = -ln;
+        const float3 sp = offset_ray_origin_bound(lp, lerr, ln);
+        const float3 sd = sp - so;
+        if (dot(sd, n) > 0.0f) { /* the light is on the side the ray leaves to */
+            if (hits(so, sd, p0, p1, p2, 1.0f)) res |= 2;
+            if (hits(so, sd, l0, l1, l2, light_tmax)) res |= 4;
+        }
+    }
+    out[i] = res;
+}
+"""
+
+
+def spawn_trials(n, rng, slivers_only=False):
+    """Random triangles of scale 10^U(-4, 6) at 10^U(-4, 6) from the origin (20% at the origin),
+    a point inside, a camera 10^U(-1, 3) triangle sizes away, a direction, and a light triangle
+    facing the point from 10^U(-2, 2) triangle sizes.  Float64, rounded to float32."""
+    s = 10 ** rng.uniform(-4, 6, n)
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    mag = 10 ** rng.uniform(-4, 6, n)
+    mag[rng.random(n) < 0.2] = 0.0
+    c = u * mag[:, None]
+    tri = c[:, None] + s[:, None, None] * rng.normal(size=(n, 3, 3))
+    if slivers_only:  # the third vertex within 1e-2..1e-4 (relative) of the first edge's line
+        t = rng.uniform(-0.5, 1.5, (n, 1))
+        off = rng.normal(size=(n, 3)) * (10 ** rng.uniform(-4, -2, n) * s)[:, None]
+        tri[:, 2] = tri[:, 0] + t * (tri[:, 1] - tri[:, 0]) + off
+    r1, r2 = rng.random(n), rng.random(n)
+    sq = np.sqrt(r1)
+    bary = np.stack([sq * (1 - r2), sq * r2], 1)
+    pt = (1 - bary.sum(1))[:, None] * tri[:, 0] + bary[:, :1] * tri[:, 1] + bary[:, 1:] * tri[:, 2]
+    w = rng.normal(size=(n, 3))
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    graze = rng.random(n) < 0.1  # 10% within 1e-1..1e-5 rad of the plane
+    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    tang = w - np.sum(w * nrm, 1, keepdims=True) * nrm
+    tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-300)
+    ang = 10 ** rng.uniform(-5, -1, n) * np.sign(rng.random(n) - 0.5)
+    w[graze] = (np.cos(ang)[:, None] * tang + np.sin(ang)[:, None] * nrm)[graze]
+    od = rng.normal(size=(n, 3))
+    od /= np.linalg.norm(od, axis=1, keepdims=True)
+    oh = pt + od * (s * 10 ** rng.uniform(-1, 3, n))[:, None]
+    # light: an equilateral triangle of size ~s centred near pt + dist * w, facing pt
+    dist = s * 10 ** rng.uniform(-2, 2, n)
+    lc = pt + dist[:, None] * w
+    a1 = rng.normal(size=(n, 3))
+    a1 -= np.sum(a1 * w, 1, keepdims=True) * w
+    a1 /= np.linalg.norm(a1, axis=1, keepdims=True)
+    a2 = np.cross(w, a1)
+    ls = (s * 10 ** rng.uniform(-1, 1, n))[:, None]
+    lt = np.stack([lc + ls * a1, lc + ls * (-0.5 * a1 + 0.866 * a2), lc + ls * (-0.5 * a1 - 0.866 * a2)], 1)
+    f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
+    return f32(tri), f32(bary), f32(w), f32(oh), f32(lt)
+
+
+def min_angle_sine(tri):
+    """float64: the sine of each triangle's smallest angle (0 for a degenerate one)."""
+    p = tri.astype(np.float64)
+    e = [p[:, (k + 1) % 3] - p[:, k] for k in range(3)]
+    ln = [np.linalg.norm(x, axis=1) for x in e]
+    area2 = np.linalg.norm(np.cross(e[0], e[1]), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.nan_to_num(area2 / np.maximum(np.maximum(ln[0] * ln[1], ln[1] * ln[2]), ln[2] * ln[0]))
+    return s
+
+
+SHADOW_TMAX = 1.0 - 1e-4  # pbrt's 1 - ShadowEpsilon; cl/wavefront/shadow.cl uses 1 (see the xfail below)
+
+
+def run_spawn(runtime, arrays, mode=0, light_tmax=SHADOW_TMAX):
+    ctx, q = runtime.context, runtime.queue
+    mf = cl.mem_flags
+    bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a) for a in arrays]
+    n = len(arrays[0])
+    out = np.empty(n, np.int32)
+    bout = cl.Buffer(ctx, mf.WRITE_ONLY, out.nbytes)
+    runtime.kernel((), "h_spawn", extra=SPAWN_HARNESS)(q, (n,), None, *bufs, np.int32(mode), np.float32(light_tmax), bout)
+    cl.enqueue_copy(q, out, bout)
+    return out
+
+
+def spawn_failures(out, keep=None):
+    valid = out >= 0
+    if keep is not None:
+        valid &= keep
+    return {"trials": int(valid.sum()), "self": int(np.count_nonzero(valid & (out & 1 > 0))),
+            "shadow_source": int(np.count_nonzero(valid & (out & 2 > 0))),
+            "shadow_light": int(np.count_nonzero(valid & (out & 4 > 0)))}
+
+
+SLIVER_SINE = 0.01  # triangles whose smallest angle is below ~0.6 degrees: test_spawn_on_slivers
+
+
+@pytest.mark.parametrize("seed", SPAWN_SEEDS)
+def test_spawn_never_hits_own_triangle(runtime, seed):
+    """pbrt's test: random triangles (scale 1e-4..1e6, up to 1e6 from the origin; smallest angle
+    above 0.6 degrees, slivers below); the hit point rebuilt from the hit's barycentrics and
+    offset by offset_ray_origin_bound: a ray leaving it (10% grazing, down to 1e-5 rad) never
+    hits its own triangle, and a shadow ray to a point on a light triangle on that side (offset
+    toward the shading point likewise) is not blocked by the source triangle (t < 1)."""
+    rng = np.random.default_rng(seed)
+    arrays = spawn_trials(SPAWN_TRIALS, rng)
+    r = spawn_failures(run_spawn(runtime, arrays), keep=min_angle_sine(arrays[0]) >= SLIVER_SINE)
+    print(f"spawn seed {seed}: {r}")
+    assert r["trials"] > 0.85 * SPAWN_TRIALS
+    assert r["self"] == 0 and r["shadow_source"] == 0, r  # the light end: see the xfail below
+
+
+def test_spawn_on_slivers(runtime):
+    """The same on slivers (third vertex 1e-4..1e-2 relative from the first edge's line)."""
+    rng = np.random.default_rng(11)
+    r = spawn_failures(run_spawn(runtime, spawn_trials(SPAWN_TRIALS // 2, rng, slivers_only=True)))
+    print(f"spawn slivers: {r}")
+    assert r["self"] == 0 and r["shadow_source"] == 0 and r["shadow_light"] == 0, r
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "undiagnosed (docs/ROBUSTNESS.md, open items): ~2e-5 of shadow rays toward a small light "
+    "triangle far from the origin (|p| ~ 1e3..1e5 light sizes) are blocked by the light's own "
+    "triangle, whether tmax is 1 or 1 - 1e-4 and with the intersect.h patch too"))
+def test_shadow_ray_not_blocked_by_the_light(runtime):
+    """The light end of the shadow rays of test_spawn_never_hits_own_triangle."""
+    rng = np.random.default_rng(1)
+    arrays = spawn_trials(SPAWN_TRIALS, rng)
+    r = spawn_failures(run_spawn(runtime, arrays), keep=min_angle_sine(arrays[0]) >= SLIVER_SINE)
+    assert r["shadow_light"] == 0, r
+
+
+def test_spawn_from_o_plus_td_is_not_enough(runtime):
+    """Why the hit point must come from barycentrics: p = o + t*d (as cl/wavefront/shade.cl
+    computed it until the Mitsuba comparison exposed the bias) carries the rounding of |o|, and with the camera 10^U(-1,3) triangle sizes
+    away the Wächter-Binder offset of p alone leaves percent-level self-hits.  (Documents the
+    failure mode: the test fails if that ever stops being true, i.e. if the harness is broken.)"""
+    rng = np.random.default_rng(1)
+    r = spawn_failures(run_spawn(runtime, spawn_trials(50_000, rng), mode=1))
+    assert r["self"] > 0.001 * r["trials"], r
+
+
+# ================================================================================================
+# 3. Scale and translation invariance of a rendered image
+# ================================================================================================
+def tile_means(image, var, k=8):
+    h, w, c = image.shape
+    m = image.astype(np.float64).reshape(h // k, k, w // k, k, c).mean(axis=(1, 3))
+    v = var.reshape(h // k, k, w // k, k, c).sum(axis=(1, 3)) / (k * k) ** 2
+    return m, v
+
+
+def transformed(scene: Scene, scale: float, shift: float) -> Scene:
+    """The scene's geometry and camera (eye, look_at; up unchanged) scaled then translated by
+    (shift, shift, shift), in float64, then rounded to float32."""
+    import dataclasses
+
+    v = (scene.vertices.astype(np.float64) * scale + shift).astype(np.float32)
+    cam = scene.camera
+    f = lambda p: tuple(float(x) for x in (np.asarray(p, np.float64) * scale + shift))  # noqa: E731
+    sph = scene.spheres.astype(np.float64).copy()
+    if len(sph):
+        sph[:, :3] = sph[:, :3] * scale + shift
+        sph[:, 3] *= scale
+    return dataclasses.replace(scene, vertices=v, spheres=sph.astype(np.float32),
+                               camera=Camera(eye=f(cam.eye), look_at=f(cam.look_at), up=cam.up, fov=cam.fov))
+
+
+@pytest.fixture(scope="module")
+def cornell_reference(request):
+    scene = load_scene("scenes/cornell-box.toml")
+    return scene, {}
+
+
+@pytest.mark.parametrize("scale,shift", [pytest.param(s, t, id=f"x{s:g}+{t:g}")
+                                         for s, t in INVARIANCE_CASES])
+def test_cornell_box_scale_translation_invariance(device, cornell_reference, scale, shift):
+    """The Cornell box scaled and/or translated renders the unscaled image within noise:
+    tile-wise z-test (8x8-pixel tiles x 3 channels = 48 tests; |z| < 4.2 is a 1e-3 overall
+    false-alarm rate by Bonferroni), independent seeds; no non-finite sample."""
+    scene, cache = cornell_reference
+    key = str(device)
+    if key not in cache:
+        r = render_full(scene, spp=INVARIANCE_SPP, device=device, seed=1, width=INVARIANCE_RES, height=INVARIANCE_RES)
+        assert r.info["nonfinite_samples"] == 0
+        cache[key] = tile_means(r.image, r.film.variance_of_mean())
+    m0, v0 = cache[key]
+    r = render_full(transformed(scene, scale, shift), spp=INVARIANCE_SPP, device=device, seed=2,
+                    width=INVARIANCE_RES, height=INVARIANCE_RES)
+    assert r.info["nonfinite_samples"] == 0 and np.isfinite(r.image).all()
+    m1, v1 = tile_means(r.image, r.film.variance_of_mean())
+    z = (m1 - m0) / np.sqrt(v0 + v1)
+    print(f"invariance x{scale:g} +{shift:g}: max |z| {np.abs(z).max():.2f}, mean ratio {m1.mean() / m0.mean():.4f}")
+    assert np.abs(z).max() < 4.2, f"max |z| = {np.abs(z).max():.2f}, mean ratio {m1.mean() / m0.mean():.4f}"
+
+
+def far_camera_plane(camera_distance):
+    """A 2x2 diffuse plane (albedo rho) at the origin under a uniform sky (radiance L, a huge
+    emissive sphere) seen from `camera_distance` away with a narrow field of view: every pixel
+    is rho * L."""
+    v = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32)
+    f = np.array([[0, 2, 1], [0, 3, 2]], np.int32)
+    eye = np.array([0.3, 1.0, 0.2]) * camera_distance
+    fov = math.degrees(2 * math.atan(0.5 / np.linalg.norm(eye)))
+    return Scene(vertices=v, faces=f, face_materials=np.zeros(2, np.int32),
+                 materials=[Material("plane", albedo=(0.3,) * 3),
+                            Material("sky", albedo=(0, 0, 0), emission=(2.0,) * 3, two_sided=True)],
+                 camera=Camera(eye=tuple(eye), look_at=(0, 0, 0), up=(0, 1, 0), fov=fov),
+                 spheres=np.array([[0, 0, 0, 100 * camera_distance]], np.float32),
+                 sphere_materials=np.array([1], np.int32),
+                 settings=RenderSettings(width=16, height=16, max_depth=3))
+
+
+@pytest.mark.parametrize("distance", [10.0, 1e4])
+def test_far_camera_sees_no_self_shadowing(device, distance):
+    """Radiance rho * L of a plane under a uniform sky, whatever the camera distance."""
+    r = render_full(far_camera_plane(distance), spp=64, device=device, seed=4)
+    assert r.info["nonfinite_samples"] == 0
+    m = float(r.image.mean())
+    se = float(r.image.std()) / np.sqrt(r.image.size)
+    assert abs(m - 0.6) <= 4 * se + 1e-4, f"mean {m:.4f} vs 0.6 (se {se:.2g})"
+
+
+# ================================================================================================
+# 4. Bad geometry: rejected with a clear message or dropped with a warning; never a NaN pixel
+# ================================================================================================
+GOOD = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+BAD_OBJS = {
+    "zero-area": GOOD + "f 1 2 3\nf 1 1 2\nf 2 2 2\n",
+    "collinear": GOOD + "v 2 0 0\nf 1 2 3\nf 1 2 5\n",
+    "duplicate-vertices": GOOD + "v 0 0 0\nv 1 0 0\nf 1 2 3\nf 5 6 3\nf 2 4 3\n",
+    "nan": GOOD + "v nan 0 0\nf 1 2 3\nf 5 2 3\n",
+    "inf": GOOD + "v inf 0 0\nv 0 -inf 1\nf 1 2 3\nf 5 2 3\nf 6 2 3\n",
+    "overflow": GOOD + "v 1e39 0 0\nf 1 2 3\nf 5 2 3\n",
+    "tiny": "v 0 0 0\nv 1e-30 0 0\nv 0 1e-30 0\nf 1 2 3\n",
+    "huge": "v -1e30 0 -1e30\nv 1e30 0 -1e30\nv 0 0 1e30\nf 1 2 3\n",
+    "empty": "# nothing\n",
+    "only-vertices": GOOD,
+    "all-nan": "v nan nan nan\nv nan 0 0\nv 0 nan 0\nf 1 2 3\n",
+}
+
+
+def _light_toml(mesh_name, mesh_material):
+    return f"""
+[camera]
+eye = [0.5, 0.5, 3.0]
+look_at = [0.5, 0.5, 0.0]
+fov = 60
+[film]
+width = 16
+height = 16
+[render]
+spp = 4
+max_depth = 4
+[materials.white]
+albedo = [0.8, 0.8, 0.8]
+[materials.light]
+albedo = [0.0, 0.0, 0.0]
+emission = [5.0, 5.0, 5.0]
+two_sided = true
+[[shape]]
+type = "mesh"
+file = "{mesh_name}"
+material = "{mesh_material}"
+[[shape]]
+type = "quad"
+material = "light"
+points = [[-2, -2, 2], [2, -2, 2], [2, 2, 2], [-2, 2, 2]]
+"""
+
+
+def _one_line_naming(exc, path):
+    msg = str(exc)
+    return "\n" not in msg and os.path.basename(str(path)) in msg
+
+
+def _load_checked(fn, path, mesh_path=None):
+    """Call a loader: a UserError naming the file, or success with any warnings naming it too."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            out = fn(path)
+        except UserError as exc:
+            assert _one_line_naming(exc, path), str(exc)
+            return None, caught
+    names = {os.path.basename(str(path))} | ({os.path.basename(str(mesh_path))} if mesh_path else set())
+    for w in caught:
+        assert any(nm in str(w.message) for nm in names), str(w.message)
+    return out, caught
+
+
+@pytest.mark.parametrize("case", list(BAD_OBJS))
+@pytest.mark.parametrize("fmt", ["obj", "ply"])
+def test_bad_geometry_loads_or_fails_cleanly_and_renders_finite(device, tmp_path, case, fmt):
+    """Each bad mesh, as OBJ and PLY: load_mesh and load_scene either raise a one-line
+    UserError naming the file, or succeed (dropped faces warned with their count); a TOML scene
+    using it (plain and as an emitter) renders an all-finite image with no non-finite sample."""
+    path = tmp_path / f"{case}.obj"
+    path.write_text(BAD_OBJS[case])
+    if fmt == "ply":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            v, f = _parse_obj(BAD_OBJS[case])
+            ply = tmp_path / f"{case}.ply"
+            head = (f"ply\nformat ascii 1.0\nelement vertex {len(v)}\nproperty float x\nproperty float y\n"
+                    f"property float z\nelement face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n")
+            body = "".join(f"{a!r} {b!r} {c!r}\n" for a, b, c in v.tolist()) + "".join(f"3 {a} {b} {c}\n" for a, b, c in f.tolist())
+            ply.write_text(head + body)
+            path = ply
+    res, caught = _load_checked(load_mesh, path)
+    if res is not None:
+        v, f = res
+        assert np.isfinite(v).all()
+        if any("NaN" in str(w.message) for w in caught):
+            assert any(ch.isdigit() for w in caught for ch in str(w.message))
+    for material in ("white", "light"):
+        scene_path = tmp_path / f"scene-{material}.toml"
+        scene_path.write_text(_light_toml(path.name, material))
+        scene, _ = _load_checked(load_scene, scene_path, mesh_path=path)
+        if scene is None:
+            continue
+        r = render_full(scene, device=device, seed=1)
+        assert r.info["nonfinite_samples"] == 0
+        assert np.isfinite(r.image).all()
+    # the mesh file alone as a scene
+    scene, _ = _load_checked(load_scene, path)
+    if scene is not None:
+        r = render_full(scene, device=device, seed=1, spp=2, width=8, height=8)
+        assert r.info["nonfinite_samples"] == 0 and np.isfinite(r.image).all()
+
+
+def _parse_obj(text):
+    v, f = [], []
+    for line in text.splitlines():
+        w = line.split()
+        if w and w[0] == "v":
+            v.append([float(x) for x in w[1:4]])
+        elif w and w[0] == "f":
+            f.append([int(x) - 1 for x in w[1:4]])
+    return np.array(v, np.float64).reshape(-1, 3), np.array(f, np.int64).reshape(-1, 3)
+
+
+def test_nan_vertices_are_dropped_with_count(tmp_path):
+    """NaN/Inf vertices: their faces are dropped, with a warning naming the file and the counts."""
+    path = tmp_path / "inf.obj"
+    path.write_text(BAD_OBJS["inf"])
+    with pytest.warns(UserWarning) as rec:
+        v, f = load_mesh(path)
+    msg = " ".join(str(w.message) for w in rec)
+    assert "inf.obj" in msg and "2 vertices" in msg and "2 faces" in msg
+    assert len(f) == 1 and np.isfinite(v).all()
+
+
+def test_empty_mesh_is_rejected_naming_the_file(tmp_path):
+    path = tmp_path / "empty.obj"
+    path.write_text(BAD_OBJS["empty"])
+    with pytest.raises(UserError) as exc:
+        load_scene(path)
+    assert "empty.obj" in str(exc.value) and "\n" not in str(exc.value)
+
+
+# ================================================================================================
+# 5. Adversarial inputs: intersect_triangle against float64 (hypothesis)
+# ================================================================================================
+TRI_HARNESS = r"""
+#include "intersect.h"
+__kernel void h_tri(__global const float *o, __global const float *d, __global const float *tri,
+                    __global float *out)
+{
+    const int i = get_global_id(0);
+    float t = 0, u = 0, v = 0;
+    const float3 dd = load3(d, i);
+    const int hit = intersect_triangle(load3(o, i), dd, ray_shear(dd), load3(tri, 3 * i), load3(tri, 3 * i + 1),
+                                       load3(tri, 3 * i + 2), 0.0f, INFINITY, &t, &u, &v);
+    out[4 * i] = hit; out[4 * i + 1] = t; out[4 * i + 2] = u; out[4 * i + 3] = v;
+}
+"""
+
+MODES = ("interior", "edge", "vertex", "grazing", "in-plane", "far-origin")
+
+
+def adversarial_batch(rng, n, mode, log_scale, log_offset):
+    """n triangles and rays of one kind: scale 10^log_scale, centred 10^log_offset away."""
+    s = 10.0 ** log_scale
+    cdir = rng.normal(size=3)
+    c = cdir / np.linalg.norm(cdir) * 10.0 ** log_offset
+    p = c + s * rng.normal(size=(n, 3, 3))
+    if mode == "sliver":
+        p[:, 2] = p[:, 0] + rng.uniform(-0.5, 1.5, (n, 1)) * (p[:, 1] - p[:, 0]) + \
+            s * 10 ** rng.uniform(-6, -2, (n, 1)) * rng.normal(size=(n, 3))
+    p = p.astype(np.float32).astype(np.float64)
+    b = rng.dirichlet([1, 1, 1], n)
+    if mode == "edge":
+        b[:, rng.integers(0, 3)] = 0.0
+        b /= b.sum(1, keepdims=True)
+    elif mode == "vertex":
+        b = np.eye(3)[rng.integers(0, 3, n)]
+    target = np.einsum("ij,ijk->ik", b, p)
+    nrm = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    d = rng.normal(size=(n, 3))
+    if mode in ("grazing", "in-plane"):
+        d -= np.sum(d * nrm, 1, keepdims=True) * nrm
+        if mode == "grazing":
+            d += nrm * (10 ** rng.uniform(-7, -2, (n, 1))) * np.linalg.norm(d, axis=1, keepdims=True)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    dist = s * 10 ** rng.uniform(-1, 6 if mode == "far-origin" else 1, (n, 1))
+    o = target - dist * d
+    return o.astype(np.float32), (target - o).astype(np.float32), p.astype(np.float32)
+
+
+def line_edge_distance(o, d, p):
+    """float64: distance from the ray's line to the triangle's nearest edge, relative to the
+    magnitude of the coordinates involved (as tests/test_traversal.py's edge_distance)."""
+    dd = d / np.linalg.norm(d, axis=1, keepdims=True)
+    best = np.full(len(o), np.inf)
+    for k in range(3):
+        a, e = p[:, k], p[:, (k + 1) % 3] - p[:, k]
+        w = o - a
+        ee, de, dw, ew = np.sum(e * e, 1), np.sum(dd * e, 1), np.sum(dd * w, 1), np.sum(e * w, 1)
+        den = ee - de * de
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.where(den > 1e-30 * ee, (ew - de * dw) / den, 0.0)
+        q = a + np.clip(s, 0, 1)[:, None] * e
+        off = q - o
+        off -= np.sum(off * dd, 1)[:, None] * dd
+        best = np.minimum(best, np.linalg.norm(off, axis=1))
+    scale = np.abs(o).max(1) + np.abs(p).max((1, 2)) + np.linalg.norm(p[:, 0] - o, axis=1)
+    return best / scale
+
+
+@pytest.fixture(scope="module")
+def tri_kernel():
+    from pyopencl_rt.devices import device_test_specs, select_device
+    from pyopencl_rt.kernels import runtime
+
+    return [runtime(select_device(s)) for s in device_test_specs()]
+
+
+@settings(max_examples=HYPOTHESIS_EXAMPLES, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(mode=st.sampled_from(MODES), log_scale=st.floats(-4, 6), log_offset=st.floats(-4, 6),
+       seed=st.integers(0, 2**32 - 1))
+def test_intersect_triangle_adversarial(tri_kernel, mode, log_scale, log_offset, seed):
+    check_adversarial(tri_kernel, mode, log_scale, log_offset, seed)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "cl/intersect.h: on slivers t comes from a float32 normal off by ~eps/sin(angle): t errors "
+    "up to 5e-2 relative (seed 0, scale 1, offset 1); see the proposed patch in docs/ROBUSTNESS.md"))
+def test_intersect_triangle_adversarial_slivers(tri_kernel):
+    """The same bound on slivers (relative height 1e-6..1e-2)."""
+    for seed in range(4):
+        check_adversarial(tri_kernel, "sliver", 0.0, 0.0, seed)
+
+
+def check_adversarial(tri_kernel, mode, log_scale, log_offset, seed):
+    """Hard rays (through vertices and edges, grazing at 1e-7..1e-2 rad, lying in the plane,
+    slivers of relative height 1e-6..1e-2, origins up to 1e6 triangle sizes away) at triangles of
+    scale 1e-4..1e6 up to 1e6 from the origin, against float64 Möller-Trumbore.  Stated bound:
+      * hit/miss may differ only where the ray's line passes within 1e-6 (relative to the
+        coordinates' magnitude) of an edge, or the ray lies within 1e-4 rad of the plane;
+      * where both hit and |cos| >= 0.01, |t - t64| |d| <= 1e-5 * (|o| + |p| + t64 |d|)."""
+    rng = np.random.default_rng(seed)
+    n = HYPOTHESIS_BATCH
+    o, d, p = adversarial_batch(rng, n, mode, log_scale, log_offset)
+    o64, d64, p64 = o.astype(np.float64), d.astype(np.float64), p.astype(np.float64)
+    e1, e2 = p64[:, 1] - p64[:, 0], p64[:, 2] - p64[:, 0]
+    pv = np.cross(d64, e2)
+    det = np.sum(e1 * pv, 1)
+    tv = o64 - p64[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.sum(tv * pv, 1) / det
+        qv = np.cross(tv, e1)
+        v = np.sum(d64 * qv, 1) / det
+        t = np.sum(e2 * qv, 1) / det
+    inside = np.minimum(np.minimum(u, v), 1 - u - v)
+    ref_hit = (inside >= 0) & (t > 0) & np.isfinite(t)
+    nrm = np.cross(e1, e2)
+    nn = np.linalg.norm(nrm, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos = np.abs(np.sum(nrm * d64, 1)) / (nn * np.linalg.norm(d64, axis=1))
+    cos = np.nan_to_num(cos, nan=0.0)
+    near_edge = line_edge_distance(o64, d64, p64) <= 1e-6
+    for rt in tri_kernel:
+        ctx, q = rt.context, rt.queue
+        mf = cl.mem_flags
+        bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a.reshape(-1, 3)))
+                for a in (o, d, p)]
+        out = np.empty((n, 4), np.float32)
+        bout = cl.Buffer(ctx, mf.WRITE_ONLY, out.nbytes)
+        rt.kernel((), "h_tri", extra=TRI_HARNESS)(q, (n,), None, *bufs, bout)
+        cl.enqueue_copy(q, out, bout)
+        hit = out[:, 0] == 1.0
+        assert np.isfinite(out[hit, 1:]).all(), "a hit with a non-finite t, u or v"
+        assert (out[hit, 1] > 0).all()
+        bad = (hit != ref_hit) & ~near_edge & (cos >= 1e-4)
+        assert not bad.any(), (f"{mode}: {bad.sum()} hit/miss disagreements away from edges, e.g. "
+                               f"o={o[bad][0].tolist()} d={d[bad][0].tolist()} tri={p[bad][0].tolist()}")
+        both = hit & ref_hit & (cos >= 0.01)
+        dn = np.linalg.norm(d64[both], axis=1)
+        scale = np.abs(o64[both]).max(1) + np.abs(p64[both]).max((1, 2)) + t[both] * dn
+        terr = np.abs(out[both, 1] - t[both]) * dn / scale
+        assert (terr <= 1e-5).all(), f"{mode}: t error {terr.max():.3g}"
+
+
+# ================================================================================================
+# 6. NaN guard: every example scene renders with no non-finite sample
+# ================================================================================================
+SCENES = sorted(p for p in os.listdir("scenes") if p.endswith(".toml")) if os.path.isdir("scenes") else []
+
+
+def test_scenes_exist():
+    assert SCENES, "no scenes/*.toml found (run from the repository root)"
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_scene_has_no_nonfinite_samples(device, name):
+    """Each scenes/*.toml at low resolution and spp: 0 non-finite samples and a finite image."""
+    scene = load_scene(os.path.join("scenes", name))
+    r = render_full(scene, spp=SCENE_SPP, device=device, seed=3, width=SCENE_RES, height=SCENE_RES)
+    assert r.info["nonfinite_samples"] == 0
+    assert np.isfinite(r.image).all()
+    assert r.image.max() > 0
+
+
+def test_nonfinite_counter_counts(device):
+    """The counter is not vacuous: an infinite emission makes every sample that sees it
+    non-finite, and render_full reports them (and the image stays finite: they are discarded).
+    (A NaN emission does not get that far: the kernels' `max3(Le) > 0` tests are false for NaN,
+    so it is never added.)"""
+    sc = far_camera_plane(10.0)
+    sc.materials[1] = Material("sky", albedo=(0, 0, 0), emission=(float("inf"),) * 3, two_sided=True)
+    r = render_full(sc, spp=2, device=device, seed=1)
+    assert r.info["nonfinite_samples"] > 0
+    assert np.isfinite(r.image).all()
