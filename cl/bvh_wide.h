@@ -151,9 +151,34 @@ RT_INLINE int4 intersect_tri4(__global const float4 *pk, const WideRay *r, float
     const float4 ny = e1z * e2x - e1x * e2z;
     const float4 nz = e1x * e2y - e1y * e2x;
     const float4 den = nx * r->d.x + ny * r->d.y + nz * r->d.z;
-    const float4 tt = (nx * (p0x - r->o.x) + ny * (p0y - r->o.y) + nz * (p0z - r->o.z)) / den;
+    const float4 ax0 = p0x - r->o.x, ay0 = p0y - r->o.y, az0 = p0z - r->o.z;
+    const float4 num = nx * ax0 + ny * ay0 + nz * az0;
+    /* Slivers and a numerator whose sign is in doubt: t in double, per lane, exactly as
+     * intersect_triangle does (see its comment; SLIVER_CANCELLATION and NUM_DOUBT there). */
+    const float4 nabs_x = fabs(e1y * e2z) + fabs(e1z * e2y);
+    const float4 nabs_y = fabs(e1z * e2x) + fabs(e1x * e2z);
+    const float4 nabs_z = fabs(e1x * e2y) + fabs(e1y * e2x);
+    const int4 sliver = fabs(nx) + fabs(ny) + fabs(nz) < SLIVER_CANCELLATION * (nabs_x + nabs_y + nabs_z);
+    const int4 doubt = fabs(num) <= NUM_DOUBT * (nabs_x * fabs(ax0) + nabs_y * fabs(ay0) + nabs_z * fabs(az0));
+    float4 tt = num / den;
+    int4 ok = den != 0.0f;
+#ifdef cl_khr_fp64
+    const int4 refine = inside & (sliver | doubt);
+    if (any(refine)) {
+        const double4 q0x = convert_double4(p0x), q0y = convert_double4(p0y), q0z = convert_double4(p0z);
+        const double4 f1x = convert_double4(pk[3]) - q0x, f1y = convert_double4(pk[4]) - q0y, f1z = convert_double4(pk[5]) - q0z;
+        const double4 f2x = convert_double4(pk[6]) - q0x, f2y = convert_double4(pk[7]) - q0y, f2z = convert_double4(pk[8]) - q0z;
+        const double4 mx = f1y * f2z - f1z * f2y, my = f1z * f2x - f1x * f2z, mz = f1x * f2y - f1y * f2x;
+        const double4 dden = mx * (double)r->d.x + my * (double)r->d.y + mz * (double)r->d.z;
+        const double4 dnum = mx * (q0x - (double)r->o.x) + my * (q0y - (double)r->o.y) + mz * (q0z - (double)r->o.z);
+        tt = select(tt, convert_float4(dnum / dden), refine);
+        ok = select(ok, convert_int4(dden != 0.0), refine);
+    }
+#else
+    ok &= ~doubt;
+#endif
     *t_out = tt; *U_out = U; *V_out = V; *W_out = W;
-    return inside & (den != 0.0f) & (tt > tmin) & (tt < tmax);
+    return inside & ok & (tt > tmin) & (tt < tmax);
 }
 
 RT_INLINE float lane4(float4 v, int k) { return k == 0 ? v.s0 : (k == 1 ? v.s1 : (k == 2 ? v.s2 : v.s3)); }

@@ -40,6 +40,9 @@ RT_INLINE RayShear ray_shear(float3 d)
     return r;
 }
 
+#define SLIVER_CANCELLATION 0.03125f   /* 2^-5: |n| below this share of its products: refine */
+#define NUM_DOUBT 3.814697265625e-06f  /* 2^-18: n.a this close to 0 (relative): sign in doubt */
+
 /* Returns 1 and sets *t, *u, *v (barycentrics of v1 and v2) on a hit with tmin < t < tmax. */
 RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, float3 p1, float3 p2,
                               float tmin, float tmax, float *t, float *u, float *v)
@@ -74,23 +77,35 @@ RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, floa
     const float3 e1 = p1 - p0, e2 = p2 - p0;
     const float3 n = cross(e1, e2);
     const float den = dot(n, d);
-    if (den == 0.0f)
-        return 0;
-    /* On a sliver the float32 cross product's direction is off by ~eps / sin(angle), so from an
-     * origin near the plane the sign of n.a (and of t) can be wrong: a spawned ray re-hit its
-     * own triangle (tests/test_robustness.py).  When n.a is within its rounding bound of zero,
-     * recompute it in double; without fp64, reject the hit as pbrt does (t not provably > 0). */
-    float num = dot(n, a);
+    const float num = dot(n, a);
+    /* On a sliver the float32 cross product cancels (|n| much smaller than the products it is
+     * made of) and its direction is off by ~eps / sin(angle): the sign of n.a was wrong from
+     * origins near the plane (a spawned ray re-hit its own triangle) and t was off by up to 5e-2
+     * (tests/test_robustness.py).  When n cancelled by more than 32x, or n.a is within its
+     * rounding bound of zero, t is recomputed in double from the float vertices (exact
+     * differences); without fp64 a hit whose sign is in doubt is rejected, as pbrt does. */
     const float3 n_abs = fabs(e1.yzx * e2.zxy) + fabs(e1.zxy * e2.yzx);
-    if (fabs(num) <= 3.814697265625e-06f * dot(n_abs, fabs(a))) { /* 2^-18: the sign is in doubt */
+    const int sliver = fabs(n.x) + fabs(n.y) + fabs(n.z) < SLIVER_CANCELLATION * (n_abs.x + n_abs.y + n_abs.z);
+    const int doubt = fabs(num) <= NUM_DOUBT * dot(n_abs, fabs(a));
+    float tt;
 #ifdef cl_khr_fp64
-        const double3 q0 = convert_double3(p0), q1 = convert_double3(p1), q2 = convert_double3(p2);
-        num = (float)dot(cross(q1 - q0, q2 - q0), q0 - convert_double3(o));
+    if (sliver || doubt) {
+        const double3 q0 = convert_double3(p0);
+        const double3 dn = cross(convert_double3(p1) - q0, convert_double3(p2) - q0);
+        const double dden = dot(dn, convert_double3(d));
+        if (dden == 0.0)
+            return 0;
+        tt = (float)(dot(dn, q0 - convert_double3(o)) / dden);
+    } else
 #else
+    if (doubt)
         return 0;
 #endif
+    {
+        if (den == 0.0f)
+            return 0;
+        tt = num / den;
     }
-    const float tt = num / den;
     if (!(tt > tmin && tt < tmax))
         return 0;
     const float rcp = 1.0f / det;

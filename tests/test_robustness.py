@@ -719,9 +719,6 @@ def test_intersect_triangle_adversarial(tri_kernel, mode, log_scale, log_offset,
     check_adversarial(tri_kernel, mode, log_scale, log_offset, seed)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "cl/intersect.h: on slivers t comes from a float32 normal off by ~eps/sin(angle): t errors "
-    "up to 5e-2 relative (seed 0, scale 1, offset 1); see the proposed patch in docs/ROBUSTNESS.md"))
 def test_intersect_triangle_adversarial_slivers(tri_kernel):
     """The same bound on slivers (relative height 1e-6..1e-2)."""
     for seed in range(4):
