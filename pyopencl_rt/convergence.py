@@ -118,9 +118,18 @@ def cache_dir() -> Path:
 
 
 def reference_key(scene_path, settings: dict) -> str:
+    """Cache key of a reference: the scene file, the settings, and the kernel sources -- a cached
+    reference must not outlive a change to the renderer (one rendered before the spawn-offset
+    fix kept a biased image in the cache)."""
+    from .kernels import cl_dir
+
     h = hashlib.sha256()
     h.update(Path(scene_path).read_bytes())
     h.update(json.dumps(settings, sort_keys=True).encode())
+    for src in sorted(cl_dir().rglob("*")):
+        if src.suffix in (".h", ".cl"):
+            h.update(src.name.encode())
+            h.update(src.read_bytes())
     return h.hexdigest()[:24]
 
 

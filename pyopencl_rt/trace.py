@@ -202,6 +202,20 @@ def _embree(bvh, o, d, tmin, tmax, any_hit):
             "v": np.where(hit, r["v"], 0).astype(np.float32), "normal": ng}
 
 
+def _cast(geometry, origins, directions, tmin, tmax, device, backend, layout, any_hit):
+    """What trace() and occluded() share: the BVH, the rays, and the backend."""
+    bvh = as_bvh(geometry)
+    o, d, tmin, tmax = _rays(origins, directions, tmin, tmax)
+    if backend == "embree":
+        return _embree(bvh, o, d, tmin, tmax, any_hit=any_hit)
+    if backend != "opencl":
+        raise UserError(f"unknown backend {backend!r}: use 'opencl' or 'embree'")
+    res = _opencl(bvh, o, d, tmin, tmax, device, any_hit=any_hit, layout=layout)
+    if res is None:  # zero rays: the empty result
+        return _embree(bvh, o, d, tmin, tmax, any_hit=any_hit)
+    return res
+
+
 def trace(geometry, origins, directions, tmin=0.0, tmax=np.inf, device=None, backend="opencl",
           layout=None) -> dict:
     """Closest hit of each ray o + t d, t in (tmin, tmax).
@@ -211,25 +225,10 @@ def trace(geometry, origins, directions, tmin=0.0, tmax=np.inf, device=None, bac
     normal (v1 - v0) x (v2 - v0), zero on a miss).  ``layout``: the BVH layout the OpenCL kernel
     traverses, ``"binary"`` or ``"wide"`` (default: :func:`bvh_layout`, i.e. wide on CPUs).
     """
-    bvh = as_bvh(geometry)
-    o, d, tmin, tmax = _rays(origins, directions, tmin, tmax)
-    if backend == "embree":
-        return _embree(bvh, o, d, tmin, tmax, any_hit=False)
-    if backend != "opencl":
-        raise UserError(f"unknown backend {backend!r}: use 'opencl' or 'embree'")
-    res = _opencl(bvh, o, d, tmin, tmax, device, any_hit=False, layout=layout)
-    if res is None:
-        return _embree(bvh, o, d, tmin, tmax, any_hit=False)  # zero rays: the empty result
-    return res
+    return _cast(geometry, origins, directions, tmin, tmax, device, backend, layout, any_hit=False)
 
 
 def occluded(geometry, origins, directions, tmin=0.0, tmax=np.inf, device=None, backend="opencl",
              layout=None) -> np.ndarray:
     """True for each ray that hits anything with t in (tmin, tmax) (``layout`` as for :func:`trace`)."""
-    bvh = as_bvh(geometry)
-    o, d, tmin, tmax = _rays(origins, directions, tmin, tmax)
-    if backend == "embree":
-        return _embree(bvh, o, d, tmin, tmax, any_hit=True)
-    if backend != "opencl":
-        raise UserError(f"unknown backend {backend!r}: use 'opencl' or 'embree'")
-    return _opencl(bvh, o, d, tmin, tmax, device, any_hit=True, layout=layout)
+    return _cast(geometry, origins, directions, tmin, tmax, device, backend, layout, any_hit=True)

@@ -19,7 +19,7 @@ import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from meshes import slivers
+from meshes import ray_edge_distance, slivers
 from pyopencl_rt import build_bvh, load_scene, trace
 from pyopencl_rt.errors import UserError
 from pyopencl_rt.mesh import load_mesh
@@ -683,26 +683,6 @@ def adversarial_batch(rng, n, mode, log_scale, log_offset):
     return o.astype(np.float32), (target - o).astype(np.float32), p.astype(np.float32)
 
 
-def line_edge_distance(o, d, p):
-    """float64: distance from the ray's line to the triangle's nearest edge, relative to the
-    magnitude of the coordinates involved (as tests/test_traversal.py's edge_distance)."""
-    dd = d / np.linalg.norm(d, axis=1, keepdims=True)
-    best = np.full(len(o), np.inf)
-    for k in range(3):
-        a, e = p[:, k], p[:, (k + 1) % 3] - p[:, k]
-        w = o - a
-        ee, de, dw, ew = np.sum(e * e, 1), np.sum(dd * e, 1), np.sum(dd * w, 1), np.sum(e * w, 1)
-        den = ee - de * de
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = np.where(den > 1e-30 * ee, (ew - de * dw) / den, 0.0)
-        q = a + np.clip(s, 0, 1)[:, None] * e
-        off = q - o
-        off -= np.sum(off * dd, 1)[:, None] * dd
-        best = np.minimum(best, np.linalg.norm(off, axis=1))
-    scale = np.abs(o).max(1) + np.abs(p).max((1, 2)) + np.linalg.norm(p[:, 0] - o, axis=1)
-    return best / scale
-
-
 @pytest.fixture(scope="module")
 def tri_kernel():
     from pyopencl_rt.devices import device_test_specs, select_device
@@ -752,7 +732,7 @@ def check_adversarial(tri_kernel, mode, log_scale, log_offset, seed):
     with np.errstate(divide="ignore", invalid="ignore"):
         cos = np.abs(np.sum(nrm * d64, 1)) / (nn * np.linalg.norm(d64, axis=1))
     cos = np.nan_to_num(cos, nan=0.0)
-    near_edge = line_edge_distance(o64, d64, p64) <= 1e-6
+    near_edge = ray_edge_distance(o64, d64, p64) <= 1e-6
     for rt in tri_kernel:
         ctx, q = rt.context, rt.queue
         mf = cl.mem_flags

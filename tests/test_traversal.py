@@ -4,7 +4,7 @@ cl/bvh.h; wide: cl/bvh_wide.h), held to identical bounds."""
 import numpy as np
 import pytest
 
-from meshes import MESHES, coherent_rays, incoherent_rays
+from meshes import MESHES, coherent_rays, incoherent_rays, ray_edge_distance
 from pyopencl_rt import build_bvh, occluded, trace
 
 N_COHERENT = 500_000
@@ -12,29 +12,9 @@ N_INCOHERENT = 500_000  # 1M rays per mesh in all
 
 
 def edge_distance(vertices, faces, prim, o, d):
-    """float64: distance from the ray's line to the nearest edge segment of triangle ``prim``,
-    relative to the magnitude of the coordinates involved (1e-6 means "within a relative 1e-6
-    of an edge"; rounding a ray to float32 alone moves it by ~6e-8 of that magnitude)."""
-    p = vertices[faces[prim]].astype(np.float64)
-    oo = o.astype(np.float64)
-    dd = d.astype(np.float64)
-    dd = dd / np.linalg.norm(dd, axis=1, keepdims=True)
-    best = np.full(len(p), np.inf)
-    for k in range(3):
-        a, e = p[:, k], p[:, (k + 1) % 3] - p[:, k]
-        # closest points of the line o + t d and the segment a + s e, s in [0, 1]
-        w = oo - a
-        ee, de, dw, ew = np.sum(e * e, 1), np.sum(dd * e, 1), np.sum(dd * w, 1), np.sum(e * w, 1)
-        denom = ee - de * de
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = np.where(denom > 1e-30 * ee, (ew - de * dw) / denom, 0.0)
-        s = np.clip(s, 0.0, 1.0)
-        q = a + s[:, None] * e
-        off = q - oo
-        off -= np.sum(off * dd, 1)[:, None] * dd
-        best = np.minimum(best, np.linalg.norm(off, axis=1))
-    scale = np.abs(oo).max(1) + np.abs(p).max((1, 2)) + np.linalg.norm(p[:, 0] - oo, axis=1)
-    return best / scale
+    """Relative distance from each ray to the nearest edge of triangle ``prim`` (see
+    meshes.ray_edge_distance)."""
+    return ray_edge_distance(o, d, vertices[faces[prim]])
 
 
 def brute_force_hit(vertices, faces, o, d):
