@@ -199,7 +199,7 @@ class MultiDevice:
                  **wavefront_kwargs):
         from .devices import device_label
 
-        self.scene = scene
+        self.scene = scene if bvh is not None else scene.camera_relative()  # see Scene.camera_relative
         self.bvh = bvh
         self.kwargs = wavefront_kwargs
         self.target = target_seconds
@@ -212,7 +212,7 @@ class MultiDevice:
         if self.bvh is None and any(d.wavefront is None for d in self.devices):
             from .bvh import build_bvh
 
-            self.bvh = build_bvh(scene.vertices, scene.faces)
+            self.bvh = build_bvh(self.scene.vertices, self.scene.faces)
         self.pool = None
 
     def prepare(self) -> None:

@@ -124,6 +124,9 @@ class Wavefront:
         self.timings = {}
 
         t0 = time.perf_counter()
+        if bvh is None:  # a BVH passed in was built by the caller from scene.camera_relative()
+            scene = scene.camera_relative()
+            self.scene = scene
         self.bvh = bvh if bvh is not None else build_bvh(scene.vertices, scene.faces)
         self.timings["bvh_seconds"] = time.perf_counter() - t0
         lights, tri_light, sphere_light = build_lights(scene, self.bvh)
