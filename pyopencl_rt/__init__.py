@@ -10,12 +10,12 @@ Python API::
     scene = rt.load_scene("scenes/cornell-box.toml")     # TOML scene, OBJ+MTL, glTF, PLY...
     image = rt.render(scene, spp=64, device="cpu")       # H x W x 3 float32, linear
 """
-from .bvh import BVH, build_bvh
-from .devices import list_devices, select_device
+from .accel.bvh import BVH, build_bvh
+from .device.devices import list_devices, select_device
 from .errors import DeviceSelectionError, UserError
-from .render import render, render_full
-from .scene import Camera, Material, RenderSettings, Scene
-from .scenefile import load_scene
+from .render.api import render, render_full
+from .scene.model import Camera, Material, RenderSettings, Scene
+from .scene.scenefile import load_scene
 from .trace import occluded, trace
 
 __all__ = [

@@ -31,7 +31,7 @@ def cli():
 @device_option
 def devices(as_json, device):
     """List OpenCL platforms and devices (or those selected by --device)."""
-    from . import devices as dv
+    from .device import devices as dv
 
     infos = dv.list_devices()
     if device:
@@ -129,8 +129,8 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
            quiet, scheduler, checkpoint_path, checkpoint_every, resume, device):
     """Render SCENE (a .toml scene file, or any mesh file such as model.obj) to OUTPUT."""
     from .imageio import write_outputs
-    from .render import check_settings, render_full
-    from .scenefile import load_scene
+    from .render.api import check_settings, render_full
+    from .scene.scenefile import load_scene
 
     check_settings(width if width is not None else 1, height if height is not None else 1, spp, max_depth,
                    integrator, time_limit)
@@ -139,10 +139,10 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
     if checkpoint_every is not None and not checkpoint_every > 0:
         raise UserError(f"--checkpoint-every must be positive (got {checkpoint_every})")
     if scheduler is not None:
-        from .distributed import _import as need_dask
+        from .render.distributed import _import as need_dask
 
         need_dask()
-    from .checkpoint import default_path
+    from .render.checkpoint import default_path
 
     checkpoint_path = checkpoint_path or str(default_path(output))
     scene = load_scene(scene_path)
@@ -153,8 +153,8 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
     bar = Progress(total, time_limit, w * h, quiet)
     wavefront = None
     if intersector == "embree":
-        from .devices import select_device
-        from .embree_wavefront import EmbreeWavefront
+        from .device.devices import select_device
+        from .render.embree_wavefront import EmbreeWavefront
 
         wavefront = EmbreeWavefront(scene, select_device(list(device) or None), width=w, height=h,
                                     integrator=integrator, max_depth=max_depth, seed=seed, wave_size=wave_size)
@@ -205,7 +205,7 @@ def bench():
               help="BVH layout(s) to time [default: the device's default, wide on CPUs, binary on GPUs].")
 def bench_rays(device, sizes, n_rays, repeat, no_embree, json_path, layout):
     """Rays/s of the OpenCL traversal beside embreex on the very same rays, and BVH build time."""
-    from .bench import parse_sizes, run_ray_bench
+    from .bench.throughput import parse_sizes, run_ray_bench
 
     run_ray_bench(
         devices=list(device) or None, sizes=parse_sizes(sizes), n_rays=n_rays, repeat=repeat,
@@ -226,7 +226,7 @@ def bench_rays(device, sizes, n_rays, repeat, no_embree, json_path, layout):
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
 def bench_render(scene_path, device, width, height, spp, max_depth, repeat, wave_size, json_path):
     """Samples/s of the path tracer on each device (kernel build and BVH not timed)."""
-    from .bench import run_render_bench
+    from .bench.throughput import run_render_bench
 
     run_render_bench(scene_path, devices=list(device) or None, width=width, height=height, spp=spp,
                      max_depth=max_depth, repeat=repeat, wave_size=wave_size, json_path=json_path, echo=click.echo)
@@ -255,8 +255,8 @@ def bench_convergence(scene_path, device, integrator, intersector, reference, re
                       height, max_depth, compare, mitsuba_python, mitsuba_variant, json_path, plot_path):
     """Error (RMSE, relMSE, MAE) against a reference as a function of render time, per device x
     integrator x intersector, optionally beside Mitsuba 3: JSON, a log-log plot and a table."""
-    from .convergence import run_convergence
-    from .scene import INTEGRATORS
+    from .bench.convergence import run_convergence
+    from .scene.model import INTEGRATORS
 
     integrators = [x.strip() for x in integrator.split(",") if x.strip()]
     for x in integrators:

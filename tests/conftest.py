@@ -6,7 +6,7 @@ Select devices with ``PYOPENCL_TEST`` (comma-separated specs as for ``--device``
 import numpy as np
 import pytest
 
-from pyopencl_rt import devices as dv
+from pyopencl_rt.device import devices as dv
 
 
 def pytest_generate_tests(metafunc):
@@ -22,7 +22,7 @@ def device(request):
 
 @pytest.fixture
 def runtime(device):
-    from pyopencl_rt.kernels import runtime as rt
+    from pyopencl_rt.device.kernels import runtime as rt
 
     return rt(device)
 

@@ -44,7 +44,7 @@ MESHES = {"icosphere": icosphere, "torus": torus, "soup": soup, "slivers": slive
 
 
 def coherent_rays(vertices, n):
-    from pyopencl_rt.bench import primary_rays
+    from pyopencl_rt.bench.throughput import primary_rays
 
     bounds = np.stack([vertices.min(0), vertices.max(0)]).astype(np.float64)
     return primary_rays(bounds, n)

@@ -2,7 +2,7 @@
 and a ball under an emissive sky sphere (every path does something; 48 x 32 pixels)."""
 import numpy as np
 
-from pyopencl_rt.scene import Camera, Material, RenderSettings, Scene
+from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
 
 
 def small_scene(width=48, height=32, seed=7, max_depth=4, ball=(0.3, 0.6, 0.8)):

@@ -10,7 +10,7 @@ from pathlib import Path
 import pyopencl as cl
 import pytest
 
-from pyopencl_rt import devices as dv
+from pyopencl_rt.device import devices as dv
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -8,7 +8,7 @@ import textwrap
 import zipfile
 from pathlib import Path
 
-from pyopencl_rt import kernels
+from pyopencl_rt.device import kernels
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -39,7 +39,7 @@ PROBE = textwrap.dedent("""
     import json, sys
     import numpy as np
     import pyopencl_rt
-    from pyopencl_rt import kernels
+    from pyopencl_rt.device import kernels
     hit = pyopencl_rt.trace(
         (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]], np.int32)),
         [[0.25, 0.25, 2.5]], [[0, 0, -1]], device="cpu")

@@ -22,9 +22,9 @@ from hypothesis import strategies as st
 from meshes import ray_edge_distance, slivers
 from pyopencl_rt import build_bvh, load_scene, trace
 from pyopencl_rt.errors import UserError
-from pyopencl_rt.mesh import load_mesh
-from pyopencl_rt.render import render_full
-from pyopencl_rt.scene import Camera, Material, RenderSettings, Scene
+from pyopencl_rt.scene.mesh import load_mesh
+from pyopencl_rt.render.api import render_full
+from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
 
 STRESS = os.environ.get("PYOPENCL_RT_STRESS", "") not in ("", "0")
 
@@ -692,8 +692,8 @@ def adversarial_batch(rng, n, mode, log_scale, log_offset):
 
 @pytest.fixture(scope="module")
 def tri_kernel():
-    from pyopencl_rt.devices import device_test_specs, select_device
-    from pyopencl_rt.kernels import runtime
+    from pyopencl_rt.device.devices import device_test_specs, select_device
+    from pyopencl_rt.device.kernels import runtime
 
     return [runtime(select_device(s)) for s in device_test_specs()]
 

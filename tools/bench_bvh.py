@@ -20,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from pyopencl_rt.bvh import build_bvh, validate  # noqa: E402
+from pyopencl_rt.accel.bvh import build_bvh, validate
 
 KINDS = ("sphere", "torus", "soup", "slivers")
 

@@ -5,10 +5,10 @@ shadow stages on our OpenCL traversal against embreex on the host (render --inte
 """
 import statistics
 from pyopencl_rt import load_scene
-from pyopencl_rt.devices import select_device
-from pyopencl_rt.render import render_full
-from pyopencl_rt.wavefront import Wavefront
-from pyopencl_rt.embree_wavefront import EmbreeWavefront
+from pyopencl_rt.device.devices import select_device
+from pyopencl_rt.render.api import render_full
+from pyopencl_rt.render.wavefront import Wavefront
+from pyopencl_rt.render.embree_wavefront import EmbreeWavefront
 s = load_scene("scenes/cornell-box.toml"); dev = select_device("cpu")
 wfs = {"opencl (wide BVH)": Wavefront(s, dev, width=256, height=256), "embree": EmbreeWavefront(s, dev, width=256, height=256)}
 for wf in wfs.values(): render_full(s, spp=1, wavefront=wf)

@@ -24,10 +24,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from pyopencl_rt import load_scene  # noqa: E402
-from pyopencl_rt.devices import select_device  # noqa: E402
-from pyopencl_rt.render import render_full  # noqa: E402
-from pyopencl_rt.wavefront import Wavefront  # noqa: E402
+from pyopencl_rt import load_scene
+from pyopencl_rt.device.devices import select_device
+from pyopencl_rt.render.api import render_full
+from pyopencl_rt.render.wavefront import Wavefront
 
 
 def variant(scene, change):

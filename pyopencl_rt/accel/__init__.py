@@ -1,0 +1,3 @@
+"""Acceleration structures: the SAH BVH builder (:mod:`.bvh`), the 4-wide CPU layout (:mod:`.bvh_wide`),
+the per-device node buffers (:mod:`.device_bvh`) and Embree as the reference (:mod:`.embree`).
+"""

@@ -1,0 +1,424 @@
+"""A 4-wide BVH for CPU devices, collapsed from the binary BVH (numpy only).
+
+PoCL runs each work-item as scalar code, so the binary traversal tests one box pair and one
+triangle at a time.  This layout gives a single work-item SIMD-shaped work, as Embree's
+single-ray kernels do: every node holds the boxes of up to four children in structure-of-arrays
+form (one float4 slab test for all four), and leaves hold triangles in packets of four ("Tri4",
+structure of arrays: one float4 watertight test for four triangles).  cl/bvh_wide.h traverses it.
+
+Buffer layout
+-------------
+The device gets one buffer (the "blob"): every node (:data:`abi.WIDE_NODE`, 128 bytes), then
+every packet (:data:`abi.TRI4`, 160 bytes), addressed in float4 (16-byte) units, so a node is 8
+units and a packet 10.  For child slot ``i`` of a node:
+
+    count[i] == 0    inner node at float4 offset child[i] (8 * node index)
+    count[i] >  0    leaf: ``count[i]`` consecutive packets, the first at float4 offset child[i]
+    count[i] == -1   no child: box min = +inf, max = -inf (misses every ray), child = 0
+
+A packet holds triangles ``tri[k]`` (indices into the binary BVH's reordered triangle array, so
+``prim_ids[tri]`` is the caller's face and cl/bvh.h's ``triangle_normal(tris, tri)`` still
+applies) with vertex coordinates v0x..v2z.  Padding lanes (a leaf of n triangles has
+``4 * ceil(n / 4) - n`` of them, all in its last packet) have ``tri = -1`` and NaN vertices: every
+comparison in the triangle test is false for NaN, so the test's "det != 0", written as
+``det < 0 || det > 0``, rejects them whatever the ray (so would ``t > tmin && t < tmax``), and
+U = V = W = NaN never takes the double-precision path, which only an exact 0 does.
+
+Collapse
+--------
+Top-down, level-synchronous (all wide nodes of a level in the same few numpy calls): a wide node
+starts as a binary record's two children; twice, an inner child is replaced by its own two
+children, the one of largest surface area (as Embree's and tinybvh's collapses do) among the
+shallowest ones, giving up to four children.  "Shallowest first" only matters when one of the
+record's two children is a leaf (otherwise the four grandchildren are pulled up whatever the
+order); it makes every wide level descend two binary levels, so the wide depth is at most half
+the binary depth (<= 30), and the traversal stack (at most 3 entries pushed per level) is bounded
+by :data:`STACK_SIZE` (96 entries of 8 bytes: PoCL keeps a private copy per work-item of a
+work-group, so the stack must stay small).  Binary leaves become wide leaves unchanged (their
+triangles in ceil(n/4) packets), so every box is the binary BVH's exact box and the triangle order
+is the binary BVH's.
+
+The device copy (:func:`device_blob`) pads every present box by 2^-20 of the scene's largest
+coordinate, as :func:`pyopencl_rt.trace.padded_nodes` does for the binary layout (see
+"Conservative on purpose" in cl/intersect.h).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..device import abi
+from .bvh import BVH, MAX_DEPTH
+
+WIDTH = 4
+NODE_UNITS = abi.WIDE_NODE.itemsize // 16   # 8 float4s
+TRI4_UNITS = abi.TRI4.itemsize // 16        # 10 float4s
+MAX_WIDE_DEPTH = (MAX_DEPTH + 1) // 2          # each wide level descends two binary levels
+STACK_SIZE = 96                                # >= 3 * MAX_WIDE_DEPTH + 1; WIDE_STACK_SIZE in cl/bvh_wide.h
+BOX_PAD_RELATIVE = 2.0**-20                    # as pyopencl_rt.trace.BOX_PAD_RELATIVE
+_COORDS = ("x", "y", "z")
+
+__all__ = ["WideBVH", "build_wide", "validate_wide", "device_blob", "reference_closest_hit", "STACK_SIZE"]
+
+
+@dataclass
+class WideBVH:
+    nodes: np.ndarray        # abi.WIDE_NODE, node 0 = root (child offsets in float4 units of the blob)
+    packets: np.ndarray      # abi.TRI4, after the nodes in the blob
+    depth: int               # deepest wide level (root = 0)
+    n_triangles: int
+    stats: dict = field(default_factory=dict)
+
+
+def _child_arrays(nodes):
+    """The binary records' 2R child slots (slot 2r = left, 2r + 1 = right of record r)."""
+    R = len(nodes)
+    lo = np.empty((2 * R, 3), np.float32)
+    hi = np.empty((2 * R, 3), np.float32)
+    child = np.empty(2 * R, np.int64)
+    count = np.empty(2 * R, np.int64)
+    for k, s in enumerate(("left", "right")):
+        lo[k::2] = nodes[f"bmin_{s}"]
+        hi[k::2] = nodes[f"bmax_{s}"]
+        child[k::2] = nodes[f"child_{s}"]
+        count[k::2] = nodes[f"count_{s}"]
+    ext = np.maximum(hi.astype(np.float64) - lo.astype(np.float64), 0.0)
+    ext = np.where(np.isfinite(ext), ext, 0.0)           # empty boxes (-inf - inf): area 0
+    area = ext[:, 0] * ext[:, 1] + ext[:, 1] * ext[:, 2] + ext[:, 2] * ext[:, 0]
+    return lo, hi, child, count, area
+
+
+def build_wide(bvh: BVH) -> WideBVH:
+    """Collapse a binary BVH into a 4-wide BVH with Tri4 leaves (see the module docstring)."""
+    t0 = time.perf_counter()
+    T = len(bvh.triangles)
+    clo, chi, cchild, ccount, carea = _child_arrays(bvh.nodes)
+
+    # --- top-down collapse, one wide level at a time -------------------------------------
+    level_slots = []            # per level: (K, 4) binary child-slot ids, -1 = empty
+    frontier = np.array([0], np.int64)   # binary record of each wide node of this level
+    while len(frontier):
+        K = len(frontier)
+        slots = np.full((K, WIDTH), -1, np.int64)
+        slots[:, 0] = 2 * frontier
+        slots[:, 1] = 2 * frontier + 1
+        two = slots[:, :2]
+        two[ccount[two] < 0] = -1                         # absent children (0/1-leaf trees)
+        rows = np.arange(K)
+        level = np.ones((K, WIDTH), np.int64)             # binary levels below the wide node
+        for n in (2, 3):                                  # fill slot n by opening one inner child
+            valid = slots[:, :n] >= 0
+            inner = valid & (ccount[np.maximum(slots[:, :n], 0)] == 0)
+            # the largest inner child among the shallowest ones: an inner child of the
+            # binary record is always opened, so every wide level descends two binary levels
+            shallow = inner & (level[:, :n] == np.where(inner, level[:, :n], 99).min(axis=1, keepdims=True))
+            score = np.where(shallow, carea[np.maximum(slots[:, :n], 0)], -1.0)
+            pick = np.argmax(score, axis=1)
+            ok = inner[rows, pick]
+            r_ok, p_ok = rows[ok], pick[ok]
+            rec = cchild[slots[r_ok, p_ok]]               # binary record being opened
+            slots[r_ok, p_ok] = 2 * rec
+            slots[r_ok, n] = 2 * rec + 1
+            level[r_ok, p_ok] += 1
+            level[r_ok, n] = level[r_ok, p_ok]
+        level_slots.append(slots)
+        s = slots.ravel()
+        inner = (s >= 0) & (ccount[np.maximum(s, 0)] == 0)
+        frontier = cchild[s[inner]]
+        if len(level_slots) > MAX_WIDE_DEPTH + 1:
+            raise AssertionError("wide BVH deeper than the binary depth bound")
+
+    # --- node indices (BFS order) and leaf packets ---------------------------------------
+    sizes = [len(s) for s in level_slots]
+    n_nodes = int(sum(sizes))
+    all_slots = np.concatenate(level_slots)               # (n_nodes, 4), node-major
+    flat = all_slots.ravel()
+    present = flat >= 0
+    fc = np.where(present, ccount[np.maximum(flat, 0)], -1)
+    is_inner = fc == 0
+    is_leaf = fc > 0
+    # inner children appear in the same order as the next level's nodes: node ids 1, 2, ...
+    child_node = np.zeros(len(flat), np.int64)
+    child_node[is_inner] = 1 + np.arange(int(is_inner.sum()))
+    # leaves: packets laid out in triangle order (leaf ranges tile [0, T) in that order)
+    leaf_pos = np.flatnonzero(is_leaf)
+    first = cchild[flat[leaf_pos]]
+    cnt = fc[leaf_pos]
+    order = np.argsort(first, kind="stable")
+    npk = (cnt + WIDTH - 1) // WIDTH
+    pk_start_sorted = np.concatenate([[0], np.cumsum(npk[order])[:-1]]).astype(np.int64)
+    pk_start = np.empty_like(pk_start_sorted)
+    pk_start[order] = pk_start_sorted
+    n_packets = int(npk.sum())
+
+    lane_tri = np.full((n_packets, WIDTH), -1, np.int32)
+    if T:
+        # triangle i of a leaf starting at `first` goes to packet pk_start + (i-first)//4, lane (i-first)%4
+        leaf_of = np.repeat(np.arange(len(first))[order], cnt[order])     # leaves tile [0, T) in order
+        local = np.arange(T) - first[leaf_of]
+        lane_tri.ravel()[WIDTH * pk_start[leaf_of] + local] = np.arange(T, dtype=np.int32)
+    pad = lane_tri < 0
+    xyz = np.empty((T + 1, 3, 3), np.float32)                 # (triangle, vertex, coordinate); row T = NaN
+    for v in range(3):
+        xyz[:T, v] = bvh.triangles[f"v{v}"][:, :3]
+    xyz[T] = np.nan
+    gathered = xyz[np.where(pad, T, lane_tri)]                # (P, lane, vertex, coordinate)
+    packets = np.empty(n_packets, abi.TRI4)
+    raw = packets.view(np.float32).reshape(n_packets, 10, WIDTH)
+    raw[:, :9] = gathered.transpose(0, 2, 3, 1).reshape(n_packets, 9, WIDTH)
+    packets["tri"] = lane_tri
+
+    # --- node records -------------------------------------------------------------------
+    nodes = np.zeros(n_nodes, abi.WIDE_NODE)
+    lo = np.where(present[:, None], clo[np.maximum(flat, 0)], np.float32(np.inf)).reshape(n_nodes, WIDTH, 3)
+    hi = np.where(present[:, None], chi[np.maximum(flat, 0)], np.float32(-np.inf)).reshape(n_nodes, WIDTH, 3)
+    for a, c in enumerate(_COORDS):
+        nodes[f"bmin_{c}"] = lo[:, :, a]
+        nodes[f"bmax_{c}"] = hi[:, :, a]
+    child = np.zeros(len(flat), np.int64)
+    child[is_inner] = NODE_UNITS * child_node[is_inner]
+    child[leaf_pos] = NODE_UNITS * n_nodes + TRI4_UNITS * pk_start
+    count = np.where(is_leaf, 0, fc)
+    count[leaf_pos] = npk
+    if n_nodes * NODE_UNITS + n_packets * TRI4_UNITS >= 2**31:
+        raise ValueError("wide BVH too large for 32-bit float4 offsets")
+    nodes["child"] = child.reshape(n_nodes, WIDTH)
+    nodes["count"] = count.reshape(n_nodes, WIDTH)
+
+    depth = len(level_slots) - 1
+    wide = WideBVH(nodes=nodes, packets=packets, depth=depth, n_triangles=T)
+    fill = lane_tri >= 0
+    wide.stats = dict(
+        nodes=n_nodes, packets=n_packets, depth=depth,
+        lane_fill=float(fill.mean()) if n_packets else 0.0,
+        children_per_node=float(present.sum() / max(n_nodes, 1)),
+        bytes=int(nodes.nbytes + packets.nbytes),
+        build_seconds=time.perf_counter() - t0,
+    )
+    return wide
+
+
+def wide_bvh(bvh: BVH) -> WideBVH:
+    """The wide BVH of ``bvh``, built once and cached on it."""
+    w = bvh.__dict__.get("_wide")
+    if w is None:
+        w = bvh.__dict__["_wide"] = build_wide(bvh)
+    return w
+
+
+def device_blob(wide: WideBVH) -> np.ndarray:
+    """The buffer cl/bvh_wide.h reads: padded nodes then packets, as uint8.
+
+    Present boxes grow by 2^-20 of the scene's largest coordinate (then one more ulp outwards), the
+    same padding as :func:`pyopencl_rt.trace.padded_nodes`; empty slots keep (+inf, -inf)."""
+    nodes = wide.nodes.copy()
+    if wide.n_triangles:
+        present = nodes["count"] >= 0
+        scale = 0.0
+        for c in _COORDS:
+            scale = max(scale, float(np.abs(nodes[f"bmin_{c}"][present]).max()),
+                        float(np.abs(nodes[f"bmax_{c}"][present]).max()))
+        pad = np.float32(scale * BOX_PAD_RELATIVE)
+        for c in _COORDS:
+            lo, hi = nodes[f"bmin_{c}"], nodes[f"bmax_{c}"]
+            lo[present] = np.nextafter(lo[present] - pad, np.float32(-np.inf))
+            hi[present] = np.nextafter(hi[present] + pad, np.float32(np.inf))
+    return np.concatenate([nodes.view(np.uint8).ravel(), wide.packets.view(np.uint8).ravel()])
+
+
+# ---------------------------------------------------------------------------------------------
+# checks
+# ---------------------------------------------------------------------------------------------
+def _decode(wide):
+    """Per node slot: kind (0 inner, 1 leaf, -1 empty), target node index or first packet, count."""
+    n_nodes = len(wide.nodes)
+    child, count = wide.nodes["child"].astype(np.int64), wide.nodes["count"].astype(np.int64)
+    inner, leaf = count == 0, count > 0
+    node_idx = np.where(inner, child // NODE_UNITS, -1)
+    pk = np.where(leaf, (child - NODE_UNITS * n_nodes) // TRI4_UNITS, -1)
+    return inner, leaf, node_idx, pk, count
+
+
+def _boxes(wide):
+    lo = np.stack([wide.nodes[f"bmin_{c}"] for c in _COORDS], -1)   # (N, 4, 3)
+    hi = np.stack([wide.nodes[f"bmax_{c}"] for c in _COORDS], -1)
+    return lo, hi
+
+
+def _packet_vertices(packets):
+    """(P, 4, 3, 3): packet, lane, vertex, coordinate."""
+    return np.stack([np.stack([packets[f"v{v}{c}"] for c in _COORDS], -1) for v in range(3)], 2)
+
+
+def validate_wide(wide: WideBVH, bvh: BVH | None = None) -> None:
+    """Check the wide BVH's invariants; raise AssertionError with a message if one is broken.
+
+    Tree: every node reachable exactly once from the root, child offsets decode to whole nodes or
+    packets, depth <= MAX_WIDE_DEPTH.  Leaves: every triangle in exactly one lane, leaves' packet
+    ranges disjoint and covering every packet, padding lanes only at the end of a leaf's last packet
+    with tri = -1 and NaN vertices.  Boxes: empty slots are (+inf, -inf) with count -1; a leaf's
+    box is exactly the float32 bounds of its triangles; an inner slot's box is exactly the union
+    of its node's present children's boxes (so every box contains its subtree).  With ``bvh``:
+    each lane's vertices equal ``bvh.triangles[tri]``."""
+    nodes, packets = wide.nodes, wide.packets
+    if nodes.dtype != abi.WIDE_NODE or packets.dtype != abi.TRI4:
+        raise AssertionError("wrong dtypes")
+    N, P, T = len(nodes), len(packets), wide.n_triangles
+    if N < 1:
+        raise AssertionError("no root node")
+    inner, leaf, node_idx, pk, count = _decode(wide)
+    empty = count == -1
+    if np.any(~(inner | leaf | empty)):
+        raise AssertionError("count < -1")
+    lo, hi = _boxes(wide)
+    if np.any(empty & ~(np.all(lo == np.inf, -1) & np.all(hi == -np.inf, -1))):
+        raise AssertionError("empty slot without an empty (+inf, -inf) box")
+    if np.any((lo > hi)[~empty]):
+        raise AssertionError("inverted box in a present slot")
+    child = nodes["child"].astype(np.int64)
+    if np.any(inner & ((child % NODE_UNITS != 0) | (node_idx < 1) | (node_idx >= N))):
+        raise AssertionError("inner child offset is not a node (or points at the root)")
+    if np.any(leaf & (((child - NODE_UNITS * N) % TRI4_UNITS != 0) | (pk < 0) | (pk + count > P))):
+        raise AssertionError("leaf offset/count outside the packet array")
+    # a tree: each non-root node referenced exactly once, and reachable (BFS with depth)
+    refs = np.bincount(node_idx[inner], minlength=N)
+    if refs[0] != 0 or np.any(refs[1:] != 1):
+        raise AssertionError("a node is referenced zero or several times")
+    depth = np.full(N, -1)
+    depth[0] = 0
+    frontier, d = np.array([0]), 0
+    while len(frontier):
+        kids = node_idx[frontier][inner[frontier]]
+        d += 1
+        if len(kids):
+            if np.any(depth[kids] >= 0):
+                raise AssertionError("cycle")
+            depth[kids] = d
+        frontier = kids
+    if np.any(depth < 0):
+        raise AssertionError("unreachable node")
+    if depth.max() != wide.depth or wide.depth > MAX_WIDE_DEPTH or 3 * wide.depth + 1 > STACK_SIZE:
+        raise AssertionError(f"depth {depth.max()} (recorded {wide.depth}) beyond the stack bound")
+    # leaves: packet ranges disjoint and covering
+    lf = np.flatnonzero(leaf.ravel())
+    starts, cnts = pk.ravel()[lf], count.ravel()[lf]
+    cover = np.zeros(P + 1, np.int64)
+    np.add.at(cover, starts, 1)
+    np.add.at(cover, starts + cnts, -1)
+    if P and np.any(np.cumsum(cover)[:P] != 1):
+        raise AssertionError("leaf packet ranges overlap or leave packets out")
+    tri = packets["tri"].astype(np.int64)                          # (P, 4)
+    real = tri >= 0
+    if T:
+        if real.sum() != T or np.bincount(tri[real], minlength=T).max() != 1 or tri[real].max() >= T:
+            raise AssertionError("the lanes do not hold every triangle exactly once")
+    elif real.any():
+        raise AssertionError("lanes hold triangles of an empty mesh")
+    verts = _packet_vertices(packets)                              # (P, 4, 3, 3)
+    if np.any(~np.isnan(verts[~real])):
+        raise AssertionError("a padding lane has a non-NaN vertex (padding lanes must be inert)")
+    if np.any(np.isnan(verts[real])):
+        raise AssertionError("a triangle lane has a NaN vertex")
+    # padding only at the end of a leaf's last packet
+    last_of_leaf = np.zeros(P, bool)
+    if len(cnts):
+        last_of_leaf[starts + cnts - 1] = True
+    if np.any(~real[~last_of_leaf]):
+        raise AssertionError("padding lane in a packet that is not a leaf's last")
+    if np.any(real[:, 1:] & ~real[:, :-1]):
+        raise AssertionError("padding lane before a triangle lane")
+    if bvh is not None and T:
+        ref = np.stack([bvh.triangles[f"v{v}"][:, :3] for v in range(3)], 1)   # (T, 3, 3)
+        if not np.array_equal(verts[real], ref[tri[real]]):
+            raise AssertionError("lane vertices differ from bvh.triangles[tri]")
+    # boxes: leaf boxes exact, inner boxes the exact union of their node's children
+    if len(lf):
+        plo = np.where(real[..., None], verts.min(2), np.inf).min(1)     # (P, 3) packet bounds
+        phi = np.where(real[..., None], verts.max(2), -np.inf).max(1)
+        llo = np.minimum.reduceat(plo, np.sort(starts), axis=0)
+        lhi = np.maximum.reduceat(phi, np.sort(starts), axis=0)
+        o = np.argsort(starts)
+        blo, bhi = lo.reshape(-1, 3)[lf][o], hi.reshape(-1, 3)[lf][o]
+        if not (np.array_equal(llo, blo) and np.array_equal(lhi, bhi)):
+            raise AssertionError("a leaf box is not the exact bounds of its triangles")
+    nlo, nhi = lo.min(1), hi.max(1)                                  # node boxes (N, 3)
+    ii = np.flatnonzero(inner.ravel())
+    if not (np.array_equal(lo.reshape(-1, 3)[ii], nlo[node_idx.ravel()[ii]])
+            and np.array_equal(hi.reshape(-1, 3)[ii], nhi[node_idx.ravel()[ii]])):
+        raise AssertionError("an inner slot's box is not the union of its node's children")
+    if N > 1 and np.any((~empty[1:]).sum(1) < 2):
+        raise AssertionError("a non-root node with fewer than two children")
+
+
+def reference_closest_hit(wide: WideBVH, origins, directions, tmin=0.0, tmax=np.inf, rel_pad=1e-9):
+    """Closest hit by walking the wide BVH in numpy, float64 throughout (no culling by the hit
+    distance: every (ray, node) pair whose box is hit is expanded, level by level).
+
+    Boxes are widened by ``rel_pad`` of the scene's largest coordinate (float64 rounding only).
+    Triangles: float64 Moller-Trumbore, hit when all barycentrics >= 0.  Returns (t, tri, margin),
+    t = inf and tri = -1 on a miss, margin = the smallest barycentric of the chosen hit."""
+    o = np.asarray(origins, np.float64).reshape(-1, 3)
+    d = np.asarray(directions, np.float64).reshape(-1, 3)
+    n = len(o)
+    tmin = np.broadcast_to(np.asarray(tmin, np.float64), (n,))
+    tmax = np.broadcast_to(np.asarray(tmax, np.float64), (n,))
+    best_t, best_tri, best_m = np.full(n, np.inf), np.full(n, -1), np.full(n, -np.inf)
+    if wide.n_triangles == 0 or n == 0:
+        return best_t, best_tri, best_m
+    inner, leaf, node_idx, pk, count = _decode(wide)
+    lo, hi = (b.astype(np.float64) for b in _boxes(wide))
+    fin = np.isfinite(lo)
+    pad = rel_pad * max(np.abs(lo[fin]).max(), np.abs(hi[np.isfinite(hi)]).max())
+    lo, hi = lo - pad, hi + pad
+    verts = _packet_vertices(wide.packets).astype(np.float64)
+    tri = wide.packets["tri"]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        inv = 1.0 / d
+        ray, node = np.arange(n), np.zeros(n, np.int64)
+        leaf_ray, leaf_pk = [], []
+        while len(ray):
+            t0 = (lo[node] - o[ray, None]) * inv[ray, None]            # (M, 4, 3)
+            t1 = (hi[node] - o[ray, None]) * inv[ray, None]
+            t0 = np.where(np.isnan(t0), -np.inf, t0)                 # 0 * inf: ray in the slab plane
+            t1 = np.where(np.isnan(t1), np.inf, t1)
+            enter = np.maximum(np.minimum(t0, t1).max(-1), tmin[ray, None])
+            leave = np.minimum(np.maximum(t0, t1).min(-1), tmax[ray, None])
+            hit = enter <= leave
+            r_i, s_i = np.nonzero(hit & leaf[node])
+            for k in range(int(count.max(initial=1))):
+                sel = count[node[r_i], s_i] > k
+                leaf_ray.append(ray[r_i[sel]])
+                leaf_pk.append(pk[node[r_i[sel]], s_i[sel]] + k)
+            r_i, s_i = np.nonzero(hit & inner[node])
+            ray, node = ray[r_i], node_idx[node[r_i], s_i]
+        lr, lp = np.concatenate(leaf_ray), np.concatenate(leaf_pk)
+        for chunk in np.array_split(np.arange(len(lr)), max(1, len(lr) // 200_000)):
+            r, p = lr[chunk], lp[chunk]
+            v = verts[p]                                             # (M, 4, 3, 3)
+            e1, e2 = v[:, :, 1] - v[:, :, 0], v[:, :, 2] - v[:, :, 0]
+            dd = d[r][:, None]
+            pvec = np.cross(dd, e2)
+            det = np.sum(e1 * pvec, -1)
+            tv = o[r][:, None] - v[:, :, 0]
+            u = np.sum(tv * pvec, -1) / det
+            qv = np.cross(tv, e1)
+            w = np.sum(dd * qv, -1) / det
+            t = np.sum(e2 * qv, -1) / det
+            m = np.minimum(np.minimum(u, w), 1 - u - w)
+            ok = (m >= 0) & (t > tmin[r, None]) & (t < tmax[r, None]) & (tri[p] >= 0)
+            t = np.where(ok, t, np.inf)
+            lane = np.argmin(t, 1)
+            tt = t[np.arange(len(r)), lane]
+            # per ray, the minimum over its (ray, packet) pairs
+            order = np.lexsort((tt, r))
+            r_s, t_s = r[order], tt[order]
+            firsts = np.concatenate([[True], r_s[1:] != r_s[:-1]])
+            rr, tb = r_s[firsts], t_s[firsts]
+            better = tb < best_t[rr]
+            src = order[firsts][better]
+            best_t[rr[better]] = tb[better]
+            best_tri[rr[better]] = tri[p[src], lane[src]]
+            best_m[rr[better]] = m[src, lane[src]]
+    return best_t, best_tri, best_m

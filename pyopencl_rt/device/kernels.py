@@ -1,0 +1,114 @@
+"""Locating, assembling and building the OpenCL C sources in ``cl/``.
+
+Sources are assembled on the host: ``#include "x.h"`` lines are expanded here (each file once),
+and the struct declarations generated from :mod:`pyopencl_rt.layout` are prepended.  The program
+text handed to the driver is therefore self-contained, so the driver's binary cache (and
+pyopencl's) can never serve a stale binary after a header changed.  Feature switches are passed
+as preprocessor defines, so a scene compiles only the code it uses.
+"""
+from __future__ import annotations
+
+import re
+import threading
+from functools import lru_cache
+from pathlib import Path
+
+from . import abi
+
+_INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$', re.M)
+
+
+def cl_dir() -> Path:
+    """The folder holding the kernel sources: ``cl/`` in a checkout, ``pyopencl_rt/cl`` in a wheel."""
+    package = Path(__file__).resolve().parent.parent
+    for candidate in (package / "cl", package.parent / "cl"):
+        if (candidate / "intersect.h").is_file():
+            return candidate
+    raise FileNotFoundError(f"OpenCL sources not found next to {package} (looked for cl/intersect.h)")
+
+
+def assemble(*names: str, extra: str = "") -> str:
+    """Concatenate the named sources, then ``extra`` source text, with every ``#include "x.h"``
+    expanded from ``cl/`` (each file included once)."""
+    root = cl_dir()
+    seen: set[Path] = set()
+
+    def expand(name: str, base: Path) -> str:
+        # an include is looked up next to the including file first, then in cl/
+        path = (base / name).resolve()
+        if not path.is_file():
+            path = (root / name).resolve()
+        if path in seen:
+            return ""
+        seen.add(path)
+        text = path.read_text()
+        return _INCLUDE.sub(lambda m: expand(m.group(1), path.parent), text)
+
+    body = "\n".join(expand(n, root) for n in names)
+    if extra:
+        body += "\n" + _INCLUDE.sub(lambda m: expand(m.group(1), root), extra)
+    return abi.cl_header() + "\n" + body
+
+
+def define_options(defines: dict | None) -> list[str]:
+    opts = []
+    for key, value in sorted((defines or {}).items()):
+        if value is True or value is None:
+            opts.append(f"-D{key}")
+        elif value is False:
+            continue
+        else:
+            opts.append(f"-D{key}={value}")
+    return opts
+
+
+class DeviceRuntime:
+    """A context and an in-order queue for one device (profiling enabled, for per-stage timings)."""
+
+    def __init__(self, device):
+        import pyopencl as cl
+
+        self.device = device
+        self.context = cl.Context([device])
+        self.queue = cl.CommandQueue(
+            self.context, device, properties=cl.command_queue_properties.PROFILING_ENABLE
+        )
+        self.lock = threading.Lock()
+        self._programs: dict = {}
+        self._kernels: dict = {}
+
+    @property
+    def has_fp64(self) -> bool:
+        return "cl_khr_fp64" in self.device.extensions
+
+    def program(self, names: tuple[str, ...], defines: dict | None = None, extra: str = ""):
+        """Build (once per runtime) the program made of ``names`` (+ ``extra`` text) with ``defines``."""
+        import pyopencl as cl
+
+        key = (tuple(names), tuple(sorted((defines or {}).items())), extra)
+        with self.lock:
+            prog = self._programs.get(key)
+            if prog is None:
+                source = assemble(*names, extra=extra)
+                options = []  # no fast-relaxed-math: watertightness relies on IEEE rounding
+                options += define_options(defines)
+                prog = cl.Program(self.context, source).build(options=options)
+                self._programs[key] = prog
+            return prog
+
+    def kernel(self, names: tuple[str, ...], kernel_name: str, defines: dict | None = None, extra: str = ""):
+        """One kernel object per (program, name), reused across calls (kernel retrieval is costly)."""
+        import pyopencl as cl
+
+        prog = self.program(names, defines, extra)
+        key = (id(prog), kernel_name)
+        with self.lock:
+            k = self._kernels.get(key)
+            if k is None:
+                k = self._kernels[key] = cl.Kernel(prog, kernel_name)
+            return k
+
+
+@lru_cache(maxsize=None)
+def runtime(device) -> DeviceRuntime:
+    return DeviceRuntime(device)

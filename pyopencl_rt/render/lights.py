@@ -1,0 +1,218 @@
+"""The emitter table for next-event estimation: every emissive triangle and sphere, picked in
+proportion to its power (emitted radiance luminance x area x pi, x2 when two-sided)."""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..device import abi
+from .sampling import fill_light_table
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 / sRGB primaries
+
+
+def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return (lights, tri_light, sphere_light): the LIGHT records and, per reordered triangle
+    and per sphere, the index of its light record (-1 when it does not emit)."""
+    mats = scene.materials
+    emissive = np.array([m.is_emissive for m in mats] or [False])
+    # mean_emission: emission x the mean of its texture (textured emitters are sampled by that power)
+    luminance = np.array([float(np.dot(m.mean_emission(), LUMINANCE)) for m in mats] or [0.0])
+    sides = np.array([2.0 if m.two_sided else 1.0 for m in mats] or [1.0])
+
+    tri_mat = scene.face_materials[bvh.prim_ids] if len(bvh.prim_ids) else np.zeros(0, np.int32)
+    tri_idx = np.nonzero(emissive[tri_mat])[0] if len(tri_mat) else np.zeros(0, np.int64)
+    tri = bvh.triangles
+    if len(tri_idx):
+        p0, p1, p2 = (tri[k][tri_idx, :3].astype(np.float64) for k in ("v0", "v1", "v2"))
+        tri_area = 0.5 * np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
+    else:
+        tri_area = np.zeros(0)
+    keep = tri_area > 0  # zero-area emitters cannot be sampled (and are never hit)
+    with np.errstate(over="ignore"):
+        too_big = keep & ~np.isfinite(tri_area.astype(np.float32))
+    if too_big.any():  # an area beyond float32 (coordinates ~1e19 and up) cannot be sampled
+        warnings.warn(f"{scene.source}: {int(too_big.sum())} emissive triangles have an area too large for "
+                      "float32; they are left out of light sampling (still seen by BSDF sampling)", stacklevel=2)
+        keep &= ~too_big
+    tri_idx, tri_area = tri_idx[keep], tri_area[keep]
+
+    sph_mat = scene.sphere_materials
+    sph_idx = np.nonzero(emissive[sph_mat])[0] if len(sph_mat) else np.zeros(0, np.int64)
+    sph_area = 4 * np.pi * scene.spheres[sph_idx, 3].astype(np.float64) ** 2 if len(sph_idx) else np.zeros(0)
+
+    n = len(tri_idx) + len(sph_idx)
+    lights = np.zeros(n, abi.LIGHT)
+    tri_light = np.full(len(bvh.prim_ids), -1, np.int32)
+    sphere_light = np.full(len(scene.spheres), -1, np.int32)
+    k = len(tri_idx)
+    lights["kind"][:k] = abi.LIGHT_TRIANGLE
+    lights["prim"][:k] = tri_idx
+    lights["material"][:k] = tri_mat[tri_idx]
+    lights["area"][:k] = tri_area
+    lights["kind"][k:] = abi.LIGHT_SPHERE
+    lights["prim"][k:] = sph_idx
+    lights["material"][k:] = sph_mat[sph_idx]
+    lights["area"][k:] = sph_area
+    tri_light[tri_idx] = np.arange(k, dtype=np.int32)
+    sphere_light[sph_idx] = np.arange(k, n, dtype=np.int32)
+    mat = lights["material"]
+    power = luminance[mat] * lights["area"].astype(np.float64) * np.pi * sides[mat] if n else np.zeros(0)
+    if n and not (power > 0).any():  # e.g. pure blue emitters have luminance; this guards all-zero
+        power = lights["area"].astype(np.float64)
+    # an infinite emission has infinite power: pick it as often as a finite table allows
+    power = np.where(np.isfinite(power), power, np.finfo(np.float64).max / (n + 1)) if n else power
+    extra, extra_power = other_lights(scene)
+    lights = np.concatenate([lights, extra])
+    power = np.concatenate([power, extra_power])
+    if len(lights) == 0:
+        return lights, tri_light, sphere_light
+    if not (power > 0).any():  # only black lights (an environment map of zeros): any valid table
+        power = np.ones(len(lights))
+    fill_light_table(lights, power)
+    return lights, tri_light, sphere_light
+
+
+# ----------------------------------------------------------------------------------------------
+# Point, directional and environment lights (cl/lights.h).  Power, for picking lights in
+# proportion to it (pbrt-v4's Light::Phi, with luminance for the RGB):
+#   point        4 pi I
+#   directional  pi r^2 E            (r: radius of the scene's bounding sphere)
+#   environment  4 pi * pi r^2 * (radiance averaged over the sphere of directions)
+# ----------------------------------------------------------------------------------------------
+
+def scene_bounding_sphere(scene) -> tuple[np.ndarray, float]:
+    """Centre and radius of the sphere around the bounding box of the triangles and spheres."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    if len(scene.vertices):
+        v = np.asarray(scene.vertices, np.float64)
+        lo, hi = np.minimum(lo, v.min(0)), np.maximum(hi, v.max(0))
+    if len(scene.spheres):
+        s = np.asarray(scene.spheres, np.float64)
+        lo = np.minimum(lo, (s[:, :3] - s[:, 3:4]).min(0))
+        hi = np.maximum(hi, (s[:, :3] + s[:, 3:4]).max(0))
+    if not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)):
+        return np.zeros(3), 0.0
+    return 0.5 * (lo + hi), float(0.5 * np.linalg.norm(hi - lo))
+
+
+def _rgb(x) -> np.ndarray:
+    a = np.broadcast_to(np.asarray(x, np.float64), (3,))
+    return np.where(np.isfinite(a), np.maximum(a, 0.0), 0.0)
+
+
+def environment_tables(image) -> tuple[np.ndarray, np.ndarray, float]:
+    """(map H x W x 3 float32, cdf float32, mean radiance luminance over the sphere) of an
+    equirectangular map: negative and non-finite texels become 0.  cdf is the marginal CDF over
+    rows (H + 1 values from 0 to 1), then the conditional CDF of each row (W + 1 values), of
+    luminance x sin(theta) at the row centre; a row (or map) with nothing in it is uniform."""
+    img = np.asarray(image, np.float64)
+    if img.ndim != 3 or img.shape[2] < 3 or img.shape[0] < 1 or img.shape[1] < 1:
+        raise ValueError(f"an environment map must be H x W x 3, got shape {img.shape}")
+    img = img[:, :, :3]
+    img = np.where(np.isfinite(img), np.maximum(img, 0.0), 0.0)
+    h, w = img.shape[:2]
+    sin_t = np.sin(np.pi * (np.arange(h) + 0.5) / h)
+    f = (img @ LUMINANCE) * sin_t[:, None]
+
+    def cdf_rows(weights):  # (R, N) -> (R, N + 1), each row from 0 to 1
+        total = weights.sum(1, keepdims=True)
+        c = np.concatenate([np.zeros((len(weights), 1)), np.cumsum(weights, 1)], 1)
+        uniform = np.broadcast_to(np.linspace(0.0, 1.0, weights.shape[1] + 1), c.shape)
+        c = np.where(total > 0, c / np.where(total > 0, total, 1.0), uniform)
+        c[:, -1] = 1.0
+        return np.maximum.accumulate(np.clip(c, 0.0, 1.0), axis=1)
+
+    cond = cdf_rows(f)
+    marg = cdf_rows(f.sum(1)[None, :])[0]
+    cdf = np.concatenate([marg, cond.reshape(-1)]).astype(np.float32)
+    mean = float(f.sum() * (np.pi / h) * (2 * np.pi / w) / (4 * np.pi))
+    return img.astype(np.float32), cdf, mean
+
+
+def _env_tables(env):
+    """environment_tables of env.image, computed once per Environment."""
+    if env.image is None:
+        return None
+    key = id(env.image)
+    cached = getattr(env, "_tables", None)
+    if cached is None or cached[0] != key:
+        cached = (key, environment_tables(env.image))
+        env._tables = cached
+    return cached[1]
+
+
+def environment_buffers(scene) -> tuple[np.ndarray, np.ndarray]:
+    """The env_map and env_cdf kernel arguments (1-element dummies without a map)."""
+    env = getattr(scene, "environment", None)
+    tables = _env_tables(env) if env is not None else None
+    if tables is None:
+        return np.zeros(4, np.float32), np.zeros(4, np.float32)
+    return tables[0].reshape(-1), tables[1]
+
+
+def other_lights(scene) -> tuple[np.ndarray, np.ndarray]:
+    """LIGHT records and powers of the scene's point, directional and environment lights."""
+    from ..scene.model import DirectionalLight, Environment, PointLight
+
+    specs = list(getattr(scene, "lights", []) or [])
+    env = getattr(scene, "environment", None)
+    if env is not None:
+        specs.append(env)
+    recs = np.zeros(len(specs), abi.LIGHT)
+    power = np.zeros(len(specs))
+    if not specs:
+        return recs, power
+    centre, radius = scene_bounding_sphere(scene)
+    for i, spec in enumerate(specs):
+        r = recs[i]
+        r["material"] = 0
+        if isinstance(spec, PointLight):
+            r["kind"] = abi.LIGHT_POINT
+            r["p"] = spec.position
+            r["rgb"] = _rgb(spec.intensity)
+            power[i] = 4 * np.pi * float(r["rgb"] @ LUMINANCE)
+        elif isinstance(spec, DirectionalLight):
+            d = np.asarray(spec.direction, np.float64)
+            norm = np.linalg.norm(d)
+            if not norm > 0:
+                raise ValueError("a directional light needs a non-zero direction")
+            r["kind"] = abi.LIGHT_DIRECTIONAL
+            r["dir"] = d / norm
+            r["p"], r["radius"] = centre, radius
+            r["rgb"] = _rgb(spec.irradiance)
+            power[i] = np.pi * radius**2 * float(r["rgb"] @ LUMINANCE)
+        elif isinstance(spec, Environment):
+            r["kind"] = abi.LIGHT_ENVIRONMENT
+            r["p"], r["radius"] = centre, radius
+            r["rgb"] = _rgb(spec.radiance)
+            tables = _env_tables(spec)
+            mean = 1.0
+            if tables is not None:
+                h, w = tables[0].shape[:2]
+                r["prim"], r["material"] = w, h
+                mean = tables[2]
+            power[i] = 4 * np.pi * np.pi * radius**2 * float(r["rgb"] @ LUMINANCE) * mean
+        else:
+            raise TypeError(f"unknown light {spec!r}")
+    power = np.where(np.isfinite(power), power, np.finfo(np.float64).max / (len(power) + 1))
+    return recs, power
+
+
+def light_features(lights: np.ndarray) -> dict:
+    """Defines for the kinds of light present: HAS_DELTA_LIGHTS, HAS_ENVIRONMENT with
+    ENV_LIGHT (the environment's index), HAS_INFINITE_LIGHTS."""
+    kinds = lights["kind"] if len(lights) else np.zeros(0, np.int32)
+    d = {}
+    if np.isin(kinds, (abi.LIGHT_POINT, abi.LIGHT_DIRECTIONAL)).any():
+        d["HAS_DELTA_LIGHTS"] = True
+    env = np.flatnonzero(kinds == abi.LIGHT_ENVIRONMENT)
+    if len(env) > 1:
+        raise ValueError("at most one environment light")
+    if len(env):
+        d["HAS_ENVIRONMENT"] = True
+        d["ENV_LIGHT"] = int(env[0])
+    if np.isin(kinds, (abi.LIGHT_DIRECTIONAL, abi.LIGHT_ENVIRONMENT)).any():
+        d["HAS_INFINITE_LIGHTS"] = True
+    return d

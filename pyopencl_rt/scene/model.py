@@ -1,0 +1,272 @@
+"""The in-memory scene: what every loader produces and what the renderer consumes.
+
+Units are whatever the scene file uses; radiance and albedo are linear RGB.  Emission is
+one-sided (the side the triangle's geometric normal (v1 - v0) x (v2 - v0) faces, or the outside
+of a sphere) unless the material is two-sided, as for Mitsuba's and pbrt's area lights.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..device import abi
+
+INTEGRATORS = ("path", "bsdf", "nee")
+
+
+# Complex indices of refraction eta + i k of named conductors at the RGB wavelengths 650, 550
+# and 450 nm (sampled from the refractiveindex.info data sets, as tabulated in Chaos Group's
+# "Understanding metalness", 2014).
+CONDUCTORS = {
+    "gold": ((0.18299, 0.42108, 1.3734), (3.4242, 2.3459, 1.7704)),
+    "silver": ((0.16262, 0.14512, 0.13550), (4.0728, 3.1900, 2.1997)),
+    "copper": ((0.27105, 0.67693, 1.3164), (3.6092, 2.6248, 2.2921)),
+    "aluminium": ((1.3456, 0.96521, 0.61722), (7.4746, 6.3995, 5.3031)),
+}
+
+
+@dataclass
+class Material:
+    """A material; ``type`` is one of :data:`MATERIAL_TYPES` (documented in docs/SCENE_FORMAT.md
+    and at the top of each ``cl/materials/<type>.h``).  Every type may emit.
+
+    * ``diffuse``: ``albedo``.
+    * ``conductor``: ``alpha`` (GGX; 0 = mirror) and either ``eta``/``k`` (complex IOR per RGB
+      channel) or, when ``eta`` is None, ``f0`` (Schlick; default 1 = a perfect mirror).
+    * ``dielectric``: ``ior`` (inside relative to outside), ``alpha``, ``tint``.
+    * ``gltf``: ``albedo`` (baseColor), ``metallic``, ``alpha`` (= roughness^2), ``ior``.
+    """
+
+    name: str = "default"
+    albedo: tuple = (0.8, 0.8, 0.8)
+    emission: tuple = (0.0, 0.0, 0.0)
+    two_sided: bool = False
+    type: str = "diffuse"
+    alpha: float = 0.0  # GGX alpha (the scene format's roughness squared)
+    metallic: float = 0.0
+    ior: float = 1.5
+    f0: tuple = (1.0, 1.0, 1.0)
+    eta: tuple | None = None
+    k: tuple | None = None
+    tint: tuple = (1.0, 1.0, 1.0)
+    # Image textures (pyopencl_rt.textures.Texture; None = none), looked up at the hit's UV on
+    # triangles (spheres have no UVs and use the factors alone).  base_texture multiplies albedo
+    # (diffuse, gltf) or tint (dielectric); mr_texture is glTF's metallicRoughness (G scales the
+    # roughness, B the metallic); emission_texture multiplies emission.
+    base_texture: object = None
+    mr_texture: object = None
+    emission_texture: object = None
+
+    def textures(self) -> list:
+        return [t for t in (self.base_texture, self.mr_texture, self.emission_texture) if t is not None]
+
+    def mean_emission(self) -> np.ndarray:
+        """Emission averaged over the emission texture (the light sampler's power estimate)."""
+        e = np.asarray(self.emission, np.float64)
+        if self.emission_texture is not None:
+            e = e * self.emission_texture.mean_rgb()
+        return e
+
+    @property
+    def is_emissive(self) -> bool:
+        return max(self.emission) > 0.0
+
+    @property
+    def roughness(self) -> float:
+        """Perceptual roughness sqrt(alpha)."""
+        return float(np.sqrt(self.alpha))
+
+    def record(self, texture_index: dict | None = None) -> np.ndarray:
+        """The MATERIAL struct; ``texture_index`` maps id(texture) to its index in the scene's
+        texture table (without it, or for a texture not in it, no texture is used)."""
+        if self.type not in abi.MATERIAL_TYPES:
+            raise ValueError(f"material {self.name!r}: unknown type {self.type!r}")
+        rec = np.zeros((), abi.MATERIAL)
+        rec["type"] = abi.MATERIAL_TYPES[self.type]
+        rec["albedo"] = self.albedo
+        rec["emission"] = self.emission
+        flags = abi.MATERIAL_FLAG_TWO_SIDED if self.two_sided else 0
+        rec["alpha"] = self.alpha
+        rec["metallic"] = self.metallic
+        rec["ior"] = self.ior
+        rec["specular"] = self.tint
+        if self.type == "conductor":
+            if self.eta is None:
+                flags |= abi.MATERIAL_FLAG_CONDUCTOR_F0
+                rec["specular"] = self.f0
+            else:
+                rec["eta"] = self.eta
+                rec["k"] = self.k if self.k is not None else (0.0, 0.0, 0.0)
+        rec["flags"] = flags
+        ti = texture_index or {}
+        for fld, tex in (("tex_base", self.base_texture), ("tex_mr", self.mr_texture),
+                         ("tex_emission", self.emission_texture)):
+            rec[fld] = ti.get(id(tex), -1) if tex is not None else -1
+        rec["tex_pad"] = -1
+        return rec
+
+
+MATERIAL_TYPES = tuple(abi.MATERIAL_TYPES)
+
+
+@dataclass
+class Camera:
+    eye: tuple = (0.0, 0.0, 5.0)
+    look_at: tuple = (0.0, 0.0, 0.0)
+    up: tuple = (0.0, 1.0, 0.0)
+    fov: float = 40.0  # degrees, along the vertical axis
+    # thin lens (depth of field) when aperture_radius > 0: the lens radius, and the distance
+    # along the viewing direction of the plane in focus (None: |look_at - eye|)
+    aperture_radius: float = 0.0
+    focus_distance: float | None = None
+
+    def record(self, width: int, height: int) -> np.ndarray:
+        """The CAMERA struct for an image of width x height."""
+        eye = np.asarray(self.eye, np.float64)
+        forward = np.asarray(self.look_at, np.float64) - eye
+        forward /= np.linalg.norm(forward)
+        right = np.cross(forward, np.asarray(self.up, np.float64))
+        right /= np.linalg.norm(right)
+        up = np.cross(right, forward)
+        tan_half = np.tan(np.radians(self.fov) / 2)
+        rec = np.zeros((), abi.CAMERA)
+        rec["origin"] = eye
+        rec["forward"] = forward
+        rec["right"] = right * tan_half * width / height
+        rec["up"] = up * tan_half
+        rec["width"] = width
+        rec["height"] = height
+        rec["lens_radius"] = max(float(self.aperture_radius), 0.0)
+        focus = self.focus_distance if self.focus_distance is not None else np.linalg.norm(
+            np.asarray(self.look_at, np.float64) - eye)
+        rec["focus_distance"] = focus
+        return rec
+
+
+@dataclass
+class PointLight:
+    """An isotropic point light of radiant intensity ``intensity`` [W/sr] (RGB)."""
+
+    position: tuple = (0.0, 0.0, 0.0)
+    intensity: tuple = (1.0, 1.0, 1.0)
+
+
+@dataclass
+class DirectionalLight:
+    """A light infinitely far away, travelling along ``direction``, that gives a surface facing
+    it the irradiance ``irradiance`` (RGB)."""
+
+    direction: tuple = (0.0, -1.0, 0.0)
+    irradiance: tuple = (1.0, 1.0, 1.0)
+
+
+@dataclass
+class Environment:
+    """Radiance arriving from infinitely far in every direction: ``radiance`` (RGB) times, when
+    given, the equirectangular map ``image`` (H x W x 3 linear RGB, row 0 = up (+y); cl/lights.h
+    gives the direction of each texel)."""
+
+    radiance: tuple = (1.0, 1.0, 1.0)
+    image: np.ndarray | None = None
+    source: str | None = None  # the map's file, for messages
+
+
+@dataclass
+class RenderSettings:
+    width: int = 512
+    height: int = 512
+    spp: int = 64
+    max_depth: int = 8
+    integrator: str = "path"
+    seed: int = 0
+    rr_depth: int = 3  # Russian roulette starts after this many bounces
+
+
+@dataclass
+class Scene:
+    vertices: np.ndarray  # (V, 3) float32, world space
+    faces: np.ndarray  # (F, 3) int32
+    face_materials: np.ndarray  # (F,) int32 index into materials
+    materials: list  # list[Material]
+    camera: Camera = field(default_factory=Camera)
+    spheres: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))  # (S, 4) centre xyz, radius
+    sphere_materials: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    settings: RenderSettings = field(default_factory=RenderSettings)
+    source: str = "<memory>"
+    # lights besides emissive surfaces: PointLight / DirectionalLight, and one Environment or None
+    lights: list = field(default_factory=list)
+    environment: Environment | None = None
+    # per-face texture coordinates (F, 3, 2) float32 (corner k of face f), or None (all 0)
+    uvs: np.ndarray | None = None
+
+    def textures(self) -> list:
+        """The distinct textures the materials use, in order of first use."""
+        seen = {}
+        for m in self.materials:
+            for t in m.textures():
+                seen.setdefault(id(t), t)
+        return list(seen.values())
+
+    def has_textures(self) -> bool:
+        return len(self.faces) > 0 and any(m.textures() for m in self.materials)
+
+    def camera_relative(self) -> "Scene":
+        """The scene translated (in float64) so that the camera sits at the origin.
+
+        Float32 positions far from the origin are coarse: at 1e5 an ulp is 0.0078, so the spawn
+        offsets (a few hundred ulps) and the hit points' rounding grow to millimetres in a metre-
+        sized scene, and the Cornell box moved by 1e5 rendered 0.3% (1e6: 3%) off (`make
+        stress`).  Rendering relative to the camera keeps the coordinates that matter small.
+        Returns self when the camera is already at the origin."""
+        import copy
+        import dataclasses
+
+        eye = np.asarray(self.camera.eye, np.float64)
+        if not eye.any():
+            return self
+        s = copy.copy(self)
+        s.vertices = (np.asarray(self.vertices, np.float64) - eye).astype(np.float32)
+        if len(self.spheres):
+            spheres = np.asarray(self.spheres, np.float64).copy()
+            spheres[:, :3] -= eye
+            s.spheres = spheres.astype(np.float32)
+        s.camera = dataclasses.replace(self.camera, eye=(0.0, 0.0, 0.0),
+                                       look_at=tuple(np.asarray(self.camera.look_at, np.float64) - eye))
+        s.lights = [dataclasses.replace(lt, position=tuple(np.asarray(lt.position, np.float64) - eye))
+                    if hasattr(lt, "position") else lt for lt in self.lights]
+        return s
+
+    def face_uvs(self) -> np.ndarray:
+        """(F, 3, 2) float32 texture coordinates (zeros where the scene has none)."""
+        if self.uvs is None:
+            return np.zeros((len(self.faces), 3, 2), np.float32)
+        uv = np.asarray(self.uvs, np.float32).reshape(len(self.faces), 3, 2)
+        return np.where(np.isfinite(uv), uv, np.float32(0))
+
+    def material_records(self) -> np.ndarray:
+        recs = np.zeros(max(1, len(self.materials)), abi.MATERIAL)
+        for f in ("tex_base", "tex_mr", "tex_emission", "tex_pad"):
+            recs[f] = -1
+        index = {id(t): i for i, t in enumerate(self.textures())}
+        for i, m in enumerate(self.materials):
+            recs[i] = m.record(index)
+        return recs
+
+    def material_defines(self) -> dict:
+        """Preprocessor defines that compile only the material types this scene uses
+        (MATERIALS_SELECTED + HAS_MATERIAL_<TYPE>; see cl/bsdf.h)."""
+        defines = {"MATERIALS_SELECTED": True}
+        for m in self.materials:
+            if m.type != "diffuse":
+                defines[f"HAS_MATERIAL_{m.type.upper()}"] = True
+        if self.has_textures():
+            defines["HAS_TEXTURES"] = True  # cl/textures.h
+        return defines
+
+    def sphere_records(self) -> np.ndarray:
+        recs = np.zeros(len(self.spheres), abi.SPHERE)
+        if len(self.spheres):
+            recs["center"] = self.spheres[:, :3]
+            recs["radius"] = self.spheres[:, 3]
+        return recs

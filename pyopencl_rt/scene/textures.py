@@ -1,0 +1,141 @@
+"""Image textures: loaded once, decoded to linear float RGBA, packed into one texel buffer.
+
+A :class:`Texture` holds an (H, W, 4) float32 array of linear values, row 0 at the top of the
+image: texture coordinate (u, v) = (0, 0) is the top-left corner, as in glTF (OBJ's ``vt``, whose
+v runs upwards, is flipped to this convention when an OBJ is read).  Colour textures (base colour,
+emission) are stored in sRGB and decoded to linear here, once, with the exact piecewise sRGB
+transfer function (IEC 61966-2-1); data textures (glTF metallic-roughness) are used as they are.
+8-bit values map to [0, 1] by /255, 16-bit by /65535; grey images are replicated into RGB and a
+missing alpha is 1.
+
+The device samples textures with bilinear filtering and wrap (repeat) addressing
+(``cl/textures.h``); :func:`bilinear` is the same lookup in numpy float64 (the reference the tests
+hold the kernel to).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..device import abi
+
+
+def srgb_to_linear(c):
+    """sRGB-encoded values in [0, 1] to linear (float64)."""
+    c = np.asarray(c, np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+@dataclass(eq=False)
+class Texture:
+    """Linear RGBA texels (H, W, 4) float32; ``srgb`` records that they were decoded from sRGB."""
+
+    texels: np.ndarray
+    srgb: bool = False
+    channels: int = 4
+    name: str = "texture"
+
+    @property
+    def width(self) -> int:
+        return int(self.texels.shape[1])
+
+    @property
+    def height(self) -> int:
+        return int(self.texels.shape[0])
+
+    def mean_rgb(self) -> np.ndarray:
+        """Mean linear RGB over the image (the average a uniformly sampled uv sees)."""
+        return self.texels[..., :3].astype(np.float64).mean(axis=(0, 1))
+
+
+def texture_from_array(values, *, srgb: bool = False, name: str = "texture") -> Texture:
+    """A texture from an (H, W), (H, W, C) array: integers are scaled to [0, 1] by their type's
+    maximum, floats used as they are; ``srgb`` decodes the colour channels (not alpha)."""
+    a = np.asarray(values)
+    if a.ndim == 2:
+        a = a[:, :, None]
+    if a.ndim != 3 or a.shape[2] not in (1, 2, 3, 4) or a.shape[0] < 1 or a.shape[1] < 1:
+        raise ValueError(f"{name}: texture must be (H, W) or (H, W, 1..4), got shape {a.shape}")
+    channels = a.shape[2]
+    if np.issubdtype(a.dtype, np.integer):
+        f = a.astype(np.float64) / float(np.iinfo(a.dtype).max)
+    else:
+        f = np.nan_to_num(a.astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    h, w = f.shape[:2]
+    out = np.ones((h, w, 4), np.float64)
+    if channels in (1, 2):  # grey (+ alpha)
+        out[..., :3] = f[..., :1]
+        if channels == 2:
+            out[..., 3] = f[..., 1]
+    else:
+        out[..., :channels] = f
+    if srgb:
+        out[..., :3] = srgb_to_linear(np.clip(out[..., :3], 0.0, 1.0))
+    return Texture(np.ascontiguousarray(out, np.float32), srgb=srgb, channels=channels, name=name)
+
+
+def texture_from_image(image, *, srgb: bool = False, name: str | None = None) -> Texture:
+    """A texture from a Pillow image or an image file path (any format Pillow reads)."""
+    from PIL import Image
+
+    if not isinstance(image, Image.Image):
+        name = name or str(image)
+        with Image.open(image) as im:
+            im.load()
+            image = im.copy()
+    name = name or getattr(image, "filename", None) or "image"
+    mode = image.mode
+    if mode in ("I;16", "I;16B", "I;16L", "I"):
+        a = np.asarray(image).astype(np.uint16 if mode.startswith("I;16") else np.int32)
+        if a.dtype == np.int32:
+            a = np.clip(a, 0, 65535).astype(np.uint16)
+    elif mode == "F":
+        a = np.asarray(image, np.float32)
+    else:
+        if mode not in ("L", "LA", "RGB", "RGBA"):
+            image = image.convert("RGBA" if "A" in mode or "transparency" in image.info else "RGB")
+        a = np.asarray(image)
+    return texture_from_array(a, srgb=srgb, name=str(name))
+
+
+def pack_textures(textures) -> tuple[np.ndarray, np.ndarray]:
+    """(TEXTURE table, float32 texel buffer of 4 floats per texel) for a list of textures."""
+    table = np.zeros(max(1, len(textures)), abi.TEXTURE)
+    chunks = []
+    offset = 0
+    for i, t in enumerate(textures):
+        table[i]["offset"] = offset
+        table[i]["width"] = t.width
+        table[i]["height"] = t.height
+        table[i]["channels"] = t.channels
+        table[i]["flags"] = abi.TEXTURE_FLAG_SRGB if t.srgb else 0
+        chunks.append(t.texels.reshape(-1))
+        offset += t.width * t.height
+    if offset >= 2**31:
+        raise ValueError("textures too large (more than 2^31 texels in all)")
+    data = np.concatenate(chunks).astype(np.float32) if chunks else np.zeros(4, np.float32)
+    return table, data
+
+
+def bilinear(texels, uv) -> np.ndarray:
+    """Bilinear lookup with wrap addressing (float64), as cl/textures.h does it: texel (x, y)
+    covers [x, x+1) / W x [y, y+1) / H, its centre at ((x + 0.5) / W, (y + 0.5) / H)."""
+    t = np.asarray(texels, np.float64)
+    h, w = t.shape[:2]
+    uv = np.asarray(uv, np.float64).reshape(-1, 2)
+    uv = np.where(np.isfinite(uv), uv, 0.0)
+    uv = uv - np.floor(uv)
+    fx = uv[:, 0] * w - 0.5
+    fy = uv[:, 1] * h - 0.5
+    x0 = np.floor(fx)
+    y0 = np.floor(fy)
+    ax = (fx - x0)[:, None]
+    ay = (fy - y0)[:, None]
+    x0 = x0.astype(np.int64) % w
+    y0 = y0.astype(np.int64) % h
+    x1 = (x0 + 1) % w
+    y1 = (y0 + 1) % h
+    top = t[y0, x0] * (1 - ax) + t[y0, x1] * ax
+    bot = t[y1, x0] * (1 - ax) + t[y1, x1] * ax
+    return top * (1 - ay) + bot * ay

@@ -1,0 +1,170 @@
+"""Device specifications (--device, PYOPENCL_CTX) resolved against the real device list.
+
+PoCL's CPU device is always present (it is a dependency); a GPU may be present too, so every
+expectation is derived from the actual list rather than assuming PoCL is device 0:0.
+"""
+import pyopencl as cl
+import pytest
+
+from pyopencl_rt.device import devices as dv
+from pyopencl_rt.errors import DeviceSelectionError, UserError
+
+
+@pytest.fixture(autouse=True)
+def _no_env(monkeypatch):
+    monkeypatch.delenv("PYOPENCL_CTX", raising=False)
+    monkeypatch.delenv("PYOPENCL_TEST", raising=False)
+
+
+@pytest.fixture(scope="module")
+def entries():
+    found = dv.all_devices()
+    assert found, "no OpenCL device at all: the pip PoCL should always be visible"
+    return found
+
+
+@pytest.fixture(scope="module")
+def pocl(entries):
+    """The (platform_index, device_index, device) entry of PoCL's CPU device."""
+    matches = [e for e in entries if "portable computing language" in e[2].platform.name.lower()
+               and e[2].type & cl.device_type.CPU]
+    assert matches, f"PoCL CPU device not found among {[dv.describe(e).label() for e in entries]}"
+    return matches[0]
+
+
+def index_of(entry):
+    return f"{entry[0]}:{entry[1]}"
+
+
+def has_gpu(entries):
+    return any(e[2].type & cl.device_type.GPU for e in entries)
+
+
+def test_cpu_selects_pocl_cpu(pocl):
+    chosen = dv.resolve("cpu")
+    assert len(chosen) == 1
+    assert chosen[0].type & cl.device_type.CPU
+    assert chosen[0] == pocl[2]  # PoCL first among CPU devices
+    assert dv.select_device("CPU") == pocl[2]  # case-insensitive
+
+
+def test_all_returns_every_device_in_order(entries):
+    assert dv.resolve("all") == [e[2] for e in entries]
+    # select_device takes the first of several
+    assert dv.select_device("all") == entries[0][2]
+
+
+def test_index_spec(entries, pocl):
+    assert dv.resolve("0:0") == [entries[0][2]]
+    assert dv.resolve(index_of(pocl)) == [pocl[2]]
+    # a platform index alone: the first device of that platform
+    first_of_platform = [e for e in entries if e[0] == pocl[0]][0]
+    assert dv.resolve(str(pocl[0])) == [first_of_platform[2]]
+
+
+def test_name_substrings_select_pocl(entries, pocl):
+    platform_word = pocl[2].platform.name.split()[0].lower()  # "portable"
+    assert dv.resolve(platform_word) == [pocl[2]]
+    assert dv.resolve(platform_word.upper()) == [pocl[2]]
+    # P:D with a platform substring and an empty device part: every device of that platform
+    assert dv.resolve(platform_word + ":") == [e[2] for e in entries if e[0] == pocl[0]]
+    # P:D with both parts as substrings
+    device_word = pocl[2].name.split()[0].split("-")[0].lower()  # "pthread" or "cpu"
+    assert dv.resolve(f"{platform_word}:{device_word}")[0] == pocl[2]
+    # a substring of the device name alone
+    assert pocl[2] in dv.resolve(pocl[2].name.strip()[:12])
+
+
+def test_comma_list_and_list_deduplicate(entries, pocl):
+    idx = index_of(pocl)
+    assert dv.resolve(f"cpu,{idx}") == [pocl[2]]
+    assert dv.resolve(["cpu", idx, "cpu"]) == [pocl[2]]
+    assert dv.resolve(["cpu, " + idx]) == [pocl[2]]
+    both = dv.resolve(f"{idx},all")
+    assert both[0] == pocl[2]  # order of first mention is kept
+    assert len(both) == len(entries)
+    assert len({d.int_ptr for d in both}) == len(both)
+
+
+def test_device_object_passes_through(pocl):
+    assert dv.resolve(pocl[2]) == [pocl[2]]
+    assert dv.select_device(pocl[2]) == pocl[2]
+
+
+def test_pyopencl_ctx_is_honoured_without_a_spec(monkeypatch, entries, pocl):
+    monkeypatch.setenv("PYOPENCL_CTX", index_of(pocl))
+    assert dv.select_device() == pocl[2]
+    assert dv.resolve([]) == [pocl[2]]
+    monkeypatch.setenv("PYOPENCL_CTX", "nosuchdevice-xyz")
+    with pytest.raises(DeviceSelectionError, match="nosuchdevice-xyz"):
+        dv.select_device()
+    # an explicit spec wins over the environment
+    assert dv.select_device("cpu") == pocl[2]
+
+
+def test_default_without_spec_or_env(entries, pocl):
+    chosen = dv.select_device()
+    if has_gpu(entries):
+        assert chosen.type & cl.device_type.GPU
+    else:
+        assert chosen == pocl[2]
+
+
+def test_spec_matching_nothing_lists_available_devices(entries):
+    with pytest.raises(DeviceSelectionError) as info:
+        dv.resolve("nosuchdevice")
+    msg = str(info.value)
+    assert "\n" not in msg
+    assert "nosuchdevice" in msg
+    for e in entries:
+        d = dv.describe(e)
+        assert d.name in msg and d.index in msg
+    assert isinstance(info.value, UserError)
+    assert info.value.exit_code == 2
+
+
+@pytest.mark.parametrize("spec", ["99:0", "0:99", "0:nosuchdevice", "nosuchplatform:", "cpu,nosuchdevice"])
+def test_bad_index_or_partial_match_raises(spec):
+    with pytest.raises(DeviceSelectionError):
+        dv.resolve(spec)
+
+
+def test_gpu(entries):
+    if has_gpu(entries):
+        chosen = dv.resolve("gpu")
+        assert len(chosen) == 1 and chosen[0].type & cl.device_type.GPU
+    else:
+        with pytest.raises(DeviceSelectionError) as info:
+            dv.resolve("gpu")
+        msg = str(info.value)
+        assert "\n" not in msg and "'gpu'" in msg
+        assert all(dv.describe(e).name in msg for e in entries)
+
+
+def test_list_devices_describes_every_device(entries, pocl):
+    infos = dv.list_devices()
+    assert [i.index for i in infos] == [index_of(e) for e in entries]
+    info = infos[entries.index(pocl)]
+    assert info.type == "CPU"
+    assert info.compute_units == pocl[2].max_compute_units > 0
+    assert info.global_mem_bytes == pocl[2].global_mem_size > 0
+    assert info.opencl_version.startswith("OpenCL ")
+    assert set(info.as_dict()) >= {"index", "platform", "name", "type", "compute_units",
+                                   "global_mem_bytes", "opencl_version"}
+    assert dv.device_label(pocl[2]) == info.label()
+
+
+def test_pyopencl_test_env_selects_test_devices(monkeypatch, entries):
+    assert dv.device_test_specs() == [index_of(e) for e in entries]
+    # specs are expanded to device indices, duplicates removed ("cpu" and "0:0" may be one device)
+    monkeypatch.setenv("PYOPENCL_TEST", "cpu, 0:0")
+    expect = []
+    for spec in ("cpu", "0:0"):
+        for dev in dv.resolve(spec):
+            idx = next(index_of(e) for e in entries if e[2] == dev)
+            if idx not in expect:
+                expect.append(idx)
+    assert sorted(dv.device_test_specs()) == sorted(expect)
+    # "all" means every device (it used to give only the first one)
+    monkeypatch.setenv("PYOPENCL_TEST", "all")
+    assert dv.device_test_specs() == [index_of(e) for e in entries]

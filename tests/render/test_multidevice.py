@@ -1,0 +1,148 @@
+"""Several devices in one render (pyopencl_rt.render.multidevice): the merged film is the single-device
+film, whichever device rendered which pass, and a device that fails is dropped.
+
+PoCL exposes one CPU device by default; ``POCL_DEVICES="pthread pthread"`` (or ``"basic
+pthread"``) in a subprocess gives two devices (both share the same cores).  In-process tests
+use two Wavefronts on the one device.
+"""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pyopencl_rt.device import devices as dv
+from pyopencl_rt.render.multidevice import DeviceFailure, MultiDevice
+from pyopencl_rt.render.film import Film
+from pyopencl_rt.render.wavefront import Wavefront
+
+from scenes_small import small_scene  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+
+SCRIPT = """
+import json, sys, numpy as np
+sys.path[:0] = [{repo!r}, {tests!r}]
+from scenes_small import small_scene
+from pyopencl_rt.render.api import render_full
+from pyopencl_rt.device import devices as dv
+s = small_scene()
+one = render_full(s, spp=10, device="0:0")
+both = render_full(s, spp=10, device="all")
+print(json.dumps({{
+    "n_devices": len(dv.all_devices()),
+    "bitwise": bool(np.array_equal(one.film.sum, both.film.sum) and np.array_equal(one.film.sum_sq, both.film.sum_sq)),
+    "max_rel": float(np.max(np.abs(one.film.sum - both.film.sum) / np.maximum(np.abs(one.film.sum), 1e-30))),
+    "passes": [one.film.passes, both.film.passes],
+    "devices": both.info["devices"],
+}}))
+"""
+
+
+@pytest.mark.parametrize("pocl_devices", ["pthread pthread", "basic pthread"])
+def test_two_pocl_devices_merge_to_the_single_device_image(pocl_devices):
+    env = dict(os.environ, POCL_DEVICES=pocl_devices)
+    env.pop("PYOPENCL_CTX", None)
+    r = subprocess.run([sys.executable, "-c", SCRIPT.format(repo=str(REPO), tests=str(REPO / "tests"))],
+                       env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    if out["n_devices"] < 2:
+        pytest.skip(f"POCL_DEVICES={pocl_devices!r} gave {out['n_devices']} device(s)")
+    assert out["passes"] == [10, 10]
+    assert len(out["devices"]) == 2 and sum(d["passes"] for d in out["devices"]) == 10
+    # the pool adds passes to the film in pass order, so the sums are those of one device up to
+    # the passes' own float32 rounding on different devices (PoCL's devices agree bit for bit)
+    assert out["max_rel"] <= 1e-5
+    assert out["bitwise"], out
+
+
+def two_wavefronts(scene):
+    dev = dv.select_device("cpu")
+    return [Wavefront(scene, dev) for _ in range(2)]
+
+
+def test_split_is_bitwise_on_one_device():
+    """Two Wavefronts on one device, small batches: any split gives the single-run film."""
+    scene = small_scene()
+    wfs = two_wavefronts(scene)
+    ref = Film(48, 32)
+    wfs[0].run(ref, passes=9)
+    film = Film(48, 32)
+    st = MultiDevice(scene, wfs, target_seconds=0.01).run(film, passes=9)
+    assert film.passes == 9 and st.passes == 9 and not st.interrupted
+    assert np.array_equal(film.sum, ref.sum) and np.array_equal(film.sum_sq, ref.sum_sq)
+    assert sum(d["passes"] for d in st.devices) == 9
+
+
+def test_failing_device_is_dropped_and_its_passes_redone():
+    scene = small_scene()
+    wfs = two_wavefronts(scene)
+    ref = Film(48, 32)
+    wfs[0].run(ref, passes=8)
+    bad = wfs[1]
+    calls = {"n": 0}
+    real_run = bad.run
+
+    def flaky_run(film, **kw):
+        calls["n"] += 1
+        if calls["n"] == 1:
+            return real_run(film, **kw)
+
+        class Broken:  # one pass of the batch gets through, then the device "fails"
+            n = 0
+
+            def add_pass(self, radiance):
+                if self.n >= 1:
+                    raise RuntimeError("CL_OUT_OF_RESOURCES (injected)")
+                self.n += 1
+                film.add_pass(radiance)
+
+        kw["passes"] = max(kw["passes"], 2)  # make sure the batch has passes left to hand back
+        return real_run(Broken(), **kw)
+
+    bad.run = flaky_run
+    film = Film(48, 32)
+    with pytest.warns(RuntimeWarning, match="failed and was dropped"):
+        st = MultiDevice(scene, wfs, target_seconds=0.01).run(film, passes=8)
+    assert calls["n"] >= 2
+    assert film.passes == 8 and not st.interrupted
+    assert np.array_equal(film.sum, ref.sum) and np.array_equal(film.sum_sq, ref.sum_sq)
+    failed = [d for d in st.devices if d["failed"]]
+    assert len(failed) == 1 and "injected" in failed[0]["failed"]
+
+
+def test_every_device_failing_is_an_error():
+    scene = small_scene()
+    wfs = two_wavefronts(scene)
+
+    def broken(film, **kw):
+        raise RuntimeError("injected")
+
+    for wf in wfs:
+        wf.run = broken
+    with pytest.warns(RuntimeWarning), pytest.raises(DeviceFailure, match="every device failed"):
+        MultiDevice(scene, wfs).run(Film(48, 32), passes=4)
+
+
+def test_cancel_keeps_a_prefix_of_passes():
+    scene = small_scene()
+    wfs = two_wavefronts(scene)
+    ref = Film(48, 32)
+    wfs[0].run(ref, passes=3)
+    film = Film(48, 32)
+    seen = []
+
+    def progress(passes, elapsed):
+        seen.append(passes)
+
+    md = MultiDevice(scene, wfs, target_seconds=0.01)
+    st = md.run(film, passes=10_000, progress=progress, cancel=lambda: film.passes >= 3, tick_seconds=0.01)
+    assert st.interrupted and 3 <= film.passes < 10_000
+    # the film holds passes [0, n) in order: its first 3 passes are the reference's
+    again = Film(48, 32)
+    wfs[0].run(again, passes=film.passes)
+    assert np.array_equal(film.sum, again.sum)

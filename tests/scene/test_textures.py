@@ -1,0 +1,299 @@
+"""Textures and UVs (cl/textures.h, pyopencl_rt/textures.py) and the glTF / OBJ loaders that
+bring them in (pyopencl_rt/gltf.py, pyopencl_rt/scenefile.py)."""
+import json
+import math
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pyopencl as cl
+import pytest
+
+from pyopencl_rt import load_scene
+from pyopencl_rt.render.api import render_full
+from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
+from pyopencl_rt.scene.textures import bilinear, pack_textures, srgb_to_linear, texture_from_array
+
+ROOT = Path(__file__).resolve().parents[2]
+
+HARNESS = r"""
+#include "textures.h"
+__kernel void h_tex(__global const Texture *textures, __global const float4 *data, __global const int *index,
+                    __global const float2 *uv, __global float4 *out)
+{
+    const int i = get_global_id(0);
+    out[i] = tex_sample(textures, data, index[i], uv[i]);
+}
+"""
+
+
+def _buf(runtime, a):
+    return cl.Buffer(runtime.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                     hostbuf=np.ascontiguousarray(a))
+
+
+def tex_lookup(runtime, textures, index, uv):
+    table, data = pack_textures(textures)
+    uv = np.ascontiguousarray(uv, np.float32)
+    index = np.ascontiguousarray(np.broadcast_to(np.asarray(index, np.int32), (len(uv),)))
+    out = np.zeros((len(uv), 4), np.float32)
+    ob = cl.Buffer(runtime.context, cl.mem_flags.WRITE_ONLY, out.nbytes)
+    k = runtime.kernel((), "h_tex", extra=HARNESS)
+    k(runtime.queue, (len(uv),), None, _buf(runtime, table), _buf(runtime, data), _buf(runtime, index),
+      _buf(runtime, uv), ob)
+    cl.enqueue_copy(runtime.queue, out, ob)
+    return out
+
+
+# ----------------------------------------------------------------------------- lookups
+def test_bilinear_matches_reference(runtime, rng):
+    """Bilinear, wrap-addressed lookups of a non-square, a 1x1 and a 1xN texture (packed
+    together, so offsets matter) match the float64 reference, for uv inside [0, 1), outside it
+    (wrap) and at texel centres and edges."""
+    texs = [texture_from_array(rng.random((5, 7, 4)).astype(np.float32)),
+            texture_from_array(np.array([[[0.25, 0.5, 0.75, 1.0]]], np.float32)),
+            texture_from_array(rng.random((1, 9, 3)).astype(np.float32))]
+    for i, t in enumerate(texs):
+        uv = np.concatenate([rng.uniform(0, 1, (2000, 2)), rng.uniform(-5, 5, (2000, 2)),
+                             (np.stack(np.meshgrid(np.arange(8) / 7, np.arange(6) / 5), -1).reshape(-1, 2))])
+        got = tex_lookup(runtime, texs, i, uv)
+        want = bilinear(t.texels, uv.astype(np.float32))
+        assert np.abs(got - want).max() < 2e-5, f"texture {i}: max error {np.abs(got - want).max()}"
+    # exact texel centres return the texels
+    t = texs[0]
+    y, x = np.indices((5, 7))
+    uv = np.stack([(x + 0.5) / 7, (y + 0.5) / 5], -1).reshape(-1, 2)
+    got = tex_lookup(runtime, texs, 0, uv)
+    assert np.abs(got - t.texels.reshape(-1, 4)).max() < 2e-5
+    # non-finite uv reads (0, 0)
+    got = tex_lookup(runtime, texs, 0, np.array([[np.nan, np.inf]], np.float32))
+    assert np.all(np.isfinite(got))
+
+
+def test_srgb_decode():
+    x = np.array([0, 0.02, 0.04045, 0.5, 1.0])
+    want = [0, 0.02 / 12.92, 0.04045 / 12.92, ((0.5 + 0.055) / 1.055) ** 2.4, 1.0]
+    assert np.allclose(srgb_to_linear(x), want, rtol=1e-12, atol=0)
+    t = texture_from_array(np.array([[[0, 128, 255]]], np.uint8), srgb=True)
+    assert np.allclose(t.texels[0, 0, :3], srgb_to_linear(np.array([0, 128, 255]) / 255.0), atol=1e-7)
+    assert t.texels[0, 0, 3] == 1.0 and t.srgb
+    g = texture_from_array(np.array([[7, 9]], np.uint16))  # grey 16-bit: linear, replicated
+    assert np.allclose(g.texels[0, 1, :3], 9 / 65535) and g.channels == 1
+
+
+# ----------------------------------------------------------------------------- rendering
+def checker_plane_scene(rho, sky, tex, uv_scale=1.0, max_depth=3):
+    v = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32)
+    f = np.array([[0, 2, 1], [0, 3, 2]], np.int32)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)[f] * uv_scale
+    return Scene(vertices=v, faces=f, face_materials=np.zeros(2, np.int32),
+                 materials=[Material("plane", albedo=(1, 1, 1), base_texture=tex),
+                            Material("sky", albedo=(0, 0, 0), emission=(sky,) * 3, two_sided=True)],
+                 camera=Camera(eye=(0, 2, 0), look_at=(0, 0, 0.001), up=(0, 0, 1), fov=45),
+                 spheres=np.array([[0, 0, 0, 1000]], np.float32), sphere_materials=np.array([1], np.int32),
+                 settings=RenderSettings(width=32, height=32, max_depth=max_depth), uvs=uv)
+
+
+def test_textured_plane_under_uniform_sky(device):
+    """A diffuse plane whose albedo texture is a 2x2 checker of rho_a / rho_b (16x16 texels per
+    cell, no filtering inside a cell) under a uniform sky L renders rho(u, v) L: the means of
+    pixel blocks well inside each cell agree within 3 standard errors (+ float floor)."""
+    ra, rb, sky = 0.2, 0.7, 2.0
+    cells = np.where((np.indices((32, 32)) // 16).sum(0) % 2 == 0, ra, rb).astype(np.float32)
+    tex = texture_from_array(np.repeat(cells[:, :, None], 3, 2))
+    sc = checker_plane_scene(ra, sky, tex)
+    for integrator in ("path", "nee"):
+        r = render_full(sc, spp=32, device=device, seed=11, integrator=integrator)
+        assert r.info["nonfinite_samples"] == 0
+        img = r.image.astype(np.float64)
+        # the plane spans x, z in [-1, 1]; u runs with x, v with z.  The camera looks down -y with
+        # up = +z; find each pixel's (u, v) by projecting the pixel centres onto the plane.
+        h, w = img.shape[:2]
+        tan = math.tan(math.radians(45) / 2)
+        px = ((np.arange(w) + 0.5) / w * 2 - 1) * tan * 2  # image x -> world
+        pz = (1 - (np.arange(h) + 0.5) / h * 2) * tan * 2
+        X, Z = np.meshgrid(px, pz)
+        # camera right = forward x up = (0,-1,0) x (0,0,1) = (-1, 0, 0)
+        X = -X
+        u, v = (X + 1) / 2, (Z + 1) / 2
+        inside = (np.abs(X) < 0.95) & (np.abs(Z) < 0.95)
+        for cu in (0, 1):
+            for cv in (0, 1):
+                # texel rows are v, columns u; cell (row, col) = (cv, cu)
+                rho = ra if (cu + cv) % 2 == 0 else rb
+                sel = inside & (np.abs(u - (cu * 0.5 + 0.25)) < 0.17) & (np.abs(v - (cv * 0.5 + 0.25)) < 0.17)
+                vals = img[sel].reshape(-1)
+                assert len(vals) > 20
+                m, se = vals.mean(), vals.std() / math.sqrt(len(vals))
+                assert abs(m - rho * sky) <= 3 * se + 2e-5 * rho * sky, (integrator, cu, cv, m, rho * sky, se)
+
+
+def test_textured_emitter_nee_matches_bsdf(device):
+    """A striped emission texture on a quad light over a diffuse floor: light sampling (which
+    applies the texture at the sampled point) and BSDF sampling agree (tile z-tests)."""
+    stripes = np.where((np.arange(8) // 2) % 2 == 0, 1.0, 0.1).astype(np.float32)
+    tex = texture_from_array(np.repeat(np.tile(stripes, (8, 1))[:, :, None], 3, 2))
+    v = np.array([[-3, 0, -3], [3, 0, -3], [3, 0, 3], [-3, 0, 3],
+                  [-0.5, 1, -0.5], [0.5, 1, -0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5]], np.float32)
+    f = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]], np.int32)
+    uvq = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
+    uv = np.concatenate([uvq[[[0, 2, 1], [0, 3, 2]]], uvq[[[0, 1, 2], [0, 2, 3]]]])
+    sc = Scene(vertices=v, faces=f, face_materials=np.array([0, 0, 1, 1], np.int32),
+               materials=[Material("floor", albedo=(0.5,) * 3),
+                          Material("lamp", albedo=(0, 0, 0), emission=(4,) * 3, emission_texture=tex)],
+               camera=Camera(eye=(0, 3, 3), look_at=(0, 0, 0), fov=50),
+               settings=RenderSettings(width=16, height=16, max_depth=2), uvs=uv)
+    res = {}
+    for i, integ in enumerate(("bsdf", "nee", "path")):
+        r = render_full(sc, spp=128, device=device, seed=5 + i, integrator=integ)
+        assert r.info["nonfinite_samples"] == 0
+        var = r.film.variance_of_mean()
+        m = r.image.astype(np.float64).reshape(4, 4, 4, 4, 3).mean(axis=(1, 3))
+        vv = var.reshape(4, 4, 4, 4, 3).sum(axis=(1, 3)) / 16 ** 2
+        res[integ] = (m, vv)
+    for a, b in (("bsdf", "nee"), ("path", "nee")):
+        (ma, va), (mb, vb) = res[a], res[b]
+        z = (ma - mb) / np.sqrt(va + vb + 1e-12)
+        assert np.abs(z).max() < 4.5, (a, b, np.abs(z).max())
+
+
+# ----------------------------------------------------------------------------- glTF
+def _pil(a):
+    from PIL import Image
+
+    return Image.fromarray(np.asarray(a, np.uint8))
+
+
+def add_material_extensions(path, by_name):
+    data = Path(path).read_bytes()
+    jlen = struct.unpack_from("<I", data, 12)[0]
+    tree = json.loads(data[20:20 + jlen])
+    rest = data[20 + jlen:]
+    for m in tree.get("materials", []):
+        if m.get("name") in by_name:
+            m.setdefault("extensions", {}).update(by_name[m["name"]])
+    j = json.dumps(tree).encode()
+    j += b" " * (-len(j) % 4)
+    body = struct.pack("<II", len(j), 0x4E4F534A) + j + rest
+    Path(path).write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
+
+
+def write_test_glb(path, camera=True):
+    import trimesh
+    from trimesh.visual import TextureVisuals
+    from trimesh.visual.material import PBRMaterial
+
+    tex = _pil(np.full((4, 4, 3), 128))
+    quad = trimesh.Trimesh(vertices=[[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], faces=[[0, 1, 2], [0, 2, 3]],
+                           process=False)
+    quad.visual = TextureVisuals(uv=np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float), material=PBRMaterial(
+        name="paint", baseColorFactor=[255, 128, 0, 255], metallicFactor=0.25, roughnessFactor=0.5,
+        baseColorTexture=tex, metallicRoughnessTexture=_pil(np.full((2, 2, 3), 255))))
+    lamp = trimesh.Trimesh(vertices=[[0, 0, 0], [1, 0, 0], [0, 1, 0]], faces=[[0, 1, 2]], process=False)
+    lamp.visual = TextureVisuals(uv=np.zeros((3, 2)), material=PBRMaterial(
+        name="lamp", emissiveFactor=[1.0, 0.5, 0.25], metallicFactor=0.0))
+    glass = trimesh.Trimesh(vertices=[[0, 0, 1], [1, 0, 1], [0, 1, 1]], faces=[[0, 1, 2]], process=False)
+    glass.visual = TextureVisuals(uv=np.zeros((3, 2)), material=PBRMaterial(name="glass", metallicFactor=0.0,
+                                                                          roughnessFactor=0.0))
+    sc = trimesh.Scene()
+    sc.add_geometry(quad, node_name="quad", transform=trimesh.transformations.translation_matrix([2, 0, 0]))
+    T = trimesh.transformations.rotation_matrix(np.pi / 2, [0, 0, 1]) @ trimesh.transformations.scale_matrix(2)
+    sc.add_geometry(lamp, node_name="lamp", transform=trimesh.transformations.translation_matrix([0, 0, -3]) @ T)
+    sc.add_geometry(glass, node_name="glass")
+    if camera:
+        sc.camera = trimesh.scene.Camera(resolution=(64, 48), fov=(50 * 64 / 48, 50))
+        sc.camera_transform = trimesh.transformations.translation_matrix([0.5, 0.5, 6])
+    sc.export(path)
+    add_material_extensions(path, {
+        "lamp": {"KHR_materials_emissive_strength": {"emissiveStrength": 8.0}},
+        "glass": {"KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_ior": {"ior": 1.33}}})
+    return path
+
+
+def test_gltf_import(tmp_path):
+    p = write_test_glb(tmp_path / "t.glb")
+    sc = load_scene(p)
+    mats = {m.name: m for m in sc.materials}
+    assert set(mats) == {"paint", "lamp", "glass"}
+    paint, lamp, glass = mats["paint"], mats["lamp"], mats["glass"]
+    assert paint.type == "gltf" and np.allclose(paint.albedo, (1, 128 / 255, 0), atol=1e-6)
+    assert paint.metallic == pytest.approx(0.25) and paint.alpha == pytest.approx(0.25)
+    assert paint.base_texture is not None and paint.base_texture.srgb
+    assert np.allclose(paint.base_texture.texels[..., :3], srgb_to_linear(128 / 255), atol=1e-6)
+    assert paint.mr_texture is not None and not paint.mr_texture.srgb
+    assert np.allclose(lamp.emission, (8, 4, 2))
+    assert glass.type == "dielectric" and glass.ior == pytest.approx(1.33) and glass.alpha == 0
+    # world positions: node transforms applied
+    for m_name, want in (("paint", [[2, 0, 0], [3, 0, 0], [3, 1, 0], [2, 1, 0]]),
+                         ("lamp", [[0, 0, -3], [0, 2, -3], [-2, 0, -3]])):
+        k = sc.materials.index(mats[m_name])
+        used = np.unique(sc.faces[sc.face_materials == k])
+        got = sc.vertices[used]
+        for w in want:
+            assert np.min(np.linalg.norm(got - np.array(w), axis=1)) < 1e-5, (m_name, w, got)
+    # UVs: the quad's corners
+    k = sc.materials.index(paint)
+    fi = np.nonzero(sc.face_materials == k)[0]
+    corners = sc.vertices[sc.faces[fi]].reshape(-1, 3)
+    uvs = sc.uvs[fi].reshape(-1, 2)
+    assert np.allclose(uvs[:, 0], corners[:, 0] - 2, atol=1e-6)
+    # camera
+    assert sc.camera.fov == pytest.approx(50, abs=1e-4)
+    assert np.allclose(sc.camera.eye, (0.5, 0.5, 6)) and np.allclose(sc.camera.look_at, (0.5, 0.5, 5))
+    assert sc.settings.width == round(sc.settings.height * 64 / 48)
+    recs = sc.material_records()
+    assert recs["tex_base"][k] >= 0 and recs["tex_mr"][k] >= 0 and recs["tex_emission"][k] == -1
+    assert sc.material_defines().get("HAS_TEXTURES")
+
+
+def test_gltf_without_camera_is_framed(tmp_path):
+    sc = load_scene(write_test_glb(tmp_path / "t.glb", camera=False))
+    lo, hi = sc.vertices.min(0), sc.vertices.max(0)
+    assert np.allclose(sc.camera.look_at, (lo + hi) / 2, atol=1e-5)
+
+
+def test_obj_map_kd(tmp_path):
+    from PIL import Image
+
+    Image.fromarray(np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [255, 255, 255]]], np.uint8)).save(tmp_path / "c.png")
+    (tmp_path / "m.mtl").write_text("newmtl tex\nKd 1 1 1\nmap_Kd -s 1 1 1 c.png\n")
+    (tmp_path / "m.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+                                    "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl tex\nf 1/1 2/2 3/3 4/4\n")
+    sc = load_scene(tmp_path / "m.obj")
+    m = sc.materials[0]
+    assert m.base_texture is not None and m.base_texture.width == 2 and m.base_texture.srgb
+    assert np.allclose(m.base_texture.texels[0, 0, :3], (1, 0, 0))
+    # vt's v points up; flipped to the image's top-down convention
+    assert np.allclose(sc.uvs[0], [[0, 1], [1, 1], [1, 0]])
+    assert np.allclose(sc.uvs[1], [[0, 1], [1, 0], [0, 0]])
+
+
+def test_toml_references_gltf_and_overrides(tmp_path):
+    write_test_glb(tmp_path / "t.glb")
+    (tmp_path / "s.toml").write_text(
+        '[materials.lamp]\nemission = 3\n'
+        '[[shape]]\ntype = "mesh"\nfile = "t.glb"\nuse_file_materials = true\ntranslate = [0, 1, 0]\n')
+    sc = load_scene(tmp_path / "s.toml")
+    names = {m.name: m for m in sc.materials}
+    assert names["lamp"].emission == (3.0, 3.0, 3.0) and names["lamp"].type == "diffuse"
+    assert names["paint"].base_texture is not None
+    assert sc.uvs is not None and sc.uvs.shape == (len(sc.faces), 3, 2)
+
+
+def test_cli_renders_glb(tmp_path):
+    write_test_glb(tmp_path / "t.glb")
+    out = subprocess.run([sys.executable, "-m", "pyopencl_rt.cli", "render", str(tmp_path / "t.glb"), "--spp", "2",
+                          "--width", "16", "--height", "12", "-o", str(tmp_path / "o.exr")],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / "o.exr").exists()
+
+
+def test_textured_scene_renders(device):
+    sc = load_scene(ROOT / "scenes" / "textured.toml")
+    assert sc.has_textures()
+    r = render_full(sc, spp=4, device=device, seed=1, width=40, height=30)
+    assert r.info["nonfinite_samples"] == 0
+    assert np.isfinite(r.image).all() and r.image.mean() > 0
