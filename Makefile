@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: all venv test render bench bench-rays bench-bvh bench-render stress clean
+.PHONY: all venv test render bench bench-rays bench-bvh bench-render bench-materials stress gpu-check clean
 
 all: test
 
@@ -28,17 +28,32 @@ bench-rays: $(STAMP)
 	$(VENV)/bin/pyopencl-rt bench rays --device cpu --json docs/bench/rays.json
 
 bench-bvh: $(STAMP)
-	$(PY) tools/bench_bvh.py --json docs/bench/bvh.json
+	$(VENV)/bin/pyopencl-rt bench bvh --json docs/bench/bvh.json
 
 bench-render: $(STAMP)
 	$(VENV)/bin/pyopencl-rt bench render scenes/cornell-box.toml --device cpu --width 512 --height 512 \
 		--spp 16 --max-depth 8 --json docs/bench/render.json
 
-bench: bench-bvh bench-rays bench-render
+bench-materials: $(STAMP)
+	$(VENV)/bin/pyopencl-rt bench materials --device cpu --json docs/bench/materials.json
 
-# The long version of the numerical stress suite (docs/ROBUSTNESS.md); `make test` runs the quick one.
+bench: bench-bvh bench-rays bench-render bench-materials
+
+# The long variants of the size-dependent tests, marked `stress` (docs/ROBUSTNESS.md; `make test`
+# runs the quick ones), with their summary in docs/bench/stress.{json,md}.
 stress: $(STAMP)
-	$(PY) tools/stress.py
+	$(PY) -m pytest -m stress tests -q -rxXf -p no:cacheprovider --report-json docs/bench/stress.json
+
+# On a machine with an NVIDIA GPU (docs/DEVICES.md): make its OpenCL driver visible, then the suite on
+# the GPU device and the ray and render benchmarks on every device, all results as JSON in $(OUT)/gpu/.
+gpu-check: $(STAMP)
+	mkdir -p $(OUT)/gpu /etc/OpenCL/vendors
+	test -e /etc/OpenCL/vendors/nvidia.icd || echo libnvidia-opencl.so.1 > /etc/OpenCL/vendors/nvidia.icd
+	$(VENV)/bin/pyopencl-rt devices --json > $(OUT)/gpu/devices.json
+	-PYOPENCL_TEST=gpu $(PY) -m pytest -q -p no:cacheprovider tests --report-json $(OUT)/gpu/tests.json
+	-$(VENV)/bin/pyopencl-rt bench rays --device all --layout both --sizes 100k,1M --json $(OUT)/gpu/rays.json
+	-$(VENV)/bin/pyopencl-rt bench render scenes/cornell-box.toml --device all --width 512 --height 512 \
+		--spp 64 --max-depth 8 --json $(OUT)/gpu/render.json
 
 clean:
 	rm -rf $(VENV) build dist *.egg-info $(OUT) .pytest_cache

@@ -1,6 +1,6 @@
 /* BSDF dispatch on Material.type.  Each material lives in cl/materials/<name>.h with its
  * documentation at the top; this file only routes calls and unpacks the Material record
- * (pyopencl_rt/layout.py documents its fields).
+ * (pyopencl_rt/device/abi.py documents its fields).
  *
  * Materials compiled in: all of them, unless the host defines MATERIALS_SELECTED together with
  * HAS_MATERIAL_<NAME> for the types a scene uses (Scene.material_defines() gives that set), so
@@ -31,11 +31,7 @@
 #include "materials/dielectric.h"
 #include "materials/gltf.h"
 
-#define MATERIAL_DIFFUSE 0
-#define MATERIAL_CONDUCTOR 1
-#define MATERIAL_DIELECTRIC 2
-#define MATERIAL_GLTF 3
-#define MATERIAL_FLAG_CONDUCTOR_F0 2 /* bit 0 (MATERIAL_FLAG_TWO_SIDED) is in lights.h */
+/* MATERIAL_<TYPE> and MATERIAL_FLAG_* come from the generated header (pyopencl_rt/device/abi.py). */
 
 #ifndef MATERIALS_SELECTED
 #define HAS_MATERIAL_CONDUCTOR

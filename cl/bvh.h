@@ -1,6 +1,6 @@
 /* Stack-based BVH traversal: closest hit and any hit.
  *
- * Node layout (struct BVHNode, generated from pyopencl_rt/layout.py, 64 bytes):
+ * Node layout (struct BVHNode, generated from pyopencl_rt/device/abi.py, 64 bytes):
  *
  *     offset  0  float bmin_left[3]   int child_left     box of the left child, then its index
  *     offset 16  float bmax_left[3]   int count_left
@@ -15,21 +15,20 @@
  * Triangles are stored reordered, three float4 vertices each (48 bytes), so a leaf is a
  * contiguous range; prim_ids maps a reordered index back to the caller's face index.
  *
- * The builder caps the depth at 60, so the 64-entry stack cannot overflow: at most one entry is
- * pushed per level.
+ * The builder caps the depth at 60, so the stack (BVH_STACK_SIZE = 64 entries) cannot overflow:
+ * at most one entry is pushed per level.
  */
 #ifndef PYOPENCL_RT_BVH_H
 #define PYOPENCL_RT_BVH_H
 
 #include "intersect.h"
 
-#define BVH_STACK_SIZE 64
 #define FAST_MIN(a, b) ((a) < (b) ? (a) : (b))
 #define FAST_MAX(a, b) ((a) > (b) ? (a) : (b))
 
 typedef struct {
     float t, u, v;
-    int tri; /* reordered triangle index, -1 for a miss */
+    int prim; /* reordered triangle index, PRIM_MISS; scene.h adds spheres */
 } Hit;
 
 
@@ -40,7 +39,7 @@ RT_INLINE void intersect_leaf(float3 o, float3 d, RayShear sh, __global const fl
         float t, u, v;
         if (intersect_triangle(o, d, sh, tris[3 * i].xyz, tris[3 * i + 1].xyz, tris[3 * i + 2].xyz,
                                tmin, hit->t, &t, &u, &v)) {
-            hit->t = t; hit->u = u; hit->v = v; hit->tri = i;
+            hit->t = t; hit->u = u; hit->v = v; hit->prim = i;
         }
     }
 }
@@ -80,11 +79,11 @@ RT_INLINE void intersect_children(__global const float4 *node, float8 o8, float8
     *tr = (as_int(q3.w) >= 0 && enter_r <= FAST_MIN(leave_r, tmax)) ? enter_r : INFINITY;
 }
 
-/* Closest hit in (tmin, tmax).  hit->tri = -1 when nothing is hit. */
+/* Closest hit in (tmin, tmax).  hit.prim = PRIM_MISS when nothing is hit. */
 RT_INLINE Hit bvh_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
                            float3 o, float3 d, float tmin, float tmax)
 {
-    Hit hit; hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.tri = -1;
+    Hit hit; hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.prim = PRIM_MISS;
     const RayShear sh = ray_shear(d);
     const float3 inv_d = safe_rcp3(d);
     const float8 o8 = (float8)(o, o.z, o, o.z), inv8 = (float8)(inv_d, inv_d.z, inv_d, inv_d.z);

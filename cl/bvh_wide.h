@@ -1,9 +1,9 @@
-/* Traversal of the 4-wide BVH (pyopencl_rt/bvh_wide.py) for CPU devices: closest hit and any hit.
+/* Traversal of the 4-wide BVH (pyopencl_rt/accel/bvh_wide.py) for CPU devices: closest hit and any hit.
  *
  * Included after bvh.h when BVH_WIDE is defined (cl/trace.cl, cl/scene.h); it then replaces
  * bvh_closest_hit / bvh_any_hit by the wide versions below (same arguments and Hit result, but
- * the first buffer holds the wide BVH instead of BVHNode records).  Hit.tri stays the index into
- * the binary BVH's reordered triangle array, so prim_ids[tri] and triangle_normal(tris, tri) work
+ * the first buffer holds the wide BVH instead of BVHNode records).  Hit.prim stays the index into
+ * the binary BVH's reordered triangle array, so prim_ids[prim] and triangle_normal(tris, prim) work
  * unchanged; the tris buffer itself is not read by the traversal.
  *
  * PoCL runs every work-item as scalar code, so the SIMD width comes from inside one work-item:
@@ -19,8 +19,8 @@
  * lane, whose vertices are NaN).  The root node is at offset 0.
  *
  * Stack: every wide level descends two binary levels (bvh_wide.py), so the wide depth is at most
- * 30 and, with at most 3 children pushed per node, the 96-entry stack cannot overflow (checked on
- * the host by validate_wide).  An entry is 8 bytes, an int code and the child's entry distance:
+ * 30 and, with at most 3 children pushed per node, the stack (WIDE_STACK_SIZE = 96 entries) cannot
+ * overflow (checked on the host by validate_wide).  An entry is 8 bytes, an int code and the child's entry distance:
  * code >= 0 is an inner node's offset; a leaf is code = -1 - (parent node offset + slot), its
  * packets then read from the parent's child/count.  The stack is kept small because PoCL holds a
  * private copy per work-item of a work-group (a 2.3 KB stack crashed groups of 4096).
@@ -30,8 +30,6 @@
 
 #include "bvh.h"
 
-#define WIDE_STACK_SIZE 96
-#define TRI4_UNITS 10 /* float4s per packet */
 #define FAST_MIN4(a, b) select((b), (a), (a) < (b))
 #define FAST_MAX4(a, b) select((b), (a), (a) > (b))
 
@@ -200,7 +198,7 @@ RT_INLINE void intersect_leaf4(__global const float4 *pk, int count, const WideR
         hit->t = best;
         hit->u = lane4(V, k) * rcp;
         hit->v = lane4(W, k) * rcp;
-        hit->tri = ((__global const int *)(pk + 9))[k];
+        hit->prim = ((__global const int *)(pk + 9))[k];
     }
 }
 
@@ -247,14 +245,14 @@ RT_INLINE void wide_decode(__global const float4 *base, int code, int *off, int 
     *cnt = ((__global const int *)(parent + 7))[ref & 7];
 }
 
-/* Closest hit in (tmin, tmax).  hit.tri = -1 when nothing is hit.  Ordered traversal: the hit
+/* Closest hit in (tmin, tmax).  hit.prim = PRIM_MISS when nothing is hit.  Ordered traversal: the hit
  * children of a node are visited nearest entry first (the others pushed far to near), leaves
  * included, and a popped entry is skipped when it was entered beyond the closest hit since. */
 RT_INLINE Hit bvh_wide_closest_hit(__global const void *bvh, __global const float4 *tris,
                                    float3 o, float3 d, float tmin, float tmax)
 {
     __global const float4 *base = (__global const float4 *)bvh;
-    Hit hit; hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.tri = -1;
+    Hit hit; hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.prim = PRIM_MISS;
     const WideRay r = wide_ray(o, d);
     int stack_code[WIDE_STACK_SIZE];
     float stack_t[WIDE_STACK_SIZE];

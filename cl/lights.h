@@ -15,7 +15,7 @@
  * material has MATERIAL_FLAG_TWO_SIDED.
  *
  * light_sample_all() adds the lights that are not surfaces (conventions of pbrt-v4; the Light
- * record's fields are documented in pyopencl_rt/layout.py):
+ * record's fields are documented in pyopencl_rt/device/abi.py):
  *
  *   point        (HAS_DELTA_LIGHTS) intensity I [W/sr] at p: Le = I / dist^2, a delta light:
  *                ls->delta = 1, ls->pdf = 1 and MIS weight 1 (BSDF sampling never hits it)
@@ -39,13 +39,6 @@
 #define PYOPENCL_RT_LIGHTS_H
 
 #include "scene.h"
-
-#define LIGHT_TRIANGLE 0
-#define LIGHT_SPHERE 1
-#define LIGHT_POINT 2
-#define LIGHT_DIRECTIONAL 3
-#define LIGHT_ENVIRONMENT 4
-#define MATERIAL_FLAG_TWO_SIDED 1
 
 typedef struct {
     float3 p;   /* point on the light */

@@ -1,8 +1,7 @@
 /* The scene as the wavefront kernels see it: triangles in a BVH, spheres in a short list,
- * materials, emitters; and the parameter list every wavefront kernel shares.
- *
- * Hit encoding: prim >= 0 is a triangle (index into the BVH-reordered triangle array),
- * prim <= -2 is sphere (-2 - prim), prim == -1 is a miss.
+ * materials, emitters.  The parameter list every wavefront kernel shares (WAVE_PARAMS), the
+ * COUNTER_* slots and the hit encoding (PRIM_MISS, PRIM_SPHERE_FIRST) are generated from
+ * pyopencl_rt/device/abi.py.
  *
  * Features are compiled in only when the scene uses them: HAS_TRIANGLES, HAS_SPHERES,
  * HAS_LIGHTS (next-event estimation), and INTEGRATOR (0 = MIS path, 1 = BSDF sampling only,
@@ -19,45 +18,9 @@
 #include "bsdf.h"
 #include "rng.h"
 
-#define PRIM_MISS (-1)
-#define SPHERE_PRIM(s) (-2 - (s))
-#define IS_SPHERE(prim) ((prim) <= -2)
-#define SPHERE_INDEX(prim) (-2 - (prim))
-
-/* Every wavefront kernel takes the same parameters, so the host binds buffers once.
- * Textures (cl/textures.h): tri_uv (3 UVs per reordered triangle), the Texture table, the float4
- * texels and mat_scratch (one effective Material per path slot); dummies without HAS_TEXTURES.
- * env_map, env_cdf: the environment map and its sampling CDFs (cl/lights.h); dummies without
- * HAS_ENVIRONMENT. */
-#define WAVE_PARAMS                                                                                 \
-    __global const BVHNode *nodes, __global const float4 *tris, __global const int *tri_material,  \
-    __global const int *tri_light, __global const Sphere *spheres, __global const int *sphere_material, \
-    __global const int *sphere_light, __global const Material *materials, __global const Light *lights, \
-    __global const Camera *camera,                                                                  \
-    __global float *ray_o, __global float *ray_d, __global float *throughput, __global float *radiance, \
-    __global int *path_pixel, __global int *path_pass, __global int *path_depth, __global float *path_pdf, \
-    __global float *hit_t, __global int *hit_prim, __global float *hit_u, __global float *hit_v,    \
-    __global float *sh_o, __global float *sh_d, __global float *sh_contrib,                         \
-    __global const float2 *tri_uv, __global const Texture *textures, __global const float4 *tex_data, \
-    __global Material *mat_scratch,                                                                 \
-    __global int *queue_in, __global int *queue_out, __global int *shadow_q, __global int *term_q,  \
-    __global int *free_q, __global int *counters, __global float *pass_ring,                        \
-    __global const float *env_map, __global const float *env_cdf,                                   \
-    const int n_spheres, const int n_lights, const int n_pixels, const int ring_size,               \
-    const int max_depth, const int rr_depth, const uint seed,                                      \
-    const int a0, const int a1, const int a2, const int a3, const int a4
-
-/* Work-group size of every wavefront launch (the host's LOCAL_SIZE, pyopencl_rt/wavefront.py). */
-#ifndef WAVE_LOCAL_SIZE
-#define WAVE_LOCAL_SIZE 64
-#endif
-
-/* counters[] slots (the pass completion counts of the ring follow at COUNTER_PASS_DONE) */
-#define COUNTER_QUEUE_OUT 0
-#define COUNTER_SHADOW 1
-#define COUNTER_TERM 2
-#define COUNTER_NONFINITE 3
-#define COUNTER_PASS_DONE 8
+#define SPHERE_PRIM(s) (PRIM_SPHERE_FIRST - (s))
+#define IS_SPHERE(prim) ((prim) <= PRIM_SPHERE_FIRST)
+#define SPHERE_INDEX(prim) (PRIM_SPHERE_FIRST - (prim))
 
 /* random-number dimensions: 2 for the pixel jitter, then DIMS_PER_BOUNCE per bounce */
 #define DIM_PIXEL 0
@@ -76,13 +39,13 @@ RT_INLINE Hit scene_closest_hit(__global const BVHNode *nodes, __global const fl
 #ifdef HAS_TRIANGLES
     hit = bvh_closest_hit(nodes, tris, o, d, tmin, tmax);
 #else
-    hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.tri = PRIM_MISS;
+    hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.prim = PRIM_MISS;
 #endif
 #ifdef HAS_SPHERES
     for (int s = 0; s < n_spheres; ++s) {
         float t;
         if (intersect_sphere(o, d, vload3(0, spheres[s].center), spheres[s].radius, tmin, hit.t, &t)) {
-            hit.t = t; hit.tri = SPHERE_PRIM(s); hit.u = 0.0f; hit.v = 0.0f;
+            hit.t = t; hit.prim = SPHERE_PRIM(s); hit.u = 0.0f; hit.v = 0.0f;
         }
     }
 #endif

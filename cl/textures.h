@@ -1,7 +1,7 @@
 /* Image textures (compiled only with HAS_TEXTURES; pyopencl_rt/textures.py loads and packs them).
  *
  * Storage: one float4 texel buffer (linear RGBA: sRGB colour images are decoded at load) and a
- * table of Texture records (offset, width, height; pyopencl_rt/layout.py).  Texture coordinates:
+ * table of Texture records (offset, width, height; pyopencl_rt/device/abi.py).  Texture coordinates:
  * (0, 0) is the top-left corner of the image, texel (x, y) covers [x, x+1)/W x [y, y+1)/H.
  *
  * Lookup: bilinear filtering between the four nearest texel centres, wrap (repeat) addressing in

@@ -20,9 +20,9 @@ __kernel void trace_closest(__global const BVHNode *nodes, __global const float4
     if (i >= n_rays) return;
     const float3 o = load3(origins, i), d = load3(directions, i);
     const Hit h = bvh_closest_hit(nodes, tris, o, d, tmin[i], tmax[i]);
-    if (h.tri >= 0) {
-        out_t[i] = h.t; out_prim[i] = prim_ids[h.tri]; out_u[i] = h.u; out_v[i] = h.v;
-        store3(out_ng, i, triangle_normal(tris, h.tri));
+    if (h.prim >= 0) {
+        out_t[i] = h.t; out_prim[i] = prim_ids[h.prim]; out_u[i] = h.u; out_v[i] = h.v;
+        store3(out_ng, i, triangle_normal(tris, h.prim));
     } else {
         out_t[i] = INFINITY; out_prim[i] = -1; out_u[i] = 0.0f; out_v[i] = 0.0f;
         store3(out_ng, i, (float3)(0.0f));

@@ -15,7 +15,7 @@ from .device.devices import list_devices, select_device
 from .errors import DeviceSelectionError, UserError
 from .render.api import render, render_full
 from .scene.model import Camera, Material, RenderSettings, Scene
-from .scene.scenefile import load_scene
+from .scene.loaders import load_scene
 from .trace import occluded, trace
 
 __all__ = [

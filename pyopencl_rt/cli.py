@@ -124,16 +124,22 @@ def _clock(seconds):
               help="Checkpoint file (default: OUTPUT with .ckpt.npz), written on Ctrl-C/SIGTERM.")
 @click.option("--checkpoint-every", type=float, metavar="SECONDS", help="Also write the checkpoint this often.")
 @click.option("--resume", is_flag=True, help="Continue from the checkpoint up to --spp (same scene and settings).")
+@click.option("-D", "--define", "defines", multiple=True, metavar="NAME=VALUE",
+              help="Set a Mitsuba XML scene's $NAME (overrides its <default>); repeatable.")
 @device_option
 def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, integrator, wave_size, profile, intersector,
-           quiet, scheduler, checkpoint_path, checkpoint_every, resume, device):
-    """Render SCENE (a .toml scene file, or any mesh file such as model.obj) to OUTPUT."""
+           quiet, scheduler, checkpoint_path, checkpoint_every, resume, defines, device):
+    """Render SCENE (a .toml scene file, a Mitsuba 3 .xml or pbrt-v4 .pbrt scene, or any mesh file
+    such as model.obj) to OUTPUT."""
     from .imageio import write_outputs
-    from .render.api import check_settings, render_full
-    from .scene.scenefile import load_scene
+    from .render.api import render_full
+    from .render.checkpoint import default_path
+    from .render.settings import ImageSettings, check_resolution, check_run
+    from .scene.loaders import load_scene
 
-    check_settings(width if width is not None else 1, height if height is not None else 1, spp, max_depth,
-                   integrator, time_limit)
+    check_run(spp, time_limit)
+    if width is not None or height is not None:
+        check_resolution(width if width is not None else 1, height if height is not None else 1)
     if not str(output).lower().endswith(".exr"):
         raise UserError(f"{output}: the output must be an .exr file (a .png and a .json are written beside it)")
     if checkpoint_every is not None and not checkpoint_every > 0:
@@ -142,33 +148,21 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
         from .render.distributed import _import as need_dask
 
         need_dask()
-    from .render.checkpoint import default_path
-
     checkpoint_path = checkpoint_path or str(default_path(output))
-    scene = load_scene(scene_path)
-    w = width or scene.settings.width
-    h = height or scene.settings.height
-    check_settings(w, h, None, None, None, None)
+    scene = load_scene(scene_path, defines=_defines(defines))
+    settings = ImageSettings.resolve(scene, width=width, height=height, max_depth=max_depth, integrator=integrator,
+                                     seed=seed)
     total = spp if spp is not None else (None if time_limit is not None else scene.settings.spp)
-    bar = Progress(total, time_limit, w * h, quiet)
-    wavefront = None
-    if intersector == "embree":
-        from .device.devices import select_device
-        from .render.embree_wavefront import EmbreeWavefront
-
-        wavefront = EmbreeWavefront(scene, select_device(list(device) or None), width=w, height=h,
-                                    integrator=integrator, max_depth=max_depth, seed=seed, wave_size=wave_size)
-    result = render_full(scene, wavefront=wavefront, spp=total, time_limit=time_limit, device=list(device) or None, seed=seed,
-                         width=w, height=h, max_depth=max_depth, integrator=integrator, wave_size=wave_size,
-                         progress=bar, profile=profile, scheduler=scheduler, checkpoint=checkpoint_path,
-                         resume=resume, checkpoint_every=checkpoint_every, handle_signals=True)
+    bar = Progress(total, time_limit, settings.n_pixels, quiet)
+    result = render_full(scene, spp=total, time_limit=time_limit, device=list(device) or None, wave_size=wave_size,
+                         intersector=intersector, progress=bar, profile=profile, scheduler=scheduler,
+                         checkpoint=checkpoint_path, resume=resume, checkpoint_every=checkpoint_every,
+                         handle_signals=True, settings=settings)
     bar.done()
     info = result.info
     if result.film.passes == 0:
         raise UserError("interrupted before the first pass completed: nothing to write")
     paths = write_outputs(output, result.image, info)
-    if profile and wavefront is not None:
-        info["stage_seconds"].update(wavefront.host_seconds)  # host-side Embree stages (with transfers)
     if profile:
         stages = info["stage_seconds"]
         total_s = sum(stages.values()) or 1.0
@@ -189,6 +183,17 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
         sys.exit(130)
 
 
+def _defines(pairs) -> dict | None:
+    """{name: value} of --define NAME=VALUE options (None without any)."""
+    out = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep or not name.strip():
+            raise UserError(f"--define {pair}: expected NAME=VALUE")
+        out[name.strip()] = value
+    return out or None
+
+
 @cli.group()
 def bench():
     """Benchmarks (results as a table and as JSON)."""
@@ -205,7 +210,8 @@ def bench():
               help="BVH layout(s) to time [default: the device's default, wide on CPUs, binary on GPUs].")
 def bench_rays(device, sizes, n_rays, repeat, no_embree, json_path, layout):
     """Rays/s of the OpenCL traversal beside embreex on the very same rays, and BVH build time."""
-    from .bench.throughput import parse_sizes, run_ray_bench
+    from .bench.rays import run_ray_bench
+    from .bench.workloads import parse_sizes
 
     run_ray_bench(
         devices=list(device) or None, sizes=parse_sizes(sizes), n_rays=n_rays, repeat=repeat,
@@ -223,13 +229,94 @@ def bench_rays(device, sizes, n_rays, repeat, no_embree, json_path, layout):
 @click.option("--max-depth", default=8, show_default=True)
 @click.option("--repeat", default=3, show_default=True, help="Timed renders per device (median reported).")
 @click.option("--wave-size", type=int)
+@click.option("--intersector", default="opencl", show_default=True,
+              help="Comma-separated: opencl,embree (extend and shadow rays on embreex), each timed on each device.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
-def bench_render(scene_path, device, width, height, spp, max_depth, repeat, wave_size, json_path):
+def bench_render(scene_path, device, width, height, spp, max_depth, repeat, wave_size, intersector, json_path):
     """Samples/s of the path tracer on each device (kernel build and BVH not timed)."""
-    from .bench.throughput import run_render_bench
+    from .bench.render import run_render_bench
 
     run_render_bench(scene_path, devices=list(device) or None, width=width, height=height, spp=spp,
-                     max_depth=max_depth, repeat=repeat, wave_size=wave_size, json_path=json_path, echo=click.echo)
+                     max_depth=max_depth, repeat=repeat, wave_size=wave_size,
+                     intersectors=parse_intersectors(intersector), json_path=json_path, echo=click.echo)
+
+
+def comma_list(text, allowed, what):
+    """'a,b' -> ["a", "b"], refusing a name not in ``allowed`` with one line that lists them."""
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    for name in names:
+        if name not in allowed:
+            raise UserError(f"unknown {what} {name!r}: use one or more of {', '.join(allowed)}")
+    return names
+
+
+def parse_intersectors(text):
+    from .render.intersectors import INTERSECTORS
+
+    return comma_list(text, INTERSECTORS, "intersector")
+
+
+@bench.command("bvh")
+@click.option("--sizes", default="10k,100k,1M", show_default=True, help="Mesh sizes in triangles.")
+@click.option("--kinds", default="sphere,torus,soup,slivers", show_default=True, help="Mesh kinds.")
+@click.option("--sweep-size", default=100_000, show_default=True,
+              help="Size at which the full-sweep SAH builder runs too, as the quality reference (0: never).")
+@click.option("--repeat", default=3, show_default=True, help="Timed builds per mesh (median reported).")
+@click.option("--check", is_flag=True, help="Validate every BVH (slow on big meshes).")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
+def bench_bvh(sizes, kinds, sweep_size, repeat, check, json_path):
+    """Build time and SAH cost of the host BVH builder, against the full-sweep SAH build."""
+    from .bench.bvh_build import run_bvh_bench
+    from .bench.workloads import MESH_KINDS, parse_sizes
+
+    run_bvh_bench(sizes=parse_sizes(sizes), kinds=comma_list(kinds, MESH_KINDS, "mesh kind"), sweep_size=sweep_size, repeat=repeat, check=check,
+                  json_path=json_path, echo=click.echo)
+
+
+@bench.command("materials")
+@device_option
+@click.option("--scenes", "scenes_dir", default="scenes", show_default=True, type=click.Path(file_okay=False),
+              help="Folder with textured.toml, cornell-jensen.toml and cornell-box.toml.")
+@click.option("--pairs", default="textures,rough,gltf", show_default=True,
+              help="Comma-separated: textures (with/without), rough (vs smooth), gltf (plastic vs diffuse).")
+@click.option("--width", default=256, show_default=True)
+@click.option("--height", default=256, show_default=True)
+@click.option("--spp", default=8, show_default=True, help="Samples per pixel per timed render.")
+@click.option("--repeat", default=3, show_default=True, help="Timed renders per variant (median reported).")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
+def bench_materials(device, scenes_dir, pairs, width, height, spp, repeat, json_path):
+    """Samples/s with and without textures, rough against smooth, glTF against diffuse (a / b)."""
+    from .bench.materials import PAIRS, run_materials_bench
+
+    run_materials_bench(devices=list(device) or None, scenes_dir=scenes_dir, pairs=comma_list(pairs, PAIRS, "pair"),
+                        width=width, height=height, spp=spp, repeat=repeat, json_path=json_path, echo=click.echo)
+
+
+def mitsuba_options(f):
+    """Where Mitsuba 3 and the libLLVM of its llvm_* variants are (nothing is guessed)."""
+    f = click.option("--llvm-path", type=click.Path(dir_okay=False),
+                     help="libLLVM shared library for the llvm_* variants [default: $DRJIT_LIBLLVM_PATH, "
+                     "else Dr.Jit's own search].")(f)
+    f = click.option("--mitsuba-python", type=click.Path(dir_okay=False),
+                     help="Interpreter that imports mitsuba [default: $PYOPENCL_RT_MITSUBA_PYTHON, else this one].")(f)
+    return f
+
+
+@bench.command("mitsuba-cornell-box")
+@mitsuba_options
+@click.option("--variant", default="llvm_ad_rgb", show_default=True, help="Mitsuba variant.")
+@click.option("--spp", default="16,64,256", show_default=True, help="One render per value; the first includes the JIT.")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
+def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path):
+    """Samples/s of Mitsuba 3 on its own Cornell box (mi.cornell_box()), for scale beside ours."""
+    from .bench.mitsuba_host import run_mitsuba_cornell_box
+
+    try:
+        spps = [int(value) for value in spp.split(",") if value.strip()]
+    except ValueError:
+        raise UserError(f"--spp {spp}: expected comma-separated integers") from None
+    run_mitsuba_cornell_box(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=variant, spps=spps,
+                            json_path=json_path, echo=click.echo)
 
 
 @bench.command("convergence")
@@ -246,37 +333,34 @@ def bench_render(scene_path, device, width, height, spp, max_depth, repeat, wave
 @click.option("--height", type=int)
 @click.option("--max-depth", type=int)
 @click.option("--compare", default="", help="Peer renderers beside ours: 'mitsuba' (needs Mitsuba 3; skipped if absent).")
-@click.option("--mitsuba-python", type=click.Path(dir_okay=False),
-              help="Interpreter with mitsuba (default: this one, else $PYOPENCL_RT_MITSUBA_PYTHON).")
+@mitsuba_options
 @click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
 @click.option("--json", "json_path", default="out/convergence.json", show_default=True, type=click.Path(dir_okay=False))
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="PNG plot (default: the JSON path with .png).")
 def bench_convergence(scene_path, device, integrator, intersector, reference, reference_spp, no_cache, budget, width,
-                      height, max_depth, compare, mitsuba_python, mitsuba_variant, json_path, plot_path):
+                      height, max_depth, compare, mitsuba_python, llvm_path, mitsuba_variant, json_path, plot_path):
     """Error (RMSE, relMSE, MAE) against a reference as a function of render time, per device x
     integrator x intersector, optionally beside Mitsuba 3: JSON, a log-log plot and a table."""
     from .bench.convergence import run_convergence
     from .scene.model import INTEGRATORS
 
-    integrators = [x.strip() for x in integrator.split(",") if x.strip()]
-    for x in integrators:
-        if x not in INTEGRATORS:
-            raise UserError(f"unknown integrator {x!r}: use one or more of {', '.join(INTEGRATORS)}")
-    intersectors = [x.strip() for x in intersector.split(",") if x.strip()]
-    for x in intersectors:
-        if x not in ("opencl", "embree"):
-            raise UserError(f"unknown intersector {x!r}: use opencl and/or embree")
+    integrators = comma_list(integrator, INTEGRATORS, "integrator")
+    intersectors = parse_intersectors(intersector)
     if budget is not None and not budget > 0:
         raise UserError(f"--budget must be positive (got {budget})")
     run_convergence(scene_path, devices=list(device) or None, integrators=integrators, intersectors=intersectors,
                     reference=reference, reference_spp=reference_spp, budget=budget, width=width, height=height,
                     max_depth=max_depth, compare=[c.strip() for c in compare.split(",") if c.strip()],
-                    mitsuba_python=mitsuba_python, mitsuba_variant=mitsuba_variant, json_path=json_path,
-                    plot_path=plot_path, use_cache=not no_cache, echo=click.echo)
+                    mitsuba_python=mitsuba_python, mitsuba_variant=mitsuba_variant, llvm_path=llvm_path,
+                    json_path=json_path, plot_path=plot_path, use_cache=not no_cache, echo=click.echo)
 
 
 def main(argv=None):
-    """Entry point: user errors become one line on stderr and a non-zero exit code."""
+    """Entry point: user errors become one line on stderr and a non-zero exit code; warnings
+    (e.g. a scene file's unsupported elements) one line each."""
+    import warnings
+
+    warnings.formatwarning = lambda message, category, *args, **kwargs: f"pyopencl-rt: warning: {message}\n"
     try:
         cli.main(args=argv, prog_name="pyopencl-rt", standalone_mode=False)
     except UserError as exc:

@@ -2,7 +2,20 @@
 
 Select devices with ``PYOPENCL_TEST`` (comma-separated specs as for ``--device``, e.g.
 ``PYOPENCL_TEST=cpu`` or ``PYOPENCL_TEST=0:0,1:0``); by default every device found is used.
+
+Long variants of size-dependent tests carry the ``stress`` marker (registered in setup.cfg).
+They are deselected unless ``-m`` is given: ``pytest tests`` (``make test``) runs the quick
+versions, ``pytest -m stress tests`` (``make stress``) only the long ones.  ``--report-json PATH``
+writes a summary of the run (counts, failures and xfails, and every line a test reported
+through the ``measured`` fixture) to PATH, and as markdown next to it (``make stress`` writes
+docs/bench/stress.json and stress.md).
 """
+import json
+import shlex
+import time
+from collections import Counter
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -30,3 +43,96 @@ def runtime(device):
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+@pytest.fixture
+def device_spec(device):
+    """The ``P:D`` spec of ``device``: for what cannot be handed the pyopencl.Device itself (a
+    subprocess, a Dask worker) or where a spec string is the thing under test."""
+    import harness
+
+    return harness.device_spec(device)
+
+
+@pytest.fixture
+def measured(record_property):
+    """``measured(line)``: one line of what a test measured (escape counts, z-scores, ...):
+    printed (``pytest -s`` shows it) and kept in the ``--report-json`` summary."""
+    def note(line):
+        print(line)
+        record_property("measured", str(line))
+
+    return note
+
+
+# ----------------------------------------------------------------------------- the stress marker
+def pytest_addoption(parser):
+    parser.addoption("--report-json", metavar="PATH", default=None,
+                     help="write a summary of the run (outcomes and `measured` lines) to PATH, "
+                          "and as markdown to PATH with the suffix .md")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Without ``-m``, deselect the long (``stress``) variants."""
+    if config.option.markexpr:
+        return
+    keep = [item for item in items if item.get_closest_marker("stress") is None]
+    if len(keep) < len(items):
+        config.hook.pytest_deselected(items=[item for item in items if item.get_closest_marker("stress")])
+        items[:] = keep
+
+
+def pytest_configure(config):
+    path = config.getoption("--report-json")
+    if path:
+        config.pluginmanager.register(RunReport(config, Path(path)), "pyopencl-rt-run-report")
+
+
+class RunReport:
+    """The summary written by ``--report-json`` (what tools/stress.py used to scrape from the
+    output of ``pytest -s``)."""
+
+    def __init__(self, config, path: Path):
+        self.config, self.path = config, path
+        self.t0 = time.time()
+        self.counts: Counter = Counter()
+        self.measured: list[str] = []
+        self.outcomes: list[str] = []
+        self.deselected = 0
+
+    def pytest_deselected(self, items):
+        self.deselected += len(items)
+
+    def pytest_runtest_logreport(self, report):
+        if report.when == "call":
+            self.measured += [str(v) for k, v in report.user_properties if k == "measured"]
+        xfail = getattr(report, "wasxfail", None)
+        if report.failed:
+            kind, word = ("failed", "FAILED") if report.when == "call" else ("error", "ERROR")
+            crash = getattr(report.longrepr, "reprcrash", None)
+            why = crash.message.splitlines()[0] if crash is not None and crash.message else ""
+        elif report.skipped:
+            kind, word, why = ("xfailed", "XFAIL", xfail) if xfail is not None else ("skipped", None, "")
+        elif report.when == "call":
+            kind, word, why = ("xpassed", "XPASS", xfail) if xfail is not None else ("passed", None, "")
+        else:
+            return
+        self.counts[kind] += 1
+        if word:
+            self.outcomes.append(f"{word} {report.nodeid}" + (f" - {why}" if why else ""))
+
+    def pytest_sessionfinish(self, session, exitstatus):
+        seconds = time.time() - self.t0
+        order = ("failed", "passed", "skipped", "xfailed", "xpassed", "error")
+        counts = ", ".join(f"{self.counts[k]} {k}" for k in order if self.counts[k])
+        command = "python -m pytest " + shlex.join(self.config.invocation_params.args)
+        result = {"command": command, "seconds": round(seconds, 1), "returncode": int(exitstatus),
+                  "summary": f"{counts or 'no tests ran'} in {seconds:.2f}s", "measured": self.measured,
+                  "outcomes": self.outcomes}
+        if self.deselected:
+            result["deselected"] = self.deselected
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.path.write_text(json.dumps(result, indent=2) + "\n")
+        md = [f"# {self.path.stem}", "", f"`{command}`: {result['summary']} ({seconds:.0f} s)", "", "```"]
+        md += self.measured + self.outcomes + ["```", ""]
+        self.path.with_suffix(".md").write_text("\n".join(md))

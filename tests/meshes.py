@@ -44,7 +44,7 @@ MESHES = {"icosphere": icosphere, "torus": torus, "soup": soup, "slivers": slive
 
 
 def coherent_rays(vertices, n):
-    from pyopencl_rt.bench.throughput import primary_rays
+    from pyopencl_rt.bench.workloads import primary_rays
 
     bounds = np.stack([vertices.min(0), vertices.max(0)]).astype(np.float64)
     return primary_rays(bounds, n)
@@ -95,3 +95,21 @@ def ray_edge_distance(o, d, p):
         best = np.minimum(best, np.linalg.norm(off, axis=1))
     scale = np.abs(oo).max(1) + np.abs(p).max((1, 2)) + np.linalg.norm(p[:, 0] - oo, axis=1)
     return best / scale
+
+
+def moller_trumbore(o, d, p):
+    """float64 Möller–Trumbore of rays o + t d against triangles p (... x 3 x 3), broadcast
+    (one ray against many triangles, or ray i against triangle i): (t, u, v, the smallest
+    barycentric, i.e. how far inside the triangle the line passes).  Rays parallel to a
+    triangle's plane give inf or NaN, without warnings."""
+    o, d, p = (np.asarray(a, np.float64) for a in (o, d, p))
+    e1, e2 = p[..., 1, :] - p[..., 0, :], p[..., 2, :] - p[..., 0, :]
+    pvec = np.cross(d, e2)
+    det = np.sum(e1 * pvec, -1)
+    tvec = o - p[..., 0, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.sum(tvec * pvec, -1) / det
+        qvec = np.cross(tvec, e1)
+        v = np.sum(d * qvec, -1) / det
+        t = np.sum(e2 * qvec, -1) / det
+    return t, u, v, np.minimum(np.minimum(u, v), 1 - u - v)

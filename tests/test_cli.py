@@ -25,6 +25,8 @@ def run_cli(*args, cwd, timeout=300):
     )
 
 
+# These tests are about the PoCL CPU device (a dependency: pocl-binary-distribution, so always
+# present) and the "cpu" spec that selects it: they run on it by design, not on the device fixture.
 @pytest.fixture(scope="module")
 def pocl_info():
     for e, info in zip(dv.all_devices(), dv.list_devices()):
@@ -126,3 +128,24 @@ def test_bench_rays_smoke(tmp_path, pocl_info):
             assert math.isfinite(b["rays_per_second"]) and b["rays_per_second"] > 0
             assert b["rays_per_second"] == pytest.approx(s["rays"] / b["seconds_median"])
     assert f"wrote {out}" in r.stdout
+
+
+def test_render_embree_profile_sidecar_has_host_stage_times(tmp_path):
+    """--intersector embree --profile: the extend and shadow stages run on the host (no device
+    event), so their times come from the host clock; the sidecar is written once, after they are
+    merged, and must hold them (positive: Embree did trace rays) beside the device stages."""
+    out = tmp_path / "cbox.exr"
+    r = run_cli("render", str(REPO / "scenes" / "cornell-box.toml"), "-o", str(out), "--spp", "2", "--width", "24",
+                "--height", "16", "--intersector", "embree", "--profile", "--quiet", "--device", "cpu", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    info = json.loads(out.with_suffix(".json").read_text())
+    stages = info["stage_seconds"]
+    assert set(stages) == {"generate", "extend", "shade", "shadow", "accumulate"}
+    assert stages["extend"] > 0 and stages["shadow"] > 0 and stages["shade"] > 0
+    assert info["intersector"] == "embree"
+    assert info["spp"] == 2 and info["width"] == 24 and info["height"] == 16
+    # what the terminal shows is what the sidecar holds
+    shown = {m.group(1): float(m.group(2)) for m in re.finditer(r"^(\w+)\s+([0-9.]+)\s+[0-9.]+%$", r.stderr, re.M)}
+    assert set(shown) == set(stages)
+    for name, seconds in shown.items():
+        assert abs(seconds - stages[name]) < 1e-3 + 1e-3 * seconds

@@ -35,6 +35,9 @@ def _copy_sources(dst: Path):
             ".git", ".venv", "build", "dist", "*.egg-info", "__pycache__", ".pytest_cache", ".hypothesis", "out"))
 
 
+# The probe runs in a fresh environment holding only the built wheel and its dependencies, on the
+# PoCL CPU those dependencies ship (pocl-binary-distribution): it checks that the installed package
+# finds and builds its kernels, which no particular device adds to.
 PROBE = textwrap.dedent("""
     import json, sys
     import numpy as np

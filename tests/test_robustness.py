@@ -1,9 +1,10 @@
 """Numerical robustness: watertightness, self-intersection, scale and translation invariance,
 bad geometry, adversarial kernel inputs, and the NaN guard (issue 5; docs/ROBUSTNESS.md).
 
-The quick version runs in ``make test``; ``PYOPENCL_RT_STRESS=1`` (``make stress``, which runs
-``tools/stress.py``) runs the same tests with more rays, scales and seeds.  Every size is a
-module-level constant below.
+Every size-dependent test runs in two variants: the quick one (``make test``) and a long one
+with more rays, meshes, scales and seeds, marked ``stress`` (deselected unless ``-m`` selects it:
+``pytest -m stress``, which ``make stress`` runs; tests/conftest.py).  Every size is in QUICK and
+LONG below.
 """
 from __future__ import annotations
 
@@ -11,38 +12,72 @@ import math
 import os
 import warnings
 import zlib
+from dataclasses import dataclass
 
 import numpy as np
-import pyopencl as cl
 import pytest
 import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from meshes import ray_edge_distance, slivers
+import harness
+from meshes import moller_trumbore, ray_edge_distance, slivers
 from pyopencl_rt import build_bvh, load_scene, trace
 from pyopencl_rt.errors import UserError
 from pyopencl_rt.scene.mesh import load_mesh
 from pyopencl_rt.render.api import render_full
 from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
 
-STRESS = os.environ.get("PYOPENCL_RT_STRESS", "") not in ("", "0")
+# ---- sizes: quick (make test) / long (marked stress: make stress) -----------------------------
+@dataclass(frozen=True)
+class Sizes:
+    """The sizes of the size-dependent tests: QUICK (``make test``), LONG (``-m stress``)."""
+    name: str
+    watertight_rays: int              # per mesh, untransformed
+    watertight_rays_transformed: int  # per mesh and transform
+    icospheres: tuple                 # subdivision levels
+    uvsphere: tuple                   # sections of "uvsphere256"
+    cone: int                         # sections of "cone4096"
+    tori: tuple                       # (major, minor) sections
+    transforms: tuple                 # (scale, translation) besides the mesh as built
+    spawn_trials: int                 # per seed
+    spawn_seeds: tuple
+    invariance_spp: int
+    invariance_cases: tuple
+    hypothesis_examples: int
+    hypothesis_batch: int
+    scene_spp: int
+    scene_res: int
 
-# ---- sizes: quick (make test) / long (make stress) -------------------------------------------
-WATERTIGHT_RAYS = 10_000_000 if STRESS else 500_000          # per mesh, untransformed
-WATERTIGHT_RAYS_TRANSFORMED = 10_000_000 if STRESS else 100_000  # per mesh and transform
-WATERTIGHT_CHUNK = 2_000_000
-SPAWN_TRIALS = 2_000_000 if STRESS else 200_000               # per seed
-SPAWN_SEEDS = (1, 2, 3, 4, 5) if STRESS else (1,)
-INVARIANCE_SPP = 1024 if STRESS else 256
-INVARIANCE_RES = 32
+
+# (scale, translation): the translated meshes are scaled to 1/100 of the translation so that
+# float32 still resolves them (a unit sphere at 1e6 is quantised to 1/16 and is another mesh).
+QUICK = Sizes("quick", watertight_rays=500_000, watertight_rays_transformed=100_000, icospheres=(1, 4),
+              uvsphere=(64, 256), cone=1024, tori=((160, 64),), transforms=((1e-4, 0.0), (1e4, 0.0), (1e3, 1e5)),
+              spawn_trials=200_000, spawn_seeds=(1,), invariance_spp=256, invariance_cases=((1e-3, 0.0), (1.0, 1e5)),
+              hypothesis_examples=25, hypothesis_batch=1024, scene_spp=4, scene_res=16)
 # Not x1e-3 moved by 1e5: that box is 0.556 wide where a float32 ulp is 0.0078 (70 ulps across),
 # so its float32 input is another, coarser scene (`make stress` measured a 0.47x image).
-INVARIANCE_CASES = ((1e-3, 0.0), (1e3, 0.0), (1.0, 1e5), (1.0, 1e6)) if STRESS else ((1e-3, 0.0), (1.0, 1e5))
-HYPOTHESIS_EXAMPLES = 300 if STRESS else 25
-HYPOTHESIS_BATCH = 4096 if STRESS else 1024
-SCENE_SPP = 16 if STRESS else 4
-SCENE_RES = 32 if STRESS else 16
+LONG = Sizes("long", watertight_rays=10_000_000, watertight_rays_transformed=10_000_000,
+             icospheres=(1, 2, 3, 4, 5, 6), uvsphere=(256, 256), cone=4096,
+             tori=((8, 3), (32, 8), (160, 64), (1024, 256)),
+             transforms=QUICK.transforms + ((1e4, 1e6), (1.0, 1e2)), spawn_trials=2_000_000,
+             spawn_seeds=(1, 2, 3, 4, 5), invariance_spp=1024,
+             invariance_cases=((1e-3, 0.0), (1e3, 0.0), (1.0, 1e5), (1.0, 1e6)),
+             hypothesis_examples=300, hypothesis_batch=4096, scene_spp=16, scene_res=32)
+WATERTIGHT_CHUNK = 2_000_000
+INVARIANCE_RES = 32
+
+
+def sized(cases=lambda sizes: [pytest.param()]):
+    """Parameters ``(sizes, *case)`` of a size-dependent test: the cases of QUICK, then those of
+    LONG marked ``stress``; ids start with the sizes' name ("quick-...", "long-...")."""
+    out = []
+    for s in (QUICK, LONG):
+        for case in cases(s):
+            out.append(pytest.param(s, *case.values, id="-".join(filter(None, (s.name, case.id))),
+                                    marks=[*case.marks] + ([pytest.mark.stress] if s is LONG else [])))
+    return out
 
 
 # ================================================================================================
@@ -60,26 +95,19 @@ def _box(subdiv):
     return m
 
 
-def _mesh_specs():
+def mesh_specs(sizes):
     """name -> (builder, kind).  kind 'convex' or 'torus' selects how interior points are made."""
-    ico = (1, 4) if not STRESS else (1, 2, 3, 4, 5, 6)
-    specs = {f"icosphere{s}": (lambda s=s: trimesh.creation.icosphere(subdivisions=s), "convex") for s in ico}
-    specs["uvsphere256"] = (lambda: trimesh.creation.uv_sphere(radius=1.0, count=[256, 256] if STRESS else [64, 256]), "convex")
-    specs["cone4096"] = (lambda: _cone(4096 if STRESS else 1024), "convex")
+    specs = {f"icosphere{s}": (lambda s=s: trimesh.creation.icosphere(subdivisions=s), "convex")
+             for s in sizes.icospheres}
+    specs["uvsphere256"] = (lambda: trimesh.creation.uv_sphere(radius=1.0, count=list(sizes.uvsphere)), "convex")
+    specs["cone4096"] = (lambda: _cone(sizes.cone), "convex")
     specs["box-subdiv3"] = (lambda: _box(3), "convex")
     specs["slivers"] = (lambda: trimesh.Trimesh(*slivers(), process=False), "convex")
-    tori = ((160, 64),) if not STRESS else ((8, 3), (32, 8), (160, 64), (1024, 256))
-    for M, m in tori:
+    for M, m in sizes.tori:
         specs[f"torus{M}x{m}"] = (
             lambda M=M, m=m: trimesh.creation.torus(major_radius=1.0, minor_radius=0.3, major_sections=M, minor_sections=m),
             ("torus", M, m))
     return specs
-
-
-MESH_SPECS = _mesh_specs()
-# (scale, translation): the translated meshes are scaled to 1/100 of the translation so that
-# float32 still resolves them (a unit sphere at 1e6 is quantised to 1/16 and is another mesh).
-TRANSFORMS = [(1e-4, 0.0), (1e4, 0.0), (1e3, 1e5)] + ([(1e4, 1e6), (1.0, 1e2)] if STRESS else [])
 
 
 def _convex_interior(v, f, n, rng, eps_lo=1e-4):
@@ -182,42 +210,42 @@ def count_escapes(v, f, kind, n, rng, device, scale=1.0, shift=0.0):
 
 @pytest.fixture(scope="module")
 def closed_meshes():
+    """closed_meshes(sizes, name) -> (v, f, kind), built on first use."""
     out = {}
-    for name, (make, kind) in MESH_SPECS.items():
-        m = make()
-        v, f = np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
-        if name == "slivers":
-            v = v.astype(np.float32).astype(np.float64)
-        out[name] = (v, f, kind)
-    return out
+
+    def get(sizes, name):
+        key = (sizes.name, name)
+        if key not in out:
+            make, kind = mesh_specs(sizes)[name]
+            m = make()
+            v, f = np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
+            if name == "slivers":
+                v = v.astype(np.float32).astype(np.float64)
+            out[key] = (v, f, kind)
+        return out[key]
+
+    return get
 
 
-TRANSFORM_CASES = [(1.0, 0.0)] + TRANSFORMS
-def _watertight_params():
-    out = []
-    for mesh in MESH_SPECS:
-        for scale, shift in TRANSFORM_CASES:
-            out.append(pytest.param(mesh, scale, shift, id=f"{mesh}-x{scale:g}+{shift:g}"))
-    return out
-
-
-@pytest.mark.parametrize("mesh,scale,shift", _watertight_params())
-def test_watertight_no_escape(device, closed_meshes, mesh, scale, shift):
+@pytest.mark.parametrize("sizes,mesh,scale,shift", sized(lambda s: [
+    pytest.param(mesh, scale, shift, id=f"{mesh}-x{scale:g}+{shift:g}")
+    for mesh in mesh_specs(s) for scale, shift in ((1.0, 0.0),) + s.transforms]))
+def test_watertight_no_escape(device, closed_meshes, measured, sizes, mesh, scale, shift):
     """0 escapes among the rays from inside (centre, interior, 1e-4..1e-1 from the surface),
-    half of them aimed exactly at vertices and edges: WATERTIGHT_RAYS for the mesh as built,
-    WATERTIGHT_RAYS_TRANSFORMED for it scaled by 1e-4 and 1e4 and translated far away."""
-    v, f, kind = closed_meshes[mesh]
+    half of them aimed exactly at vertices and edges: watertight_rays for the mesh as built,
+    watertight_rays_transformed for it scaled by 1e-4 and 1e4 and translated far away."""
+    v, f, kind = closed_meshes(sizes, mesh)
     assert trimesh.Trimesh(v, f, process=False).is_watertight
     rng = np.random.default_rng(zlib.crc32(f"{mesh} {scale} {shift}".encode()))
-    n = WATERTIGHT_RAYS if (scale, shift) == (1.0, 0.0) else WATERTIGHT_RAYS_TRANSFORMED
+    n = sizes.watertight_rays if (scale, shift) == (1.0, 0.0) else sizes.watertight_rays_transformed
     esc, n = count_escapes(v, f, kind, n, rng, device, scale, shift)
-    print(f"watertight {mesh} x{scale:g} +{shift:g}: {esc} escapes / {n} rays")
+    measured(f"watertight {mesh} x{scale:g} +{shift:g}: {esc} escapes / {n} rays")
     assert esc == 0, f"{mesh} scaled {scale:g}, shifted {shift:g}: {esc} of {n} rays escaped"
 
 
 def test_watertight_counter_detects_a_hole(device, closed_meshes):
     """The escape count is not vacuous: remove 1% of an icosphere's faces and rays leak."""
-    v, f, kind = closed_meshes["icosphere4"]
+    v, f, kind = closed_meshes(QUICK, "icosphere4")
     rng = np.random.default_rng(9)
     holed = f[rng.random(len(f)) > 0.01]
     esc, n = count_escapes(v, holed, kind, 100_000, rng, device)
@@ -227,7 +255,7 @@ def test_watertight_counter_detects_a_hole(device, closed_meshes):
 # ================================================================================================
 # 2. Self-intersection: spawned rays never hit their own surface
 # ================================================================================================
-SPAWN_HARNESS = r"""
+SPAWN_HARNESS = harness.Kernels(r"""
 #include "intersect.h"
 #include "spawn.h"
 
@@ -289,7 +317,7 @@ __kernel void h_spawn(__global const float *tri, __global const float *bary, __g
     }
     out[i] = res;
 }
-"""
+""")
 
 
 def spawn_trials(n, rng, slivers_only=False):
@@ -351,15 +379,8 @@ SHADOW_TMAX = 1.0 - 1e-4  # pbrt's 1 - ShadowEpsilon; cl/wavefront/shadow.cl use
 
 
 def run_spawn(runtime, arrays, mode=0, light_tmax=SHADOW_TMAX):
-    ctx, q = runtime.context, runtime.queue
-    mf = cl.mem_flags
-    bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a) for a in arrays]
     n = len(arrays[0])
-    out = np.empty(n, np.int32)
-    bout = cl.Buffer(ctx, mf.WRITE_ONLY, out.nbytes)
-    runtime.kernel((), "h_spawn", extra=SPAWN_HARNESS)(q, (n,), None, *bufs, np.int32(mode), np.float32(light_tmax), bout)
-    cl.enqueue_copy(q, out, bout)
-    return out
+    return SPAWN_HARNESS(runtime, "h_spawn", n, *arrays, mode=mode, light_tmax=light_tmax, out=n)
 
 
 def spawn_failures(out, keep=None):
@@ -374,26 +395,27 @@ def spawn_failures(out, keep=None):
 SLIVER_SINE = 0.01  # triangles whose smallest angle is below ~0.6 degrees: test_spawn_on_slivers
 
 
-@pytest.mark.parametrize("seed", SPAWN_SEEDS)
-def test_spawn_never_hits_own_triangle(runtime, seed):
+@pytest.mark.parametrize("sizes,seed", sized(lambda s: [pytest.param(seed, id=str(seed)) for seed in s.spawn_seeds]))
+def test_spawn_never_hits_own_triangle(runtime, measured, sizes, seed):
     """pbrt's test: random triangles (scale 1e-4..1e6, up to 1e6 from the origin; smallest angle
     above 0.6 degrees, slivers below); the hit point rebuilt from the hit's barycentrics and
     offset by offset_ray_origin_bound: a ray leaving it (10% grazing, down to 1e-5 rad) never
     hits its own triangle, and a shadow ray to a point on a light triangle on that side (offset
     toward the shading point likewise) is not blocked by the source triangle (t < 1)."""
     rng = np.random.default_rng(seed)
-    arrays = spawn_trials(SPAWN_TRIALS, rng)
+    arrays = spawn_trials(sizes.spawn_trials, rng)
     r = spawn_failures(run_spawn(runtime, arrays), keep=min_angle_sine(arrays[0]) >= SLIVER_SINE)
-    print(f"spawn seed {seed}: {r}")
-    assert r["trials"] > 0.85 * SPAWN_TRIALS
+    measured(f"spawn seed {seed}: {r}")
+    assert r["trials"] > 0.85 * sizes.spawn_trials
     assert r["self"] == 0 and r["shadow_source"] == 0, r  # the light end: see the xfail below
 
 
-def test_spawn_on_slivers(runtime):
+@pytest.mark.parametrize("sizes", sized())
+def test_spawn_on_slivers(runtime, measured, sizes):
     """The same on slivers (third vertex 1e-4..1e-2 relative from the first edge's line)."""
     rng = np.random.default_rng(11)
-    r = spawn_failures(run_spawn(runtime, spawn_trials(SPAWN_TRIALS // 2, rng, slivers_only=True)))
-    print(f"spawn slivers: {r}")
+    r = spawn_failures(run_spawn(runtime, spawn_trials(sizes.spawn_trials // 2, rng, slivers_only=True)))
+    measured(f"spawn slivers: {r}")
     # the light end of the shadow rays is the open item of test_shadow_ray_not_blocked_by_the_light
     # (`make stress` saw 5 in 850k here)
     assert r["self"] == 0 and r["shadow_source"] == 0, r
@@ -403,10 +425,11 @@ def test_spawn_on_slivers(runtime):
     "undiagnosed (docs/ROBUSTNESS.md, open items): ~2e-5 of shadow rays toward a small light "
     "triangle far from the origin (|p| ~ 1e3..1e5 light sizes) are blocked by the light's own "
     "triangle, whether tmax is 1 or 1 - 1e-4 and with the intersect.h patch too"))
-def test_shadow_ray_not_blocked_by_the_light(runtime):
+@pytest.mark.parametrize("sizes", sized())
+def test_shadow_ray_not_blocked_by_the_light(runtime, sizes):
     """The light end of the shadow rays of test_spawn_never_hits_own_triangle."""
     rng = np.random.default_rng(1)
-    arrays = spawn_trials(SPAWN_TRIALS, rng)
+    arrays = spawn_trials(sizes.spawn_trials, rng)
     r = spawn_failures(run_spawn(runtime, arrays), keep=min_angle_sine(arrays[0]) >= SLIVER_SINE)
     assert r["shadow_light"] == 0, r
 
@@ -453,25 +476,26 @@ def cornell_reference(request):
     return scene, {}
 
 
-@pytest.mark.parametrize("scale,shift", [pytest.param(s, t, id=f"x{s:g}+{t:g}")
-                                         for s, t in INVARIANCE_CASES])
-def test_cornell_box_scale_translation_invariance(device, cornell_reference, scale, shift):
+@pytest.mark.parametrize("sizes,scale,shift", sized(lambda sz: [pytest.param(s, t, id=f"x{s:g}+{t:g}")
+                                                                 for s, t in sz.invariance_cases]))
+def test_cornell_box_scale_translation_invariance(device, cornell_reference, measured, sizes, scale, shift):
     """The Cornell box scaled and/or translated renders the unscaled image within noise:
     tile-wise z-test (8x8-pixel tiles x 3 channels = 48 tests; |z| < 4.2 is a 1e-3 overall
     false-alarm rate by Bonferroni), independent seeds; no non-finite sample."""
     scene, cache = cornell_reference
-    key = str(device)
+    key = (str(device), sizes.invariance_spp)
     if key not in cache:
-        r = render_full(scene, spp=INVARIANCE_SPP, device=device, seed=1, width=INVARIANCE_RES, height=INVARIANCE_RES)
+        r = render_full(scene, spp=sizes.invariance_spp, device=device, seed=1, width=INVARIANCE_RES,
+                        height=INVARIANCE_RES)
         assert r.info["nonfinite_samples"] == 0
         cache[key] = tile_means(r.image, r.film.variance_of_mean())
     m0, v0 = cache[key]
-    r = render_full(transformed(scene, scale, shift), spp=INVARIANCE_SPP, device=device, seed=2,
+    r = render_full(transformed(scene, scale, shift), spp=sizes.invariance_spp, device=device, seed=2,
                     width=INVARIANCE_RES, height=INVARIANCE_RES)
     assert r.info["nonfinite_samples"] == 0 and np.isfinite(r.image).all()
     m1, v1 = tile_means(r.image, r.film.variance_of_mean())
     z = (m1 - m0) / np.sqrt(v0 + v1)
-    print(f"invariance x{scale:g} +{shift:g}: max |z| {np.abs(z).max():.2f}, mean ratio {m1.mean() / m0.mean():.4f}")
+    measured(f"invariance x{scale:g} +{shift:g}: max |z| {np.abs(z).max():.2f}, mean ratio {m1.mean() / m0.mean():.4f}")
     assert np.abs(z).max() < 4.2, f"max |z| = {np.abs(z).max():.2f}, mean ratio {m1.mean() / m0.mean():.4f}"
 
 
@@ -643,7 +667,7 @@ def test_empty_mesh_is_rejected_naming_the_file(tmp_path):
 # ================================================================================================
 # 5. Adversarial inputs: intersect_triangle against float64 (hypothesis)
 # ================================================================================================
-TRI_HARNESS = r"""
+TRI_HARNESS = harness.Kernels(r"""
 #include "intersect.h"
 __kernel void h_tri(__global const float *o, __global const float *d, __global const float *tri,
                     __global float *out)
@@ -655,7 +679,7 @@ __kernel void h_tri(__global const float *o, __global const float *d, __global c
                                        load3(tri, 3 * i + 2), 0.0f, INFINITY, &t, &u, &v);
     out[4 * i] = hit; out[4 * i + 1] = t; out[4 * i + 2] = u; out[4 * i + 3] = v;
 }
-"""
+""")
 
 MODES = ("interior", "edge", "vertex", "grazing", "in-plane", "far-origin")
 
@@ -690,29 +714,27 @@ def adversarial_batch(rng, n, mode, log_scale, log_offset):
     return o.astype(np.float32), (target - o).astype(np.float32), p.astype(np.float32)
 
 
-@pytest.fixture(scope="module")
-def tri_kernel():
-    from pyopencl_rt.device.devices import device_test_specs, select_device
-    from pyopencl_rt.device.kernels import runtime
+@pytest.mark.parametrize("sizes", sized())
+def test_intersect_triangle_adversarial(runtime, sizes):
+    """hypothesis_examples examples of check_adversarial's cases."""
+    @settings(max_examples=sizes.hypothesis_examples, deadline=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(mode=st.sampled_from(MODES), log_scale=st.floats(-4, 6), log_offset=st.floats(-4, 6),
+           seed=st.integers(0, 2**32 - 1))
+    def examples(mode, log_scale, log_offset, seed):
+        check_adversarial(runtime, sizes.hypothesis_batch, mode, log_scale, log_offset, seed)
 
-    return [runtime(select_device(s)) for s in device_test_specs()]
-
-
-@settings(max_examples=HYPOTHESIS_EXAMPLES, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
-@given(mode=st.sampled_from(MODES), log_scale=st.floats(-4, 6), log_offset=st.floats(-4, 6),
-       seed=st.integers(0, 2**32 - 1))
-def test_intersect_triangle_adversarial(tri_kernel, mode, log_scale, log_offset, seed):
-    check_adversarial(tri_kernel, mode, log_scale, log_offset, seed)
+    examples()
 
 
-def test_intersect_triangle_adversarial_slivers(tri_kernel):
+@pytest.mark.parametrize("sizes", sized())
+def test_intersect_triangle_adversarial_slivers(runtime, sizes):
     """The same bound on slivers (relative height 1e-6..1e-2)."""
     for seed in range(4):
-        check_adversarial(tri_kernel, "sliver", 0.0, 0.0, seed)
+        check_adversarial(runtime, sizes.hypothesis_batch, "sliver", 0.0, 0.0, seed)
 
 
-def check_adversarial(tri_kernel, mode, log_scale, log_offset, seed):
+def check_adversarial(runtime, n, mode, log_scale, log_offset, seed):
     """Hard rays (through vertices and edges, grazing at 1e-7..1e-2 rad, lying in the plane,
     slivers of relative height 1e-6..1e-2, origins up to 1e6 triangle sizes away) at triangles of
     scale 1e-4..1e6 up to 1e6 from the origin, against float64 Möller-Trumbore.  Stated bound:
@@ -722,47 +744,29 @@ def check_adversarial(tri_kernel, mode, log_scale, log_offset, seed):
         (|o| + |p| + t64 |d|): t's rounding grows like 1/|cos| toward grazing (the long run found
         2.4e-5 near |cos| = 0.01 against a flat 1e-5), so the bound is 1e-5 for |cos| >= 0.1."""
     rng = np.random.default_rng(seed)
-    n = HYPOTHESIS_BATCH
     o, d, p = adversarial_batch(rng, n, mode, log_scale, log_offset)
     o64, d64, p64 = o.astype(np.float64), d.astype(np.float64), p.astype(np.float64)
-    e1, e2 = p64[:, 1] - p64[:, 0], p64[:, 2] - p64[:, 0]
-    pv = np.cross(d64, e2)
-    det = np.sum(e1 * pv, 1)
-    tv = o64 - p64[:, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = np.sum(tv * pv, 1) / det
-        qv = np.cross(tv, e1)
-        v = np.sum(d64 * qv, 1) / det
-        t = np.sum(e2 * qv, 1) / det
-    inside = np.minimum(np.minimum(u, v), 1 - u - v)
+    t, u, v, inside = moller_trumbore(o64, d64, p64)
     ref_hit = (inside >= 0) & (t > 0) & np.isfinite(t)
-    nrm = np.cross(e1, e2)
+    nrm = np.cross(p64[:, 1] - p64[:, 0], p64[:, 2] - p64[:, 0])
     nn = np.linalg.norm(nrm, axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         cos = np.abs(np.sum(nrm * d64, 1)) / (nn * np.linalg.norm(d64, axis=1))
     cos = np.nan_to_num(cos, nan=0.0)
     near_edge = ray_edge_distance(o64, d64, p64) <= 1e-6
-    for rt in tri_kernel:
-        ctx, q = rt.context, rt.queue
-        mf = cl.mem_flags
-        bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a.reshape(-1, 3)))
-                for a in (o, d, p)]
-        out = np.empty((n, 4), np.float32)
-        bout = cl.Buffer(ctx, mf.WRITE_ONLY, out.nbytes)
-        rt.kernel((), "h_tri", extra=TRI_HARNESS)(q, (n,), None, *bufs, bout)
-        cl.enqueue_copy(q, out, bout)
-        hit = out[:, 0] == 1.0
-        assert np.isfinite(out[hit, 1:]).all(), "a hit with a non-finite t, u or v"
-        assert (out[hit, 1] > 0).all()
-        bad = (hit != ref_hit) & ~near_edge & (cos >= 1e-4)
-        assert not bad.any(), (f"{mode}: {bad.sum()} hit/miss disagreements away from edges, e.g. "
-                               f"o={o[bad][0].tolist()} d={d[bad][0].tolist()} tri={p[bad][0].tolist()}")
-        both = hit & ref_hit & (cos >= 0.01)
-        dn = np.linalg.norm(d64[both], axis=1)
-        scale = np.abs(o64[both]).max(1) + np.abs(p64[both]).max((1, 2)) + t[both] * dn
-        terr = np.abs(out[both, 1] - t[both]) * dn / scale
-        bound = 1e-5 * np.maximum(1.0, 0.1 / cos[both])
-        assert (terr <= bound).all(), f"{mode}: t error {terr.max():.3g} (worst ratio to bound {np.max(terr / bound):.3g})"
+    out = TRI_HARNESS(runtime, "h_tri", n, o.reshape(-1, 3), d.reshape(-1, 3), p.reshape(-1, 3), (n, 4))
+    hit = out[:, 0] == 1.0
+    assert np.isfinite(out[hit, 1:]).all(), "a hit with a non-finite t, u or v"
+    assert (out[hit, 1] > 0).all()
+    bad = (hit != ref_hit) & ~near_edge & (cos >= 1e-4)
+    assert not bad.any(), (f"{mode}: {bad.sum()} hit/miss disagreements away from edges, e.g. "
+                           f"o={o[bad][0].tolist()} d={d[bad][0].tolist()} tri={p[bad][0].tolist()}")
+    both = hit & ref_hit & (cos >= 0.01)
+    dn = np.linalg.norm(d64[both], axis=1)
+    scale = np.abs(o64[both]).max(1) + np.abs(p64[both]).max((1, 2)) + t[both] * dn
+    terr = np.abs(out[both, 1] - t[both]) * dn / scale
+    bound = 1e-5 * np.maximum(1.0, 0.1 / cos[both])
+    assert (terr <= bound).all(), f"{mode}: t error {terr.max():.3g} (worst ratio to bound {np.max(terr / bound):.3g})"
 
 
 # ================================================================================================
@@ -775,11 +779,11 @@ def test_scenes_exist():
     assert SCENES, "no scenes/*.toml found (run from the repository root)"
 
 
-@pytest.mark.parametrize("name", SCENES)
-def test_scene_has_no_nonfinite_samples(device, name):
+@pytest.mark.parametrize("sizes,name", sized(lambda s: [pytest.param(name, id=name) for name in SCENES]))
+def test_scene_has_no_nonfinite_samples(device, sizes, name):
     """Each scenes/*.toml at low resolution and spp: 0 non-finite samples and a finite image."""
     scene = load_scene(os.path.join("scenes", name))
-    r = render_full(scene, spp=SCENE_SPP, device=device, seed=3, width=SCENE_RES, height=SCENE_RES)
+    r = render_full(scene, spp=sizes.scene_spp, device=device, seed=3, width=sizes.scene_res, height=sizes.scene_res)
     assert r.info["nonfinite_samples"] == 0
     assert np.isfinite(r.image).all()
     assert r.image.max() > 0

@@ -1,6 +1,6 @@
 /* Stage 5: finished paths.  The radiance goes to its pass's buffer in the ring (one write per
  * pixel and pass, so no float atomics and no order dependence), non-finite values are counted
- * and dropped, and the slot returns to the free stack.  a4 = free-stack length before. */
+ * and dropped, and the slot returns to the free stack (of free_base entries before). */
 #include "../lights.h"
 
 __kernel void wf_accumulate(WAVE_PARAMS)
@@ -16,5 +16,5 @@ __kernel void wf_accumulate(WAVE_PARAMS)
     const int ring = path_pass[slot] % ring_size;
     store3(pass_ring, ring * n_pixels + path_pixel[slot], L);
     atomic_inc(&counters[COUNTER_PASS_DONE + ring]);
-    free_q[a4 + i] = slot;
+    free_q[free_base + i] = slot;
 }

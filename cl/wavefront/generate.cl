@@ -1,20 +1,19 @@
-/* Stage 1: new camera paths into free slots.
- * a0 = number of new paths, a1 = pass of the first, a2 = pixel of the first (later paths take
- * the following pixels, wrapping into the next pass), a3 = active-queue length before,
- * a4 = free-stack length before.  Pixel jitter: box filter over the pixel.  A thin-lens camera
- * (lens_radius > 0, pyopencl_rt/layout.py) also samples the lens; lens_radius 0 is the pinhole,
- * bit for bit. */
+/* Stage 1: n_items new camera paths into free slots, popped from the free stack (free_base
+ * entries) and appended to the active queue (queue_base entries).  The first is the sample of
+ * (first_pass, first_pixel); later ones take the following pixels, wrapping into the next pass.
+ * Pixel jitter: box filter over the pixel.  A thin-lens camera (lens_radius > 0,
+ * pyopencl_rt/device/abi.py) also samples the lens; lens_radius 0 is the pinhole, bit for bit. */
 #include "../lights.h"
 
 __kernel void wf_generate(WAVE_PARAMS)
 {
     const int i = get_global_id(0);
-    if (i >= a0) return;
-    const int linear = a2 + i;
-    const int pass = a1 + linear / n_pixels;
+    if (i >= n_items) return;
+    const int linear = first_pixel + i;
+    const int pass = first_pass + linear / n_pixels;
     const int pixel = linear % n_pixels;
-    const int slot = free_q[a4 - 1 - i];
-    queue_in[a3 + i] = slot;
+    const int slot = free_q[free_base - 1 - i];
+    queue_in[queue_base + i] = slot;
 
     const Camera cam = *camera;
     const int x = pixel % cam.width, y = pixel / cam.width;

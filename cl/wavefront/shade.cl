@@ -16,7 +16,7 @@
  *
  * max_depth counts path segments, as in Mitsuba: 1 shows emitters only, 2 adds direct
  * lighting; a negative value means no limit (Russian roulette ends paths).
- * a0 = active-queue length.
+ * n_items = active-queue length.
  */
 #include "../lights.h"
 #ifdef HAS_TEXTURES
@@ -48,7 +48,7 @@ __kernel void wf_shade(WAVE_PARAMS)
     const int lid = get_local_id(0);
 
     const int i = get_global_id(0);
-    const int active = i < a0;
+    const int active = i < n_items;
     const int slot = active ? queue_in[i] : 0;
     int alive = 0, queued_shadow = 0;
     if (active) {

@@ -23,10 +23,7 @@ children's boxes):
     partition) was tried: ~4 s for 1M but 8-15% worse SAH than the sweep, so it was dropped.
 
 ``method="sweep"``
-    Full-sweep SAH: every split position between centroids sorted along each of the three
-    axes.  Also level-synchronous: three per-axis sorted index lists are kept and partitioned
-    stably; the segmented prefix/suffix box scans use ``np.minimum.accumulate`` after adding a
-    per-segment offset (float64, normalised coordinates).  Slower; the quality reference.
+    Full-sweep SAH, the quality reference (:mod:`pyopencl_rt.accel.bvh_sweep`).
 
 Both builders stop splitting a node when it holds ``<= max_leaf_size`` triangles, or when the SAH
 says a leaf is cheaper (such leaves hold at most :data:`MAX_SAH_LEAF` triangles).  Nodes whose
@@ -53,7 +50,8 @@ import numpy as np
 
 from ..device import abi
 
-MAX_DEPTH = 60          # deepest leaf (root = 0); the traversal stack holds 64 entries
+MAX_DEPTH = 60          # deepest leaf (root = 0); one traversal stack entry per level
+assert MAX_DEPTH + 1 <= abi.BVH_STACK_SIZE
 MAX_SAH_LEAF = 64       # largest leaf the SAH may choose (bigger nodes are always split)
 _MEDIAN_DEPTH = 48      # from this depth on, split by index halves (bounds the depth)
 _SAMPLE = 4096          # binned: nodes with more triangles evaluate the SAH on this many samples
@@ -395,113 +393,6 @@ def _build_binned(lo0, hi0, max_leaf_size, bins, ct, ci):
 # ---------------------------------------------------------------------------------------------
 # full-sweep SAH
 # ---------------------------------------------------------------------------------------------
-def _seg_scan(x, seg, nseg, op, reverse):
-    """Segmented inclusive scan (min or max) of float64 values in [0, 1] grouped by seg."""
-    if reverse:
-        x, seg = x[::-1], seg[::-1]
-    # restart the running min/max at each new segment by a per-segment offset of 2*seg
-    if op is np.minimum:
-        off = 2.0 * (seg if reverse else (nseg - 1 - seg))
-    else:
-        off = 2.0 * ((nseg - 1 - seg) if reverse else seg)
-    r = op.accumulate(x + off) - off
-    return r[::-1] if reverse else r
-
-
-def _build_sweep(lo0, hi0, max_leaf_size, ct, ci):
-    T = lo0.shape[1]
-    tree = _Tree(T)
-    order = np.empty(T, np.int64)
-    root_box = np.concatenate([lo0.min(axis=1, initial=np.inf), hi0.max(axis=1, initial=-np.inf)])[None]
-    root_leaf = T <= max_leaf_size
-    tree.add(root_box, np.array([T]), np.array([0]), 0, np.array([root_leaf]))
-    if root_leaf:
-        order[:] = np.arange(T)
-        return tree, order
-    # normalised float64 coordinates (uniform scale keeps area ratios)
-    gmin = root_box[0, :3].astype(np.float64)
-    gext = float(np.max(root_box[0, 3:].astype(np.float64) - gmin))
-    gext = gext if gext > 0 else 1.0
-    nlo = (lo0.astype(np.float64) - gmin[:, None]) / gext
-    nhi = (hi0.astype(np.float64) - gmin[:, None]) / gext
-    cen = nlo + nhi
-    lists = [np.argsort(cen[a], kind="stable").astype(np.intp) for a in range(3)]
-    node = dict(ids=np.array([0]), off=np.array([0], np.intp), cnt=np.array([T], np.intp),
-                start=np.array([0], np.intp), box=root_box)
-    depth = 0
-    flag_tri = np.zeros(T, bool)
-    while len(node["cnt"]):
-        cnt, start, box = node["cnt"], node["start"], node["box"]
-        K, n = len(cnt), len(lists[0])
-        seg = np.repeat(np.arange(K, dtype=np.intp), cnt)
-        local = np.arange(n, dtype=np.intp) - start[seg]
-        last = local == (cnt[seg] - 1)
-        nl = (local + 1).astype(np.float64)
-        nr = (cnt[seg] - local - 1).astype(np.float64)
-        costs = np.empty((3, n))
-        for a in range(3):
-            L = lists[a]
-            plo = np.stack([_seg_scan(nlo[d][L], seg, K, np.minimum, False) for d in range(3)])
-            phi = np.stack([_seg_scan(nhi[d][L], seg, K, np.maximum, False) for d in range(3)])
-            slo = np.stack([_seg_scan(nlo[d][L], seg, K, np.minimum, True) for d in range(3)])
-            shi = np.stack([_seg_scan(nhi[d][L], seg, K, np.maximum, True) for d in range(3)])
-            al = _area(plo, phi)
-            ar = np.empty(n)
-            ar[:-1] = _area(slo[:, 1:], shi[:, 1:])
-            ar[-1] = 0.0
-            c = al * nl + ar * nr
-            c[last] = np.inf
-            costs[a] = c
-            if a == 0:
-                node_area_n = al[start + cnt - 1]   # area of the whole node, normalised
-        segmin = np.minimum.reduceat(costs, start, axis=1)   # (3, K)
-        bax = np.argmin(segmin, axis=0)
-        best = segmin[bax, np.arange(K)]
-        decision = _decide(cnt, node_area_n, best, depth, max_leaf_size, ct, ci)
-        # split position: first element of the chosen list reaching the minimum
-        bpos = np.zeros(K, np.intp)
-        for a in range(3):
-            mk = (costs[a] == best[seg]) & (bax[seg] == a)
-            hit = np.flatnonzero(mk)
-            if len(hit):
-                s_u, first = np.unique(seg[hit], return_index=True)
-                bpos[s_u] = local[hit[first]]
-        med = decision == 2
-        bpos[med] = cnt[med] // 2 - 1
-        # longest node axis for median splits
-        ext = box[:, 3:] - box[:, :3]
-        bax = np.where(med, np.argmax(ext, axis=1), bax)
-        for a in range(3):
-            mk = (bax[seg] == a)
-            L = lists[a]
-            flag_tri[L[mk]] = local[mk] <= bpos[seg[mk]]
-        dn = decision[seg]
-        # exact child boxes from list 0 order
-        g0 = flag_tri[lists[0]] | (dn == 1)
-        slot = 2 * seg + (~g0)
-        child_box = _exact_boxes(slot, 2 * K, lo0[:, lists[0]], hi0[:, lists[0]])
-        _, nl = _partition(seg, start, cnt, g0)
-        slot_base, slot_out, nxt = _advance(tree, node["ids"], node["off"], cnt, nl, decision, depth,
-                                            child_box, max_leaf_size)
-        n_next = int(nxt["cnt"].sum())
-        new_lists = []
-        for a in range(3):
-            L = lists[a]
-            g = flag_tri[L] | (dn == 1)
-            dest, out_m = _route(seg, start, cnt, g, slot_base, slot_out)
-            if a == 0:
-                order[dest[out_m]] = L[out_m]
-            (Ln,), _ = _compact(dest, out_m, n_next, [L], [])
-            new_lists.append(Ln)
-        lists = new_lists
-        node = nxt
-        depth += 1
-    return tree, order
-
-
-# ---------------------------------------------------------------------------------------------
-# records
-# ---------------------------------------------------------------------------------------------
 def _to_records(tree, T):
     n = tree.n
     leaf = tree.leaf[:n]
@@ -627,6 +518,8 @@ def build_bvh(vertices, faces, *, method="binned", max_leaf_size=4, bins=16,
     if method == "binned":
         tree, order = _build_binned(lo, hi, max_leaf_size, bins, traversal_cost, intersection_cost)
     elif method == "sweep":
+        from .bvh_sweep import _build_sweep
+
         tree, order = _build_sweep(lo, hi, max_leaf_size, traversal_cost, intersection_cost)
     else:
         raise ValueError(f"unknown method {method!r} (binned or sweep)")
@@ -651,75 +544,3 @@ def build_bvh(vertices, faces, *, method="binned", max_leaf_size=4, bins=16,
         build_seconds=build_seconds,
     )
     return bvh
-
-
-def validate(bvh) -> None:
-    """Check every structural invariant; raise AssertionError/ValueError with a message if broken."""
-    nodes, tris, pid = bvh.nodes, bvh.triangles, np.asarray(bvh.prim_ids)
-    V, F = np.asarray(bvh.vertices, np.float32), np.asarray(bvh.faces)
-    T = len(F)
-    if nodes.dtype != abi.BVH_NODE:
-        raise ValueError("nodes must have dtype abi.BVH_NODE")
-    if tris.dtype != abi.TRIANGLE:
-        raise ValueError("triangles must have dtype abi.TRIANGLE")
-    if len(nodes) < 1:
-        raise AssertionError("BVH has no root record")
-    if len(tris) != T or len(pid) != T:
-        raise AssertionError(f"{len(tris)} triangles / {len(pid)} prim_ids for {T} faces")
-    if pid.dtype != np.int32:
-        raise AssertionError(f"prim_ids dtype is {pid.dtype}, expected int32")
-    if T:
-        if pid.min() < 0 or pid.max() >= T or np.bincount(pid, minlength=T).max() != 1:
-            raise AssertionError("prim_ids is not a permutation of the face indices")
-        tv = np.stack([tris["v0"], tris["v1"], tris["v2"]], axis=1)   # (T, 3, 4)
-        if np.any(tv[:, :, 3] != 0):
-            raise AssertionError("w component of a triangle vertex is not 0")
-        if not np.array_equal(tv[:, :, :3], V[F[pid]]):
-            raise AssertionError("reordered triangles differ from vertices[faces[prim_ids]]")
-    for s in ("left", "right"):
-        c = nodes[f"count_{s}"]
-        absent = c == -1
-        if np.any(absent & ~(np.all(nodes[f"bmin_{s}"] == np.inf, axis=1)
-                             & np.all(nodes[f"bmax_{s}"] == -np.inf, axis=1))):
-            raise AssertionError(f"absent {s} child without an empty box")
-        present = ~absent
-        if np.any(nodes[f"bmin_{s}"][present] > nodes[f"bmax_{s}"][present]):
-            raise AssertionError(f"inverted {s} child box")
-    rdepth, visits, (first, count, blo, bhi, ldepth) = _record_walk(nodes)
-    if np.any(visits != 1):
-        raise AssertionError(f"{int(np.sum(visits == 0))} records unreachable from the root")
-    # absent children only at the root of a 0/1-leaf tree
-    absent_any = (nodes["count_left"] == -1) | (nodes["count_right"] == -1)
-    if T == 0:
-        if not (len(nodes) == 1 and nodes["count_left"][0] == -1 and nodes["count_right"][0] == -1):
-            raise AssertionError("an empty mesh must give one record with two absent children")
-        return
-    if np.any(absent_any[1:]) or (absent_any[0] and len(nodes) != 1):
-        raise AssertionError("absent child below the root or in a multi-record tree")
-    if np.any(nodes["count_left"] == -1):
-        raise AssertionError("absent left child")
-    # leaves tile [0, T) exactly once
-    o = np.argsort(first, kind="stable")
-    f, c = first[o].astype(np.int64), count[o].astype(np.int64)
-    if f[0] != 0 or np.any(f[1:] != f[:-1] + c[:-1]) or f[-1] + c[-1] != T:
-        raise AssertionError("leaf triangle ranges do not tile [0, T) exactly once")
-    depth = int(ldepth.max()) if not (len(nodes) == 1) else 0
-    if depth > MAX_DEPTH:
-        raise AssertionError(f"depth {depth} exceeds {MAX_DEPTH}")
-    # leaf boxes are the exact bounds of their triangles
-    xyz = tv[:, :, :3]
-    tlo, thi = xyz.min(axis=1), xyz.max(axis=1)
-    elo = np.minimum.reduceat(tlo, f, axis=0)
-    ehi = np.maximum.reduceat(thi, f, axis=0)
-    if not (np.array_equal(elo, blo[o]) and np.array_equal(ehi, bhi[o])):
-        bad = np.flatnonzero(np.any(elo != blo[o], axis=1) | np.any(ehi != bhi[o], axis=1))
-        raise AssertionError(f"{len(bad)} leaf boxes are not the exact bounds of their triangles "
-                             f"(first: leaf [{f[bad[0]]}, +{c[bad[0]]}))")
-    # an inner child's box is exactly its record's box (union of its children), hence contained
-    rlo, rhi = _record_boxes(nodes)
-    for s in ("left", "right"):
-        m = nodes[f"count_{s}"] == 0
-        ch = nodes[f"child_{s}"][m]
-        if not (np.array_equal(nodes[f"bmin_{s}"][m], rlo[ch])
-                and np.array_equal(nodes[f"bmax_{s}"][m], rhi[ch])):
-            raise AssertionError(f"a {s} inner child box is not the exact union of its children's boxes")

@@ -39,7 +39,7 @@ triangles in ceil(n/4) packets), so every box is the binary BVH's exact box and 
 is the binary BVH's.
 
 The device copy (:func:`device_blob`) pads every present box by 2^-20 of the scene's largest
-coordinate, as :func:`pyopencl_rt.trace.padded_nodes` does for the binary layout (see
+coordinate, as :func:`pyopencl_rt.accel.device_bvh.padded_nodes` does for the binary layout (see
 "Conservative on purpose" in cl/intersect.h).
 """
 from __future__ import annotations
@@ -54,10 +54,9 @@ from .bvh import BVH, MAX_DEPTH
 
 WIDTH = 4
 NODE_UNITS = abi.WIDE_NODE.itemsize // 16   # 8 float4s
-TRI4_UNITS = abi.TRI4.itemsize // 16        # 10 float4s
+TRI4_UNITS = abi.TRI4_UNITS                 # 10 float4s
 MAX_WIDE_DEPTH = (MAX_DEPTH + 1) // 2          # each wide level descends two binary levels
-STACK_SIZE = 96                                # >= 3 * MAX_WIDE_DEPTH + 1; WIDE_STACK_SIZE in cl/bvh_wide.h
-BOX_PAD_RELATIVE = 2.0**-20                    # as pyopencl_rt.trace.BOX_PAD_RELATIVE
+STACK_SIZE = abi.WIDE_STACK_SIZE               # >= 3 * MAX_WIDE_DEPTH + 1 (validate_wide checks)
 _COORDS = ("x", "y", "z")
 
 __all__ = ["WideBVH", "build_wide", "validate_wide", "device_blob", "reference_closest_hit", "STACK_SIZE"]
@@ -220,7 +219,7 @@ def device_blob(wide: WideBVH) -> np.ndarray:
         for c in _COORDS:
             scale = max(scale, float(np.abs(nodes[f"bmin_{c}"][present]).max()),
                         float(np.abs(nodes[f"bmax_{c}"][present]).max()))
-        pad = np.float32(scale * BOX_PAD_RELATIVE)
+        pad = np.float32(scale * abi.BOX_PAD_RELATIVE)
         for c in _COORDS:
             lo, hi = nodes[f"bmin_{c}"], nodes[f"bmax_{c}"]
             lo[present] = np.nextafter(lo[present] - pad, np.float32(-np.inf))

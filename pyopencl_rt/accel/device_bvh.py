@@ -5,11 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..device import abi
 from ..errors import UserError
 from .bvh import BVH
-
-
-BOX_PAD_RELATIVE = 2.0**-20  # see "Conservative on purpose" in cl/intersect.h
 
 
 def padded_nodes(bvh: BVH) -> np.ndarray:
@@ -19,7 +17,7 @@ def padded_nodes(bvh: BVH) -> np.ndarray:
     if len(bvh.triangles) == 0:
         return nodes
     scale = float(np.abs(bvh.bounds).max())
-    pad = np.float32(scale * BOX_PAD_RELATIVE)
+    pad = np.float32(scale * abi.BOX_PAD_RELATIVE)
     for side in ("left", "right"):
         present = nodes[f"count_{side}"] >= 0
         lo, hi = nodes[f"bmin_{side}"], nodes[f"bmax_{side}"]

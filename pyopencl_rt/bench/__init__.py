@@ -1,3 +1,12 @@
-"""Benchmarks: rays/s and samples/s (:mod:`.throughput`), error against time (:mod:`.convergence`) and
-the Mitsuba 3 comparison (:mod:`.mitsuba_export`, :mod:`.mitsuba_runner`).
+"""Benchmarks, one module per ``pyopencl-rt bench`` subcommand (docs/BENCHMARKS.md):
+
+* :mod:`.rays`: rays/s of the OpenCL traversal beside embreex, on :mod:`.workloads`' meshes and rays;
+* :mod:`.bvh_build`: build time and SAH cost of the host BVH builder against the full sweep;
+* :mod:`.render`: samples/s of the path tracer per device and intersector;
+* :mod:`.materials`: the samples/s cost of textures, rough lobes and the glTF layer;
+* :mod:`.convergence` (numbers in :mod:`.convergence_analysis`): error against render time;
+* :mod:`.mitsuba_host`: Mitsuba 3 as the peer renderer, run in its own interpreter through the
+  scripts :mod:`.mitsuba_runner` and :mod:`.mitsuba_cornell_box`, on scenes from :mod:`.mitsuba_export`.
+
+:mod:`.timing` holds the timing rules they share (medians, alternating the variants compared).
 """

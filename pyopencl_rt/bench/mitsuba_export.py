@@ -8,13 +8,14 @@ Mitsuba usually lives in its own virtual environment, so the export has two halv
   ``mi.load_dict``; :func:`to_mitsuba_dict` does both in one go where Mitsuba imports here.
 
 This module imports nothing but numpy at module level and nothing from the package, so that
-``pyopencl_rt/mitsuba_runner.py`` can load it by file path in an interpreter that has Mitsuba
+``pyopencl_rt/bench/mitsuba_runner.py`` can load it by file path in an interpreter that has Mitsuba
 and numpy but not pyopencl.
 
-Correspondence (checked by tests/test_convergence.py against our renderer):
+Correspondence (checked by tests/bench/test_convergence.py against our renderer):
 
 * triangles: one PLY mesh per material (``face_normals = true``: flat shading on the geometric
-  normal, as ours), BSDF ``twosided`` ``diffuse`` with our albedo as ``rgb`` reflectance;
+  normal, as ours), BSDF from the material type's ``to_mitsuba`` (pyopencl_rt/scene/materials/;
+  a type without one is refused);
 * emitters: ``area`` emitter with our radiance.  Ours is one-sided along the geometric normal
   (v1 - v0) x (v2 - v0); Mitsuba's area emitter emits on the side of the mesh normal, which for
   a PLY without normals is the same cross product (same winding): verified with a one-quad
@@ -34,29 +35,32 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-RR_DEPTH_DEFAULT = 3
+if TYPE_CHECKING:
+    from ..render.settings import ImageSettings
 
 
-def scene_arrays(scene, width=None, height=None, spp=None, max_depth=None, rr_depth=None) -> dict:
-    """Plain arrays and numbers describing ``scene`` for :func:`dict_from_arrays`."""
-    st = scene.settings
+def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict:
+    """Plain arrays and numbers describing ``scene`` rendered with ``settings`` (default: the
+    scene's own) and ``spp`` samples per pixel, for :func:`dict_from_arrays`."""
+    from ..render.settings import ImageSettings  # here, not at the top: see the module docstring
+
+    settings = settings or ImageSettings.resolve(scene)
     for m in scene.materials:
         if m.is_emissive and m.two_sided:
             raise ValueError(f"material {m.name!r}: Mitsuba 3 has no two-sided area emitter")
-        if getattr(m, "type", "diffuse") != "diffuse":
-            raise ValueError(f"material {m.name!r}: type {m.type!r} is not exported to Mitsuba yet")
     cam = scene.camera
-    settings = {
-        "width": int(width or st.width), "height": int(height or st.height),
-        "spp": int(spp or st.spp),
-        "max_depth": int(st.max_depth if max_depth is None else max_depth),
-        "rr_depth": int(getattr(st, "rr_depth", RR_DEPTH_DEFAULT) if rr_depth is None else rr_depth),
+    record = {
+        "width": settings.width, "height": settings.height,
+        "spp": int(spp or scene.settings.spp),
+        "max_depth": settings.max_depth,
+        "rr_depth": settings.rr_depth,
         "eye": [float(x) for x in cam.eye], "look_at": [float(x) for x in cam.look_at],
         "up": [float(x) for x in cam.up], "fov": float(cam.fov),
-        "materials": [{"name": m.name, "albedo": [float(x) for x in m.albedo],
+        "materials": [{"name": m.name, "bsdf": m.mitsuba_bsdf(),
                        "emission": [float(x) for x in m.emission]} for m in scene.materials],
     }
     return {
@@ -65,7 +69,7 @@ def scene_arrays(scene, width=None, height=None, spp=None, max_depth=None, rr_de
         "face_materials": np.asarray(scene.face_materials, np.int32),
         "spheres": np.asarray(scene.spheres, np.float32).reshape(-1, 4),
         "sphere_materials": np.asarray(scene.sphere_materials, np.int32),
-        "settings": json.dumps(settings),
+        "settings": json.dumps(record),
     }
 
 
@@ -115,10 +119,6 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
     }
     mats = s["materials"]
 
-    def bsdf(m):
-        return {"type": "twosided", "material": {"type": "diffuse",
-                                                 "reflectance": {"type": "rgb", "value": m["albedo"]}}}
-
     def emitter(m):
         return {"type": "area", "radiance": {"type": "rgb", "value": m["emission"]}}
 
@@ -129,13 +129,13 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
         path = os.path.join(tmpdir, f"mesh_{int(mi_index)}.ply")
         write_ply(path, verts[used], local.reshape(-1, 3))
         m = mats[int(mi_index)]
-        shape = {"type": "ply", "filename": path, "face_normals": True, "bsdf": bsdf(m)}
+        shape = {"type": "ply", "filename": path, "face_normals": True, "bsdf": m["bsdf"]}
         if max(m["emission"]) > 0:
             shape["emitter"] = emitter(m)
         d[f"mesh_{int(mi_index)}"] = shape
     for i, (sp, mi_index) in enumerate(zip(arrays["spheres"], arrays["sphere_materials"])):
         m = mats[int(mi_index)]
-        shape = {"type": "sphere", "center": [float(x) for x in sp[:3]], "radius": float(sp[3]), "bsdf": bsdf(m)}
+        shape = {"type": "sphere", "center": [float(x) for x in sp[:3]], "radius": float(sp[3]), "bsdf": m["bsdf"]}
         if max(m["emission"]) > 0:
             shape["emitter"] = emitter(m)
         d[f"sphere_{i}"] = shape
@@ -153,9 +153,9 @@ def _scene_scale(arrays) -> float:
     return float(max(np.ptp(allp, axis=0).max(), 1e-6))
 
 
-def to_mitsuba_dict(scene, width=None, height=None, spp=None, max_depth=None, rr_depth=None, tmpdir=None) -> dict:
+def to_mitsuba_dict(scene, settings: ImageSettings | None = None, spp=None, tmpdir=None) -> dict:
     """``mi.load_dict`` input for ``scene`` (needs ``import mitsuba`` to work in this process,
     with a variant set)."""
     import mitsuba as mi
 
-    return dict_from_arrays(scene_arrays(scene, width, height, spp, max_depth, rr_depth), mi, tmpdir)
+    return dict_from_arrays(scene_arrays(scene, settings, spp), mi, tmpdir)

@@ -1,13 +1,39 @@
-"""One definition of every struct shared between host and device.
+"""The kernel ABI, declared once: everything host and device must agree on.
 
-Each layout is a numpy structured dtype; :func:`cl_struct` turns it into the matching OpenCL C
-``typedef struct``, and :func:`cl_header` concatenates them into the header that is prepended to
-every program build.  Fields are 4-byte scalars or arrays of them, so numpy's packed layout and
-OpenCL's natural alignment agree byte for byte (checked by ``tests/test_layout.py``).
+- :data:`STRUCTS`: the shared structs, as numpy structured dtypes;
+- :data:`DEFINES`: the enums (material types and flags, light kinds, texture flags, the hit
+  encoding), sizes (traversal stacks, packet units, box padding, work-group size) and the queue
+  counter slots, each declared with :func:`define` (``NAME = define("NAME", value)``);
+- :data:`WAVE_PARAMS`: the parameter list that every wavefront kernel shares, in order.
+
+:func:`cl_header` generates from them the header prepended to every program build (struct
+typedefs, ``#define`` s and the ``WAVE_PARAMS`` macro), so the kernels never restate them; the
+host binds wavefront arguments by name (:class:`pyopencl_rt.device.kernel_args.KernelArgs`).
+``tests/device/test_abi.py`` checks on every device that the compiled sizes, offsets, values and
+kernel signatures equal these tables.  Struct fields are 4-byte scalars or arrays of them, so
+numpy's packed layout and OpenCL's natural alignment agree byte for byte.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+# Every #define of the generated header (name -> int or float), in declaration order.
+DEFINES: dict[str, int | float] = {}
+# Defines a build may override with -D (the value here is the default): the header guards them.
+OVERRIDABLE: set[str] = set()
+
+
+def define(name: str, value, overridable: bool = False):
+    """Record ``#define name value`` for the generated header and return ``value``."""
+    if name in DEFINES:
+        raise ValueError(f"{name} is defined twice")
+    DEFINES[name] = value
+    if overridable:
+        OVERRIDABLE.add(name)
+    return value
+
 
 # ---------------------------------------------------------------------------------------------
 # BVH node (64 bytes).  A binary BVH in which each node stores the boxes of *both* children
@@ -46,16 +72,14 @@ assert TRIANGLE.itemsize == 48
 #   metallic  gltf
 #   ior       dielectric: index of the inside relative to the outside; gltf: the dielectric's
 #             index (F0 = ((ior - 1) / (ior + 1))^2)
-# The type and flag constants are #defined again in cl/bsdf.h (tests/test_materials.py checks
-# that they agree).
-MATERIAL_DIFFUSE = 0
-MATERIAL_CONDUCTOR = 1
-MATERIAL_DIELECTRIC = 2
-MATERIAL_GLTF = 3
+MATERIAL_DIFFUSE = define("MATERIAL_DIFFUSE", 0)
+MATERIAL_CONDUCTOR = define("MATERIAL_CONDUCTOR", 1)
+MATERIAL_DIELECTRIC = define("MATERIAL_DIELECTRIC", 2)
+MATERIAL_GLTF = define("MATERIAL_GLTF", 3)
 MATERIAL_TYPES = {"diffuse": MATERIAL_DIFFUSE, "conductor": MATERIAL_CONDUCTOR,
                   "dielectric": MATERIAL_DIELECTRIC, "gltf": MATERIAL_GLTF}
-MATERIAL_FLAG_TWO_SIDED = 1
-MATERIAL_FLAG_CONDUCTOR_F0 = 2
+MATERIAL_FLAG_TWO_SIDED = define("MATERIAL_FLAG_TWO_SIDED", 1)
+MATERIAL_FLAG_CONDUCTOR_F0 = define("MATERIAL_FLAG_CONDUCTOR_F0", 2)
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
@@ -73,7 +97,7 @@ assert MATERIAL.itemsize == 96
 # by row from the top of the image (v = 0 is the top row, as in glTF; OBJ's v is flipped at load),
 # already linear (sRGB images that hold colours are decoded at load: flags bit 0 records that).
 # channels: the source image's channel count (informative).
-TEXTURE_FLAG_SRGB = 1
+TEXTURE_FLAG_SRGB = define("TEXTURE_FLAG_SRGB", 1)
 TEXTURE = np.dtype([("offset", np.int32), ("width", np.int32), ("height", np.int32), ("channels", np.int32),
                     ("flags", np.int32), ("pad0", np.int32), ("pad1", np.int32), ("pad2", np.int32)])
 assert TEXTURE.itemsize == 32
@@ -92,11 +116,11 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 #   dir:    directional: unit direction in which the light travels
 #   rgb:    point: intensity [W/sr]; directional: irradiance on a perpendicular surface;
 #           environment: radiance (constant) or the map's scale
-LIGHT_TRIANGLE = 0
-LIGHT_SPHERE = 1
-LIGHT_POINT = 2
-LIGHT_DIRECTIONAL = 3
-LIGHT_ENVIRONMENT = 4
+LIGHT_TRIANGLE = define("LIGHT_TRIANGLE", 0)
+LIGHT_SPHERE = define("LIGHT_SPHERE", 1)
+LIGHT_POINT = define("LIGHT_POINT", 2)
+LIGHT_DIRECTIONAL = define("LIGHT_DIRECTIONAL", 3)
+LIGHT_ENVIRONMENT = define("LIGHT_ENVIRONMENT", 4)
 LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), ("alias_prob", np.float32),
                   ("alias", np.int32), ("material", np.int32), ("area", np.float32), ("pad", np.int32),
                   ("p", np.float32, 3), ("radius", np.float32), ("dir", np.float32, 3), ("pad1", np.int32),
@@ -113,28 +137,6 @@ CAMERA = np.dtype(
      ("right", np.float32, 3), ("lens_radius", np.float32), ("up", np.float32, 3), ("focus_distance", np.float32)]
 )
 assert CAMERA.itemsize == 64
-
-_CL_SCALAR = {
-    np.dtype(np.float32): "float",
-    np.dtype(np.int32): "int",
-    np.dtype(np.uint32): "uint",
-}
-
-
-def cl_struct(name: str, dtype: np.dtype) -> str:
-    """Return ``typedef struct {...} name;`` for a structured dtype of 4-byte fields."""
-    lines = []
-    for field in dtype.names:
-        ftype, offset = dtype.fields[field][:2]
-        base, shape = (ftype.subdtype if ftype.subdtype else (ftype, ()))
-        if base not in _CL_SCALAR:
-            raise TypeError(f"{name}.{field}: unsupported base type {base}")
-        count = int(np.prod(shape)) if shape else 0
-        suffix = f"[{count}]" if count else ""
-        lines.append(f"    {_CL_SCALAR[base]} {field}{suffix};  /* offset {offset} */")
-    body = "\n".join(lines)
-    return f"typedef struct {{\n{body}\n}} {name};  /* {dtype.itemsize} bytes */\n"
-
 
 # A 4-wide BVH node (128 bytes; pyopencl_rt/bvh_wide.py builds it, cl/bvh_wide.h traverses it):
 # the boxes of up to four children in structure-of-arrays form (each field is one float4, so one
@@ -167,8 +169,208 @@ STRUCTS: dict[str, np.dtype] = {
 }
 
 
+# ---------------------------------------------------------------------------------------------
+# The hit encoding (Hit.prim, hit_prim[]): prim >= 0 is a triangle (index into the BVH-reordered
+# triangle array), PRIM_MISS a miss, and sphere s is PRIM_SPHERE_FIRST - s (cl/scene.h).
+PRIM_MISS = define("PRIM_MISS", -1)
+PRIM_SPHERE_FIRST = define("PRIM_SPHERE_FIRST", -2)
+
+# Sizes.  The stacks are bounded by the builders' depth limits (accel/bvh.py, accel/bvh_wide.py
+# check them), and kept small because PoCL holds a private copy per work-item of a work-group.
+BVH_STACK_SIZE = define("BVH_STACK_SIZE", 64)    # cl/bvh.h: one entry per level
+WIDE_STACK_SIZE = define("WIDE_STACK_SIZE", 96)  # cl/bvh_wide.h: up to 3 entries per wide level
+TRI4_UNITS = define("TRI4_UNITS", TRI4.itemsize // 16)  # float4s per Tri4 packet
+# Node boxes grow by this fraction of the scene's largest coordinate (cl/intersect.h,
+# "Conservative on purpose"); the host pads, the kernels rely on it.
+BOX_PAD_RELATIVE = define("BOX_PAD_RELATIVE", 2.0**-20)
+# Work-group size of every wavefront launch: shade.cl sizes its local arrays with it.
+WAVE_LOCAL_SIZE = define("WAVE_LOCAL_SIZE", 64, overridable=True)
+
+# Slots of the wavefront's counters[] buffer.  The first three are the per-iteration queue
+# lengths, zeroed by the host before every extend (shade.cl indexes a 3-entry array with them);
+# the ring's per-pass completion counts start at COUNTER_PASS_DONE.
+COUNTER_QUEUE_OUT = define("COUNTER_QUEUE_OUT", 0)  # paths that continue (queue_out)
+COUNTER_SHADOW = define("COUNTER_SHADOW", 1)        # shadow rays queued by shade (shadow_q)
+COUNTER_TERM = define("COUNTER_TERM", 2)            # finished paths (term_q)
+COUNTER_NONFINITE = define("COUNTER_NONFINITE", 3)  # samples dropped as NaN/inf, over the whole run
+COUNTER_PASS_DONE = define("COUNTER_PASS_DONE", 8)
+COUNTERS = {"queue_out": COUNTER_QUEUE_OUT, "shadow": COUNTER_SHADOW, "term": COUNTER_TERM,
+            "nonfinite": COUNTER_NONFINITE}
+ITERATION_COUNTERS = 3
+assert sorted((COUNTER_QUEUE_OUT, COUNTER_SHADOW, COUNTER_TERM)) == list(range(ITERATION_COUNTERS))
+assert max(COUNTERS.values()) < COUNTER_PASS_DONE
+
+
+# ---------------------------------------------------------------------------------------------
+# The wavefront kernels' shared parameter list.
+# ---------------------------------------------------------------------------------------------
+_SCALAR_NUMPY = {"int": np.int32, "uint": np.uint32, "float": np.float32}
+_VECTOR_SIZE = {"float2": 8, "float4": 16}
+
+
+@dataclass(frozen=True)
+class Param:
+    """One kernel parameter.
+
+    kind      "const" (``__global const ctype *``), "global" (``__global ctype *``) or
+              "scalar" (``const ctype``)
+    per_slot  path state and queues: ctype elements per wave slot (the host allocates
+              ``per_slot * wave_size`` of them)
+    launch    set at every launch (the queues that swap, the per-stage scalars, 0 unless given)
+              rather than once when the wavefront is set up
+    """
+
+    name: str
+    kind: str
+    ctype: str
+    doc: str = ""
+    per_slot: int = 0
+    launch: bool = False
+
+    def __post_init__(self):
+        if self.kind not in ("const", "global", "scalar"):
+            raise ValueError(f"{self.name}: unknown kind {self.kind!r}")
+        if self.kind == "scalar" and self.ctype not in _SCALAR_NUMPY:
+            raise ValueError(f"{self.name}: scalar of unsupported type {self.ctype!r}")
+
+    @property
+    def itemsize(self) -> int:
+        """Bytes of one ctype element."""
+        if self.ctype in STRUCTS:
+            return STRUCTS[self.ctype].itemsize
+        return _VECTOR_SIZE.get(self.ctype) or np.dtype(_SCALAR_NUMPY[self.ctype]).itemsize
+
+    def scalar(self, value):
+        """``value`` as the numpy scalar that pyopencl passes by value for this parameter."""
+        return _SCALAR_NUMPY[self.ctype](value)
+
+    def cl(self) -> str:
+        if self.kind == "scalar":
+            return f"const {self.ctype} {self.name}"
+        return f"__global {'const ' if self.kind == 'const' else ''}{self.ctype} *{self.name}"
+
+
+def _path(name, ctype, per_slot, doc=""):
+    return Param(name, "global", ctype, doc, per_slot=per_slot)
+
+
+# In the order of the kernels' signatures; the host binds by name, so the order is free, but
+# every kernel takes the whole list (the host sets the fixed arguments once, on every kernel).
+WAVE_PARAMS: tuple[Param, ...] = (
+    # the scene, uploaded once
+    Param("nodes", "const", "BVHNode", "binary BVH nodes, or the wide BVH blob with BVH_WIDE"),
+    Param("tris", "const", "float4", "BVH-reordered triangles, 3 vertices each"),
+    Param("tri_material", "const", "int", "material per reordered triangle"),
+    Param("tri_light", "const", "int", "light per reordered triangle, -1 if none"),
+    Param("spheres", "const", "Sphere"),
+    Param("sphere_material", "const", "int"),
+    Param("sphere_light", "const", "int", "light per sphere, -1 if none"),
+    Param("materials", "const", "Material"),
+    Param("lights", "const", "Light"),
+    Param("camera", "const", "Camera", "one record"),
+    # path state, structure of arrays indexed by wave slot
+    _path("ray_o", "float", 3, "origin of the path's next ray"),
+    _path("ray_d", "float", 3, "its direction"),
+    _path("throughput", "float", 3, "path throughput (beta)"),
+    _path("radiance", "float", 3, "radiance gathered so far (L)"),
+    _path("path_pixel", "int", 1, "the sample's pixel"),
+    _path("path_pass", "int", 1, "the sample's pass"),
+    _path("path_depth", "int", 1, "segments so far"),
+    _path("path_pdf", "float", 1, "BSDF pdf of the last bounce, 0 after a camera or delta bounce"),
+    _path("hit_t", "float", 1, "closest hit of ray_o/ray_d (extend)"),
+    _path("hit_prim", "int", 1, "its primitive (PRIM_MISS, triangle or SPHERE_PRIM)"),
+    _path("hit_u", "float", 1, "its barycentrics"),
+    _path("hit_v", "float", 1),
+    _path("sh_o", "float", 3, "shadow ray origin (shade -> shadow)"),
+    _path("sh_d", "float", 3, "shadow ray, t in (0, 1)"),
+    _path("sh_contrib", "float", 3, "radiance the light sample adds if unoccluded"),
+    # textures (cl/textures.h); 16-byte dummies without HAS_TEXTURES
+    Param("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
+    Param("textures", "const", "Texture"),
+    Param("tex_data", "const", "float4", "texels of every texture"),
+    Param("mat_scratch", "global", "Material", "effective Material of a textured hit", per_slot=1),
+    # queues of slot indices and their counters
+    Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True),
+    Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True),
+    Param("shadow_q", "global", "int", "paths with a shadow ray", per_slot=1),
+    Param("term_q", "global", "int", "finished paths", per_slot=1),
+    Param("free_q", "global", "int", "stack of free slots", per_slot=1),
+    Param("counters", "global", "int", "COUNTER_* slots, then one per ring pass"),
+    Param("pass_ring", "global", "float", "ring_size passes of n_pixels RGB sums"),
+    # the environment map and its sampling CDFs (cl/lights.h); dummies without HAS_ENVIRONMENT
+    Param("env_map", "const", "float"),
+    Param("env_cdf", "const", "float"),
+    # fixed scalars
+    Param("n_spheres", "scalar", "int"),
+    Param("n_lights", "scalar", "int"),
+    Param("n_pixels", "scalar", "int"),
+    Param("ring_size", "scalar", "int", "passes in flight at most"),
+    Param("max_depth", "scalar", "int", "path segments, < 0 for no limit"),
+    Param("rr_depth", "scalar", "int", "segments before Russian roulette"),
+    Param("seed", "scalar", "uint"),
+    # per-stage scalars (each stage reads the ones its .cl file names)
+    Param("n_items", "scalar", "int", "work-items with work: new paths, or active paths", launch=True),
+    Param("first_pass", "scalar", "int", "generate: pass of the first new sample", launch=True),
+    Param("first_pixel", "scalar", "int", "generate: its pixel (later ones follow, wrapping)", launch=True),
+    Param("queue_base", "scalar", "int", "generate: active-queue length before", launch=True),
+    Param("free_base", "scalar", "int", "generate, accumulate: free-stack length before", launch=True),
+)
+WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
+assert len(WAVE_PARAM) == len(WAVE_PARAMS)
+
+
+# ---------------------------------------------------------------------------------------------
+# The generated header.
+# ---------------------------------------------------------------------------------------------
+_CL_SCALAR = {
+    np.dtype(np.float32): "float",
+    np.dtype(np.int32): "int",
+    np.dtype(np.uint32): "uint",
+}
+
+
+def cl_struct(name: str, dtype: np.dtype) -> str:
+    """Return ``typedef struct {...} name;`` for a structured dtype of 4-byte fields."""
+    lines = []
+    for field in dtype.names:
+        ftype, offset = dtype.fields[field][:2]
+        base, shape = (ftype.subdtype if ftype.subdtype else (ftype, ()))
+        if base not in _CL_SCALAR:
+            raise TypeError(f"{name}.{field}: unsupported base type {base}")
+        count = int(np.prod(shape)) if shape else 0
+        suffix = f"[{count}]" if count else ""
+        lines.append(f"    {_CL_SCALAR[base]} {field}{suffix};  /* offset {offset} */")
+    body = "\n".join(lines)
+    return f"typedef struct {{\n{body}\n}} {name};  /* {dtype.itemsize} bytes */\n"
+
+
+def cl_literal(value) -> str:
+    if isinstance(value, float):
+        return f"{value!r}f"
+    return f"({value})" if value < 0 else str(value)
+
+
+def cl_defines(defines: dict, overridable=frozenset()) -> str:
+    lines = []
+    for name, value in defines.items():
+        line = f"#define {name} {cl_literal(value)}"
+        lines.append(f"#ifndef {name}\n{line}\n#endif" if name in overridable else line)
+    return "\n".join(lines) + "\n"
+
+
+def cl_params(macro: str, params) -> str:
+    """``#define macro`` the parameter list, one parameter a line with its doc."""
+    lines = [f"    {p.cl()}{',' if i < len(params) - 1 else ''}" + (f" /* {p.doc} */" if p.doc else "")
+             for i, p in enumerate(params)]
+    width = max(map(len, lines))
+    return f"#define {macro} \\\n" + " \\\n".join(line.ljust(width) for line in lines[:-1]) + f" \\\n{lines[-1]}\n"
+
+
 def cl_header() -> str:
-    """OpenCL C declarations of every shared struct, generated from the dtypes above."""
-    return "/* generated from pyopencl_rt/layout.py: do not edit */\n" + "\n".join(
-        cl_struct(name, dt) for name, dt in STRUCTS.items()
-    )
+    """The OpenCL C declarations of this module's tables, prepended to every program."""
+    return "\n".join([
+        "/* generated from pyopencl_rt/device/abi.py: do not edit */",
+        *(cl_struct(name, dt) for name, dt in STRUCTS.items()),
+        cl_defines(DEFINES, OVERRIDABLE),
+        cl_params("WAVE_PARAMS", WAVE_PARAMS),
+    ])

@@ -1,7 +1,7 @@
 """Locating, assembling and building the OpenCL C sources in ``cl/``.
 
 Sources are assembled on the host: ``#include "x.h"`` lines are expanded here (each file once),
-and the struct declarations generated from :mod:`pyopencl_rt.layout` are prepended.  The program
+and the header generated from :mod:`pyopencl_rt.device.abi` (structs, constants, WAVE_PARAMS) is prepended.  The program
 text handed to the driver is therefore self-contained, so the driver's binary cache (and
 pyopencl's) can never serve a stale binary after a header changed.  Feature switches are passed
 as preprocessor defines, so a scene compiles only the code it uses.

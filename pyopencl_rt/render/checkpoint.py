@@ -30,27 +30,13 @@ import numpy as np
 
 from ..errors import UserError
 from .film import Film
+from .settings import ImageSettings
 
 FORMAT = 1
-IMAGE_SETTINGS = ("width", "height", "max_depth", "rr_depth", "integrator", "seed")
 
 
 class CheckpointError(UserError):
     """A checkpoint that is missing, unreadable or belongs to another scene or settings."""
-
-
-def image_settings(scene, *, width=None, height=None, max_depth=None, rr_depth=None, integrator=None,
-                   seed=None) -> dict:
-    """The settings that determine the image, resolved as :class:`Wavefront` resolves them."""
-    st = scene.settings
-    return {
-        "width": int(width or st.width),
-        "height": int(height or st.height),
-        "max_depth": int(st.max_depth if max_depth is None else max_depth),
-        "rr_depth": int(st.rr_depth if rr_depth is None else rr_depth),
-        "integrator": str(integrator or st.integrator),
-        "seed": int(st.seed if seed is None else seed) & 0xFFFFFFFF,
-    }
 
 
 def scene_hash(scene) -> str:
@@ -77,9 +63,9 @@ def scene_hash(scene) -> str:
     return h.hexdigest()
 
 
-def render_key(scene, settings: dict) -> str:
+def render_key(scene, settings: ImageSettings) -> str:
     h = hashlib.sha256(scene_hash(scene).encode())
-    h.update(json.dumps({k: settings[k] for k in IMAGE_SETTINGS}, sort_keys=True).encode())
+    h.update(json.dumps(settings.as_dict(), sort_keys=True).encode())
     return h.hexdigest()
 
 
@@ -89,7 +75,7 @@ def default_path(output) -> Path:
     return p.with_name(p.stem + ".ckpt.npz")
 
 
-def save(path, film: Film, scene, settings: dict, meta: dict | None = None) -> Path:
+def save(path, film: Film, scene, settings: ImageSettings, meta: dict | None = None) -> Path:
     """Write ``film`` as a checkpoint of (scene, settings), atomically."""
     from ..imageio import _atomic_write
 
@@ -98,7 +84,7 @@ def save(path, film: Film, scene, settings: dict, meta: dict | None = None) -> P
     record = {
         "format": FORMAT,
         "scene_hash": scene_hash(scene),
-        "settings": {k: settings[k] for k in IMAGE_SETTINGS},
+        "settings": settings.as_dict(),
         "passes": int(film.passes),
         "scene": getattr(scene, "source", None),
         "time": time.strftime("%Y-%m-%dT%H:%M:%S"),
@@ -140,7 +126,7 @@ def read(path) -> tuple[Film, str, dict]:
     return Film(w, h, sum=s.copy(), sum_sq=sq.copy(), passes=passes), key, meta
 
 
-def load(path, scene, settings: dict) -> tuple[Film, dict]:
+def load(path, scene, settings: ImageSettings) -> tuple[Film, dict]:
     """The film of a checkpoint made for (scene, settings); CheckpointError (one line) if it is not."""
     film, key, meta = read(path)
     if key == render_key(scene, settings):
@@ -150,7 +136,7 @@ def load(path, scene, settings: dict) -> tuple[Film, dict]:
         raise CheckpointError(f"{path}: checkpoint is for another scene ({stored}, different geometry, materials "
                               f"or camera); delete it or render without --resume")
     theirs = meta.get("settings", {})
-    diff = ", ".join(f"{k} {theirs.get(k)!r} -> {settings[k]!r}" for k in IMAGE_SETTINGS if theirs.get(k) != settings[k])
+    diff = settings.differences(theirs)
     raise CheckpointError(f"{path}: checkpoint was made with other settings ({diff or 'unknown'}); "
                           f"use the same settings to resume")
 

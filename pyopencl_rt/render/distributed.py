@@ -23,6 +23,7 @@ import time
 from ..errors import UserError
 from .wavefront import STAGES
 from .film import Film, RunStats
+from .settings import ImageSettings
 
 INSTALL = "--scheduler needs Dask: pip install 'pyopencl-rt[distributed]' (or pip install 'dask[distributed]')"
 
@@ -57,46 +58,36 @@ _WORKER_CACHE: dict = {}
 _WORKER_LOCK = threading.Lock()
 
 
-def _engine(scene, job):
-    """The Wavefront(s) of this worker for this scene and settings (built on the first chunk)."""
+def _renderer(scene, job):
+    """The Wavefront, or MultiDevice, of this worker for this scene and settings (built on the
+    first chunk), its description for the sidecar, and a lock."""
     from distributed import get_worker
 
-    from ..device.devices import resolve
+    from ..device.devices import device_label, resolve
 
-    key = (get_worker().address, job["key"], repr(job["device"]), job["wave_size"])
+    key = (get_worker().address, job["key"], repr(job["device"]), job["wave_size"], job["intersector"])
     with _WORKER_LOCK:
         entry = _WORKER_CACHE.get(key)
         if entry is None:
             for k in [k for k in _WORKER_CACHE if k[0] == key[0]]:
                 del _WORKER_CACHE[k]  # one scene per worker at a time: free the device memory
-            s = job["settings"]
-            kw = dict(width=s["width"], height=s["height"], integrator=s["integrator"], max_depth=s["max_depth"],
-                      rr_depth=s["rr_depth"], seed=s["seed"], wave_size=job["wave_size"])
-            devs = resolve(job["device"])
+            settings = ImageSettings.from_dict(job["settings"])
+            options = dict(wave_size=job["wave_size"], intersector=job["intersector"])
+            devices = resolve(job["device"])
             t0 = time.perf_counter()
-            if len(devs) == 1:
+            if len(devices) == 1:
                 from .wavefront import Wavefront
 
-                eng = Wavefront(scene, devs[0], **kw)
-                wf = eng
+                renderer = first = Wavefront(scene, devices[0], settings, **options)
             else:
                 from .multidevice import MultiDevice
 
-                eng = MultiDevice(scene, devs, **kw)
-                eng.prepare()
-                wf = eng.wavefronts[0]
-            from ..device.devices import device_label
-
-            desc = {
-                "devices": [device_label(d) for d in devs],
-                "wave_size": wf.wave_size,
-                "features": sorted(k if v is True else f"{k}={v}" for k, v in wf.features.items()),
-                "lights": wf.n_lights,
-                "bvh_seconds": wf.timings.get("bvh_seconds"),
-                "kernel_build_seconds": wf.timings.get("build_seconds"),
-                "setup_seconds": time.perf_counter() - t0,
-            }
-            entry = _WORKER_CACHE[key] = (eng, desc, threading.Lock())
+                renderer = MultiDevice(scene, devices, settings=settings, **options)
+                renderer.prepare()
+                first = renderer.wavefronts[0]
+            description = {"devices": [device_label(d) for d in devices], **first.description(),
+                           "setup_seconds": time.perf_counter() - t0}
+            entry = _WORKER_CACHE[key] = (renderer, description, threading.Lock())
     return entry
 
 
@@ -104,37 +95,37 @@ def render_chunk(scene, job: dict, first: int, count: int) -> dict:
     """Worker task: passes [first, first + count) into a fresh film; returns its sums."""
     from distributed import get_worker
 
-    eng, desc, lock = _engine(scene, job)
-    s = job["settings"]
-    film = Film(s["width"], s["height"])
-    with lock:  # a worker with several threads shares one engine
-        st = eng.run(film, passes=count, first_pass=first, profile=job.get("profile", False))
+    renderer, description, lock = _renderer(scene, job)
+    film = Film(job["settings"]["width"], job["settings"]["height"])
+    with lock:  # a worker with several threads shares one renderer
+        st = renderer.run(film, passes=count, first_pass=first, profile=job.get("profile", False))
     return {
         "first": first, "passes": film.passes, "sum": film.sum, "sum_sq": film.sum_sq,
-        "worker": get_worker().address, "seconds": st.seconds, "desc": desc,
+        "worker": get_worker().address, "seconds": st.seconds, "description": description,
         "stats": {"iterations": st.iterations, "rays_extend": st.rays_extend, "rays_shadow": st.rays_shadow,
                   "nonfinite": st.nonfinite, "stage_seconds": dict(st.stage_seconds)},
     }
 
 
 # -- client side ---------------------------------------------------------------------------------
-def run(scene, scheduler, film: Film, *, settings: dict, key: str, passes=None, time_limit=None, device=None,
-        wave_size=None, progress=None, profile=False, cancel=None, on_tick=None, chunk=None,
-        tick_seconds=0.25) -> tuple[RunStats, dict]:
+def run(scene, scheduler, film: Film, *, settings: ImageSettings, key: str, passes=None, time_limit=None,
+        device=None, wave_size=None, intersector="opencl", progress=None, profile=False, cancel=None, on_tick=None,
+        chunk=None, tick_seconds=0.25) -> tuple[RunStats, dict]:
     """Render passes [film.passes, film.passes + passes) (or until time_limit) on the cluster into
-    ``film``.  Returns (stats, description: devices per worker, features, per-worker rows)."""
+    ``film``.  Returns (stats, {worker address: its renderer's description})."""
     distributed = _import()
     if passes is None and time_limit is None:
         raise ValueError("give passes, time_limit or both")
     client, cluster, owned = connect(scheduler)
     stats = RunStats()
-    desc: dict = {}
+    descriptions: dict = {}
     workers: dict = {}
     first_pass = film.passes
     n_pixels = film.sum.shape[0]
     try:
         n_workers = max(1, len(client.scheduler_info()["workers"]))
-        job = {"key": key, "settings": settings, "device": device, "wave_size": wave_size, "profile": profile}
+        job = {"key": key, "settings": settings.as_dict(), "device": device, "wave_size": wave_size,
+               "intersector": getattr(intersector, "name", intersector), "profile": profile}
         scene_f = client.scatter(scene, broadcast=True)  # the scene travels once to each worker
         if chunk is None:
             chunk = max(1, min(16, math.ceil(passes / (4 * n_workers)))) if passes is not None else 1
@@ -169,7 +160,7 @@ def run(scene, scheduler, film: Film, *, settings: dict, key: str, passes=None, 
                     first, k = in_flight.pop(fut)
                     r = fut.result()  # re-raises a chunk that failed after its retries
                     done[first] = r
-                    desc.setdefault("workers", {})[r["worker"]] = r["desc"]
+                    descriptions[r["worker"]] = r["description"]
                     w = workers.setdefault(r["worker"], {"passes": 0, "seconds": 0.0})
                     w["passes"] += r["passes"]
                     w["seconds"] += r["seconds"]
@@ -196,7 +187,7 @@ def run(scene, scheduler, film: Film, *, settings: dict, key: str, passes=None, 
         stats.seconds = time.perf_counter() - start
         total = sum(w["passes"] for w in workers.values())
         stats.devices = [
-            {"device": f"{addr} " + ", ".join(desc.get("workers", {}).get(addr, {}).get("devices", [])),
+            {"device": f"{addr} " + ", ".join(descriptions.get(addr, {}).get("devices", [])),
              "passes": w["passes"],
              "samples_per_second": w["passes"] * n_pixels / w["seconds"] if w["seconds"] > 0 else None,
              "share": w["passes"] / total if total else 0.0, "failed": None}
@@ -209,7 +200,7 @@ def run(scene, scheduler, film: Film, *, settings: dict, key: str, passes=None, 
             client.close()
             if cluster is not None:
                 cluster.close()
-    return stats, desc
+    return stats, descriptions
 
 
 def _fold(done: dict, film: Film) -> None:

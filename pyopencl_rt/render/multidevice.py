@@ -64,8 +64,9 @@ class DeviceState:
         }
 
 
-class _Sink:
-    """What a device's Wavefront.run adds its passes to (it only calls add_pass)."""
+class _PassForwarder:
+    """Stands in for the film in a device's Wavefront.run (which only calls add_pass): each
+    finished pass goes to the pool, numbered from ``first``."""
 
     def __init__(self, pool: "PassPool", dev: DeviceState, first: int):
         self.pool, self.dev, self.next = pool, dev, first
@@ -267,19 +268,19 @@ class MultiDevice:
                 if batch is None:
                     return
                 first, count = batch
-                sink = _Sink(pool, d, first)
+                forwarder = _PassForwarder(pool, d, first)
                 t0 = time.perf_counter()
                 try:
-                    st = wf.run(sink, passes=count, first_pass=first, profile=profile, cancel=cancelled)
+                    st = wf.run(forwarder, passes=count, first_pass=first, profile=profile, cancel=cancelled)
                 except Exception as exc:
                     msg = f"{type(exc).__name__}: {exc}"
-                    pool.finish(d, first, count, sink.count, time.perf_counter() - t0, failed=msg)
+                    pool.finish(d, first, count, forwarder.count, time.perf_counter() - t0, failed=msg)
                     warnings.warn(f"device {d.label} failed and was dropped ({msg}); its unfinished passes "
-                                  f"[{first + sink.count}, {first + count}) go to the other devices",
+                                  f"[{first + forwarder.count}, {first + count}) go to the other devices",
                                   RuntimeWarning, stacklevel=2)
                     return
                 d.stats.append(st)
-                pool.finish(d, first, count, sink.count, time.perf_counter() - t0)
+                pool.finish(d, first, count, forwarder.count, time.perf_counter() - t0)
 
         threads = [threading.Thread(target=loop, args=(d,), name=f"pyopencl-rt device {d.index}", daemon=True)
                    for d in live]

@@ -16,12 +16,14 @@ import numpy as np
 from ..device import abi
 from ..accel.bvh import build_bvh
 from .film import STAGES, Film, RunStats
-from .lights import build_lights, environment_buffers, light_features
-from ..scene.model import INTEGRATORS, Scene
+from .lights import build_lights, environment_buffers
+from .settings import ImageSettings, feature_names, kernel_features
+from ..scene.model import Scene
 
 SOURCES = tuple(f"wavefront/{s}.cl" for s in STAGES)
-LOCAL_SIZE = 64
-N_COUNTERS = 8  # counters[] slots before the pass-completion counts (see cl/scene.h)
+LOCAL_SIZE = abi.WAVE_LOCAL_SIZE
+# the per-stage scalars of abi.WAVE_PARAMS, set (0 unless given) at every launch
+STAGE_SCALARS = tuple(p.name for p in abi.WAVE_PARAMS if p.launch and p.kind == "scalar")
 
 # Wave sizes: large on a GPU to fill it; on a CPU large enough to amortise the launches and
 # small enough that the path state stays in cache (measured with `pyopencl-rt bench wave`).
@@ -35,41 +37,33 @@ def default_wave_size(device) -> int:
     return DEFAULT_WAVE_GPU if device.type & cl.device_type.GPU else DEFAULT_WAVE_CPU
 
 
-def scene_features(scene: Scene, n_lights: int, integrator: str) -> dict:
-    """Preprocessor defines: only what the scene uses is compiled."""
-    if integrator not in INTEGRATORS:
-        raise ValueError(f"integrator must be one of {INTEGRATORS}")
-    defines = {"INTEGRATOR": INTEGRATORS.index(integrator), "WAVE_LOCAL_SIZE": LOCAL_SIZE}
-    if len(scene.faces):
-        defines["HAS_TRIANGLES"] = True
-    if len(scene.spheres):
-        defines["HAS_SPHERES"] = True
-    if n_lights:
-        defines["HAS_LIGHTS"] = True
-    defines.update(scene.material_defines())  # only the material types the scene uses
-    return defines
-
-
 class Wavefront:
-    """A scene loaded on one device, ready to render passes."""
+    """A scene loaded on one device, ready to render passes.
 
-    def __init__(self, scene: Scene, device, *, width=None, height=None, integrator=None, max_depth=None,
-                 rr_depth=None, seed=None, wave_size=None, bvh=None):
+    ``settings`` (an :class:`~pyopencl_rt.render.settings.ImageSettings`) fixes the image; without
+    it the scene's own settings are used, with ``overrides`` (width=, seed=, ...) taking precedence.
+    ``intersector`` traces the extend and shadow rays (:mod:`pyopencl_rt.render.intersectors`):
+    a name ("opencl", "embree") or an :class:`~pyopencl_rt.render.intersectors.Intersector`.
+    """
+
+    def __init__(self, scene: Scene, device, settings: ImageSettings | None = None, *, wave_size=None, bvh=None,
+                 intersector="opencl", **overrides):
         import pyopencl as cl
 
+        from ..accel.device_bvh import bvh_layout
+        from ..device.kernel_args import KernelArgs
         from ..device.kernels import runtime
-        from ..accel.device_bvh import bvh_layout, layout_defines
+        from .intersectors import make_intersector
 
-        st = scene.settings
+        if settings is None:
+            settings = ImageSettings.resolve(scene, **overrides)
+        elif overrides:
+            raise TypeError(f"give either settings or overrides, not both ({', '.join(overrides)})")
+        self.settings = settings
+        self.intersector = make_intersector(intersector)
+        self.intersector.check(scene)
         self.scene = scene
         self.device = device
-        self.width = int(width or st.width)
-        self.height = int(height or st.height)
-        self.integrator = integrator or st.integrator
-        self.max_depth = int(st.max_depth if max_depth is None else max_depth)
-        self.rr_depth = int(st.rr_depth if rr_depth is None else rr_depth)
-        self.seed = int(st.seed if seed is None else seed) & 0xFFFFFFFF
-        self.n_pixels = self.width * self.height
         self.wave_size = int(wave_size or default_wave_size(device))
         self.timings = {}
 
@@ -81,14 +75,12 @@ class Wavefront:
         self.timings["bvh_seconds"] = time.perf_counter() - t0
         lights, tri_light, sphere_light = build_lights(scene, self.bvh)
         self.n_lights = len(lights)
-        self.features = scene_features(scene, self.n_lights, self.integrator)
-        self.features.update(light_features(lights))  # point/directional/environment code, if used
         if self.n_lights == 0:
             import warnings
 
             warnings.warn("scene has no lights: the image will be black", stacklevel=2)
         self.bvh_layout = bvh_layout(device)  # wide (cl/bvh_wide.h) on CPUs; $PYOPENCL_RT_BVH_LAYOUT overrides
-        self.features.update(layout_defines(self.bvh_layout))
+        self.features = kernel_features(scene, settings, lights, self.bvh_layout)
 
         self.rt = runtime(device)
         t0 = time.perf_counter()
@@ -116,75 +108,92 @@ class Wavefront:
         W, P = self.wave_size, self.n_pixels
         # enough ring slots for every pass a full wave can span, plus the one draining
         self.ring_size = int(min(max(2, math.ceil(W / P) + 2), 1 << 12))
-        f4, i4 = 4, 4
-        self.buffers = [
-            const(node_buffer(self.bvh, self.bvh_layout)), const(self.bvh.triangles), const(tri_material), const(tri_light),
-            const(scene.sphere_records()), const(scene.sphere_materials.astype(np.int32)),
-            const(sphere_light), const(scene.material_records()), const(lights), const(cam),
-            scratch(3 * f4 * W), scratch(3 * f4 * W), scratch(3 * f4 * W), scratch(3 * f4 * W),  # ray o/d, beta, L
-            scratch(i4 * W), scratch(i4 * W), scratch(i4 * W), scratch(f4 * W),  # pixel, pass, depth, pdf
-            scratch(f4 * W), scratch(i4 * W), scratch(f4 * W), scratch(f4 * W),  # hit t/prim/u/v
-            scratch(3 * f4 * W), scratch(3 * f4 * W), scratch(3 * f4 * W),  # shadow o/d/contrib
-            *self._texture_buffers(const, scratch, W),  # tri_uv, textures, tex_data, mat_scratch
-        ]
-        self.queue_a, self.queue_b = scratch(i4 * W), scratch(i4 * W)
-        self.shadow_q, self.term_q = scratch(i4 * W), scratch(i4 * W)
-        self.free_q = cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32))
-        self.counters_host = np.zeros(N_COUNTERS + self.ring_size, np.int32)
-        self.counters = cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host)
-        self.pass_ring = scratch(3 * f4 * P * self.ring_size)
-        self.env_buffers = [const(a) for a in environment_buffers(scene)]  # env_map, env_cdf (kept alive here)
-        fixed = self.buffers + [None, None, self.shadow_q, self.term_q, self.free_q, self.counters, self.pass_ring,
-                                *self.env_buffers,
-                                np.int32(len(scene.spheres)), np.int32(self.n_lights), np.int32(P),
-                                np.int32(self.ring_size), np.int32(self.max_depth), np.int32(self.rr_depth),
-                                np.uint32(self.seed)]
-        self._queue_arg = len(self.buffers)  # index of queue_in; queue_out follows
-        self._scalar_arg = len(fixed)
-        for k in self.kernels.values():
-            for idx, a in enumerate(fixed):
-                if a is not None:
-                    k.set_arg(idx, a)
+        self.counters_host = np.zeros(abi.COUNTER_PASS_DONE + self.ring_size, np.int32)
+        env_map, env_cdf = environment_buffers(scene)
+        # arguments by parameter name (abi.WAVE_PARAMS), set once on every stage
+        self.args = KernelArgs(self.kernels)
+        self.args.bind(
+            nodes=const(node_buffer(self.bvh, self.bvh_layout)), tris=const(self.bvh.triangles),
+            tri_material=const(tri_material), tri_light=const(tri_light), spheres=const(scene.sphere_records()),
+            sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
+            materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
+            **self._texture_buffers(const, scratch, W),
+            free_q=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32)),
+            counters=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host),
+            pass_ring=scratch(3 * 4 * P * self.ring_size), env_map=const(env_map), env_cdf=const(env_cdf),
+            n_spheres=len(scene.spheres), n_lights=self.n_lights, n_pixels=P, ring_size=self.ring_size,
+            max_depth=self.settings.max_depth, rr_depth=self.settings.rr_depth, seed=self.settings.seed,
+        )
+        # the rest of the path state and queues, sized by the table, written by the kernels first
+        self.args.bind(**{p.name: scratch(p.per_slot * p.itemsize * W) for p in abi.WAVE_PARAMS
+                          if p.per_slot and not p.launch and p.name not in self.args.values})
+        queue_bytes = abi.WAVE_PARAM["queue_in"].itemsize * W
+        self.queue_a, self.queue_b = scratch(queue_bytes), scratch(queue_bytes)  # queue_in/out, swapped
+        unbound = set(self.args.unbound()) - {p.name for p in abi.WAVE_PARAMS if p.launch}
+        if unbound:
+            raise AssertionError(f"wavefront parameters never bound: {sorted(unbound)}")
         # host-side state of the wave, carried across run() calls
         self.n_active = 0
         self.n_free = W
         self.next_sample = 0  # linear index pass * P + pixel of the next sample to start
         self.oldest_pass = 0  # the first pass not yet added to the film
 
-    def _texture_buffers(self, const, scratch, W):
-        """tri_uv (3 UVs per reordered triangle), the TEXTURE table, the float4 texels and the
-        per-slot scratch Material (cl/textures.h); 16-byte dummies when the scene has no textures."""
+    def description(self) -> dict:
+        """What the sidecar records of this engine (a Dask worker sends the same back)."""
+        return {
+            "wave_size": self.wave_size,
+            "intersector": self.intersector.name,
+            "features": feature_names(self.features),
+            "lights": self.n_lights,
+            "bvh_seconds": self.timings.get("bvh_seconds"),
+            "kernel_build_seconds": self.timings.get("build_seconds"),
+        }
+
+    @property
+    def width(self) -> int:
+        return self.settings.width
+
+    @property
+    def height(self) -> int:
+        return self.settings.height
+
+    @property
+    def n_pixels(self) -> int:
+        return self.settings.n_pixels
+
+    def _texture_buffers(self, const, scratch, W) -> dict:
+        """tri_uv, textures, tex_data and mat_scratch (cl/textures.h); 16-byte dummies when the
+        scene has no textures."""
         if not self.scene.has_textures():
-            return [const(np.zeros(0, np.uint8)) for _ in range(3)] + [scratch(0)]
+            dummy = const(np.zeros(0, np.uint8))
+            return {"tri_uv": dummy, "textures": dummy, "tex_data": dummy, "mat_scratch": scratch(0)}
         from ..scene.textures import pack_textures
 
         uv = self.scene.face_uvs()[self.bvh.prim_ids].reshape(-1, 2)
         table, texels = pack_textures(self.scene.textures())
-        return [const(uv), const(table), const(texels), scratch(abi.MATERIAL.itemsize * W)]
+        return {"tri_uv": const(uv), "textures": const(table), "tex_data": const(texels),
+                "mat_scratch": scratch(abi.MATERIAL.itemsize * W)}
+
+    def buffer(self, name: str):
+        """The buffer bound to the wavefront kernels' parameter ``name`` (abi.WAVE_PARAMS)."""
+        return self.args[name]
+
+    @staticmethod
+    def counter_slot(name: str) -> int:
+        """The counters[] slot of a queue counter: "queue_out", "shadow", "term" or "nonfinite"."""
+        return abi.COUNTERS[name]
 
     # -- one stage launch ------------------------------------------------------------------
-    def _launch(self, stage, count, qin, qout, a0=0, a1=0, a2=0, a3=0, a4=0):
+    def launch(self, stage, count, queue_in, queue_out, **scalars):
+        """Enqueue ``stage`` on ``count`` work-items with the given per-stage scalars (by name,
+        :data:`STAGE_SCALARS`; the others are 0)."""
         import pyopencl as cl
 
-        k = self.kernels[stage]
-        k.set_arg(self._queue_arg, qin)
-        k.set_arg(self._queue_arg + 1, qout)
-        for j, v in enumerate((a0, a1, a2, a3, a4)):
-            k.set_arg(self._scalar_arg + j, np.int32(v))
+        self.args.set(stage, queue_in=queue_in, queue_out=queue_out, **(dict.fromkeys(STAGE_SCALARS, 0) | scalars))
         # A fixed work-group size: PoCL compiles a work-group function per local size, so letting
         # it choose one per launch (global sizes vary every iteration) recompiled constantly.
         size = max(LOCAL_SIZE, (count + LOCAL_SIZE - 1) // LOCAL_SIZE * LOCAL_SIZE)
-        return cl.enqueue_nd_range_kernel(self.rt.queue, k, (size,), (LOCAL_SIZE,))
-
-    # -- the two ray-casting stages, overridable (e.g. by an Embree-backed subclass) -----------
-    def extend(self, n_active: int, qin, qout):
-        """Closest hit for the n_active paths of queue qin into hit_t/prim/u/v. Returns an event
-        (or None when the work was done synchronously on the host)."""
-        return self._launch("extend", n_active, qin, qout, n_active)
-
-    def shadow(self, n_active: int, qin, qout):
-        """Any-hit test of the counters[COUNTER_SHADOW] queued shadow rays (at most n_active)."""
-        return self._launch("shadow", n_active, qin, qout)
+        return cl.enqueue_nd_range_kernel(self.rt.queue, self.kernels[stage], (size,), (LOCAL_SIZE,))
 
     def run(self, film: Film, passes: int | None = None, time_limit: float | None = None,
             progress=None, profile: bool = False, first_pass: int = 0, cancel=None) -> RunStats:
@@ -202,12 +211,14 @@ class Wavefront:
         P = self.n_pixels
         queue = self.rt.queue
         stats = RunStats()
+        host_before = dict(self.intersector.host_seconds)
         self.next_sample = first_pass * P
         self.oldest_pass = first_pass
         end_sample = (first_pass + passes) * P if passes is not None else None
         start = time.perf_counter()
         qin, qout = self.queue_a, self.queue_b
-        zeros3 = np.zeros(3, np.int32)
+        counters = self.buffer("counters")
+        iteration_zeros = np.zeros(abi.ITERATION_COUNTERS, np.int32)
         ring_host = np.empty((P, 3), np.float32)
         events = []
         try:
@@ -225,8 +236,9 @@ class Wavefront:
                     limit = min(limit, end_sample)
                 n_gen = int(min(self.n_free, max(0, limit - self.next_sample)))
                 if n_gen:
-                    ev = self._launch("generate", n_gen, qin, qout, n_gen, self.next_sample // P,
-                                      self.next_sample % P, self.n_active, self.n_free)
+                    ev = self.launch("generate", n_gen, qin, qout, n_items=n_gen, first_pass=self.next_sample // P,
+                                     first_pixel=self.next_sample % P, queue_base=self.n_active,
+                                     free_base=self.n_free)
                     events.append(("generate", ev))
                     self.n_active += n_gen
                     self.n_free -= n_gen
@@ -235,19 +247,19 @@ class Wavefront:
                     if end_sample is not None and self.next_sample >= end_sample:
                         break
                     continue
-                cl.enqueue_copy(queue, self.counters, zeros3)
+                cl.enqueue_copy(queue, counters, iteration_zeros)
                 n = self.n_active
-                events.append(("extend", self.extend(n, qin, qout)))
-                events.append(("shade", self._launch("shade", n, qin, qout, n)))
-                events.append(("shadow", self.shadow(n, qin, qout)))
-                events.append(("accumulate", self._launch("accumulate", n, qin, qout, 0, 0, 0, 0, self.n_free)))
-                cl.enqueue_copy(queue, self.counters_host, self.counters)  # blocking: the only sync
+                events.append(("extend", self.intersector.extend(self, n, qin, qout)))
+                events.append(("shade", self.launch("shade", n, qin, qout, n_items=n)))
+                events.append(("shadow", self.intersector.shadow(self, n, qin, qout)))
+                events.append(("accumulate", self.launch("accumulate", n, qin, qout, free_base=self.n_free)))
+                cl.enqueue_copy(queue, self.counters_host, counters)  # blocking: the only sync
                 c = self.counters_host
                 stats.iterations += 1
                 stats.rays_extend += n
-                stats.rays_shadow += int(c[1])
-                self.n_free += int(c[2])
-                self.n_active = int(c[0])
+                stats.rays_shadow += int(c[abi.COUNTER_SHADOW])
+                self.n_free += int(c[abi.COUNTER_TERM])
+                self.n_active = int(c[abi.COUNTER_QUEUE_OUT])
                 qin, qout = qout, qin
                 if profile:
                     for name, ev in events:
@@ -255,12 +267,12 @@ class Wavefront:
                             stats.stage_seconds[name] += (ev.profile.end - ev.profile.start) * 1e-9
                 events.clear()
                 # completed passes, in order, into the film
-                while c[N_COUNTERS + self.oldest_pass % self.ring_size] == P:
+                while c[abi.COUNTER_PASS_DONE + self.oldest_pass % self.ring_size] == P:
                     ring = self.oldest_pass % self.ring_size
-                    cl.enqueue_copy(queue, ring_host, self.pass_ring, src_offset=ring * P * 12)
-                    cl.enqueue_copy(queue, self.counters, np.zeros(1, np.int32),
-                                    dst_offset=(N_COUNTERS + ring) * 4)
-                    c[N_COUNTERS + ring] = 0
+                    cl.enqueue_copy(queue, ring_host, self.buffer("pass_ring"), src_offset=ring * P * 12)
+                    cl.enqueue_copy(queue, counters, np.zeros(1, np.int32),
+                                    dst_offset=(abi.COUNTER_PASS_DONE + ring) * 4)
+                    c[abi.COUNTER_PASS_DONE + ring] = 0
                     film.add_pass(ring_host)
                     self.oldest_pass += 1
                     stats.passes += 1
@@ -270,10 +282,13 @@ class Wavefront:
             stats.interrupted = True
             self._reset_wave()
         queue.finish()
-        cl.enqueue_copy(queue, self.counters_host, self.counters)
-        stats.nonfinite = int(self.counters_host[3])
+        cl.enqueue_copy(queue, self.counters_host, counters)
+        stats.nonfinite = int(self.counters_host[abi.COUNTER_NONFINITE])
         stats.samples = stats.passes * P
         stats.seconds = time.perf_counter() - start
+        if profile:  # stages that ran on the host have no event: their host time instead
+            for name, seconds in self.intersector.host_seconds.items():
+                stats.stage_seconds[name] += seconds - host_before[name]
         return stats
 
     def _reset_wave(self):
@@ -283,9 +298,9 @@ class Wavefront:
         queue = self.rt.queue
         queue.finish()
         W = self.wave_size
-        cl.enqueue_copy(queue, self.free_q, np.arange(W, dtype=np.int32))
-        nonfinite = self.counters_host[3]
+        cl.enqueue_copy(queue, self.buffer("free_q"), np.arange(W, dtype=np.int32))
+        nonfinite = self.counters_host[abi.COUNTER_NONFINITE]
         self.counters_host[:] = 0
-        self.counters_host[3] = nonfinite
-        cl.enqueue_copy(queue, self.counters, self.counters_host)
+        self.counters_host[abi.COUNTER_NONFINITE] = nonfinite
+        cl.enqueue_copy(queue, self.buffer("counters"), self.counters_host)
         self.n_active, self.n_free = 0, W

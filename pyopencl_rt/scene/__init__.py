@@ -1,2 +1,3 @@
-"""The scene: the in-memory model (:mod:`.model`), materials, textures, meshes and the file loaders.
+"""The scene: the in-memory model (:mod:`.model`), the material types (:mod:`.materials`), textures,
+meshes and the scene-file loaders (:mod:`.loaders`).
 """

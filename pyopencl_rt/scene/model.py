@@ -11,31 +11,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..device import abi
+from .materials import REGISTRY, MaterialType
 
 INTEGRATORS = ("path", "bsdf", "nee")
 
 
-# Complex indices of refraction eta + i k of named conductors at the RGB wavelengths 650, 550
-# and 450 nm (sampled from the refractiveindex.info data sets, as tabulated in Chaos Group's
-# "Understanding metalness", 2014).
-CONDUCTORS = {
-    "gold": ((0.18299, 0.42108, 1.3734), (3.4242, 2.3459, 1.7704)),
-    "silver": ((0.16262, 0.14512, 0.13550), (4.0728, 3.1900, 2.1997)),
-    "copper": ((0.27105, 0.67693, 1.3164), (3.6092, 2.6248, 2.2921)),
-    "aluminium": ((1.3456, 0.96521, 0.61722), (7.4746, 6.3995, 5.3031)),
-}
-
-
 @dataclass
 class Material:
-    """A material; ``type`` is one of :data:`MATERIAL_TYPES` (documented in docs/SCENE_FORMAT.md
-    and at the top of each ``cl/materials/<type>.h``).  Every type may emit.
-
-    * ``diffuse``: ``albedo``.
-    * ``conductor``: ``alpha`` (GGX; 0 = mirror) and either ``eta``/``k`` (complex IOR per RGB
-      channel) or, when ``eta`` is None, ``f0`` (Schlick; default 1 = a perfect mirror).
-    * ``dielectric``: ``ior`` (inside relative to outside), ``alpha``, ``tint``.
-    * ``gltf``: ``albedo`` (baseColor), ``metallic``, ``alpha`` (= roughness^2), ``ior``.
+    """A material; ``type`` names a registered material type (:mod:`pyopencl_rt.scene.materials`,
+    where each type's module says which of these parameters it uses).  Every type may emit.
     """
 
     name: str = "default"
@@ -50,7 +34,7 @@ class Material:
     eta: tuple | None = None
     k: tuple | None = None
     tint: tuple = (1.0, 1.0, 1.0)
-    # Image textures (pyopencl_rt.textures.Texture; None = none), looked up at the hit's UV on
+    # Image textures (pyopencl_rt.scene.textures.Texture; None = none), looked up at the hit's UV on
     # triangles (spheres have no UVs and use the factors alone).  base_texture multiplies albedo
     # (diffuse, gltf) or tint (dielectric); mr_texture is glTF's metallicRoughness (G scales the
     # roughness, B the metallic); emission_texture multiplies emission.
@@ -77,37 +61,35 @@ class Material:
         """Perceptual roughness sqrt(alpha)."""
         return float(np.sqrt(self.alpha))
 
+    @property
+    def material_type(self) -> MaterialType:
+        """The registered type this material's ``type`` names."""
+        if self.type not in REGISTRY:
+            raise ValueError(f"material {self.name!r}: unknown type {self.type!r}")
+        return REGISTRY[self.type]
+
+    def mitsuba_bsdf(self) -> dict:
+        """The Mitsuba 3 BSDF of this material (ValueError for a type without one)."""
+        to_mitsuba = self.material_type.to_mitsuba
+        if to_mitsuba is None:
+            raise ValueError(f"material {self.name!r}: type {self.type!r} is not exported to Mitsuba yet")
+        return to_mitsuba(self)
+
     def record(self, texture_index: dict | None = None) -> np.ndarray:
         """The MATERIAL struct; ``texture_index`` maps id(texture) to its index in the scene's
         texture table (without it, or for a texture not in it, no texture is used)."""
-        if self.type not in abi.MATERIAL_TYPES:
-            raise ValueError(f"material {self.name!r}: unknown type {self.type!r}")
+        material_type = self.material_type
         rec = np.zeros((), abi.MATERIAL)
-        rec["type"] = abi.MATERIAL_TYPES[self.type]
-        rec["albedo"] = self.albedo
+        rec["type"] = material_type.type_id
         rec["emission"] = self.emission
-        flags = abi.MATERIAL_FLAG_TWO_SIDED if self.two_sided else 0
-        rec["alpha"] = self.alpha
-        rec["metallic"] = self.metallic
-        rec["ior"] = self.ior
-        rec["specular"] = self.tint
-        if self.type == "conductor":
-            if self.eta is None:
-                flags |= abi.MATERIAL_FLAG_CONDUCTOR_F0
-                rec["specular"] = self.f0
-            else:
-                rec["eta"] = self.eta
-                rec["k"] = self.k if self.k is not None else (0.0, 0.0, 0.0)
-        rec["flags"] = flags
+        rec["flags"] = abi.MATERIAL_FLAG_TWO_SIDED if self.two_sided else 0
+        material_type.pack(self, rec)
         ti = texture_index or {}
         for fld, tex in (("tex_base", self.base_texture), ("tex_mr", self.mr_texture),
                          ("tex_emission", self.emission_texture)):
             rec[fld] = ti.get(id(tex), -1) if tex is not None else -1
         rec["tex_pad"] = -1
         return rec
-
-
-MATERIAL_TYPES = tuple(abi.MATERIAL_TYPES)
 
 
 @dataclass
@@ -199,6 +181,10 @@ class Scene:
     environment: Environment | None = None
     # per-face texture coordinates (F, 3, 2) float32 (corner k of face f), or None (all 0)
     uvs: np.ndarray | None = None
+    # the file format it was read from ("mitsuba-xml", "pbrt-v4", ...; None: not recorded) and
+    # every warning its loader gave (one line each), for the JSON sidecar
+    format: str | None = None
+    warnings: list = field(default_factory=list)
 
     def textures(self) -> list:
         """The distinct textures the materials use, in order of first use."""
@@ -216,8 +202,8 @@ class Scene:
 
         Float32 positions far from the origin are coarse: at 1e5 an ulp is 0.0078, so the spawn
         offsets (a few hundred ulps) and the hit points' rounding grow to millimetres in a metre-
-        sized scene, and the Cornell box moved by 1e5 rendered 0.3% (1e6: 3%) off (`make
-        stress`).  Rendering relative to the camera keeps the coordinates that matter small.
+        sized scene (docs/ROBUSTNESS.md measures the effect).  Rendering relative to the camera
+        keeps the coordinates that matter small.
         Returns self when the camera is already at the origin."""
         import copy
         import dataclasses
@@ -258,8 +244,8 @@ class Scene:
         (MATERIALS_SELECTED + HAS_MATERIAL_<TYPE>; see cl/bsdf.h)."""
         defines = {"MATERIALS_SELECTED": True}
         for m in self.materials:
-            if m.type != "diffuse":
-                defines[f"HAS_MATERIAL_{m.type.upper()}"] = True
+            if m.material_type.kernel_define:
+                defines[m.material_type.kernel_define] = True
         if self.has_textures():
             defines["HAS_TEXTURES"] = True  # cl/textures.h
         return defines

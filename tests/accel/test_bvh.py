@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from pyopencl_rt.device import abi
-from pyopencl_rt.accel.bvh import MAX_DEPTH, BVH, build_bvh, sah_cost, validate
+from pyopencl_rt.accel.bvh import MAX_DEPTH, BVH, build_bvh, sah_cost
+from pyopencl_rt.accel.bvh_validate import validate
 
 METHODS = ["binned", "sweep"]
 

@@ -7,7 +7,7 @@ import pytest
 
 from meshes import MESHES, coherent_rays, incoherent_rays
 from pyopencl_rt import build_bvh, occluded, trace
-from pyopencl_rt.accel.bvh import validate
+from pyopencl_rt.accel.bvh_validate import validate
 from pyopencl_rt.accel.bvh_wide import STACK_SIZE, build_wide, device_blob, reference_closest_hit, validate_wide, wide_bvh
 from pyopencl_rt.errors import UserError
 from pyopencl_rt.accel.device_bvh import bvh_layout
@@ -141,9 +141,9 @@ def test_validate_catches_corruption():
 
 
 def test_collapse_is_fast():
-    from pyopencl_rt.bench.throughput import bench_mesh
+    from pyopencl_rt.bench.workloads import bumpy_torus
 
-    bvh = build_bvh(*bench_mesh(100_000))
+    bvh = build_bvh(*bumpy_torus(100_000))
     wide = build_wide(bvh)
     assert wide.stats["build_seconds"] < 0.5   # ~0.06 s measured; 1M triangles ~0.6 s
 

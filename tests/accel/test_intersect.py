@@ -1,12 +1,13 @@
 """Ray/triangle, ray/box and ray/sphere helpers of cl/intersect.h, each alone through a small
 harness kernel, against float64 numpy references.  Runs on every available device."""
 import numpy as np
-import pyopencl as cl
 import pytest
 
 from pyopencl_rt.device import abi
 
-HARNESS = r"""
+import harness
+
+HARNESS = harness.Kernels(r"""
 #include "intersect.h"
 
 __kernel void h_triangle(__global const float *o, __global const float *d, __global const float *tri,
@@ -51,19 +52,7 @@ __kernel void h_sizes(__global int *out)
     out[6] = OFFSET_OF(bmax_right);
     out[7] = OFFSET_OF(count_right);
 }
-"""
-
-
-def run(runtime, name, arrays, out_shape, *scalars):
-    ctx, q = runtime.context, runtime.queue
-    mf = cl.mem_flags
-    bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a, np.float32)) for a in arrays]
-    out = np.empty(out_shape, np.float32)
-    bout = cl.Buffer(ctx, mf.WRITE_ONLY, out.nbytes)
-    k = runtime.kernel((), name, extra=HARNESS)
-    k(q, (out_shape[0],), None, *bufs, *[np.float32(s) for s in scalars], bout)
-    cl.enqueue_copy(q, out, bout)
-    return out
+""")
 
 
 # ----------------------------------------------------------------------------- float64 references
@@ -86,10 +75,7 @@ def ref_triangle(o, d, p0, p1, p2):
 
 def test_struct_layout_matches_numpy(runtime):
     """The OpenCL struct generated from abi.py has numpy's size and field offsets."""
-    out = np.zeros(8, np.int32)
-    b = cl.Buffer(runtime.context, cl.mem_flags.WRITE_ONLY, out.nbytes)
-    runtime.kernel((), "h_sizes", extra=HARNESS)(runtime.queue, (1,), None, b)
-    cl.enqueue_copy(runtime.queue, out, b)
+    out = HARNESS(runtime, "h_sizes", 1, out=8)
     f = abi.BVH_NODE.fields
     expect = [abi.BVH_NODE.itemsize] + [f[n][1] for n in
               ("child_left", "bmax_left", "count_left", "bmin_right", "child_right", "bmax_right", "count_right")]
@@ -101,14 +87,14 @@ def test_triangle_closed_form(runtime):
     tri = np.array([[0, 0, 1], [2, 0, 1], [0, 2, 1]], np.float32)
     o = np.array([[0.5, 0.25, -1.0], [0.5, 0.25, 3.0], [0.5, 0.25, -1.0], [3, 3, -1.0]], np.float32)
     d = np.array([[0, 0, 2.0], [0, 0, -1.0], [0, 0, -1.0], [0, 0, 1.0]], np.float32)
-    out = run(runtime, "h_triangle", [o, d, np.tile(tri, (4, 1))], (4, 4), 0.0, np.inf)
+    out = HARNESS(runtime, "h_triangle", 4, o, d, np.tile(tri, (4, 1)), 0.0, np.inf, (4, 4))
     assert out[0].tolist() == [1.0, 1.0, 0.25, 0.125]     # t = 2 / |d| = 1; u = x/2, v = y/2
     assert out[1].tolist() == [1.0, 2.0, 0.25, 0.125]     # from above (back side): still a hit
     assert out[2, 0] == 0.0 and out[3, 0] == 0.0          # pointing away; outside
     # tmin / tmax are exclusive bounds on t
-    assert run(runtime, "h_triangle", [o[:1], d[:1], tri], (1, 4), 1.0, np.inf)[0, 0] == 0.0
-    assert run(runtime, "h_triangle", [o[:1], d[:1], tri], (1, 4), 0.0, 1.0)[0, 0] == 0.0
-    assert run(runtime, "h_triangle", [o[:1], d[:1], tri], (1, 4), 0.99, 1.01)[0, 0] == 1.0
+    assert HARNESS(runtime, "h_triangle", 1, o[:1], d[:1], tri, 1.0, np.inf, (1, 4))[0, 0] == 0.0
+    assert HARNESS(runtime, "h_triangle", 1, o[:1], d[:1], tri, 0.0, 1.0, (1, 4))[0, 0] == 0.0
+    assert HARNESS(runtime, "h_triangle", 1, o[:1], d[:1], tri, 0.99, 1.01, (1, 4))[0, 0] == 1.0
 
 
 @pytest.mark.parametrize("scale", [1e-4, 1.0, 1e4])
@@ -123,7 +109,7 @@ def test_triangle_random_vs_float64(runtime, rng, scale):
               + (p[:, 2] - p[:, 0]) * rng.uniform(-0.2, 1.2, (n, 1)) * 0.6)
     o = (target + rng.normal(size=(n, 3)) * 3 * scale).astype(np.float32)
     d = (target - o).astype(np.float32)
-    out = run(runtime, "h_triangle", [o, d, p.reshape(-1, 3)], (n, 4), 0.0, np.inf)
+    out = HARNESS(runtime, "h_triangle", n, o, d, p.reshape(-1, 3), 0.0, np.inf, (n, 4))
     t, u, v, inside = ref_triangle(o, d, p[:, 0], p[:, 1], p[:, 2])
     ref_hit = (inside >= 0) & (t > 0)
     hit = out[:, 0] == 1.0
@@ -165,7 +151,7 @@ def test_triangle_watertight_shared_edges(runtime, rng):
     d = (target - o).astype(np.float32)
     hits = np.zeros(n, bool)
     for ti in range(k):
-        out = run(runtime, "h_triangle", [o, d, np.tile(tris[ti], (n, 1))], (n, 4), 0.0, np.inf)
+        out = HARNESS(runtime, "h_triangle", n, o, d, np.tile(tris[ti], (n, 1)), 0.0, np.inf, (n, 4))
         hits |= out[:, 0] == 1.0
     assert hits.all(), f"{(~hits).sum()} of {n} rays leaked through a shared edge or vertex"
 
@@ -180,7 +166,7 @@ def test_box_slab(runtime, rng):
     o = (target + rng.normal(size=(n, 3)) * 4).astype(np.float32)
     d = (target - o).astype(np.float32)
     d[: n // 10, rng.integers(0, 3)] = 0.0  # axis-parallel components
-    out = run(runtime, "h_box", [o, d, np.stack([lo, hi], 1).reshape(-1, 3)], (n,), 0.0, np.inf)
+    out = HARNESS(runtime, "h_box", n, o, d, np.stack([lo, hi], 1).reshape(-1, 3), 0.0, np.inf, n)
     o64, d64 = o.astype(np.float64), d.astype(np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = 1.0 / d64
@@ -199,9 +185,9 @@ def test_box_slab(runtime, rng):
     o1 = np.array([[-1, 0.5, 0.0]], np.float32)
     d1 = np.array([[1, 0, 0.0]], np.float32)
     box = np.array([[0, 0, 0], [1, 1, 1]], np.float32)
-    assert run(runtime, "h_box", [o1, d1, box], (1,), 0.0, np.inf)[0] == pytest.approx(1.0)
+    assert HARNESS(runtime, "h_box", 1, o1, d1, box, 0.0, np.inf, 1)[0] == pytest.approx(1.0)
     # tmax before the box: miss
-    assert run(runtime, "h_box", [o1, d1, box], (1,), 0.0, 0.5)[0] == np.inf
+    assert HARNESS(runtime, "h_box", 1, o1, d1, box, 0.0, 0.5, 1)[0] == np.inf
 
 
 def test_sphere_closed_form(runtime):
@@ -209,7 +195,7 @@ def test_sphere_closed_form(runtime):
     o = np.array([[0, 0, 0], [0, 0, 0], [5, 0, 0], [0, 0, 0], [0, 2, 0]], np.float32)
     d = np.array([[1, 0, 0], [2, 0, 0], [1, 0, 0], [-1, 0, 0], [1, 0, 0]], np.float32)
     sph = np.array([[5, 0, 0, 1]] * 5, np.float32)
-    out = run(runtime, "h_sphere", [o, d, sph], (5, 2), 0.0, np.inf)
+    out = HARNESS(runtime, "h_sphere", 5, o, d, sph, 0.0, np.inf, (5, 2))
     assert out[0].tolist() == [1.0, 4.0]   # first root
     assert out[1].tolist() == [1.0, 2.0]   # |d| = 2 halves t
     assert out[2].tolist() == [1.0, 1.0]   # from the centre: the exit at t = r
@@ -233,7 +219,7 @@ def test_sphere_far_and_small_vs_float64(runtime, rng):
     d = (center + offset).astype(np.float32)
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     sph = np.concatenate([center, radius[:, None]], 1).astype(np.float32)
-    out = run(runtime, "h_sphere", [o, d, sph], (n, 2), 0.0, np.inf)
+    out = HARNESS(runtime, "h_sphere", n, o, d, sph, 0.0, np.inf, (n, 2))
     c64, r64, d64 = sph[:, :3].astype(np.float64), sph[:, 3].astype(np.float64), d.astype(np.float64)
     b = np.sum(c64 * d64, axis=1)
     perp = np.linalg.norm(c64 - b[:, None] * d64, axis=1)

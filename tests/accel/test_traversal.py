@@ -4,7 +4,7 @@ cl/bvh.h; wide: cl/bvh_wide.h), held to identical bounds."""
 import numpy as np
 import pytest
 
-from meshes import MESHES, coherent_rays, incoherent_rays, ray_edge_distance
+from meshes import MESHES, coherent_rays, incoherent_rays, moller_trumbore, ray_edge_distance
 from pyopencl_rt import build_bvh, occluded, trace
 
 N_COHERENT = 500_000
@@ -21,20 +21,10 @@ def brute_force_hit(vertices, faces, o, d):
     """float64 Möller–Trumbore over every triangle: does each ray hit anything at t > 0, and how
     far inside its closest triangle does it pass (min barycentric)?"""
     p = vertices[faces].astype(np.float64)
-    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
     hit = np.zeros(len(o), bool)
     margin = np.full(len(o), -np.inf)
     for i in range(len(o)):
-        dd = d[i].astype(np.float64)
-        pvec = np.cross(dd, e2)
-        det = np.sum(e1 * pvec, 1)
-        tvec = o[i].astype(np.float64) - p[:, 0]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u = np.sum(tvec * pvec, 1) / det
-            qvec = np.cross(tvec, e1)
-            v = np.sum(dd * qvec, 1) / det
-            t = np.sum(e2 * qvec, 1) / det
-        inside = np.minimum(np.minimum(u, v), 1 - u - v)
+        t, _, _, inside = moller_trumbore(o[i], d[i], p)
         ok = (inside >= 0) & (t > 0)
         hit[i] = ok.any()
         if hit[i]:

@@ -9,6 +9,7 @@ import dataclasses
 import json
 import math
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -111,15 +112,15 @@ def test_schema_validation():
 
 # -- the command ----------------------------------------------------------------------------------
 
-def test_convergence_command_end_to_end(tmp_path, monkeypatch, capsys):
+def test_convergence_command_end_to_end(tmp_path, monkeypatch, capsys, device_spec):
     """16x16 Cornell box, a 6 s budget, its own reference (cached under a temporary folder), and
     --compare mitsuba with no Mitsuba anywhere: a clear skip message, the JSON and the PNG."""
     pytest.importorskip("matplotlib")
     monkeypatch.setenv("PYOPENCL_RT_CACHE", str(tmp_path / "cache"))
     monkeypatch.setenv("PYOPENCL_RT_MITSUBA_PYTHON", str(tmp_path / "no-such-python"))
-    monkeypatch.setattr(cv.sys, "executable", str(tmp_path / "no-such-python-either"))
+    monkeypatch.setattr(sys, "executable", str(tmp_path / "no-such-python-either"))
     out = tmp_path / "conv.json"
-    args = ["bench", "convergence", CORNELL, "--device", "cpu", "--width", "16", "--height", "16", "--budget", "6",
+    args = ["bench", "convergence", CORNELL, "--device", device_spec, "--width", "16", "--height", "16", "--budget", "6",
             "--compare", "mitsuba", "--json", str(out)]
     main(args)
     text = capsys.readouterr().out
@@ -154,7 +155,7 @@ def shifted(scene, offset):
         camera=dataclasses.replace(cam, eye=tuple(np.add(cam.eye, offset)), look_at=tuple(np.add(cam.look_at, offset))))
 
 
-def test_mitsuba_export_agrees_with_ours(tmp_path):
+def test_mitsuba_export_agrees_with_ours(tmp_path, device):
     """Our image mean and Mitsuba's (the exported Cornell box, 16x16, 256 spp each) agree within
     4 standard errors per channel (Mitsuba's variance taken equal to ours: same estimator).
 
@@ -166,10 +167,11 @@ def test_mitsuba_export_agrees_with_ours(tmp_path):
     if py is None:
         pytest.skip(f"Mitsuba not installed: {why}")
     from pyopencl_rt.bench.mitsuba_export import save_scene_npz, scene_arrays
+    from pyopencl_rt.render.settings import ImageSettings
 
     scene = shifted(load_scene(CORNELL), 1000.0)
-    r = render_full(scene, spp=256, width=16, height=16, device="cpu", seed=11)
-    save_scene_npz(tmp_path / "s.npz", scene_arrays(scene, 16, 16, 256))
+    r = render_full(scene, spp=256, width=16, height=16, device=device, seed=11)
+    save_scene_npz(tmp_path / "s.npz", scene_arrays(scene, ImageSettings.resolve(scene, width=16, height=16), spp=256))
     runner = cv.Path(cv.__file__).with_name("mitsuba_runner.py")
     subprocess.run([py, str(runner), str(tmp_path / "s.npz"), str(tmp_path), "--checkpoints", "256"],
                    check=True, capture_output=True, env=cv.mitsuba_env(), timeout=120)
@@ -193,19 +195,15 @@ def test_mitsuba_export_refuses_two_sided_emitter():
 
 # -- Embree back end ---------------------------------------------------------------------------------
 
-def test_embree_backend_matches_opencl():
+def test_embree_backend_matches_opencl(device):
     """Same scene, seed and random numbers with the extend/shadow stages on Embree: tile-wise
     z-test (8x8 tiles, |z| < 4.5 as in test_render.py), and the two images far closer to each
     other than two independent renders would be (they share every random number; only float
     differences between the traversals make paths diverge)."""
-    from pyopencl_rt.device.devices import select_device
-    from pyopencl_rt.render.embree_wavefront import EmbreeWavefront
-
     scene = shifted(load_scene(CORNELL), 1000.0)  # away from the origin: see test_mitsuba_export_agrees_with_ours
-    dev = select_device("cpu")
+    dev = device
     a = render_full(scene, spp=64, width=32, height=32, device=dev, seed=5)
-    wf = EmbreeWavefront(scene, dev, width=32, height=32, seed=5)
-    b = render_full(scene, spp=64, width=32, height=32, wavefront=wf)
+    b = render_full(scene, spp=64, width=32, height=32, device=dev, seed=5, intersector="embree")
     va, vb = a.film.variance_of_mean(), b.film.variance_of_mean()
 
     def tiles(img, var, k=8):
@@ -222,13 +220,12 @@ def test_embree_backend_matches_opencl():
     assert b.info["samples"] == a.info["samples"]
 
 
-def test_embree_backend_refuses_spheres():
-    from pyopencl_rt.device.devices import select_device
-    from pyopencl_rt.render.embree_wavefront import EmbreeWavefront
+def test_embree_backend_refuses_spheres(device):
+    from pyopencl_rt.render.wavefront import Wavefront
     from pyopencl_rt.errors import UserError
 
     scene = load_scene("scenes/cornell-spheres.toml")
     if not len(scene.spheres):
         pytest.skip("cornell-spheres.toml has no spheres")
     with pytest.raises(UserError, match="spheres"):
-        EmbreeWavefront(scene, select_device("cpu"), width=8, height=8)
+        Wavefront(scene, device, width=8, height=8, intersector="embree")

@@ -16,6 +16,7 @@ from pyopencl_rt.render import checkpoint as ckp
 from pyopencl_rt.errors import UserError
 from pyopencl_rt.render.api import render_full
 from pyopencl_rt.render.film import Film
+from pyopencl_rt.render.settings import ImageSettings
 
 from scenes_small import small_scene  # noqa: E402
 
@@ -31,13 +32,21 @@ def interrupt_after(n):
     return progress
 
 
-@pytest.fixture(scope="module")
-def reference():
-    return render_full(small_scene(), spp=SPP, device="cpu")
+_REFERENCES: dict = {}
 
 
-@pytest.mark.parametrize("devices", ["cpu", "cpu,cpu"], ids=["one-device", "one-device-listed-twice"])
-def test_interrupt_then_resume_is_bitwise(tmp_path, reference, devices):
+@pytest.fixture
+def reference(device):
+    """The uninterrupted render on ``device`` (once per device)."""
+    if device.int_ptr not in _REFERENCES:
+        _REFERENCES[device.int_ptr] = render_full(small_scene(), spp=SPP, device=device)
+    return _REFERENCES[device.int_ptr]
+
+
+# a spec listing the device twice selects it once (devices.resolve drops duplicates)
+@pytest.mark.parametrize("devices", ["{0}", "{0},{0}"], ids=["one-device", "one-device-listed-twice"])
+def test_interrupt_then_resume_is_bitwise(tmp_path, reference, device_spec, devices):
+    devices = devices.format(device_spec)
     path = tmp_path / "r.ckpt.npz"
     part = render_full(small_scene(), spp=SPP, device=devices, checkpoint=path, progress=interrupt_after(5))
     assert part.stats.interrupted and part.info["interrupted"]
@@ -53,43 +62,41 @@ def test_interrupt_then_resume_is_bitwise(tmp_path, reference, devices):
     assert np.array_equal(done.image, reference.image)
 
 
-def test_resume_on_several_devices_is_bitwise(tmp_path, reference):
+def test_resume_on_several_devices_is_bitwise(tmp_path, reference, device):
     """A checkpoint from one device, finished by the multi-device pool (two Wavefronts on it)."""
-    from pyopencl_rt.device import devices as dv
     from pyopencl_rt.render.multidevice import MultiDevice
     from pyopencl_rt.render.wavefront import Wavefront
 
     path = tmp_path / "r.ckpt.npz"
-    render_full(small_scene(), spp=SPP, device="cpu", checkpoint=path, progress=interrupt_after(4))
+    render_full(small_scene(), spp=SPP, device=device, checkpoint=path, progress=interrupt_after(4))
     scene = small_scene()
-    film, _ = ckp.load(path, scene, ckp.image_settings(scene))
-    dev = dv.select_device("cpu")
-    MultiDevice(scene, [Wavefront(scene, dev), Wavefront(scene, dev)], target_seconds=0.01).run(
+    film, _ = ckp.load(path, scene, ImageSettings.resolve(scene))
+    MultiDevice(scene, [Wavefront(scene, device), Wavefront(scene, device)], target_seconds=0.01).run(
         film, passes=SPP - film.passes)
     assert film.passes == SPP and np.array_equal(film.sum, reference.film.sum)
 
 
-def test_checkpoint_of_other_settings_or_scene_is_refused(tmp_path):
+def test_checkpoint_of_other_settings_or_scene_is_refused(tmp_path, device):
     path = tmp_path / "r.ckpt.npz"
-    render_full(small_scene(), spp=SPP, device="cpu", checkpoint=path, progress=interrupt_after(2))
+    render_full(small_scene(), spp=SPP, device=device, checkpoint=path, progress=interrupt_after(2))
     with pytest.raises(ckp.CheckpointError) as e:
-        render_full(small_scene(), spp=SPP, device="cpu", checkpoint=path, resume=True, seed=8)
+        render_full(small_scene(), spp=SPP, device=device, checkpoint=path, resume=True, seed=8)
     msg = str(e.value)
     assert "\n" not in msg and "other settings" in msg and "seed 7 -> 8" in msg
     assert isinstance(e.value, UserError)
     with pytest.raises(ckp.CheckpointError, match="width 48 -> 40"):
-        render_full(small_scene(), spp=SPP, device="cpu", checkpoint=path, resume=True, width=40)
+        render_full(small_scene(), spp=SPP, device=device, checkpoint=path, resume=True, width=40)
     with pytest.raises(ckp.CheckpointError, match="another scene") as e:
-        render_full(small_scene(ball=(0.9, 0.1, 0.1)), spp=SPP, device="cpu", checkpoint=path, resume=True)
+        render_full(small_scene(ball=(0.9, 0.1, 0.1)), spp=SPP, device=device, checkpoint=path, resume=True)
     assert "\n" not in str(e.value)
     with pytest.raises(ckp.CheckpointError, match="no checkpoint"):
-        render_full(small_scene(), spp=SPP, device="cpu", checkpoint=tmp_path / "none.npz", resume=True)
+        render_full(small_scene(), spp=SPP, device=device, checkpoint=tmp_path / "none.npz", resume=True)
     (tmp_path / "junk.npz").write_bytes(b"not a zip")
     with pytest.raises(ckp.CheckpointError, match="not a readable checkpoint"):
-        render_full(small_scene(), spp=SPP, device="cpu", checkpoint=tmp_path / "junk.npz", resume=True)
+        render_full(small_scene(), spp=SPP, device=device, checkpoint=tmp_path / "junk.npz", resume=True)
 
 
-def test_checkpoint_every_writes_valid_checkpoints(tmp_path, monkeypatch, reference):
+def test_checkpoint_every_writes_valid_checkpoints(tmp_path, monkeypatch, reference, device):
     path = tmp_path / "r.ckpt.npz"
     saves = []
     real_save = ckp.save
@@ -99,7 +106,7 @@ def test_checkpoint_every_writes_valid_checkpoints(tmp_path, monkeypatch, refere
         return real_save(p, film, *a, **k)
 
     monkeypatch.setattr(ckp, "save", spy)
-    r = render_full(small_scene(), spp=SPP, device="cpu", checkpoint=path, checkpoint_every=1e-6)
+    r = render_full(small_scene(), spp=SPP, device=device, checkpoint=path, checkpoint_every=1e-6)
     assert len(saves) >= SPP  # after every pass, and at the end
     assert saves == sorted(saves) and saves[-1] == SPP
     film, _key, meta = ckp.read(path)
@@ -111,7 +118,7 @@ def test_checkpoint_every_writes_valid_checkpoints(tmp_path, monkeypatch, refere
 def test_checkpoint_write_is_atomic(tmp_path, monkeypatch):
     """A write that dies half-way leaves the previous checkpoint whole (write, then rename)."""
     scene = small_scene()
-    settings = ckp.image_settings(scene)
+    settings = ImageSettings.resolve(scene)
     path = tmp_path / "c.npz"
     film = Film(48, 32)
     film.add_pass(np.ones((48 * 32, 3), np.float32))

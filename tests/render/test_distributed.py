@@ -41,10 +41,11 @@ def client():
     cluster.close()
 
 
-def test_local_cluster_matches_single_process(client):
+# The workers are sent the device's spec: a pyopencl.Device cannot be pickled.
+def test_local_cluster_matches_single_process(client, device, device_spec):
     scene = small_scene()
-    ref = render_full(scene, spp=16, device="cpu")
-    r = render_full(scene, spp=16, device="cpu", scheduler=client)
+    ref = render_full(scene, spp=16, device=device)
+    r = render_full(scene, spp=16, device=device_spec, scheduler=client)
     assert r.film.passes == 16 and not r.stats.interrupted
     # chunk films are added in pass order; only the grouping of the float64 additions differs
     np.testing.assert_allclose(r.film.sum, ref.film.sum, rtol=1e-12, atol=0)
@@ -56,18 +57,18 @@ def test_local_cluster_matches_single_process(client):
     assert r.info["spp"] == 16 and r.info["features"] == ref.info["features"]
 
 
-def test_resume_on_the_cluster(client, tmp_path):
+def test_resume_on_the_cluster(client, tmp_path, device, device_spec):
     """A checkpoint from a local render, finished on the cluster."""
     scene = small_scene()
-    ref = render_full(scene, spp=12, device="cpu")
+    ref = render_full(scene, spp=12, device=device)
     path = tmp_path / "c.npz"
 
     def stop_at_5(passes, elapsed):
         if passes >= 5:
             raise KeyboardInterrupt
 
-    render_full(scene, spp=12, device="cpu", checkpoint=path, progress=stop_at_5)
-    r = render_full(scene, spp=12, device="cpu", scheduler=client, checkpoint=path, resume=True)
+    render_full(scene, spp=12, device=device, checkpoint=path, progress=stop_at_5)
+    r = render_full(scene, spp=12, device=device_spec, scheduler=client, checkpoint=path, resume=True)
     assert r.film.passes == 12 and r.info["resumed_from_spp"] >= 5
     np.testing.assert_allclose(r.film.sum, ref.film.sum, rtol=1e-12, atol=0)
 

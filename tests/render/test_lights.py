@@ -3,23 +3,23 @@
 Closed forms where they exist (a point or directional light over a diffuse plane, a white
 furnace under a constant environment, the blur of an edge seen through a thin lens), the
 environment map's importance sampling against the luminance distribution (chi-square, as in
-tests/test_sampling.py), and light sampling against BSDF sampling under an environment map
+tests/render/test_sampling.py: tests/harness.py's chi2_test), and light sampling against BSDF sampling under an environment map
 (tile-wise z-tests).  Robustness: no NaN or Inf for extreme parameters."""
 import warnings
 
 import numpy as np
-import pyopencl as cl
 import pytest
-from scipy import stats
 
 from pyopencl_rt.device import abi
 from pyopencl_rt.render.lights import LUMINANCE, environment_tables, other_lights
 from pyopencl_rt.render.api import render_full
 from pyopencl_rt.scene.model import Camera, DirectionalLight, Environment, Material, PointLight, RenderSettings, Scene
 
+import harness
+
 ALPHA = 1e-4
 
-HARNESS = r"""
+HARNESS = harness.Kernels(r"""
 #include "lights.h"
 
 /* out per item: wi (3), pdf of the sample, env_pdf(wi), Le.x, Le.y, Le.z */
@@ -45,7 +45,7 @@ __kernel void h_env_eval(__global const Light *lt, __global const float *env_map
     out[2 * i] = env_pdf(lt, env_cdf, d);
     out[2 * i + 1] = env_radiance(lt, env_map, d).x;
 }
-"""
+""", defines={"HAS_ENVIRONMENT": True})
 
 
 def empty_mesh():
@@ -70,36 +70,10 @@ def _env_light(img, scale=(1.0, 1.0, 1.0)):
     return sc, recs
 
 
-def _run(runtime, name, n, light, img, cdf, inp, width):
-    ctx, q = runtime.context, runtime.queue
-    mf = cl.mem_flags
-
-    def buf(a):
-        return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
-
-    out = np.zeros(n * width, np.float32)
-    bo = cl.Buffer(ctx, mf.WRITE_ONLY, out.nbytes)
-    k = runtime.kernel((), name, defines={"HAS_ENVIRONMENT": True}, extra=HARNESS)
-    k(q, (n,), None, buf(light), buf(img.reshape(-1)), buf(cdf), buf(inp), bo)
-    cl.enqueue_copy(q, out, bo)
-    return out.reshape(n, width)
-
-
 def uv_of(w):
     u = np.mod(np.arctan2(-w[:, 0], w[:, 2]) / (2 * np.pi), 1.0)
     v = np.arccos(np.clip(w[:, 1], -1, 1)) / np.pi
     return u, v
-
-
-def chi2_p(observed, expected):
-    order = np.argsort(expected)
-    o, e = observed[order].astype(np.float64), expected[order]
-    small = e < 5
-    if small.any():
-        o = np.append(o[~small], o[small].sum())
-        e = np.append(e[~small], e[small].sum())
-    stat = ((o - e) ** 2 / e).sum()
-    return stats.chi2.sf(stat, len(e) - 1)
 
 
 def test_env_map_sampling_chi2(runtime):
@@ -115,7 +89,7 @@ def test_env_map_sampling_chi2(runtime):
     rng = np.random.default_rng(3)
     u = rng.random((n, 2), dtype=np.float32)
     u = np.minimum(u, np.float32(1 - 2**-24))
-    out = _run(runtime, "h_env_sample", n, light, tm, cdf, u, 8)
+    out = HARNESS(runtime, "h_env_sample", n, light, tm.reshape(-1), cdf, u, (n, 8))
     wi, pdf, pdf_eval, le = out[:, :3], out[:, 3].astype(np.float64), out[:, 4].astype(np.float64), out[:, 5:]
     assert np.all(np.isfinite(out))
     ok = pdf > 0
@@ -147,12 +121,11 @@ def test_env_map_sampling_chi2(runtime):
     expected = weight.reshape(-1) / weight.sum() * ok.sum()
     assert observed[expected == 0].sum() <= 1e-5 * n  # only by float rounding at texel borders
     nz = expected > 0
-    p = chi2_p(observed[nz], expected[nz])
-    assert p > ALPHA, f"environment map chi-square p = {p:.3g}"
+    harness.assert_chi2(observed[nz], expected[nz], ALPHA, "environment map")
     # normalisation: E[pdf(w) 4 pi] over uniform directions = 1
     d = rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    ev = _run(runtime, "h_env_eval", n, light, tm, cdf, d.astype(np.float32), 2)
+    ev = HARNESS(runtime, "h_env_eval", n, light, tm.reshape(-1), cdf, d.astype(np.float32), (n, 2))
     vals = ev[:, 0].astype(np.float64) * 4 * np.pi
     assert abs(vals.mean() - 1) < 5 * vals.std() / np.sqrt(n) + 1e-4
 
@@ -165,12 +138,12 @@ def test_env_map_of_zeros_and_constant(runtime):
     assert mean == 0 and np.all(np.isfinite(cdf))
     _, light = _env_light(img)
     u = np.random.default_rng(1).random((4096, 2), dtype=np.float32)
-    out = _run(runtime, "h_env_sample", 4096, light, tm, cdf, u, 8)
+    out = HARNESS(runtime, "h_env_sample", 4096, light, tm.reshape(-1), cdf, u, (4096, 8))
     assert np.all(np.isfinite(out)) and np.all(out[:, 5:] == 0)
     const = light.copy()
     const["prim"] = 0
     const["material"] = 0
-    out = _run(runtime, "h_env_sample", 4096, const, tm, cdf, u, 8)
+    out = HARNESS(runtime, "h_env_sample", 4096, const, tm.reshape(-1), cdf, u, (4096, 8))
     assert np.allclose(out[:, 3], 1 / (4 * np.pi)) and np.allclose(out[:, 4], 1 / (4 * np.pi))
 
 
@@ -351,11 +324,11 @@ def test_extreme_parameters_finite(device):
     assert r.info["nonfinite_samples"] == 0 and np.all(r.image == 0)
 
 
-def test_no_lights_warns():
+def test_no_lights_warns(device):
     sc = sphere_under(None, "path", size=4)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        render_full(sc, spp=1, device="cpu", seed=1)
+        render_full(sc, spp=1, device=device, seed=1)
     assert any("no lights" in str(w.message) for w in caught)
 
 
@@ -370,7 +343,7 @@ def test_light_records():
 def test_scene_format(tmp_path):
     from pyopencl_rt import load_scene
     from pyopencl_rt.imageio import write_exr
-    from pyopencl_rt.scene.scenefile import SceneError
+    from pyopencl_rt.scene.loaders import SceneError
 
     write_exr(tmp_path / "sky.exr", env_map_image())
     base = '[[shape]]\ntype = "sphere"\ncenter = [0, 0, 0]\nradius = 1\n'

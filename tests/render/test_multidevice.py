@@ -42,6 +42,8 @@ print(json.dumps({{
 """
 
 
+# PoCL by design, not the device fixture: POCL_DEVICES (in a subprocess) is how one machine gets
+# two devices that must agree bit for bit.
 @pytest.mark.parametrize("pocl_devices", ["pthread pthread", "basic pthread"])
 def test_two_pocl_devices_merge_to_the_single_device_image(pocl_devices):
     env = dict(os.environ, POCL_DEVICES=pocl_devices)
@@ -60,17 +62,21 @@ def test_two_pocl_devices_merge_to_the_single_device_image(pocl_devices):
     assert out["bitwise"], out
 
 
-def two_wavefronts(scene):
-    dev = dv.select_device("cpu")
-    return [Wavefront(scene, dev) for _ in range(2)]
-
-
-def test_split_is_bitwise_on_one_device():
-    """Two Wavefronts on one device, small batches: any split gives the single-run film."""
+def two_wavefronts(device, ref_passes=None):
+    """The small scene, two Wavefronts on ``device``, and (with ``ref_passes``) the reference:
+    the film of that many passes of the first one alone."""
     scene = small_scene()
-    wfs = two_wavefronts(scene)
-    ref = Film(48, 32)
-    wfs[0].run(ref, passes=9)
+    wfs = [Wavefront(scene, device) for _ in range(2)]
+    ref = None
+    if ref_passes is not None:
+        ref = Film(48, 32)
+        wfs[0].run(ref, passes=ref_passes)
+    return scene, wfs, ref
+
+
+def test_split_is_bitwise_on_one_device(device):
+    """Two Wavefronts on one device, small batches: any split gives the single-run film."""
+    scene, wfs, ref = two_wavefronts(device, 9)
     film = Film(48, 32)
     st = MultiDevice(scene, wfs, target_seconds=0.01).run(film, passes=9)
     assert film.passes == 9 and st.passes == 9 and not st.interrupted
@@ -78,11 +84,8 @@ def test_split_is_bitwise_on_one_device():
     assert sum(d["passes"] for d in st.devices) == 9
 
 
-def test_failing_device_is_dropped_and_its_passes_redone():
-    scene = small_scene()
-    wfs = two_wavefronts(scene)
-    ref = Film(48, 32)
-    wfs[0].run(ref, passes=8)
+def test_failing_device_is_dropped_and_its_passes_redone(device):
+    scene, wfs, ref = two_wavefronts(device, 8)
     bad = wfs[1]
     calls = {"n": 0}
     real_run = bad.run
@@ -115,9 +118,8 @@ def test_failing_device_is_dropped_and_its_passes_redone():
     assert len(failed) == 1 and "injected" in failed[0]["failed"]
 
 
-def test_every_device_failing_is_an_error():
-    scene = small_scene()
-    wfs = two_wavefronts(scene)
+def test_every_device_failing_is_an_error(device):
+    scene, wfs, _ = two_wavefronts(device)
 
     def broken(film, **kw):
         raise RuntimeError("injected")
@@ -128,11 +130,8 @@ def test_every_device_failing_is_an_error():
         MultiDevice(scene, wfs).run(Film(48, 32), passes=4)
 
 
-def test_cancel_keeps_a_prefix_of_passes():
-    scene = small_scene()
-    wfs = two_wavefronts(scene)
-    ref = Film(48, 32)
-    wfs[0].run(ref, passes=3)
+def test_cancel_keeps_a_prefix_of_passes(device):
+    scene, wfs, ref = two_wavefronts(device, 3)
     film = Film(48, 32)
     seen = []
 

@@ -5,20 +5,21 @@ one of them with probability 1e-4 (and every input is drawn from fixed seeds, so
 reproducible).  Distributions are checked as Mitsuba 3's chi2 tests do: samples drawn on the
 device through small harness kernels are binned, the expected count of every bin is the device
 pdf integrated over the bin in float64 on the host (Gauss-Legendre quadrature), bins expecting
-fewer than 5 samples are pooled, and the Pearson statistic is compared with scipy's chi2.
-Runs on every available device."""
+fewer than 5 samples are pooled as Mitsuba 3 pools them, and the Pearson statistic is compared
+with scipy's chi2 (tests/harness.py: chi2_test).  Runs on every available device."""
 import numpy as np
-import pyopencl as cl
 import pytest
-from scipy import stats
 
 from pyopencl_rt.device import abi
 from pyopencl_rt.render.sampling import build_alias_table, fill_light_table
 
+import harness
+from harness import assert_chi2, uniforms
+
 ALPHA = 1e-4  # significance of every chi-square test below
 N = 1_000_000
 
-HARNESS = r"""
+HARNESS = harness.Kernels(r"""
 #include "rng.h"
 #include "sampling.h"
 
@@ -118,59 +119,7 @@ __kernel void h_power(__global const float *a, __global const float *b, __global
     const int i = get_global_id(0);
     out[i] = power_heuristic(a[i], b[i]);
 }
-"""
-
-
-# ----------------------------------------------------------------------------- helpers
-def _buf(runtime, a):
-    return cl.Buffer(runtime.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                     hostbuf=np.ascontiguousarray(a))
-
-
-def call(runtime, name, n, inputs, outputs, scalars=()):
-    """Run harness kernel `name` over n items: scalars first, then input arrays, then outputs
-    (given as (shape, dtype)); returns the output arrays."""
-    q = runtime.queue
-    outs = [np.zeros(shape, dtype) for shape, dtype in outputs]
-    obufs = [cl.Buffer(runtime.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=o)
-             for o in outs]
-    k = runtime.kernel((), name, extra=HARNESS)
-    k(q, (n,), None, *scalars, *[_buf(runtime, a) for a in inputs], *obufs)
-    for o, b in zip(outs, obufs):
-        cl.enqueue_copy(q, o, b)
-    return outs if len(outs) > 1 else outs[0]
-
-
-def uniforms(rng, shape):
-    """float32 uniforms on the 2^-24 grid of [0, 1) (a float64 draw cast to float32 can round to 1)."""
-    return (rng.integers(0, 1 << 24, size=shape) * 2.0 ** -24).astype(np.float32)
-
-
-def chi2_pvalue(observed, expected):
-    """Pearson chi-square p-value; bins expecting < 5 are pooled into one bin (merged into the
-    smallest remaining bin if the pool itself expects < 5).  Samples in a bin of expected 0
-    are an immediate failure."""
-    o = np.asarray(observed, np.float64).ravel()
-    e = np.asarray(expected, np.float64).ravel()
-    assert not np.any((e <= 0) & (o > 0)), "samples in a bin where the pdf is zero"
-    order = np.argsort(e)
-    o, e = o[order], e[order]
-    small = e < 5
-    pool_o, pool_e = o[small].sum(), e[small].sum()
-    o, e = o[~small], e[~small]
-    if pool_e >= 5:
-        o, e = np.append(o, pool_o), np.append(e, pool_e)
-    elif pool_e > 0:
-        o[0] += pool_o
-        e[0] += pool_e
-    assert len(e) >= 2, "too few bins for a chi-square test"
-    stat = np.sum((o - e) ** 2 / e)
-    return stats.chi2.sf(stat, len(e) - 1)
-
-
-def assert_chi2(observed, expected, what=""):
-    p = chi2_pvalue(observed, expected)
-    assert p > ALPHA, f"{what}: chi-square p = {p:.3g} < {ALPHA}"
+""")
 
 
 # ----------------------------------------------------------------------------- RNG
@@ -196,7 +145,7 @@ def np_rng_uniform(seed, pixel, sample, dim):
 def rng_draw(runtime, seed, pixel, sample, dim):
     keys = np.stack(np.broadcast_arrays(*(np.asarray(k, np.uint32) for k in (seed, pixel, sample, dim))), 1)
     keys = np.ascontiguousarray(keys, np.uint32)
-    return call(runtime, "h_rng", len(keys), [keys], [((len(keys), 3), np.float32)])
+    return HARNESS(runtime, "h_rng", len(keys), keys=keys, out=(len(keys), 3))
 
 
 def structured_keys(n=N):
@@ -210,7 +159,7 @@ def test_hash_matches_host_reference(runtime, rng):
     split of the work gives the same numbers), and rng_uniform2 is (dim, dim + 1)."""
     x = rng.integers(0, 2 ** 32, 100_000, dtype=np.uint64).astype(np.uint32)
     x[:4] = [0, 1, 0xFFFFFFFF, 0x80000000]
-    assert np.array_equal(call(runtime, "h_hash", len(x), [x], [(x.shape, np.uint32)]), np_hash(x))
+    assert np.array_equal(HARNESS(runtime, "h_hash", len(x), x=x, out=x.shape), np_hash(x))
     keys = rng.integers(0, 2 ** 32, (100_000, 4), dtype=np.uint64).astype(np.uint32)
     keys[:50_000, 1:] %= 64  # small counters too
     out = rng_draw(runtime, *keys.T)
@@ -222,7 +171,7 @@ def test_hash_matches_host_reference(runtime, rng):
 def test_unit_float_conversion(runtime):
     """The top 24 bits scaled by 2^-24: 0 -> 0, 2^31 -> 0.5, all ones -> 1 - 2^-24 (< 1)."""
     x = np.array([0, 0xFF, 0x100, 0x80000000, 0xFFFFFFFF], np.uint32)
-    out = call(runtime, "h_unit_float", len(x), [x], [(x.shape, np.float32)])
+    out = HARNESS(runtime, "h_unit_float", len(x), x=x, out=x.shape)
     assert out.tolist() == [0.0, 0.0, 2.0 ** -24, 0.5, 1.0 - 2.0 ** -24]
 
 
@@ -234,7 +183,7 @@ def test_rng_uniform_chi2_and_range(runtime, rng):
     u = np.concatenate([rng_draw(runtime, s, p, k, d)[:, 0], rng_draw(runtime, *rk.T)[:, 0]])
     assert u.min() >= 0.0 and u.max() < 1.0 and not np.any(u == 1.0)
     counts = np.bincount((u * 64).astype(np.int64), minlength=64)
-    assert_chi2(counts, np.full(64, N / 64), "rng 64 bins")
+    assert_chi2(counts, np.full(64, N / 64), ALPHA, "rng 64 bins")
     assert abs(u.mean() - 0.5) < 5 * np.sqrt(1 / 12 / N)
     assert abs(u.var() - 1 / 12) < 1e-3
 
@@ -254,7 +203,7 @@ def test_rng_neighbours_independent(runtime, key):
         assert np.array_equal(a[:, 2], b[:, 0])  # rng_uniform2's second value is dim + 1
     assert abs(np.corrcoef(u, v)[0, 1]) < 0.01
     grid = np.bincount((u * 16).astype(int) * 16 + (v * 16).astype(int), minlength=256)
-    assert_chi2(grid, np.full(256, N / 256), f"pairs of neighbouring {key}")
+    assert_chi2(grid, np.full(256, N / 256), ALPHA, f"pairs of neighbouring {key}")
 
 
 def test_rng_deterministic(runtime):
@@ -281,8 +230,7 @@ N_THETA, N_PHI = 16, 32
 
 def direction_samples(runtime, rng, which, param, n=N):
     u = uniforms(rng, (n, 2))
-    return call(runtime, "h_sample", n, [u], [((n, 3), np.float32)],
-                scalars=(np.int32(which), np.float32(param))).astype(np.float64)
+    return HARNESS(runtime, "h_sample", n, which=which, param=param, u=u, out=(n, 3)).astype(np.float64)
 
 
 def bin_pdf_integrals(runtime, which, param, theta_edges, phi_edges, k=6):
@@ -298,8 +246,8 @@ def bin_pdf_integrals(runtime, which, param, theta_edges, phi_edges, k=6):
     ph, wph = nodes(phi_edges)
     T, P = np.meshgrid(th, ph, indexing="ij")
     dirs = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1).reshape(-1, 3).astype(np.float32)
-    pdf = call(runtime, "h_pdf", len(dirs), [dirs], [((len(dirs),), np.float32)],
-               scalars=(np.int32(which), np.float32(param))).astype(np.float64).reshape(T.shape)
+    pdf = HARNESS(runtime, "h_pdf", len(dirs), which=which, param=param, w=dirs,
+                  out=len(dirs)).astype(np.float64).reshape(T.shape)
     integrand = pdf * np.sin(T) * wth[:, None] * wph[None, :]
     nt, npp = len(theta_edges) - 1, len(phi_edges) - 1
     return integrand.reshape(nt, k, npp, k).sum(axis=(1, 3))
@@ -331,7 +279,7 @@ def test_direction_sampler_chi2(runtime, rng, name):
     observed, _, _ = np.histogram2d(theta, phi, [theta_edges, phi_edges])
     assert observed.sum() == len(w)
     expected = bin_pdf_integrals(runtime, which, param, theta_edges, phi_edges) * len(w)
-    assert_chi2(observed, expected, name)
+    assert_chi2(observed, expected, ALPHA, name)
 
 
 @pytest.mark.parametrize("name", list(SAMPLERS))
@@ -354,7 +302,7 @@ def test_cone_rim_and_axis(runtime, rng):
                         -1 + 10 ** rng.uniform(-7, 0, n // 4)]).astype(np.float32)
     c = np.clip(c, np.nextafter(np.float32(-1), np.float32(0)), np.nextafter(np.float32(1), np.float32(0)))
     u = np.stack([np.where(np.arange(n) % 2 == 0, 1 - 2.0 ** -24, 0.0), uniforms(rng, n)], 1).astype(np.float32)
-    w = call(runtime, "h_cone", n, [u, c], [((n, 3), np.float32)])
+    w = HARNESS(runtime, "h_cone", n, u=u, cos_max=c, out=(n, 3))
     assert np.all(w[1::2, 2] == 1.0)
     assert np.all(w[:, 2] >= c)
     assert np.abs(np.linalg.norm(w.astype(np.float64), axis=1) - 1).max() < 2e-6
@@ -363,8 +311,7 @@ def test_cone_rim_and_axis(runtime, rng):
 def test_closed_form_pdfs(runtime):
     """pdf values at a few directions: cos/pi (0 below the horizon), 1/(4 pi), 1/(2 pi (1 - cos_max))."""
     d = np.array([[0, 0, 1], [0.6, 0, 0.8], [1, 0, 0], [0, 0.6, -0.8]], np.float32)
-    pdf = lambda which, param: call(runtime, "h_pdf", 4, [d], [((4,), np.float32)],
-                                    scalars=(np.int32(which), np.float32(param)))
+    pdf = lambda which, param: HARNESS(runtime, "h_pdf", 4, which=which, param=param, w=d, out=4)
     assert np.allclose(pdf(0, 0), [1 / np.pi, 0.8 / np.pi, 0, 0], rtol=1e-6, atol=0)
     assert np.allclose(pdf(1, 0), 1 / (4 * np.pi), rtol=1e-6)
     assert np.allclose(pdf(2, 0.5), [1 / np.pi, 1 / np.pi, 0, 0], rtol=1e-6, atol=0)
@@ -379,9 +326,9 @@ def test_concentric_disk(runtime, rng):
     ring = np.minimum((r2 * 10).astype(int), 9)
     sector = np.minimum((np.mod(np.arctan2(w[:, 1], w[:, 0]), 2 * np.pi) / (2 * np.pi) * 16).astype(int), 15)
     observed = np.bincount(ring * 16 + sector, minlength=160)
-    assert_chi2(observed, np.full(160, len(w) / 160), "concentric disk")
+    assert_chi2(observed, np.full(160, len(w) / 160), ALPHA, "concentric disk")
     u = np.array([[0.5, 0.5], [0.5 + 1e-3, 0.5], [0.5, 0.5 - 1e-3], [1 - 2 ** -24, 0.5]], np.float32)
-    out = call(runtime, "h_sample", 4, [u], [((4, 3), np.float32)], scalars=(np.int32(3), np.float32(0)))
+    out = HARNESS(runtime, "h_sample", 4, which=3, param=0.0, u=u, out=(4, 3))
     assert out[0].tolist() == [0.0, 0.0, 0.0]
     assert np.allclose(out[1], [2e-3, 0, 0], atol=1e-6) and np.allclose(out[2], [0, -2e-3, 0], atol=1e-6)
     assert np.allclose(out[3], [1, 0, 0], atol=1e-6)
@@ -399,7 +346,7 @@ def test_triangle_barycentrics(runtime, rng):
     area = np.where(i + j + 2 <= g, 1.0, np.where(i + j + 1 == g, 0.5, 0.0)) / g ** 2
     observed = np.bincount(np.minimum((b[:, 0] * g).astype(int), g - 1) * g
                            + np.minimum((b[:, 1] * g).astype(int), g - 1), minlength=g * g).reshape(g, g)
-    assert_chi2(observed, area * 2 * len(b), "triangle barycentrics")
+    assert_chi2(observed, area * 2 * len(b), ALPHA, "triangle barycentrics")
     v = np.array([[0, 0, 0], [10, 0.1, 0], [3, 1, 2]], np.float64)
     pts = (1 - b.sum(1))[:, None] * v[0] + b[:, :1] * v[1] + b[:, 1:] * v[2]
     assert np.allclose(pts.mean(0), v.mean(0), atol=5 * pts.std(0).max() / np.sqrt(len(b)))
@@ -418,7 +365,7 @@ def test_onb_orthonormal_right_handed(runtime, rng):
     n = np.concatenate([np.array(special, np.float64), n])
     n = (n / np.linalg.norm(n, axis=1, keepdims=True)).astype(np.float32)
     v = rng.normal(size=n.shape).astype(np.float32)
-    out = call(runtime, "h_onb", len(n), [n, v], [((len(n), 4, 3), np.float32)]).astype(np.float64)
+    out = HARNESS(runtime, "h_onb", len(n), n=n, v=v, out=(len(n), 4, 3)).astype(np.float64)
     t, b, loc, back = out[:, 0], out[:, 1], out[:, 2], out[:, 3]
     n64 = n.astype(np.float64)
     dot = lambda x, y: np.sum(x * y, axis=1)
@@ -488,23 +435,6 @@ def light_table(w):
     return fill_light_table(lights, w)
 
 
-def _alias_args(runtime, lights):
-    return _buf(runtime, lights), np.int32(len(lights))
-
-
-def _alias_run(runtime, lights, u):
-    q = runtime.queue
-    idx = np.zeros(len(u), np.int32)
-    pmf = np.zeros(len(u), np.float32)
-    bi = cl.Buffer(runtime.context, cl.mem_flags.WRITE_ONLY, idx.nbytes)
-    bp = cl.Buffer(runtime.context, cl.mem_flags.WRITE_ONLY, pmf.nbytes)
-    runtime.kernel((), "h_alias", extra=HARNESS)(q, (len(u),), None, *_alias_args(runtime, lights),
-                                                 _buf(runtime, u), bi, bp)
-    cl.enqueue_copy(q, idx, bi)
-    cl.enqueue_copy(q, pmf, bp)
-    return idx, pmf
-
-
 @pytest.mark.parametrize("case", list(ALIAS_CASES))
 def test_alias_device_chi2(runtime, rng, case):
     """1M uniform u through sample_alias on the device: frequencies match the pmf (chi-square,
@@ -513,7 +443,7 @@ def test_alias_device_chi2(runtime, rng, case):
     lights = light_table(w)
     u = uniforms(rng, N)
     u[:5] = [0.0, 1 - 2.0 ** -24, 0.5, 1.0 / 3.0, 1 - 2.0 ** -23]
-    idx, pmf = _alias_run(runtime, lights, u)
+    idx, pmf = HARNESS(runtime, "h_alias", N, lights=lights, n=len(lights), u=u, idx=N, pmf=N)
     assert idx.min() >= 0 and idx.max() < len(w)
     assert not np.any(w[idx] == 0), "a zero-weight light was drawn"
     assert np.array_equal(pmf, lights["pmf"][idx])
@@ -521,7 +451,7 @@ def test_alias_device_chi2(runtime, rng, case):
     if np.count_nonzero(w) == 1:
         assert observed[np.flatnonzero(w)[0]] == N
     else:
-        assert_chi2(observed[w > 0], lights["pmf"][w > 0].astype(np.float64) * N, case)
+        assert_chi2(observed[w > 0], lights["pmf"][w > 0].astype(np.float64) * N, ALPHA, case)
 
 
 @pytest.mark.parametrize("case", ["mixed_with_zeros", "wide_range", "equal", "one_nonzero"])
@@ -531,11 +461,7 @@ def test_alias_device_exhaustive(runtime, rng, case):
     w = ALIAS_CASES[case](rng)
     lights = light_table(w)
     items, per = 4096, (1 << 24) // 4096
-    counts = np.zeros((items, len(w)), np.int32)
-    bc = cl.Buffer(runtime.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=counts)
-    runtime.kernel((), "h_alias_all", extra=HARNESS)(runtime.queue, (items,), None, *_alias_args(runtime, lights),
-                                                     np.int32(per), bc)
-    cl.enqueue_copy(runtime.queue, counts, bc)
+    counts = HARNESS(runtime, "h_alias_all", items, lights=lights, n=len(lights), per=per, counts=(items, len(w)))
     freq = counts.sum(0) / 2.0 ** 24
     assert counts.sum() == 1 << 24
     assert np.all(freq[w == 0] == 0)
@@ -552,14 +478,14 @@ def test_power_heuristic(runtime):
              (1e30, 1e-30, 1.0), (1e-30, 1e30, 0.0), (1e-45, 1e-45, 0.5)]
     a = np.array([c[0] for c in cases], np.float32)
     b = np.array([c[1] for c in cases], np.float32)
-    out = call(runtime, "h_power", len(a), [a, b], [(a.shape, np.float32)])
+    out = HARNESS(runtime, "h_power", len(a), a, b, a.shape)
     assert not np.any(np.isnan(out))
     assert np.allclose(out, [c[2] for c in cases], rtol=1e-6, atol=0), out
     rng = np.random.default_rng(7)
     a = (10 ** rng.uniform(-10, 10, 10000)).astype(np.float32)
     b = (10 ** rng.uniform(-10, 10, 10000)).astype(np.float32)
-    ab = call(runtime, "h_power", len(a), [a, b], [(a.shape, np.float32)]).astype(np.float64)
-    ba = call(runtime, "h_power", len(a), [b, a], [(a.shape, np.float32)]).astype(np.float64)
+    ab = HARNESS(runtime, "h_power", len(a), a, b, a.shape).astype(np.float64)
+    ba = HARNESS(runtime, "h_power", len(a), b, a, a.shape).astype(np.float64)
     a64, b64 = a.astype(np.float64), b.astype(np.float64)
     assert np.allclose(ab, a64 ** 2 / (a64 ** 2 + b64 ** 2), rtol=1e-5, atol=1e-30)
     assert np.allclose(ab + ba, 1.0, atol=1e-6)

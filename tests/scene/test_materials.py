@@ -4,28 +4,29 @@ Harness kernels call bsdf_sample / bsdf_eval for a buffer of Material records wi
 normal, side, wo, wi and random numbers, in a local frame with the normal +z unless stated.
 
 Statistics: every test with randomness uses fixed seeds; chi-square tests use ALPHA = 1e-4 as
-tests/test_sampling.py does (Mitsuba 3's method: a theta x phi grid over the whole sphere, the
+tests/render/test_sampling.py does (Mitsuba 3's method: a theta x phi grid over the whole sphere, the
 expected count of a cell is the device pdf integrated over it by Gauss-Legendre quadrature in
-float64 on the host, cells expecting fewer than 5 are pooled; one extra cell holds the samples
+float64 on the host, cells expecting fewer than 5 are pooled (tests/harness.py); one extra cell holds the samples
 that failed or were delta, expected N (1 - integral of the pdf)).  z-tests use |z| < 4.5
 (two-sided 7e-6 per test).  Furnace renders: the image mean within 3 standard errors (+ the
 float32 floor).
 """
 import numpy as np
-import pyopencl as cl
 import pytest
 
 from pyopencl_rt.device import abi
 from pyopencl_rt.render.api import render_full
-from pyopencl_rt.scene.model import CONDUCTORS, Camera, Material, RenderSettings, Scene
+from pyopencl_rt.scene.materials.conductor import METALS as CONDUCTORS
+from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
 
-from test_sampling import assert_chi2, uniforms
+import harness
+from harness import assert_chi2, uniforms
 
 ALPHA = 1e-4
 Z_MAX = 4.5
 FLOAT_TOL = 2e-5
 
-HARNESS = r"""
+HARNESS = harness.Kernels(r"""
 #include "bsdf.h"
 
 /* out per item: wi.xyz, weight.xyz, pdf, delta */
@@ -62,15 +63,10 @@ __kernel void h_constants(__global int *out)
     out[6] = (int)((__global const char *)&m->alpha - (__global const char *)m);
     out[7] = (int)((__global const char *)&m->ior - (__global const char *)m);
 }
-"""
+""")
 
 
 # ----------------------------------------------------------------------------- harness
-def _buf(runtime, a):
-    return cl.Buffer(runtime.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                     hostbuf=np.ascontiguousarray(a))
-
-
 def _records(materials):
     return np.stack([m.record() if isinstance(m, Material) else m for m in materials]).astype(abi.MATERIAL)
 
@@ -81,33 +77,25 @@ def _items(n, x, dtype, width=None):
     return np.ascontiguousarray(np.broadcast_to(a, shape), dtype)
 
 
-def _run(runtime, name, n, args, out_width):
-    out = np.zeros((n, out_width), np.float32)
-    ob = cl.Buffer(runtime.context, cl.mem_flags.WRITE_ONLY, out.nbytes)
-    k = runtime.kernel((), name, extra=HARNESS)
-    k(runtime.queue, (n,), None, *[_buf(runtime, a) for a in args], ob)
-    cl.enqueue_copy(runtime.queue, out, ob)
-    return out
+def _bsdf(runtime, name, materials, wo, last, mi, front, n, width):
+    """h_bsdf_sample (last = u) or h_bsdf_eval (last = wi) over len(last) items, each of mi,
+    front, n and wo given once or per item -> out (N, width) in float64."""
+    last = np.asarray(last, np.float32)
+    N = len(last)
+    return HARNESS(runtime, name, N, _records(materials), _items(N, mi, np.int32), _items(N, front, np.int32),
+                   _items(N, n, np.float32, 3), _items(N, wo, np.float32, 3), last, (N, width)).astype(np.float64)
 
 
 def bsdf_sample(runtime, materials, wo, u, mi=0, front=1, n=(0.0, 0.0, 1.0)):
     """-> wi (N,3), weight (N,3), pdf (N,), delta (N,) bool"""
-    u = np.asarray(u, np.float32)
-    N = len(u)
-    out = _run(runtime, "h_bsdf_sample", N,
-               [_records(materials), _items(N, mi, np.int32), _items(N, front, np.int32),
-                _items(N, n, np.float32, 3), _items(N, wo, np.float32, 3), u], 8).astype(np.float64)
+    out = _bsdf(runtime, "h_bsdf_sample", materials, wo, u, mi, front, n, 8)
     assert set(np.unique(out[:, 7])) <= {0.0, 1.0}
     return out[:, :3], out[:, 3:6], out[:, 6], out[:, 7] == 1.0
 
 
 def bsdf_eval(runtime, materials, wo, wi, mi=0, front=1, n=(0.0, 0.0, 1.0)):
     """-> f |cos_i| (N,3), pdf (N,)"""
-    wi = np.asarray(wi, np.float32)
-    N = len(wi)
-    out = _run(runtime, "h_bsdf_eval", N,
-               [_records(materials), _items(N, mi, np.int32), _items(N, front, np.int32),
-                _items(N, n, np.float32, 3), _items(N, wo, np.float32, 3), wi], 4).astype(np.float64)
+    out = _bsdf(runtime, "h_bsdf_eval", materials, wo, wi, mi, front, n, 4)
     return out[:, :3], out[:, 3]
 
 
@@ -278,7 +266,7 @@ def test_sampled_directions_follow_the_pdf(runtime, name):
     rest_o = N_CHI2 - observed.sum()
     rest_e = N_CHI2 - expected.sum()
     assert rest_e > -1e-3 * N_CHI2, f"pdf integrates to {expected.sum() / N_CHI2} > 1"
-    assert_chi2(np.append(observed.ravel(), rest_o), np.append(expected.ravel(), max(rest_e, 0.0)), name)
+    assert_chi2(np.append(observed.ravel(), rest_o), np.append(expected.ravel(), max(rest_e, 0.0)), ALPHA, name)
     # sample/eval consistency
     f, pe_ = bsdf_eval(runtime, [mat], wo, wi[ok], front=front)
     rel_pdf = np.abs(pe_ / pdf[ok] - 1)
@@ -520,10 +508,7 @@ def test_no_nan_or_inf_for_extreme_parameters(runtime, rng):
 def test_type_constants_and_layout_agree(runtime):
     """cl/bsdf.h's #defines equal abi.py's constants; the generated struct has numpy's size
     and offsets."""
-    out = np.zeros(8, np.int32)
-    b = cl.Buffer(runtime.context, cl.mem_flags.WRITE_ONLY, out.nbytes)
-    runtime.kernel((), "h_constants", extra=HARNESS)(runtime.queue, (1,), None, b)
-    cl.enqueue_copy(runtime.queue, out, b)
+    out = HARNESS(runtime, "h_constants", 1, out=8)
     f = abi.MATERIAL.fields
     assert out.tolist() == [abi.MATERIAL_DIFFUSE, abi.MATERIAL_CONDUCTOR, abi.MATERIAL_DIELECTRIC,
                             abi.MATERIAL_GLTF, abi.MATERIAL_FLAG_CONDUCTOR_F0, abi.MATERIAL.itemsize,

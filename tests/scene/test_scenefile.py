@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pyopencl_rt.errors import UserError
-from pyopencl_rt.scene.scenefile import load_scene
+from pyopencl_rt.scene.loaders import load_scene
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 BOX_CENTRE = np.array([278.0, 274.4, 279.6])
@@ -471,7 +471,7 @@ def _materials(tmp_path, text):
 
 
 def test_material_types_parse(tmp_path):
-    from pyopencl_rt.scene.model import CONDUCTORS
+    from pyopencl_rt.scene.materials.conductor import METALS as CONDUCTORS
 
     m = _materials(tmp_path, """
 [materials.mirror]
@@ -537,7 +537,7 @@ def test_material_errors(tmp_path, text, needle):
 
 
 def test_mtl_material_types(tmp_path):
-    from pyopencl_rt.scene.scenefile import parse_mtl
+    from pyopencl_rt.scene.loaders import parse_mtl
 
     (tmp_path / "x.mtl").write_text("""
 newmtl glass

@@ -1,5 +1,5 @@
 """Textures and UVs (cl/textures.h, pyopencl_rt/textures.py) and the glTF / OBJ loaders that
-bring them in (pyopencl_rt/gltf.py, pyopencl_rt/scenefile.py)."""
+bring them in (pyopencl_rt/scene/loaders/)."""
 import json
 import math
 import struct
@@ -8,7 +8,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pyopencl as cl
 import pytest
 
 from pyopencl_rt import load_scene
@@ -16,9 +15,11 @@ from pyopencl_rt.render.api import render_full
 from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
 from pyopencl_rt.scene.textures import bilinear, pack_textures, srgb_to_linear, texture_from_array
 
+import harness
+
 ROOT = Path(__file__).resolve().parents[2]
 
-HARNESS = r"""
+HARNESS = harness.Kernels(r"""
 #include "textures.h"
 __kernel void h_tex(__global const Texture *textures, __global const float4 *data, __global const int *index,
                     __global const float2 *uv, __global float4 *out)
@@ -26,25 +27,14 @@ __kernel void h_tex(__global const Texture *textures, __global const float4 *dat
     const int i = get_global_id(0);
     out[i] = tex_sample(textures, data, index[i], uv[i]);
 }
-"""
-
-
-def _buf(runtime, a):
-    return cl.Buffer(runtime.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                     hostbuf=np.ascontiguousarray(a))
+""")
 
 
 def tex_lookup(runtime, textures, index, uv):
     table, data = pack_textures(textures)
     uv = np.ascontiguousarray(uv, np.float32)
     index = np.ascontiguousarray(np.broadcast_to(np.asarray(index, np.int32), (len(uv),)))
-    out = np.zeros((len(uv), 4), np.float32)
-    ob = cl.Buffer(runtime.context, cl.mem_flags.WRITE_ONLY, out.nbytes)
-    k = runtime.kernel((), "h_tex", extra=HARNESS)
-    k(runtime.queue, (len(uv),), None, _buf(runtime, table), _buf(runtime, data), _buf(runtime, index),
-      _buf(runtime, uv), ob)
-    cl.enqueue_copy(runtime.queue, out, ob)
-    return out
+    return HARNESS(runtime, "h_tex", len(uv), table, data, index, uv, (len(uv), 4))
 
 
 # ----------------------------------------------------------------------------- lookups

@@ -1,4 +1,5 @@
-"""glTF 2.0 (``.gltf`` + buffers, or binary ``.glb``) in, triangles + materials + camera out.
+"""glTF 2.0 (``.gltf`` + buffers, or binary ``.glb``) in, triangles + materials + camera out, and
+the scene of a glTF file (:func:`load_gltf_scene`: the file's camera, or the framing camera).
 
 A small reader of its own (numpy + Pillow) rather than ``trimesh.load``: trimesh 5.2 drops the
 material extensions this renderer needs (KHR_materials_emissive_strength, _transmission, _ior),
@@ -37,9 +38,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UserError
-from .model import Camera, Material
-from .textures import Texture, texture_from_image
+from ...errors import UserError
+from ..model import Camera, Material, Scene
+from ..textures import Texture, texture_from_image
+from .assembly import frame_scene, triangle_scene
+from .values import SceneError
 
 GLB_MAGIC = 0x46546C67  # b"glTF"
 CHUNK_JSON = 0x4E4F534A
@@ -354,3 +357,26 @@ def _load(r: _Reader, tree: dict) -> GltfScene:
                          np.zeros(0, np.int32), materials, camera, aspect)
     return GltfScene(np.concatenate(verts), np.concatenate(faces), np.concatenate(uvs), np.concatenate(fmats),
                      materials, camera, aspect)
+
+
+def read_gltf(path: Path, name: str) -> GltfScene:
+    """load_gltf, its warnings raised again here (for a caller that names the scene file)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        g = load_gltf(path, name)
+    for w in caught:
+        warnings.warn(w.message, stacklevel=4)
+    return g
+
+
+def load_gltf_scene(path: Path, name: str) -> Scene:
+    g = read_gltf(path, name)
+    if len(g.faces) == 0:
+        raise SceneError(f"{name}: contains no triangles")
+    scene = triangle_scene(g.vertices, g.faces, g.face_materials, g.materials, name, g.uvs)
+    if g.aspect_ratio and g.aspect_ratio > 0:
+        scene.settings.width = max(1, int(round(scene.settings.height * float(g.aspect_ratio))))
+    if g.camera is None:
+        return frame_scene(scene)
+    scene.camera = g.camera
+    return scene

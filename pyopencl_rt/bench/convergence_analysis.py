@@ -1,0 +1,213 @@
+"""The numbers of the convergence benchmark (:mod:`.convergence`): error metrics, log-log slope
+fits, times to a target error, the JSON schema, the plot and the table.
+
+* ``rmse``: sqrt(mean over pixels and channels of (x - r)^2);
+* ``relmse``: mean of (x - r)^2 / (r^2 + eps), ``eps`` = :data:`EPS` = 1e-2 (Rousselle et al.);
+* ``mae``: mean of |x - r|.
+
+Monte Carlo error falls as t^(-1/2) (RMSE) and t^(-1) (relMSE).  The reference has noise of its
+own, which puts a floor under every curve, so slopes are fitted only on points whose MSE is above
+:data:`FLOOR_FACTOR` times that floor.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+SCHEMA = "pyopencl_rt.convergence/1"
+EPS = 1e-2
+FLOOR_FACTOR = 4.0
+TARGETS = (1e-2, 1e-3)
+
+
+def metrics(image, reference, eps: float = EPS) -> dict:
+    """RMSE, relative MSE ((x - r)^2 / (r^2 + eps), averaged) and MAE over pixels and channels."""
+    x = np.asarray(image, np.float64)
+    r = np.asarray(reference, np.float64)
+    if x.shape != r.shape:
+        raise ValueError(f"image {x.shape} and reference {r.shape} differ in shape")
+    diff = x - r
+    return {"rmse": float(np.sqrt(np.mean(diff * diff))), "relmse": float(np.mean(diff * diff / (r * r + eps))),
+            "mae": float(np.mean(np.abs(diff)))}
+
+
+def reference_floor(reference, variance, eps: float = EPS) -> dict:
+    """Expected MSE and relMSE that the reference's own noise adds to every measurement."""
+    r = np.asarray(reference, np.float64)
+    v = np.asarray(variance, np.float64)
+    if not np.isfinite(v).all():
+        return {"mse": None, "relmse": None}
+    return {"mse": float(v.mean()), "relmse": float(np.mean(v / (r * r + eps)))}
+
+
+def fit_slope(x, y) -> dict:
+    """Least-squares line through (log10 x, log10 y): {'slope', 'intercept', 'n'} (None if < 2 points)."""
+    x = np.asarray(x, np.float64)
+    y = np.asarray(y, np.float64)
+    ok = (x > 0) & (y > 0) & np.isfinite(x) & np.isfinite(y)
+    if ok.sum() < 2:
+        return {"slope": None, "intercept": None, "n": int(ok.sum())}
+    slope, intercept = np.polyfit(np.log10(x[ok]), np.log10(y[ok]), 1)
+    return {"slope": float(slope), "intercept": float(intercept), "n": int(ok.sum())}
+
+
+def time_to_reach(times, errors, target, fit=None) -> dict:
+    """First time at which the error falls to ``target``: log-log interpolation between the
+    measured points that bracket it; beyond the last point, the fitted line (``extrapolated``)."""
+    t = np.asarray(times, np.float64)
+    e = np.asarray(errors, np.float64)
+    for i in range(len(t)):
+        if e[i] <= target:
+            if i == 0:
+                # reached before the first point: only the fit can say when
+                break
+            lt0, lt1, le0, le1 = np.log10(t[i - 1]), np.log10(t[i]), np.log10(e[i - 1]), np.log10(e[i])
+            f = (np.log10(target) - le0) / (le1 - le0) if le1 != le0 else 1.0
+            return {"seconds": float(10 ** (lt0 + f * (lt1 - lt0))), "extrapolated": False}
+    if fit and fit.get("slope") is not None and fit["slope"] < 0:
+        return {"seconds": float(10 ** ((math.log10(target) - fit["intercept"]) / fit["slope"])), "extrapolated": True}
+    return {"seconds": None, "extrapolated": False}
+
+
+def spp_schedule(limit: int = 1 << 20):
+    """1, 2, 3, 4, 6, 8, 12, 16, ...: about half an octave apart."""
+    schedule, k = [], 0
+    while True:
+        for spp in (1 << k, 3 << (k - 1) if k >= 1 else None):
+            if spp and spp <= limit and spp not in schedule:
+                schedule.append(spp)
+        if (1 << k) > limit:
+            return sorted(schedule)
+        k += 1
+
+
+def analyse(curves, floor) -> None:
+    """Slopes, times to the relMSE targets and the speed-up over the PoCL CPU curve of the same
+    integrator (at equal relMSE: the ratio of the times to 1e-2), in place."""
+    for curve in curves:
+        points = curve["points"]
+        times = [p["seconds"] for p in points]
+        keep = [i for i, p in enumerate(points)
+                if floor.get("mse") is None or p["rmse"] ** 2 > FLOOR_FACTOR * floor["mse"]]
+        curve["fit_points"] = len(keep)
+        curve["slope_rmse"] = fit_slope([times[i] for i in keep], [points[i]["rmse"] for i in keep])
+        curve["slope_relmse"] = fit_slope([times[i] for i in keep], [points[i]["relmse"] for i in keep])
+        curve["time_to_relmse"] = {f"{x:g}": time_to_reach(times, [p["relmse"] for p in points], x,
+                                                           curve["slope_relmse"]) for x in TARGETS}
+        floor_relmse = floor.get("relmse")
+        for target, reached in curve["time_to_relmse"].items():
+            if floor_relmse is not None and float(target) < FLOOR_FACTOR * floor_relmse:
+                reached["below_reference_floor"] = True
+    baselines = {}
+    for curve in curves:
+        if curve["renderer"] == "pyopencl_rt" and curve["intersector"] == "opencl" and "cpu" in curve["device"].lower():
+            baselines.setdefault(curve["integrator"], curve)
+    for curve in curves:
+        baseline = baselines.get(curve["integrator"])
+        curve["speedup_vs_cpu"] = None
+        if baseline is not None:
+            t_baseline = baseline["time_to_relmse"]["0.01"]["seconds"]
+            t_curve = curve["time_to_relmse"]["0.01"]["seconds"]
+            if t_baseline and t_curve:
+                curve["speedup_vs_cpu"] = {"baseline": baseline["label"], "at_relmse": 1e-2,
+                                           "speedup": t_baseline / t_curve}
+
+
+REQUIRED_KEYS = {
+    "schema": str, "scene": str, "width": int, "height": int, "max_depth": int, "rr_depth": int, "eps": float,
+    "budget_seconds": (float, type(None)), "total_seconds": float, "host": str, "reference": dict, "curves": list,
+    "skipped": list,
+}
+CURVE_KEYS = {
+    "label": str, "renderer": str, "device": str, "integrator": str, "intersector": str, "points": list,
+    "slope_rmse": dict, "slope_relmse": dict, "time_to_relmse": dict, "build_seconds": (float, type(None)),
+    "warmup_seconds": float,
+}
+POINT_KEYS = {"spp": int, "seconds": float, "rmse": float, "relmse": float, "mae": float}
+
+
+def validate(result: dict) -> None:
+    """Raise ValueError if ``result`` lacks a required key or has one of the wrong type."""
+    def check(obj, spec, where):
+        for key, expected in spec.items():
+            if key not in obj:
+                raise ValueError(f"{where}: missing key {key!r}")
+            if not isinstance(obj[key], expected) or isinstance(obj[key], bool):
+                raise ValueError(f"{where}.{key}: {type(obj[key]).__name__}, expected {expected}")
+    check(result, REQUIRED_KEYS, "result")
+    if result["schema"] != SCHEMA:
+        raise ValueError(f"schema {result['schema']!r} is not {SCHEMA!r}")
+    for i, curve in enumerate(result["curves"]):
+        check(curve, CURVE_KEYS, f"curves[{i}]")
+        for j, point in enumerate(curve["points"]):
+            check(point, POINT_KEYS, f"curves[{i}].points[{j}]")
+        for target in ("0.01", "0.001"):
+            if target not in curve["time_to_relmse"]:
+                raise ValueError(f"curves[{i}].time_to_relmse: missing {target}")
+
+
+def write_plot(path, result) -> str | None:
+    """Log-log RMSE and relMSE against time, one line per curve with its fit; None without matplotlib."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5))
+    for ax, key, expected_slope in ((axes[0], "rmse", -0.5), (axes[1], "relmse", -1.0)):
+        for curve in result["curves"]:
+            times = [p["seconds"] for p in curve["points"]]
+            errors = [p[key] for p in curve["points"]]
+            fit = curve[f"slope_{key}"]
+            label = curve["label"] + (f"  (slope {fit['slope']:.2f})" if fit["slope"] is not None else "")
+            line, = ax.loglog(times, errors, "o-", ms=3, label=label)
+            if fit["slope"] is not None:
+                ends = np.array([min(times), max(times)])
+                ax.loglog(ends, 10 ** (fit["intercept"] + fit["slope"] * np.log10(ends)), ":", color=line.get_color())
+        floor = result["reference"].get("floor", {})
+        floor_value = floor.get("mse") if key == "rmse" else floor.get("relmse")
+        if floor_value:
+            ax.axhline(math.sqrt(floor_value) if key == "rmse" else floor_value, color="grey", lw=0.8, ls="--",
+                       label="reference noise")
+        if key == "relmse":
+            for target in TARGETS:
+                ax.axhline(target, color="k", lw=0.5, alpha=0.4)
+        ax.set_xlabel("render time (s, excluding kernel build / JIT)")
+        ax.set_ylabel({"rmse": "RMSE", "relmse": f"relMSE (eps = {EPS:g})"}[key])
+        ax.set_title(f"{key}: Monte Carlo slope {expected_slope:g}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"{Path(result['scene']).name} {result['width']}x{result['height']}, max_depth {result['max_depth']}, "
+                 f"{result['host']}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return str(path)
+
+
+def print_table(result, echo=print) -> None:
+    echo(f"{'curve':<52} {'spp':>6} {'time s':>8} {'Msamp/s':>8} {'slope RMSE':>10} {'slope relMSE':>12} "
+         f"{'t(1e-2) s':>10} {'t(1e-3) s':>10} {'vs CPU':>7}")
+    for curve in result["curves"]:
+        last = curve["points"][-1] if curve["points"] else {"spp": 0, "seconds": 0.0, "samples_per_second": None}
+
+        def time_cell(target):
+            reached = curve["time_to_relmse"][target]
+            if reached["seconds"] is None:
+                return "-"
+            return f"{reached['seconds']:.3g}" + ("*" if reached["extrapolated"] else "")
+
+        def slope_cell(key):
+            slope = curve[key]["slope"]
+            return "-" if slope is None else f"{slope:.3f}"
+
+        rate = last.get("samples_per_second")
+        speedup = curve.get("speedup_vs_cpu")
+        echo(f"{curve['label'][:52]:<52} {last['spp']:>6} {last['seconds']:>8.2f} {(rate or 0) / 1e6:>8.3f} "
+             f"{slope_cell('slope_rmse'):>10} {slope_cell('slope_relmse'):>12} {time_cell('0.01'):>10} "
+             f"{time_cell('0.001'):>10} {(('%.2fx' % speedup['speedup']) if speedup else '-'):>7}")
+    echo("* extrapolated along the fitted line")

@@ -1,0 +1,101 @@
+"""``pyopencl-rt bench rays``: rays/s of the OpenCL traversal beside embreex on the very same rays,
+and the host BVH build time, on bumpy tori of several sizes.
+
+Two ray sets per mesh: *primary* (pinhole camera rays, coherent) and *diffuse* (one
+cosine-distributed bounce from each primary hit, incoherent).
+"""
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+from .timing import machine_info, timed_repeats, write_results
+from .workloads import bumpy_torus, diffuse_rays, primary_rays
+
+
+def run_ray_bench(devices=None, sizes=(10_000, 100_000, 1_000_000), n_rays=1_000_000, repeat=3,
+                  embree=True, json_path=None, echo=print, layouts=None) -> dict:
+    """``layouts``: BVH layouts to time on each device (e.g. ``("binary", "wide")``; their rows are
+    labelled "<layout>: <device>"); None times each device's default layout under its plain label."""
+    from ..accel.bvh import build_bvh
+    from ..accel.device_bvh import bvh_layout
+    from ..accel.embree import embree_scene
+    from ..device import devices as device_registry
+    from ..trace import trace
+
+    chosen = device_registry.resolve(devices)
+    # (row label, device, layout) of every OpenCL configuration timed
+    if layouts:
+        configs = [(f"{layout}: {device_registry.device_label(device)}", device, bvh_layout(device, layout))
+                   for device in chosen for layout in layouts]
+    else:
+        configs = [(device_registry.device_label(device), device, bvh_layout(device)) for device in chosen]
+    rng = np.random.default_rng(7)
+    results = {"machine": machine_info(), "devices": [device_registry.device_label(d) for d in chosen],
+               "repeat": repeat, "meshes": []}
+    echo(f"{'mesh':>10} {'rays':>10} {'set':>8} {'backend':<40} {'Mrays/s':>9} {'vs embree':>9}")
+    for size in sizes:
+        vertices, faces = bumpy_torus(size)
+        bvh = None
+
+        def build():
+            nonlocal bvh
+            bvh = build_bvh(vertices, faces)
+
+        build_seconds = statistics.median(timed_repeats(build, repeat))
+        entry = {"triangles": int(len(faces)), "bvh_build_seconds": build_seconds,
+                 "bvh_stats": {k: v for k, v in bvh.stats.items() if k != "leaf_size_histogram"}, "sets": []}
+        if embree:
+            start = time.perf_counter()
+            embree_scene(bvh)
+            entry["embree_build_seconds"] = time.perf_counter() - start
+        echo(f"{len(faces):>10} triangles: BVH build {build_seconds:.3f} s (median of {repeat}), "
+             f"SAH cost {bvh.stats['sah_cost']:.2f}"
+             + (f"; embree build {entry['embree_build_seconds']:.3f} s" if embree else ""))
+        origins, directions = primary_rays(bvh.bounds.astype(np.float64), n_rays)
+        reference_hits = trace(bvh, origins, directions, backend="embree")
+        bounce = diffuse_rays(reference_hits, origins, directions, rng)
+        for set_name, (set_origins, set_directions) in (("primary", (origins, directions)), ("diffuse", bounce)):
+            entry["sets"].append(_time_ray_set(bvh, set_name, set_origins, set_directions, configs, embree, repeat,
+                                               len(faces), echo))
+        results["meshes"].append(entry)
+    if json_path:
+        write_results(json_path, results, echo)
+    return results
+
+
+def _time_ray_set(bvh, set_name, origins, directions, configs, embree, repeat, n_triangles, echo) -> dict:
+    from ..accel.embree import embree_scene
+    from ..trace import trace
+
+    n = len(origins)
+    row = {"set": set_name, "rays": n, "backends": {}}
+    for _name, device, layout in configs:  # warm-up: kernel build, BVH collapse and upload are not timed
+        trace(bvh, origins[:1024], directions[:1024], device=device, layout=layout)
+    seconds = {name: [] for name, _device, _layout in configs}
+    if embree:
+        seconds["embree"] = []
+    for _ in range(repeat):
+        for name, device, layout in configs:
+            start = time.perf_counter()
+            trace(bvh, origins, directions, device=device, layout=layout)
+            seconds[name].append(time.perf_counter() - start)
+        if embree:  # embreex's own call alone, so Embree is not charged for our wrapper
+            scene = embree_scene(bvh)
+            start = time.perf_counter()
+            scene.run(origins, directions, output=1)
+            seconds["embree"].append(time.perf_counter() - start)
+    embree_median = statistics.median(seconds["embree"]) if embree else None
+    layouts = {name: layout for name, _device, layout in configs}
+    for name, times in seconds.items():
+        median = statistics.median(times)
+        rate = n / median
+        row["backends"][name] = {"seconds_median": median, "rays_per_second": rate,
+                                 "ratio_to_embree": (embree_median / median) if embree_median else None}
+        if layouts.get(name):
+            row["backends"][name]["layout"] = layouts[name]
+        ratio = f"{embree_median / median:9.2f}" if embree_median else f"{'-':>9}"
+        echo(f"{n_triangles:>10} {n:>10} {set_name:>8} {name[:40]:<40} {rate / 1e6:9.3f} {ratio}")
+    return row

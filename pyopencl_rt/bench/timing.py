@@ -1,0 +1,55 @@
+"""How the benchmarks time and report.
+
+The machine a benchmark runs on is often shared and noisy, so every figure is the median of
+``repeat`` runs, and the variants being compared are timed alternately inside each repetition:
+a burst of background load then hits all of them alike, and their ratio stays meaningful even
+when the absolute numbers move.
+"""
+from __future__ import annotations
+
+import platform
+import time
+from pathlib import Path
+
+
+def machine_info() -> dict:
+    return {"platform": platform.platform(), "processor": platform.processor(), "python": platform.python_version()}
+
+
+def timed_repeats(fn, repeat: int) -> list[float]:
+    """Wall seconds of ``repeat`` calls of ``fn()``."""
+    seconds = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        seconds.append(time.perf_counter() - start)
+    return seconds
+
+
+def interleaved_render_rates(variants: dict, spp: int, repeat: int, profile: bool = False):
+    """Samples/s of each ``name -> (scene, wavefront)`` variant: one untimed 1-spp warm-up render
+    each (kernel build, BVH upload, the first launches that make PoCL compile its work-group
+    functions), then ``repeat`` rounds rendering ``spp`` with every variant in turn.
+
+    Returns ({name: [samples/s per round]}, {name: info dict of its last render})."""
+    from ..render.api import render_full
+
+    for scene, wavefront in variants.values():
+        render_full(scene, spp=1, wavefront=wavefront)
+    rates = {name: [] for name in variants}
+    last_info = {}
+    for _ in range(repeat):
+        for name, (scene, wavefront) in variants.items():
+            result = render_full(scene, spp=spp, wavefront=wavefront, profile=profile)
+            rates[name].append(result.info["samples_per_second"])
+            last_info[name] = result.info
+    return rates, last_info
+
+
+def write_results(json_path, results: dict, echo=print) -> None:
+    from ..imageio import write_json
+
+    path = Path(json_path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_json(path, results)
+    echo(f"wrote {json_path}")

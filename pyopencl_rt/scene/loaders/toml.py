@@ -1,0 +1,488 @@
+"""TOML scene files: the format is docs/SCENE_FORMAT.md; a summary::
+
+    [camera]                      # optional; without it a camera frames the whole scene
+    eye = [278, 273, -800]        # required in [camera]
+    look_at = [278, 273, 0]       # required in [camera]
+    up = [0, 1, 0]                # default [0, 1, 0]
+    fov = 39.3077                 # vertical field of view in degrees, default 40
+
+    [film]
+    width = 512                   # pixels, default 512
+    height = 512                  # pixels, default 512
+
+    [render]
+    spp = 64                      # samples per pixel, default 64
+    max_depth = 8                 # path length limit, default 8
+    integrator = "path"           # "path" | "bsdf" | "nee", default "path"
+    seed = 0                      # default 0
+    rr_depth = 3                  # Russian roulette starts after this many bounces, default 3
+
+    [materials.white]             # one table per material, referred to by NAME
+    type = "diffuse"              # a type of pyopencl_rt.scene.materials (default "diffuse"),
+    albedo = [0.725, 0.71, 0.68]  #   whose module documents its keys
+    emission = [0, 0, 0]          # linear RGB radiance >= 0 (or one number), default 0; any type
+    two_sided = false             # emit from both sides, default false
+
+    [[shape]]                     # one table per shape, numbered #1, #2, ... in messages
+    type = "quad"                 # "mesh" | "quad" | "triangle" | "box" | "sphere"
+    material = "white"            # default: the built-in "default" material (albedo 0.8)
+    points = [[0,0,0], [1,0,0], [1,1,0], [0,1,0]]
+
+Shape keys:
+
+* ``mesh``: ``file`` (relative to the scene file; any format trimesh loads),
+  ``use_file_materials = true`` (OBJ and glTF: take the file's materials; a ``[materials.NAME]``
+  with the same name overrides one, ``material`` is used for faces without ``usemtl``).
+* ``quad``: ``points``: four corners in order, split into triangles (p0, p1, p2) and
+  (p0, p2, p3); the emitting/front side is that of the normal (p1 - p0) x (p2 - p0), i.e. the
+  corners run counter-clockwise seen from the front (right-hand rule).
+* ``triangle``: ``points``: three corners; front side (p1 - p0) x (p2 - p0).
+* ``box``: ``size`` (3-vector or number, default 1) centred on ``center`` (default origin);
+  faces point outwards.
+* ``sphere``: ``center``, ``radius``; emits outwards. No transforms.
+
+Triangle shapes (mesh, quad, triangle, box) take an optional transform: ``scale`` (number or
+3-vector), ``rotate`` (``{axis = [x, y, z], angle = DEGREES}`` or a list of them, applied in
+order), ``translate`` (3-vector), applied in that order (scale, rotate, translate); or instead
+``matrix``, a 4x4 affine matrix (rows) applied to column vectors [x, y, z, 1].  A transform that
+mirrors (negative determinant) keeps each face's front side on the transformed normal's side.
+``flip_normals = true`` swaps the front side of every face of the shape.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import UserError
+from ...imageio import read_exr
+from ..materials import REGISTRY
+from ..mesh import MeshError, flatten, load_trimesh
+from ..model import (INTEGRATORS, Camera, DirectionalLight, Environment, Material, PointLight, RenderSettings,
+                     Scene)
+from .assembly import DEFAULT_FOV, frame_scene, triangle_scene
+from .gltf import read_gltf
+from .meshfile import trimesh_uvs
+from .obj import obj_with_materials
+from .values import (ErrorContext, SceneError, TableReader, check_boolean, check_choice, check_color,
+                     check_integer, check_keys, check_number, check_points, check_vector, describe,
+                     one_line)
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    try:
+        import tomli as tomllib
+    except ModuleNotFoundError:
+        tomllib = None
+
+SHAPE_TYPES = ("mesh", "quad", "triangle", "box", "sphere")
+LIGHT_TYPES = ("point", "directional")
+
+_TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environment"}
+_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance"}
+_LIGHT_KEYS = {"point": {"type", "position", "intensity"}, "directional": {"type", "direction", "irradiance"}}
+_ENVIRONMENT_KEYS = {"radiance", "file", "scale"}
+_FILM_KEYS = {"width", "height"}
+_RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth"}
+# the keys of every [materials.NAME]; each type adds its own (MaterialType.toml_keys)
+MATERIAL_COMMON_KEYS = frozenset({"type", "emission", "two_sided", "emission_texture"})
+_TRANSFORM_KEYS = {"translate", "scale", "rotate", "matrix", "flip_normals"}
+_SHAPE_KEYS = {
+    "mesh": {"type", "material", "file", "use_file_materials"} | _TRANSFORM_KEYS,
+    "quad": {"type", "material", "points"} | _TRANSFORM_KEYS,
+    "triangle": {"type", "material", "points"} | _TRANSFORM_KEYS,
+    "box": {"type", "material", "size", "center"} | _TRANSFORM_KEYS,
+    "sphere": {"type", "material", "center", "radius"},
+}
+
+
+def _read_material(ctx, where, name, spec) -> Material:
+    if not isinstance(spec, dict):
+        raise ctx.error(where, f"must be a table, got {describe(spec)}")
+    material_type = REGISTRY[check_choice(ctx, where, "type", spec.get("type", "diffuse"), REGISTRY)]
+    check_keys(ctx, where, spec, MATERIAL_COMMON_KEYS | material_type.toml_keys)
+    emission = check_vector(ctx, where, "emission", spec.get("emission", 0.0), allow_scalar=True)
+    if emission.min() < 0:
+        raise ctx.error(where, f"'emission' must not be negative, got {emission.tolist()}")
+    two_sided = check_boolean(ctx, where, "two_sided", spec.get("two_sided", False))
+    material = Material(name=name, emission=tuple(float(x) for x in emission), two_sided=two_sided,
+                        type=material_type.name)
+    table = TableReader(ctx, where, spec)
+    material.emission_texture = table.texture("emission_texture", srgb=True)
+    material_type.read_toml(material, table)
+    return material
+
+
+def _read_materials(ctx, table):
+    if not isinstance(table, dict):
+        raise ctx.error("materials", f"must be tables written [materials.NAME], got {describe(table)}")
+    materials: list[Material] = []
+    index: dict[str, int] = {}
+    for name, spec in table.items():
+        index[name] = len(materials)
+        materials.append(_read_material(ctx, f"[materials.{name}]", name, spec))
+    return materials, index
+
+
+def load_toml_scene(path: Path, name: str) -> Scene:
+    ctx = ErrorContext(name)
+    if tomllib is None:  # pragma: no cover - Python 3.10 without tomli
+        raise ctx.error("", "reading TOML scene files needs Python >= 3.11 or the 'tomli' package")
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ctx.error("", f"not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise ctx.error("", f"cannot read ({exc.strerror or exc})") from None
+    for key in doc:
+        if key not in _TOP_KEYS:
+            hint = " (did you mean [[shape]]?)" if key in ("shapes", "shape_") else ""
+            raise ctx.error("", f"unknown key '{key}' (expected one of: {', '.join(sorted(_TOP_KEYS))}){hint}")
+
+    settings = _read_settings(ctx, doc.get("film", {}), doc.get("render", {}))
+    materials, material_index = _read_materials(ctx, doc.get("materials", {}))
+
+    shapes = doc.get("shape", [])
+    if not isinstance(shapes, list):
+        raise ctx.error("shape", "must be an array of tables written [[shape]]")
+    if not shapes:
+        raise ctx.error("", "defines no shapes (add [[shape]] tables)")
+
+    def material_for(where, table) -> int:
+        """The index of the shape's material; the built-in "default" is added on first use."""
+        mname = table.get("material", "default")
+        if not isinstance(mname, str):
+            raise ctx.error(where, f"'material' must be a material name, got {describe(mname)}")
+        if mname not in material_index:
+            if mname != "default":
+                known = ", ".join(sorted(material_index)) or "none defined"
+                raise ctx.error(where, f"unknown material '{mname}' (materials: {known})")
+            material_index["default"] = len(materials)
+            materials.append(Material())
+        return material_index[mname]
+
+    tri_vertices, tri_faces, tri_mats, tri_uvs = [], [], [], []
+    n_vertices = 0
+    spheres, sphere_mats = [], []
+    for number, table in enumerate(shapes, 1):
+        where = f"[[shape]] #{number}"
+        if not isinstance(table, dict):
+            raise ctx.error(where, f"must be a table, got {describe(table)}")
+        stype = table.get("type")
+        if stype is None:
+            raise ctx.error(where, f"missing 'type' (one of: {', '.join(SHAPE_TYPES)})")
+        check_choice(ctx, where, "type", stype, SHAPE_TYPES)
+        where = f"[[shape]] #{number} ({stype})"
+        check_keys(ctx, where, table, _SHAPE_KEYS[stype])
+
+        if stype == "sphere":
+            for req in ("center", "radius"):
+                if req not in table:
+                    raise ctx.error(where, f"missing '{req}'")
+            centre = check_vector(ctx, where, "center", table["center"])
+            radius = check_number(ctx, where, "radius", table["radius"], positive=True)
+            spheres.append([*centre, radius])
+            sphere_mats.append(material_for(where, table))
+            continue
+
+        face_mat = None
+        uvc = None  # per-corner texture coordinates (F, 3, 2), None = zeros
+        if stype == "mesh":
+            v, f, face_mat, uvc = _read_mesh_shape(ctx, where, path, table, materials, material_index, material_for)
+        elif stype == "quad":
+            if "points" not in table:
+                raise ctx.error(where, "missing 'points' (four corners [[x,y,z], ...])")
+            v = check_points(ctx, where, "points", table["points"], 4)
+            f = np.array([[0, 1, 2], [0, 2, 3]], np.int64)
+            uvc = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)[f]  # p0..p3 -> uv corners
+        elif stype == "triangle":
+            if "points" not in table:
+                raise ctx.error(where, "missing 'points' (three corners [[x,y,z], ...])")
+            v = check_points(ctx, where, "points", table["points"], 3)
+            f = np.array([[0, 1, 2]], np.int64)
+            uvc = np.array([[[0, 0], [1, 0], [0, 1]]], np.float32)
+        else:  # box
+            import trimesh
+
+            size = check_vector(ctx, where, "size", table.get("size", 1.0), allow_scalar=True)
+            if not (size > 0).all():
+                raise ctx.error(where, f"'size' must be > 0 in every axis, got {size.tolist()}")
+            centre = check_vector(ctx, where, "center", table.get("center", [0.0, 0.0, 0.0]))
+            box = trimesh.creation.box(extents=size)
+            v = np.asarray(box.vertices, np.float64) + centre
+            f = np.asarray(box.faces, np.int64)
+
+        if stype in ("quad", "triangle"):
+            areas = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+            if not (areas > 0).all():
+                raise ctx.error(where, "degenerate: its corners do not span an area (repeated or collinear points)")
+
+        matrix = _shape_transform(ctx, where, table)
+        if matrix is not None:
+            v = v @ matrix[:3, :3].T + matrix[:3, 3]
+            if np.linalg.det(matrix[:3, :3]) < 0:
+                f = f[:, ::-1]
+                uvc = uvc[:, ::-1] if uvc is not None else None
+        if check_boolean(ctx, where, "flip_normals", table.get("flip_normals", False)):
+            f = f[:, ::-1]
+            uvc = uvc[:, ::-1] if uvc is not None else None
+        if face_mat is None:
+            face_mat = np.full(len(f), material_for(where, table), np.int32)
+        tri_vertices.append(v)
+        tri_uvs.append(np.zeros((len(f), 3, 2), np.float32) if uvc is None else np.asarray(uvc, np.float32))
+        tri_faces.append(f + n_vertices)
+        tri_mats.append(face_mat)
+        n_vertices += len(v)
+
+    if tri_faces:
+        vertices, faces = np.concatenate(tri_vertices), np.concatenate(tri_faces)
+        face_mat, uvs = np.concatenate(tri_mats), np.concatenate(tri_uvs)
+    else:
+        vertices, faces, face_mat, uvs = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int32), None
+    scene = triangle_scene(
+        vertices, faces, face_mat, materials, name, uvs, settings=settings,
+        spheres=np.asarray(spheres, np.float32).reshape(-1, 4), sphere_materials=np.asarray(sphere_mats, np.int32),
+    )
+    if "camera" in doc:
+        scene.camera = _read_camera(ctx, doc["camera"])
+    else:
+        frame_scene(scene)
+    scene.lights = _read_lights(ctx, doc.get("light", []))
+    if "environment" in doc:
+        scene.environment = _read_environment(ctx, path, doc["environment"])
+    return scene
+
+
+def _read_lights(ctx, lights) -> list:
+    if not isinstance(lights, list):
+        raise ctx.error("light", "must be an array of tables written [[light]]")
+    out = []
+    for number, table in enumerate(lights, 1):
+        where = f"[[light]] #{number}"
+        if not isinstance(table, dict):
+            raise ctx.error(where, f"must be a table, got {describe(table)}")
+        ltype = table.get("type")
+        if not isinstance(ltype, str) or ltype not in LIGHT_TYPES:
+            shown = "missing 'type'" if ltype is None else f"unknown type {ltype!r}"
+            raise ctx.error(where, f"{shown} (expected one of: {', '.join(LIGHT_TYPES)})")
+        where = f"[[light]] #{number} ({ltype})"
+        check_keys(ctx, where, table, _LIGHT_KEYS[ltype])
+        if ltype == "point":
+            if "position" not in table:
+                raise ctx.error(where, "missing 'position'")
+            out.append(PointLight(position=tuple(float(x) for x in check_vector(ctx, where, "position", table["position"])),
+                                  intensity=check_color(ctx, where, "intensity", table.get("intensity", 1.0))))
+        else:
+            if "direction" not in table:
+                raise ctx.error(where, "missing 'direction' (the way the light travels)")
+            d = check_vector(ctx, where, "direction", table["direction"])
+            if not np.linalg.norm(d) > 0:
+                raise ctx.error(where, "'direction' must not be zero")
+            out.append(DirectionalLight(direction=tuple(float(x) for x in d / np.linalg.norm(d)),
+                                        irradiance=check_color(ctx, where, "irradiance", table.get("irradiance", 1.0))))
+    return out
+
+
+def _read_environment(ctx, scene_path: Path, table):
+    where = "[environment]"
+    if not isinstance(table, dict):
+        raise ctx.error(where, f"must be a table, got {describe(table)}")
+    check_keys(ctx, where, table, _ENVIRONMENT_KEYS)
+    if "file" in table:
+        if "radiance" in table:
+            raise ctx.error(where, "give 'radiance' (a constant) or 'file' (a map, with 'scale'), not both")
+        fname = table["file"]
+        if not isinstance(fname, str):
+            raise ctx.error(where, f"'file' must be a file name, got {describe(fname)}")
+        path = (scene_path.parent / fname)
+        if not path.is_file():
+            raise ctx.error(where, f"environment map '{fname}' not found (looked for {path})")
+        try:
+            image = read_exr(path)
+        except UserError as exc:
+            raise ctx.error(where, one_line(str(exc))) from None
+        image = np.asarray(image, np.float32)
+        if image.ndim != 3 or image.shape[2] != 3:
+            raise ctx.error(where, f"environment map '{fname}' must be an RGB image, got shape {image.shape}")
+        if not np.isfinite(image).all() or (image < 0).any():
+            warnings.warn(f"{ctx.name}: {where}: '{fname}' has negative or non-finite texels; they are treated as 0",
+                          stacklevel=3)
+        return Environment(radiance=check_color(ctx, where, "scale", table.get("scale", 1.0)), image=image,
+                           source=str(path))
+    if "scale" in table:
+        raise ctx.error(where, "'scale' multiplies a map: use it with 'file' (or give 'radiance')")
+    return Environment(radiance=check_color(ctx, where, "radiance", table.get("radiance", 1.0)))
+
+
+def _read_settings(ctx, film, render) -> RenderSettings:
+    s = RenderSettings()
+    check_keys(ctx, "[film]", film, _FILM_KEYS)
+    check_keys(ctx, "[render]", render, _RENDER_KEYS)
+    if "width" in film:
+        s.width = check_integer(ctx, "[film]", "width", film["width"], minimum=1, maximum=65536)
+    if "height" in film:
+        s.height = check_integer(ctx, "[film]", "height", film["height"], minimum=1, maximum=65536)
+    if "spp" in render:
+        s.spp = check_integer(ctx, "[render]", "spp", render["spp"], minimum=1)
+    if "max_depth" in render:
+        s.max_depth = check_integer(ctx, "[render]", "max_depth", render["max_depth"], minimum=1)
+    if "rr_depth" in render:
+        s.rr_depth = check_integer(ctx, "[render]", "rr_depth", render["rr_depth"], minimum=0)
+    if "seed" in render:
+        s.seed = check_integer(ctx, "[render]", "seed", render["seed"], minimum=0, maximum=2**32 - 1)
+    if "integrator" in render:
+        s.integrator = check_choice(ctx, "[render]", "integrator", render["integrator"], INTEGRATORS)
+    return s
+
+
+def _read_camera(ctx, table) -> Camera:
+    where = "[camera]"
+    check_keys(ctx, where, table, _CAMERA_KEYS)
+    for req in ("eye", "look_at"):
+        if req not in table:
+            raise ctx.error(where, f"missing '{req}' (or leave out [camera] to frame the scene automatically)")
+    eye = check_vector(ctx, where, "eye", table["eye"])
+    look_at = check_vector(ctx, where, "look_at", table["look_at"])
+    up = check_vector(ctx, where, "up", table.get("up", [0.0, 1.0, 0.0]))
+    fov = check_number(ctx, where, "fov", table.get("fov", DEFAULT_FOV))
+    if not 0 < fov < 180:
+        raise ctx.error(where, f"'fov' must be between 0 and 180 degrees, got {fov:g}")
+    forward = look_at - eye
+    if not np.linalg.norm(forward) > 0:
+        raise ctx.error(where, "'eye' and 'look_at' are the same point")
+    if not np.linalg.norm(np.cross(forward / np.linalg.norm(forward), up)) > 1e-9:
+        raise ctx.error(where, "'up' must not be zero or parallel to the viewing direction look_at - eye")
+    aperture = check_number(ctx, where, "aperture_radius", table.get("aperture_radius", 0.0), minimum=0.0)
+    focus = None
+    if "focus_distance" in table:
+        focus = check_number(ctx, where, "focus_distance", table["focus_distance"], positive=True)
+    return Camera(
+        eye=tuple(float(x) for x in eye), look_at=tuple(float(x) for x in look_at),
+        up=tuple(float(x) for x in up), fov=float(fov), aperture_radius=float(aperture), focus_distance=focus,
+    )
+
+
+def rotation_matrix(axis, angle_degrees) -> np.ndarray:
+    """3x3 right-handed rotation by ``angle_degrees`` about ``axis`` (Rodrigues)."""
+    axis = np.asarray(axis, np.float64)
+    axis = axis / np.linalg.norm(axis)
+    a = math.radians(angle_degrees)
+    x, y, z = axis
+    k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
+    return np.eye(3) + math.sin(a) * k + (1 - math.cos(a)) * (k @ k)
+
+
+def _shape_transform(ctx, where, table) -> np.ndarray | None:
+    """4x4 matrix from the shape's transform keys, or None."""
+    trs = [k for k in ("translate", "scale", "rotate") if k in table]
+    if "matrix" in table:
+        if trs:
+            raise ctx.error(where, f"give either 'matrix' or translate/scale/rotate, not both ('{trs[0]}')")
+        m = table["matrix"]
+        if not isinstance(m, list) or len(m) != 4:
+            raise ctx.error(where, f"'matrix' must be 4 rows of 4 numbers, got {describe(m)}")
+        rows = [check_vector(ctx, where, f"matrix[{i}]", r, 4) for i, r in enumerate(m)]
+        matrix = np.stack(rows)
+        if not np.allclose(matrix[3], [0, 0, 0, 1]):
+            raise ctx.error(where, f"'matrix' must be affine: its last row must be [0, 0, 0, 1], got {matrix[3].tolist()}")
+        if abs(np.linalg.det(matrix[:3, :3])) < 1e-12:
+            raise ctx.error(where, "'matrix' is singular (it flattens the shape)")
+        return matrix
+    if not trs:
+        return None
+    m3 = np.eye(3)
+    if "scale" in table:
+        s = check_vector(ctx, where, "scale", table["scale"], allow_scalar=True)
+        if (s == 0).any():
+            raise ctx.error(where, f"'scale' must not be 0 in any axis, got {s.tolist()}")
+        m3 = np.diag(s) @ m3
+    if "rotate" in table:
+        rot = table["rotate"]
+        steps = rot if isinstance(rot, list) else [rot]
+        if not steps:
+            raise ctx.error(where, "'rotate' is an empty list")
+        for i, step in enumerate(steps):
+            key = "rotate" if not isinstance(rot, list) else f"rotate[{i}]"
+            if not isinstance(step, dict):
+                raise ctx.error(where, f"'{key}' must be {{axis = [x, y, z], angle = DEGREES}}, got {describe(step)}")
+            for k in step:
+                if k not in ("axis", "angle"):
+                    raise ctx.error(where, f"'{key}': unknown key '{k}' (expected axis, angle)")
+            if "axis" not in step or "angle" not in step:
+                raise ctx.error(where, f"'{key}' needs both 'axis' and 'angle' (degrees)")
+            axis = check_vector(ctx, where, f"{key}.axis", step["axis"])
+            if not np.linalg.norm(axis) > 0:
+                raise ctx.error(where, f"'{key}.axis' must not be zero")
+            angle = check_number(ctx, where, f"{key}.angle", step["angle"])
+            m3 = rotation_matrix(axis, angle) @ m3
+    matrix = np.eye(4)
+    matrix[:3, :3] = m3
+    if "translate" in table:
+        matrix[:3, 3] = check_vector(ctx, where, "translate", table["translate"])
+    return matrix
+
+
+def _read_mesh_shape(ctx, where, scene_path: Path, table, materials, material_index, material_for):
+    if "file" not in table:
+        raise ctx.error(where, "missing 'file' (a mesh path relative to the scene file)")
+    fname = table["file"]
+    if not isinstance(fname, str) or not fname:
+        raise ctx.error(where, f"'file' must be a path, got {describe(fname)}")
+    mesh_path = scene_path.parent / Path(fname).expanduser()
+    if not mesh_path.exists():
+        raise ctx.error(where, f"mesh file '{fname}' not found (looked for {mesh_path})")
+    if mesh_path.is_dir():
+        raise ctx.error(where, f"mesh file '{fname}' is a folder ({mesh_path})")
+    use_file = check_boolean(ctx, where, "use_file_materials", table.get("use_file_materials", False))
+    suffix = mesh_path.suffix.lower()
+    uvs = None
+    if suffix in (".gltf", ".glb"):
+        try:
+            g = read_gltf(mesh_path, f"{ctx.name}: {where}: {fname}")
+        except UserError as exc:
+            raise SceneError(one_line(str(exc))) from None
+        v, f, uvs = g.vertices, g.faces, g.uvs
+    if use_file:
+        if suffix not in (".obj", ".gltf", ".glb"):
+            raise ctx.error(where, f"use_file_materials is only supported for OBJ and glTF files, not '{fname}'")
+        fallback_index = material_for(where, table)
+        overrides = {n: materials[i] for n, i in material_index.items()}
+        if suffix == ".obj":
+            try:
+                v, f, local_mat, local_materials, uvs = obj_with_materials(
+                    mesh_path, f"{ctx.name}: {where}: {fname}", overrides, fallback=materials[fallback_index])
+            except SceneError as exc:
+                raise SceneError(one_line(str(exc))) from None
+        else:  # glTF: a [materials.NAME] with a glTF material's name replaces it
+            local_mat = g.face_materials
+            local_materials = [overrides.get(m.name, m) for m in g.materials]
+        # map the OBJ's material list into the scene's, reusing entries already there
+        remap = np.empty(max(1, len(local_materials)), np.int32)
+        for i, mat in enumerate(local_materials):
+            for j, existing in enumerate(materials):
+                if existing is mat:
+                    remap[i] = j
+                    break
+            else:
+                remap[i] = len(materials)
+                materials.append(mat)
+        face_mat = remap[local_mat] if len(local_mat) else np.zeros(0, np.int32)
+    elif suffix not in (".gltf", ".glb"):
+        try:
+            loaded = load_trimesh(mesh_path)
+            v, f = flatten(loaded, name=str(mesh_path))
+        except MeshError as exc:
+            raise ctx.error(where, str(exc)) from None
+        uvs = trimesh_uvs(loaded, v, f)
+        face_mat = None
+    else:
+        face_mat = None
+    if len(f) == 0:
+        raise ctx.error(where, f"mesh file '{fname}' contains no triangles")
+    return np.asarray(v, np.float64), np.asarray(f, np.int64), face_mat, uvs
+
+

@@ -1,0 +1,39 @@
+"""`"dielectric"` — glass: Fresnel reflection and refraction (total internal reflection included),
+smooth or GGX-rough (`cl/materials/dielectric.h`).
+
+| key | type | default | meaning |
+|---|---|---|---|
+| `ior` | number > 0 | 1.5 | index of refraction of the inside (the back of triangles, the inside of spheres) relative to the outside |
+| `roughness` / `alpha` | number in [0, 1] | 0 | see **Roughness** above |
+| `tint` | [r, g, b] in [0, 1], or one number | 1 | multiplies reflection and transmission |
+
+Glass should be closed geometry (a sphere, a closed mesh with outward-facing triangles).
+"""
+from __future__ import annotations
+
+from .microfacet import ROUGHNESS_KEYS, read_alpha
+
+TOML_KEYS = ROUGHNESS_KEYS | {"ior", "tint"}
+KERNEL_DEFINE = "HAS_MATERIAL_DIELECTRIC"
+MTL_PRECEDENCE = 0  # transparency wins over every other statement
+
+
+def read_toml(material, table) -> None:
+    material.alpha = read_alpha(table)
+    material.ior = table.number("ior", 1.5, positive=True)
+    material.tint = table.rgb01("tint", 1.0)
+
+
+def from_mtl(material, mtl) -> bool:
+    """Transparent or refracting: ``d`` < 1, ``Tr`` > 0 or ``illum`` 4, 6, 7 or 9; IOR ``Ni``."""
+    if not (mtl.opacity < 1.0 or mtl.illum in (4, 6, 7, 9)):
+        return False
+    material.ior, material.alpha = mtl.ior, mtl.alpha or 0.0
+    return True
+
+
+def pack(material, record) -> None:
+    """The tint goes in the record's specular field (a base texture multiplies it)."""
+    record["alpha"] = material.alpha
+    record["ior"] = material.ior
+    record["specular"] = material.tint

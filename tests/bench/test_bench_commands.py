@@ -1,0 +1,160 @@
+"""The benchmark subcommands on tiny inputs (a few seconds each): the numbers they report are
+consistent with what they measure, and a missing Mitsuba or libLLVM is one clear line."""
+import json
+import math
+import os
+import stat
+
+import pytest
+
+from pyopencl_rt.bench import mitsuba_host
+from pyopencl_rt.cli import main
+
+CORNELL = "scenes/cornell-box.toml"
+
+
+def finite_positive(x):
+    return isinstance(x, (int, float)) and math.isfinite(x) and x > 0
+
+
+def test_bench_bvh_binned_against_sweep(tmp_path, capsys):
+    """Every kind at 2k triangles, swept too: the full sweep is the quality reference, so the
+    binned/sweep SAH ratio is at least 1, and within the 10% quality target."""
+    out = tmp_path / "bvh.json"
+    main(["bench", "bvh", "--sizes", "2k", "--sweep-size", "2000", "--repeat", "1", "--check", "--json", str(out)])
+    data = json.loads(out.read_text())
+    rows = data["results"]
+    assert [r["kind"] for r in rows] == ["sphere", "torus", "soup", "slivers"]
+    for row in rows:
+        assert row["size"] == 2000 and 1000 <= row["triangles"] <= 2000
+        binned, sweep = row["binned"], row["sweep"]
+        assert finite_positive(binned["build_seconds"]) and finite_positive(sweep["build_seconds"])
+        assert row["sah_ratio"] == pytest.approx(binned["sah_cost"] / sweep["sah_cost"])
+        assert 1.0 - 1e-9 <= row["sah_ratio"] < 1.10, row
+        assert sum(binned["leaf_size_histogram"].values()) > 0
+    assert f"wrote {out}" in capsys.readouterr().out
+
+
+def test_bench_bvh_without_sweep_and_unknown_kind(tmp_path, capsys):
+    out = tmp_path / "bvh.json"
+    main(["bench", "bvh", "--sizes", "1k", "--kinds", "soup", "--sweep-size", "0", "--repeat", "1", "--json", str(out)])
+    (row,) = json.loads(out.read_text())["results"]
+    assert row["triangles"] == 1000 and "sweep" not in row and "sah_ratio" not in row
+    with pytest.raises(SystemExit) as exc:
+        main(["bench", "bvh", "--kinds", "soup,cube"])
+    assert exc.value.code != 0
+    assert "unknown mesh kind 'cube'" in capsys.readouterr().err
+
+
+def test_bench_materials_tiny(tmp_path):
+    """Two pairs at 16x16, 1 spp: the ratio is the ratio of the medians, and variant b of the
+    texture pair is compiled without textures (else it would time the same kernel twice)."""
+    out = tmp_path / "materials.json"
+    main(["bench", "materials", "--device", "cpu", "--pairs", "textures,gltf", "--width", "16", "--height", "16",
+          "--spp", "1", "--repeat", "1", "--json", str(out)])
+    data = json.loads(out.read_text())
+    assert "rough_vs_smooth" not in data
+    for key in ("textured_vs_untextured", "gltf_vs_diffuse"):
+        pair = data[key]
+        assert finite_positive(pair["a_samples_per_second"]) and finite_positive(pair["b_samples_per_second"])
+        assert pair["a_over_b"] == pytest.approx(pair["a_samples_per_second"] / pair["b_samples_per_second"])
+        assert len(pair["a_all"]) == len(pair["b_all"]) == 1
+    textures = data["textured_vs_untextured"]
+    assert any("HAS_TEXTURES" in f for f in textures["features_a"])
+    assert not any("HAS_TEXTURES" in f for f in textures["features_b"])
+    gltf = data["gltf_vs_diffuse"]
+    assert gltf["features_a"] != gltf["features_b"]
+
+
+def test_bench_render_with_both_intersectors(tmp_path):
+    """--intersector opencl,embree: one row per intersector, labelled and recorded as such; the
+    two trace the same paths (same seed), so their rays per sample agree closely."""
+    out = tmp_path / "render.json"
+    main(["bench", "render", CORNELL, "--device", "cpu", "--width", "16", "--height", "16", "--spp", "2",
+          "--repeat", "1", "--intersector", "opencl,embree", "--json", str(out)])
+    rows = json.loads(out.read_text())["devices"]
+    assert len(rows) == 2
+    by_intersector = {row["intersector"]: (label, row) for label, row in rows.items()}
+    assert set(by_intersector) == {"opencl", "embree"}
+    for name, (label, row) in by_intersector.items():
+        assert label.startswith(f"{name}: ")
+        assert finite_positive(row["samples_per_second_median"]) and finite_positive(row["rays_per_sample"])
+    rays = [row["rays_per_sample"] for _label, row in by_intersector.values()]
+    assert rays[0] == pytest.approx(rays[1], rel=0.05)
+
+
+def test_bench_render_unknown_intersector(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["bench", "render", CORNELL, "--intersector", "opencl,optix"])
+    assert exc.value.code != 0
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "pyopencl-rt: error: unknown intersector 'optix': use one or more of opencl, embree"]
+
+
+# -- Mitsuba and libLLVM discovery: nothing is guessed, and what is missing is said in one line -------
+
+def fake_python(path, output, status):
+    """An 'interpreter' that prints ``output`` and exits with ``status`` whatever it is asked."""
+    path.write_text(f"#!/bin/sh\ncat <<'EOF'\n{output}\nEOF\nexit {status}\n")
+    path.chmod(path.stat().st_mode | stat.S_IXUSR)
+    return str(path)
+
+
+def test_mitsuba_cornell_box_without_mitsuba(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("PYOPENCL_RT_MITSUBA_PYTHON", str(tmp_path / "no-such-python"))
+    with pytest.raises(SystemExit) as exc:
+        main(["bench", "mitsuba-cornell-box"])
+    assert exc.value.code == 1
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("pyopencl-rt: error: Mitsuba 3 not found: $PYOPENCL_RT_MITSUBA_PYTHON=")
+    assert "no such file" in line and "--mitsuba-python" in line
+
+
+def test_named_interpreter_is_not_replaced(tmp_path, monkeypatch):
+    """--mitsuba-python wins over $PYOPENCL_RT_MITSUBA_PYTHON, and one that cannot import mitsuba
+    is reported as such, not silently swapped for another interpreter."""
+    no_mitsuba = fake_python(tmp_path / "python", "ModuleNotFoundError: No module named 'mitsuba'", 3)
+    monkeypatch.setenv("PYOPENCL_RT_MITSUBA_PYTHON", str(tmp_path / "elsewhere"))
+    python, why = mitsuba_host.find_mitsuba_python(no_mitsuba, "scalar_rgb")
+    assert python is None
+    assert why.startswith(f"Mitsuba 3 not found: --mitsuba-python={no_mitsuba} cannot import mitsuba")
+
+
+def test_missing_or_unusable_libllvm(tmp_path, monkeypatch):
+    ok = fake_python(tmp_path / "python", "3.9.1", 0)
+    monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
+    assert mitsuba_host.find_mitsuba_python(ok, "llvm_ad_rgb") == (ok, "--mitsuba-python, Mitsuba 3.9.1")
+    # a named libLLVM that is not there: said before anything runs, naming where it came from
+    python, why = mitsuba_host.find_mitsuba_python(ok, "llvm_ad_rgb", llvm_path=str(tmp_path / "libLLVM.so"))
+    assert python is None and f"--llvm-path={tmp_path / 'libLLVM.so'} is no such file" in why
+    monkeypatch.setenv("DRJIT_LIBLLVM_PATH", str(tmp_path / "gone.so"))
+    python, why = mitsuba_host.find_mitsuba_python(ok, "llvm_ad_rgb")
+    assert python is None and "$DRJIT_LIBLLVM_PATH=" in why and "no such file" in why
+    assert mitsuba_host.find_mitsuba_python(ok, "scalar_rgb")[0] == ok  # no LLVM needed
+    # an LLVM too old for Dr.Jit's kernels aborts the process: the LLVM line and the fix, no addresses
+    llvm_abort = "LLVM ERROR: Cannot select: 0x55d0: f32 = fminimum 0x55d1, 0x55d2\nIn function: drjit_1"
+    old_llvm = fake_python(tmp_path / "python-old-llvm", llvm_abort, 134)
+    monkeypatch.delenv("DRJIT_LIBLLVM_PATH")
+    python, why = mitsuba_host.find_mitsuba_python(old_llvm, "llvm_ad_rgb")
+    assert python is None
+    assert "Cannot select: f32 = fminimum" in why and "0x" not in why
+    assert "--llvm-path" in why and "DRJIT_LIBLLVM_PATH" in why and "\n" not in why
+
+
+def test_llvm_path_reaches_the_mitsuba_process(tmp_path, monkeypatch):
+    monkeypatch.setenv("DRJIT_LIBLLVM_PATH", "/from/the/environment.so")
+    assert mitsuba_host.mitsuba_env()["DRJIT_LIBLLVM_PATH"] == "/from/the/environment.so"
+    assert mitsuba_host.mitsuba_env("/given.so")["DRJIT_LIBLLVM_PATH"] == "/given.so"
+    assert os.environ["DRJIT_LIBLLVM_PATH"] == "/from/the/environment.so"  # ours is left alone
+
+
+def test_mitsuba_export_loads_without_the_package():
+    """mitsuba_runner.py loads mitsuba_export.py by file path in Mitsuba's interpreter, where
+    pyopencl_rt may not import: the module must not import the package at load time."""
+    import importlib.util
+
+    path = mitsuba_host.HERE / "mitsuba_export.py"
+    spec = importlib.util.spec_from_file_location("standalone_mitsuba_export", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert callable(module.dict_from_arrays) and callable(module.load_scene_npz)

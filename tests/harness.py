@@ -1,0 +1,268 @@
+"""Shared test helpers: one way to run device functions through harness kernels, and one
+chi-square test.
+
+Harness kernels
+---------------
+A test declares its kernels once, as OpenCL C text that includes headers of ``cl/``::
+
+    SAMPLING = harness.Kernels(r'''
+    #include "sampling.h"
+    __kernel void h_cone(__global const float *u, float cos_max, __global float *out)
+    { const int i = get_global_id(0); store3(out, i, sample_uniform_cone(vload2(i, u), cos_max)); }
+    ''', defines={...})
+
+and runs one of them over ``n`` work items, with the arguments in the kernel's order
+(positionally, or by their C names)::
+
+    w = SAMPLING(runtime, "h_cone", n, u, cos_max=0.5, out=(n, 3))
+
+The kernel's signature decides what each argument is:
+
+* ``__global const T *`` (or ``__constant``): an input array, copied to the device.  For the
+  OpenCL scalar and vector types (``float``, ``uint``, ``float4``, ...) it is converted to the
+  matching numpy dtype (a same-kind cast only: float64 -> float32 yes, float -> int no); for a
+  struct (``Material``, ``Light``, ...) it must already be a record array of the ``abi`` dtype.
+* ``__global T *`` (not const): an output.  Pass its shape (an int or a tuple; the array starts
+  as zeros of T's dtype), or an array: its contents are the initial values (a copy is made).
+* anything else (``int mode``, ``float tmax``): a scalar, converted to the C type.
+
+The outputs come back as numpy arrays, in the kernel's parameter order: one array, or a tuple
+of several.  Programs are assembled and built by ``pyopencl_rt.device.kernels`` (``cl/``
+includes expanded, the ``abi`` struct declarations prepended, ``defines`` as ``-D``) and cached
+per device runtime, as the renderer's own kernels are.
+
+Chi-square
+----------
+:func:`chi2_test` / :func:`assert_chi2`: Pearson's test of binned samples against expected
+counts, with Mitsuba 3's pooling rule (``mitsuba.math.chi2`` with a threshold of 5, as its
+``ChiSquareTest`` uses it): the bins are sorted by expected count, increasing; a bin where both
+the expected and the observed count are 0 is left out; bins expecting fewer than 5 samples are
+pooled, in that order, into groups that are closed as soon as they expect more than 5 (each
+group is one cell of the statistic); the last group, if it never reaches 5, is left out; the
+degrees of freedom are the cells - 1.  Samples in a bin of expected count 0 fail the test
+outright, as in Mitsuba.  Each test chooses its significance level.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+# ----------------------------------------------------------------------------- harness kernels
+_SCALARS = {
+    "char": np.int8, "uchar": np.uint8, "short": np.int16, "ushort": np.uint16, "int": np.int32,
+    "uint": np.uint32, "long": np.int64, "ulong": np.uint64, "float": np.float32, "double": np.float64,
+    "half": np.float16,
+}
+_QUALIFIERS = {"__global", "global", "__constant", "constant", "const", "restrict", "volatile", "__restrict"}
+_KERNEL = re.compile(r"\b(?:__kernel|kernel)\s+void\s+(\w+)\s*\(([^)]*)\)", re.S)
+
+
+def _c_dtype(ctype: str):
+    """numpy dtype of a C scalar or vector type (float4 -> float32: one element of the vector),
+    None for anything else (a struct)."""
+    if ctype.startswith("unsigned "):
+        ctype = "u" + ctype.split()[1]
+    m = re.fullmatch(r"([a-z]+?)(2|3|4|8|16)?", ctype)
+    if m and m.group(1) in _SCALARS:
+        if m.group(2) == "3":
+            raise TypeError(f"{ctype} buffers are padded to 4 elements: use float with load3/store3")
+        return np.dtype(_SCALARS[m.group(1)])
+    return None
+
+
+@dataclass(frozen=True)
+class Param:
+    name: str
+    ctype: str       # the element type as written ("float", "Material", "float4")
+    kind: str        # "in", "out" or "scalar"
+    dtype: object    # numpy dtype, or None for a struct
+
+    def input(self, value):
+        if self.dtype is None:
+            a = np.asarray(value)
+            if a.dtype.fields is None:
+                raise TypeError(f"{self.name}: a {self.ctype} buffer needs a record array of its abi dtype")
+            return np.ascontiguousarray(a)
+        a = np.asarray(value)
+        integers = a.dtype.kind in "biu" and self.dtype.kind in "iu"
+        if not (integers or np.can_cast(a.dtype, self.dtype, "same_kind")):
+            raise TypeError(f"{self.name}: {a.dtype} values for a {self.ctype} buffer")
+        out = np.ascontiguousarray(a, self.dtype)
+        if integers and not np.array_equal(out, a):
+            raise TypeError(f"{self.name}: values out of the range of {self.ctype}")
+        return out
+
+    def output(self, value):
+        if isinstance(value, np.ndarray):
+            return np.array(value, self.dtype if self.dtype is not None else value.dtype, copy=True)
+        if self.dtype is None:
+            raise TypeError(f"{self.name}: give a {self.ctype} output as an initial record array")
+        return np.zeros(value, self.dtype)
+
+    def scalar(self, value):
+        if self.dtype is None or self.ctype[-1].isdigit():
+            raise TypeError(f"{self.name}: {self.ctype} arguments by value are not supported")
+        return self.dtype.type(value)
+
+
+def parse_signatures(source: str) -> dict[str, tuple[Param, ...]]:
+    """{kernel name: its parameters} of every ``__kernel void`` in ``source``."""
+    found = {}
+    for name, args in _KERNEL.findall(re.sub(r"/\*.*?\*/|//[^\n]*", "", source, flags=re.S)):
+        params = []
+        for text in filter(None, (a.strip() for a in args.split(","))):
+            words = re.findall(r"\w+|\*", text)
+            if "__local" in words or "local" in words:
+                raise TypeError(f"{name}: __local parameters are not supported ({text!r})")
+            pname = words[-1]
+            pointer = "*" in words
+            ctype = " ".join(w for w in words[:-1] if w not in _QUALIFIERS and w != "*")
+            if pointer:  # const data (const before the *) or __constant memory: an input
+                before = words[:words.index("*")]
+                kind = "in" if {"const", "__constant", "constant"} & set(before) else "out"
+            else:
+                kind = "scalar"
+            params.append(Param(pname, ctype, kind, _c_dtype(ctype)))
+        found[name] = tuple(params)
+    return found
+
+
+class Kernels:
+    """Harness kernels: ``source`` (OpenCL C; ``#include "x.h"`` pulls in ``cl/x.h``) built after
+    the ``cl/`` files ``names`` (usually none) with the preprocessor ``defines``."""
+
+    def __init__(self, source: str, *, defines: dict | None = None, names: tuple[str, ...] = ()):
+        self.source = source
+        self.defines = dict(defines or {})
+        self.names = tuple(names)
+        self.signatures = parse_signatures(source)
+
+    def program(self, runtime):
+        """The built program (pyopencl.Program), cached per runtime."""
+        return runtime.program(self.names, self.defines, self.source)
+
+    def kernel(self, runtime, name: str):
+        return runtime.kernel(self.names, name, self.defines, self.source)
+
+    def bind(self, name: str, args: tuple, named: dict, /) -> list:
+        """The kernel's arguments as values (input arrays, output arrays, numpy scalars), in order."""
+        if name not in self.signatures:
+            raise KeyError(f"no kernel {name!r} in this harness (has {', '.join(self.signatures)})")
+        params = self.signatures[name]
+        if len(args) > len(params):
+            raise TypeError(f"{name} takes {len(params)} arguments, {len(args)} given")
+        values = dict(zip((p.name for p in params), args))
+        for key, value in named.items():
+            if key in values:
+                raise TypeError(f"{name}: {key} given twice")
+            if key not in (p.name for p in params):
+                raise TypeError(f"{name} has no parameter {key!r}")
+            values[key] = value
+        missing = [p.name for p in params if p.name not in values]
+        if missing:
+            raise TypeError(f"{name}: missing {', '.join(missing)}")
+        return [getattr(p, {"in": "input", "out": "output", "scalar": "scalar"}[p.kind])(values[p.name])
+                for p in params]
+
+    def __call__(self, runtime, name: str, n: int, /, *args, **named):
+        """Run kernel ``name`` over ``n`` work items; returns its output arrays (one, or a tuple).
+        (``runtime``, ``name`` and ``n`` are positional-only: kernel parameters may have those names.)"""
+        import pyopencl as cl
+
+        params = self.signatures.get(name, ())
+        values = self.bind(name, args, named)
+        ctx, q = runtime.context, runtime.queue
+        mf = cl.mem_flags
+        bufs, outs = [], []
+        for p, v in zip(params, values):
+            if p.kind == "scalar":
+                bufs.append(v)
+                continue
+            flags = mf.READ_ONLY if p.kind == "in" else mf.READ_WRITE
+            if v.nbytes == 0:  # an empty array: a valid (unused) buffer
+                bufs.append(cl.Buffer(ctx, flags, 1))
+            else:
+                bufs.append(cl.Buffer(ctx, flags | mf.COPY_HOST_PTR, hostbuf=v))
+            if p.kind == "out":
+                outs.append((v, bufs[-1]))
+        self.kernel(runtime, name)(q, (int(n),), None, *bufs)
+        for host, buf in outs:
+            if host.nbytes:
+                cl.enqueue_copy(q, host, buf)
+        q.finish()
+        result = tuple(host for host, _ in outs)
+        return result[0] if len(result) == 1 else result
+
+
+def device_spec(device) -> str:
+    """The ``P:D`` spec of a ``pyopencl.Device`` (for a subprocess or a Dask worker, which cannot
+    be handed the Device object itself)."""
+    from pyopencl_rt.device import devices as dv
+
+    for entry in dv.all_devices():
+        if entry[2] == device:
+            return dv.describe(entry).index
+    raise LookupError(f"{device} is not among the OpenCL devices found")
+
+
+# ----------------------------------------------------------------------------- random numbers
+def uniforms(rng, shape):
+    """float32 uniforms on the 2^-24 grid of [0, 1) (a float64 draw cast to float32 can round to 1)."""
+    return (rng.integers(0, 1 << 24, size=shape) * 2.0 ** -24).astype(np.float32)
+
+
+# ----------------------------------------------------------------------------- chi-square
+CHI2_POOL = 5.0  # Mitsuba 3's pool_threshold
+
+
+@dataclass(frozen=True)
+class Chi2:
+    p: float            # p-value: the probability of a statistic at least this large under H0
+    statistic: float
+    dof: int
+    pooled_in: int      # bins expecting < CHI2_POOL ...
+    pooled_out: int     # ... and the cells they were pooled into
+
+
+def chi2_test(observed, expected, pool: float = CHI2_POOL) -> Chi2:
+    """Pearson's chi-square test with Mitsuba 3's pooling (see the module docstring)."""
+    from scipy import stats
+
+    o = np.asarray(observed, np.float64).ravel()
+    e = np.asarray(expected, np.float64).ravel()
+    assert o.shape == e.shape, f"{o.shape} observed vs {e.shape} expected bins"
+    assert np.all(e >= 0) and np.all(np.isfinite(e)), "negative or non-finite expected counts"
+    assert not np.any((e == 0) & (o > 0)), "samples in a bin where the pdf is zero"
+    order = np.argsort(e, kind="stable")
+    o, e = o[order], e[order]
+    keep = (e > 0) | (o > 0)
+    o, e = o[keep], e[keep]
+    small = e < pool
+    stat, cells = float(np.sum((o[~small] - e[~small]) ** 2 / e[~small])), int(np.count_nonzero(~small))
+    pooled_in, pooled_out = int(np.count_nonzero(small)), 0
+    po = pe = 0.0
+    for oi, ei in zip(o[small], e[small]):
+        po += oi
+        pe += ei
+        if pe > pool:
+            stat += (po - pe) ** 2 / pe
+            cells += 1
+            pooled_out += 1
+            po = pe = 0.0
+    dof = cells - 1
+    assert dof >= 1, "too few cells for a chi-square test"
+    return Chi2(float(stats.chi2.sf(stat, dof)), stat, dof, pooled_in, pooled_out)
+
+
+def chi2_pvalue(observed, expected) -> float:
+    return chi2_test(observed, expected).p
+
+
+def assert_chi2(observed, expected, alpha: float, what: str = ""):
+    """Fail unless the chi-square p-value exceeds ``alpha`` (the test's significance level)."""
+    r = chi2_test(observed, expected)
+    assert r.p > alpha, (f"{what}: chi-square p = {r.p:.3g} < {alpha} (statistic {r.statistic:.1f}, "
+                         f"{r.dof} dof, {r.pooled_in} bins pooled into {r.pooled_out})")
+    return r

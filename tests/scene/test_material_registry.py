@@ -1,0 +1,155 @@
+"""The material registry (pyopencl_rt/scene/materials/): one Python module per type, paired by
+name with the kernel's type enum and with the BSDF header that implements it, and each type's
+TOML keys landing in the MATERIAL record fields its documentation names.  Host-only."""
+import importlib
+import pkgutil
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pyopencl_rt import load_scene
+from pyopencl_rt.device import abi
+from pyopencl_rt.scene import materials
+from pyopencl_rt.scene.loaders.toml import MATERIAL_COMMON_KEYS
+from pyopencl_rt.scene.materials import REGISTRY
+from pyopencl_rt.scene.model import Material
+
+REPO = Path(__file__).resolve().parents[2]
+CL_MATERIALS = REPO / "cl" / "materials"
+
+
+def bsdf_headers() -> set:
+    """The headers of cl/materials/ that implement a BSDF: ``<name>.h`` defines both
+    ``<name>_eval(`` and ``<name>_sample(`` (helpers such as microfacet.h define neither)."""
+    names = set()
+    for header in CL_MATERIALS.glob("*.h"):
+        text = header.read_text()
+        if all(re.search(rf"\b{header.stem}_{fn}\s*\(", text) for fn in ("eval", "sample")):
+            names.add(header.stem)
+    return names
+
+
+def type_modules() -> set:
+    """The modules of the materials package that define a type (those with a ``pack``)."""
+    return {info.name for info in pkgutil.iter_modules(materials.__path__)
+            if hasattr(importlib.import_module(f"{materials.__name__}.{info.name}"), "pack")}
+
+
+def test_registry_enum_headers_and_modules_agree():
+    assert set(REGISTRY) == set(abi.MATERIAL_TYPES) == bsdf_headers() == type_modules()
+    assert {name: t.type_id for name, t in REGISTRY.items()} == abi.MATERIAL_TYPES
+
+
+def test_kernel_defines_exist_in_the_kernels():
+    sources = "\n".join(p.read_text() for p in (REPO / "cl").rglob("*.[hc]*"))
+    for name, material_type in REGISTRY.items():
+        if material_type.kernel_define is not None:
+            assert material_type.kernel_define == f"HAS_MATERIAL_{name.upper()}"
+            assert f"#ifdef {material_type.kernel_define}" in sources, name
+
+
+def test_mtl_precedences_are_distinct():
+    precedences = [t.mtl_precedence for t in REGISTRY.values() if t.from_mtl is not None]
+    assert len(set(precedences)) == len(precedences)
+
+
+def test_scene_format_includes_every_type_documentation():
+    assert materials.documentation() in (REPO / "docs" / "SCENE_FORMAT.md").read_text(), (
+        "docs/SCENE_FORMAT.md must include the types' docstrings verbatim: paste the output of\n"
+        "python -c 'from pyopencl_rt.scene.materials import documentation; print(documentation())'")
+
+
+# ---------------------------------------------------------------------------------------------
+# TOML keys -> record fields.  Expected fields are written out from the documentation (the type
+# modules' docstrings and the MATERIAL comments in device/abi.py); every field not listed must be
+# 0 (the texture indices -1).
+
+GOLD_ETA = (0.183, 0.421, 1.373)  # cl/materials/conductor.h's example, 3 decimals
+GOLD_K = (3.424, 2.346, 1.770)
+F0_FLAG = abi.MATERIAL_FLAG_CONDUCTOR_F0
+
+CASES = [  # (type, TOML keys, expected record fields)
+    ("diffuse", {}, {"albedo": (0.8, 0.8, 0.8)}),
+    ("diffuse", {"albedo": [0.25, 0.5, 0.75], "albedo_texture": "t.png"},
+     {"albedo": (0.25, 0.5, 0.75), "tex_base": 0}),
+    ("conductor", {}, {"specular": (1, 1, 1), "flags": F0_FLAG}),
+    ("conductor", {"f0": [0.5, 0.25, 1.0], "roughness": 0.5},
+     {"specular": (0.5, 0.25, 1.0), "flags": F0_FLAG, "alpha": 0.25}),
+    ("conductor", {"metal": "gold", "alpha": 0.125}, {"eta": GOLD_ETA, "k": GOLD_K, "alpha": 0.125}),
+    ("conductor", {"eta": [1.5, 1.25, 1.0], "k": 2}, {"eta": (1.5, 1.25, 1.0), "k": (2, 2, 2)}),
+    ("dielectric", {}, {"ior": 1.5, "specular": (1, 1, 1)}),
+    ("dielectric", {"ior": 1.25, "roughness": 0.5, "tint": [0.5, 0.75, 1.0]},
+     {"ior": 1.25, "alpha": 0.25, "specular": (0.5, 0.75, 1.0)}),
+    ("dielectric", {"alpha": 0.5}, {"ior": 1.5, "alpha": 0.5, "specular": (1, 1, 1)}),
+    ("gltf", {}, {"albedo": (1, 1, 1), "metallic": 1, "alpha": 1, "ior": 1.5}),
+    ("gltf", {"base_color": [0.5, 0.25, 0.125], "metallic": 0.5, "roughness": 0.5, "ior": 1.25,
+              "base_color_texture": "t.png", "metallic_roughness_texture": "t.png"},
+     {"albedo": (0.5, 0.25, 0.125), "metallic": 0.5, "alpha": 0.25, "ior": 1.25, "tex_base": 0, "tex_mr": 1}),
+    ("gltf", {"alpha": 0.5}, {"albedo": (1, 1, 1), "metallic": 1, "alpha": 0.5, "ior": 1.5}),
+]
+# the keys every type takes, and what they do to the record
+COMMON = ({"emission": [1.0, 2.0, 4.0], "two_sided": True, "emission_texture": "t.png"},
+          {"emission": (1, 2, 4), "flags": abi.MATERIAL_FLAG_TWO_SIDED, "tex_emission": 0})
+
+
+def _toml_value(v):
+    if isinstance(v, bool):
+        return str(v).lower()
+    return repr(v).replace("'", '"')
+
+
+def _record(tmp_path, mtype, keys) -> np.void:
+    from PIL import Image
+
+    Image.new("RGB", (2, 2), (255, 128, 0)).save(tmp_path / "t.png")
+    lines = ["[materials.m]", f'type = "{mtype}"'] + [f"{k} = {_toml_value(v)}" for k, v in keys.items()]
+    lines += ["[[shape]]", 'type = "quad"', 'material = "m"', "points = [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]"]
+    (tmp_path / "m.toml").write_text("\n".join(lines) + "\n")
+    scene = load_scene(tmp_path / "m.toml")
+    assert [m.name for m in scene.materials] == ["m"]
+    return scene.material_records()[0]
+
+
+def _check_record(rec, mtype, expected):
+    assert rec["type"] == abi.MATERIAL_TYPES[mtype]
+    for field in abi.MATERIAL.names:
+        if field == "type":
+            continue
+        default = -1 if field.startswith("tex_") else 0
+        want = np.broadcast_to(np.asarray(expected.get(field, default), rec[field].dtype), np.shape(rec[field]))
+        tol = 1e-3 if field in ("eta", "k") else 0  # the documented gold values have 3 decimals
+        assert np.allclose(rec[field], want, rtol=0, atol=tol), (field, rec[field], want)
+
+
+@pytest.mark.parametrize("mtype, keys, expected", CASES, ids=[f"{c[0]}-{'-'.join(c[1]) or 'defaults'}" for c in CASES])
+def test_toml_keys_pack_into_documented_fields(tmp_path, mtype, keys, expected):
+    _check_record(_record(tmp_path, mtype, keys), mtype, expected)
+
+
+@pytest.mark.parametrize("mtype", list(REGISTRY))
+def test_common_keys_pack_into_documented_fields(tmp_path, mtype):
+    keys, fields = COMMON
+    base = next(expected for t, k, expected in CASES if t == mtype and not k)
+    expected = {**base, **fields, "flags": base.get("flags", 0) | fields["flags"]}
+    _check_record(_record(tmp_path, mtype, keys), mtype, expected)
+
+
+@pytest.mark.parametrize("mtype", list(REGISTRY))
+def test_every_toml_key_is_covered(mtype):
+    covered = set(COMMON[0]) | {"type"} | {k for t, keys, _ in CASES if t == mtype for k in keys}
+    assert covered == MATERIAL_COMMON_KEYS | REGISTRY[mtype].toml_keys
+
+
+def test_unknown_type_is_an_error():
+    with pytest.raises(ValueError, match="unknown type 'velvet'"):
+        Material(name="v", type="velvet").record()
+
+
+def test_diffuse_maps_to_mitsuba_two_sided_diffuse():
+    bsdf = Material(albedo=(0.25, 0.5, 0.75)).mitsuba_bsdf()
+    assert bsdf == {"type": "twosided", "material": {"type": "diffuse",
+                                                     "reflectance": {"type": "rgb", "value": [0.25, 0.5, 0.75]}}}
+    with pytest.raises(ValueError, match="not exported to Mitsuba"):
+        Material(type="conductor").mitsuba_bsdf()
