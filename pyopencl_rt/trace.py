@@ -63,7 +63,7 @@ def _opencl(bvh, o, d, tmin, tmax, device, any_hit, layout=None):
     if any_hit:
         out = np.empty(n, np.uint8)
         bout = cl.Buffer(ctx, mf.WRITE_ONLY, out.nbytes)
-        rt.kernel(("trace.cl",), "trace_any", dev.defines)(queue, gsize, lsize, dev.nodes, dev.triangles, bo, bd, bmin, bmax, np.int32(n), bout)
+        rt.kernel(("accel/trace.cl",), "trace_any", dev.defines)(queue, gsize, lsize, dev.nodes, dev.triangles, bo, bd, bmin, bmax, np.int32(n), bout)
         cl.enqueue_copy(queue, out, bout)
         return out.astype(bool)
     res = {
@@ -74,7 +74,7 @@ def _opencl(bvh, o, d, tmin, tmax, device, any_hit, layout=None):
         "normal": np.empty((n, 3), np.float32),
     }
     bufs = {k: cl.Buffer(ctx, mf.WRITE_ONLY, a.nbytes) for k, a in res.items()}
-    rt.kernel(("trace.cl",), "trace_closest", dev.defines)(
+    rt.kernel(("accel/trace.cl",), "trace_closest", dev.defines)(
         queue, gsize, lsize, dev.nodes, dev.triangles, dev.prim_ids, bo, bd, bmin, bmax, np.int32(n),
         bufs["t"], bufs["prim_id"], bufs["u"], bufs["v"], bufs["normal"],
     )

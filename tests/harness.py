@@ -6,7 +6,7 @@ Harness kernels
 A test declares its kernels once, as OpenCL C text that includes headers of ``cl/``::
 
     SAMPLING = harness.Kernels(r'''
-    #include "sampling.h"
+    #include "render/sampling.h"
     __kernel void h_cone(__global const float *u, float cos_max, __global float *out)
     { const int i = get_global_id(0); store3(out, i, sample_uniform_cone(vload2(i, u), cos_max)); }
     ''', defines={...})

@@ -6,7 +6,7 @@ from scipy import stats
 import harness
 
 SOURCE = r"""
-#include "rng.h"
+#include "render/rng.h"
 /* a comment with __kernel void not_a_kernel(int x) in it */
 __kernel void h_axpy(float a, __global const float *x, __global const uint *y, int n,
                      __global float *out, __global unsigned int *count)

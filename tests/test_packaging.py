@@ -15,7 +15,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 def test_cl_dir_in_checkout():
     assert kernels.cl_dir() == REPO / "cl"
-    assert (kernels.cl_dir() / "trace.cl").is_file()
+    assert (kernels.cl_dir() / "accel" / "trace.cl").is_file()
 
 
 def _copy_sources(dst: Path):
@@ -67,7 +67,7 @@ def test_wheel_ships_and_finds_the_kernels(tmp_path):
     names = set(zipfile.ZipFile(wheel).namelist())
     expected = {f"pyopencl_rt/cl/{p.relative_to(REPO / 'cl').as_posix()}"
                 for p in (REPO / "cl").rglob("*") if p.suffix in (".h", ".cl")}
-    assert {"pyopencl_rt/cl/intersect.h", "pyopencl_rt/cl/bvh.h", "pyopencl_rt/cl/trace.cl"} <= expected
+    assert {"pyopencl_rt/cl/accel/intersect.h", "pyopencl_rt/cl/accel/bvh.h", "pyopencl_rt/cl/accel/trace.cl"} <= expected
     assert expected <= names, f"missing from the wheel: {sorted(expected - names)}"
     assert not any(n.startswith(("tests/", "cl/")) for n in names)
 

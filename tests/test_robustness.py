@@ -256,8 +256,8 @@ def test_watertight_counter_detects_a_hole(device, closed_meshes):
 # 2. Self-intersection: spawned rays never hit their own surface
 # ================================================================================================
 SPAWN_HARNESS = harness.Kernels(r"""
-#include "intersect.h"
-#include "spawn.h"
+#include "accel/intersect.h"
+#include "render/spawn.h"
 
 RT_INLINE int hits(float3 o, float3 d, float3 p0, float3 p1, float3 p2, float tmax)
 {
@@ -668,7 +668,7 @@ def test_empty_mesh_is_rejected_naming_the_file(tmp_path):
 # 5. Adversarial inputs: intersect_triangle against float64 (hypothesis)
 # ================================================================================================
 TRI_HARNESS = harness.Kernels(r"""
-#include "intersect.h"
+#include "accel/intersect.h"
 __kernel void h_tri(__global const float *o, __global const float *d, __global const float *tri,
                     __global float *out)
 {

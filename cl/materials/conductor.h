@@ -29,7 +29,7 @@
 #ifndef PYOPENCL_RT_CONDUCTOR_H
 #define PYOPENCL_RT_CONDUCTOR_H
 
-#include "microfacet.h"
+#include "materials/microfacet.h"
 
 typedef struct {
     float3 f0, eta, k;

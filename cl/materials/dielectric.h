@@ -34,7 +34,7 @@
 #ifndef PYOPENCL_RT_DIELECTRIC_H
 #define PYOPENCL_RT_DIELECTRIC_H
 
-#include "microfacet.h"
+#include "materials/microfacet.h"
 
 RT_INLINE int dielectric_is_smooth(float alpha, float eta)
 {

@@ -10,7 +10,7 @@
 #ifndef PYOPENCL_RT_DIFFUSE_H
 #define PYOPENCL_RT_DIFFUSE_H
 
-#include "../sampling.h"
+#include "render/sampling.h"
 
 /* n is the unit normal on the side of wo.  Returns f * |cos(theta_i)|, sets *pdf. */
 RT_INLINE float3 diffuse_eval(float3 albedo, float3 n, float3 wi, float *pdf)

@@ -30,7 +30,7 @@
 #ifndef PYOPENCL_RT_GLTF_H
 #define PYOPENCL_RT_GLTF_H
 
-#include "microfacet.h"
+#include "materials/microfacet.h"
 
 typedef struct {
     float3 base;

@@ -22,7 +22,7 @@
 #ifndef PYOPENCL_RT_MICROFACET_H
 #define PYOPENCL_RT_MICROFACET_H
 
-#include "../sampling.h"
+#include "render/sampling.h"
 
 #define MICROFACET_SMOOTH_ALPHA 1e-3f
 

@@ -1,7 +1,7 @@
 /* Stage 5: finished paths.  The radiance goes to its pass's buffer in the ring (one write per
  * pixel and pass, so no float atomics and no order dependence), non-finite values are counted
  * and dropped, and the slot returns to the free stack (of free_base entries before). */
-#include "../lights.h"
+#include "render/lights.h"
 
 __kernel void wf_accumulate(WAVE_PARAMS)
 {

@@ -1,5 +1,5 @@
 /* Stage 2: closest hit for every active path.  n_items = active-queue length. */
-#include "../lights.h"
+#include "render/lights.h"
 
 __kernel void wf_extend(WAVE_PARAMS)
 {

@@ -3,7 +3,7 @@
  * (first_pass, first_pixel); later ones take the following pixels, wrapping into the next pass.
  * Pixel jitter: box filter over the pixel.  A thin-lens camera (lens_radius > 0,
  * pyopencl_rt/device/abi.py) also samples the lens; lens_radius 0 is the pinhole, bit for bit. */
-#include "../lights.h"
+#include "render/lights.h"
 
 __kernel void wf_generate(WAVE_PARAMS)
 {

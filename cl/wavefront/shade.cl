@@ -18,9 +18,9 @@
  * lighting; a negative value means no limit (Russian roulette ends paths).
  * n_items = active-queue length.
  */
-#include "../lights.h"
+#include "render/lights.h"
 #ifdef HAS_TEXTURES
-#include "../textures.h"
+#include "scene/textures.h"
 #endif
 
 /* random dimension of the BSDF's lobe choice (reflection or refraction, specular or diffuse);

@@ -1,6 +1,6 @@
 /* Stage 4: any-hit test of every queued light sample; unoccluded ones add their contribution.
  * The shadow ray runs from the offset surface point to the offset light point, t in (0, 1). */
-#include "../lights.h"
+#include "render/lights.h"
 
 __kernel void wf_shadow(WAVE_PARAMS)
 {

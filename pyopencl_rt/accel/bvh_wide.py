@@ -4,7 +4,7 @@ PoCL runs each work-item as scalar code, so the binary traversal tests one box p
 triangle at a time.  This layout gives a single work-item SIMD-shaped work, as Embree's
 single-ray kernels do: every node holds the boxes of up to four children in structure-of-arrays
 form (one float4 slab test for all four), and leaves hold triangles in packets of four ("Tri4",
-structure of arrays: one float4 watertight test for four triangles).  cl/bvh_wide.h traverses it.
+structure of arrays: one float4 watertight test for four triangles).  cl/accel/bvh_wide.h traverses it.
 
 Buffer layout
 -------------
@@ -17,7 +17,7 @@ units and a packet 10.  For child slot ``i`` of a node:
     count[i] == -1   no child: box min = +inf, max = -inf (misses every ray), child = 0
 
 A packet holds triangles ``tri[k]`` (indices into the binary BVH's reordered triangle array, so
-``prim_ids[tri]`` is the caller's face and cl/bvh.h's ``triangle_normal(tris, tri)`` still
+``prim_ids[tri]`` is the caller's face and cl/accel/bvh.h's ``triangle_normal(tris, tri)`` still
 applies) with vertex coordinates v0x..v2z.  Padding lanes (a leaf of n triangles has
 ``4 * ceil(n / 4) - n`` of them, all in its last packet) have ``tri = -1`` and NaN vertices: every
 comparison in the triangle test is false for NaN, so the test's "det != 0", written as
@@ -40,7 +40,7 @@ is the binary BVH's.
 
 The device copy (:func:`device_blob`) pads every present box by 2^-20 of the scene's largest
 coordinate, as :func:`pyopencl_rt.accel.device_bvh.padded_nodes` does for the binary layout (see
-"Conservative on purpose" in cl/intersect.h).
+"Conservative on purpose" in cl/accel/intersect.h).
 """
 from __future__ import annotations
 
@@ -208,7 +208,7 @@ def wide_bvh(bvh: BVH) -> WideBVH:
 
 
 def device_blob(wide: WideBVH) -> np.ndarray:
-    """The buffer cl/bvh_wide.h reads: padded nodes then packets, as uint8.
+    """The buffer cl/accel/bvh_wide.h reads: padded nodes then packets, as uint8.
 
     Present boxes grow by 2^-20 of the scene's largest coordinate (then one more ulp outwards), the
     same padding as :func:`pyopencl_rt.trace.padded_nodes`; empty slots keep (+inf, -inf)."""

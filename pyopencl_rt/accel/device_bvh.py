@@ -12,7 +12,7 @@ from .bvh import BVH
 
 def padded_nodes(bvh: BVH) -> np.ndarray:
     """Node boxes grown by 2^-20 of the scene's largest coordinate, so that the box test is
-    conservative with respect to the triangle test's rounding (cl/intersect.h)."""
+    conservative with respect to the triangle test's rounding (cl/accel/intersect.h)."""
     nodes = bvh.nodes.copy()
     if len(bvh.triangles) == 0:
         return nodes
@@ -33,7 +33,7 @@ LAYOUT_ENV = "PYOPENCL_RT_BVH_LAYOUT"
 def bvh_layout(device, layout: str | None = None) -> str:
     """The BVH layout the kernels traverse on ``device``: ``layout`` if given, else the
     ``PYOPENCL_RT_BVH_LAYOUT`` environment variable, else ``"wide"`` (4-wide nodes, Tri4 leaves:
-    cl/bvh_wide.h) on CPU devices and ``"binary"`` (cl/bvh.h) on the others."""
+    cl/accel/bvh_wide.h) on CPU devices and ``"binary"`` (cl/accel/bvh.h) on the others."""
     import os
 
     layout = layout or os.environ.get(LAYOUT_ENV) or None
@@ -47,7 +47,7 @@ def bvh_layout(device, layout: str | None = None) -> str:
 
 
 def layout_defines(layout: str) -> dict:
-    """Preprocessor defines that make cl/trace.cl and cl/scene.h traverse ``layout``."""
+    """Preprocessor defines that make cl/accel/trace.cl and cl/scene/scene.h traverse ``layout``."""
     return {"BVH_WIDE": True} if layout == "wide" else {}
 
 

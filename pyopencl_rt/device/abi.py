@@ -60,7 +60,7 @@ assert BVH_NODE.itemsize == 64
 TRIANGLE = np.dtype([("v0", np.float32, 4), ("v1", np.float32, 4), ("v2", np.float32, 4)])
 assert TRIANGLE.itemsize == 48
 
-# A material (96 bytes).  type selects the BSDF (cl/bsdf.h dispatches on it; each type is
+# A material (96 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
 # documented at the top of cl/materials/<name>.h); every type may also emit.
 #   albedo    diffuse: reflectance; gltf: baseColor
 #   emission  emitted radiance (any type)
@@ -88,7 +88,7 @@ MATERIAL = np.dtype(
 )
 assert MATERIAL.itemsize == 96
 # Texture indices (into the TEXTURE table; -1 = none), used only when the program is built with
-# HAS_TEXTURES (cl/textures.h):
+# HAS_TEXTURES (cl/scene/textures.h):
 #   tex_base      RGB multiplies albedo (diffuse, gltf baseColor) or tint (dielectric)
 #   tex_mr        glTF metallicRoughness: G multiplies roughness (alpha *= G^2), B multiplies metallic
 #   tex_emission  RGB multiplies emission
@@ -105,7 +105,7 @@ assert TEXTURE.itemsize == 32
 # A sphere (16 bytes): centre and radius.
 SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 
-# An emitter that next-event estimation samples (80 bytes; cl/lights.h documents each kind).
+# An emitter that next-event estimation samples (80 bytes; cl/render/lights.h documents each kind).
 #   kind: LIGHT_TRIANGLE (prim = original face index) or LIGHT_SPHERE (prim = sphere index),
 #         LIGHT_POINT, LIGHT_DIRECTIONAL (delta lights: sampled, never hit) or LIGHT_ENVIRONMENT
 #         (prim = the map's width, material = its height; 0 x 0 = constant radiance)
@@ -138,7 +138,7 @@ CAMERA = np.dtype(
 )
 assert CAMERA.itemsize == 64
 
-# A 4-wide BVH node (128 bytes; pyopencl_rt/bvh_wide.py builds it, cl/bvh_wide.h traverses it):
+# A 4-wide BVH node (128 bytes; pyopencl_rt/bvh_wide.py builds it, cl/accel/bvh_wide.h traverses it):
 # the boxes of up to four children in structure-of-arrays form (each field is one float4, so one
 # slab test covers all four), then per child slot:
 #   child : float4 offset into the wide buffer of the child node (count 0) or of its first
@@ -171,16 +171,16 @@ STRUCTS: dict[str, np.dtype] = {
 
 # ---------------------------------------------------------------------------------------------
 # The hit encoding (Hit.prim, hit_prim[]): prim >= 0 is a triangle (index into the BVH-reordered
-# triangle array), PRIM_MISS a miss, and sphere s is PRIM_SPHERE_FIRST - s (cl/scene.h).
+# triangle array), PRIM_MISS a miss, and sphere s is PRIM_SPHERE_FIRST - s (cl/scene/scene.h).
 PRIM_MISS = define("PRIM_MISS", -1)
 PRIM_SPHERE_FIRST = define("PRIM_SPHERE_FIRST", -2)
 
 # Sizes.  The stacks are bounded by the builders' depth limits (accel/bvh.py, accel/bvh_wide.py
 # check them), and kept small because PoCL holds a private copy per work-item of a work-group.
-BVH_STACK_SIZE = define("BVH_STACK_SIZE", 64)    # cl/bvh.h: one entry per level
-WIDE_STACK_SIZE = define("WIDE_STACK_SIZE", 96)  # cl/bvh_wide.h: up to 3 entries per wide level
+BVH_STACK_SIZE = define("BVH_STACK_SIZE", 64)    # cl/accel/bvh.h: one entry per level
+WIDE_STACK_SIZE = define("WIDE_STACK_SIZE", 96)  # cl/accel/bvh_wide.h: up to 3 entries per wide level
 TRI4_UNITS = define("TRI4_UNITS", TRI4.itemsize // 16)  # float4s per Tri4 packet
-# Node boxes grow by this fraction of the scene's largest coordinate (cl/intersect.h,
+# Node boxes grow by this fraction of the scene's largest coordinate (cl/accel/intersect.h,
 # "Conservative on purpose"); the host pads, the kernels rely on it.
 BOX_PAD_RELATIVE = define("BOX_PAD_RELATIVE", 2.0**-20)
 # Work-group size of every wavefront launch: shade.cl sizes its local arrays with it.
@@ -284,7 +284,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _path("sh_o", "float", 3, "shadow ray origin (shade -> shadow)"),
     _path("sh_d", "float", 3, "shadow ray, t in (0, 1)"),
     _path("sh_contrib", "float", 3, "radiance the light sample adds if unoccluded"),
-    # textures (cl/textures.h); 16-byte dummies without HAS_TEXTURES
+    # textures (cl/scene/textures.h); 16-byte dummies without HAS_TEXTURES
     Param("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
     Param("textures", "const", "Texture"),
     Param("tex_data", "const", "float4", "texels of every texture"),
@@ -297,7 +297,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("free_q", "global", "int", "stack of free slots", per_slot=1),
     Param("counters", "global", "int", "COUNTER_* slots, then one per ring pass"),
     Param("pass_ring", "global", "float", "ring_size passes of n_pixels RGB sums"),
-    # the environment map and its sampling CDFs (cl/lights.h); dummies without HAS_ENVIRONMENT
+    # the environment map and its sampling CDFs (cl/render/lights.h); dummies without HAS_ENVIRONMENT
     Param("env_map", "const", "float"),
     Param("env_cdf", "const", "float"),
     # fixed scalars

@@ -22,9 +22,9 @@ def cl_dir() -> Path:
     """The folder holding the kernel sources: ``cl/`` in a checkout, ``pyopencl_rt/cl`` in a wheel."""
     package = Path(__file__).resolve().parent.parent
     for candidate in (package / "cl", package.parent / "cl"):
-        if (candidate / "intersect.h").is_file():
+        if (candidate / "accel" / "intersect.h").is_file():
             return candidate
-    raise FileNotFoundError(f"OpenCL sources not found next to {package} (looked for cl/intersect.h)")
+    raise FileNotFoundError(f"OpenCL sources not found next to {package} (looked for cl/accel/intersect.h)")
 
 
 def assemble(*names: str, extra: str = "") -> str:

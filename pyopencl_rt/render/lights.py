@@ -75,7 +75,7 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 # ----------------------------------------------------------------------------------------------
-# Point, directional and environment lights (cl/lights.h).  Power, for picking lights in
+# Point, directional and environment lights (cl/render/lights.h).  Power, for picking lights in
 # proportion to it (pbrt-v4's Light::Phi, with luminance for the RGB):
 #   point        4 pi I
 #   directional  pi r^2 E            (r: radius of the scene's bounding sphere)

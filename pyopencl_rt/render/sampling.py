@@ -1,4 +1,4 @@
-"""Host side of light selection: the alias table that ``sample_alias`` in ``cl/sampling.h`` reads.
+"""Host side of light selection: the alias table that ``sample_alias`` in ``cl/render/sampling.h`` reads.
 
 Vose's method (Vose 1991, "A linear algorithm for generating random numbers with a given
 distribution"): every column i of the table holds probability 1/n, split between light i

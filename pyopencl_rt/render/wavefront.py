@@ -79,7 +79,7 @@ class Wavefront:
             import warnings
 
             warnings.warn("scene has no lights: the image will be black", stacklevel=2)
-        self.bvh_layout = bvh_layout(device)  # wide (cl/bvh_wide.h) on CPUs; $PYOPENCL_RT_BVH_LAYOUT overrides
+        self.bvh_layout = bvh_layout(device)  # wide (cl/accel/bvh_wide.h) on CPUs; $PYOPENCL_RT_BVH_LAYOUT overrides
         self.features = kernel_features(scene, settings, lights, self.bvh_layout)
 
         self.rt = runtime(device)
@@ -162,7 +162,7 @@ class Wavefront:
         return self.settings.n_pixels
 
     def _texture_buffers(self, const, scratch, W) -> dict:
-        """tri_uv, textures, tex_data and mat_scratch (cl/textures.h); 16-byte dummies when the
+        """tri_uv, textures, tex_data and mat_scratch (cl/scene/textures.h); 16-byte dummies when the
         scene has no textures."""
         if not self.scene.has_textures():
             dummy = const(np.zeros(0, np.uint8))

@@ -146,7 +146,7 @@ class DirectionalLight:
 @dataclass
 class Environment:
     """Radiance arriving from infinitely far in every direction: ``radiance`` (RGB) times, when
-    given, the equirectangular map ``image`` (H x W x 3 linear RGB, row 0 = up (+y); cl/lights.h
+    given, the equirectangular map ``image`` (H x W x 3 linear RGB, row 0 = up (+y); cl/render/lights.h
     gives the direction of each texel)."""
 
     radiance: tuple = (1.0, 1.0, 1.0)
@@ -241,13 +241,13 @@ class Scene:
 
     def material_defines(self) -> dict:
         """Preprocessor defines that compile only the material types this scene uses
-        (MATERIALS_SELECTED + HAS_MATERIAL_<TYPE>; see cl/bsdf.h)."""
+        (MATERIALS_SELECTED + HAS_MATERIAL_<TYPE>; see cl/materials/dispatch.h)."""
         defines = {"MATERIALS_SELECTED": True}
         for m in self.materials:
             if m.material_type.kernel_define:
                 defines[m.material_type.kernel_define] = True
         if self.has_textures():
-            defines["HAS_TEXTURES"] = True  # cl/textures.h
+            defines["HAS_TEXTURES"] = True  # cl/scene/textures.h
         return defines
 
     def sphere_records(self) -> np.ndarray:

@@ -9,7 +9,7 @@ transfer function (IEC 61966-2-1); data textures (glTF metallic-roughness) are u
 missing alpha is 1.
 
 The device samples textures with bilinear filtering and wrap (repeat) addressing
-(``cl/textures.h``); :func:`bilinear` is the same lookup in numpy float64 (the reference the tests
+(``cl/scene/textures.h``); :func:`bilinear` is the same lookup in numpy float64 (the reference the tests
 hold the kernel to).
 """
 from __future__ import annotations
@@ -119,7 +119,7 @@ def pack_textures(textures) -> tuple[np.ndarray, np.ndarray]:
 
 
 def bilinear(texels, uv) -> np.ndarray:
-    """Bilinear lookup with wrap addressing (float64), as cl/textures.h does it: texel (x, y)
+    """Bilinear lookup with wrap addressing (float64), as cl/scene/textures.h does it: texel (x, y)
     covers [x, x+1) / W x [y, y+1) / H, its centre at ((x + 0.5) / W, (y + 0.5) / H)."""
     t = np.asarray(texels, np.float64)
     h, w = t.shape[:2]

@@ -1,4 +1,4 @@
-"""The 4-wide BVH (pyopencl_rt/bvh_wide.py, cl/bvh_wide.h): structural invariants, a float64
+"""The 4-wide BVH (pyopencl_rt/bvh_wide.py, cl/accel/bvh_wide.h): structural invariants, a float64
 reference traversal of the wide tree against brute force, and the OpenCL wide traversal against
 that reference and against the binary traversal.  The Embree-agreement checks for the wide
 layout are tests/test_traversal.py's, parametrised over both layouts."""

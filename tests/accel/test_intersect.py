@@ -1,4 +1,4 @@
-"""Ray/triangle, ray/box and ray/sphere helpers of cl/intersect.h, each alone through a small
+"""Ray/triangle, ray/box and ray/sphere helpers of cl/accel/intersect.h, each alone through a small
 harness kernel, against float64 numpy references.  Runs on every available device."""
 import numpy as np
 import pytest
@@ -8,7 +8,7 @@ from pyopencl_rt.device import abi
 import harness
 
 HARNESS = harness.Kernels(r"""
-#include "intersect.h"
+#include "accel/intersect.h"
 
 __kernel void h_triangle(__global const float *o, __global const float *d, __global const float *tri,
                          float tmin, float tmax, __global float *out)

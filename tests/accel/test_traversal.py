@@ -1,6 +1,6 @@
 """Whole traversal (BVH + triangle test) against Embree in its robust (watertight) mode, and
 against brute force in float64, on every available device and for both BVH layouts (binary:
-cl/bvh.h; wide: cl/bvh_wide.h), held to identical bounds."""
+cl/accel/bvh.h; wide: cl/accel/bvh_wide.h), held to identical bounds."""
 import numpy as np
 import pytest
 

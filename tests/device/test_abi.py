@@ -23,7 +23,7 @@ from pyopencl_rt.render.wavefront import SOURCES
 
 # The headers the kernels include: a hand-written copy of a generated define in one of them
 # (redefining it) shows up in the probe.
-KERNEL_HEADERS = '#include "lights.h"\n#include "textures.h"\n#include "bvh_wide.h"\n'
+KERNEL_HEADERS = '#include "render/lights.h"\n#include "scene/textures.h"\n#include "accel/bvh_wide.h"\n'
 FLOAT_BITS = int(np.float32(1.5).view(np.int32))  # a float field stores 1.5 as these bits, an int one as 1
 
 

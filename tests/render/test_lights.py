@@ -20,7 +20,7 @@ import harness
 ALPHA = 1e-4
 
 HARNESS = harness.Kernels(r"""
-#include "lights.h"
+#include "render/lights.h"
 
 /* out per item: wi (3), pdf of the sample, env_pdf(wi), Le.x, Le.y, Le.z */
 __kernel void h_env_sample(__global const Light *lt, __global const float *env_map, __global const float *env_cdf,

@@ -1,4 +1,4 @@
-"""cl/rng.h, cl/sampling.h and the host alias table (pyopencl_rt/sampling.py).
+"""cl/render/rng.h, cl/render/sampling.h and the host alias table (pyopencl_rt/sampling.py).
 
 Statistical tests use a significance threshold of ALPHA = 1e-4: a correct implementation fails
 one of them with probability 1e-4 (and every input is drawn from fixed seeds, so a run is
@@ -20,8 +20,8 @@ ALPHA = 1e-4  # significance of every chi-square test below
 N = 1_000_000
 
 HARNESS = harness.Kernels(r"""
-#include "rng.h"
-#include "sampling.h"
+#include "render/rng.h"
+#include "render/sampling.h"
 
 __kernel void h_hash(__global const uint *x, __global uint *out)
 {
@@ -134,7 +134,7 @@ def np_hash(x):
 
 
 def np_rng_uniform(seed, pixel, sample, dim):
-    """Host reference of rng_uniform in cl/rng.h."""
+    """Host reference of rng_uniform in cl/render/rng.h."""
     h = np_hash(np.asarray(dim, np.uint32) + np.uint32(0x9E3779B9))
     h = np_hash(np.asarray(sample, np.uint32) ^ h)
     h = np_hash(np.asarray(pixel, np.uint32) ^ h)

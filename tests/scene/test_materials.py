@@ -1,4 +1,4 @@
-"""The BSDFs of cl/materials/ (through cl/bsdf.h) and their furnace renders, on every device.
+"""The BSDFs of cl/materials/ (through cl/materials/dispatch.h) and their furnace renders, on every device.
 
 Harness kernels call bsdf_sample / bsdf_eval for a buffer of Material records with per-item
 normal, side, wo, wi and random numbers, in a local frame with the normal +z unless stated.
@@ -27,7 +27,7 @@ Z_MAX = 4.5
 FLOAT_TOL = 2e-5
 
 HARNESS = harness.Kernels(r"""
-#include "bsdf.h"
+#include "materials/dispatch.h"
 
 /* out per item: wi.xyz, weight.xyz, pdf, delta */
 __kernel void h_bsdf_sample(__global const Material *mats, __global const int *mi, __global const int *front,
@@ -506,7 +506,7 @@ def test_no_nan_or_inf_for_extreme_parameters(runtime, rng):
 
 
 def test_type_constants_and_layout_agree(runtime):
-    """cl/bsdf.h's #defines equal abi.py's constants; the generated struct has numpy's size
+    """cl/materials/dispatch.h's #defines equal abi.py's constants; the generated struct has numpy's size
     and offsets."""
     out = HARNESS(runtime, "h_constants", 1, out=8)
     f = abi.MATERIAL.fields

@@ -1,4 +1,4 @@
-"""Textures and UVs (cl/textures.h, pyopencl_rt/textures.py) and the glTF / OBJ loaders that
+"""Textures and UVs (cl/scene/textures.h, pyopencl_rt/textures.py) and the glTF / OBJ loaders that
 bring them in (pyopencl_rt/scene/loaders/)."""
 import json
 import math
@@ -20,7 +20,7 @@ import harness
 ROOT = Path(__file__).resolve().parents[2]
 
 HARNESS = harness.Kernels(r"""
-#include "textures.h"
+#include "scene/textures.h"
 __kernel void h_tex(__global const Texture *textures, __global const float4 *data, __global const int *index,
                     __global const float2 *uv, __global float4 *out)
 {

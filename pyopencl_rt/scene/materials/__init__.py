@@ -13,7 +13,7 @@ A type is a module of this package named as its entry of the kernel's type enum
 * ``pack(material, record)``: write those parameters into an ``abi.MATERIAL`` record whose
   type, emission, two-sided flag and texture indices :meth:`Material.record` has set;
 * ``KERNEL_DEFINE``: the ``HAS_MATERIAL_<NAME>`` that compiles the type into a scene's kernels
-  (cl/bsdf.h), or None for one that is always compiled;
+  (cl/materials/dispatch.h), or None for one that is always compiled;
 * ``MTL_PRECEDENCE`` and ``from_mtl(material, mtl) -> bool`` (optional): claim a material of an
   MTL file from its statements (:class:`~pyopencl_rt.scene.loaders.obj.MtlStatements`) and set
   its parameters; the OBJ loader asks the types in increasing precedence, the first claim wins;
@@ -22,7 +22,7 @@ A type is a module of this package named as its entry of the kernel's type enum
 Other modules here are helpers shared by types (``microfacet.py``, as ``cl/materials/microfacet.h``).
 
 Adding a type: ``<name>.py`` here, its enum entry in ``device/abi.py``, its kernel
-``cl/materials/<name>.h`` with its cases in ``cl/bsdf.h``, and its docstring in
+``cl/materials/<name>.h`` with its cases in ``cl/materials/dispatch.h``, and its docstring in
 docs/SCENE_FORMAT.md (tests/scene/test_material_registry.py checks that these agree).  A type
 whose parameters are not yet fields of :class:`~pyopencl_rt.scene.model.Material` and of the
 ``abi.MATERIAL`` record also adds them there.

@@ -8,7 +8,7 @@
 from __future__ import annotations
 
 TOML_KEYS = frozenset({"albedo", "albedo_texture"})
-KERNEL_DEFINE = None  # always compiled: cl/bsdf.h falls back to it
+KERNEL_DEFINE = None  # always compiled: cl/materials/dispatch.h falls back to it
 MTL_PRECEDENCE = 3  # last: every MTL material that no other type claims
 
 

@@ -3,9 +3,9 @@
  * Rays are structure-of-arrays: origins and directions are packed float3 (3 floats per ray),
  * tmin/tmax are per ray.
  */
-#include "bvh.h"
+#include "accel/bvh.h"
 #ifdef BVH_WIDE /* the 4-wide layout (CPU devices): replaces bvh_closest_hit / bvh_any_hit */
-#include "bvh_wide.h"
+#include "accel/bvh_wide.h"
 #endif
 
 __kernel void trace_closest(__global const BVHNode *nodes, __global const float4 *tris,

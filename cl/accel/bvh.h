@@ -21,7 +21,7 @@
 #ifndef PYOPENCL_RT_BVH_H
 #define PYOPENCL_RT_BVH_H
 
-#include "intersect.h"
+#include "accel/intersect.h"
 
 #define FAST_MIN(a, b) ((a) < (b) ? (a) : (b))
 #define FAST_MAX(a, b) ((a) > (b) ? (a) : (b))

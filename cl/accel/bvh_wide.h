@@ -1,6 +1,6 @@
 /* Traversal of the 4-wide BVH (pyopencl_rt/accel/bvh_wide.py) for CPU devices: closest hit and any hit.
  *
- * Included after bvh.h when BVH_WIDE is defined (cl/trace.cl, cl/scene.h); it then replaces
+ * Included after bvh.h when BVH_WIDE is defined (cl/accel/trace.cl, cl/scene/scene.h); it then replaces
  * bvh_closest_hit / bvh_any_hit by the wide versions below (same arguments and Hit result, but
  * the first buffer holds the wide BVH instead of BVHNode records).  Hit.prim stays the index into
  * the binary BVH's reordered triangle array, so prim_ids[prim] and triangle_normal(tris, prim) work
@@ -28,7 +28,7 @@
 #ifndef PYOPENCL_RT_BVH_WIDE_H
 #define PYOPENCL_RT_BVH_WIDE_H
 
-#include "bvh.h"
+#include "accel/bvh.h"
 
 #define FAST_MIN4(a, b) select((b), (a), (a) < (b))
 #define FAST_MAX4(a, b) select((b), (a), (a) > (b))
@@ -72,7 +72,7 @@ RT_INLINE WideRay wide_ray(float3 o, float3 d)
 }
 
 /* Four child boxes in one slab test.  Returns the hit mask (-1 per hit lane) and the entry
- * distances in *enter.  Conservative exactly as intersect_box (cl/intersect.h, "Conservative on
+ * distances in *enter.  Conservative exactly as intersect_box (cl/accel/intersect.h, "Conservative on
  * purpose"): the far distance is widened by SLAB_FAR_SCALE and the host pads every box by 2^-20
  * of the scene's largest coordinate (bvh_wide.device_blob).  No operand can be NaN (see above),
  * so the plain comparisons of FAST_MIN4/FAST_MAX4 equal fmin/fmax without their NaN handling.
@@ -93,7 +93,7 @@ RT_INLINE int4 intersect_children4(__global const float4 *node, const WideRay *r
 }
 
 /* ---------------------------------------------------------------------------------------------
- * Watertight test of four triangles (one Tri4 packet): intersect_triangle (cl/intersect.h) per
+ * Watertight test of four triangles (one Tri4 packet): intersect_triangle (cl/accel/intersect.h) per
  * lane, with the same arithmetic in the same order, so each lane gives the scalar test's
  * result bit for bit:
  *  - FP_CONTRACT is off (common.h): the edge function of a shared edge must be the exact

@@ -10,13 +10,13 @@
 #ifndef PYOPENCL_RT_SCENE_H
 #define PYOPENCL_RT_SCENE_H
 
-#include "bvh.h"
+#include "accel/bvh.h"
 #ifdef BVH_WIDE /* the 4-wide layout (CPU devices): replaces bvh_closest_hit / bvh_any_hit */
-#include "bvh_wide.h"
+#include "accel/bvh_wide.h"
 #endif
-#include "spawn.h"
-#include "bsdf.h"
-#include "rng.h"
+#include "render/spawn.h"
+#include "materials/dispatch.h"
+#include "render/rng.h"
 
 #define SPHERE_PRIM(s) (PRIM_SPHERE_FIRST - (s))
 #define IS_SPHERE(prim) ((prim) <= PRIM_SPHERE_FIRST)

@@ -38,7 +38,7 @@
 #ifndef PYOPENCL_RT_LIGHTS_H
 #define PYOPENCL_RT_LIGHTS_H
 
-#include "scene.h"
+#include "scene/scene.h"
 
 typedef struct {
     float3 p;   /* point on the light */
