@@ -5,7 +5,7 @@
 /* OpenCL C lets the compiler fuse a*b - c*d into fma(a, b, -c*d) unless told otherwise.  The
  * watertight triangle test relies on the edge function of a shared edge being computed as the
  * exact negation in both triangles; a fused multiply-add breaks that symmetry and lets rays
- * through the edge miss both (found by tests/test_intersect.py). */
+ * through the edge miss both (tests/accel/test_intersect.py). */
 #pragma OPENCL FP_CONTRACT OFF
 
 #ifdef cl_khr_fp64

@@ -72,9 +72,9 @@ RT_INLINE int scene_occluded(__global const BVHNode *nodes, __global const float
 
 /* The hit point and a bound on its rounding error per coordinate.  Triangles interpolate the
  * vertices with the hit's barycentrics (error: a few ulps of the vertices, pbrt's bound), not
- * o + t*d, whose error is a few ulps of |o| + t|d|: in the millimetre Cornell box that was
- * larger than the spawn offset near x = 0 and y = 0, rays re-hit their own wall and the direct
- * light there was 27% too dark (found by the Mitsuba comparison, docs/CONVERGENCE.md).
+ * o + t*d, whose error is a few ulps of |o| + t|d|: that can exceed the spawn offset near a
+ * coordinate plane far from the ray's origin, so rays would re-hit their own surface (the bias
+ * this caused is described in docs/CONVERGENCE.md).
  * Spheres re-project o + t*d onto the surface (pbrt-v4, 6.8.5). */
 #define HIT_GAMMA5 2.98023259e-07f /* 5 * 2^-24 / (1 - 5 * 2^-24), rounded up */
 RT_INLINE float3 hit_point(__global const float4 *tris, __global const Sphere *spheres, int prim,

@@ -198,21 +198,3 @@ def other_lights(scene) -> tuple[np.ndarray, np.ndarray]:
             raise TypeError(f"unknown light {spec!r}")
     power = np.where(np.isfinite(power), power, np.finfo(np.float64).max / (len(power) + 1))
     return recs, power
-
-
-def light_features(lights: np.ndarray) -> dict:
-    """Defines for the kinds of light present: HAS_DELTA_LIGHTS, HAS_ENVIRONMENT with
-    ENV_LIGHT (the environment's index), HAS_INFINITE_LIGHTS."""
-    kinds = lights["kind"] if len(lights) else np.zeros(0, np.int32)
-    d = {}
-    if np.isin(kinds, (abi.LIGHT_POINT, abi.LIGHT_DIRECTIONAL)).any():
-        d["HAS_DELTA_LIGHTS"] = True
-    env = np.flatnonzero(kinds == abi.LIGHT_ENVIRONMENT)
-    if len(env) > 1:
-        raise ValueError("at most one environment light")
-    if len(env):
-        d["HAS_ENVIRONMENT"] = True
-        d["ENV_LIGHT"] = int(env[0])
-    if np.isin(kinds, (abi.LIGHT_DIRECTIONAL, abi.LIGHT_ENVIRONMENT)).any():
-        d["HAS_INFINITE_LIGHTS"] = True
-    return d
