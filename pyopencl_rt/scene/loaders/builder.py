@@ -1,0 +1,449 @@
+"""What the Mitsuba 3 XML and pbrt-v4 importers share: a :class:`SceneBuilder` that collects
+triangles, spheres, materials, lights, an environment map and the warnings of one import, and
+turns them into the same :class:`~pyopencl_rt.scene.model.Scene` the TOML loader makes.
+
+Conventions both importers rely on:
+
+* **Front sides.** A triangle's front is the side of (p1 - p0) x (p2 - p0), in Mitsuba, pbrt and
+  here alike; a transform that mirrors (negative determinant) keeps the front on the transformed
+  normal's side (the corners are reversed), as both renderers do.
+* **Image orientation.** Our camera puts ``cross(forward, up)`` on the image's right.  A camera
+  whose file puts the opposite direction on the right (pbrt's left-handed ``LookAt`` without a
+  ``Scale -1 1 1``, a Mitsuba ``to_world`` with a mirror) would see a mirrored image; the builder
+  then mirrors the whole scene about the camera's vertical plane (:func:`camera_from_matrix`),
+  which gives exactly the peer's image with our camera.
+* **Environment maps** are resampled, once, to our equirectangular layout (docs/SCENE_FORMAT.md,
+  ``[environment]``) from the direction each of our texels looks along: the importer supplies the
+  map's own direction -> (u, v) function and its rotation (:class:`EnvMap`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..model import Camera, DirectionalLight, Environment, Material, PointLight, RenderSettings, Scene
+from .assembly import frame_scene, triangle_scene
+from .values import SceneError, one_line
+
+
+class SceneFormatError(SceneError):
+    """Malformed Mitsuba XML or pbrt input: one line, ``<file>:<line>: <what>``."""
+
+
+def error_at(position: str, what: str) -> SceneFormatError:
+    return SceneFormatError(one_line(f"{position}: {what}"))
+
+
+# --------------------------------------------------------------------------------------------
+# transforms
+
+
+def translate(v) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = v
+    return m
+
+
+def scale(v) -> np.ndarray:
+    return np.diag([float(v[0]), float(v[1]), float(v[2]), 1.0])
+
+
+def rotate(axis, angle_degrees) -> np.ndarray:
+    """Right-handed rotation by ``angle_degrees`` about ``axis`` (Rodrigues), as Mitsuba and pbrt
+    write it (pbrt's ``Rotate`` gives the same matrix)."""
+    axis = np.asarray(axis, np.float64)
+    x, y, z = axis / np.linalg.norm(axis)
+    a = math.radians(angle_degrees)
+    k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
+    m = np.eye(4)
+    m[:3, :3] = np.eye(3) + math.sin(a) * k + (1 - math.cos(a)) * (k @ k)
+    return m
+
+
+def look_at_camera_to_world(origin, target, up) -> np.ndarray:
+    """Mitsuba's ``look_at``: columns (left, up', forward, origin), left = up x forward."""
+    origin, target, up = (np.asarray(x, np.float64) for x in (origin, target, up))
+    d = target - origin
+    d /= np.linalg.norm(d)
+    left = np.cross(up, d)
+    left /= np.linalg.norm(left)
+    new_up = np.cross(d, left)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, new_up, d, origin
+    return m
+
+
+def transform_points(m, p) -> np.ndarray:
+    p = np.asarray(p, np.float64).reshape(-1, 3)
+    return p @ m[:3, :3].T + m[:3, 3]
+
+
+def transform_vector(m, v) -> np.ndarray:
+    return np.asarray(m[:3, :3] @ np.asarray(v, np.float64), np.float64)
+
+
+# --------------------------------------------------------------------------------------------
+# primitives (object space), as (vertices, faces, per-corner uvs)
+
+
+def quad_mesh(corners) -> tuple:
+    """Corners p0..p3 counter-clockwise seen from the front: triangles (0,1,2), (0,2,3)."""
+    v = np.asarray(corners, np.float64).reshape(4, 3)
+    f = np.array([[0, 1, 2], [0, 2, 3]], np.int64)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)[f]
+    return v, f, uv
+
+
+def rectangle_mesh() -> tuple:
+    """Mitsuba's rectangle: [-1, 1]^2 in the plane z = 0, front +z, uv = ((x+1)/2, (y+1)/2)."""
+    return quad_mesh([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+
+
+def cube_mesh() -> tuple:
+    """Mitsuba's cube: [-1, 1]^3, every face's front outwards, each face's uv the unit square."""
+    parts = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            u_axis, v_axis = (axis + 1) % 3, (axis + 2) % 3
+            if sign < 0:
+                u_axis, v_axis = v_axis, u_axis
+            corners = []
+            for du, dv in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                p = np.zeros(3)
+                p[axis], p[u_axis], p[v_axis] = sign, du, dv
+                corners.append(p)
+            parts.append(quad_mesh(corners))
+    return merge_meshes(parts)
+
+
+def merge_meshes(parts) -> tuple:
+    vs, fs, uvs, n = [], [], [], 0
+    for v, f, uv in parts:
+        vs.append(v)
+        fs.append(f + n)
+        uvs.append(uv)
+        n += len(v)
+    return np.concatenate(vs), np.concatenate(fs), np.concatenate(uvs)
+
+
+def grid_mesh(fn, nu: int, nv: int) -> tuple:
+    """Triangles of a parametric surface p = fn(u, v), (u, v) in [0, 1]^2, on an nu x nv grid;
+    the front is the side of dp/du x dp/dv."""
+    u, v = np.meshgrid(np.linspace(0, 1, nu + 1), np.linspace(0, 1, nv + 1), indexing="xy")
+    p = fn(u.ravel(), v.ravel())
+    idx = np.arange((nu + 1) * (nv + 1)).reshape(nv + 1, nu + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    p = np.asarray(p, np.float64)
+    area = np.linalg.norm(np.cross(p[faces[:, 1]] - p[faces[:, 0]], p[faces[:, 2]] - p[faces[:, 0]]), axis=1)
+    faces = faces[area > 1e-9 * area.max()]  # the collapsed ones at a disk's centre or a sphere's poles
+    uv = np.stack([u.ravel(), v.ravel()], 1).astype(np.float32)[faces]
+    return p, faces.astype(np.int64), uv
+
+
+def _segments(phimax_degrees: float, n_full: int = 64) -> int:
+    return max(3, int(math.ceil(n_full * phimax_degrees / 360.0)))
+
+
+def disk_mesh(radius=1.0, inner=0.0, height=0.0, phimax=360.0) -> tuple:
+    """A disk (annulus) in the plane z = height, front +z.  The radius is scaled so that the
+    polygon's area equals the disk's."""
+    n = _segments(phimax)
+    dphi = math.radians(phimax) / n
+    k = math.sqrt(dphi / math.sin(dphi)) if n >= 3 and dphi < math.pi else 1.0
+
+    def fn(u, v):
+        phi = u * math.radians(phimax)
+        r = k * (radius + (inner - radius) * v)
+        return np.stack([r * np.cos(phi), r * np.sin(phi), np.full_like(u, height)], 1)
+
+    return grid_mesh(fn, n, 1)  # dp/du (counter-clockwise) x dp/dv (inwards) = +z
+
+
+def cylinder_mesh(radius=1.0, zmin=-1.0, zmax=1.0, phimax=360.0) -> tuple:
+    """An open tube about z from zmin to zmax, front outwards; the radius is scaled so that the
+    polygon's perimeter equals the circle's (and so the lateral area)."""
+    n = _segments(phimax)
+    dphi = math.radians(phimax) / n
+    k = (dphi / 2) / math.sin(dphi / 2)
+
+    def fn(u, v):
+        phi = u * math.radians(phimax)
+        return np.stack([k * radius * np.cos(phi), k * radius * np.sin(phi), zmin + (zmax - zmin) * v], 1)
+
+    return grid_mesh(fn, n, 1)
+
+
+def sphere_mesh(radius=1.0, zmin=None, zmax=None, phimax=360.0, n_theta: int = 32) -> tuple:
+    """A (partial) sphere as triangles, front outwards (pbrt's zmin, zmax, phimax)."""
+    zmin = -radius if zmin is None else max(-radius, min(radius, zmin))
+    zmax = radius if zmax is None else max(-radius, min(radius, zmax))
+    t0, t1 = math.acos(max(-1.0, min(1.0, zmax / radius))), math.acos(max(-1.0, min(1.0, zmin / radius)))
+
+    def fn(u, v):
+        phi = u * math.radians(phimax)
+        theta = t0 + (t1 - t0) * v
+        return radius * np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], 1)
+
+    v, f, uv = grid_mesh(fn, _segments(phimax), n_theta)
+    return v, f[:, ::-1].copy(), uv[:, ::-1].copy()  # dp/du x dp/dtheta points inwards: reverse
+
+
+# --------------------------------------------------------------------------------------------
+# camera
+
+
+def vertical_fov(fov_degrees: float, axis: str, width: int, height: int) -> float:
+    """Our vertical field of view from a field of view along ``axis``: 'x' (horizontal), 'y',
+    'diagonal', 'smaller' or 'larger' (the shorter or longer image side)."""
+    if axis == "smaller":
+        axis = "x" if width <= height else "y"
+    elif axis == "larger":
+        axis = "x" if width > height else "y"
+    t = math.tan(math.radians(fov_degrees) / 2)
+    if axis == "x":
+        t *= height / width
+    elif axis == "diagonal":
+        t *= height / math.hypot(width, height)
+    return math.degrees(2 * math.atan(t))
+
+
+def camera_from_matrix(camera_to_world, vfov: float, image_right_sign: float, *, aperture=0.0,
+                       focus=None) -> tuple:
+    """(Camera, mirror) of a camera that looks along its local +z with local +y up and puts
+    ``image_right_sign`` * local +x on the image's right (Mitsuba: -1, pbrt: +1).  ``mirror`` is
+    None, or the 4x4 reflection to apply to the whole scene so that our camera sees the image
+    the file's camera sees (see the module docstring)."""
+    m = np.asarray(camera_to_world, np.float64)
+    eye = m[:3, 3]
+    forward = m[:3, :3] @ np.array([0.0, 0.0, 1.0])
+    up = m[:3, :3] @ np.array([0.0, 1.0, 0.0])
+    right_image = image_right_sign * (m[:3, :3] @ np.array([1.0, 0.0, 0.0]))
+    forward /= np.linalg.norm(forward)
+    up = up - forward * np.dot(up, forward)
+    up /= np.linalg.norm(up)
+    ours_right = np.cross(forward, up)
+    cam = Camera(eye=tuple(map(float, eye)), look_at=tuple(map(float, eye + forward)), up=tuple(map(float, up)),
+                 fov=float(vfov), aperture_radius=float(aperture),
+                 focus_distance=None if focus is None else float(focus))
+    if aperture > 0 and focus is None:
+        cam.focus_distance = 1.0
+    mirror = None
+    if np.dot(right_image, ours_right) < 0:
+        n = ours_right
+        refl = np.eye(3) - 2 * np.outer(n, n)
+        mirror = np.eye(4)
+        mirror[:3, :3] = refl
+        mirror[:3, 3] = eye - refl @ eye
+    return cam, mirror
+
+
+# --------------------------------------------------------------------------------------------
+# environment maps
+
+
+def our_env_directions(height: int, width: int) -> np.ndarray:
+    """(H*W, 3) directions of the texel centres of our equirectangular map (docs/SCENE_FORMAT.md)."""
+    v, u = np.meshgrid((np.arange(height) + 0.5) / height, (np.arange(width) + 0.5) / width, indexing="ij")
+    theta, phi = np.pi * v.ravel(), 2 * np.pi * u.ravel()
+    return np.stack([-np.sin(theta) * np.sin(phi), np.cos(theta), np.sin(theta) * np.cos(phi)], 1)
+
+
+def bilinear_wrap(image, u, v) -> np.ndarray:
+    """Bilinear lookup at (u, v) in [0, 1) (texel centres at (i + 0.5) / n), wrapping in u and
+    clamping in v."""
+    h, w = image.shape[:2]
+    fx = np.mod(u, 1.0) * w - 0.5
+    fy = np.clip(v, 0.0, 1.0) * h - 0.5
+    x0, y0 = np.floor(fx), np.floor(fy)
+    ax, ay = (fx - x0)[:, None], (fy - y0)[:, None]
+    x0 = x0.astype(np.int64)
+    y0 = y0.astype(np.int64)
+    x1, y1 = (x0 + 1) % w, np.clip(y0 + 1, 0, h - 1)
+    x0, y0 = x0 % w, np.clip(y0, 0, h - 1)
+    img = np.asarray(image, np.float64)
+    top = img[y0, x0] * (1 - ax) + img[y0, x1] * ax
+    bottom = img[y1, x0] * (1 - ax) + img[y1, x1] * ax
+    return top * (1 - ay) + bottom * ay
+
+
+@dataclass
+class EnvMap:
+    """An environment image in its file's layout: ``lookup(dirs)`` maps unit directions in the
+    map's own frame to its (u, v); ``to_world`` (3x3) rotates that frame into the scene."""
+
+    image: np.ndarray
+    lookup: Callable
+    to_world: np.ndarray
+    scale: tuple
+    source: str
+    out_shape: tuple  # (H, W) of our resampled map
+    wrap_u: bool = True  # False: clamp u too (an octahedral map's edges do not wrap around)
+
+    def resample(self, mirror=None) -> Environment:
+        h, w = self.out_shape
+        d = our_env_directions(h, w)
+        if mirror is not None:
+            d = d @ mirror[:3, :3].T
+        local = d @ np.linalg.inv(self.to_world).T
+        local /= np.linalg.norm(local, axis=1, keepdims=True)
+        u, v = self.lookup(local)
+        if not self.wrap_u:
+            u = np.clip(u, 0.5 / self.image.shape[1], 1 - 0.5 / self.image.shape[1])
+        texels = bilinear_wrap(np.nan_to_num(np.asarray(self.image, np.float64)), u, v)
+        return Environment(radiance=self.scale, image=texels.reshape(h, w, 3).astype(np.float32), source=self.source)
+
+
+# --------------------------------------------------------------------------------------------
+# the scene under construction
+
+
+class SceneBuilder:
+    """One import: geometry and lights in world space, materials by identity, warnings."""
+
+    def __init__(self, name: str, fmt: str):
+        self.name, self.format = name, fmt
+        self.warnings: list[str] = []
+        self.materials: list[Material] = []
+        self._material_index: dict[int, int] = {}
+        self._emissive: dict[tuple, Material] = {}
+        self.vertices, self.faces, self.face_materials, self.uvs = [], [], [], []
+        self.n_vertices = 0
+        self.spheres, self.sphere_materials = [], []
+        self.lights: list = []
+        self.environment: EnvMap | Environment | None = None
+        self.camera: Camera | None = None
+        self.mirror = None
+        self.settings = RenderSettings()
+
+    def warn(self, position: str, what: str) -> None:
+        msg = one_line(f"{position}: {what}")
+        self.warnings.append(msg)
+        warnings.warn(msg, stacklevel=3)
+
+    def material_index(self, material: Material) -> int:
+        key = id(material)
+        if key not in self._material_index:
+            self._material_index[key] = len(self.materials)
+            self.materials.append(material)
+        return self._material_index[key]
+
+    def emissive(self, material: Material, radiance, two_sided: bool = False, texture=None) -> Material:
+        """``material`` emitting ``radiance`` (one copy per combination)."""
+        key = (id(material), tuple(float(x) for x in radiance), bool(two_sided), id(texture))
+        if key not in self._emissive:
+            self._emissive[key] = dataclasses.replace(
+                material, name=f"{material.name}+emitter", emission=tuple(float(x) for x in radiance),
+                two_sided=bool(two_sided), emission_texture=texture)
+        return self._emissive[key]
+
+    def add_mesh(self, vertices, faces, material: Material, uvs=None, matrix=None, flip=False) -> None:
+        """Triangles in object space, moved by the 4x4 ``matrix``; ``flip`` swaps their front."""
+        v = np.asarray(vertices, np.float64).reshape(-1, 3)
+        f = np.asarray(faces, np.int64).reshape(-1, 3)
+        uv = None if uvs is None else np.asarray(uvs, np.float32).reshape(-1, 3, 2)
+        if matrix is not None:
+            v = transform_points(matrix, v)
+            if np.linalg.det(matrix[:3, :3]) < 0:
+                flip = not flip
+        if flip:
+            f = f[:, ::-1]
+            uv = uv[:, ::-1] if uv is not None else None
+        if len(f) == 0:
+            return
+        self.vertices.append(v)
+        self.faces.append(f + self.n_vertices)
+        self.uvs.append(np.zeros((len(f), 3, 2), np.float32) if uv is None else uv)
+        self.face_materials.append(np.full(len(f), self.material_index(material), np.int32))
+        self.n_vertices += len(v)
+
+    def add_sphere(self, centre, radius: float, material: Material) -> None:
+        self.spheres.append([*map(float, centre), float(radius)])
+        self.sphere_materials.append(self.material_index(material))
+
+    def add_light(self, light) -> None:
+        self.lights.append(light)
+
+    def set_environment(self, env, position: str) -> None:
+        if self.environment is not None:
+            self.warn(position, "a second environment light: we render one; ignored")
+            return
+        self.environment = env
+
+    def build(self) -> Scene:
+        """The Scene (the framing camera when the file had none)."""
+        mirror = self.mirror
+        if self.faces:
+            vertices = np.concatenate(self.vertices)
+            faces = np.concatenate(self.faces)
+            uvs = np.concatenate(self.uvs)
+            face_materials = np.concatenate(self.face_materials)
+        else:
+            vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+            uvs, face_materials = None, np.zeros(0, np.int32)
+        spheres = np.asarray(self.spheres, np.float64).reshape(-1, 4)
+        lights = list(self.lights)
+        if mirror is not None:
+            vertices = transform_points(mirror, vertices)
+            faces = faces[:, ::-1]
+            uvs = uvs[:, ::-1] if uvs is not None else None
+            if len(spheres):
+                spheres[:, :3] = transform_points(mirror, spheres[:, :3])
+            lights = [dataclasses.replace(lt, position=tuple(transform_points(mirror, lt.position)[0]))
+                      if isinstance(lt, PointLight) else
+                      dataclasses.replace(lt, direction=tuple(transform_vector(mirror, lt.direction)))
+                      if isinstance(lt, DirectionalLight) else lt for lt in lights]
+        if not self.faces and not self.spheres:
+            raise SceneFormatError(f"{self.name}: the scene has no shapes that we can render")
+        scene = triangle_scene(vertices, faces, face_materials, self.materials, self.name, uvs=uvs,
+                               spheres=spheres.astype(np.float32),
+                               sphere_materials=np.asarray(self.sphere_materials, np.int32),
+                               settings=self.settings)
+        scene.lights = lights
+        env = self.environment
+        scene.environment = env.resample(mirror) if isinstance(env, EnvMap) else env
+        if self.camera is None:
+            frame_scene(scene)
+        else:
+            scene.camera = self.camera
+        if hasattr(scene, "format"):
+            scene.format = self.format
+        if hasattr(scene, "warnings"):
+            scene.warnings = list(self.warnings)
+        return scene
+
+
+# --------------------------------------------------------------------------------------------
+# colours
+
+
+def _cie_lobe(lam, mu, s1, s2):
+    s = np.where(lam < mu, s1, s2)
+    return np.exp(-0.5 * ((lam - mu) / s) ** 2)
+
+
+XYZ_TO_LINEAR_SRGB = np.array([[3.2404542, -1.5371385, -0.4985314],
+                               [-0.9692660, 1.8760108, 0.0415560],
+                               [0.0556434, -0.2040259, 1.0572252]])
+
+
+def blackbody_rgb(kelvin: float) -> tuple:
+    """Linear sRGB of a black body at ``kelvin``, scaled to luminance Y = 1 (what pbrt-v4 emits
+    for a ``blackbody`` spectrum of scale 1), from the CIE 1931 observer in Wyman, Sloan and
+    Shirley's analytic fit (JCGT 2013)."""
+    lam = np.linspace(360.0, 830.0, 471)
+    x = 1.056 * _cie_lobe(lam, 599.8, 37.9, 31.0) + 0.362 * _cie_lobe(lam, 442.0, 16.0, 26.7) \
+        - 0.065 * _cie_lobe(lam, 501.1, 20.4, 26.2)
+    y = 0.821 * _cie_lobe(lam, 568.8, 46.9, 40.5) + 0.286 * _cie_lobe(lam, 530.9, 16.3, 31.1)
+    z = 1.217 * _cie_lobe(lam, 437.0, 11.8, 36.0) + 0.681 * _cie_lobe(lam, 459.0, 26.0, 13.8)
+    lm = lam * 1e-9
+    with np.errstate(over="ignore"):
+        planck = 1.0 / (lm ** 5 * (np.exp(1.4387769e-2 / (lm * max(float(kelvin), 1.0))) - 1.0))
+    xyz = np.array([np.sum(x * planck), np.sum(y * planck), np.sum(z * planck)])
+    rgb = XYZ_TO_LINEAR_SRGB @ (xyz / xyz[1])
+    return tuple(float(c) for c in np.maximum(rgb, 0.0))

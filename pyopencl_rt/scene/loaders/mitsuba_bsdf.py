@@ -1,0 +1,321 @@
+"""Mitsuba 3 BSDFs and textures as our materials (docs/SCENE_FORMAT.md, "Mitsuba 3 XML").
+
+| Mitsuba | ours |
+|---|---|
+| ``diffuse`` | ``diffuse`` (reflectance, a bitmap as its texture) |
+| ``conductor``, ``roughconductor`` | ``conductor``: ``material`` Au/Ag/Cu/Al as our named metals, ``none`` (the default) as a perfect mirror times ``specular_reflectance``, or ``eta``/``k`` |
+| ``dielectric``, ``roughdielectric`` (``thindielectric`` with a warning) | ``dielectric`` of IOR ``int_ior / ext_ior``, tint ``specular_transmittance`` |
+| ``plastic``, ``roughplastic`` | ``gltf`` with metallic 0: base colour ``diffuse_reflectance``, IOR ``int_ior / ext_ior`` |
+| ``principled`` | ``gltf``: ``base_color``, ``metallic``, alpha = ``roughness``², IOR from ``specular`` (or ``eta``) |
+| ``twosided`` | its nested BSDF (ours reflect on both sides) |
+| ``mask``, ``bumpmap``, ``normalmap``, ``blendbsdf`` | their (first) nested BSDF, with a warning |
+
+Rough BSDFs keep ``alpha`` (``alpha_u``/``alpha_v``: their mean, with a warning); a Beckmann
+``distribution`` (Mitsuba's default) is rendered as GGX of the same alpha, with a warning.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..model import Material
+from .builder import error_at
+
+# Mitsuba's named indices of refraction (include/mitsuba/render/ior.h)
+IOR = {
+    "vacuum": 1.0, "helium": 1.000036, "hydrogen": 1.000132, "air": 1.000277, "carbon dioxide": 1.00045,
+    "water": 1.3330, "acetone": 1.36, "ethanol": 1.361, "carbon tetrachloride": 1.461, "glycerol": 1.4729,
+    "benzene": 1.501, "silicone oil": 1.52045, "bromine": 1.661, "water ice": 1.31, "fused quartz": 1.458,
+    "pyrex": 1.470, "acrylic glass": 1.49, "polypropylene": 1.49, "bk7": 1.5046, "sodium chloride": 1.544,
+    "amber": 1.55, "pet": 1.5750, "diamond": 2.419,
+}
+METAL_NAMES = {"Au": "gold", "Ag": "silver", "Cu": "copper", "Cu_palik": "copper", "Al": "aluminium"}
+
+
+def _metals():
+    try:
+        from ..materials.conductor import METALS
+    except ImportError:  # pragma: no cover - before the material registry
+        from ..model import CONDUCTORS as METALS
+    return METALS
+
+
+def color_value(imp, obj, name, default, *, texture_ok=False):
+    """(linear RGB tuple, Texture or None) of the property ``name`` of ``obj``: an rgb, a
+    spectrum or a float; a bitmap or checkerboard texture where ``texture_ok`` (the RGB is then
+    1), else its mean with a warning."""
+    p = obj.prop(name)
+    if p is None:
+        return tuple(float(x) for x in default), None
+    if p.kind in ("rgb", "float", "integer"):
+        v = p.value if isinstance(p.value, tuple) else (p.value,) * 3
+        return tuple(float(x) for x in v), None
+    if p.kind != "object":
+        raise error_at(p.node.pos, f'{obj.label()}: "{name}" must be a colour, got <{p.kind}>')
+    tex_obj = p.value
+    if tex_obj.tag == "spectrum":
+        return _spectrum_object(imp, tex_obj), None
+    if tex_obj.tag != "texture":
+        raise error_at(p.node.pos, f'{obj.label()}: "{name}" must be a colour or a texture, got {tex_obj.label()}')
+    texture = imp.bsdfs.texture(tex_obj)
+    if texture is None:
+        return tuple(float(x) for x in default), None
+    if texture_ok:
+        return (1.0, 1.0, 1.0), texture
+    mean = tuple(float(x) for x in texture.mean_rgb())
+    imp.warn(p.node.pos, f'{tex_obj.label()} as "{name}" of {obj.label()}: textures are not supported here; '
+                         f"using its mean {tuple(round(x, 4) for x in mean)}")
+    return mean, None
+
+
+def _spectrum_object(imp, spec):
+    if spec.type == "uniform":
+        v = spec.float("value", 1.0)
+        imp.unused(spec)
+        return (v, v, v)
+    if spec.type == "d65":
+        s = spec.float("scale", 1.0)
+        imp.unused(spec)
+        return (s, s, s)
+    if spec.type == "blackbody":
+        from .builder import blackbody_rgb
+
+        t = spec.float("temperature", 6500.0, positive=True)
+        imp.warn(spec.node.pos, f"{spec.label()}: rendered as its RGB colour at luminance 1")
+        imp.unused(spec)
+        return blackbody_rgb(t)
+    imp.warn(spec.node.pos, f"{spec.label()}: spectrum type not supported; using 0.5")
+    return (0.5, 0.5, 0.5)
+
+
+def _checker(c0, c1, n=64) -> np.ndarray:
+    """Mitsuba's checkerboard: color0 where u and v are on the same side of 1/2, color1 elsewhere."""
+    idx = (np.arange(n) + 0.5) / n > 0.5
+    mask = idx[:, None] ^ idx[None, :]
+    return np.where(mask[..., None], np.asarray(c1, np.float64), np.asarray(c0, np.float64))
+
+
+class BsdfMapper:
+    def __init__(self, importer):
+        self.imp = importer
+        self._materials: dict[int, Material] = {}
+        self._textures: dict[int, object] = {}
+        self._default = None
+
+    def default(self) -> Material:
+        """Mitsuba's BSDF of a shape without one: diffuse, reflectance 0.5."""
+        if self._default is None:
+            self._default = Material(name="mitsuba-default", albedo=(0.5, 0.5, 0.5))
+        return self._default
+
+    # -- textures --------------------------------------------------------------------------------
+
+    def texture(self, obj):
+        key = id(obj)
+        if key not in self._textures:
+            self._textures[key] = self._make_texture(obj)
+        return self._textures[key]
+
+    def _make_texture(self, obj):
+        from ..textures import texture_from_array, texture_from_image
+
+        imp = self.imp
+        if obj.transform("to_uv") is not None:
+            imp.warn(obj.props["to_uv"].node.pos, f"{obj.label()}: to_uv is not supported; ignored")
+        if obj.type == "checkerboard":
+            c0, _ = color_value(imp, obj, "color0", (0.4, 0.4, 0.4))
+            c1, _ = color_value(imp, obj, "color1", (0.2, 0.2, 0.2))
+            imp.unused(obj)
+            return texture_from_array(_checker(c0, c1).astype(np.float32), name=obj.label())
+        if obj.type != "bitmap":
+            imp.warn(obj.node.pos, f"{obj.label()}: texture type not supported; ignored")
+            return None
+        fname = obj.string("filename")
+        if fname is None:
+            raise error_at(obj.node.pos, f'{obj.label()} needs <string name="filename">')
+        path = imp.resolve(fname, obj)
+        filt = obj.string("filter_type", "bilinear")
+        if filt != "bilinear":
+            imp.warn(obj.props["filter_type"].node.pos, f"{obj.label()}: filter_type '{filt}': we filter bilinearly")
+        wrap = obj.string("wrap_mode", "repeat")
+        if wrap != "repeat":
+            imp.warn(obj.props["wrap_mode"].node.pos, f"{obj.label()}: wrap_mode '{wrap}': we repeat")
+        raw = bool(obj.boolean("raw", False))
+        imp.unused(obj)
+        where = f"{obj.node.pos}: {obj.label()}"
+        if path.suffix.lower() in (".exr", ".pfm", ".hdr"):
+            from .images import read_hdr_image
+
+            return texture_from_array(read_hdr_image(path, where), name=str(fname))
+        try:
+            return texture_from_image(path, srgb=not raw)
+        except Exception as exc:
+            raise error_at(obj.node.pos, f"{obj.label()}: cannot read '{fname}' ({type(exc).__name__}: {exc})") from None
+
+    # -- BSDFs -----------------------------------------------------------------------------------
+
+    def material(self, obj) -> Material:
+        key = id(obj)
+        if key not in self._materials:
+            self._materials[key] = self._make(obj)
+        return self._materials[key]
+
+    def _nested(self, obj, what: str) -> Material:
+        nested = obj.children_of("bsdf")
+        if not nested:
+            raise error_at(obj.node.pos, f"{obj.label()} needs a nested <bsdf>")
+        if what:
+            self.imp.warn(obj.node.pos, f"{obj.label()}: {what}; rendering its nested BSDF")
+        return self.material(nested[0])
+
+    def _ior(self, obj, name, default_name):
+        p = obj.prop(name)
+        if p is None:
+            return IOR[default_name]
+        if p.kind == "string":
+            key = p.value.strip().lower()
+            if key not in IOR:
+                raise error_at(p.node.pos, f"{obj.label()}: unknown {name} '{p.value}' "
+                                           f"(a number or one of: {', '.join(IOR)})")
+            return IOR[key]
+        value = obj.float(name, positive=True)
+        return value
+
+    def _alpha(self, obj, default) -> float:
+        imp = self.imp
+        if obj.has("alpha_u") or obj.has("alpha_v"):
+            au, _ = color_value(imp, obj, "alpha_u", (default,) * 3)
+            av, _ = color_value(imp, obj, "alpha_v", (default,) * 3)
+            alpha = 0.5 * (au[0] + av[0])
+            if au[0] != av[0]:
+                imp.warn(obj.node.pos, f"{obj.label()}: anisotropic roughness rendered isotropic, alpha {alpha:g}")
+        else:
+            alpha = color_value(imp, obj, "alpha", (default,) * 3)[0][0]
+        dist = obj.string("distribution", "beckmann")
+        if dist not in ("beckmann", "ggx"):
+            raise error_at(obj.props["distribution"].node.pos, f"{obj.label()}: unknown distribution '{dist}'")
+        if dist == "beckmann" and alpha > 0:
+            imp.warn(obj.node.pos, f"{obj.label()}: the Beckmann distribution (Mitsuba's default) is rendered as "
+                                   f"GGX with the same alpha {alpha:g}")
+        if not 0 <= alpha <= 1:
+            imp.warn(obj.node.pos, f"{obj.label()}: alpha {alpha:g} clamped to [0, 1]")
+            alpha = min(max(alpha, 0.0), 1.0)
+        return float(alpha)
+
+    def _make(self, obj) -> Material:
+        imp, t = self.imp, obj.type
+        name = obj.id or f"{t}@{obj.node.line}"
+        if t == "twosided":
+            nested = obj.children_of("bsdf")
+            if len(nested) > 1 and nested[1] is not nested[0]:
+                imp.warn(nested[1].node.pos, f"{obj.label()}: a different back-side BSDF is not supported; "
+                                             "both sides use the first")
+            mat = self._nested(obj, "")
+            if obj.id and "@" in mat.name:  # an anonymous nested BSDF takes the twosided's id
+                mat.name = obj.id
+            imp.unused(obj)
+            return mat
+        if t in ("mask", "bumpmap", "normalmap", "blendbsdf"):
+            what = {"mask": "opacity masks are not supported", "blendbsdf": "blends are not supported",
+                    }.get(t, "bump and normal maps are not supported")
+            return self._nested(obj, what)
+        mat = Material(name=name)
+        if t == "diffuse":
+            mat.albedo, mat.base_texture = color_value(imp, obj, "reflectance", (0.5,) * 3, texture_ok=True)
+        elif t in ("dielectric", "roughdielectric", "thindielectric"):
+            self._dielectric(obj, mat)
+        elif t in ("conductor", "roughconductor"):
+            self._conductor(obj, mat)
+        elif t in ("plastic", "roughplastic"):
+            mat.type, mat.metallic = "gltf", 0.0
+            mat.albedo, mat.base_texture = color_value(imp, obj, "diffuse_reflectance", (0.5,) * 3, texture_ok=True)
+            mat.ior = self._ior(obj, "int_ior", "polypropylene") / self._ior(obj, "ext_ior", "air")
+            mat.alpha = self._alpha(obj, 0.1) if t == "roughplastic" else 0.0
+            spec, _ = color_value(imp, obj, "specular_reflectance", (1.0,) * 3)
+            if spec != (1.0, 1.0, 1.0):
+                imp.warn(obj.props["specular_reflectance"].node.pos,
+                         f"{obj.label()}: specular_reflectance other than 1 is not supported; ignored")
+            if obj.boolean("nonlinear", False):
+                imp.warn(obj.props["nonlinear"].node.pos, f"{obj.label()}: nonlinear is not supported; ignored")
+        elif t == "principled":
+            self._principled(obj, mat)
+        elif t == "null":
+            imp.warn(obj.node.pos, f"{obj.label()}: invisible surfaces are not supported; rendered black")
+            mat.albedo = (0.0, 0.0, 0.0)
+        else:
+            imp.warn(obj.node.pos, f"{obj.label()}: BSDF type not supported; using diffuse 0.5")
+            mat.albedo = (0.5, 0.5, 0.5)
+            return mat
+        mat.albedo = _clamp01(imp, obj, mat.albedo, "reflectance")
+        imp.unused(obj)
+        return mat
+
+    def _dielectric(self, obj, mat) -> None:
+        imp = self.imp
+        mat.type = "dielectric"
+        if obj.type == "thindielectric":
+            imp.warn(obj.node.pos, f"{obj.label()}: approximated by a dielectric interface (a thin sheet refracts "
+                                   "instead of passing light straight through)")
+        mat.ior = self._ior(obj, "int_ior", "bk7") / self._ior(obj, "ext_ior", "air")
+        mat.alpha = self._alpha(obj, 0.1) if obj.type == "roughdielectric" else 0.0
+        refl, _ = color_value(imp, obj, "specular_reflectance", (1.0,) * 3)
+        trans, tex = color_value(imp, obj, "specular_transmittance", (1.0,) * 3, texture_ok=True)
+        mat.tint, mat.base_texture = _clamp01(imp, obj, trans, "specular_transmittance"), tex
+        if refl != (1.0, 1.0, 1.0) and refl != trans:
+            imp.warn(obj.props["specular_reflectance"].node.pos,
+                     f"{obj.label()}: one tint (specular_transmittance) scales reflection and transmission")
+
+    def _conductor(self, obj, mat) -> None:
+        imp = self.imp
+        mat.type = "conductor"
+        mat.alpha = self._alpha(obj, 0.1) if obj.type == "roughconductor" else 0.0
+        spec, _ = color_value(imp, obj, "specular_reflectance", (1.0,) * 3)
+        if obj.has("eta") or obj.has("k"):
+            mat.eta, _ = color_value(imp, obj, "eta", (0.0,) * 3)
+            mat.k, _ = color_value(imp, obj, "k", (1.0,) * 3)
+            if min(mat.eta) <= 0:  # eta 0: Mitsuba's perfect mirror
+                mat.eta, mat.k, mat.f0 = None, None, _clamp01(imp, obj, spec, "specular_reflectance")
+                return
+        else:
+            p = obj.prop("material")
+            metal = "none" if p is None else str(p.value)
+            if metal == "none":
+                mat.f0 = _clamp01(imp, obj, spec, "specular_reflectance")
+                return
+            ours = METAL_NAMES.get(metal)
+            if ours is None:
+                imp.warn(p.node.pos, f"{obj.label()}: material '{metal}' is not among our metals "
+                                     f"({', '.join(METAL_NAMES)}); using aluminium")
+                ours = "aluminium"
+            mat.eta, mat.k = _metals()[ours]
+        if spec != (1.0, 1.0, 1.0):
+            imp.warn(obj.props["specular_reflectance"].node.pos,
+                     f"{obj.label()}: specular_reflectance with eta/k is not supported; ignored")
+
+    def _principled(self, obj, mat) -> None:
+        imp = self.imp
+        mat.type = "gltf"
+        mat.albedo, mat.base_texture = color_value(imp, obj, "base_color", (0.5,) * 3, texture_ok=True)
+        mat.metallic = min(max(color_value(imp, obj, "metallic", (0.0,) * 3)[0][0], 0.0), 1.0)
+        roughness = min(max(color_value(imp, obj, "roughness", (0.5,) * 3)[0][0], 0.0), 1.0)
+        mat.alpha = roughness ** 2
+        if obj.has("eta"):
+            mat.ior = obj.float("eta", positive=True)
+        else:
+            specular = min(max(obj.float("specular", 0.5), 0.0), 1.0)
+            mat.ior = 2.0 / (1.0 - math.sqrt(0.08 * specular)) - 1.0 if specular > 0 else 1.0
+        for extra in ("spec_tint", "anisotropic", "sheen", "sheen_tint", "clearcoat", "spec_trans", "flatness"):
+            p = obj.prop(extra)
+            if p is not None and (p.kind != "float" or p.value != 0):
+                imp.warn(p.node.pos, f'<{p.kind} name="{extra}"> of {obj.label()}: not supported by our glTF '
+                                     "mapping; ignored")
+        obj.used.update({"clearcoat_gloss", "main_specular_sampling_rate", "clearcoat_sampling_rate",
+                         "diffuse_reflectance_sampling_rate"})
+
+
+def _clamp01(imp, obj, rgb, what) -> tuple:
+    clipped = tuple(min(max(float(x), 0.0), 1.0) for x in rgb)
+    if clipped != tuple(float(x) for x in rgb):
+        imp.warn(obj.node.pos, f"{obj.label()}: {what} {tuple(rgb)} clamped to [0, 1]")
+    return clipped

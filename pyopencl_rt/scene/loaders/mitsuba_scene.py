@@ -1,0 +1,322 @@
+"""Mitsuba 3 XML scene files (``.xml``): the plugin objects of :mod:`.mitsuba_xml` mapped onto our
+scene; docs/SCENE_FORMAT.md ("Mitsuba 3 XML") lists each plugin and parameter and what it becomes.
+
+Every parameter that this mapping does not read is reported as one warning naming the element
+and its file position (except those that do not change the image: ``pixel_format``,
+``near_clip``, ...), as is every plugin we do not render.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..model import DirectionalLight, Environment, PointLight, RenderSettings
+from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cube_mesh, cylinder_mesh, disk_mesh, error_at,
+                      rectangle_mesh, transform_points, transform_vector, vertical_fov)
+from .mitsuba_bsdf import BsdfMapper, color_value
+from .mitsuba_xml import Document, MiObject
+
+# parameters that do not change the image
+SILENT = {"pixel_format", "component_format", "near_clip", "far_clip", "sample_border", "banner", "file_format",
+          "compensate", "shutter_open", "shutter_close", "srf", "face_normals", "sample_visible", "emitter_samples",
+          "bsdf_samples", "jitter", "mis_compensation", "silhouette_sampling_weight", "mip_filter_type"}
+
+
+def load_mitsuba_xml(path, name: str | None = None, defines: dict | None = None):
+    """The Scene of a Mitsuba 3 XML file; ``defines`` are ``$name`` values that take precedence
+    over the file's ``<default>``s (the CLI's ``--define name=value``)."""
+    path = Path(path)
+    name = name or str(path)
+    builder = SceneBuilder(name, "mitsuba-xml")
+    doc = Document(path, name, defines, builder.warn)
+    _Importer(doc, builder, path).run()
+    return builder.build()
+
+
+class _Importer:
+    def __init__(self, doc: Document, builder: SceneBuilder, path: Path):
+        self.doc, self.b, self.path = doc, builder, path
+        self.bsdfs = BsdfMapper(self)
+
+    def warn(self, position, what):
+        self.b.warn(position, what)
+
+    def unused(self, obj: MiObject, extra=()) -> None:
+        """One warning per parameter of ``obj`` the mapping did not read."""
+        for pname, p in obj.props.items():
+            if pname in obj.used or pname in SILENT or pname in extra:
+                continue
+            self.warn(p.node.pos, f'<{p.kind} name="{pname}"> of {obj.label()}: not supported; ignored')
+
+    def resolve(self, fname, obj: MiObject) -> Path:
+        return self.doc.resolve(self.path, fname, obj.node)
+
+    # -- the scene -------------------------------------------------------------------------------
+
+    def run(self) -> None:
+        sensors = [o for o in self.doc.objects if o.tag == "sensor"]
+        integrators = [o for o in self.doc.objects if o.tag == "integrator"]
+        settings = RenderSettings(width=768, height=576, spp=4, max_depth=-1, rr_depth=5)
+        self.b.settings = settings
+        for extra in sensors[1:] + integrators[1:]:
+            self.warn(extra.node.pos, f"{extra.label()}: only the first {extra.tag} is used; ignored")
+        if integrators:
+            self.integrator(integrators[0], settings)
+        if sensors:
+            self.sensor(sensors[0], settings)
+        for obj in self.doc.objects:
+            if obj.tag == "shape":
+                self.shape(obj)
+            elif obj.tag == "emitter":
+                self.emitter(obj)
+            elif obj.tag in ("bsdf", "texture"):
+                continue  # used through references
+            elif obj.tag not in ("sensor", "integrator"):
+                self.warn(obj.node.pos, f"{obj.label()}: not supported; ignored")
+
+    def integrator(self, obj: MiObject, settings: RenderSettings) -> None:
+        if obj.type in ("aov", "moment") and obj.children_of("integrator"):
+            self.warn(obj.node.pos, f"{obj.label()}: rendering its nested integrator only")
+            self.unused(obj)
+            return self.integrator(obj.children_of("integrator")[0], settings)
+        if obj.type == "direct":
+            settings.max_depth = 2
+        else:
+            if obj.type != "path":
+                self.warn(obj.node.pos, f"{obj.label()}: rendered with our path tracer (MIS of BSDF and "
+                                        "light sampling) with its max_depth and rr_depth")
+            depth = obj.integer("max_depth", -1, minimum=-1)
+            if depth == 0:
+                raise error_at(obj.props["max_depth"].node.pos, f"{obj.label()}: max_depth 0 renders nothing")
+            settings.max_depth = depth
+            settings.rr_depth = obj.integer("rr_depth", 5, minimum=0)
+        if obj.boolean("hide_emitters", False):
+            self.warn(obj.props["hide_emitters"].node.pos, f"{obj.label()}: hide_emitters is not supported; "
+                                                           "emitters are visible")
+        self.unused(obj, extra=("max_depth", "rr_depth") if obj.type == "direct" else ())
+
+    def sensor(self, obj: MiObject, settings: RenderSettings) -> None:
+        films = obj.children_of("film")
+        film = films[0] if films else None
+        if film is not None:
+            if film.type not in ("hdrfilm", "specfilm"):
+                self.warn(film.node.pos, f"{film.label()}: not supported; read as an hdrfilm")
+            settings.width = film.integer("width", 768, minimum=1)
+            settings.height = film.integer("height", 576, minimum=1)
+            for rf in film.children_of("rfilter"):
+                if rf.type != "box":
+                    self.warn(rf.node.pos, f"{rf.label()}: we filter with a box (uniform over the pixel); "
+                                           "the image is a little sharper than Mitsuba's")
+                self.unused(rf, extra=("stddev", "radius", "b", "c", "lobes"))
+            for extra in film.children:
+                if extra.tag != "rfilter":
+                    self.warn(extra.node.pos, f"{extra.label()} in {film.label()}: not supported; ignored")
+            self.unused(film)
+        for sampler in obj.children_of("sampler"):
+            settings.spp = sampler.integer("sample_count", 4, minimum=1)
+            seed = sampler.integer("seed", None)
+            if seed is not None:
+                settings.seed = seed & 0xFFFFFFFF
+            self.unused(sampler, extra=("scramble_seed", "strength"))
+        for extra in obj.children:
+            if extra.tag not in ("film", "sampler"):
+                self.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported; ignored")
+        if obj.type not in ("perspective", "thinlens"):
+            self.warn(obj.node.pos, f"{obj.label()}: not supported; using a camera that frames the scene")
+            return
+        if obj.has("fov") and obj.has("focal_length"):
+            raise error_at(obj.node.pos, f"{obj.label()}: give fov or focal_length, not both")
+        if obj.has("fov"):
+            fov = obj.float("fov", positive=True)
+            axis = obj.string("fov_axis", "x").lower()
+            if axis not in ("x", "y", "diagonal", "smaller", "larger"):
+                raise error_at(obj.props["fov_axis"].node.pos,
+                               f"{obj.label()}: unknown fov_axis '{axis}' (x, y, diagonal, smaller, larger)")
+        else:
+            text = obj.string("focal_length", "50mm")
+            try:
+                f = float(text[:-2] if text.endswith("mm") else text)
+            except ValueError:
+                raise error_at(obj.props["focal_length"].node.pos,
+                               f"{obj.label()}: focal_length must look like '35mm', got '{text}'") from None
+            fov, axis = float(np.degrees(2 * np.arctan(np.hypot(36.0, 24.0) / (2 * f)))), "diagonal"
+        if not 0 < fov < 180:
+            raise error_at(obj.node.pos, f"{obj.label()}: fov must be between 0 and 180 degrees, got {fov:g}")
+        vfov = vertical_fov(fov, axis, settings.width, settings.height)
+        aperture, focus = 0.0, None
+        if obj.type == "thinlens":
+            if not obj.has("aperture_radius"):
+                raise error_at(obj.node.pos, f'{obj.label()} needs <float name="aperture_radius">')
+            aperture = obj.float("aperture_radius", minimum=0.0)
+            far = obj.props["far_clip"].value if obj.has("far_clip") else 1e4  # Mitsuba's default focus
+            focus = obj.float("focus_distance", far, positive=True)
+        m = obj.transform("to_world")
+        m = np.eye(4) if m is None else m
+        if abs(np.linalg.det(m[:3, :3])) < 1e-300:
+            raise error_at(obj.props["to_world"].node.pos, f"{obj.label()}: to_world is singular")
+        self.b.camera, self.b.mirror = camera_from_matrix(m, vfov, -1.0, aperture=aperture,
+                                                          focus=focus if aperture > 0 else None)
+        self.unused(obj)
+
+    # -- shapes ----------------------------------------------------------------------------------
+
+    def shape(self, obj: MiObject) -> None:
+        bsdfs = obj.children_of("bsdf")
+        material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default()
+        if len(bsdfs) > 1:
+            self.warn(bsdfs[1].node.pos, f"{obj.label()}: a second BSDF; ignored")
+        emitters = obj.children_of("emitter")
+        for em in emitters:
+            if em.type != "area":
+                self.warn(em.node.pos, f"{em.label()} in {obj.label()}: only area emitters attach to shapes; "
+                                       "ignored")
+                continue
+            radiance, texture = color_value(self, em, "radiance", (1.0, 1.0, 1.0), texture_ok=True)
+            material = self.b.emissive(material, radiance, False, texture)
+            self.unused(em)
+        for extra in obj.children:
+            if extra.tag not in ("bsdf", "emitter"):
+                self.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported; ignored")
+        flip = bool(obj.boolean("flip_normals", False))
+        m = obj.transform("to_world")
+        if m is not None and abs(np.linalg.det(m[:3, :3])) < 1e-300:
+            raise error_at(obj.props["to_world"].node.pos, f"{obj.label()}: to_world is singular")
+        t = obj.type
+        if t == "sphere":
+            return self.sphere(obj, material, m, flip, emitters)
+        if t in ("obj", "ply", "serialized"):
+            mesh = self.mesh_file(obj)
+        elif t == "rectangle":
+            mesh = rectangle_mesh()
+        elif t == "cube":
+            mesh = cube_mesh()
+        elif t == "disk":
+            mesh = disk_mesh()
+        elif t == "cylinder":
+            mesh = self.cylinder(obj)
+        else:
+            self.warn(obj.node.pos, f"{obj.label()}: shape type not supported; ignored")
+            return
+        v, f, uv = mesh
+        self.b.add_mesh(v, f, material, uvs=uv, matrix=m, flip=flip)
+        self.unused(obj)
+
+    def cylinder(self, obj: MiObject):
+        p0 = obj.point("p0", np.zeros(3))
+        p1 = obj.point("p1", np.array([0.0, 0.0, 1.0]))
+        radius = obj.float("radius", 1.0, positive=True)
+        axis = p1 - p0
+        length = float(np.linalg.norm(axis))
+        if not length > 0:
+            raise error_at(obj.node.pos, f"{obj.label()}: p0 and p1 are the same point")
+        v, f, uv = cylinder_mesh(radius, 0.0, length)
+        z = axis / length
+        x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+        x /= np.linalg.norm(x)
+        frame = np.stack([x, np.cross(z, x), z], 1)
+        return v @ frame.T + p0, f, uv
+
+    def sphere(self, obj, material, m, flip, emitters) -> None:
+        centre = obj.point("center", np.zeros(3))
+        radius = obj.float("radius", 1.0, positive=True)
+        if m is not None:
+            s = np.linalg.svd(m[:3, :3], compute_uv=False)
+            if s.max() - s.min() > 1e-6 * s.max():
+                self.warn(obj.props["to_world"].node.pos, f"{obj.label()}: to_world scales unevenly "
+                                                          "(Mitsuba does not allow it); using the mean scale")
+            centre = transform_points(m, centre)[0]
+            radius *= float(s.mean())
+        if flip and emitters:
+            self.warn(obj.node.pos, f"{obj.label()}: flip_normals: our spheres emit outwards only")
+        self.b.add_sphere(centre, radius, material)
+        self.unused(obj)
+
+    def mesh_file(self, obj: MiObject):
+        from .obj import parse_obj
+
+        fname = obj.string("filename")
+        if fname is None:
+            raise error_at(obj.node.pos, f'{obj.label()} needs <string name="filename">')
+        path = self.resolve(fname, obj)
+        where = f"{obj.node.pos}: {obj.label()}: {fname}"
+        if obj.type == "obj":
+            v, f, _names, _libs, uv = parse_obj(path, where, with_uvs=True)
+            if uv is not None and not obj.boolean("flip_tex_coords", True):
+                uv[..., 1] = 1.0 - uv[..., 1]
+        elif obj.type == "ply":
+            v, f, uv = _read_ply(path, where)
+        else:
+            from .mitsuba_serialized import read_serialized
+
+            v, f, uv = read_serialized(path, obj.integer("shape_index", 0, minimum=0), where)
+        if len(f) == 0:
+            raise error_at(obj.node.pos, f"{obj.label()}: '{fname}' contains no triangles")
+        return v, f, uv
+
+    # -- emitters --------------------------------------------------------------------------------
+
+    def emitter(self, obj: MiObject) -> None:
+        t = obj.type
+        m = obj.transform("to_world")
+        if t == "point":
+            pos = obj.point("position", None)
+            if pos is None:
+                pos = m[:3, 3] if m is not None else np.zeros(3)
+            intensity, _ = color_value(self, obj, "intensity", (1.0, 1.0, 1.0))
+            self.b.add_light(PointLight(position=tuple(map(float, pos)), intensity=intensity))
+        elif t == "directional":
+            d = obj.point("direction", None)
+            if d is None:
+                d = transform_vector(m, [0.0, 0.0, 1.0]) if m is not None else np.array([0.0, 0.0, 1.0])
+            if not np.linalg.norm(d) > 0:
+                raise error_at(obj.node.pos, f"{obj.label()}: the direction is zero")
+            irradiance, _ = color_value(self, obj, "irradiance", (1.0, 1.0, 1.0))
+            self.b.add_light(DirectionalLight(direction=tuple(map(float, d / np.linalg.norm(d))),
+                                              irradiance=irradiance))
+        elif t == "constant":
+            radiance, _ = color_value(self, obj, "radiance", (1.0, 1.0, 1.0))
+            self.b.set_environment(Environment(radiance=radiance), obj.node.pos)
+        elif t == "envmap":
+            self.envmap(obj, m)
+        else:
+            what = "spot lights are not supported" if t == "spot" else "emitter type not supported"
+            self.warn(obj.node.pos, f"{obj.label()}: {what}; ignored")
+            return
+        self.unused(obj)
+
+    def envmap(self, obj: MiObject, m) -> None:
+        from .images import read_hdr_image
+
+        fname = obj.string("filename")
+        if fname is None:
+            raise error_at(obj.node.pos, f'{obj.label()} needs <string name="filename">')
+        image = read_hdr_image(self.resolve(fname, obj), f"{obj.node.pos}: {obj.label()}")
+        s = obj.float("scale", 1.0, minimum=0.0)
+        rot = np.eye(3) if m is None else m[:3, :3]
+        h, w = image.shape[:2]
+        self.b.set_environment(EnvMap(image=image, lookup=_mitsuba_env_uv, to_world=rot, scale=(s, s, s),
+                                      source=str(fname), out_shape=(h, w)), obj.node.pos)
+
+
+def _mitsuba_env_uv(d):
+    """Mitsuba's envmap: u = atan2(x, -z) / 2 pi, v = acos(y) / pi."""
+    u = np.arctan2(d[:, 0], -d[:, 2]) / (2 * np.pi)
+    v = np.arccos(np.clip(d[:, 1], -1.0, 1.0)) / np.pi
+    return np.mod(u, 1.0), v
+
+
+def _read_ply(path, where):
+    from ..mesh import MeshError, flatten, load_trimesh
+
+    try:
+        loaded = load_trimesh(path)
+        v, f = flatten(loaded, name=where)
+    except MeshError as exc:
+        raise error_at(where.split(": ")[0], str(exc)) from None
+    uv = getattr(getattr(loaded, "visual", None), "uv", None)
+    uvc = None
+    if uv is not None and len(uv) == len(v) and len(loaded.faces) == len(f):
+        uvc = np.asarray(uv, np.float32)[np.asarray(f)][..., :2]  # Mitsuba reads PLY uvs as they are
+    return v, f, uvc
+

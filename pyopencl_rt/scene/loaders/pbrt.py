@@ -1,0 +1,304 @@
+"""pbrt-v4 scene files (``.pbrt``): the tokenizer and the directives with their parameter lists.
+
+The grammar (pbrt-v4's "File format" documentation): ``#`` starts a comment; a token is a quoted
+string (with ``\\"`` escapes), ``[`` or ``]``, or a run of other non-blank characters (numbers,
+``true``/``false``, directive names).  A directive is a capitalised word followed by its fixed
+arguments (numbers, strings or a bracketed list) and, for most, a parameter list of
+``"type name" value`` pairs, where the value is one token or a bracketed list.  ``Include`` and
+``Import`` read another file in place (relative to the including file's folder, then the main
+file's).  :mod:`.pbrt_scene` gives the directives their meaning.
+
+Every malformed input raises a :class:`~.builder.SceneFormatError` naming the file and line.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .builder import error_at
+
+_TOKEN = re.compile(r'[ \t\r\f\v]+|\n|#[^\n]*|"(?:[^"\\\n]|\\.)*"|\[|\]|[^\s\[\]"#]+|"')
+_ESCAPES = {"n": "\n", "t": "\t", "b": "\b", "f": "\f", "r": "\r", "\\": "\\", "'": "'", '"': '"'}
+
+# directive -> fixed arguments: 'n<k>' k numbers (or a bracketed list of k), 's' a string,
+# 'w' a bare word, 's?' an optional string; then 'p': a parameter list
+SIGNATURES = {
+    "Identity": "", "Translate": "n3", "Scale": "n3", "Rotate": "n4", "LookAt": "n9",
+    "Transform": "n16", "ConcatTransform": "n16", "CoordinateSystem": "s", "CoordSysTransform": "s",
+    "TransformTimes": "n2", "ActiveTransform": "w", "ReverseOrientation": "",
+    "Camera": "s p", "Sampler": "s p", "Film": "s p", "PixelFilter": "s p", "Integrator": "s p",
+    "Accelerator": "s p", "ColorSpace": "s", "Option": "p", "WorldBegin": "", "WorldEnd": "",
+    "AttributeBegin": "", "AttributeEnd": "", "TransformBegin": "", "TransformEnd": "",
+    "Attribute": "s p", "Shape": "s p", "Material": "s p", "MakeNamedMaterial": "s p", "NamedMaterial": "s",
+    "Texture": "s s s p", "LightSource": "s p", "AreaLightSource": "s p", "MakeNamedMedium": "s p",
+    "MediumInterface": "s s?", "ObjectBegin": "s", "ObjectEnd": "", "ObjectInstance": "s",
+    "Include": "s", "Import": "s",
+}
+PARAM_TYPES = {"integer", "float", "point2", "vector2", "point3", "vector3", "normal3", "normal", "point",
+               "vector", "color", "rgb", "spectrum", "bool", "string", "texture", "blackbody"}
+
+
+@dataclass
+class Token:
+    kind: str  # 'str', 'word', '[', ']'
+    text: str
+    file: str
+    line: int
+
+    @property
+    def pos(self) -> str:
+        return f"{self.file}:{self.line}"
+
+
+def tokenize(text: str, name: str) -> list[Token]:
+    tokens, line = [], 1
+    for m in _TOKEN.finditer(text):
+        t = m.group()
+        if t == "\n":
+            line += 1
+        elif t[0] in " \t\r\f\v#":
+            continue
+        elif t[0] == '"':
+            if len(t) < 2 or not t.endswith('"'):
+                raise error_at(f"{name}:{line}", "unterminated string (a '\"' without its closing '\"')")
+            tokens.append(Token("str", re.sub(r"\\(.)", lambda e: _ESCAPES.get(e.group(1), e.group(1)), t[1:-1]),
+                                name, line))
+        elif t in "[]":
+            tokens.append(Token(t, t, name, line))
+        else:
+            tokens.append(Token("word", t, name, line))
+    return tokens
+
+
+@dataclass
+class Param:
+    type: str
+    name: str
+    values: list
+    pos: str
+    used: bool = False
+
+
+@dataclass
+class Params:
+    """A directive's parameter list; accessors mark what was read so the rest can be warned about."""
+
+    items: dict = field(default_factory=dict)
+
+    def __contains__(self, name) -> bool:
+        return name in self.items
+
+    def get(self, name) -> Param | None:
+        p = self.items.get(name)
+        if p is not None:
+            p.used = True
+        return p
+
+    def _values(self, name, types, n=None):
+        p = self.get(name)
+        if p is None:
+            return None, None
+        if p.type not in types:
+            raise error_at(p.pos, f'"{p.type} {name}": expected a {" or ".join(sorted(types))} parameter')
+        if n is not None and len(p.values) != n:
+            raise error_at(p.pos, f'"{p.type} {name}" needs {n} value{"s" if n > 1 else ""}, got {len(p.values)}')
+        return p.values, p
+
+    def numbers(self, name, types=("float",), n=None, default=None):
+        values, p = self._values(name, set(types) | ({"float"} if "integer" in types else set()), n)
+        if values is None:
+            return default
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            raise error_at(p.pos, f'"{p.type} {name}" needs numbers')
+        return values
+
+    def float(self, name, default=None):
+        v = self.numbers(name, ("float", "integer"), 1)
+        return default if v is None else float(v[0])
+
+    def integer(self, name, default=None):
+        v = self.numbers(name, ("integer",), 1)
+        if v is not None and not float(v[0]).is_integer():
+            raise error_at(self.items[name].pos, f'"integer {name}" needs an integer, got {v[0]}')
+        return default if v is None else int(v[0])
+
+    def boolean(self, name, default=None):
+        values, p = self._values(name, {"bool"}, 1)
+        if values is None:
+            return default
+        v = values[0]
+        if isinstance(v, str) and v in ("true", "false"):
+            v = v == "true"
+        if not isinstance(v, bool):
+            raise error_at(p.pos, f'"bool {name}" needs true or false, got {v!r}')
+        return v
+
+    def string(self, name, default=None, types=("string",)):
+        values, p = self._values(name, set(types), 1)
+        if values is None:
+            return default
+        if not isinstance(values[0], str):
+            raise error_at(p.pos, f'"{p.type} {name}" needs a quoted string')
+        return values[0]
+
+    def unused(self) -> list[Param]:
+        return [p for p in self.items.values() if not p.used]
+
+
+@dataclass
+class Directive:
+    name: str
+    args: list
+    params: Params
+    pos: str
+
+
+class Parser:
+    """Directives of a pbrt file and the files it includes, in order (:meth:`directives`)."""
+
+    def __init__(self, path: Path, name: str):
+        self.main_dir = path.parent
+        self.path, self.name = path, name
+
+    def directives(self):
+        yield from self._file(self.path, self.name, [])
+
+    def _read(self, path: Path, name: str) -> list[Token]:
+        try:
+            text = path.read_text(encoding="utf-8", errors="replace")
+        except OSError as exc:
+            raise error_at(name, f"cannot read ({exc.strerror or exc})") from None
+        if path.suffix.lower() == ".gz" or text.startswith("\x1f"):
+            raise error_at(name, "compressed pbrt files are not supported (gunzip it first)")
+        return tokenize(text, name)
+
+    def _file(self, path: Path, name: str, stack: list):
+        tokens = self._read(path, name)
+        i = 0
+        while i < len(tokens):
+            tok = tokens[i]
+            if tok.kind != "word" or not tok.text[:1].isalpha():
+                raise error_at(tok.pos, f"expected a directive (such as Shape or AttributeBegin), got {_show(tok)}")
+            if tok.text not in SIGNATURES:
+                raise error_at(tok.pos, f"unknown directive '{tok.text}'")
+            d, i = self._directive(tokens, i)
+            if d.name in ("Include", "Import"):
+                target = self._locate(d.args[0], path, d.pos)
+                if target.resolve() in stack:
+                    raise error_at(d.pos, f"{d.name} '{d.args[0]}': the file includes itself")
+                yield from self._file(target, str(target), stack + [path.resolve()])
+            else:
+                yield d
+
+    def _locate(self, fname: str, path: Path, pos: str) -> Path:
+        for base in (path.parent, self.main_dir):
+            candidate = base / fname
+            if candidate.is_file():
+                return candidate
+        raise error_at(pos, f"file '{fname}' not found (looked for {path.parent / fname})")
+
+    def _directive(self, tokens, i):
+        head = tokens[i]
+        i += 1
+        args = []
+        for spec in SIGNATURES[head.text].split():
+            if spec == "p":
+                continue
+            if spec.startswith("n"):
+                n = int(spec[1:])
+                values, i = self._numbers(tokens, i, n, head)
+                args.append(values)
+            elif spec in ("s", "s?"):
+                if i < len(tokens) and tokens[i].kind == "str" and not _is_decl(tokens, i):
+                    args.append(tokens[i].text)
+                    i += 1
+                elif spec == "s":
+                    got = _show(tokens[i]) if i < len(tokens) else "the end of the file"
+                    raise error_at(head.pos, f"{head.text} needs a quoted string, got {got}")
+            elif spec == "w":
+                if i >= len(tokens) or tokens[i].kind != "word":
+                    raise error_at(head.pos, f"{head.text} needs a word")
+                args.append(tokens[i].text)
+                i += 1
+        params = Params()
+        if SIGNATURES[head.text].endswith("p"):
+            while i < len(tokens) and tokens[i].kind == "str":
+                param, i = self._param(tokens, i)
+                if param.name in params.items:
+                    raise error_at(param.pos, f'parameter "{param.name}" given twice')
+                params.items[param.name] = param
+        return Directive(head.text, args, params, head.pos), i
+
+    def _numbers(self, tokens, i, n, head):
+        bracket = i < len(tokens) and tokens[i].kind == "["
+        if bracket:
+            i += 1
+        values = []
+        while len(values) < n and i < len(tokens) and tokens[i].kind == "word" and tokens[i].text not in SIGNATURES:
+            values.append(_number(tokens[i], f"{head.text} needs {n} numbers"))
+            i += 1
+        if len(values) != n:
+            raise error_at(head.pos, f"{head.text} needs {n} numbers, got {len(values)}")
+        if bracket:
+            if i >= len(tokens) or tokens[i].kind != "]":
+                raise error_at(head.pos, f"{head.text}: expected ']' after {n} numbers")
+            i += 1
+        return values, i
+
+    def _param(self, tokens, i):
+        decl = tokens[i]
+        parts = decl.text.split()
+        if len(parts) != 2:
+            raise error_at(decl.pos, f'bad parameter declaration "{decl.text}" (expected "type name")')
+        ptype, pname = parts
+        if ptype not in PARAM_TYPES:
+            raise error_at(decl.pos, f'unknown parameter type "{ptype}" in "{decl.text}"')
+        i += 1
+        if i >= len(tokens):
+            raise error_at(decl.pos, f'"{decl.text}" has no value')
+        raw = []
+        if tokens[i].kind == "[":
+            i += 1
+            while i < len(tokens) and tokens[i].kind != "]":
+                if tokens[i].kind == "[" or tokens[i].text in SIGNATURES:
+                    raise error_at(decl.pos, f'"{decl.text}": a \'[\' without its \']\'')
+                raw.append(tokens[i])
+                i += 1
+            if i >= len(tokens):
+                raise error_at(decl.pos, f'"{decl.text}": a \'[\' without its \']\'')
+            i += 1
+        elif tokens[i].kind in ("str", "word"):
+            raw.append(tokens[i])
+            i += 1
+        else:
+            raise error_at(tokens[i].pos, f'"{decl.text}": expected a value, got {_show(tokens[i])}')
+        values = []
+        for t in raw:
+            if t.kind == "str":
+                values.append(t.text)
+            elif t.text in ("true", "false"):
+                values.append(t.text == "true")
+            else:
+                values.append(_number(t, f'"{decl.text}": expected numbers'))
+        return Param(ptype, pname, values, decl.pos), i
+
+
+def _is_decl(tokens, i) -> bool:
+    """Whether the string at i starts a parameter ("type name" followed by a value)."""
+    parts = tokens[i].text.split()
+    return len(parts) == 2 and parts[0] in PARAM_TYPES
+
+
+def _number(tok: Token, what: str):
+    try:
+        v = float(tok.text)
+    except ValueError:
+        raise error_at(tok.pos, f"{what}, got {_show(tok)}") from None
+    if v != v or v in (float("inf"), float("-inf")):
+        raise error_at(tok.pos, f"{what}, got {_show(tok)}")
+    return int(v) if re.fullmatch(r"[+-]?\d+", tok.text) else v
+
+
+def _show(tok: Token) -> str:
+    return f"'{tok.text}'" if tok.kind != "str" else f'"{tok.text}"'

@@ -1,0 +1,319 @@
+"""pbrt-v4 materials, textures and spectra as ours (docs/SCENE_FORMAT.md, "pbrt-v4").
+
+| pbrt-v4 | ours |
+|---|---|
+| ``diffuse`` | ``diffuse``: ``reflectance`` (default 0.5; an ``imagemap`` texture as its texture) |
+| ``conductor`` | ``conductor``: ``eta``/``k`` (the named spectra ``metal-Au/Ag/Cu/Al-eta/k`` as our metals; RGB as given) or ``reflectance`` (as F0, Schlick); default copper |
+| ``dielectric`` (``thindielectric`` with a warning) | ``dielectric``: ``eta`` (default 1.5; the named glasses at their d-line index) |
+| ``coateddiffuse`` | ``gltf`` with metallic 0: base colour ``reflectance``, IOR ``eta``, the coating's roughness (documented approximation) |
+| ``coatedconductor`` | ``conductor`` of its conductor layer, with a warning |
+| ``interface`` | no surface: its shapes are skipped, with a warning |
+| others (``diffusetransmission``, ``hair``, ``measured``, ``mix``, ``subsurface``) | ``diffuse`` 0.5, with a warning |
+
+Roughness: ``roughness`` (or the mean of ``uroughness`` and ``vroughness``, with a warning when they
+differ) becomes GGX alpha = sqrt(roughness) when ``remaproughness`` is true (the default), as
+pbrt-v4's ``TrowbridgeReitzDistribution::RoughnessToAlpha``, else alpha = roughness.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..model import Material
+from .builder import blackbody_rgb, error_at
+
+METALS = {"Au": "gold", "Ag": "silver", "Cu": "copper", "Al": "aluminium"}
+GLASSES = {"glass-BK7": 1.5168, "glass-BAF10": 1.6700, "glass-FK51A": 1.4866, "glass-LASF9": 1.8503,
+           "glass-F5": 1.6727, "glass-F10": 1.7283, "glass-F11": 1.7847}  # F5, F10, F11: Schott SF5, SF10, SF11
+
+
+def _metals():
+    try:
+        from ..materials.conductor import METALS as table
+    except ImportError:  # pragma: no cover - before the material registry
+        from ..model import CONDUCTORS as table
+    return table
+
+
+def spectrum_rgb(imp, params, name, default):
+    """Linear RGB of a spectrum-valued parameter: ``rgb``, a constant ``float`` or ``spectrum``,
+    ``blackbody`` (at luminance 1, as pbrt normalises it), a named or sampled ``spectrum``."""
+    p = params.get(name)
+    if p is None:
+        return tuple(float(x) for x in default)
+    if p.type in ("rgb", "color"):
+        v = params.numbers(name, (p.type,), 3)
+        return tuple(float(x) for x in v)
+    if p.type == "float":
+        v = params.float(name)
+        return (v, v, v)
+    if p.type == "blackbody":
+        v = params.numbers(name, ("blackbody",), 1)
+        return blackbody_rgb(v[0])
+    if p.type == "spectrum":
+        if len(p.values) == 1 and isinstance(p.values[0], str):
+            named = p.values[0]
+            if named != "stdillum-D65":
+                imp.warn(p.pos, f'"spectrum {name}" "{named}": named spectra are rendered as white')
+            return (1.0, 1.0, 1.0)
+        values = params.numbers(name, ("spectrum",))
+        if len(values) == 1:
+            return (float(values[0]),) * 3
+        if len(values) % 2:
+            raise error_at(p.pos, f'"spectrum {name}" needs wavelength-value pairs')
+        mean = float(np.mean(values[1::2]))
+        imp.warn(p.pos, f'"spectrum {name}": a sampled spectrum is rendered as the constant {mean:g} (its mean)')
+        return (mean, mean, mean)
+    raise error_at(p.pos, f'"{p.type} {name}": expected an rgb, spectrum, blackbody or float value')
+
+
+def equal_area_square_to_sphere(u, v):
+    """pbrt-v4's equal-area octahedral map (Clarberg 2008): (u, v) in [0, 1]^2 to directions."""
+    u, v = 2 * np.asarray(u, np.float64) - 1, 2 * np.asarray(v, np.float64) - 1
+    up, vp = np.abs(u), np.abs(v)
+    signed = 1 - (up + vp)
+    r = 1 - np.abs(signed)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        phi = np.where(r == 0, 1.0, (vp - up) / np.where(r == 0, 1.0, r) + 1) * np.pi / 4
+    z = np.copysign(1 - r * r, signed)
+    cos_phi, sin_phi = np.copysign(np.cos(phi), u), np.copysign(np.sin(phi), v)
+    s = r * np.sqrt(np.maximum(2 - r * r, 0.0))
+    return np.stack([cos_phi * s, sin_phi * s, z], -1)
+
+
+def equal_area_sphere_to_square(d):
+    """The inverse: unit directions (N, 3) to (u, v) in [0, 1]^2."""
+    d = np.asarray(d, np.float64)
+    x, y, z = np.abs(d[:, 0]), np.abs(d[:, 1]), np.abs(d[:, 2])
+    r = np.sqrt(np.maximum(1 - z, 0.0))
+    a, b = np.maximum(x, y), np.minimum(x, y)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        b = np.where(a == 0, 0.0, b / np.where(a == 0, 1.0, a))
+    phi = np.arctan(b) * 2 / np.pi
+    phi = np.where(x < y, 1 - phi, phi)
+    v = phi * r
+    u = r - v
+    neg = d[:, 2] < 0
+    u, v = np.where(neg, 1 - v, u), np.where(neg, 1 - u, v)
+    u, v = np.copysign(u, d[:, 0]), np.copysign(v, d[:, 1])
+    return (u + 1) / 2, (v + 1) / 2
+
+
+class MaterialMapper:
+    def __init__(self, importer):
+        self.imp = importer
+        self.named: dict[str, Material | None] = {}
+        self.textures: dict[str, tuple] = {}  # name -> (rgb, Texture or None)
+        self._default = None
+        self._count = 0
+
+    def default(self) -> Material:
+        """pbrt-v4's material before any Material directive: diffuse, reflectance 0.5."""
+        if self._default is None:
+            self._default = Material(name="pbrt-default", albedo=(0.5, 0.5, 0.5))
+        return self._default
+
+    # -- textures --------------------------------------------------------------------------------
+
+    def color(self, params, name, default):
+        """(rgb, Texture or None) of a parameter that may name a texture."""
+        p = params.get(name)
+        if p is not None and p.type == "texture":
+            tname = params.string(name, types=("texture",))
+            if tname not in self.textures:
+                raise error_at(p.pos, f'"texture {name}": no texture named "{tname}"')
+            return self.textures[tname]
+        return spectrum_rgb(self.imp, params, name, default), None
+
+    def texture(self, d) -> None:
+        tname, kind, cls = d.args
+        p = d.params
+        if kind not in ("spectrum", "float", "color"):
+            raise error_at(d.pos, f'Texture "{tname}": the type must be "spectrum" or "float", got "{kind}"')
+        if cls == "constant":
+            value = self.color(p, "value", (1.0, 1.0, 1.0))
+        elif cls == "imagemap":
+            value = ((1.0, 1.0, 1.0), self._imagemap(d))
+        elif cls == "checkerboard":
+            value = ((1.0, 1.0, 1.0), self._checkerboard(d))
+        else:
+            self.imp.warn(d.pos, f'Texture "{tname}" "{cls}": texture class not supported; using white')
+            for q in p.items.values():
+                q.used = True
+            value = ((1.0, 1.0, 1.0), None)
+        self.textures[tname] = value
+
+    def _mapping(self, d) -> tuple:
+        p = d.params
+        mapping = p.string("mapping", "uv")
+        if mapping != "uv":
+            self.imp.warn(p.items["mapping"].pos, f'Texture "{d.args[0]}": mapping "{mapping}" read as "uv"')
+        return tuple(p.float(k, dflt) for k, dflt in (("uscale", 1.0), ("vscale", 1.0), ("udelta", 0.0),
+                                                       ("vdelta", 0.0)))
+
+    def _imagemap(self, d):
+        from ..textures import texture_from_array, texture_from_image
+
+        p = d.params
+        fname = p.string("filename")
+        if fname is None:
+            raise error_at(d.pos, f'Texture "{d.args[0]}" "imagemap" needs "string filename"')
+        path = self.imp.path.parent / fname
+        if not path.is_file():
+            raise error_at(d.pos, f"Texture \"{d.args[0]}\": file '{fname}' not found (looked for {path})")
+        if self._mapping(d) != (1.0, 1.0, 0.0, 0.0):
+            self.imp.warn(d.pos, f'Texture "{d.args[0]}": uscale/vscale/udelta/vdelta are not supported; ignored')
+        for key, ok in (("filter", "bilinear"), ("wrap", "repeat")):
+            value = p.string(key, ok)
+            if value != ok:
+                self.imp.warn(p.items[key].pos, f'Texture "{d.args[0]}": {key} "{value}": we use {ok}')
+        if p.boolean("invert", False):
+            self.imp.warn(p.items["invert"].pos, f'Texture "{d.args[0]}": invert is not supported; ignored')
+        encoding = p.string("encoding", "sRGB")
+        s = p.float("scale", 1.0)
+        where = f'{d.pos}: Texture "{d.args[0]}"'
+        if path.suffix.lower() in (".exr", ".pfm"):
+            from .images import read_hdr_image
+
+            return texture_from_array(read_hdr_image(path, where) * s, name=fname)
+        if encoding not in ("sRGB", "linear"):
+            self.imp.warn(p.items["encoding"].pos, f'Texture "{d.args[0]}": encoding "{encoding}" read as sRGB')
+        try:
+            tex = texture_from_image(path, srgb=encoding != "linear")
+        except Exception as exc:
+            raise error_at(where, f"cannot read '{fname}' ({type(exc).__name__}: {exc})") from None
+        if s != 1.0:
+            tex.texels[..., :3] *= s
+        return tex
+
+    def _checkerboard(self, d):
+        from ..textures import texture_from_array
+
+        p = d.params
+        if p.integer("dimension", 2) != 2:
+            self.imp.warn(p.items["dimension"].pos, f'Texture "{d.args[0]}": 3D checkerboards are not supported')
+        c1, _ = self.color(p, "tex1", (1.0, 1.0, 1.0))
+        c2, _ = self.color(p, "tex2", (0.0, 0.0, 0.0))
+        us, vs, ud, vd = self._mapping(d)
+        n = int(min(1024, max(16, 16 * max(abs(us), abs(vs)))))
+        centres = (np.arange(n) + 0.5) / n
+        s = centres[None, :] * us + ud
+        t = (1 - centres[:, None]) * vs + vd  # our v runs down the image, pbrt's t up
+        even = (np.floor(s) + np.floor(t)) % 2 == 0
+        img = np.where(even[..., None], np.asarray(c1), np.asarray(c2)).astype(np.float32)
+        return texture_from_array(img, name=d.args[0])
+
+    # -- materials -------------------------------------------------------------------------------
+
+    def _alpha(self, p, what) -> float:
+        if "roughness" in p:
+            r = p.float("roughness", 0.0)
+        else:
+            ru, rv = p.float("uroughness", 0.0), p.float("vroughness", 0.0)
+            if ru != rv:
+                self.imp.warn(p.items.get("uroughness", p.items.get("vroughness")).pos,
+                              f"{what}: anisotropic roughness rendered isotropic")
+            r = 0.5 * (ru + rv)
+        alpha = math.sqrt(max(r, 0.0)) if p.boolean("remaproughness", True) else max(r, 0.0)
+        return min(alpha, 1.0)
+
+    def make(self, mtype: str, p, pos: str, what: str, name: str | None = None) -> Material | None:
+        imp = self.imp
+        self._count += 1
+        mat = Material(name=name or f"{mtype}#{self._count}")
+        for q in list(p.items.values()):  # textures where we take a number (roughness, eta, ...)
+            if q.type == "texture" and not q.name.endswith("reflectance"):
+                imp.warn(q.pos, f'{what}: "texture {q.name}": textures are not supported here; using the default')
+                q.used = True
+                del p.items[q.name]
+        if mtype == "diffuse":
+            mat.albedo, mat.base_texture = self.color(p, "reflectance", (0.5, 0.5, 0.5))
+        elif mtype in ("conductor", "coatedconductor"):
+            prefix = "conductor." if mtype == "coatedconductor" else ""
+            if mtype == "coatedconductor":
+                imp.warn(pos, f"{what}: rendered as its conductor layer without the coating")
+                for q in p.items.values():
+                    q.used = q.used or q.name.startswith("interface.")
+            self._conductor(mat, p, pos, what, prefix)
+        elif mtype in ("dielectric", "thindielectric"):
+            mat.type = "dielectric"
+            if mtype == "thindielectric":
+                imp.warn(pos, f"{what}: approximated by a dielectric interface (a thin sheet refracts instead of "
+                              "passing light straight through)")
+            mat.ior = self._eta(p, what)
+            mat.alpha = self._alpha(p, what)
+        elif mtype == "coateddiffuse":
+            mat.type, mat.metallic = "gltf", 0.0
+            mat.albedo, mat.base_texture = self.color(p, "reflectance", (0.5, 0.5, 0.5))
+            mat.ior = self._eta(p, what)
+            mat.alpha = self._alpha(p, what)
+            albedo = spectrum_rgb(imp, p, "albedo", (0.0, 0.0, 0.0))
+            if max(albedo) > 0:
+                imp.warn(p.items["albedo"].pos, f"{what}: a scattering coating (albedo) is not supported")
+            for key in ("thickness", "g", "maxdepth", "nsamples"):
+                if key in p:
+                    p.items[key].used = True
+        elif mtype == "interface":
+            return None
+        else:
+            imp.warn(pos, f"{what}: material type not supported; using diffuse 0.5")
+            for q in p.items.values():
+                q.used = True
+            mat.albedo = (0.5, 0.5, 0.5)
+            return mat
+        clipped = tuple(min(max(c, 0.0), 1.0) for c in mat.albedo)
+        if clipped != tuple(mat.albedo):
+            imp.warn(pos, f"{what}: reflectance {tuple(mat.albedo)} clamped to [0, 1]")
+            mat.albedo = clipped
+        for key in ("displacement", "normalmap"):
+            if key in p:
+                imp.warn(p.items[key].pos, f"{what}: {key} is not supported; ignored")
+                p.items[key].used = True
+        return mat
+
+    def _eta(self, p, what) -> float:
+        q = p.get("eta")
+        if q is None:
+            return 1.5
+        if q.type == "spectrum" and len(q.values) == 1 and isinstance(q.values[0], str):
+            named = q.values[0]
+            if named not in GLASSES:
+                raise error_at(q.pos, f'{what}: unknown spectrum "{named}" (one of: {", ".join(GLASSES)})')
+            self.imp.warn(q.pos, f"{what}: {named} rendered without dispersion, at its d-line index {GLASSES[named]}")
+            return GLASSES[named]
+        eta = p.float("eta") if q.type in ("float", "integer") else spectrum_rgb(self.imp, p, "eta", (1.5,) * 3)[1]
+        if not eta > 0:
+            raise error_at(q.pos, f"{what}: eta must be > 0, got {eta:g}")
+        return float(eta)
+
+    def _conductor(self, mat, p, pos, what, prefix) -> None:
+        mat.type = "conductor"
+        mat.alpha = self._alpha(p, what)
+        if prefix + "reflectance" in p:
+            rgb, tex = self.color(p, prefix + "reflectance", (1.0,) * 3)
+            if tex is not None:
+                rgb = tuple(float(c) for c in tex.mean_rgb())
+                self.imp.warn(p.items[prefix + "reflectance"].pos, f"{what}: a reflectance texture is not supported "
+                                                                    f"here; using its mean")
+            mat.f0 = tuple(min(max(c, 0.0), 1.0) for c in rgb)
+            return
+        metals = _metals()
+        out = {}
+        for part in ("eta", "k"):
+            q = p.get(prefix + part)
+            if q is None:
+                out[part] = metals["copper"][0 if part == "eta" else 1]  # pbrt's default: copper
+            elif q.type == "spectrum" and len(q.values) == 1 and isinstance(q.values[0], str):
+                named = q.values[0]
+                metal = named[len("metal-"):].rsplit("-", 1)[0] if named.startswith("metal-") else None
+                if metal not in METALS:
+                    self.imp.warn(q.pos, f'{what}: spectrum "{named}" is not among our metals '
+                                         f"({', '.join(f'metal-{m}-{part}' for m in METALS)}); using aluminium")
+                    metal = "Al"
+                out[part] = metals[METALS[metal]][0 if part == "eta" else 1]
+            else:
+                out[part] = spectrum_rgb(self.imp, p, prefix + part, (1.0,) * 3)
+        mat.eta, mat.k = tuple(map(float, out["eta"])), tuple(map(float, out["k"]))
+        if min(mat.eta) <= 0:
+            raise error_at(p.items[prefix + "eta"].pos, f"{what}: eta must be > 0")

@@ -1,0 +1,457 @@
+"""pbrt-v4 scene files (``.pbrt``): the directives of :mod:`.pbrt` given their meaning — the
+graphics state (transform, attributes, materials, area lights), shapes, lights, camera and
+options — and mapped onto our scene (docs/SCENE_FORMAT.md, "pbrt-v4").
+
+pbrt is spectral; an RGB reflectance is used as it is, and an RGB emission as radiance in our
+linear sRGB (pbrt normalises an RGB illuminant to the luminance its RGB has, so this is what its
+RGB film records for it).  Parameters this mapping does not read warn, one line each, with their
+file position; directives we do not render warn and are skipped.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..model import DirectionalLight, Environment, Material, PointLight, RenderSettings
+from .builder import (EnvMap, SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh,
+                      transform_points, transform_vector, translate)
+from .pbrt import Directive, Parser
+from .pbrt_materials import MaterialMapper, spectrum_rgb
+
+SILENT = {("Film", "filename"), ("Integrator", "lightsampler"), ("Sampler", "seed"), ("Film", "diagonal"),
+          ("Film", "savefp16"), ("Integrator", "regularize"), ("Shape", "N"), ("Shape", "S"),
+          ("Shape", "faceIndices"), ("Shape", "emissionfilename")}
+
+
+# read at the end (a Film may follow the Camera whose field of view depends on it)
+DEFERRED = {"Camera", "Film", "Sampler", "Integrator", "PixelFilter"}
+
+
+def load_pbrt(path, name: str | None = None):
+    """The Scene of a pbrt-v4 scene file."""
+    path = Path(path)
+    name = name or str(path)
+    builder = SceneBuilder(name, "pbrt-v4")
+    _Importer(builder, path, name).run()
+    return builder.build()
+
+
+@dataclasses.dataclass
+class _State:
+    ctm: np.ndarray
+    reverse: bool = False
+    material: object = None  # a Material, or ("named", name, pos)
+    area: object = None  # (radiance, two_sided) of the AreaLightSource in effect
+
+
+class _Importer:
+    def __init__(self, builder: SceneBuilder, path: Path, name: str):
+        self.b, self.path, self.name = builder, path, name
+        self.materials = MaterialMapper(self)
+        self.state = _State(np.eye(4), material=self.materials.default())
+        self.stack: list[_State] = []
+        self.coords: dict[str, np.ndarray] = {}
+        self.camera = None  # (directive, camera-from-world)
+        self.options: dict[str, Directive] = {}
+        self.instances: dict[str, list] = {}
+        self.recording: list | None = None
+        self.in_world = False
+
+    def warn(self, pos, what) -> None:
+        self.b.warn(pos, what)
+
+    def run(self) -> None:
+        for d in Parser(self.path, self.name).directives():
+            handler = getattr(self, "d_" + d.name, None)
+            if handler is None:
+                self.warn(d.pos, f"{d.name}: not supported; ignored")
+                continue
+            handler(d)
+            if d.name not in DEFERRED:
+                self.unused(d)
+        if self.stack:
+            self.warn(self.name, f"{len(self.stack)} AttributeBegin without AttributeEnd")
+        self.finish_options()
+
+    def unused(self, d: Directive) -> None:
+        for p in d.params.unused():
+            if (d.name, p.name) not in SILENT:
+                kind = f' "{d.args[0]}"' if d.args and isinstance(d.args[0], str) else ""
+                self.warn(p.pos, f'"{p.type} {p.name}" of {d.name}{kind}: not supported; ignored')
+                p.used = True
+
+    # -- transforms ------------------------------------------------------------------------------
+
+    def _apply(self, m) -> None:
+        self.state.ctm = self.state.ctm @ m
+
+    def d_Identity(self, d):
+        self.state.ctm = np.eye(4)
+
+    def d_Translate(self, d):
+        self._apply(translate(d.args[0]))
+
+    def d_Scale(self, d):
+        self._apply(scale(d.args[0]))
+
+    def d_Rotate(self, d):
+        angle, *axis = d.args[0]
+        if not np.linalg.norm(axis) > 0:
+            raise error_at(d.pos, "Rotate needs a non-zero axis")
+        self._apply(rotate(axis, angle))
+
+    def d_LookAt(self, d):
+        v = np.asarray(d.args[0], np.float64)
+        eye, look, up = v[:3], v[3:6], v[6:]
+        fwd = look - eye
+        if not np.linalg.norm(fwd) > 0:
+            raise error_at(d.pos, "LookAt: the eye and the point looked at are the same")
+        fwd /= np.linalg.norm(fwd)
+        right = np.cross(up / max(np.linalg.norm(up), 1e-300), fwd)
+        if not np.linalg.norm(right) > 1e-9:
+            raise error_at(d.pos, "LookAt: 'up' is zero or parallel to the viewing direction")
+        right /= np.linalg.norm(right)
+        world_from_camera = np.eye(4)
+        world_from_camera[:3, 0], world_from_camera[:3, 1] = right, np.cross(fwd, right)
+        world_from_camera[:3, 2], world_from_camera[:3, 3] = fwd, eye
+        self._apply(np.linalg.inv(world_from_camera))
+
+    def _matrix(self, d):
+        # pbrt's Transform lists the matrix column by column (the transpose of its rows)
+        m = np.asarray(d.args[0], np.float64).reshape(4, 4).T
+        if abs(np.linalg.det(m)) < 1e-300:
+            raise error_at(d.pos, f"{d.name}: the matrix is singular")
+        return m
+
+    def d_Transform(self, d):
+        self.state.ctm = self._matrix(d)
+
+    def d_ConcatTransform(self, d):
+        self._apply(self._matrix(d))
+
+    def d_CoordinateSystem(self, d):
+        self.coords[d.args[0]] = self.state.ctm.copy()
+
+    def d_CoordSysTransform(self, d):
+        if d.args[0] not in self.coords:
+            self.warn(d.pos, f"CoordSysTransform: no coordinate system named '{d.args[0]}'; ignored")
+            return
+        self.state.ctm = self.coords[d.args[0]].copy()
+
+    def d_ReverseOrientation(self, d):
+        self.state.reverse = not self.state.reverse
+
+    def d_TransformTimes(self, d):
+        self.warn(d.pos, "TransformTimes: motion blur is not supported; ignored")
+
+    def d_ActiveTransform(self, d):
+        if d.args[0] != "All":
+            self.warn(d.pos, f"ActiveTransform {d.args[0]}: motion blur is not supported; ignored")
+
+    # -- blocks ----------------------------------------------------------------------------------
+
+    def d_AttributeBegin(self, d):
+        self.stack.append(dataclasses.replace(self.state, ctm=self.state.ctm.copy()))
+
+    def d_AttributeEnd(self, d):
+        if not self.stack:
+            raise error_at(d.pos, f"{d.name} without a matching {d.name.replace('End', 'Begin')}")
+        self.state = self.stack.pop()
+
+    def d_TransformBegin(self, d):  # deprecated in pbrt-v4: saves the transform only
+        self.stack.append(dataclasses.replace(self.state, ctm=self.state.ctm.copy()))
+
+    def d_TransformEnd(self, d):
+        if not self.stack:
+            raise error_at(d.pos, "TransformEnd without a matching TransformBegin")
+        saved = self.stack.pop()
+        self.state.ctm = saved.ctm
+
+    def d_WorldBegin(self, d):
+        self.in_world = True
+        self.state.ctm = np.eye(4)
+        self.coords["world"] = np.eye(4)
+
+    def d_WorldEnd(self, d):  # pbrt-v3
+        pass
+
+    def d_ObjectBegin(self, d):
+        if self.recording is not None:
+            raise error_at(d.pos, "ObjectBegin inside another ObjectBegin")
+        self.d_AttributeBegin(d)
+        self.recording = self.instances[d.args[0]] = []
+
+    def d_ObjectEnd(self, d):
+        if self.recording is None:
+            raise error_at(d.pos, "ObjectEnd without ObjectBegin")
+        self.recording = None
+        self.d_AttributeEnd(d)
+
+    def d_ObjectInstance(self, d):
+        if d.args[0] not in self.instances:
+            raise error_at(d.pos, f"ObjectInstance: no object named '{d.args[0]}' (ObjectBegin)")
+        m = self.state.ctm
+        for kind, *data in self.instances[d.args[0]]:
+            if kind == "mesh":
+                v, f, uv, mat = data
+                self.b.add_mesh(v, f, mat, uvs=uv, matrix=m)
+            else:
+                centre, radius, mat, pos = data
+                self._sphere(transform_points(m, centre)[0], radius, m, mat, pos, False)
+
+    # -- options ---------------------------------------------------------------------------------
+
+    def d_Camera(self, d):
+        self.camera = (d, self.state.ctm.copy())
+        self.coords["camera"] = np.linalg.inv(self.state.ctm)
+
+    def _option(self, d):
+        self.options[d.name] = d
+
+    d_Sampler = d_Film = d_Integrator = d_PixelFilter = _option
+
+    def d_Accelerator(self, d):
+        for p in d.params.items.values():
+            p.used = True
+
+    def d_ColorSpace(self, d):
+        if d.args[0] != "srgb":
+            self.warn(d.pos, f"ColorSpace '{d.args[0]}': colours are read as linear sRGB")
+
+    def d_Option(self, d):
+        for p in d.params.items.values():
+            self.warn(p.pos, f'Option "{p.type} {p.name}": not supported; ignored')
+            p.used = True
+
+    def finish_options(self) -> None:
+        st = RenderSettings(width=1280, height=720, spp=16, max_depth=6, rr_depth=2)
+        self.b.settings = st
+        film = self.options.get("Film")
+        if film is not None:
+            if film.args[0] != "rgb":
+                self.warn(film.pos, f'Film "{film.args[0]}": read as an "rgb" film')
+            st.width = film.params.integer("xresolution", 1280)
+            st.height = film.params.integer("yresolution", 720)
+            if st.width < 1 or st.height < 1:
+                raise error_at(film.pos, f"Film: impossible resolution {st.width}x{st.height}")
+            for key, neutral in (("iso", 100.0), ("exposuretime", 1.0), ("whitebalance", 0.0)):
+                value = film.params.float(key, neutral)
+                if value != neutral:
+                    self.warn(film.params.items[key].pos, f'Film "float {key}" {value:g}: not supported; ignored')
+            sensor = film.params.string("sensor", "cie1931")
+            if sensor != "cie1931":
+                self.warn(film.params.items["sensor"].pos, f"Film sensor '{sensor}': rendered as cie1931")
+            self.unused(film)
+        sampler = self.options.get("Sampler")
+        if sampler is not None:
+            st.spp = sampler.params.integer("pixelsamples", 16)
+            if st.spp < 1:
+                raise error_at(sampler.pos, "Sampler: pixelsamples must be at least 1")
+            self.unused(sampler)
+        integ = self.options.get("Integrator")
+        if integ is not None:
+            if integ.args[0] not in ("volpath", "path", "simplepath", "simplevolpath"):
+                self.warn(integ.pos, f'Integrator "{integ.args[0]}": rendered with our path tracer (MIS)')
+            depth = integ.params.integer("maxdepth", 5)
+            if depth < 0:
+                raise error_at(integ.pos, f"Integrator: maxdepth must be >= 0, got {depth}")
+            st.max_depth = depth + 1  # pbrt counts bounces, we count path segments
+            if integ.params.boolean("regularize", False):
+                self.warn(integ.params.items["regularize"].pos, "Integrator: regularize is not supported; ignored")
+            self.unused(integ)
+        pf = self.options.get("PixelFilter")
+        if pf is not None:
+            if pf.args[0] != "box":
+                self.warn(pf.pos, f'PixelFilter "{pf.args[0]}": we filter with a box (uniform over the pixel)')
+            for p in pf.params.items.values():
+                p.used = True
+        if self.camera is not None:
+            self.finish_camera(*self.camera)
+
+    def finish_camera(self, d: Directive, camera_from_world) -> None:
+        st, p = self.b.settings, d.params
+        if d.args[0] != "perspective":
+            self.warn(d.pos, f'Camera "{d.args[0]}": not supported; using a camera that frames the scene')
+            return
+        fov = p.float("fov", 90.0)
+        if not 0 < fov < 180:
+            raise error_at(d.pos, f"Camera: fov must be between 0 and 180 degrees, got {fov:g}")
+        # pbrt's fov spans the shorter image side
+        vfov = fov if st.height <= st.width else \
+            math.degrees(2 * math.atan(math.tan(math.radians(fov) / 2) * st.height / st.width))
+        lens = p.float("lensradius", 0.0)
+        focus = p.float("focaldistance", 1e6)
+        for key in ("screenwindow", "frameaspectratio"):
+            if key in p:
+                self.warn(p.items[key].pos, f'Camera "{key}": not supported; ignored')
+                p.items[key].used = True
+        self.b.camera, self.b.mirror = camera_from_matrix(np.linalg.inv(camera_from_world), vfov, 1.0,
+                                                          aperture=max(lens, 0.0), focus=focus if lens > 0 else None)
+        self.unused(d)
+
+    # -- materials, textures, lights ---------------------------------------------------------------
+
+    def d_Material(self, d):
+        self.state.material = self.materials.make(d.args[0], d.params, d.pos, f'Material "{d.args[0]}"')
+
+    def d_MakeNamedMaterial(self, d):
+        mtype = d.params.string("type")
+        if mtype is None:
+            raise error_at(d.pos, f'MakeNamedMaterial "{d.args[0]}" needs "string type"')
+        self.materials.named[d.args[0]] = self.materials.make(mtype, d.params, d.pos, f'material "{d.args[0]}"',
+                                                              name=d.args[0])
+
+    def d_NamedMaterial(self, d):
+        self.state.material = ("named", d.args[0], d.pos)
+
+    def d_Texture(self, d):
+        self.materials.texture(d)
+
+    def d_AreaLightSource(self, d):
+        if d.args[0] != "diffuse":
+            self.warn(d.pos, f'AreaLightSource "{d.args[0]}": not supported; ignored')
+            return
+        radiance = spectrum_rgb(self, d.params, "L", (1.0, 1.0, 1.0))
+        s = d.params.float("scale", 1.0)
+        if "power" in d.params:
+            self.warn(d.params.items["power"].pos, 'AreaLightSource "power": not supported; using "L"')
+            d.params.items["power"].used = True
+        self.state.area = (tuple(c * s for c in radiance), bool(d.params.boolean("twosided", False)))
+
+    def d_LightSource(self, d):
+        t, p, m = d.args[0], d.params, self.state.ctm
+        s = p.float("scale", 1.0)
+        if "power" in p or "illuminance" in p:
+            key = "power" if "power" in p else "illuminance"
+            self.warn(p.items[key].pos, f'LightSource "{t}": "{key}" is not supported; using the radiance given')
+            p.items[key].used = True
+        if t == "point":
+            pos = transform_points(m, p.numbers("from", ("point3", "point"), 3, [0.0, 0.0, 0.0]))[0]
+            intensity = spectrum_rgb(self, p, "I", (1.0, 1.0, 1.0))
+            self.b.add_light(PointLight(position=tuple(map(float, pos)), intensity=tuple(c * s for c in intensity)))
+        elif t == "distant":
+            src = np.asarray(p.numbers("from", ("point3", "point"), 3, [0.0, 0.0, 0.0]), np.float64)
+            dst = np.asarray(p.numbers("to", ("point3", "point"), 3, [0.0, 0.0, 1.0]), np.float64)
+            direction = transform_vector(m, dst - src)
+            if not np.linalg.norm(direction) > 0:
+                raise error_at(d.pos, 'LightSource "distant": "from" and "to" are the same point')
+            radiance = spectrum_rgb(self, p, "L", (1.0, 1.0, 1.0))
+            self.b.add_light(DirectionalLight(direction=tuple(map(float, direction / np.linalg.norm(direction))),
+                                              irradiance=tuple(c * s for c in radiance)))
+        elif t == "infinite":
+            self.infinite(d, s)
+        else:
+            self.warn(d.pos, f'LightSource "{t}": not supported; ignored')
+
+    def infinite(self, d, s) -> None:
+        p = d.params
+        fname = p.string("filename")
+        if "portal" in p:
+            self.warn(p.items["portal"].pos, 'LightSource "infinite": portals are not supported; ignored')
+            p.items["portal"].used = True
+        if fname is None:
+            radiance = spectrum_rgb(self, p, "L", (1.0, 1.0, 1.0))
+            self.b.set_environment(Environment(radiance=tuple(c * s for c in radiance)), d.pos)
+            return
+        from .images import read_hdr_image
+        from .pbrt_materials import equal_area_sphere_to_square
+
+        path = self.path.parent / fname
+        if not path.is_file():
+            raise error_at(d.pos, f"LightSource \"infinite\": file '{fname}' not found (looked for {path})")
+        image = read_hdr_image(path, f'{d.pos}: LightSource "infinite"')
+        h, w = image.shape[:2]
+        wrap = h != w
+        if h == w:
+            lookup, out = equal_area_sphere_to_square, (h, 2 * h)
+        else:
+            self.warn(d.pos, f"LightSource \"infinite\": '{fname}' is not square (pbrt-v4 wants an equal-area "
+                             "octahedral map); read as pbrt-v3's latitude-longitude map")
+            lookup, out = _latlong_uv, (h, w)
+        rot = self.state.ctm[:3, :3]
+        self.b.set_environment(EnvMap(image=image, lookup=lookup, to_world=rot, scale=(s, s, s), source=fname,
+                                      out_shape=out, wrap_u=wrap), d.pos)
+
+    def d_MakeNamedMedium(self, d):
+        self.warn(d.pos, "MakeNamedMedium: participating media are not supported; ignored")
+        for p in d.params.items.values():
+            p.used = True
+
+    def d_MediumInterface(self, d):
+        if any(a for a in d.args):
+            self.warn(d.pos, "MediumInterface: participating media are not supported; ignored")
+
+    def d_Attribute(self, d):
+        self.warn(d.pos, f'Attribute "{d.args[0]}": default parameters are not supported; ignored')
+        for p in d.params.items.values():
+            p.used = True
+
+    # -- shapes ----------------------------------------------------------------------------------
+
+    def _material(self, pos) -> Material | None:
+        mat = self.state.material
+        if isinstance(mat, tuple):
+            _, mname, mpos = mat
+            if mname not in self.materials.named:
+                raise error_at(mpos, f"NamedMaterial: no material named '{mname}' (MakeNamedMaterial)")
+            mat = self.materials.named[mname]
+        if mat is None:  # "interface"
+            return None
+        if self.state.area is not None:
+            radiance, two_sided = self.state.area
+            mat = self.b.emissive(mat, radiance, two_sided)
+        return mat
+
+    def d_Shape(self, d):
+        from .pbrt_shapes import shape_geometry
+
+        mat = self._material(d.pos)
+        if mat is None:
+            self.warn(d.pos, f'Shape "{d.args[0]}" with an "interface" material: invisible; skipped')
+            for p in d.params.items.values():
+                p.used = True
+            return
+        if "alpha" in d.params:
+            self.warn(d.params.items["alpha"].pos, f'Shape "{d.args[0]}": "alpha" cut-outs are not supported')
+            d.params.items["alpha"].used = True
+        geometry = shape_geometry(self, d)
+        if geometry is None:
+            return
+        m, flip = self.state.ctm, self.state.reverse
+        if isinstance(geometry[0], str):  # ("sphere", radius)
+            _, radius = geometry
+            if self.recording is not None:
+                self.recording.append(("sphere", transform_points(m, [0, 0, 0])[0], radius, mat, d.pos))
+                return
+            self._sphere(transform_points(m, [0, 0, 0])[0], radius, m, mat, d.pos, flip)
+            return
+        v, f, uv = geometry
+        if self.recording is not None:
+            if flip:
+                f, uv = f[:, ::-1], (uv[:, ::-1] if uv is not None else None)
+            v = transform_points(m, v)
+            if np.linalg.det(m[:3, :3]) < 0:
+                f, uv = f[:, ::-1], (uv[:, ::-1] if uv is not None else None)
+            self.recording.append(("mesh", v, f, uv, mat))
+            return
+        self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip)
+
+    def _sphere(self, centre, radius, m, mat, pos, flip) -> None:
+        s = np.linalg.svd(m[:3, :3], compute_uv=False)
+        if s.max() - s.min() > 1e-6 * s.max():  # scaled unevenly: an ellipsoid, as triangles
+            v, f, uv = sphere_mesh(radius)
+            self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip)
+            return
+        if flip and mat.is_emissive:
+            self.warn(pos, 'Shape "sphere": ReverseOrientation: our spheres emit outwards only')
+        self.b.add_sphere(centre, radius * float(s.mean()), mat)
+
+
+def _latlong_uv(d):
+    """pbrt-v3's infinite light: z up, u = phi / 2 pi with phi = atan2(y, x), v = theta / pi."""
+    phi = np.mod(np.arctan2(d[:, 1], d[:, 0]), 2 * np.pi)
+    return phi / (2 * np.pi), np.arccos(np.clip(d[:, 2], -1.0, 1.0)) / np.pi
+

@@ -1,0 +1,156 @@
+"""pbrt-v4 shapes in object space: ``trianglemesh``, ``bilinearmesh`` (as triangles), ``plymesh``,
+``loopsubdiv`` (its control mesh, with a warning), ``sphere`` (ours when whole and evenly scaled,
+else triangles), ``disk`` and ``cylinder`` (triangles).
+
+Texture coordinates become ours as (u, 1 - v): pbrt-v4's image textures look up (s, 1 - t) with
+row 0 at the top of the image, ours (u, v) with row 0 at the top.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .builder import cylinder_mesh, disk_mesh, error_at, grid_mesh, sphere_mesh
+
+
+def _flip_v(uv):
+    if uv is None:
+        return None
+    uv = np.asarray(uv, np.float32).copy()
+    uv[..., 1] = 1.0 - uv[..., 1]
+    return uv
+
+
+def _points(d, name="P", required=True):
+    p = d.params
+    values = p.numbers(name, ("point3", "point"))
+    if values is None:
+        if required:
+            raise error_at(d.pos, f'Shape "{d.args[0]}" needs "point3 {name}"')
+        return None
+    if len(values) % 3:
+        raise error_at(p.items[name].pos, f'"point3 {name}": {len(values)} numbers are not whole points')
+    return np.asarray(values, np.float64).reshape(-1, 3)
+
+
+def _indices(d, n_points, per, default_count):
+    p = d.params
+    values = p.numbers("indices", ("integer",))
+    if values is None:
+        if n_points != default_count:
+            raise error_at(d.pos, f'Shape "{d.args[0]}" needs "integer indices" (it has {n_points} points)')
+        return np.arange(per, dtype=np.int64).reshape(1, per)
+    idx = np.asarray(values)
+    if not np.all(idx == np.round(idx)):
+        raise error_at(p.items["indices"].pos, '"integer indices" must be integers')
+    idx = idx.astype(np.int64)
+    if len(idx) % per:
+        raise error_at(p.items["indices"].pos, f'"integer indices": {len(idx)} is not a multiple of {per}')
+    if len(idx) and (idx.min() < 0 or idx.max() >= n_points):
+        raise error_at(p.items["indices"].pos, f'"integer indices": an index outside [0, {n_points})')
+    return idx.reshape(-1, per)
+
+
+def _uvs(d, n_points):
+    p = d.params
+    values = p.numbers("uv", ("point2",))
+    if values is None:
+        return None
+    uv = np.asarray(values, np.float64).reshape(-1, 2)
+    if len(uv) != n_points:
+        raise error_at(p.items["uv"].pos, f'"point2 uv": {len(uv)} coordinates for {n_points} points')
+    return uv
+
+
+def shape_geometry(imp, d):
+    """('sphere', radius), (vertices, faces, per-corner uvs) or None (warned and skipped)."""
+    t, p = d.args[0], d.params
+    if t == "trianglemesh":
+        v = _points(d)
+        f = _indices(d, len(v), 3, 3)
+        uv = _uvs(d, len(v))
+        return v, f, _flip_v(uv[f]) if uv is not None else None
+    if t == "bilinearmesh":
+        return _bilinear(d)
+    if t == "loopsubdiv":
+        imp.warn(d.pos, 'Shape "loopsubdiv": rendered as its control mesh (not subdivided)')
+        p.integer("levels", 3)
+        v = _points(d)
+        return v, _indices(d, len(v), 3, 3), None
+    if t == "plymesh":
+        return _plymesh(imp, d)
+    if t == "sphere":
+        radius = p.float("radius", 1.0)
+        if not radius > 0:
+            raise error_at(d.pos, f'Shape "sphere": radius must be > 0, got {radius:g}')
+        zmin, zmax, phimax = p.float("zmin", -radius), p.float("zmax", radius), p.float("phimax", 360.0)
+        if zmin > -radius or zmax < radius or phimax < 360:
+            return sphere_mesh(radius, zmin, zmax, min(phimax, 360.0))
+        return ("sphere", radius)
+    if t == "disk":
+        radius = p.float("radius", 1.0)
+        return disk_mesh(radius, p.float("innerradius", 0.0), p.float("height", 0.0),
+                         min(p.float("phimax", 360.0), 360.0))
+    if t == "cylinder":
+        return cylinder_mesh(p.float("radius", 1.0), p.float("zmin", -1.0), p.float("zmax", 1.0),
+                             min(p.float("phimax", 360.0), 360.0))
+    imp.warn(d.pos, f'Shape "{t}": not supported; ignored')
+    for q in p.items.values():
+        q.used = True
+    return None
+
+
+def _bilinear(d):
+    """Each patch (p00, p10, p01, p11) as triangles (p00, p10, p11), (p00, p11, p01), whose front
+    is pbrt's dp/du x dp/dv; a patch that is not flat is cut into an 8 x 8 grid first."""
+    v = _points(d)
+    patches = _indices(d, len(v), 4, 4)
+    uv = _uvs(d, len(v))
+    parts = []
+    for patch in patches:
+        p00, p10, p01, p11 = v[patch]
+        uv4 = uv[patch] if uv is not None else np.array([[0, 0], [1, 0], [0, 1], [1, 1]], np.float64)
+        normal = np.cross(p10 - p00, p01 - p00)
+        size = max(np.linalg.norm(p10 - p00), np.linalg.norm(p01 - p00), 1e-300)
+        flat = abs(np.dot(p11 - p00, normal)) <= 1e-6 * size * max(np.linalg.norm(normal), 1e-300)
+        n = 1 if flat else 8
+
+        def lerp(corners, s, t):
+            c00, c10, c01, c11 = (np.asarray(c, np.float64) for c in corners)
+            s, t = s[:, None], t[:, None]
+            return (1 - s) * (1 - t) * c00 + s * (1 - t) * c10 + (1 - s) * t * c01 + s * t * c11
+
+        pv, pf, puv = grid_mesh(lambda s, t: lerp((p00, p10, p01, p11), s, t), n, n)
+        grid_uv = lerp(uv4, puv[..., 0].ravel(), puv[..., 1].ravel()).reshape(-1, 3, 2)
+        parts.append((pv, pf, grid_uv))
+    offsets = np.cumsum([0] + [len(x[0]) for x in parts[:-1]])
+    vs = np.concatenate([x[0] for x in parts])
+    fs = np.concatenate([x[1] + o for x, o in zip(parts, offsets)])
+    uvs = np.concatenate([x[2] for x in parts]) if uv is not None else None
+    return vs, fs, _flip_v(uvs)
+
+
+def _plymesh(imp, d):
+    from ..mesh import MeshError, flatten, load_trimesh
+    from .meshfile import trimesh_uvs
+
+    p = d.params
+    fname = p.string("filename")
+    if fname is None:
+        raise error_at(d.pos, 'Shape "plymesh" needs "string filename"')
+    path = imp.path.parent / fname
+    if not path.is_file():
+        raise error_at(d.pos, f"Shape \"plymesh\": file '{fname}' not found (looked for {path})")
+    if path.suffix.lower() == ".gz":
+        raise error_at(d.pos, f"Shape \"plymesh\": '{fname}': compressed PLY files are not supported (gunzip it)")
+    for key in ("displacement", "edgelength"):
+        if key in p:
+            imp.warn(p.items[key].pos, f'Shape "plymesh": {key} is not supported; ignored')
+            p.items[key].used = True
+    try:
+        loaded = load_trimesh(path)
+        v, f = flatten(loaded, name=str(path))
+    except MeshError as exc:
+        raise error_at(d.pos, f'Shape "plymesh": {exc}') from None
+    if len(f) == 0:
+        raise error_at(d.pos, f"Shape \"plymesh\": '{fname}' contains no triangles")
+    return np.asarray(v, np.float64), np.asarray(f, np.int64), trimesh_uvs(loaded, v, f)

@@ -1,0 +1,695 @@
+"""Mitsuba 3 XML scenes (pyopencl_rt/scene/loaders/mitsuba_*.py): structure, values, transforms,
+sensor, integrator, shapes, BSDFs, emitters, warnings and errors, checked against hand-computed
+values and, where Mitsuba 3 imports (its scalar_rgb variant needs no LLVM), against Mitsuba itself."""
+from __future__ import annotations
+
+import json
+import math
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pyopencl_rt as rt
+from pyopencl_rt.scene.loaders import SceneError, load_scene
+from pyopencl_rt.scene.loaders.mitsuba_serialized import write_serialized
+
+from scene_compare import render_pair_z, triangle_records, triangles_equal, write_exr_image, write_png_image
+
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
+CORNELL_XML = SCENES / "cornell-box.xml"
+CORNELL_TOML = SCENES / "cornell-box.toml"
+
+
+def mitsuba():
+    try:
+        import mitsuba as mi
+    except ImportError as exc:
+        pytest.skip(f"Mitsuba 3 is not installed (pip install mitsuba): {exc}")
+    mi.set_variant("scalar_rgb")
+    return mi
+
+
+def write(tmp_path, body, name="s.xml", version="3.0.0") -> Path:
+    path = tmp_path / name
+    path.write_text(f'<scene version="{version}">\n{body}\n</scene>\n')
+    return path
+
+
+def line_of(path, text) -> int:
+    """The line of the first occurrence of ``text`` in the file."""
+    return next(i for i, line in enumerate(Path(path).read_text().splitlines(), 1) if text in line)
+
+
+def load(path, defines=None):
+    """(scene, warnings) of a Mitsuba XML file."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        scene = load_scene(path, defines=defines)
+    return scene, [str(w.message) for w in caught]
+
+
+SPHERE = '<shape type="sphere"><float name="radius" value="0.5"/></shape>'
+
+
+# -- the Cornell box -------------------------------------------------------------------------------
+
+def test_cornell_box_xml_is_the_toml_cornell_box():
+    xml, warned = load(CORNELL_XML)
+    toml = load_scene(CORNELL_TOML)
+    assert warned == [] and xml.warnings == [] and xml.format == "mitsuba-xml"
+    light = [m.is_emissive for m in xml.materials]
+    ours = triangle_records(xml, skip_emissive=True)
+    assert triangles_equal(ours, triangle_records(toml, skip_emissive=True))
+    # the light: a rectangle with the TOML quad's corners, area and downward front side
+    lf = xml.faces[np.asarray(light)[xml.face_materials]]
+    v = xml.vertices[lf].astype(np.float64)
+    normals = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    assert np.allclose(normals / np.linalg.norm(normals, axis=1, keepdims=True), [0, -1, 0], atol=1e-6)
+    assert np.isclose(0.5 * np.linalg.norm(normals, axis=1).sum(), 130 * 105, rtol=1e-6)
+    assert np.allclose(v.reshape(-1, 3).min(0), [213, 548.7, 227], atol=1e-3)
+    assert np.allclose(v.reshape(-1, 3).max(0), [343, 548.7, 332], atol=1e-3)
+    lm = xml.materials[light.index(True)]
+    assert lm.emission == (17, 12, 4) and lm.albedo == (0, 0, 0) and not lm.two_sided
+    cam, tc = xml.camera, toml.camera
+    assert cam.eye == tc.eye and np.isclose(cam.fov, tc.fov) and cam.up == tc.up
+    assert np.allclose(np.subtract(cam.look_at, cam.eye), [0, 0, 1])
+    st = xml.settings
+    assert (st.width, st.height, st.spp, st.max_depth) == (512, 512, 64, 8)
+
+
+def test_cornell_box_xml_renders_as_the_toml_box():
+    xml, _ = load(CORNELL_XML)
+    z = render_pair_z(xml, load_scene(CORNELL_TOML))
+    assert np.abs(z).max() < 4.5, z
+
+
+def _mitsuba_image(mi, path, width, height, batches, spp, **defines):
+    scene = mi.load_file(str(path), resx=width, resy=height, spp=spp, **defines)
+    images = np.stack([np.asarray(mi.render(scene, seed=i, spp=spp), np.float64) for i in range(batches)])
+    return images.mean(0), images.var(0, ddof=1) / batches
+
+
+def _z_against_mitsuba(ours_scene, mi_image, mi_var, width, height, spp, tile=8):
+    r = rt.render_full(ours_scene, spp=spp, width=width, height=height, device="cpu", seed=5)
+    ours, var = r.image.astype(np.float64), r.film.variance_of_mean()
+
+    def tiles(a):
+        return a.reshape(height // tile, tile, width // tile, tile, 3).sum(axis=(1, 3)) / tile ** 2
+
+    z = (tiles(ours) - tiles(mi_image)) / np.sqrt((tiles(var) + tiles(mi_var)) / tile ** 2)
+    whole = (ours.mean((0, 1)) - mi_image.mean((0, 1))) / np.sqrt((var + mi_var).sum((0, 1))) * width * height
+    return z, whole, ours
+
+
+@pytest.mark.parametrize("mirror", [False, True], ids=["as-published", "camera-mirrored"])
+def test_cornell_box_matches_mitsuba(tmp_path, mirror):
+    """The XML Cornell box rendered by Mitsuba 3 (scalar_rgb, 8 batches of 64 spp: their spread
+    gives Mitsuba's variance) and by us (512 spp), 32 x 32, compared in 8 x 8 tiles: every tile and
+    the image mean within the noise.  Mirrored: a <scale x="-1"/> before the lookat flips Mitsuba's
+    image; we must flip ours the same way (the builder mirrors the scene)."""
+    mi = mitsuba()
+    path = CORNELL_XML
+    if mirror:
+        path = tmp_path / "cornell-box.xml"
+        text = CORNELL_XML.read_text().replace('<lookat origin', '<scale x="-1"/>\n<lookat origin')
+        path.write_text(text.replace('value="cornell-box/', f'value="{SCENES}/cornell-box/'))
+    w = h = 32
+    theirs, their_var = _mitsuba_image(mi, path, w, h, 8, 64)
+    scene, warned = load(path, {"resx": w, "resy": h})
+    assert warned == []
+    z, whole, ours = _z_against_mitsuba(scene, theirs, their_var, w, h, 512)
+    assert np.abs(z).max() < 4.5, f"tile z-scores {np.round(z, 2)}"
+    assert np.abs(whole).max() < 4.0, f"image-mean z {whole}"
+    red_left = ours[:, :8, 0].mean() > ours[:, -8:, 0].mean()
+    assert red_left != mirror and (theirs[:, :8, 0].mean() > theirs[:, -8:, 0].mean()) != mirror
+
+
+# -- structure ---------------------------------------------------------------------------------------
+
+def test_defaults_substitution_and_defines(tmp_path):
+    path = write(tmp_path, """
+        <default name="spp" value="16"/>
+        <default name="r" value="0.25"/>
+        <sensor type="perspective">
+            <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
+            <film type="hdrfilm"><integer name="width" value="$w"/><integer name="height" value="24"/></film>
+        </sensor>
+        <shape type="sphere"><float name="radius" value="$r"/></shape>""")
+    n = line_of(path, "$w")
+    with pytest.raises(SceneError, match=rf"s\.xml:{n}: <integer name=\"width\">: undefined parameter \$w "):
+        load_scene(path)
+    scene, _ = load(path, {"w": 40})
+    assert (scene.settings.spp, scene.settings.width, scene.spheres[0, 3]) == (16, 40, 0.25)
+    scene, _ = load(path, {"w": "8", "spp": "3", "r": "2"})  # a define beats the <default>
+    assert (scene.settings.spp, scene.settings.width, scene.spheres[0, 3]) == (3, 8, 2.0)
+
+
+def test_include_ref_alias_and_nested_ids(tmp_path):
+    (tmp_path / "parts").mkdir()
+    write(tmp_path, '<bsdf type="diffuse" id="grey"><rgb name="reflectance" value="0.3 0.3 0.3"/></bsdf>',
+          name="parts/materials.xml")
+    path = write(tmp_path, """
+        <include filename="parts/materials.xml"/>
+        <alias id="grey" as="also-grey"/>
+        <shape type="sphere">
+            <bsdf type="twosided" id="red"><bsdf type="diffuse"><rgb name="reflectance" value="0.5,0.1,0.1"/></bsdf></bsdf>
+        </shape>
+        <shape type="sphere"><point name="center" x="3"/><ref id="red"/></shape>
+        <shape type="sphere"><point name="center" x="6"/><ref id="also-grey"/></shape>
+        <shape type="sphere"><point name="center" x="9"/><ref name="bsdf" id="grey"/></shape>""")
+    scene, warned = load(path)
+    assert warned == []
+    albedo = [scene.materials[i].albedo for i in scene.sphere_materials]
+    assert albedo == [(0.5, 0.1, 0.1), (0.5, 0.1, 0.1), (0.3, 0.3, 0.3), (0.3, 0.3, 0.3)]
+    assert scene.sphere_materials[0] == scene.sphere_materials[1]  # one material, referenced twice
+    assert scene.materials[scene.sphere_materials[0]].name == "red"
+
+
+def test_values(tmp_path):
+    path = write(tmp_path, """
+        <sensor type="perspective">
+            <float name="fov" value="30"/>
+            <sampler type="independent"><integer name="sample_count" value="7"/></sampler>
+            <film type="hdrfilm"><integer name="width" value="20"/><integer name="height" value="10"/></film>
+        </sensor>
+        <shape type="sphere"><point name="center" value="1, 2, 3"/><float name="radius" value="2"/>
+            <boolean name="flip_normals" value="false"/>
+            <bsdf type="diffuse"><spectrum name="reflectance" value="0.25"/></bsdf></shape>
+        <shape type="sphere"><point name="center" x="-1" z="4"/>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0.1 0.2 0.3"/></bsdf></shape>
+        <shape type="sphere"><point name="center" x="5"/>
+            <bsdf type="diffuse"><spectrum name="reflectance" value="400:0.2, 500:0.4, 600:0.6"/></bsdf></shape>
+        <emitter type="directional"><vector name="direction" value="0 -2 0"/><rgb name="irradiance" value="2"/></emitter>
+        <emitter type="point"><string name="id_unused" value="x"/><point name="position" value="0,5,0"/></emitter>""")
+    scene, warned = load(path)
+    assert np.allclose(scene.spheres, [[1, 2, 3, 2], [-1, 0, 4, 1], [5, 0, 0, 1]])
+    assert [scene.materials[i].albedo for i in scene.sphere_materials] == [
+        (0.25, 0.25, 0.25), (0.1, 0.2, 0.3), pytest.approx((0.4, 0.4, 0.4))]
+    assert scene.settings.spp == 7 and (scene.settings.width, scene.settings.height) == (20, 10)
+    d, p = scene.lights
+    assert d.direction == (0, -1, 0) and d.irradiance == (2, 2, 2) and p.position == (0, 5, 0)
+    assert len(warned) == 2
+    n1, n2 = line_of(path, "400:0.2"), line_of(path, "id_unused")
+    assert re.match(rf".*s\.xml:{n1}: <spectrum name=\"reflectance\">: a spectrum given by wavelengths .* 0\.4", warned[0])
+    assert re.match(rf'.*s\.xml:{n2}: <string name="id_unused"> of <emitter type="point">: not supported', warned[1])
+
+
+def test_transforms_compose_in_document_order(tmp_path):
+    """A unit rectangle's corner (1, 1, 0) through scale x 2, rotate 90 about z, translate (0, 0, 5):
+    (2, 1, 0) -> (-1, 2, 0) -> (-1, 2, 5); and a matrix (rows) after them."""
+    path = write(tmp_path, """
+        <shape type="rectangle"><transform name="to_world">
+            <scale x="2"/><rotate z="1" angle="90"/><translate value="0 0 5"/>
+        </transform></shape>
+        <shape type="rectangle"><transform name="to_world">
+            <scale value="3"/>
+            <matrix value="0 -1 0 10  1 0 0 20  0 0 1 30  0 0 0 1"/>
+            <matrix value="1 0 0  0 1 0  0 0 -1"/>
+        </transform></shape>""")
+    scene, _ = load(path)
+    v = scene.vertices.astype(np.float64)
+    first, second = v[:4], v[4:]
+    assert np.allclose(sorted(map(tuple, np.round(first, 6))), sorted([(1, -2, 5), (1, 2, 5), (-1, 2, 5), (-1, -2, 5)]))
+    # corner (1, 1, 0): scale 3 -> (3, 3, 0); matrix -> (-3 + 10, 3 + 20, 30); 3x3 flips z -> (7, 23, -30)
+    assert any(np.allclose(p, [7, 23, -30]) for p in second)
+    # the mirror (det < 0) keeps the rectangle's front on the transformed +z side: -z
+    f = scene.faces[2]
+    n = np.cross(v[f[1]] - v[f[0]], v[f[2]] - v[f[0]])
+    assert n[2] < 0 and abs(n[0]) + abs(n[1]) < 1e-6
+
+
+def test_lookat_and_fov_axes(tmp_path):
+    def camera(attrs, film="100 50"):
+        w, h = film.split()
+        return load(write(tmp_path, f"""
+            <sensor type="perspective">{attrs}
+                <transform name="to_world"><lookat origin="1, 2, 3" target="1, 2, 13" up="0, 1, 0"/></transform>
+                <film type="hdrfilm"><integer name="width" value="{w}"/><integer name="height" value="{h}"/></film>
+            </sensor>{SPHERE}"""))[0].camera
+
+    cam = camera('<float name="fov" value="90"/>')  # fov_axis x (Mitsuba's default)
+    assert cam.eye == (1, 2, 3) and np.allclose(np.subtract(cam.look_at, cam.eye), [0, 0, 1])
+    assert np.isclose(cam.fov, 2 * math.degrees(math.atan(0.5)))  # tan(v/2) = tan(45) * 50 / 100
+    assert np.isclose(camera('<float name="fov" value="40"/><string name="fov_axis" value="y"/>').fov, 40)
+    assert np.isclose(camera('<float name="fov" value="40"/><string name="fov_axis" value="smaller"/>').fov, 40)
+    assert np.isclose(camera('<float name="fov" value="40"/><string name="fov_axis" value="larger"/>',
+                             "50 100").fov, 40)
+    diag = camera('<float name="fov" value="60"/><string name="fov_axis" value="diagonal"/>')
+    assert np.isclose(math.tan(math.radians(diag.fov) / 2), math.tan(math.radians(30)) * 50 / math.hypot(100, 50))
+    lens = camera('<string name="focal_length" value="35mm"/>')  # 35 mm film diagonal
+    assert np.isclose(math.tan(math.radians(lens.fov) / 2), math.hypot(36, 24) / 70 * 50 / math.hypot(100, 50))
+    thin = load(write(tmp_path, """<sensor type="thinlens"><float name="aperture_radius" value="0.2"/>
+        <float name="focus_distance" value="7"/></sensor>""" + SPHERE))[0].camera
+    assert (thin.aperture_radius, thin.focus_distance) == (0.2, 7.0)
+
+
+def test_fov_conversion_agrees_with_mitsuba():
+    from pyopencl_rt.scene.loaders.builder import vertical_fov
+
+    mi = mitsuba()
+    for axis in ("x", "y", "diagonal", "smaller", "larger"):
+        for w, h in ((200, 100), (90, 160)):
+            s = mi.load_dict({"type": "perspective", "fov": 40.0, "fov_axis": axis,
+                              "film": {"type": "hdrfilm", "width": w, "height": h}})
+            x_fov = math.radians(float(np.ravel(mi.traverse(s)["x_fov"])[0]))
+            ours = math.radians(vertical_fov(40.0, axis, w, h))
+            assert np.isclose(math.tan(ours / 2) * w / h, math.tan(x_fov / 2), rtol=1e-5), (axis, w, h)
+
+
+def test_integrators_film_filter_sampler(tmp_path):
+    def settings(body):
+        return load(write(tmp_path, body + SPHERE))
+
+    (s, w) = settings('<integrator type="path"><integer name="max_depth" value="5"/>'
+                      '<integer name="rr_depth" value="2"/></integrator>')
+    assert (s.settings.max_depth, s.settings.rr_depth, w) == (5, 2, [])
+    s, w = settings('<integrator type="direct"/>')
+    assert s.settings.max_depth == 2 and w == []
+    s, w = settings("")
+    assert (s.settings.max_depth, s.settings.rr_depth, s.settings.width, s.settings.spp) == (-1, 5, 768, 4)
+    s, w = settings('<integrator type="volpath"><integer name="max_depth" value="4"/></integrator>')
+    assert s.settings.max_depth == 4 and len(w) == 1 and 'integrator type="volpath"' in w[0]
+    s, w = settings('<sensor type="perspective"><film type="hdrfilm"><rfilter type="gaussian"/></film></sensor>')
+    assert len(w) == 1 and re.match(r'.*s\.xml:2: <rfilter type="gaussian">: we filter with a box', w[0]), w
+    s, w = settings('<sensor type="perspective"><film type="hdrfilm"><rfilter type="box"/></film></sensor>')
+    assert w == []
+
+
+def test_shapes_closed_form(tmp_path):
+    write_serialized(tmp_path / "tri.serialized", [
+        (np.eye(3), [[0, 1, 2]]), (np.eye(3) * 2, [[0, 1, 2]], [[0, 0], [1, 0], [0, 1]])])
+    from pyopencl_rt.bench.mitsuba_export import write_ply
+
+    write_ply(tmp_path / "tri.ply", np.eye(3), np.array([[0, 1, 2]]))
+    (tmp_path / "quad.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                                       "vn 0 0 1\nf 1/1/1 2/2/1 3/3/1 4/4/1\n")
+    shapes = {
+        "rectangle": ("", 4.0, [0, 0, 1]),
+        "cube": ("", 24.0, None),
+        "disk": ("", math.pi, [0, 0, 1]),
+        "cylinder": ('<point name="p0" value="0 0 1"/><point name="p1" value="0 0 4"/><float name="radius" value="2"/>',
+                     2 * math.pi * 2 * 3, None),
+        "obj": ('<string name="filename" value="quad.obj"/><boolean name="face_normals" value="true"/>', 1.0, [0, 0, 1]),
+        "ply": ('<string name="filename" value="tri.ply"/>', math.sqrt(3) / 2, np.ones(3) / math.sqrt(3)),
+        "serialized": ('<string name="filename" value="tri.serialized"/><integer name="shape_index" value="1"/>',
+                       math.sqrt(3) * 2, np.ones(3) / math.sqrt(3)),
+    }
+    for stype, (params, area, normal) in shapes.items():
+        for flip in (False, True):
+            fl = '<boolean name="flip_normals" value="true"/>' if flip else ""
+            scene, w = load(write(tmp_path, f'<shape type="{stype}">{params}{fl}</shape>'))
+            assert w == [], (stype, w)
+            v = scene.vertices.astype(np.float64)[scene.faces]
+            n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+            assert np.isclose(0.5 * np.linalg.norm(n, axis=1).sum(), area, rtol=1e-6), stype
+            if normal is not None:
+                unit = n / np.linalg.norm(n, axis=1, keepdims=True)
+                assert np.allclose(unit, -np.asarray(normal) if flip else normal, atol=1e-6), stype
+            else:  # closed or tube: fronts face away from the axis / centre
+                centre = v.reshape(-1, 3).mean(0)
+                out = np.einsum("ij,ij->i", n, v.mean(1) - centre * ([1, 1, 0] if stype == "cylinder" else 1))
+                assert (out < 0).all() if flip else (out > 0).all(), stype
+    scene, _ = load(write(tmp_path, '<shape type="obj"><string name="filename" value="quad.obj"/></shape>'))
+    assert np.allclose(scene.uvs[0], [[0, 1], [1, 1], [1, 0]])  # vt v flipped, as Mitsuba's flip_tex_coords
+    scene, _ = load(write(tmp_path, """<shape type="sphere"><point name="center" value="1 0 0"/>
+        <float name="radius" value="2"/><transform name="to_world"><scale value="3"/><translate x="1"/></transform>
+        </shape>"""))
+    assert np.allclose(scene.spheres, [[4, 0, 0, 6]])
+
+
+def test_serialized_reads_what_mitsuba_reads(tmp_path):
+    mi = mitsuba()
+    rng = np.random.default_rng(1)
+    v = rng.random((10, 3))
+    f = rng.integers(0, 10, (7, 3))
+    write_serialized(tmp_path / "m.serialized", [(v, f)])
+    shape = mi.load_dict({"type": "serialized", "filename": str(tmp_path / "m.serialized")})
+    p = mi.traverse(shape)
+    theirs = np.asarray(p["vertex_positions"]).reshape(-1, 3)[np.asarray(p["faces"]).reshape(-1, 3)]
+    scene, _ = load(write(tmp_path, '<shape type="serialized"><string name="filename" value="m.serialized"/></shape>'))
+    assert np.allclose(scene.vertices[scene.faces], theirs, atol=1e-6)
+
+
+# -- BSDFs and textures ------------------------------------------------------------------------------
+
+def _materials(tmp_path, bsdfs: str):
+    """The material of each sphere, one sphere per BSDF, and the warnings."""
+    body = "".join(f'<shape type="sphere"><point name="center" x="{3 * i}"/>{b}</shape>'
+                   for i, b in enumerate(bsdfs.strip().split("\n")))
+    scene, warned = load(write(tmp_path, body))
+    return [scene.materials[i] for i in scene.sphere_materials], warned
+
+
+def test_bsdfs(tmp_path):
+    from pyopencl_rt.scene.materials.conductor import METALS
+
+    mats, warned = _materials(tmp_path, """
+<bsdf type="diffuse"/>
+<bsdf type="dielectric"><float name="int_ior" value="1.6"/><string name="ext_ior" value="water"/></bsdf>
+<bsdf type="roughdielectric"><string name="distribution" value="ggx"/><float name="alpha" value="0.3"/><rgb name="specular_transmittance" value="0.9, 0.8, 0.7"/></bsdf>
+<bsdf type="thindielectric"/>
+<bsdf type="conductor"/>
+<bsdf type="conductor"><string name="material" value="Au"/></bsdf>
+<bsdf type="roughconductor"><string name="distribution" value="ggx"/><float name="alpha" value="0.2"/><rgb name="eta" value="0.2 0.9 1.1"/><rgb name="k" value="3 2.5 2"/></bsdf>
+<bsdf type="roughconductor"><string name="material" value="Cu"/></bsdf>
+<bsdf type="plastic"><rgb name="diffuse_reflectance" value="0.1 0.2 0.3"/></bsdf>
+<bsdf type="roughplastic"><string name="distribution" value="ggx"/><float name="alpha" value="0.25"/><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/></bsdf>
+<bsdf type="principled"><rgb name="base_color" value="0.8 0.5 0.2"/><float name="metallic" value="0.7"/><float name="roughness" value="0.4"/><float name="sheen" value="0"/></bsdf>
+<bsdf type="twosided"><bsdf type="conductor"><rgb name="specular_reflectance" value="0.5"/></bsdf></bsdf>
+<bsdf type="mask"><float name="opacity" value="0.5"/><bsdf type="diffuse"><rgb name="reflectance" value="0.2"/></bsdf></bsdf>
+<bsdf type="bumpmap"><bsdf type="roughconductor"/></bsdf>""")
+    expect = [
+        dict(type="diffuse", albedo=(0.5, 0.5, 0.5)),
+        dict(type="dielectric", ior=pytest.approx(1.6 / 1.333), alpha=0.0),
+        dict(type="dielectric", ior=pytest.approx(1.5046 / 1.000277), alpha=0.3, tint=(0.9, 0.8, 0.7)),
+        dict(type="dielectric", ior=pytest.approx(1.5046 / 1.000277), alpha=0.0),
+        dict(type="conductor", eta=None, f0=(1.0, 1.0, 1.0), alpha=0.0),  # Mitsuba's "none": a mirror
+        dict(type="conductor", eta=METALS["gold"][0], k=METALS["gold"][1]),
+        dict(type="conductor", eta=(0.2, 0.9, 1.1), k=(3, 2.5, 2), alpha=0.2),
+        dict(type="conductor", eta=METALS["copper"][0], alpha=0.1),
+        dict(type="gltf", metallic=0.0, albedo=(0.1, 0.2, 0.3), alpha=0.0, ior=pytest.approx(1.49 / 1.000277)),
+        dict(type="gltf", metallic=0.0, albedo=(0.5, 0.5, 0.5), alpha=0.25, ior=1.5),
+        dict(type="gltf", metallic=0.7, albedo=(0.8, 0.5, 0.2), alpha=pytest.approx(0.16),
+             ior=pytest.approx(2 / (1 - math.sqrt(0.04)) - 1)),  # Mitsuba's eta from specular 0.5
+        dict(type="conductor", eta=None, f0=(0.5, 0.5, 0.5)),
+        dict(type="diffuse", albedo=(0.2, 0.2, 0.2)),
+        dict(type="conductor", alpha=0.1),
+    ]
+    for i, (mat, want) in enumerate(zip(mats, expect)):
+        for key, value in want.items():
+            assert getattr(mat, key) == value, (i, key, getattr(mat, key))
+    expected_warnings = ['<bsdf type="thindielectric">: approximated by a dielectric interface',
+                         '<bsdf type="roughconductor">: the Beckmann distribution (Mitsuba\'s default) is rendered as GGX',
+                         '<bsdf type="mask">: opacity masks are not supported; rendering its nested BSDF',
+                         '<bsdf type="bumpmap">: bump and normal maps are not supported; rendering its nested BSDF',
+                         '<bsdf type="roughconductor">: the Beckmann distribution']
+    assert len(warned) == len(expected_warnings)
+    for w, needle in zip(warned, expected_warnings):
+        assert re.match(r".*s\.xml:\d+: ", w) and needle in w, (w, needle)
+
+
+def test_textures(tmp_path):
+    write_png_image(tmp_path / "tex.png", np.full((4, 8, 3), 255, np.uint8) * np.array([1, 0, 0], np.uint8))
+    mats, warned = _materials(tmp_path, """
+<bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="tex.png"/><string name="filter_type" value="bilinear"/><string name="wrap_mode" value="repeat"/></texture></bsdf>
+<bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="tex.png"/><boolean name="raw" value="true"/><string name="filter_type" value="nearest"/><string name="wrap_mode" value="clamp"/></texture></bsdf>
+<bsdf type="diffuse"><texture type="checkerboard" name="reflectance"><rgb name="color0" value="0.1"/><rgb name="color1" value="0.9"/></texture></bsdf>
+<bsdf type="roughconductor"><string name="distribution" value="ggx"/><texture type="checkerboard" name="alpha"/></bsdf>""")
+    assert mats[0].albedo == (1, 1, 1) and mats[0].base_texture.srgb and mats[0].base_texture.texels.shape == (4, 8, 4)
+    assert np.allclose(mats[0].base_texture.texels[..., :3], [1, 0, 0])
+    assert not mats[1].base_texture.srgb
+    t = mats[2].base_texture.texels[..., 0]
+    n = t.shape[0]  # Mitsuba's checkerboard: color0 where u and v are on the same side of 1/2
+    assert np.allclose([t[0, 0], t[n - 1, n - 1], t[0, n - 1], t[n - 1, 0]], [0.1, 0.1, 0.9, 0.9])
+    assert mats[3].alpha == pytest.approx(0.3)  # the checkerboard's mean of Mitsuba's default 0.4 and 0.2
+    assert [w.split(": ", 1)[1] for w in warned] == [
+        '<texture type="bitmap">: filter_type \'nearest\': we filter bilinearly',
+        '<texture type="bitmap">: wrap_mode \'clamp\': we repeat',
+        '<texture type="checkerboard"> as "alpha" of <bsdf type="roughconductor">: textures are not supported here; '
+        'using its mean (0.3, 0.3, 0.3)']
+
+
+# -- emitters ----------------------------------------------------------------------------------------
+
+def test_emitters(tmp_path):
+    image = np.zeros((2, 4, 3), np.float32)
+    image[:, :, 0] = [1, 2, 3, 4]  # Mitsuba's column u in [k/4, (k+1)/4): value k + 1
+    write_exr_image(tmp_path / "env.exr", image)
+    path = write(tmp_path, SPHERE + """
+        <shape type="rectangle"><emitter type="area"><rgb name="radiance" value="1 2 3"/></emitter></shape>
+        <emitter type="point"><rgb name="intensity" value="5"/><transform name="to_world"><translate value="1 2 3"/></transform></emitter>
+        <emitter type="directional"><transform name="to_world"><rotate x="1" angle="90"/></transform></emitter>
+        <emitter type="envmap"><string name="filename" value="env.exr"/><float name="scale" value="2"/></emitter>
+        <emitter type="constant"/>
+        <emitter type="spot"/>""")
+    scene, warned = load(path)
+    area = [m for m in scene.materials if m.is_emissive]
+    assert len(area) == 1 and area[0].emission == (1, 2, 3) and area[0].albedo == (0.5, 0.5, 0.5)
+    point, directional = scene.lights
+    assert point.position == (1, 2, 3) and point.intensity == (5, 5, 5)
+    assert np.allclose(directional.direction, [0, -1, 0])  # +z rotated 90 degrees about x
+    env = scene.environment
+    assert env.radiance == (2, 2, 2) and env.image.shape == (2, 4, 3)
+    # Mitsuba: +x at u = 1/4, +z at 1/2, -x at 3/4, -z at 0; ours: -x at u = 1/4, -z at 1/2, +x at 3/4
+    # (docs/SCENE_FORMAT.md): our columns hold Mitsuba's 3, 4, 1, 2 (within the bilinear spread)
+    assert np.allclose(env.image[:, :, 0], [3, 4, 1, 2])  # texel centres fall on texel centres: exact
+    # rotated 90 degrees about y: our u = 1/8 looks along (-1, 0, 1)/sqrt 2, in the map's frame (-1, 0, -1)/sqrt 2:
+    # Mitsuba's u = atan2(-1, 1) / 2 pi = 7/8, its value 4; and so on round
+    rotated = write(tmp_path, SPHERE + """<emitter type="envmap"><string name="filename" value="env.exr"/>
+        <transform name="to_world"><rotate y="1" angle="90"/></transform></emitter>""", name="r.xml")
+    assert np.allclose(load(rotated)[0].environment.image[:, :, 0], [4, 1, 2, 3])
+    assert [w.split(": ", 1)[1] for w in warned] == [
+        "a second environment light: we render one; ignored", '<emitter type="spot">: spot lights are not supported; ignored']
+    assert line_of(path, "constant") == int(warned[0].split(":")[1])
+
+
+def test_envmap_agrees_with_mitsuba(tmp_path):
+    """Our resampled environment, looked up as our kernels do (nearest texel), against Mitsuba's
+    envmap emitter, for random directions, with a to_world rotation."""
+    mi = mitsuba()
+    h, w = 32, 64
+    v, u = np.meshgrid((np.arange(h) + 0.5) / h, (np.arange(w) + 0.5) / w, indexing="ij")
+    image = np.stack([1 + np.sin(2 * np.pi * u), 1 + v, 1 + np.cos(np.pi * v) * np.cos(2 * np.pi * u)], -1)
+    write_exr_image(tmp_path / "env.exr", image)
+    path = write(tmp_path, SPHERE + """<emitter type="envmap"><string name="filename" value="env.exr"/>
+        <transform name="to_world"><rotate y="1" angle="40"/><rotate x="1" angle="-25"/></transform></emitter>""")
+    env = load(path)[0].environment
+    emitter = mi.load_file(str(path)).emitters()[0]
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(200, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    theta, phi = np.arccos(d[:, 1]), np.arctan2(-d[:, 0], d[:, 2])  # docs: (-sin t sin p, cos t, sin t cos p)
+    col = (np.mod(phi / (2 * np.pi), 1.0) * w).astype(int) % w
+    row = np.minimum((theta / np.pi * h).astype(int), h - 1)
+    ours = env.image[row, col].astype(np.float64)
+    si = mi.SurfaceInteraction3f()
+    theirs = []
+    for di in d:
+        si.wi = mi.Vector3f(*(-di))
+        theirs.append(np.ravel(emitter.eval(si)))
+    err = np.abs(ours - np.asarray(theirs))
+    assert np.median(err) < 0.05 and err.max() < 0.3, err.max()  # nearest against bilinear texels
+
+
+# -- warnings and errors -----------------------------------------------------------------------------
+
+def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
+    path = write(tmp_path, """
+        <integrator type="aov"><string name="aovs" value="nn:sh_normal"/><integrator type="path"/></integrator>
+        <sensor type="orthographic"/>
+        <medium type="homogeneous" id="fog"/>
+        <shape type="shapegroup" id="g"/>
+        <shape type="sphere"><bsdf type="hair"/><emitter type="point"/></shape>
+        <emitter type="projector"/>
+        <rgb name="stray" value="1"/>
+        <unknown/>""")
+    scene, warned = load(path)
+    assert len(scene.spheres) == 1 and scene.materials[0].albedo == (0.5, 0.5, 0.5)
+    expect = [("aov", 'integrator type="aov">: rendering its nested integrator only'),
+              ("aovs", '<string name="aovs"> of <integrator type="aov">: not supported; ignored'),
+              ("orthographic", '<sensor type="orthographic">: not supported; using a camera that frames the scene'),
+              ("fog", '<medium type="homogeneous" id="fog">: not supported; ignored'),
+              ("shapegroup", '<shape type="shapegroup" id="g">: shape type not supported; ignored'),
+              ("hair", '<bsdf type="hair">: BSDF type not supported; using diffuse 0.5'),
+              ("point", '<emitter type="point"> in <shape type="sphere">: only area emitters attach to shapes; ignored'),
+              ("projector", '<emitter type="projector">: emitter type not supported; ignored'),
+              ("stray", '<rgb name="stray">: a property of the scene itself; ignored'),
+              ("unknown", "<unknown>: unknown element; ignored")]
+    assert len(warned) == len(expect)
+    for message, (needle, what) in zip(sorted(warned, key=lambda x: (int(x.split(":")[1]), x)), expect):
+        assert message == f"{path}:{line_of(path, needle)}: {what}" or what in message, (message, what)
+        assert message.startswith(f"{path}:{line_of(path, needle)}: ")
+    assert scene.warnings == warned
+
+
+MALFORMED = [
+    ("<shape type='sphere'>", r"s\.xml:3:\d+: not well-formed XML \(mismatched tag\)"),
+    ("<shape type='sphere'><float name='radius' value='big'/></shape>",
+     r"s\.xml:2: <float name=\"radius\">: \"value\" must be numbers, got 'big'"),
+    ("<shape type='sphere'><float name='radius'/></shape>", r"s\.xml:2: <float name=\"radius\"> needs a \"value\" attribute"),
+    ("<shape type='sphere'><rgb name='x' value='1 2'/></shape>", r"\"value\" must be 1 or 3 finite numbers, got '1 2'"),
+    ("<shape type='sphere'><integer name='x' value='1.5'/></shape>", r"\"value\" must be an integer, got '1.5'"),
+    ("<shape type='sphere'><boolean name='flip_normals' value='yes'/></shape>", r"must be true or false, got 'yes'"),
+    ("<shape type='sphere'><float name='radius' value='1'/><float name='radius' value='2'/></shape>",
+     r"s\.xml:2: <shape type=\"sphere\">: property \"radius\" given twice \(first at line 2\)"),
+    ("<shape type='sphere'><ref id='nothing'/></shape>", r"<ref id=\"nothing\">: no object with id=\"nothing\" defined"),
+    ("<bsdf type='diffuse' id='a'/><bsdf type='diffuse' id='a'/>", r"id \"a\" is already used \(at .*s\.xml:2\)"),
+    ("<shape><float name='radius' value='1'/></shape>", r"<shape> needs a \"type\" attribute"),
+    ("<include filename='missing.xml'/>", r"<include>: file 'missing.xml' not found"),
+    ("<include filename='s.xml'/>", r"<include>: 's\.xml' includes itself"),
+    ("<shape type='obj'/>", r"<shape type=\"obj\"> needs <string name=\"filename\">"),
+    ("<shape type='obj'><string name='filename' value='no.obj'/></shape>", r"file 'no\.obj' not found"),
+    ("<shape type='rectangle'><transform name='to_world'><rotate angle='30'/></transform></shape>",
+     r"<rotate> needs a non-zero axis"),
+    ("<shape type='rectangle'><transform name='to_world'><rotate x='1'/></transform></shape>",
+     r"<rotate> needs a \"angle\" attribute"),
+    ("<shape type='rectangle'><transform name='to_world'><matrix value='1 2 3'/></transform></shape>",
+     r"\"value\" must be 9 or 16 finite numbers"),
+    ("<shape type='rectangle'><transform name='to_world'><scale x='0'/></transform></shape>", r"a zero scale"),
+    ("<sensor type='perspective'><transform name='to_world'><lookat origin='0 0 0' target='0 0 0'/></transform>"
+     "</sensor>", r"<lookat>: origin and target are the same point"),
+    ("<sensor type='perspective'><float name='fov' value='200'/></sensor>", r"fov must be between 0 and 180"),
+    ("<sensor type='perspective'><string name='fov_axis' value='z'/><float name='fov' value='20'/></sensor>",
+     r"unknown fov_axis 'z'"),
+    ("<sensor type='thinlens'/>", r"<sensor type=\"thinlens\"> needs <float name=\"aperture_radius\">"),
+    ("<sensor type='perspective'><film type='hdrfilm'><integer name='width' value='0'/></film></sensor>",
+     r"\"width\" must be >= 1, got 0"),
+    ("<shape type='sphere'><bsdf type='dielectric'><string name='int_ior' value='unobtainium'/></bsdf></shape>",
+     r"unknown int_ior 'unobtainium'"),
+    ("<shape type='sphere'><float name='radius' value='-1'/></shape>", r"\"radius\" must be > 0, got -1"),
+    ("<shape type='sphere'><string name='radius' value='1'/></shape>", r"\"radius\" must be a <float>, got <string>"),
+    ("<integrator type='path'><integer name='max_depth' value='0'/></integrator>", r"max_depth 0 renders nothing"),
+]
+
+
+@pytest.mark.parametrize("body,message", MALFORMED, ids=[f"case{i}" for i in range(len(MALFORMED))])
+def test_malformed_input_is_one_clear_error(tmp_path, body, message):
+    path = write(tmp_path, body + ("" if "sphere" in body or "include" in body or "<bsdf" in body else SPHERE))
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    text = str(info.value)
+    assert "\n" not in text and re.search(r"s\.xml(:\d+)+: ", text), text
+    assert re.search(message, text), text
+
+
+def test_root_and_version_errors(tmp_path):
+    (tmp_path / "a.xml").write_text("<scenery/>")
+    with pytest.raises(SceneError, match=r"a\.xml:1: the root element must be <scene>, not <scenery>"):
+        load_scene(tmp_path / "a.xml")
+    (tmp_path / "b.xml").write_text("<scene>" + SPHERE + "</scene>")
+    with pytest.raises(SceneError, match=r'b\.xml:1: <scene> needs a version attribute'):
+        load_scene(tmp_path / "b.xml")
+    (tmp_path / "c.xml").write_text('<scene version="3.0.0"><bsdf type="diffuse"/></scene>')
+    with pytest.raises(SceneError, match=r"c\.xml: the scene has no shapes that we can render"):
+        load_scene(tmp_path / "c.xml")
+
+
+def test_version_0_6_files_are_upgraded(tmp_path):
+    """Mitsuba 0.6 names (camelCase, <lookAt>, <srgb>) read as Mitsuba 3 upgrades them."""
+    path = write(tmp_path, """
+        <integrator type="path"><integer name="maxDepth" value="3"/></integrator>
+        <sensor type="perspective"><float name="fov" value="30"/><string name="fovAxis" value="y"/>
+            <transform name="toWorld"><lookAt origin="0 0 -5" target="0 0 0" up="0 1 0"/></transform>
+            <sampler type="independent"><integer name="sampleCount" value="9"/></sampler></sensor>
+        <shape type="sphere"><bsdf type="dielectric"><float name="intIOR" value="1.7"/></bsdf></shape>
+        <shape type="sphere"><point name="center" x="3"/><bsdf type="diffuse"><srgb name="reflectance" value="0.5"/></bsdf></shape>""",
+                 version="0.6.0")
+    scene, warned = load(path)
+    assert warned == []
+    assert (scene.settings.max_depth, scene.settings.spp, scene.camera.eye) == (3, 9, (0, 0, -5))
+    assert scene.camera.fov == pytest.approx(30)
+    assert scene.materials[0].ior == pytest.approx(1.7 / 1.000277)
+    assert scene.materials[1].albedo == pytest.approx((0.21404,) * 3, abs=1e-5)  # sRGB 0.5 decoded
+
+
+# -- the exporter's round trip, the sidecar and the CLI ---------------------------------------------------
+
+class _LookAt:
+    def __init__(self, origin, target, up):
+        self.origin, self.target, self.up = origin, target, up
+
+
+class _FakeMitsuba:
+    """What mitsuba_export.dict_from_arrays needs of Mitsuba, recording the look_at arguments."""
+
+    class ScalarTransform4f:
+        look_at = staticmethod(lambda origin, target, up: _LookAt(origin, target, up))
+
+
+def dict_to_xml(d: dict) -> str:
+    """Mitsuba XML for a ``mi.load_dict`` dict (the subset mitsuba_export.py writes)."""
+    tags = {"integrator": "integrator", "sensor": "sensor", "sampler": "sampler", "film": "film",
+            "rfilter": "rfilter", "bsdf": "bsdf", "material": "bsdf", "emitter": "emitter"}
+
+    def num(v):
+        return ", ".join(repr(float(x)) for x in np.ravel(v))
+
+    def value(name, v):
+        if isinstance(v, dict):
+            if v["type"] == "rgb":
+                return f'<rgb name="{name}" value="{num(v["value"])}"/>'
+            return plugin(tags.get(name, "shape"), v)
+        if isinstance(v, bool):
+            return f'<boolean name="{name}" value="{str(v).lower()}"/>'
+        if isinstance(v, int):
+            return f'<integer name="{name}" value="{v}"/>'
+        if isinstance(v, float):
+            return f'<float name="{name}" value="{v!r}"/>'
+        if isinstance(v, str):
+            return f'<string name="{name}" value="{v}"/>'
+        if isinstance(v, _LookAt):
+            return (f'<transform name="{name}"><lookat origin="{num(v.origin)}" target="{num(v.target)}" '
+                    f'up="{num(v.up)}"/></transform>')
+        if hasattr(v, "matrix"):
+            return f'<transform name="{name}"><matrix value="{num(np.asarray(v.matrix))}"/></transform>'
+        return f'<point name="{name}" value="{num(v)}"/>'
+
+    def plugin(tag, spec):
+        inner = "".join(value(k, v) for k, v in spec.items() if k != "type")
+        return f'<{tag} type="{spec["type"]}">{inner}</{tag}>'
+
+    body = "\n".join(value(k, v) for k, v in d.items() if k != "type")
+    return f'<scene version="3.0.0">\n{body}\n</scene>\n'
+
+
+@pytest.mark.parametrize("real_mitsuba", [False, True], ids=["lookat", "matrix"])
+def test_exporter_output_reimported_equals_the_original(tmp_path, real_mitsuba):
+    from pyopencl_rt.bench.mitsuba_export import dict_from_arrays, scene_arrays
+
+    mi = mitsuba() if real_mitsuba else _FakeMitsuba
+    original = load_scene(SCENES / "cornell-spheres.toml")
+    d = dict_from_arrays(scene_arrays(original, spp=32), mi, tmpdir=str(tmp_path))
+    (tmp_path / "exported.xml").write_text(dict_to_xml(d))
+    back, warned = load(tmp_path / "exported.xml")
+    assert warned == []
+    assert triangles_equal(triangle_records(back), triangle_records(original))
+    assert np.allclose(back.spheres, original.spheres)
+    assert [back.materials[i].albedo for i in back.sphere_materials] == \
+        [original.materials[i].albedo for i in original.sphere_materials]
+    c, o = back.camera, original.camera
+    assert np.allclose(c.eye, o.eye) and np.isclose(c.fov, o.fov) and np.allclose(c.up, o.up)
+    fwd = np.subtract(o.look_at, o.eye)
+    assert np.allclose(np.subtract(c.look_at, c.eye), fwd / np.linalg.norm(fwd))
+    for key in ("width", "height", "max_depth", "rr_depth"):
+        assert getattr(back.settings, key) == getattr(original.settings, key)
+    assert back.settings.spp == 32
+
+
+def test_sidecar_records_format_and_warnings(tmp_path):
+    path = write(tmp_path, SPHERE + '<emitter type="constant"/><emitter type="spot"/>')
+    scene, warned = load(path)
+    r = rt.render_full(scene, spp=1, width=4, height=4, device="cpu")
+    assert r.info["scene_format"] == "mitsuba-xml"
+    assert r.info["scene_warnings"] == warned and len(warned) == 1
+
+
+def test_cli_render_with_defines(tmp_path, capsys, monkeypatch):
+    from pyopencl_rt.cli import main
+
+    monkeypatch.setattr(warnings, "formatwarning", warnings.formatwarning)  # main() sets its own
+
+    path = write(tmp_path, '<default name="n" value="3"/><sensor type="perspective"><sampler type="independent">'
+                           '<integer name="sample_count" value="$n"/></sampler></sensor>' + SPHERE +
+                 '<emitter type="constant"/><emitter type="spot"/>')
+    out = tmp_path / "o.exr"
+    with pytest.warns(UserWarning, match="spot lights are not supported"):
+        main(["render", str(path), "-o", str(out), "--width", "4", "--height", "4", "-D", "n=2", "-q", "-d", "cpu"])
+    info = json.loads(out.with_suffix(".json").read_text())
+    assert info["spp"] == 2 and info["scene_format"] == "mitsuba-xml" and len(info["scene_warnings"]) == 1
+    assert warnings.formatwarning("w", UserWarning, "f.py", 1) == "pyopencl-rt: warning: w\n"  # one line each
+    for args, message in ((["-D", "n"], "--define n: expected NAME=VALUE"),
+                          (["-D", "m=1"], None)):
+        bad = write(tmp_path, "<shape type='sphere'><float name='radius' value='$m'/></shape>"
+                              "<shape type='sphere'><float name='radius' value='x'/></shape>", name="bad.xml")
+        with pytest.raises(SystemExit) as exc:
+            main(["render", str(bad), "-o", str(out)] + args)
+        assert exc.value.code == 1
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and err.startswith("pyopencl-rt: error: ")
+        if message:
+            assert message in err
+        else:
+            assert re.search(r"bad\.xml:\d+: <float name=\"radius\">: \"value\" must be numbers, got 'x'", err)
