@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from .errors import UserError
+from .errors import LOGGER, UsageError, UserError
 
 CONTEXT_SETTINGS = {"help_option_names": ["-h", "--help"]}
 
@@ -103,7 +103,8 @@ def _clock(seconds):
 @cli.command()
 @click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", default="out/render.exr", show_default=True, type=click.Path(dir_okay=False),
-              help="Output OpenEXR (linear); a .png (sRGB) and a .json sidecar are written beside it.")
+              help="Output OpenEXR (linear, with the AOV layers) or PNG (display-referred); the other and a .json "
+              "sidecar are written beside it.")
 @click.option("--spp", type=int, help="Samples per pixel (default: the scene's).")
 @click.option("--time-limit", type=float, metavar="SECONDS", help="Render for this long (whole passes).")
 @click.option("--width", type=int)
@@ -112,8 +113,14 @@ def _clock(seconds):
 @click.option("--seed", type=int)
 @click.option("--integrator", type=click.Choice(["path", "bsdf", "nee"]),
               help="path: MIS of light and BSDF sampling (default); bsdf or nee alone.")
+@click.option("--sampler", type=click.Choice(["sobol", "stratified", "independent"]),
+              help="Where the random numbers come from: Owen-scrambled Sobol (default), progressive stratified, "
+              "or independent (docs/SAMPLING.md).")
 @click.option("--wave-size", type=int, help="Paths in flight (default: 2^20 on a GPU, 2^16 on a CPU).")
 @click.option("--profile", is_flag=True, help="Print the time spent in each wavefront stage.")
+@click.option("--kernel-mode", type=click.Choice(["auto", "wavefront", "megakernel"]), default="auto", show_default=True,
+              help="How paths are scheduled: a megakernel (one work-item per path; the CPU default) or the "
+              "wavefront of small kernels (GPUs, --intersector embree, AOVs). The image is the same.")
 @click.option("--intersector", type=click.Choice(["opencl", "embree"]), default="opencl", show_default=True,
               help="Who traces the extend and shadow rays: our OpenCL traversal, or Embree on the host.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
@@ -126,22 +133,54 @@ def _clock(seconds):
 @click.option("--resume", is_flag=True, help="Continue from the checkpoint up to --spp (same scene and settings).")
 @click.option("-D", "--define", "defines", multiple=True, metavar="NAME=VALUE",
               help="Set a Mitsuba XML scene's $NAME (overrides its <default>); repeatable.")
+@click.option("--aov", "aovs", metavar="LIST",
+              help="AOV layers of the EXR, comma-separated: albedo, normal, depth, position, variance, spp, or all "
+              "(default: the scene's [film] aovs).")
+@click.option("--denoise", is_flag=True,
+              help="Denoise with Intel Open Image Denoise (needs pip install 'pyopencl-rt[denoise]'); the EXR keeps "
+              "the raw image as noisy.R/G/B.")
+@click.option("--exposure", type=float, default=0.0, show_default=True, metavar="EV",
+              help="PNG only: scale by 2^EV before the tone curve.")
+@click.option("--tonemap", type=click.Choice(["clamp", "filmic", "agx"]), default="clamp", show_default=True,
+              help="PNG only: clamp, filmic (an ACES fit) or agx (docs/OUTPUT.md).")
+@click.option("--no-exr", is_flag=True, help="With -o out.png: write no EXR.")
+@click.option("--preview-every", type=float, metavar="SECONDS", help="Rewrite the PNG this often while rendering.")
+@click.option("--device-timeout", type=float, metavar="SECONDS",
+              help="With several devices: drop one that makes no progress for this long [default: 120].")
 @device_option
-def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, integrator, wave_size, profile, intersector,
-           quiet, scheduler, checkpoint_path, checkpoint_every, resume, defines, device):
+def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, integrator, sampler, wave_size, profile,
+           kernel_mode, intersector,
+           quiet, scheduler, checkpoint_path, checkpoint_every, resume, defines, aovs, denoise, exposure, tonemap, no_exr,
+           preview_every, device_timeout, device):
     """Render SCENE (a .toml scene file, a Mitsuba 3 .xml or pbrt-v4 .pbrt scene, or any mesh file
     such as model.obj) to OUTPUT."""
-    from .imageio import write_outputs
+    from .imageio import check_output, write_outputs
+    from .render.aovs import GUIDES, parse_aovs
     from .render.api import render_full
     from .render.checkpoint import default_path
+    from . import validate
+    from .render.arguments import check_outputs, check_render_arguments
     from .render.settings import ImageSettings, check_resolution, check_run
     from .scene.loaders import load_scene
 
+    # every option, and every file the render will write, before the scene is read
     check_run(spp, time_limit)
     if width is not None or height is not None:
         check_resolution(width if width is not None else 1, height if height is not None else 1)
-    if not str(output).lower().endswith(".exr"):
-        raise UserError(f"{output}: the output must be an .exr file (a .png and a .json are written beside it)")
+    png_path = check_output(output, exr=not no_exr).with_suffix(".png")
+    check_outputs(output, checkpoint_path or default_path(output), exr=not no_exr)
+    check_render_arguments(spp=spp, time_limit=time_limit, width=width, height=height, max_depth=max_depth,
+                           integrator=integrator, seed=seed, wave_size=wave_size, intersector=intersector,
+                           kernel_mode=kernel_mode, device=list(device) or None, scheduler=scheduler,
+                           checkpoint=checkpoint_path or str(default_path(output)), resume=resume,
+                           checkpoint_every=checkpoint_every, device_timeout=device_timeout)
+    validate.number(exposure, "--exposure", minimum=-64, maximum=64)
+    if preview_every is not None and not preview_every > 0:
+        raise UserError(f"--preview-every must be positive (got {preview_every})")
+    if denoise:
+        from .render.denoise import _pyoidn
+
+        _pyoidn()  # what to install, before loading the scene
     if checkpoint_every is not None and not checkpoint_every > 0:
         raise UserError(f"--checkpoint-every must be positive (got {checkpoint_every})")
     if scheduler is not None:
@@ -150,37 +189,101 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
         need_dask()
     checkpoint_path = checkpoint_path or str(default_path(output))
     scene = load_scene(scene_path, defines=_defines(defines))
+    aov_names = parse_aovs(scene.settings.aovs if aovs is None else aovs)
     settings = ImageSettings.resolve(scene, width=width, height=height, max_depth=max_depth, integrator=integrator,
-                                     seed=seed)
+                                     seed=seed, aovs=aov_names + (GUIDES if denoise else ()), sampler=sampler)
     total = spp if spp is not None else (None if time_limit is not None else scene.settings.spp)
     bar = Progress(total, time_limit, settings.n_pixels, quiet)
     result = render_full(scene, spp=total, time_limit=time_limit, device=list(device) or None, wave_size=wave_size,
-                         intersector=intersector, progress=bar, profile=profile, scheduler=scheduler,
+                         intersector=intersector, kernel_mode=kernel_mode, progress=bar, profile=profile,
+                         scheduler=scheduler,
                          checkpoint=checkpoint_path, resume=resume, checkpoint_every=checkpoint_every,
-                         handle_signals=True, settings=settings)
+                         handle_signals=True, settings=settings, aovs=aov_names, denoise=denoise,
+                         preview=lambda image: _preview(png_path, image, exposure, tonemap), preview_every=preview_every,
+                         device_timeout=device_timeout)
     bar.done()
     info = result.info
     if result.film.passes == 0:
-        raise UserError("interrupted before the first pass completed: nothing to write")
-    paths = write_outputs(output, result.image, info)
+        if info["interrupted"]:
+            LOGGER.error("interrupted before the first pass completed: nothing written")
+            sys.exit(130)
+        raise UserError("no pass completed (--time-limit too short?): nothing to write")
+    from .render.aovs import exr_channels
+
+    info["display"] = {"exposure": exposure, "tonemap": tonemap}  # of the PNG; the EXR is linear
+    try:
+        paths = write_outputs(output, result.image, info, layers=exr_channels(result.layers), exposure=exposure,
+                              tonemap=tonemap, exr=not no_exr)
+    except UserError as exc:
+        raise _rescued(exc, result, scene, settings, checkpoint_path, output) from None
     if profile:
         stages = info["stage_seconds"]
         total_s = sum(stages.values()) or 1.0
         click.echo("stage         seconds   share", err=True)
         for name, sec in stages.items():
             click.echo(f"{name:<12} {sec:8.3f}  {100 * sec / total_s:5.1f}%", err=True)
-        click.echo(f"extend: {info['rays_extend'] / max(stages['extend'], 1e-9) / 1e6:.3f} Mrays/s, "
-                   f"shadow: {info['rays_shadow'] / max(stages['shadow'], 1e-9) / 1e6:.3f} Mrays/s", err=True)
+        if "extend" in stages:  # the wavefront times its ray-casting stages apart (the megakernel cannot)
+            click.echo(f"extend: {info['rays_extend'] / max(stages['extend'], 1e-9) / 1e6:.3f} Mrays/s, "
+                       f"shadow: {info['rays_shadow'] / max(stages['shadow'], 1e-9) / 1e6:.3f} Mrays/s", err=True)
     note = " (interrupted)" if info["interrupted"] else ""
     if info["interrupted"] and info.get("checkpoint"):
         note = f" (interrupted; checkpoint {info['checkpoint']}: continue with --resume)"
     click.echo(
-        f"{paths['exr']}: {info['width']}x{info['height']}, {info['spp']} spp in {info['render_seconds']:.2f} s "
+        f"{paths.get('exr', paths['png'])}: {info['width']}x{info['height']}, {info['spp']} spp in "
+        f"{info['render_seconds']:.2f} s "
         f"({(info['samples_per_second'] or 0) / 1e6:.3f} Msamples/s) on {info['device']}; "
         f"non-finite samples: {info['nonfinite_samples']}{note}"
     )
     if info["interrupted"]:
         sys.exit(130)
+
+
+@cli.command("compare")
+@click.argument("image", type=click.Path(dir_okay=False))
+@click.argument("reference", type=click.Path(dir_okay=False))
+@click.option("--heatmap", type=click.Path(dir_okay=False), help="Write an error heat map PNG (FLIP's if installed).")
+@click.option("--json", "as_json", is_flag=True, help="Print the metrics as JSON.")
+def compare_command(image, reference, heatmap, as_json):
+    """Error of IMAGE against REFERENCE (OpenEXR, linear R/G/B): MSE, RMSE, relMSE, FLIP and the
+    per-channel mean ratio (docs/OUTPUT.md)."""
+    from .compare import compare
+    from .imageio import read_exr
+
+    if heatmap is not None and not str(heatmap).lower().endswith(".png"):
+        raise UserError(f"{heatmap}: the heat map is written as a .png file")
+    result = compare(read_exr(image), read_exr(reference), heatmap)
+    if as_json:
+        click.echo(json.dumps(result, indent=2))
+        return
+    flip = "not installed (pip install 'pyopencl-rt[flip]')" if result["flip"] is None else f"{result['flip']:.6f}"
+    ratio = "  ".join(f"{c} {'n/a' if r is None else f'{r:.6f}'}" for c, r in zip("RGB", result["mean_ratio"]))
+    click.echo(f"MSE         {result['mse']:.6e}\nRMSE        {result['rmse']:.6e}\n"
+               f"relMSE      {result['relmse']:.6e}\nFLIP        {flip}\nmean ratio  {ratio}")
+    if heatmap is not None:
+        click.echo(f"heat map    {result['heatmap']}")
+
+
+def _rescued(exc, result, scene, settings, checkpoint_path, output) -> UserError:
+    """The outputs could not be written after the render: its film goes to a checkpoint (the
+    render's own if it can be written), and the error says where and how to write it out."""
+    from .errors import OutputError
+    from .render import checkpoint as checkpoints
+    from .render.arguments import rescue_path
+
+    where = rescue_path(checkpoint_path, output)
+    try:
+        checkpoints.save(where, result.film, scene, settings)
+    except OSError as err:
+        return OutputError(f"{exc}; saving the render to {where} failed too ({err.strerror or err}): it is lost")
+    return OutputError(f"{exc}; the render ({result.film.passes} spp) is saved in {where}: write it out with "
+                       f"--resume --checkpoint {where} -o ANOTHER.exr (same scene and options)")
+
+
+def _preview(png_path, image, exposure, tonemap):
+    from .imageio import write_png
+
+    png_path.parent.mkdir(parents=True, exist_ok=True)
+    write_png(png_path, image, exposure, tonemap)
 
 
 def _defines(pairs) -> dict | None:
@@ -202,33 +305,43 @@ def bench():
 @bench.command("rays")
 @device_option
 @click.option("--sizes", default="10k,100k,1M", show_default=True, help="Mesh sizes in triangles.")
-@click.option("--rays", "n_rays", default=1_000_000, show_default=True, help="Rays per ray set.")
-@click.option("--repeat", default=3, show_default=True, help="Timed repetitions (the median is reported).")
+@click.option("--rays", "n_rays", default=1_000_000, show_default=True, type=click.IntRange(min=1),
+              help="Rays per ray set.")
+@click.option("--repeat", default=3, show_default=True, type=click.IntRange(min=1),
+              help="Timed repetitions (the median is reported).")
 @click.option("--no-embree", is_flag=True, help="Skip the embreex reference.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
-@click.option("--layout", type=click.Choice(["binary", "wide", "both"]), default=None,
-              help="BVH layout(s) to time [default: the device's default, wide on CPUs, binary on GPUs].")
-def bench_rays(device, sizes, n_rays, repeat, no_embree, json_path, layout):
-    """Rays/s of the OpenCL traversal beside embreex on the very same rays, and BVH build time."""
+@click.option("--layout", type=click.Choice(["binary", "wide", "wide8", "both", "all"]), default=None,
+              help="BVH layout(s) to time: wide = 4-wide, wide8 = 8-wide, both = binary and wide, all = "
+                   "the three [default: the device's default, wide8 on CPUs, binary on GPUs].")
+@click.option("--embree-threads", type=click.IntRange(min=1), default=None,
+              help="Embree worker processes for its parallel figure [default: PoCL's threads].")
+def bench_rays(device, sizes, n_rays, repeat, no_embree, json_path, layout, embree_threads):
+    """Rays/s of the OpenCL traversal beside embreex (one thread, and as many as PoCL uses) on the
+    very same rays, and BVH build time."""
     from .bench.rays import run_ray_bench
     from .bench.workloads import parse_sizes
 
+    groups = {"both": ("binary", "wide"), "all": ("binary", "wide", "wide8")}
+    sizes = parse_sizes(sizes)
+    _check_json(json_path)
     run_ray_bench(
-        devices=list(device) or None, sizes=parse_sizes(sizes), n_rays=n_rays, repeat=repeat,
+        devices=list(device) or None, sizes=sizes, n_rays=n_rays, repeat=repeat,
         embree=not no_embree, json_path=json_path, echo=click.echo,
-        layouts=None if layout is None else (("binary", "wide") if layout == "both" else (layout,)),
+        layouts=None if layout is None else groups.get(layout, (layout,)), embree_threads=embree_threads,
     )
 
 
 @bench.command("render")
 @click.argument("scene_path", metavar="SCENE", default="scenes/cornell-box.toml", type=click.Path(dir_okay=False))
 @device_option
-@click.option("--width", default=512, show_default=True)
-@click.option("--height", default=512, show_default=True)
-@click.option("--spp", default=16, show_default=True, help="Samples per pixel per timed render.")
-@click.option("--max-depth", default=8, show_default=True)
-@click.option("--repeat", default=3, show_default=True, help="Timed renders per device (median reported).")
-@click.option("--wave-size", type=int)
+@click.option("--width", default=512, show_default=True, type=click.IntRange(min=1))
+@click.option("--height", default=512, show_default=True, type=click.IntRange(min=1))
+@click.option("--spp", default=16, show_default=True, type=click.IntRange(min=1), help="Samples per pixel per timed render.")
+@click.option("--max-depth", default=8, show_default=True, type=click.IntRange(min=-1))
+@click.option("--repeat", default=3, show_default=True, type=click.IntRange(min=1),
+              help="Timed renders per device (median reported).")
+@click.option("--wave-size", type=click.IntRange(min=1))
 @click.option("--intersector", default="opencl", show_default=True,
               help="Comma-separated: opencl,embree (extend and shadow rays on embreex), each timed on each device.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
@@ -236,9 +349,19 @@ def bench_render(scene_path, device, width, height, spp, max_depth, repeat, wave
     """Samples/s of the path tracer on each device (kernel build and BVH not timed)."""
     from .bench.render import run_render_bench
 
+    intersectors = parse_intersectors(intersector)
+    _check_json(json_path)
     run_render_bench(scene_path, devices=list(device) or None, width=width, height=height, spp=spp,
                      max_depth=max_depth, repeat=repeat, wave_size=wave_size,
-                     intersectors=parse_intersectors(intersector), json_path=json_path, echo=click.echo)
+                     intersectors=intersectors, json_path=json_path, echo=click.echo)
+
+
+def _check_json(json_path) -> None:
+    """A benchmark's --json file must be writable before the benchmark runs (minutes of it)."""
+    from . import validate
+
+    if json_path is not None:
+        validate.writable_file(json_path, "JSON file")
 
 
 def comma_list(text, allowed, what):
@@ -246,7 +369,7 @@ def comma_list(text, allowed, what):
     names = [name.strip() for name in text.split(",") if name.strip()]
     for name in names:
         if name not in allowed:
-            raise UserError(f"unknown {what} {name!r}: use one or more of {', '.join(allowed)}")
+            raise UsageError(f"unknown {what} {name!r}: use one or more of {', '.join(allowed)}")
     return names
 
 
@@ -259,9 +382,10 @@ def parse_intersectors(text):
 @bench.command("bvh")
 @click.option("--sizes", default="10k,100k,1M", show_default=True, help="Mesh sizes in triangles.")
 @click.option("--kinds", default="sphere,torus,soup,slivers", show_default=True, help="Mesh kinds.")
-@click.option("--sweep-size", default=100_000, show_default=True,
+@click.option("--sweep-size", default=100_000, show_default=True, type=click.IntRange(min=0),
               help="Size at which the full-sweep SAH builder runs too, as the quality reference (0: never).")
-@click.option("--repeat", default=3, show_default=True, help="Timed builds per mesh (median reported).")
+@click.option("--repeat", default=3, show_default=True, type=click.IntRange(min=1),
+              help="Timed builds per mesh (median reported).")
 @click.option("--check", is_flag=True, help="Validate every BVH (slow on big meshes).")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
 def bench_bvh(sizes, kinds, sweep_size, repeat, check, json_path):
@@ -269,7 +393,9 @@ def bench_bvh(sizes, kinds, sweep_size, repeat, check, json_path):
     from .bench.bvh_build import run_bvh_bench
     from .bench.workloads import MESH_KINDS, parse_sizes
 
-    run_bvh_bench(sizes=parse_sizes(sizes), kinds=comma_list(kinds, MESH_KINDS, "mesh kind"), sweep_size=sweep_size, repeat=repeat, check=check,
+    sizes, kinds = parse_sizes(sizes), comma_list(kinds, MESH_KINDS, "mesh kind")
+    _check_json(json_path)
+    run_bvh_bench(sizes=sizes, kinds=kinds, sweep_size=sweep_size, repeat=repeat, check=check,
                   json_path=json_path, echo=click.echo)
 
 
@@ -279,16 +405,19 @@ def bench_bvh(sizes, kinds, sweep_size, repeat, check, json_path):
               help="Folder with textured.toml, cornell-jensen.toml and cornell-box.toml.")
 @click.option("--pairs", default="textures,rough,gltf", show_default=True,
               help="Comma-separated: textures (with/without), rough (vs smooth), gltf (plastic vs diffuse).")
-@click.option("--width", default=256, show_default=True)
-@click.option("--height", default=256, show_default=True)
-@click.option("--spp", default=8, show_default=True, help="Samples per pixel per timed render.")
-@click.option("--repeat", default=3, show_default=True, help="Timed renders per variant (median reported).")
+@click.option("--width", default=256, show_default=True, type=click.IntRange(min=1))
+@click.option("--height", default=256, show_default=True, type=click.IntRange(min=1))
+@click.option("--spp", default=8, show_default=True, type=click.IntRange(min=1), help="Samples per pixel per timed render.")
+@click.option("--repeat", default=3, show_default=True, type=click.IntRange(min=1),
+              help="Timed renders per variant (median reported).")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
 def bench_materials(device, scenes_dir, pairs, width, height, spp, repeat, json_path):
     """Samples/s with and without textures, rough against smooth, glTF against diffuse (a / b)."""
     from .bench.materials import PAIRS, run_materials_bench
 
-    run_materials_bench(devices=list(device) or None, scenes_dir=scenes_dir, pairs=comma_list(pairs, PAIRS, "pair"),
+    pairs = comma_list(pairs, PAIRS, "pair")
+    _check_json(json_path)
+    run_materials_bench(devices=list(device) or None, scenes_dir=scenes_dir, pairs=pairs,
                         width=width, height=height, spp=spp, repeat=repeat, json_path=json_path, echo=click.echo)
 
 
@@ -315,6 +444,9 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path
         spps = [int(value) for value in spp.split(",") if value.strip()]
     except ValueError:
         raise UserError(f"--spp {spp}: expected comma-separated integers") from None
+    if not spps or min(spps) < 1:
+        raise UsageError(f"--spp {spp}: expected comma-separated positive integers")
+    _check_json(json_path)
     run_mitsuba_cornell_box(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=variant, spps=spps,
                             json_path=json_path, echo=click.echo)
 
@@ -325,7 +457,7 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path
 @click.option("--integrator", default="path", show_default=True, help="Comma-separated: path,bsdf,nee.")
 @click.option("--intersector", default="opencl", show_default=True, help="Comma-separated: opencl,embree.")
 @click.option("--reference", type=click.Path(dir_okay=False), help="Reference OpenEXR (default: render one and cache it).")
-@click.option("--reference-spp", type=int, help="Samples per pixel of the rendered reference (default: a share of --budget).")
+@click.option("--reference-spp", type=click.IntRange(min=1), help="Samples per pixel of the rendered reference (default: a share of --budget).")
 @click.option("--no-cache", is_flag=True, help="Neither read nor write the cached reference.")
 @click.option("--budget", type=float, default=60.0, show_default=True, metavar="SECONDS",
               help="Wall-time budget of the whole run, its own reference included.")
@@ -337,8 +469,11 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path
 @click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
 @click.option("--json", "json_path", default="out/convergence.json", show_default=True, type=click.Path(dir_okay=False))
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="PNG plot (default: the JSON path with .png).")
+@click.option("--denoise", is_flag=True, help="Beside each of our curves, its Open Image Denoise curve (needs the "
+              "denoise extra): where denoising stops helping.")
 def bench_convergence(scene_path, device, integrator, intersector, reference, reference_spp, no_cache, budget, width,
-                      height, max_depth, compare, mitsuba_python, llvm_path, mitsuba_variant, json_path, plot_path):
+                      height, max_depth, compare, mitsuba_python, llvm_path, mitsuba_variant, json_path, plot_path,
+                      denoise):
     """Error (RMSE, relMSE, MAE) against a reference as a function of render time, per device x
     integrator x intersector, optionally beside Mitsuba 3: JSON, a log-log plot and a table."""
     from .bench.convergence import run_convergence
@@ -348,33 +483,57 @@ def bench_convergence(scene_path, device, integrator, intersector, reference, re
     intersectors = parse_intersectors(intersector)
     if budget is not None and not budget > 0:
         raise UserError(f"--budget must be positive (got {budget})")
+    from . import validate
+
+    validate.number(budget, "--budget", positive=True)
+    for value, name in ((width, "--width"), (height, "--height")):
+        if value is not None:
+            validate.integer(value, name, minimum=1)
+    _check_json(json_path)
+    if plot_path is not None:
+        validate.writable_file(plot_path, "plot")
     run_convergence(scene_path, devices=list(device) or None, integrators=integrators, intersectors=intersectors,
                     reference=reference, reference_spp=reference_spp, budget=budget, width=width, height=height,
                     max_depth=max_depth, compare=[c.strip() for c in compare.split(",") if c.strip()],
                     mitsuba_python=mitsuba_python, mitsuba_variant=mitsuba_variant, llvm_path=llvm_path,
-                    json_path=json_path, plot_path=plot_path, use_cache=not no_cache, echo=click.echo)
+                    json_path=json_path, plot_path=plot_path, use_cache=not no_cache, denoise=denoise, echo=click.echo)
 
 
 def main(argv=None):
-    """Entry point: user errors become one line on stderr and a non-zero exit code; warnings
-    (e.g. a scene file's unsupported elements) one line each."""
-    import warnings
+    """Entry point: user errors become one line on stderr and a non-zero exit code (1 for bad
+    input, 2 for a wrong command line, 130 when interrupted); warnings (e.g. a scene file's
+    unsupported elements) one line each, all through one logger (errors.report_to_stderr)."""
+    from .errors import report_to_stderr
 
-    warnings.formatwarning = lambda message, category, *args, **kwargs: f"pyopencl-rt: warning: {message}\n"
+    report_to_stderr()
     try:
         cli.main(args=argv, prog_name="pyopencl-rt", standalone_mode=False)
     except UserError as exc:
-        click.echo(f"pyopencl-rt: error: {exc}", err=True)
+        LOGGER.error("%s", exc)
         sys.exit(exc.exit_code)
-    except click.exceptions.Abort:
-        click.echo("pyopencl-rt: interrupted", err=True)
+    except (click.exceptions.Abort, KeyboardInterrupt):
+        LOGGER.error("interrupted")
         sys.exit(130)
-    except click.ClickException as exc:
-        exc.show()
+    except click.ClickException as exc:  # a wrong command line: one line too, with where to look
+        ctx = getattr(exc, "ctx", None)
+        hint = f" (see '{ctx.command_path} --help')" if isinstance(exc, click.UsageError) and ctx else ""
+        LOGGER.error("%s%s", exc.format_message(), hint)
         sys.exit(exc.exit_code)
-    except KeyboardInterrupt:
-        click.echo("pyopencl-rt: interrupted", err=True)
-        sys.exit(130)
+    except MemoryError:
+        LOGGER.error("out of host memory (a smaller --wave-size or resolution needs less)")
+        sys.exit(1)
+    except Exception as exc:
+        if not _is_opencl_error(exc):
+            raise
+        LOGGER.error("the OpenCL device failed: %s", exc)
+        sys.exit(1)
+
+
+def _is_opencl_error(exc) -> bool:
+    """A pyopencl error (out of device memory or resources, a lost device): the device's
+    failure, reported in one line, not a bug's traceback."""
+    cl = sys.modules.get("pyopencl")
+    return cl is not None and isinstance(exc, cl.Error)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "pyopencl_rt"
 
 # Lowest first: a module may import from its own layer and the layers below it.
 LAYERS = [
-    {"errors", "imageio"},
+    {"errors", "imageio", "display", "compare", "validate"},  # display: tone curves; compare: image metrics; validate: argument checks
     {"device"},
     {"accel"},
     {"scene"},

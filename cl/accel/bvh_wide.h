@@ -1,8 +1,8 @@
 /* Traversal of the 4-wide BVH (pyopencl_rt/accel/bvh_wide.py) for CPU devices: closest hit and any hit.
  *
- * Included after bvh.h when BVH_WIDE is defined (cl/accel/trace.cl, cl/scene/scene.h); it then replaces
- * bvh_closest_hit / bvh_any_hit by the wide versions below (same arguments and Hit result, but
- * the first buffer holds the wide BVH instead of BVHNode records).  Hit.prim stays the index into
+ * cl/accel/traverse.h makes bvh_closest_hit / bvh_any_hit the wide versions below when BVH_WIDE is
+ * defined (same arguments and Hit result, but the first buffer holds the wide BVH instead of
+ * BVHNode records).  Hit.prim stays the index into
  * the binary BVH's reordered triangle array, so prim_ids[prim] and triangle_normal(tris, prim) work
  * unchanged; the tris buffer itself is not read by the traversal.
  *
@@ -30,8 +30,34 @@
 
 #include "accel/bvh.h"
 
-#define FAST_MIN4(a, b) select((b), (a), (a) < (b))
-#define FAST_MAX4(a, b) select((b), (a), (a) > (b))
+/* PoCL links the OpenCL builtins select, any, fabs, clz and popcount as calls that LLVM leaves
+ * out of line (objdump of the kernel: a call and a vzeroupper at every use, dozens per traversal
+ * step), so the traversal spells them with operators and clang builtins, which compile to one or
+ * two instructions.  SEL(a, b, m) is select(a, b, m) for a mask of -1 / 0 lanes (the vector ?:
+ * of OpenCL C tests each lane's sign bit, as select does). */
+#define SEL(a, b, m) ((m) ? (b) : (a))
+#define VMIN(a, b) SEL((b), (a), (a) < (b)) /* any width; operands never NaN (see below) */
+#define VMAX(a, b) SEL((b), (a), (a) > (b))
+RT_INLINE float4 abs4(float4 x) { return as_float4(as_uint4(x) & (uint4)(0x7fffffffu)); }
+RT_INLINE int any4(int4 m) { const int2 p = m.lo | m.hi; return (p.x | p.y) < 0; }
+/* Bit i set where lane i of the mask is set: movmskps where the compiler has it. */
+#if defined(__SSE__) && defined(__clang__)
+RT_INLINE int mask_bits4(int4 m) { return __builtin_ia32_movmskps(as_float4(m)); }
+#else
+RT_INLINE int mask_bits4(int4 m) { return (m.s0 & 1) | (m.s1 & 2) | (m.s2 & 4) | (m.s3 & 8); }
+#endif
+#if defined(__has_builtin)
+#if __has_builtin(__builtin_ctz) && __has_builtin(__builtin_popcount)
+#define WIDE_CLANG_BITS
+#endif
+#endif
+#ifdef WIDE_CLANG_BITS
+RT_INLINE int lowest_bit(int bits) { return __builtin_ctz(bits); }
+RT_INLINE int bit_count(int bits) { return __builtin_popcount(bits); }
+#else
+RT_INLINE int lowest_bit(int bits) { return 31 - clz(bits & -bits); }
+RT_INLINE int bit_count(int bits) { return popcount(bits); }
+#endif
 
 /* ---------------------------------------------------------------------------------------------
  * Per-ray constants.
@@ -56,18 +82,35 @@ typedef struct {
     float sx, sy;            /* ray_shear's shear constants */
 } WideRay;
 
+/* safe_rcp (common.h) without its fabs/copysign calls: the same value bit for bit. */
+RT_INLINE float wide_rcp(float x)
+{
+    const uint b = as_uint(x);
+    const float clamped = as_float((b & 0x80000000u) | as_uint(RCP_MIN_INPUT)); /* copysign(RCP_MIN_INPUT, x) */
+    return 1.0f / (as_float(b & 0x7fffffffu) < RCP_MIN_INPUT ? clamped : x);
+}
+
+/* The constants of safe_rcp3(d) and ray_shear(d) (intersect.h), computed as they are there (same
+ * values bit for bit) without the builtin calls (fabs, copysign, shuffle) PoCL leaves out of line. */
 RT_INLINE WideRay wide_ray(float3 o, float3 d)
 {
     WideRay r;
     r.o = o; r.d = d;
-    r.inv_d = safe_rcp3(d);
+    r.inv_d = (float3)(wide_rcp(d.x), wide_rcp(d.y), wide_rcp(d.z));
     r.nx = r.inv_d.x >= 0.0f ? 0 : 3;
     r.ny = r.inv_d.y >= 0.0f ? 1 : 4;
     r.nz = r.inv_d.z >= 0.0f ? 2 : 5;
-    const RayShear sh = ray_shear(d);
-    r.kx = (int)sh.perm.x; r.ky = (int)sh.perm.y; r.kz = (int)sh.perm.z;
-    r.okx = comp3(o, r.kx); r.oky = comp3(o, r.ky); r.okz = comp3(o, r.kz);
-    r.sx = sh.sx; r.sy = sh.sy;
+    const float ax = as_float(as_uint(d.x) & 0x7fffffffu), ay = as_float(as_uint(d.y) & 0x7fffffffu);
+    const float az = as_float(as_uint(d.z) & 0x7fffffffu);
+    const int kz = (ax > ay) ? ((ax > az) ? 0 : 2) : ((ay > az) ? 1 : 2);
+    int kx = kz == 2 ? 0 : kz + 1;
+    int ky = kx == 2 ? 0 : kx + 1;
+    const float dz = comp3(d, kz);
+    if (dz < 0.0f) { const int tmp = kx; kx = ky; ky = tmp; } /* keep the winding */
+    r.kx = kx; r.ky = ky; r.kz = kz;
+    r.okx = comp3(o, kx); r.oky = comp3(o, ky); r.okz = comp3(o, kz);
+    r.sx = comp3(d, kx) / dz;
+    r.sy = comp3(d, ky) / dz;
     return r;
 }
 
@@ -75,7 +118,7 @@ RT_INLINE WideRay wide_ray(float3 o, float3 d)
  * distances in *enter.  Conservative exactly as intersect_box (cl/accel/intersect.h, "Conservative on
  * purpose"): the far distance is widened by SLAB_FAR_SCALE and the host pads every box by 2^-20
  * of the scene's largest coordinate (bvh_wide.device_blob).  No operand can be NaN (see above),
- * so the plain comparisons of FAST_MIN4/FAST_MAX4 equal fmin/fmax without their NaN handling.
+ * so the plain comparisons of VMIN/VMAX equal fmin/fmax without their NaN handling.
  * An entry distance of +inf counts as a miss, as INFINITY is the binary test's miss value. */
 RT_INLINE int4 intersect_children4(__global const float4 *node, const WideRay *r, float tmin, float tmax,
                                    float4 *enter)
@@ -86,10 +129,10 @@ RT_INLINE int4 intersect_children4(__global const float4 *node, const WideRay *r
     const float4 tfx = (node[3 - r->nx] - r->o.x) * r->inv_d.x;
     const float4 tfy = (node[5 - r->ny] - r->o.y) * r->inv_d.y;
     const float4 tfz = (node[7 - r->nz] - r->o.z) * r->inv_d.z;
-    const float4 e = FAST_MAX4(FAST_MAX4(tnx, tny), FAST_MAX4(tnz, (float4)(tmin)));
-    const float4 l = FAST_MIN4(FAST_MIN4(tfx, tfy), tfz) * SLAB_FAR_SCALE;
+    const float4 e = VMAX(VMAX(tnx, tny), VMAX(tnz, (float4)(tmin)));
+    const float4 l = VMIN(VMIN(tfx, tfy), tfz) * SLAB_FAR_SCALE;
     *enter = e;
-    return (e <= FAST_MIN4(l, (float4)(tmax))) & (e < (float4)(INFINITY));
+    return (e <= VMIN(l, (float4)(tmax))) & (e < (float4)(INFINITY));
 }
 
 /* ---------------------------------------------------------------------------------------------
@@ -103,7 +146,7 @@ RT_INLINE int4 intersect_children4(__global const float4 *node, const WideRay *r
  *    double path runs only when some lane needs it.
  *  - t comes from the plane equation n.(v0 - o) / n.d with n = (v1 - v0) x (v2 - v0), not from
  *    the paper's T = U*Az + V*Bz + W*Cz, which cancels catastrophically on long slivers (its sign
- *    flipped and rays left thin closed meshes from inside; tests/test_traversal.py).  The plane
+ *    flipped and rays left thin closed meshes from inside; tests/accel/test_traversal.py).  The plane
  *    equation is evaluated in the original x, y, z order, as dot() and cross() do.
  *  - Padding lanes have NaN vertices: U, V, W and det are NaN, and "det != 0" is written as
  *    det < 0 || det > 0, which is false for NaN, so they are rejected with the lanes the sign
@@ -127,19 +170,19 @@ RT_INLINE int4 intersect_tri4(__global const float4 *pk, const WideRay *r, float
     float4 W = bx * ay - by * ax;
 #ifdef cl_khr_fp64
     const int4 zero = (U == 0.0f) | (V == 0.0f) | (W == 0.0f);
-    if (any(zero)) {
+    if (any4(zero)) {
         const double4 dax = convert_double4(ax), day = convert_double4(ay);
         const double4 dbx = convert_double4(bx), dby = convert_double4(by);
         const double4 dcx = convert_double4(cx), dcy = convert_double4(cy);
-        U = select(U, convert_float4(dcx * dby - dcy * dbx), zero);
-        V = select(V, convert_float4(dax * dcy - day * dcx), zero);
-        W = select(W, convert_float4(dbx * day - dby * dax), zero);
+        U = SEL(U, convert_float4(dcx * dby - dcy * dbx), zero);
+        V = SEL(V, convert_float4(dax * dcy - day * dcx), zero);
+        W = SEL(W, convert_float4(dbx * day - dby * dax), zero);
     }
 #endif
     const int4 mixed = ((U < 0.0f) | (V < 0.0f) | (W < 0.0f)) & ((U > 0.0f) | (V > 0.0f) | (W > 0.0f));
     const float4 det = U + V + W;
     const int4 inside = ~mixed & ((det < 0.0f) | (det > 0.0f)); /* det != 0, and false for NaN */
-    if (!any(inside)) /* the common case: the ray passes outside all four */
+    if (!any4(inside)) /* the common case: the ray passes outside all four */
         return inside;
     /* plane equation, original axis order: n = (p1 - p0) x (p2 - p0), a = p0 - o */
     const float4 p0x = pk[0], p0y = pk[1], p0z = pk[2];
@@ -153,24 +196,24 @@ RT_INLINE int4 intersect_tri4(__global const float4 *pk, const WideRay *r, float
     const float4 num = nx * ax0 + ny * ay0 + nz * az0;
     /* Slivers and a numerator whose sign is in doubt: t in double, per lane, exactly as
      * intersect_triangle does (see its comment; SLIVER_CANCELLATION and NUM_DOUBT there). */
-    const float4 nabs_x = fabs(e1y * e2z) + fabs(e1z * e2y);
-    const float4 nabs_y = fabs(e1z * e2x) + fabs(e1x * e2z);
-    const float4 nabs_z = fabs(e1x * e2y) + fabs(e1y * e2x);
-    const int4 sliver = fabs(nx) + fabs(ny) + fabs(nz) < SLIVER_CANCELLATION * (nabs_x + nabs_y + nabs_z);
-    const int4 doubt = fabs(num) <= NUM_DOUBT * (nabs_x * fabs(ax0) + nabs_y * fabs(ay0) + nabs_z * fabs(az0));
+    const float4 nabs_x = abs4(e1y * e2z) + abs4(e1z * e2y);
+    const float4 nabs_y = abs4(e1z * e2x) + abs4(e1x * e2z);
+    const float4 nabs_z = abs4(e1x * e2y) + abs4(e1y * e2x);
+    const int4 sliver = abs4(nx) + abs4(ny) + abs4(nz) < SLIVER_CANCELLATION * (nabs_x + nabs_y + nabs_z);
+    const int4 doubt = abs4(num) <= NUM_DOUBT * (nabs_x * abs4(ax0) + nabs_y * abs4(ay0) + nabs_z * abs4(az0));
     float4 tt = num / den;
     int4 ok = den != 0.0f;
 #ifdef cl_khr_fp64
     const int4 refine = inside & (sliver | doubt);
-    if (any(refine)) {
+    if (any4(refine)) {
         const double4 q0x = convert_double4(p0x), q0y = convert_double4(p0y), q0z = convert_double4(p0z);
         const double4 f1x = convert_double4(pk[3]) - q0x, f1y = convert_double4(pk[4]) - q0y, f1z = convert_double4(pk[5]) - q0z;
         const double4 f2x = convert_double4(pk[6]) - q0x, f2y = convert_double4(pk[7]) - q0y, f2z = convert_double4(pk[8]) - q0z;
         const double4 mx = f1y * f2z - f1z * f2y, my = f1z * f2x - f1x * f2z, mz = f1x * f2y - f1y * f2x;
         const double4 dden = mx * (double)r->d.x + my * (double)r->d.y + mz * (double)r->d.z;
         const double4 dnum = mx * (q0x - (double)r->o.x) + my * (q0y - (double)r->o.y) + mz * (q0z - (double)r->o.z);
-        tt = select(tt, convert_float4(dnum / dden), refine);
-        ok = select(ok, convert_int4(dden != 0.0), refine);
+        tt = SEL(tt, convert_float4(dnum / dden), refine);
+        ok = SEL(ok, convert_int4(dden != 0.0), refine);
     }
 #else
     ok &= ~doubt;
@@ -188,9 +231,9 @@ RT_INLINE void intersect_leaf4(__global const float4 *pk, int count, const WideR
     for (int p = 0; p < count; ++p, pk += TRI4_UNITS) {
         float4 t, U, V, W;
         const int4 m = intersect_tri4(pk, r, tmin, hit->t, &t, &U, &V, &W);
-        if (!any(m))
+        if (!any4(m))
             continue;
-        const float4 tm = select((float4)(INFINITY), t, m);
+        const float4 tm = SEL((float4)(INFINITY), t, m);
         const float best = FAST_MIN(FAST_MIN(tm.s0, tm.s1), FAST_MIN(tm.s2, tm.s3));
         const int k = tm.s0 == best ? 0 : (tm.s1 == best ? 1 : (tm.s2 == best ? 2 : 3));
         const float det = lane4(U, k) + lane4(V, k) + lane4(W, k);
@@ -206,7 +249,7 @@ RT_INLINE int occluded_leaf4(__global const float4 *pk, int count, const WideRay
 {
     for (int p = 0; p < count; ++p, pk += TRI4_UNITS) {
         float4 t, U, V, W;
-        if (any(intersect_tri4(pk, r, tmin, tmax, &t, &U, &V, &W)))
+        if (any4(intersect_tri4(pk, r, tmin, tmax, &t, &U, &V, &W)))
             return 1;
     }
     return 0;
@@ -218,9 +261,9 @@ RT_INLINE int occluded_leaf4(__global const float4 *pk, int count, const WideRay
  * decision (swap iff the upper key is strictly smaller), so the ids stay a permutation. */
 RT_INLINE void sort_stage(float4 *k, int4 *l, float4 pk, int4 pl, int4 lower)
 {
-    const int4 swap = select(*k < pk, pk < *k, lower);
-    *k = select(*k, pk, swap);
-    *l = select(*l, pl, swap);
+    const int4 swap = SEL(*k < pk, pk < *k, lower);
+    *k = SEL(*k, pk, swap);
+    *l = SEL(*l, pl, swap);
 }
 
 /* Sorts keys ascending with their lane ids: the network (0,1)(2,3), (0,2)(1,3), (1,2). */
@@ -230,8 +273,6 @@ RT_INLINE void sort4(float4 *k, int4 *l)
     sort_stage(k, l, (*k).s2301, (*l).s2301, (int4)(-1, -1, 0, 0));
     sort_stage(k, l, (*k).s0213, (*l).s0213, (int4)(0, -1, 0, 0));
 }
-
-RT_INLINE int lowest_bit(int bits) { return 31 - clz(bits & -bits); }
 
 /* Stack code of child slot k of the node at offset off (see the top of this file). */
 #define WIDE_CODE(off, k) (count[k] == 0 ? child[k] : -1 - ((off) + (k)))
@@ -263,7 +304,7 @@ RT_INLINE Hit bvh_wide_closest_hit(__global const void *bvh, __global const floa
             __global const float4 *node = base + off;
             float4 enter;
             const int4 m = intersect_children4(node, &r, tmin, hit.t, &enter);
-            const int bits = (m.s0 & 1) | (m.s1 & 2) | (m.s2 & 4) | (m.s3 & 8);
+            const int bits = mask_bits4(m);
             if (bits) {
                 __global const int *child = (__global const int *)(node + 6);
                 __global const int *count = (__global const int *)(node + 7);
@@ -272,10 +313,10 @@ RT_INLINE Hit bvh_wide_closest_hit(__global const void *bvh, __global const floa
                     off = child[k]; cnt = count[k];
                     continue;
                 }
-                float4 key = select((float4)(INFINITY), enter, m); /* misses sort last */
+                float4 key = SEL((float4)(INFINITY), enter, m); /* misses sort last */
                 int4 lane = (int4)(0, 1, 2, 3);
                 sort4(&key, &lane);
-                const int n = popcount(bits);
+                const int n = bit_count(bits);
                 /* push the others far to near */
                 if (n == 4) { stack_code[sp] = WIDE_CODE(off, lane.s3); stack_t[sp] = key.s3; ++sp; }
                 if (n >= 3) { stack_code[sp] = WIDE_CODE(off, lane.s2); stack_t[sp] = key.s2; ++sp; }
@@ -309,7 +350,7 @@ RT_INLINE int bvh_wide_any_hit(__global const void *bvh, __global const float4 *
             __global const float4 *node = base + off;
             float4 enter;
             const int4 m = intersect_children4(node, &r, tmin, tmax, &enter);
-            int bits = (m.s0 & 1) | (m.s1 & 2) | (m.s2 & 4) | (m.s3 & 8);
+            int bits = mask_bits4(m);
             if (bits) {
                 __global const int *child = (__global const int *)(node + 6);
                 __global const int *count = (__global const int *)(node + 7);
@@ -327,9 +368,5 @@ RT_INLINE int bvh_wide_any_hit(__global const void *bvh, __global const float4 *
         wide_decode(base, stack_code[sp], &off, &cnt);
     }
 }
-
-/* The wide versions replace the binary ones for the code that follows (trace.cl, scene.h). */
-#define bvh_closest_hit bvh_wide_closest_hit
-#define bvh_any_hit bvh_wide_any_hit
 
 #endif

@@ -73,7 +73,7 @@ RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, floa
     /* The distance comes from the plane equation with the normal built from edge vectors, not
      * from the paper's T = U*Az + V*Bz + W*Cz: for a long sliver whose far vertices are much
      * farther than the hit, T cancels catastrophically and its sign can flip, so a ray leaving a
-     * thin closed mesh from inside was judged "behind" and escaped (tests/test_traversal.py). */
+     * thin closed mesh from inside was judged "behind" and escaped (tests/accel/test_traversal.py). */
     const float3 e1 = p1 - p0, e2 = p2 - p0;
     const float3 n = cross(e1, e2);
     const float den = dot(n, d);
@@ -123,9 +123,9 @@ RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, floa
  * distance by 1 + 2*gamma(3) (Ize 2013), but the watertight triangle test has its own rounding,
  * of a few ulp of |vertex - origin|: a ray that crosses exactly at a triangle edge lying on its
  * leaf box's boundary can be "inside" the triangle yet "outside" its box, and leak between two
- * triangles (found on long slivers by tests/test_traversal.py).  So the far distance is widened
+ * triangles (long slivers do this; tests/accel/test_traversal.py).  So the far distance is widened
  * by 2^-20 (relative, which covers origins far from the box), and the host pads every box by
- * 2^-20 of the scene's largest coordinate (pyopencl_rt/trace.py: DeviceBVH), which covers
+ * 2^-20 of the scene's largest coordinate (pyopencl_rt/accel/device_bvh.py: padded_nodes), which covers
  * origins near or inside it.
  * --------------------------------------------------------------------------------------------- */
 #define SLAB_FAR_SCALE 1.00000095367431640625f /* 1 + 2^-20 */

@@ -3,10 +3,8 @@
  * Rays are structure-of-arrays: origins and directions are packed float3 (3 floats per ray),
  * tmin/tmax are per ray.
  */
-#include "accel/bvh.h"
-#ifdef BVH_WIDE /* the 4-wide layout (CPU devices): replaces bvh_closest_hit / bvh_any_hit */
-#include "accel/bvh_wide.h"
-#endif
+/* bvh_closest_hit / bvh_any_hit of the BVH layout chosen on the host */
+#include "accel/traverse.h"
 
 __kernel void trace_closest(__global const BVHNode *nodes, __global const float4 *tris,
                             __global const int *prim_ids,

@@ -24,7 +24,7 @@
  * Single-scattering microfacets lose the energy of light that would scatter between microfacets:
  * a rough conductor with F = 1 reflects less than 1: its directional albedo averaged over the
  * hemisphere is 0.97 at alpha = 0.1, 0.92 at 0.2, 0.70 at 0.5 and 0.41 at 1 (GGX's long tails;
- * tests/test_materials.py integrates these and checks a furnace render against them).
+ * tests/scene/test_materials.py integrates these and checks a furnace render against them).
  */
 #ifndef PYOPENCL_RT_CONDUCTOR_H
 #define PYOPENCL_RT_CONDUCTOR_H

@@ -17,7 +17,7 @@
  *             Fd = Schlick with F0_d.  glTF writes the diffuse weight as (1 - F(v.h)), which is
  *             not reciprocal and lets the albedo exceed 1 at grazing angles; the product of the
  *             two directional terms (as in Ashikhmin & Shirley 2000) is reciprocal and keeps
- *             the directional albedo <= 1 (checked by tests/test_materials.py).
+ *             the directional albedo <= 1 (checked by tests/scene/test_materials.py).
  *   f = f_s + f_d; two-sided (the frame is flipped to wo's side).
  *
  * Sampling: the specular lobe (visible normals, Heitz 2018) with probability

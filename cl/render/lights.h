@@ -80,10 +80,11 @@ RT_INLINE int light_sample(__global const float4 *tris, __global const Sphere *s
         const float3 ng = normalize(cross(p1 - p0, p2 - p0));
         const float3 to_ref = ref - ls->p;
         const float dist2 = dot(to_ref, to_ref);
-        const float cos_l = dot(ng, to_ref) * rsqrt(dist2);
+        /* the side of the plane from the plane itself (plane_distance), not from ls->p */
+        const float cos_l = plane_distance(p0, p1, p2, ref) * rsqrt(dist2);
         if (cos_l == 0.0f || dist2 == 0.0f) return 0;
-        ls->Le = emitted(m, ng, to_ref);
         ls->n = cos_l > 0.0f ? ng : -ng;
+        ls->Le = emitted(m, ng, ls->n);
         ls->pdf = dist2 / (light->area * fabs(cos_l));
         return 1;
     }

@@ -3,7 +3,7 @@
  * The random number for (seed, pixel, sample index, dimension) is a pure function of those four
  * integers (integer hashing only, then an exact conversion to float), so any device, any order
  * of execution and any split of the work (tiles, sample batches, several devices, a resumed
- * render) gives bit-identical numbers.  tests/test_sampling.py checks the device against a numpy
+ * render) gives bit-identical numbers.  tests/render/test_sampling.py checks the device against a numpy
  * reference of the same function.
  *
  * Keys are chained through the hash, h = hash(seed ^ hash(pixel ^ hash(sample ^ hash(dim + c)))),

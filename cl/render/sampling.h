@@ -109,7 +109,7 @@ RT_INLINE float2 sample_triangle_barycentrics(float2 u)
 }
 
 /* Picks light i with probability lights[i].pmf from the alias table built on the host
- * (pyopencl_rt/sampling.py): column floor(u n) is kept with probability alias_prob, else its
+ * (pyopencl_rt/render/sampling.py): column floor(u n) is kept with probability alias_prob, else its
  * alias is taken, the fractional part of u n deciding.  Sets *pmf = lights[i].pmf. */
 RT_INLINE int sample_alias(__global const Light *lights, int n, float u, float *pmf)
 {

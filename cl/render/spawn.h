@@ -65,4 +65,31 @@ RT_INLINE float3 offset_ray_origin_bound(float3 p, float3 err, float3 n)
     return select(pw, pb, isgreater(fabs(pb - p), fabs(pw - p)));
 }
 
+/* Signed distance of q from the plane of triangle (p0, p1, p2), along its unit normal
+ * (p1 - p0) x (p2 - p0): the side of a light's plane a shading point is on.  Taken from q - p0,
+ * not from q - p for a point p sampled on the triangle: p's rounding error (gamma(7) |p|, see
+ * triangle_point) grows with the distance from the origin, and a shading point closer to the
+ * plane than that got the wrong side, so the shadow ray's far end was offset through the light
+ * and the light's own triangle blocked it (tests/test_robustness.py).  Within its rounding bound
+ * of 0 it is recomputed in double from the float vertices; without fp64 it is then 0 (edge-on). */
+#define PLANE_DOUBT 3.814697265625e-06f /* 2^-18: |n.a| this close to 0 (relative): sign in doubt */
+RT_INLINE float plane_distance(float3 p0, float3 p1, float3 p2, float3 q)
+{
+    const float3 e1 = p1 - p0, e2 = p2 - p0, a = q - p0;
+    const float3 n = cross(e1, e2);
+    const float3 n_abs = fabs(e1.yzx * e2.zxy) + fabs(e1.zxy * e2.yzx);
+    const float h = dot(n, a);
+    if (fabs(h) <= PLANE_DOUBT * dot(n_abs, fabs(a))) {
+#ifdef cl_khr_fp64
+        const double3 q0 = convert_double3(p0);
+        const double3 dn = cross(convert_double3(p1) - q0, convert_double3(p2) - q0);
+        const double dl = length(dn);
+        return dl > 0.0 ? (float)(dot(dn, convert_double3(q) - q0) / dl) : 0.0f;
+#else
+        return 0.0f;
+#endif
+    }
+    return h / length(n);
+}
+
 #endif

@@ -1,4 +1,4 @@
-/* Image textures (compiled only with HAS_TEXTURES; pyopencl_rt/textures.py loads and packs them).
+/* Image textures (compiled only with HAS_TEXTURES; pyopencl_rt/scene/textures.py loads and packs them).
  *
  * Storage: one float4 texel buffer (linear RGBA: sRGB colour images are decoded at load) and a
  * table of Texture records (offset, width, height; pyopencl_rt/device/abi.py).  Texture coordinates:

@@ -2,6 +2,9 @@
  * pixel and pass, so no float atomics and no order dependence), non-finite values are counted
  * and dropped, and the slot returns to the free stack (of free_base entries before). */
 #include "render/lights.h"
+#ifdef HAS_AOVS
+#include "render/aov.h"
+#endif
 
 __kernel void wf_accumulate(WAVE_PARAMS)
 {
@@ -15,6 +18,9 @@ __kernel void wf_accumulate(WAVE_PARAMS)
     }
     const int ring = path_pass[slot] % ring_size;
     store3(pass_ring, ring * n_pixels + path_pixel[slot], L);
+#ifdef HAS_AOVS
+    aov_finish(aov_path, slot, aov_ring, ring * n_pixels + path_pixel[slot]);
+#endif
     atomic_inc(&counters[COUNTER_PASS_DONE + ring]);
     free_q[free_base + i] = slot;
 }

@@ -22,6 +22,9 @@
 #ifdef HAS_TEXTURES
 #include "scene/textures.h"
 #endif
+#ifdef HAS_AOVS
+#include "render/aov.h"
+#endif
 
 /* random dimension of the BSDF's lobe choice (reflection or refraction, specular or diffuse);
  * the direction uses DIM_BSDF and DIM_BSDF + 1 */
@@ -56,6 +59,7 @@ __kernel void wf_shade(WAVE_PARAMS)
         const int depth = path_depth[slot];
         const int pixel = path_pixel[slot];
         const uint pass = (uint)path_pass[slot];
+        const SampleKey sk = sampler_key(seed, (uint)pixel, (uint)camera->width, pass);
         float3 beta = load3(throughput, slot);
         float3 L = load3(radiance, slot);
 
@@ -87,6 +91,9 @@ __kernel void wf_shade(WAVE_PARAMS)
                 m = mat_scratch + slot;
             }
     #endif
+    #ifdef HAS_AOVS
+            aov_hit(aov_path, slot, depth, m, n, wo, p, hit_t[slot], beta);
+    #endif
             const uint dim = 2 + DIMS_PER_BOUNCE * (uint)depth;
 
             /* -- emission seen by the path -------------------------------------------------- */
@@ -116,9 +123,9 @@ __kernel void wf_shade(WAVE_PARAMS)
                  * so light_pdf() at a BSDF hit sees the same point. */
                 const float3 ref = offset_ray_origin_bound(p, p_err, n);
                 float pick_pmf;
-                const int li = sample_alias(lights, n_lights, rng_uniform(seed, (uint)pixel, pass, dim + DIM_LIGHT_PICK), &pick_pmf);
+                const int li = sample_alias(lights, n_lights, sample_1d(sk, dim + DIM_LIGHT_PICK), &pick_pmf);
                 LightSample ls;
-                const float2 ul = rng_uniform2(seed, (uint)pixel, pass, dim + DIM_LIGHT_POINT);
+                const float2 ul = sample_2d(sk, dim + DIM_LIGHT_POINT);
                 int sampled = pick_pmf > 0.0f && light_sample_all(tris, spheres, materials, env_map, env_cdf, lights + li, ref, ul, &ls);
     #ifdef HAS_TEXTURES
                 if (sampled) texture_light_emission(tri_uv, textures, tex_data, materials, lights + li, ul, &ls);
@@ -157,15 +164,21 @@ __kernel void wf_shade(WAVE_PARAMS)
                 float3 wi;
                 float pdf;
                 int delta;
-                const float2 ud = rng_uniform2(seed, (uint)pixel, pass, dim + DIM_BSDF);
-                const float3 u = (float3)(ud.x, ud.y, rng_uniform(seed, (uint)pixel, pass, dim + DIM_BSDF_LOBE));
+                const float2 ud = sample_2d(sk, dim + DIM_BSDF);
+                const float3 u = (float3)(ud.x, ud.y, sample_1d(sk, dim + DIM_BSDF_LOBE));
                 const float3 weight = bsdf_sample(m, n, front, wo, u, &wi, &pdf, &delta);
                 if ((pdf > 0.0f || delta) && max3(weight) > 0.0f) {
                     beta *= weight;
                     alive = 1;
+                    float eta_scale = path_eta_scale[slot];
+                    if (dot(wi, n) < 0.0f) { const float eta = dielectric_eta(m, front); eta_scale *= eta * eta; }
                     if (segments >= rr_depth) {
+#ifdef RR_NO_ETA
                         const float q = fmin(max3(beta), 0.95f);
-                        if (rng_uniform(seed, (uint)pixel, pass, dim + DIM_RR) >= q) alive = 0;
+#else
+                        const float q = fmin(max3(beta) * eta_scale, 0.95f);
+#endif
+                        if (sample_1d(sk, dim + DIM_RR) >= q) alive = 0;
                         else beta /= q;
                     }
                     if (alive) {
@@ -173,6 +186,7 @@ __kernel void wf_shade(WAVE_PARAMS)
                         store3(ray_d, slot, wi);
                         store3(throughput, slot, beta);
                         path_pdf[slot] = delta ? 0.0f : pdf;
+                        path_eta_scale[slot] = eta_scale;
                         path_depth[slot] = segments;
                     }
                 }

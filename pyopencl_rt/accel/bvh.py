@@ -1,26 +1,15 @@
-"""BVH construction on the host (numpy only).
+"""BVH construction on the host.
 
 Two top-down surface-area-heuristic (SAH) builders produce the same output, a binary BVH stored
 in the Aila & Laine layout of :data:`pyopencl_rt.abi.BVH_NODE` (each record holds both
 children's boxes):
 
-``method="binned"``
-    Binned SAH over all three axes, **level-synchronous**: every node of a tree level is handled
-    by the same few whole-array numpy calls (``np.bincount`` for bin counts, the numpy-2 fast
-    ``np.minimum.at`` / ``np.maximum.at`` for per-(node, axis, bin) bounds, stored bin-major
-    ``(axis, bin, node)`` so the prefix/suffix sweeps are ``bins`` vector ops over all nodes, and
-    a stable partition by ``cumsum`` of the side flags).  Nodes holding more than ``_SAMPLE`` triangles (only the top few levels)
-    evaluate the SAH on an evenly strided sample of ``_SAMPLE`` of their triangles; the split
-    itself and the child boxes always use every triangle.  ``bins`` is the number of bins per
-    axis while nodes are big; on levels whose mean node size is small it drops to the power of
-    two below that mean (at least ``_MIN_BINS``), so the per-node SAH work stays below the
-    per-triangle work.  Child boxes come exactly from the bins (float32 min/max, no arithmetic).
-
-    Speed (2-core machine): ~0.6 s for 100k triangles, ~7.5-10 s for 1M; the 2 s / 1M goal is
-    not met.  Most of the time is ~60 whole-array passes per level (binning keys, 18 ``ufunc.at``
-    passes, partition, compaction) times ~20 levels.  A Morton-sorted, fixed-order variant
-    (splits only at octree-cell boundaries of the Morton order, SAH-chosen, reduceat boxes, no
-    partition) was tried: ~4 s for 1M but 8-15% worse SAH than the sweep, so it was dropped.
+``method="binned"`` (the default)
+    Binned SAH over all three axes, compiled with numba and run on every CPU of the process
+    (:mod:`pyopencl_rt.accel.bvh_binned`): node by node, in place, child boxes exactly from the
+    bins.  About 1 s for 1M triangles on the 2-core development machine (docs/BENCHMARKS.md,
+    "BVH build"), within about 1-4% of the sweep's SAH cost.  The first build in a process
+    compiles the kernels (or loads them from numba's on-disk cache).
 
 ``method="sweep"``
     Full-sweep SAH, the quality reference (:mod:`pyopencl_rt.accel.bvh_sweep`).
@@ -45,19 +34,17 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 
 from ..device import abi
+from ..errors import UsageError
 
 MAX_DEPTH = 60          # deepest leaf (root = 0); one traversal stack entry per level
 assert MAX_DEPTH + 1 <= abi.BVH_STACK_SIZE
 MAX_SAH_LEAF = 64       # largest leaf the SAH may choose (bigger nodes are always split)
 _MEDIAN_DEPTH = 48      # from this depth on, split by index halves (bounds the depth)
-_SAMPLE = 4096          # binned: nodes with more triangles evaluate the SAH on this many samples
-_ALL_AXES_MEAN = 0    # binned: levels whose mean node size is below this bin only the longest axis (0 = never;
-                      # 48 is ~30% faster but up to 9% worse SAH on slivers)
-_MIN_BINS = 4         # binned: fewest bins per axis on levels of small nodes
 _EMPTY_MIN = np.float32(np.inf)
 _EMPTY_MAX = np.float32(-np.inf)
 
@@ -92,20 +79,14 @@ def _area(lo, hi):
     return 2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
 
 
-def _area32(lo, hi):
-    """Float32 surface area of (3, ...) boxes; empty boxes (inf, -inf) give 0."""
-    d = np.maximum(hi - lo, np.float32(0))
-    return 2 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
-
-
 def _prepare(vertices, faces):
     V = np.ascontiguousarray(np.asarray(vertices, dtype=np.float32).reshape(-1, 3))
     F = np.ascontiguousarray(np.asarray(faces).reshape(-1, 3))
     if F.size and (F.min() < 0 or F.max() >= len(V)):
-        raise ValueError("faces index outside the vertex array")
+        raise UsageError("faces index outside the vertex array")
     F = F.astype(np.int32, copy=False)
     if not np.all(np.isfinite(V)):
-        raise ValueError("vertices must be finite")
+        raise UsageError("vertices must be finite (in float32)")
     return V, F
 
 
@@ -240,162 +221,9 @@ def _compact(dest, out_m, n_next, arrays_1d, arrays_2d):
 
 
 # ---------------------------------------------------------------------------------------------
-# binned SAH
-# ---------------------------------------------------------------------------------------------
-def _build_binned(lo0, hi0, max_leaf_size, bins, ct, ci):
-    T = lo0.shape[1]
-    B = int(bins)
-    if B < 2:
-        raise ValueError("bins must be >= 2")
-    tree = _Tree(T)
-    order = np.empty(T, np.int64)
-    root_box = np.concatenate([lo0.min(axis=1, initial=np.inf), hi0.max(axis=1, initial=-np.inf)])[None]
-    root_leaf = T <= max_leaf_size
-    tree.add(root_box, np.array([T]), np.array([0]), 0, np.array([root_leaf]))
-    if root_leaf:
-        order[:] = np.arange(T)
-        return tree, order
-    idx = np.arange(T, dtype=np.intp)
-    lo, hi = lo0, hi0
-    node = dict(ids=np.array([0]), off=np.array([0], np.intp), cnt=np.array([T], np.intp),
-                start=np.array([0], np.intp), box=root_box)
-    depth = 0
-    while len(node["cnt"]):
-        cnt, start, box = node["cnt"], node["start"], node["box"]
-        K, n = len(cnt), len(idx)
-        seg = np.repeat(np.arange(K, dtype=np.intp), cnt)
-        # binning range: the centroid bounds, in "2 x centroid" space (c = lo + hi)
-        c3 = lo + hi
-        cmin = np.minimum.reduceat(c3, start, axis=1)   # (3, K)
-        cmax = np.maximum.reduceat(c3, start, axis=1)
-        ext = (cmax - cmin).astype(np.float64)
-        with np.errstate(divide="ignore", over="ignore"):
-            scale64 = np.where(ext > 0, B / np.where(ext > 0, ext, 1.0), 0.0)
-        scale64[scale64 > 3e38] = 0.0
-        scale = scale64.astype(np.float32)             # (3, K); 0 = degenerate axis
-        # sampling for big nodes (only the top levels)
-        sampled = cnt > _SAMPLE
-        if sampled.any():
-            m = np.minimum(cnt, _SAMPLE)
-            eseg = np.repeat(np.arange(K, dtype=np.intp), m)
-            j = np.arange(len(eseg), dtype=np.intp) - np.repeat(np.cumsum(m) - m, m)
-            epos = start[eseg] + (j * cnt[eseg]) // m[eseg]
-            elo, ehi, ec = lo[:, epos], hi[:, epos], c3[:, epos]
-        else:
-            m = cnt
-            eseg, elo, ehi, ec = seg, lo, hi, c3
-        # bins per level: all three axes while nodes are big, the longest centroid axis and
-        # fewer bins once they are small (keeps the per-node SAH work below the per-triangle work)
-        mean = n / K
-        kk = np.arange(K)
-        Bl = int(min(B, max(_MIN_BINS, 2 ** int(np.log2(max(mean, 1.0))))))
-        if mean >= _ALL_AXES_MEAN:
-            A = 3
-            ax_tab = np.broadcast_to(np.arange(3), (K, 3))
-        else:
-            A = 1
-            ax_tab = np.argmax(ext, axis=0)[:, None]
-        sc_l = (scale * (Bl / B)).astype(np.float32)   # same rounding in the split step below
-        nkey = K * A * Bl
-        sampled_any = bool(sampled.any())
-        if not sampled_any:
-            binarr = np.empty((A, n), np.int16)
-        counts = np.zeros(nkey, np.float64)
-        bmin = np.full((3, nkey), np.inf, np.float32)
-        bmax = np.full((3, nkey), -np.inf, np.float32)
-        for p in range(A):
-            if A == 3:
-                b = ec[p] - cmin[p][eseg]
-                b *= sc_l[p][eseg]
-            else:
-                axn = ax_tab[:, 0]
-                b = np.take_along_axis(ec, axn[eseg][None], axis=0)[0]
-                b -= cmin[axn, kk][eseg]
-                b *= sc_l[axn, kk][eseg]
-            np.minimum(b, Bl - 1, out=b)
-            bint = b.astype(np.intp)
-            if not sampled_any:
-                binarr[p] = bint
-            key = (p * Bl) * K + bint * K + eseg        # bin-major: (A, Bl, K)
-            counts += np.bincount(key, minlength=nkey)
-            for d in range(3):
-                np.minimum.at(bmin[d], key, elo[d])
-                np.maximum.at(bmax[d], key, ehi[d])
-        counts = counts.reshape(A, Bl, K)
-        bmin = bmin.reshape(3, A, Bl, K)
-        bmax = bmax.reshape(3, A, Bl, K)
-        # prefix / suffix boxes over the bins (bin axis outermost: each step is one vector op)
-        pmin, pmax, smin, smax = bmin.copy(), bmax.copy(), bmin.copy(), bmax.copy()
-        for j in range(1, Bl):
-            np.minimum(pmin[:, :, j - 1], pmin[:, :, j], out=pmin[:, :, j])
-            np.maximum(pmax[:, :, j - 1], pmax[:, :, j], out=pmax[:, :, j])
-            np.minimum(smin[:, :, Bl - j], smin[:, :, Bl - 1 - j], out=smin[:, :, Bl - 1 - j])
-            np.maximum(smax[:, :, Bl - j], smax[:, :, Bl - 1 - j], out=smax[:, :, Bl - 1 - j])
-        nl = np.cumsum(counts, axis=1)[:, :-1]
-        nr = nl[:, -1:] + counts[:, -1:] - nl
-        w = (cnt / m).astype(np.float32)                  # sample -> node count
-        cost = _area32(pmin[:, :, :-1], pmax[:, :, :-1]) * nl.astype(np.float32)
-        cost += _area32(smin[:, :, 1:], smax[:, :, 1:]) * nr.astype(np.float32)
-        cost *= w
-        cost[(nl == 0) | (nr == 0)] = np.inf
-        degen = (sc_l[ax_tab, kk[:, None]] == 0).T[:, None, :]   # degenerate axis: nothing to split
-        cost[np.broadcast_to(degen, cost.shape)] = np.inf
-        flat = cost.reshape(A * (Bl - 1), K)
-        bi = np.argmin(flat, axis=0)
-        best = flat[bi, kk].astype(np.float64)
-        bslot, bbin = bi // (Bl - 1), bi % (Bl - 1)
-        bax = ax_tab[kk, bslot]
-        node_area = _area(box[:, :3].T, box[:, 3:].T)
-        decision = _decide(cnt, node_area, best, depth, max_leaf_size, ct, ci)
-
-        # side of every triangle: recompute its bin on the chosen axis exactly as above
-        dn = decision[seg]
-        if not sampled_any:
-            bsel = binarr[0] if A == 1 else np.take_along_axis(binarr, bax[seg][None], axis=0)[0]
-            goleft = bsel <= bbin[seg]
-        else:
-            b = np.take_along_axis(c3, bax[seg][None], axis=0)[0]
-            b -= cmin[bax, kk][seg]
-            b *= sc_l[bax, kk][seg]
-            np.minimum(b, Bl - 1, out=b)
-            goleft = b.astype(np.intp) <= bbin[seg]
-        med = decision == 2
-        if med.any():
-            local = np.arange(n, dtype=np.intp) - start[seg]
-            goleft = np.where(dn == 2, local < (cnt // 2)[seg], goleft)
-        goleft |= dn == 1
-        # child boxes: exact from the bins for full-data SAH splits, else recomputed
-        child_box = np.empty((K, 2, 6), np.float32)
-        child_box[:, 0, :3] = pmin[:, bslot, bbin, kk].T
-        child_box[:, 0, 3:] = pmax[:, bslot, bbin, kk].T
-        child_box[:, 1, :3] = smin[:, bslot, bbin + 1, kk].T
-        child_box[:, 1, 3:] = smax[:, bslot, bbin + 1, kk].T
-        redo = (decision == 2) | ((decision == 0) & sampled)
-        if redo.any():
-            sel = np.flatnonzero(redo[seg])
-            slot = 2 * seg[sel] + (~goleft[sel])
-            rows = np.flatnonzero(np.repeat(redo, 2))
-            bx = _exact_boxes(slot, 2 * K, lo[:, sel], hi[:, sel])
-            child_box.reshape(2 * K, 6)[rows] = bx[rows]
-        rank, nl = _partition(seg, start, cnt, goleft)
-        slot_base, slot_out, nxt = _advance(tree, node["ids"], node["off"], cnt, nl, decision, depth,
-                                            child_box.reshape(2 * K, 6), max_leaf_size)
-        slot = 2 * seg + (~goleft)
-        dest, out_m = slot_base[slot] + rank, slot_out[slot]
-        order[dest[out_m]] = idx[out_m]
-        n_next = int(nxt["cnt"].sum())
-        (idx,), (lo, hi) = _compact(dest, out_m, n_next, [idx], [lo, hi])
-        node = nxt
-        depth += 1
-    return tree, order
-
-
-# ---------------------------------------------------------------------------------------------
 # full-sweep SAH
 # ---------------------------------------------------------------------------------------------
 def _to_records(tree, T):
-    n = tree.n
-    leaf = tree.leaf[:n]
     if T == 0:
         rec = np.zeros(1, abi.BVH_NODE)
         for s in ("left", "right"):
@@ -404,6 +232,8 @@ def _to_records(tree, T):
             rec[f"child_{s}"] = 0
             rec[f"count_{s}"] = -1
         return rec
+    n = tree.n
+    leaf = tree.leaf[:n]
     if leaf[0]:
         rec = np.zeros(1, abi.BVH_NODE)
         rec["bmin_left"] = tree.box[0, :3]
@@ -497,6 +327,14 @@ def sah_cost(bvh, traversal_cost=1.0, intersection_cost=1.0) -> float:
     return float(traversal_cost * len(nodes) + intersection_cost * n_leaf_tris)
 
 
+def _one_leaf(V, F):
+    """The tree of a mesh (T >= 1) kept in one leaf, as _to_records reads it."""
+    tv = V[F].reshape(-1, 3)
+    box = np.concatenate([tv.min(axis=0), tv.max(axis=0)])[None]
+    return SimpleNamespace(n=1, leaf=np.array([True]), box=box, off=np.array([0]), cnt=np.array([len(F)]),
+                           left=np.array([-1]), right=np.array([-1]))
+
+
 def _leaf_stats(nodes):
     _, _, (first, count, blo, bhi, ldepth) = _record_walk(nodes)
     if len(nodes) == 1 and nodes["count_right"][0] == -1:
@@ -505,42 +343,59 @@ def _leaf_stats(nodes):
 
 
 def build_bvh(vertices, faces, *, method="binned", max_leaf_size=4, bins=16,
-              traversal_cost=1.0, intersection_cost=1.0) -> BVH:
-    """Build a BVH over triangles ``vertices[faces]`` (see the module docstring)."""
+              traversal_cost=1.0, intersection_cost=1.0, threads=None) -> BVH:
+    """Build a BVH over triangles ``vertices[faces]`` (see the module docstring).  ``threads``:
+    how many threads the binned builder uses (default: the CPUs this process may run on); the
+    tree does not depend on it."""
     t0 = time.perf_counter()
     if max_leaf_size < 1:
         raise ValueError("max_leaf_size must be >= 1")
+    if method not in ("binned", "sweep"):
+        raise ValueError(f"unknown method {method!r} (binned or sweep)")
+    if int(bins) < 2:
+        raise ValueError("bins must be >= 2")
     V, F = _prepare(vertices, faces)
     T = len(F)
-    tv = V[F]                                              # (T, 3, 3)
-    lo = np.ascontiguousarray(tv.min(axis=1).T)            # (3, T)
-    hi = np.ascontiguousarray(tv.max(axis=1).T)
-    if method == "binned":
-        tree, order = _build_binned(lo, hi, max_leaf_size, bins, traversal_cost, intersection_cost)
-    elif method == "sweep":
-        from .bvh_sweep import _build_sweep
-
-        tree, order = _build_sweep(lo, hi, max_leaf_size, traversal_cost, intersection_cost)
-    else:
-        raise ValueError(f"unknown method {method!r} (binned or sweep)")
-    nodes = _to_records(tree, T)
     tris = np.zeros(T, abi.TRIANGLE)
-    tv_r = tv[order]
-    for i in range(3):
-        tris[f"v{i}"][:, :3] = tv_r[:, i]
+    if method == "binned" and T > max_leaf_size:
+        from .bvh_binned import build
+
+        nodes, order, tris12, count, depth, sah = build(V, F, max_leaf_size, bins, traversal_cost,
+                                                        intersection_cost, MAX_DEPTH, _MEDIAN_DEPTH, MAX_SAH_LEAF,
+                                                        threads=threads)
+        tris = tris12.view(abi.TRIANGLE).reshape(T)
+        if nodes is None:       # the SAH kept the whole mesh in one leaf
+            nodes = _to_records(_one_leaf(V, F), T)
+    else:
+        tv = V[F]                                              # (T, 3, 3)
+        if method == "sweep":
+            from .bvh_sweep import _build_sweep
+
+            lo = np.ascontiguousarray(tv.min(axis=1).T)            # (3, T)
+            hi = np.ascontiguousarray(tv.max(axis=1).T)
+            tree, order = _build_sweep(lo, hi, max_leaf_size, traversal_cost, intersection_cost)
+        else:                   # binned, at most one leaf's worth of triangles: nothing to compile
+            tree, order = (_one_leaf(V, F) if T else None), np.arange(T)
+        nodes = _to_records(tree, T)
+        tv_r = tv[order]
+        for i in range(3):
+            tris[f"v{i}"][:, :3] = tv_r[:, i]
+        count, depth, sah = np.zeros(0, np.int64), 0, None
+        if T:
+            _, count, ldepth = _leaf_stats(nodes)
+            depth = int(ldepth.max())
     build_seconds = time.perf_counter() - t0
     bvh = BVH(nodes=nodes, triangles=tris, prim_ids=order.astype(np.int32), vertices=V, faces=F)
-    first, count, ldepth = _leaf_stats(nodes) if T else (np.zeros(0), np.zeros(0, np.int64), np.zeros(1))
-    sizes, freq = np.unique(count, return_counts=True)
+    freq = np.bincount(count)
     bvh.stats = dict(
         method=method,
         triangles=T,
-        sah_cost=sah_cost(bvh, traversal_cost, intersection_cost),
+        sah_cost=sah if sah is not None else sah_cost(bvh, traversal_cost, intersection_cost),
         node_count=len(nodes),
         inner_nodes=len(nodes),
         leaves=int(len(count)),
-        depth=int(ldepth.max()) if len(ldepth) else 0,
-        leaf_size_histogram={int(s): int(f) for s, f in zip(sizes, freq)},
+        depth=depth,
+        leaf_size_histogram={int(s): int(f) for s, f in zip(np.flatnonzero(freq), freq[freq > 0])},
         build_seconds=build_seconds,
     )
     return bvh

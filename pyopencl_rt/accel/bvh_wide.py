@@ -1,10 +1,17 @@
-"""A 4-wide BVH for CPU devices, collapsed from the binary BVH (numpy only).
+"""4-wide and 8-wide BVHs for CPU devices, collapsed from the binary BVH (numpy only).
 
 PoCL runs each work-item as scalar code, so the binary traversal tests one box pair and one
 triangle at a time.  This layout gives a single work-item SIMD-shaped work, as Embree's
 single-ray kernels do: every node holds the boxes of up to four children in structure-of-arrays
 form (one float4 slab test for all four), and leaves hold triangles in packets of four ("Tri4",
 structure of arrays: one float4 watertight test for four triangles).  cl/accel/bvh_wide.h traverses it.
+
+The 8-wide layout (``width=8``: :data:`abi.WIDE8_NODE`, :data:`abi.TRI8`, traversed by
+cl/accel/bvh_wide8.h) is the same with eight lanes (float8: one AVX2 register), addressed in float8
+(32-byte) units, so a node is again 8 units and a Tri8 packet 10.  As a Tri8 test costs about what
+a Tri4 test does, any binary subtree of at most ``merge`` (8) triangles becomes one leaf: its
+triangles are a contiguous range of the reordered array, so the leaf is that range (its box, the
+union of the subtree's exact boxes, is their exact bounds), and the tree gets shallower.
 
 Buffer layout
 -------------
@@ -27,16 +34,17 @@ U = V = W = NaN never takes the double-precision path, which only an exact 0 doe
 Collapse
 --------
 Top-down, level-synchronous (all wide nodes of a level in the same few numpy calls): a wide node
-starts as a binary record's two children; twice, an inner child is replaced by its own two
-children, the one of largest surface area (as Embree's and tinybvh's collapses do) among the
-shallowest ones, giving up to four children.  "Shallowest first" only matters when one of the
-record's two children is a leaf (otherwise the four grandchildren are pulled up whatever the
-order); it makes every wide level descend two binary levels, so the wide depth is at most half
-the binary depth (<= 30), and the traversal stack (at most 3 entries pushed per level) is bounded
-by :data:`STACK_SIZE` (96 entries of 8 bytes: PoCL keeps a private copy per work-item of a
-work-group, so the stack must stay small).  Binary leaves become wide leaves unchanged (their
-triangles in ceil(n/4) packets), so every box is the binary BVH's exact box and the triangle order
-is the binary BVH's.
+starts as a binary record's two children; ``width - 2`` times, an inner child is replaced by its
+own two children, the one of largest surface area (as Embree's and tinybvh's collapses do) among
+the shallowest ones, giving up to ``width`` children.  "Shallowest first" makes every wide level
+descend log2(width) binary levels (all inner children of the first log2(width) - 1 levels are
+opened before any deeper one), so the wide depth is at most half (a third) of the binary depth
+(:func:`max_wide_depth`: 30, 20), and the traversal stack (at most ``width - 1`` entries pushed per
+level) is bounded by :data:`abi.WIDE_STACK_SIZE` (96 entries of 8 bytes) or
+:data:`abi.WIDE8_STACK_SIZE` (144): PoCL keeps a private copy per work-item of a work-group, so
+the stack must stay small.  Binary leaves (and merged subtrees) become wide leaves unchanged
+(their triangles in ceil(n / packet width) packets), so every box is the binary BVH's exact box
+(or the union of exact boxes) and the triangle order is the binary BVH's.
 
 The device copy (:func:`device_blob`) pads every present box by 2^-20 of the scene's largest
 coordinate, as :func:`pyopencl_rt.accel.device_bvh.padded_nodes` does for the binary layout (see
@@ -52,27 +60,53 @@ import numpy as np
 from ..device import abi
 from .bvh import BVH, MAX_DEPTH
 
-WIDTH = 4
-NODE_UNITS = abi.WIDE_NODE.itemsize // 16   # 8 float4s
-TRI4_UNITS = abi.TRI4_UNITS                 # 10 float4s
-MAX_WIDE_DEPTH = (MAX_DEPTH + 1) // 2          # each wide level descends two binary levels
-STACK_SIZE = abi.WIDE_STACK_SIZE               # >= 3 * MAX_WIDE_DEPTH + 1 (validate_wide checks)
+STACK_SIZE = abi.WIDE_STACK_SIZE               # 4-wide: >= 3 * max_wide_depth(4) + 1 (validate_wide checks)
 _COORDS = ("x", "y", "z")
+# per node width: node dtype, the packet dtype of each packet width, offset unit (bytes), the
+# binary levels every wide level descends (log2 width), traversal stack size, leaf merge bound
+_FORMATS = {
+    4: dict(node=abi.WIDE_NODE, unit=16, levels=2, stack=abi.WIDE_STACK_SIZE, merge=0),
+    8: dict(node=abi.WIDE8_NODE, unit=32, levels=3, stack=abi.WIDE8_STACK_SIZE, merge=8),
+}
+_PACKETS = {4: abi.TRI4, 8: abi.TRI8}
 
-__all__ = ["WideBVH", "build_wide", "validate_wide", "device_blob", "reference_closest_hit", "STACK_SIZE"]
+__all__ = ["WideBVH", "build_wide", "validate_wide", "device_blob", "reference_closest_hit", "STACK_SIZE",
+           "max_wide_depth"]
+
+
+def max_wide_depth(width: int) -> int:
+    """Deepest wide level: every wide level descends log2(width) binary levels, and binary records
+    lie at depth <= MAX_DEPTH - 1 (their children at most MAX_DEPTH)."""
+    return (MAX_DEPTH - 1) // _FORMATS[width]["levels"] + 1
 
 
 @dataclass
 class WideBVH:
-    nodes: np.ndarray        # abi.WIDE_NODE, node 0 = root (child offsets in float4 units of the blob)
-    packets: np.ndarray      # abi.TRI4, after the nodes in the blob
+    nodes: np.ndarray        # abi.WIDE_NODE / WIDE8_NODE, node 0 = root (child offsets in units of the blob)
+    packets: np.ndarray      # abi.TRI4 / TRI8, after the nodes in the blob
     depth: int               # deepest wide level (root = 0)
     n_triangles: int
     stats: dict = field(default_factory=dict)
+    width: int = 4           # children per node
+    packet_width: int = 4    # triangles per packet
+
+    @property
+    def unit(self) -> int:
+        """Bytes per offset unit of the blob (a float4 or a float8)."""
+        return _FORMATS[self.width]["unit"]
+
+    @property
+    def node_units(self) -> int:
+        return self.nodes.dtype.itemsize // self.unit
+
+    @property
+    def packet_units(self) -> int:
+        return self.packets.dtype.itemsize // self.unit
 
 
 def _child_arrays(nodes):
-    """The binary records' 2R child slots (slot 2r = left, 2r + 1 = right of record r)."""
+    """The binary records' 2R child slots (slot 2r = left, 2r + 1 = right of record r): box, child,
+    count (binary encoding) and surface area."""
     R = len(nodes)
     lo = np.empty((2 * R, 3), np.float32)
     hi = np.empty((2 * R, 3), np.float32)
@@ -89,29 +123,70 @@ def _child_arrays(nodes):
     return lo, hi, child, count, area
 
 
-def build_wide(bvh: BVH) -> WideBVH:
-    """Collapse a binary BVH into a 4-wide BVH with Tri4 leaves (see the module docstring)."""
+def _merge_small_subtrees(child, count, lo, hi, merge):
+    """Turn every inner child slot whose subtree holds <= ``merge`` triangles into a leaf of the
+    subtree's triangle range (in place).  A subtree's triangles are contiguous in the reordered
+    array (top-down build, stable partitions), so the range is [first, first + total)."""
+    R = len(child) // 2
+    total = np.where(count > 0, count, 0)
+    first = np.where(count > 0, child, np.iinfo(np.int64).max)
+    levels, frontier = [], np.array([0], np.int64)
+    while len(frontier):                                  # records, level by level from the root
+        levels.append(frontier)
+        slots = np.concatenate([2 * frontier, 2 * frontier + 1])
+        frontier = child[slots[count[slots] == 0]]
+    rec_total, rec_first = np.zeros(R, np.int64), np.zeros(R, np.int64)
+    for recs in reversed(levels):                         # bottom-up: children's records are done
+        for k in (0, 1):
+            s = 2 * recs + k
+            inner = count[s] == 0
+            total[s[inner]] = rec_total[child[s[inner]]]
+            first[s[inner]] = rec_first[child[s[inner]]]
+        rec_total[recs] = total[2 * recs] + total[2 * recs + 1]
+        rec_first[recs] = np.minimum(first[2 * recs], first[2 * recs + 1])
+    small = (count == 0) & (total <= merge)
+    child[small] = first[small]
+    count[small] = total[small]
+    if rec_total[0] <= merge:                             # the whole mesh: one leaf at the root
+        child[0], count[0] = rec_first[0], rec_total[0]
+        child[1], count[1] = 0, -1
+        lo[0], hi[0] = np.minimum(lo[0], lo[1]), np.maximum(hi[0], hi[1])  # (+inf, -inf) if absent
+
+
+def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge: int | None = None) -> WideBVH:
+    """Collapse a binary BVH into a ``width``-wide BVH (4 or 8) with packets of ``packet_width``
+    triangles (default: the width), binary subtrees of at most ``merge`` triangles (default: 0 for
+    width 4, 8 for width 8) made single leaves (see the module docstring)."""
     t0 = time.perf_counter()
+    fmt = _FORMATS[width]
+    packet_width = width if packet_width is None else packet_width
+    merge = fmt["merge"] if merge is None else merge
+    node_dtype, packet_dtype = fmt["node"], _PACKETS[packet_width]
+    node_units, packet_units = node_dtype.itemsize // fmt["unit"], packet_dtype.itemsize // fmt["unit"]
+    max_depth = max_wide_depth(width)
     T = len(bvh.triangles)
     clo, chi, cchild, ccount, carea = _child_arrays(bvh.nodes)
+    if merge > 0 and T:
+        _merge_small_subtrees(cchild, ccount, clo, chi, merge)
 
     # --- top-down collapse, one wide level at a time -------------------------------------
-    level_slots = []            # per level: (K, 4) binary child-slot ids, -1 = empty
+    level_slots = []            # per level: (K, width) binary child-slot ids, -1 = empty
     frontier = np.array([0], np.int64)   # binary record of each wide node of this level
     while len(frontier):
         K = len(frontier)
-        slots = np.full((K, WIDTH), -1, np.int64)
+        slots = np.full((K, width), -1, np.int64)
         slots[:, 0] = 2 * frontier
         slots[:, 1] = 2 * frontier + 1
         two = slots[:, :2]
         two[ccount[two] < 0] = -1                         # absent children (0/1-leaf trees)
         rows = np.arange(K)
-        level = np.ones((K, WIDTH), np.int64)             # binary levels below the wide node
-        for n in (2, 3):                                  # fill slot n by opening one inner child
+        level = np.ones((K, width), np.int64)             # binary levels below the wide node
+        for n in range(2, width):                         # fill slot n by opening one inner child
             valid = slots[:, :n] >= 0
             inner = valid & (ccount[np.maximum(slots[:, :n], 0)] == 0)
-            # the largest inner child among the shallowest ones: an inner child of the
-            # binary record is always opened, so every wide level descends two binary levels
+            # the largest inner child among the shallowest ones: the inner children of the
+            # first log2(width) - 1 binary levels are always opened, so every wide level
+            # descends log2(width) binary levels
             shallow = inner & (level[:, :n] == np.where(inner, level[:, :n], 99).min(axis=1, keepdims=True))
             score = np.where(shallow, carea[np.maximum(slots[:, :n], 0)], -1.0)
             pick = np.argmax(score, axis=1)
@@ -126,13 +201,13 @@ def build_wide(bvh: BVH) -> WideBVH:
         s = slots.ravel()
         inner = (s >= 0) & (ccount[np.maximum(s, 0)] == 0)
         frontier = cchild[s[inner]]
-        if len(level_slots) > MAX_WIDE_DEPTH + 1:
+        if len(level_slots) > max_depth + 1:
             raise AssertionError("wide BVH deeper than the binary depth bound")
 
     # --- node indices (BFS order) and leaf packets ---------------------------------------
     sizes = [len(s) for s in level_slots]
     n_nodes = int(sum(sizes))
-    all_slots = np.concatenate(level_slots)               # (n_nodes, 4), node-major
+    all_slots = np.concatenate(level_slots)               # (n_nodes, width), node-major
     flat = all_slots.ravel()
     present = flat >= 0
     fc = np.where(present, ccount[np.maximum(flat, 0)], -1)
@@ -146,51 +221,51 @@ def build_wide(bvh: BVH) -> WideBVH:
     first = cchild[flat[leaf_pos]]
     cnt = fc[leaf_pos]
     order = np.argsort(first, kind="stable")
-    npk = (cnt + WIDTH - 1) // WIDTH
+    npk = (cnt + packet_width - 1) // packet_width
     pk_start_sorted = np.concatenate([[0], np.cumsum(npk[order])[:-1]]).astype(np.int64)
     pk_start = np.empty_like(pk_start_sorted)
     pk_start[order] = pk_start_sorted
     n_packets = int(npk.sum())
 
-    lane_tri = np.full((n_packets, WIDTH), -1, np.int32)
+    lane_tri = np.full((n_packets, packet_width), -1, np.int32)
     if T:
-        # triangle i of a leaf starting at `first` goes to packet pk_start + (i-first)//4, lane (i-first)%4
+        # triangle i of a leaf starting at `first` goes to packet pk_start + (i-first)//W, lane (i-first)%W
         leaf_of = np.repeat(np.arange(len(first))[order], cnt[order])     # leaves tile [0, T) in order
         local = np.arange(T) - first[leaf_of]
-        lane_tri.ravel()[WIDTH * pk_start[leaf_of] + local] = np.arange(T, dtype=np.int32)
+        lane_tri.ravel()[packet_width * pk_start[leaf_of] + local] = np.arange(T, dtype=np.int32)
     pad = lane_tri < 0
     xyz = np.empty((T + 1, 3, 3), np.float32)                 # (triangle, vertex, coordinate); row T = NaN
     for v in range(3):
         xyz[:T, v] = bvh.triangles[f"v{v}"][:, :3]
     xyz[T] = np.nan
     gathered = xyz[np.where(pad, T, lane_tri)]                # (P, lane, vertex, coordinate)
-    packets = np.empty(n_packets, abi.TRI4)
-    raw = packets.view(np.float32).reshape(n_packets, 10, WIDTH)
-    raw[:, :9] = gathered.transpose(0, 2, 3, 1).reshape(n_packets, 9, WIDTH)
+    packets = np.empty(n_packets, packet_dtype)
+    raw = packets.view(np.float32).reshape(n_packets, 10, packet_width)
+    raw[:, :9] = gathered.transpose(0, 2, 3, 1).reshape(n_packets, 9, packet_width)
     packets["tri"] = lane_tri
 
     # --- node records -------------------------------------------------------------------
-    nodes = np.zeros(n_nodes, abi.WIDE_NODE)
-    lo = np.where(present[:, None], clo[np.maximum(flat, 0)], np.float32(np.inf)).reshape(n_nodes, WIDTH, 3)
-    hi = np.where(present[:, None], chi[np.maximum(flat, 0)], np.float32(-np.inf)).reshape(n_nodes, WIDTH, 3)
+    nodes = np.zeros(n_nodes, node_dtype)
+    lo = np.where(present[:, None], clo[np.maximum(flat, 0)], np.float32(np.inf)).reshape(n_nodes, width, 3)
+    hi = np.where(present[:, None], chi[np.maximum(flat, 0)], np.float32(-np.inf)).reshape(n_nodes, width, 3)
     for a, c in enumerate(_COORDS):
         nodes[f"bmin_{c}"] = lo[:, :, a]
         nodes[f"bmax_{c}"] = hi[:, :, a]
     child = np.zeros(len(flat), np.int64)
-    child[is_inner] = NODE_UNITS * child_node[is_inner]
-    child[leaf_pos] = NODE_UNITS * n_nodes + TRI4_UNITS * pk_start
+    child[is_inner] = node_units * child_node[is_inner]
+    child[leaf_pos] = node_units * n_nodes + packet_units * pk_start
     count = np.where(is_leaf, 0, fc)
     count[leaf_pos] = npk
-    if n_nodes * NODE_UNITS + n_packets * TRI4_UNITS >= 2**31:
-        raise ValueError("wide BVH too large for 32-bit float4 offsets")
-    nodes["child"] = child.reshape(n_nodes, WIDTH)
-    nodes["count"] = count.reshape(n_nodes, WIDTH)
+    if n_nodes * node_units + n_packets * packet_units >= 2**31:
+        raise ValueError("wide BVH too large for 32-bit offsets")
+    nodes["child"] = child.reshape(n_nodes, width)
+    nodes["count"] = count.reshape(n_nodes, width)
 
     depth = len(level_slots) - 1
-    wide = WideBVH(nodes=nodes, packets=packets, depth=depth, n_triangles=T)
+    wide = WideBVH(nodes=nodes, packets=packets, depth=depth, n_triangles=T, width=width, packet_width=packet_width)
     fill = lane_tri >= 0
     wide.stats = dict(
-        nodes=n_nodes, packets=n_packets, depth=depth,
+        width=width, packet_width=packet_width, merge=merge, nodes=n_nodes, packets=n_packets, depth=depth,
         lane_fill=float(fill.mean()) if n_packets else 0.0,
         children_per_node=float(present.sum() / max(n_nodes, 1)),
         bytes=int(nodes.nbytes + packets.nbytes),
@@ -199,16 +274,16 @@ def build_wide(bvh: BVH) -> WideBVH:
     return wide
 
 
-def wide_bvh(bvh: BVH) -> WideBVH:
-    """The wide BVH of ``bvh``, built once and cached on it."""
-    w = bvh.__dict__.get("_wide")
-    if w is None:
-        w = bvh.__dict__["_wide"] = build_wide(bvh)
-    return w
+def wide_bvh(bvh: BVH, width: int = 4) -> WideBVH:
+    """The ``width``-wide BVH of ``bvh`` (default packets and merging), built once and cached on it."""
+    cache = bvh.__dict__.setdefault("_wide", {})
+    if width not in cache:
+        cache[width] = build_wide(bvh, width)
+    return cache[width]
 
 
 def device_blob(wide: WideBVH) -> np.ndarray:
-    """The buffer cl/accel/bvh_wide.h reads: padded nodes then packets, as uint8.
+    """The buffer cl/accel/bvh_wide.h (bvh_wide8.h) reads: padded nodes then packets, as uint8.
 
     Present boxes grow by 2^-20 of the scene's largest coordinate (then one more ulp outwards), the
     same padding as :func:`pyopencl_rt.trace.padded_nodes`; empty slots keep (+inf, -inf)."""
@@ -235,19 +310,19 @@ def _decode(wide):
     n_nodes = len(wide.nodes)
     child, count = wide.nodes["child"].astype(np.int64), wide.nodes["count"].astype(np.int64)
     inner, leaf = count == 0, count > 0
-    node_idx = np.where(inner, child // NODE_UNITS, -1)
-    pk = np.where(leaf, (child - NODE_UNITS * n_nodes) // TRI4_UNITS, -1)
+    node_idx = np.where(inner, child // wide.node_units, -1)
+    pk = np.where(leaf, (child - wide.node_units * n_nodes) // wide.packet_units, -1)
     return inner, leaf, node_idx, pk, count
 
 
 def _boxes(wide):
-    lo = np.stack([wide.nodes[f"bmin_{c}"] for c in _COORDS], -1)   # (N, 4, 3)
+    lo = np.stack([wide.nodes[f"bmin_{c}"] for c in _COORDS], -1)   # (N, width, 3)
     hi = np.stack([wide.nodes[f"bmax_{c}"] for c in _COORDS], -1)
     return lo, hi
 
 
 def _packet_vertices(packets):
-    """(P, 4, 3, 3): packet, lane, vertex, coordinate."""
+    """(P, W, 3, 3): packet, lane, vertex, coordinate."""
     return np.stack([np.stack([packets[f"v{v}{c}"] for c in _COORDS], -1) for v in range(3)], 2)
 
 
@@ -255,14 +330,15 @@ def validate_wide(wide: WideBVH, bvh: BVH | None = None) -> None:
     """Check the wide BVH's invariants; raise AssertionError with a message if one is broken.
 
     Tree: every node reachable exactly once from the root, child offsets decode to whole nodes or
-    packets, depth <= MAX_WIDE_DEPTH.  Leaves: every triangle in exactly one lane, leaves' packet
-    ranges disjoint and covering every packet, padding lanes only at the end of a leaf's last packet
+    packets, depth <= max_wide_depth(width), (width - 1) * depth + 1 <= the kernel's stack size.
+    Leaves: every triangle in exactly one lane, leaves' packet ranges disjoint and covering every packet, padding lanes only at the end of a leaf's last packet
     with tri = -1 and NaN vertices.  Boxes: empty slots are (+inf, -inf) with count -1; a leaf's
     box is exactly the float32 bounds of its triangles; an inner slot's box is exactly the union
     of its node's present children's boxes (so every box contains its subtree).  With ``bvh``:
     each lane's vertices equal ``bvh.triangles[tri]``."""
     nodes, packets = wide.nodes, wide.packets
-    if nodes.dtype != abi.WIDE_NODE or packets.dtype != abi.TRI4:
+    fmt = _FORMATS.get(wide.width)
+    if fmt is None or nodes.dtype != fmt["node"] or packets.dtype != _PACKETS.get(wide.packet_width):
         raise AssertionError("wrong dtypes")
     N, P, T = len(nodes), len(packets), wide.n_triangles
     if N < 1:
@@ -277,9 +353,9 @@ def validate_wide(wide: WideBVH, bvh: BVH | None = None) -> None:
     if np.any((lo > hi)[~empty]):
         raise AssertionError("inverted box in a present slot")
     child = nodes["child"].astype(np.int64)
-    if np.any(inner & ((child % NODE_UNITS != 0) | (node_idx < 1) | (node_idx >= N))):
+    if np.any(inner & ((child % wide.node_units != 0) | (node_idx < 1) | (node_idx >= N))):
         raise AssertionError("inner child offset is not a node (or points at the root)")
-    if np.any(leaf & (((child - NODE_UNITS * N) % TRI4_UNITS != 0) | (pk < 0) | (pk + count > P))):
+    if np.any(leaf & (((child - wide.node_units * N) % wide.packet_units != 0) | (pk < 0) | (pk + count > P))):
         raise AssertionError("leaf offset/count outside the packet array")
     # a tree: each non-root node referenced exactly once, and reachable (BFS with depth)
     refs = np.bincount(node_idx[inner], minlength=N)
@@ -298,7 +374,8 @@ def validate_wide(wide: WideBVH, bvh: BVH | None = None) -> None:
         frontier = kids
     if np.any(depth < 0):
         raise AssertionError("unreachable node")
-    if depth.max() != wide.depth or wide.depth > MAX_WIDE_DEPTH or 3 * wide.depth + 1 > STACK_SIZE:
+    if (depth.max() != wide.depth or wide.depth > max_wide_depth(wide.width)
+            or (wide.width - 1) * wide.depth + 1 > fmt["stack"]):
         raise AssertionError(f"depth {depth.max()} (recorded {wide.depth}) beyond the stack bound")
     # leaves: packet ranges disjoint and covering
     lf = np.flatnonzero(leaf.ravel())
@@ -308,7 +385,7 @@ def validate_wide(wide: WideBVH, bvh: BVH | None = None) -> None:
     np.add.at(cover, starts + cnts, -1)
     if P and np.any(np.cumsum(cover)[:P] != 1):
         raise AssertionError("leaf packet ranges overlap or leave packets out")
-    tri = packets["tri"].astype(np.int64)                          # (P, 4)
+    tri = packets["tri"].astype(np.int64)                          # (P, W)
     real = tri >= 0
     if T:
         if real.sum() != T or np.bincount(tri[real], minlength=T).max() != 1 or tri[real].max() >= T:

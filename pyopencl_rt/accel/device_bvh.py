@@ -1,5 +1,5 @@
 """A BVH as the kernels read it on one device: which node format a device traverses (binary
-for GPUs, 4-wide for CPUs), the node buffer of that format with conservatively padded boxes, and
+for GPUs, 8-wide or 4-wide for CPUs), the node buffer of that format with conservatively padded boxes, and
 the per-device upload cache."""
 from __future__ import annotations
 
@@ -26,37 +26,42 @@ def padded_nodes(bvh: BVH) -> np.ndarray:
     return nodes
 
 
-LAYOUTS = ("binary", "wide")
+# layout name -> node width (binary: 2); "wide" is the 4-wide layout
+LAYOUT_WIDTHS = {"binary": 2, "wide": 4, "wide8": 8}
+LAYOUTS = tuple(LAYOUT_WIDTHS)
 LAYOUT_ENV = "PYOPENCL_RT_BVH_LAYOUT"
+CPU_LAYOUT = "wide8"
 
 
 def bvh_layout(device, layout: str | None = None) -> str:
     """The BVH layout the kernels traverse on ``device``: ``layout`` if given, else the
-    ``PYOPENCL_RT_BVH_LAYOUT`` environment variable, else ``"wide"`` (4-wide nodes, Tri4 leaves:
-    cl/accel/bvh_wide.h) on CPU devices and ``"binary"`` (cl/accel/bvh.h) on the others."""
+    ``PYOPENCL_RT_BVH_LAYOUT`` environment variable, else :data:`CPU_LAYOUT` on CPU devices (8-wide
+    nodes, Tri8 leaves: cl/accel/bvh_wide8.h; ``"wide"`` is the 4-wide one, cl/accel/bvh_wide.h) and
+    ``"binary"`` (cl/accel/bvh.h) on the others."""
     import os
 
     layout = layout or os.environ.get(LAYOUT_ENV) or None
     if layout is None:
         import pyopencl as cl
 
-        layout = "wide" if device.type & cl.device_type.CPU else "binary"
+        layout = CPU_LAYOUT if device.type & cl.device_type.CPU else "binary"
     if layout not in LAYOUTS:
-        raise UserError(f"unknown BVH layout {layout!r}: use 'binary' or 'wide' (argument or ${LAYOUT_ENV})")
+        raise UserError(f"unknown BVH layout {layout!r}: use one of {', '.join(LAYOUTS)} (argument or ${LAYOUT_ENV})")
     return layout
 
 
 def layout_defines(layout: str) -> dict:
-    """Preprocessor defines that make cl/accel/trace.cl and cl/scene/scene.h traverse ``layout``."""
-    return {"BVH_WIDE": True} if layout == "wide" else {}
+    """Preprocessor defines that make cl/accel/traverse.h (trace.cl, scene.h) traverse ``layout``."""
+    return {"wide": {"BVH_WIDE": True}, "wide8": {"BVH_WIDE8": True}}.get(layout, {})
 
 
 def node_buffer(bvh: BVH, layout: str) -> np.ndarray:
     """What the kernels' first (nodes) buffer holds for ``layout``, boxes padded either way."""
-    if layout == "wide":
+    width = LAYOUT_WIDTHS[layout]
+    if width > 2:
         from .bvh_wide import device_blob, wide_bvh
 
-        return device_blob(wide_bvh(bvh))
+        return device_blob(wide_bvh(bvh, width))
     return padded_nodes(bvh)
 
 

@@ -107,36 +107,51 @@ def short_device(device) -> str:
 
 
 def run_curve(scene, *, device, integrator, intersector, width, height, max_depth, rr_depth, reference, seconds,
-              seed=1, echo=print) -> dict:
-    """One curve: a growing film, metrics after each step of :func:`spp_schedule`, until ``seconds``."""
+              seed=1, denoise=False, echo=print) -> dict:
+    """One curve: a growing film, metrics after each step of :func:`spp_schedule`, until ``seconds``.
+    ``denoise``: the film also sums the albedo and normal AOVs, and each point is Open Image
+    Denoise's image of the film so far (its time: the passes so far plus that one denoising),
+    with the raw image's errors beside it (``raw_rmse``, ``raw_relmse``)."""
     from ..device.devices import device_label, select_device
+    from ..render.aovs import GUIDES, aov_layers
     from ..render.film import Film
     from ..render.wavefront import Wavefront
 
     device = select_device(device)
     start = time.perf_counter()
     wavefront = Wavefront(scene, device, width=width, height=height, integrator=integrator, max_depth=max_depth,
-                          rr_depth=rr_depth, seed=seed, intersector=intersector)
+                          rr_depth=rr_depth, seed=seed, intersector=intersector, aovs=GUIDES if denoise else ())
     setup = time.perf_counter() - start
     start = time.perf_counter()
     # warm-up, not timed: PoCL compiles its work-group functions at the first launches
-    wavefront.run(Film(width, height), passes=1, first_pass=1 << 20)
+    wavefront.run(Film.new(width, height, denoise), passes=1, first_pass=1 << 20)
     warmup = time.perf_counter() - start
-    film = Film(width, height)
-    points, elapsed, done = [], 0.0, 0
+    film = Film.new(width, height, denoise)
+    points, elapsed, done, denoise_seconds = [], 0.0, 0, 0.0
     for target in spp_schedule():
-        if done and elapsed * target / done > seconds:  # the next step would overrun the share
+        if done and elapsed * target / done + denoise_seconds > seconds:  # the next step would overrun the share
             break
         stats = wavefront.run(film, passes=target - done, first_pass=done)
         elapsed += stats.seconds
         done = target
-        points.append({"spp": done, "seconds": elapsed, **metrics(film.image(), reference),
-                       "samples_per_second": done * width * height / elapsed if elapsed > 0 else None})
-    label = f"{short_device(device)} / {integrator}" + (" / embree" if intersector == "embree" else "")
+        point = {"spp": done, "seconds": elapsed, **metrics(film.image(), reference),
+                 "samples_per_second": done * width * height / elapsed if elapsed > 0 else None}
+        if denoise:
+            from ..render.denoise import denoise as oidn
+
+            t0 = time.perf_counter()
+            guides = aov_layers(film, GUIDES)
+            image = oidn(film.image(), guides["albedo"], guides["normal"])[0]
+            denoise_seconds = time.perf_counter() - t0
+            point = {**point, "seconds": elapsed + denoise_seconds, **metrics(image, reference),
+                     "raw_rmse": point["rmse"], "raw_relmse": point["relmse"], "denoise_seconds": denoise_seconds}
+        points.append(point)
+    label = (f"{short_device(device)} / {integrator}" + (" / embree" if intersector == "embree" else "")
+             + (" + OIDN" if denoise else ""))
     echo(f"  {label}: {done} spp in {elapsed:.2f} s (build {wavefront.timings.get('build_seconds', 0):.2f} s, "
          f"warm-up {warmup:.2f} s)")
     return {"label": label, "renderer": "pyopencl_rt", "device": device_label(device), "integrator": integrator,
-            "intersector": intersector, "build_seconds": wavefront.timings.get("build_seconds"),
+            "intersector": intersector, "denoised": denoise, "build_seconds": wavefront.timings.get("build_seconds"),
             "bvh_seconds": wavefront.timings.get("bvh_seconds"), "setup_seconds": setup, "warmup_seconds": warmup,
             "points": points}
 
@@ -148,12 +163,17 @@ def run_curve(scene, *, device, integrator, intersector, width, height, max_dept
 def run_convergence(scene_path, *, devices=None, integrators=("path",), intersectors=("opencl",), reference=None,
                     reference_spp=None, budget=60.0, width=None, height=None, max_depth=None, compare=(),
                     mitsuba_python=None, mitsuba_variant=DEFAULT_VARIANT, llvm_path=None,
-                    json_path="out/convergence.json", plot_path=None, use_cache=True, echo=print) -> dict:
+                    json_path="out/convergence.json", plot_path=None, use_cache=True, denoise=False,
+                    echo=print) -> dict:
     from ..device.devices import resolve
     from ..imageio import read_exr, write_json
     from ..scene.loaders import load_scene
 
     start = time.perf_counter()
+    if denoise:
+        from ..render.denoise import _pyoidn
+
+        _pyoidn()  # what to install, before the reference
     for peer in compare:
         if peer != "mitsuba":
             raise UserError(f"--compare {peer}: only 'mitsuba' is supported")
@@ -190,12 +210,12 @@ def run_convergence(scene_path, *, devices=None, integrators=("path",), intersec
     floor = (reference_floor(ref["image"], ref["variance"]) if ref["variance"] is not None
              else {"mse": None, "relmse": None})
 
-    jobs = [("ours", device, integrator, intersector)
-            for device in chosen for integrator in integrators for intersector in intersectors]
+    jobs = [("ours", device, integrator, intersector, den) for device in chosen for integrator in integrators
+            for intersector in intersectors for den in ((False, True) if denoise else (False,))]
     if mitsuba_python_found:
-        jobs.append(("mitsuba", None, "path", "mitsuba"))
+        jobs.append(("mitsuba", None, "path", "mitsuba", False))
     curves = []
-    for index, (renderer, device, integrator, intersector) in enumerate(jobs):
+    for index, (renderer, device, integrator, intersector, den) in enumerate(jobs):
         if budget is not None:
             left = budget - (time.perf_counter() - start)
             # a share of what is left, less a guess of the fixed costs (build, warm-up, start-up)
@@ -205,7 +225,7 @@ def run_convergence(scene_path, *, devices=None, integrators=("path",), intersec
         if renderer == "ours":
             curves.append(run_curve(scene, device=device, integrator=integrator, intersector=intersector, width=width,
                                     height=height, max_depth=max_depth, rr_depth=rr_depth, reference=ref["image"],
-                                    seconds=share, echo=echo))
+                                    seconds=share, denoise=den, echo=echo))
         else:
             workdir = tempfile.mkdtemp(prefix="pyopencl_rt_mitsuba_")
             try:

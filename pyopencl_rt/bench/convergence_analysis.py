@@ -100,8 +100,12 @@ def analyse(curves, floor) -> None:
         for target, reached in curve["time_to_relmse"].items():
             if floor_relmse is not None and float(target) < FLOOR_FACTOR * floor_relmse:
                 reached["below_reference_floor"] = True
+        if curve.get("denoised"):
+            curve["denoise"] = denoise_gain(points)
     baselines = {}
     for curve in curves:
+        if curve.get("denoised"):
+            continue
         if curve["renderer"] == "pyopencl_rt" and curve["intersector"] == "opencl" and "cpu" in curve["device"].lower():
             baselines.setdefault(curve["integrator"], curve)
     for curve in curves:
@@ -113,6 +117,18 @@ def analyse(curves, floor) -> None:
             if t_baseline and t_curve:
                 curve["speedup_vs_cpu"] = {"baseline": baseline["label"], "at_relmse": 1e-2,
                                            "speedup": t_baseline / t_curve}
+
+
+def denoise_gain(points) -> dict:
+    """How much a denoised curve gains over the raw image of the same film, point by point
+    (raw error / denoised error, for relMSE and RMSE), and where it stops helping: per metric, the
+    first spp from which the denoised error is no lower than the raw one (the denoiser's bias
+    floor reached), None if that never happens within the curve."""
+    out = {"max_spp": points[-1]["spp"] if points else 0}
+    for key in ("relmse", "rmse"):
+        out[f"{key}_gain"] = [p[f"raw_{key}"] / p[key] if p[key] > 0 else None for p in points]
+        out[f"stops_helping_at_spp_{key}"] = next((p["spp"] for p in points if p[key] >= p[f"raw_{key}"]), None)
+    return out
 
 
 REQUIRED_KEYS = {
@@ -211,3 +227,13 @@ def print_table(result, echo=print) -> None:
              f"{slope_cell('slope_rmse'):>10} {slope_cell('slope_relmse'):>12} {time_cell('0.01'):>10} "
              f"{time_cell('0.001'):>10} {(('%.2fx' % speedup['speedup']) if speedup else '-'):>7}")
     echo("* extrapolated along the fitted line")
+    for curve in result["curves"]:
+        d = curve.get("denoise")
+        if d and d["relmse_gain"]:
+            parts = []
+            for key, name in (("relmse", "relMSE"), ("rmse", "RMSE")):
+                gains, stop = d[f"{key}_gain"], d[f"stops_helping_at_spp_{key}"]
+                parts.append(f"{name} {gains[0]:.2g}x lower than raw at {curve['points'][0]['spp']} spp, "
+                             f"{gains[-1]:.2g}x at {d['max_spp']} spp, "
+                             + (f"no gain from {stop} spp" if stop else "a gain at every spp"))
+            echo(f"{curve['label']}: " + "; ".join(parts))

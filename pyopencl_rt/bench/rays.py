@@ -3,9 +3,15 @@ and the host BVH build time, on bumpy tori of several sizes.
 
 Two ray sets per mesh: *primary* (pinhole camera rays, coherent) and *diffuse* (one
 cosine-distributed bounce from each primary hit, incoherent).
+
+Embree is timed twice: single-threaded (embreex's ``run`` alone: one ``rtcIntersect1`` per ray on
+the calling thread) and with as many workers as PoCL has threads (the CPU devices' compute units,
+``--embree-threads`` to override): embreex holds the GIL while it traces, so the workers are
+processes (:mod:`pyopencl_rt.bench.embree_pool`).  Ratios are given against both.
 """
 from __future__ import annotations
 
+import contextlib
 import statistics
 import time
 
@@ -15,15 +21,28 @@ from .timing import machine_info, timed_repeats, write_results
 from .workloads import bumpy_torus, diffuse_rays, primary_rays
 
 
+def pocl_threads(devices) -> int:
+    """The threads PoCL runs a kernel on: the largest compute-unit count among the CPU devices
+    (PoCL's pthread device has one thread per compute unit), else the host's CPU count."""
+    import os
+
+    import pyopencl as cl
+
+    cpus = [int(d.max_compute_units) for d in devices if d.type & cl.device_type.CPU]
+    return max(cpus) if cpus else (os.cpu_count() or 1)
+
+
 def run_ray_bench(devices=None, sizes=(10_000, 100_000, 1_000_000), n_rays=1_000_000, repeat=3,
-                  embree=True, json_path=None, echo=print, layouts=None) -> dict:
-    """``layouts``: BVH layouts to time on each device (e.g. ``("binary", "wide")``; their rows are
-    labelled "<layout>: <device>"); None times each device's default layout under its plain label."""
+                  embree=True, json_path=None, echo=print, layouts=None, embree_threads=None) -> dict:
+    """``layouts``: BVH layouts to time on each device (e.g. ``("binary", "wide", "wide8")``; their rows
+    are labelled "<layout>: <device>"); None times each device's default layout under its plain label.
+    ``embree_threads``: Embree's worker processes for the parallel figure (default: :func:`pocl_threads`)."""
     from ..accel.bvh import build_bvh
     from ..accel.device_bvh import bvh_layout
     from ..accel.embree import embree_scene
     from ..device import devices as device_registry
     from ..trace import trace
+    from .embree_pool import EmbreePool
 
     chosen = device_registry.resolve(devices)
     # (row label, device, layout) of every OpenCL configuration timed
@@ -32,41 +51,47 @@ def run_ray_bench(devices=None, sizes=(10_000, 100_000, 1_000_000), n_rays=1_000
                    for device in chosen for layout in layouts]
     else:
         configs = [(device_registry.device_label(device), device, bvh_layout(device)) for device in chosen]
+    threads = int(embree_threads or pocl_threads(chosen))
     rng = np.random.default_rng(7)
     results = {"machine": machine_info(), "devices": [device_registry.device_label(d) for d in chosen],
-               "repeat": repeat, "meshes": []}
-    echo(f"{'mesh':>10} {'rays':>10} {'set':>8} {'backend':<40} {'Mrays/s':>9} {'vs embree':>9}")
-    for size in sizes:
-        vertices, faces = bumpy_torus(size)
-        bvh = None
+               "repeat": repeat, "embree_threads": threads if embree else None, "meshes": []}
+    echo(f"{'mesh':>10} {'rays':>10} {'set':>8} {'backend':<40} {'Mrays/s':>9} "
+         f"{'vs embree x' + str(threads):>14} {'vs embree x1':>13}")
+    with (EmbreePool(threads) if embree else contextlib.nullcontext()) as pool:
+        for size in sizes:
+            vertices, faces = bumpy_torus(size)
+            bvh = None
 
-        def build():
-            nonlocal bvh
-            bvh = build_bvh(vertices, faces)
+            def build():
+                nonlocal bvh
+                bvh = build_bvh(vertices, faces)
 
-        build_seconds = statistics.median(timed_repeats(build, repeat))
-        entry = {"triangles": int(len(faces)), "bvh_build_seconds": build_seconds,
-                 "bvh_stats": {k: v for k, v in bvh.stats.items() if k != "leaf_size_histogram"}, "sets": []}
-        if embree:
-            start = time.perf_counter()
-            embree_scene(bvh)
-            entry["embree_build_seconds"] = time.perf_counter() - start
-        echo(f"{len(faces):>10} triangles: BVH build {build_seconds:.3f} s (median of {repeat}), "
-             f"SAH cost {bvh.stats['sah_cost']:.2f}"
-             + (f"; embree build {entry['embree_build_seconds']:.3f} s" if embree else ""))
-        origins, directions = primary_rays(bvh.bounds.astype(np.float64), n_rays)
-        reference_hits = trace(bvh, origins, directions, backend="embree")
-        bounce = diffuse_rays(reference_hits, origins, directions, rng)
-        for set_name, (set_origins, set_directions) in (("primary", (origins, directions)), ("diffuse", bounce)):
-            entry["sets"].append(_time_ray_set(bvh, set_name, set_origins, set_directions, configs, embree, repeat,
-                                               len(faces), echo))
-        results["meshes"].append(entry)
+            build_seconds = statistics.median(timed_repeats(build, repeat))
+            entry = {"triangles": int(len(faces)), "bvh_build_seconds": build_seconds,
+                     "bvh_stats": {k: v for k, v in bvh.stats.items() if k != "leaf_size_histogram"}, "sets": []}
+            if embree:
+                start = time.perf_counter()
+                embree_scene(bvh)
+                entry["embree_build_seconds"] = time.perf_counter() - start
+                pool.load(vertices, faces)
+            echo(f"{len(faces):>10} triangles: BVH build {build_seconds:.3f} s (median of {repeat}), "
+                 f"SAH cost {bvh.stats['sah_cost']:.2f}"
+                 + (f"; embree build {entry['embree_build_seconds']:.3f} s" if embree else ""))
+            origins, directions = primary_rays(bvh.bounds.astype(np.float64), n_rays)
+            reference_hits = trace(bvh, origins, directions, backend="embree")
+            bounce = diffuse_rays(reference_hits, origins, directions, rng)
+            for set_name, (set_origins, set_directions) in (("primary", (origins, directions)), ("diffuse", bounce)):
+                entry["sets"].append(_time_ray_set(bvh, set_name, set_origins, set_directions, configs, pool,
+                                                   repeat, len(faces), echo))
+            results["meshes"].append(entry)
     if json_path:
         write_results(json_path, results, echo)
     return results
 
 
-def _time_ray_set(bvh, set_name, origins, directions, configs, embree, repeat, n_triangles, echo) -> dict:
+def _time_ray_set(bvh, set_name, origins, directions, configs, pool, repeat, n_triangles, echo) -> dict:
+    """Every configuration, Embree on one thread and Embree on the pool's workers, timed in turn
+    within each repetition (so that load on the machine hits them alike); medians reported."""
     from ..accel.embree import embree_scene
     from ..trace import trace
 
@@ -75,27 +100,38 @@ def _time_ray_set(bvh, set_name, origins, directions, configs, embree, repeat, n
     for _name, device, layout in configs:  # warm-up: kernel build, BVH collapse and upload are not timed
         trace(bvh, origins[:1024], directions[:1024], device=device, layout=layout)
     seconds = {name: [] for name, _device, _layout in configs}
-    if embree:
+    parallel = []
+    if pool is not None:
         seconds["embree"] = []
+        pool.set_rays(origins, directions)
     for _ in range(repeat):
         for name, device, layout in configs:
             start = time.perf_counter()
             trace(bvh, origins, directions, device=device, layout=layout)
             seconds[name].append(time.perf_counter() - start)
-        if embree:  # embreex's own call alone, so Embree is not charged for our wrapper
+        if pool is not None:  # embreex's own call alone, so Embree is not charged for our wrapper
             scene = embree_scene(bvh)
             start = time.perf_counter()
             scene.run(origins, directions, output=1)
             seconds["embree"].append(time.perf_counter() - start)
-    embree_median = statistics.median(seconds["embree"]) if embree else None
+            parallel.append(pool.run())
+    one = statistics.median(seconds["embree"]) if pool is not None else None
+    many = statistics.median(parallel) if pool is not None else None
+    if pool is not None:
+        row["embree_parallel"] = {"workers": pool.workers, "seconds_median": many, "rays_per_second": n / many,
+                                  "speedup_over_one_thread": one / many}
     layouts = {name: layout for name, _device, layout in configs}
-    for name, times in seconds.items():
+    rows = list(seconds.items()) + ([(f"embree x{pool.workers} (processes)", parallel)] if pool is not None else [])
+    for name, times in rows:
         median = statistics.median(times)
         rate = n / median
-        row["backends"][name] = {"seconds_median": median, "rays_per_second": rate,
-                                 "ratio_to_embree": (embree_median / median) if embree_median else None}
-        if layouts.get(name):
-            row["backends"][name]["layout"] = layouts[name]
-        ratio = f"{embree_median / median:9.2f}" if embree_median else f"{'-':>9}"
-        echo(f"{n_triangles:>10} {n:>10} {set_name:>8} {name[:40]:<40} {rate / 1e6:9.3f} {ratio}")
+        if name in seconds:
+            row["backends"][name] = {"seconds_median": median, "rays_per_second": rate,
+                                     "ratio_to_embree": (one / median) if one else None,
+                                     "ratio_to_embree_parallel": (many / median) if many else None}
+            if layouts.get(name):
+                row["backends"][name]["layout"] = layouts[name]
+        vs_many = f"{many / median:14.2f}" if many else f"{'-':>14}"
+        vs_one = f"{one / median:13.2f}" if one else f"{'-':>13}"
+        echo(f"{n_triangles:>10} {n:>10} {set_name:>8} {name[:40]:<40} {rate / 1e6:9.3f} {vs_many} {vs_one}")
     return row

@@ -7,10 +7,13 @@ MESH_KINDS = ("sphere", "torus", "soup", "slivers")
 
 
 def parse_sizes(text: str) -> list[int]:
-    """'10k,100k,1M' (or plain integers) -> [10000, 100000, 1000000]."""
+    """'10k,100k,1M' (or plain integers) -> [10000, 100000, 1000000]; a UsageError (one line)
+    for anything else, or a size outside 1 .. 1G."""
+    from ..errors import UsageError
+
     sizes = []
-    for part in text.split(","):
-        part = part.strip().lower()
+    for raw in text.split(","):
+        part = raw.strip().lower()
         if not part:
             continue
         multiplier = 1
@@ -18,7 +21,15 @@ def parse_sizes(text: str) -> list[int]:
             multiplier, part = 1_000, part[:-1]
         elif part.endswith("m"):
             multiplier, part = 1_000_000, part[:-1]
-        sizes.append(int(float(part) * multiplier))
+        try:
+            value = float(part) * multiplier
+        except ValueError:
+            value = float("nan")
+        if not (1 <= value <= 1e9):
+            raise UsageError(f"--sizes {text}: {raw.strip()!r} is not a size (expected e.g. 10k,100k,1M: 1 .. 1000M)")
+        sizes.append(int(value))
+    if not sizes:
+        raise UsageError(f"--sizes {text!r}: no size given (expected e.g. 10k,100k,1M)")
     return sizes
 
 

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import sobol
+
 # Every #define of the generated header (name -> int or float), in declaration order.
 DEFINES: dict[str, int | float] = {}
 # Defines a build may override with -D (the value here is the default): the header guards them.
@@ -138,7 +140,7 @@ CAMERA = np.dtype(
 )
 assert CAMERA.itemsize == 64
 
-# A 4-wide BVH node (128 bytes; pyopencl_rt/bvh_wide.py builds it, cl/accel/bvh_wide.h traverses it):
+# A 4-wide BVH node (128 bytes; pyopencl_rt/accel/bvh_wide.py builds it, cl/accel/bvh_wide.h traverses it):
 # the boxes of up to four children in structure-of-arrays form (each field is one float4, so one
 # slab test covers all four), then per child slot:
 #   child : float4 offset into the wide buffer of the child node (count 0) or of its first
@@ -156,6 +158,17 @@ assert WIDE_NODE.itemsize == 128
 TRI4 = np.dtype([(f"v{k}{c}", np.float32, 4) for k in range(3) for c in "xyz"] + [("tri", np.int32, 4)])
 assert TRI4.itemsize == 160
 
+# The 8-wide layout (cl/accel/bvh_wide8.h, for AVX2 CPUs): the same records with eight lanes, each
+# field one float8/int8, so a node (256 bytes) is one 8-lane slab test and a Tri8 packet (320
+# bytes) one 8-lane triangle test.  Offsets in child are in float8 (32-byte) units of the buffer.
+WIDE8_NODE = np.dtype(
+    [(f"{b}_{c}", np.float32, 8) for b in ("bmin", "bmax") for c in "xyz"]
+    + [("child", np.int32, 8), ("count", np.int32, 8)]
+)
+assert WIDE8_NODE.itemsize == 256
+TRI8 = np.dtype([(f"v{k}{c}", np.float32, 8) for k in range(3) for c in "xyz"] + [("tri", np.int32, 8)])
+assert TRI8.itemsize == 320
+
 # Registry of every shared struct: name -> dtype.  Add new shared structs here.
 STRUCTS: dict[str, np.dtype] = {
     "BVHNode": BVH_NODE,
@@ -165,6 +178,8 @@ STRUCTS: dict[str, np.dtype] = {
     "Camera": CAMERA,
     "WideNode": WIDE_NODE,
     "Tri4": TRI4,
+    "Wide8Node": WIDE8_NODE,
+    "Tri8": TRI8,
     "Texture": TEXTURE,
 }
 
@@ -180,6 +195,9 @@ PRIM_SPHERE_FIRST = define("PRIM_SPHERE_FIRST", -2)
 BVH_STACK_SIZE = define("BVH_STACK_SIZE", 64)    # cl/accel/bvh.h: one entry per level
 WIDE_STACK_SIZE = define("WIDE_STACK_SIZE", 96)  # cl/accel/bvh_wide.h: up to 3 entries per wide level
 TRI4_UNITS = define("TRI4_UNITS", TRI4.itemsize // 16)  # float4s per Tri4 packet
+# cl/accel/bvh_wide8.h: up to 7 entries per 8-wide level, which descends >= 3 binary levels (<= 20 levels)
+WIDE8_STACK_SIZE = define("WIDE8_STACK_SIZE", 144)
+TRI8_UNITS = define("TRI8_UNITS", TRI8.itemsize // 32)  # float8s per Tri8 packet
 # Node boxes grow by this fraction of the scene's largest coordinate (cl/accel/intersect.h,
 # "Conservative on purpose"); the host pads, the kernels rely on it.
 BOX_PAD_RELATIVE = define("BOX_PAD_RELATIVE", 2.0**-20)
@@ -193,12 +211,39 @@ COUNTER_QUEUE_OUT = define("COUNTER_QUEUE_OUT", 0)  # paths that continue (queue
 COUNTER_SHADOW = define("COUNTER_SHADOW", 1)        # shadow rays queued by shade (shadow_q)
 COUNTER_TERM = define("COUNTER_TERM", 2)            # finished paths (term_q)
 COUNTER_NONFINITE = define("COUNTER_NONFINITE", 3)  # samples dropped as NaN/inf, over the whole run
+# rays traced by the megakernel (cl/megakernel/path.cl) since the counters were last cleared: the
+# wavefront counts them on the host from its queue lengths
+COUNTER_RAYS_EXTEND = define("COUNTER_RAYS_EXTEND", 4)
+COUNTER_RAYS_SHADOW = define("COUNTER_RAYS_SHADOW", 5)
 COUNTER_PASS_DONE = define("COUNTER_PASS_DONE", 8)
 COUNTERS = {"queue_out": COUNTER_QUEUE_OUT, "shadow": COUNTER_SHADOW, "term": COUNTER_TERM,
-            "nonfinite": COUNTER_NONFINITE}
+            "nonfinite": COUNTER_NONFINITE, "rays_extend": COUNTER_RAYS_EXTEND, "rays_shadow": COUNTER_RAYS_SHADOW}
 ITERATION_COUNTERS = 3
 assert sorted((COUNTER_QUEUE_OUT, COUNTER_SHADOW, COUNTER_TERM)) == list(range(ITERATION_COUNTERS))
 assert max(COUNTERS.values()) < COUNTER_PASS_DONE
+
+# Samplers (cl/render/sampler.h; SAMPLER is one of these, set by render/settings.py:kernel_features).
+# SOBOL_LOG2_ROUND: the Sobol sampler gives each pixel a block of 2^SOBOL_LOG2_ROUND consecutive
+# indices of one sequence per 2^((32 - SOBOL_LOG2_ROUND) / 2)-pixel-square tile (the Morton order
+# of pbrt-v4's ZSobol); passes beyond a block start a new, independently scrambled round.
+SAMPLER_INDEPENDENT = define("SAMPLER_INDEPENDENT", 0)
+SAMPLER_SOBOL = define("SAMPLER_SOBOL", 1)
+SAMPLER_STRATIFIED = define("SAMPLER_STRATIFIED", 2)
+SAMPLERS = {"independent": SAMPLER_INDEPENDENT, "sobol": SAMPLER_SOBOL, "stratified": SAMPLER_STRATIFIED}
+SOBOL_LOG2_ROUND = define("SOBOL_LOG2_ROUND", 16, overridable=True)
+
+# The per-sample AOVs (compiled with HAS_AOVS; cl/render/aov.h): AOV_FLOATS floats per path in
+# aov_path and per pixel and pass in aov_ring, at these offsets.  albedo and normal are those of
+# the first non-delta hit (albedo times the throughput of the delta bounces before it), position
+# and depth those of the first hit, and hit is 1 when the camera ray hit something (the host
+# divides position and depth by the summed hits).  Positions are relative to the camera.
+AOV_ALBEDO = define("AOV_ALBEDO", 0)
+AOV_NORMAL = define("AOV_NORMAL", 3)
+AOV_POSITION = define("AOV_POSITION", 6)
+AOV_DEPTH = define("AOV_DEPTH", 9)
+AOV_HIT = define("AOV_HIT", 10)
+AOV_PENDING = define("AOV_PENDING", 11)  # aov_path only: 1 until the first non-delta hit is recorded
+AOV_FLOATS = define("AOV_FLOATS", 12)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -277,6 +322,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _path("path_pass", "int", 1, "the sample's pass"),
     _path("path_depth", "int", 1, "segments so far"),
     _path("path_pdf", "float", 1, "BSDF pdf of the last bounce, 0 after a camera or delta bounce"),
+    _path("path_eta_scale", "float", 1, "product of eta^2 over the refractions so far (Russian roulette)"),
     _path("hit_t", "float", 1, "closest hit of ray_o/ray_d (extend)"),
     _path("hit_prim", "int", 1, "its primitive (PRIM_MISS, triangle or SPHERE_PRIM)"),
     _path("hit_u", "float", 1, "its barycentrics"),
@@ -297,6 +343,9 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("free_q", "global", "int", "stack of free slots", per_slot=1),
     Param("counters", "global", "int", "COUNTER_* slots, then one per ring pass"),
     Param("pass_ring", "global", "float", "ring_size passes of n_pixels RGB sums"),
+    # AOVs (HAS_AOVS; AOV_* offsets): 16-byte dummies without them
+    Param("aov_path", "global", "float", "the path's AOVs so far", per_slot=AOV_FLOATS),
+    Param("aov_ring", "global", "float", "ring_size passes of n_pixels x AOV_FLOATS"),
     # the environment map and its sampling CDFs (cl/render/lights.h); dummies without HAS_ENVIRONMENT
     Param("env_map", "const", "float"),
     Param("env_cdf", "const", "float"),
@@ -373,4 +422,5 @@ def cl_header() -> str:
         *(cl_struct(name, dt) for name, dt in STRUCTS.items()),
         cl_defines(DEFINES, OVERRIDABLE),
         cl_params("WAVE_PARAMS", WAVE_PARAMS),
+        sobol.cl_table(),
     ])

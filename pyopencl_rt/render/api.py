@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import platform
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,17 +24,44 @@ class RenderResult:
     stats: RunStats
     info: dict  # everything the JSON sidecar records
     film: Film  # sums behind the image (variance_of_mean() gives each pixel's standard error^2)
+    # AOV layers (render/aovs.py) by name, H x W x C float32, and "noisy" (the raw beauty) when
+    # the image was denoised: the EXR's layers beside R, G, B
+    layers: dict = field(default_factory=dict)
 
+
+def scene_argument(scene) -> Scene:
+    """A Scene, or a scene file's path (loaded, as ``pyopencl-rt render`` loads it), checked
+    (:func:`pyopencl_rt.scene.validate.check_scene`): values the kernels cannot hold are refused
+    before anything is built."""
+    import os
+
+    from ..scene.validate import check_scene
+
+    if isinstance(scene, (str, os.PathLike)):
+        from ..scene.loaders import load_scene
+
+        scene = load_scene(scene)
+    elif not isinstance(scene, Scene):
+        from ..errors import UsageError
+
+        raise UsageError(f"scene must be a Scene or a scene file's path, got a {type(scene).__name__}")
+    check_scene(scene)
+    return scene
 
 def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=None, width=None, height=None,
                 max_depth=None, rr_depth=None, integrator=None, wave_size=None, intersector="opencl", progress=None,
                 profile=False, wavefront: Wavefront | None = None, scheduler=None, checkpoint=None, resume=False,
-                checkpoint_every=None, handle_signals=False, settings: ImageSettings | None = None) -> RenderResult:
+                checkpoint_every=None, handle_signals=False, kernel_mode=None, device_timeout=None,
+                settings: ImageSettings | None = None,
+                aovs=None, sampler=None,
+                denoise=False, preview=None, preview_every=None) -> RenderResult:
     """Render and return the image with statistics (see :func:`render`).
 
     Several devices (``device="all"``, a list or a comma list) render one image together
     (:mod:`pyopencl_rt.render.multidevice`); ``scheduler`` (a ``tcp://`` address, ``"local"`` or a
     ``dask.distributed.Client``) renders on a Dask cluster (:mod:`pyopencl_rt.render.distributed`).
+    ``kernel_mode`` ("auto", "wavefront" or "megakernel", :mod:`pyopencl_rt.render.megakernel`):
+    how paths are scheduled; the image is the same.
     ``intersector`` ("opencl" or "embree", :mod:`pyopencl_rt.render.intersectors`) traces the
     extend and shadow rays.  ``wavefront``: a :class:`Wavefront` prepared earlier (benchmarks reuse
     one across renders); its settings are the image's.  ``checkpoint`` is a file
@@ -42,13 +69,40 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
     ``checkpoint_every`` seconds, and at the end when either option is used; ``resume=True``
     continues from it up to ``spp``.  ``handle_signals`` (the CLI): SIGINT and SIGTERM stop the
     render at a safe point instead of killing it.  ``settings``: an :class:`ImageSettings`
-    resolved by the caller, instead of width, height, max_depth, rr_depth, integrator and seed.
+    resolved by the caller, instead of width, height, max_depth, rr_depth, integrator, seed and
+    sampler ("sobol", "stratified" or "independent": cl/render/sampler.h).
+    ``aovs``: AOV layers (names or a comma list, :mod:`pyopencl_rt.render.aovs`; default the
+    scene's ``[film] aovs``) returned in ``layers``.  ``denoise``: the image is Open Image
+    Denoise's (:mod:`pyopencl_rt.render.denoise`, with the albedo and normal AOVs as guides) and
+    ``layers["noisy"]`` the raw one.  ``preview(image)`` is called with the image so far every
+    ``preview_every`` seconds.  ``device_timeout``: seconds without progress after which one of
+    several devices is dropped as hung (default 120).  ``scene`` may be a scene file's path.
+    Every argument is checked first (:mod:`pyopencl_rt.render.arguments`): a bad one is a
+    UserError with the CLI's one-line message, before anything is built.
     """
     from . import checkpoint as checkpoints
+    from .aovs import GUIDES, KERNEL_AOVS, aov_layers, parse_aovs
 
-    check_run(spp, time_limit)
+    from .arguments import check_render_arguments
+
+    scene = scene_argument(scene)
+    args = check_render_arguments(
+        spp=spp, time_limit=time_limit, width=width, height=height, max_depth=max_depth, rr_depth=rr_depth,
+        integrator=integrator, seed=seed, wave_size=wave_size, intersector=intersector, kernel_mode=kernel_mode,
+        device=device, scheduler=scheduler if wavefront is None else None, checkpoint=checkpoint, resume=resume,
+        checkpoint_every=checkpoint_every, device_timeout=device_timeout, handle_signals=handle_signals,
+        profile=profile, progress=progress)
+    spp, time_limit, wave_size, intersector = args.spp, args.time_limit, args.wave_size, args.intersector
+    names = parse_aovs(scene.settings.aovs if aovs is None else aovs)
+    kernel_aovs = [a for a in names if a in KERNEL_AOVS] + (list(GUIDES) if denoise else [])
+    if denoise:
+        from .denoise import _pyoidn
+
+        _pyoidn()  # the error saying what to install, before rendering
+    if preview_every is not None and not float(preview_every) > 0:
+        raise UserError(f"--preview-every must be positive (got {preview_every})")
     overrides = dict(width=width, height=height, max_depth=max_depth, rr_depth=rr_depth, integrator=integrator,
-                     seed=seed)
+                     seed=seed, sampler=sampler)
     given = {k: v for k, v in overrides.items() if v is not None}
     if wavefront is not None or settings is not None:  # settings made earlier; arguments may only repeat them
         if wavefront is not None and settings is not None and settings != wavefront.settings:
@@ -58,19 +112,25 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
         other = {k: v for k, v in given.items() if v != getattr(settings, k)}
         if other:
             raise UserError(f"the prepared settings differ from the arguments ({settings.differences(other)})")
+        if kernel_aovs and not settings.film_aovs:
+            raise UserError(f"the prepared settings have no AOVs (needed for {', '.join(dict.fromkeys(kernel_aovs))}): "
+                            "resolve them with aovs=")
     else:
-        settings = ImageSettings.resolve(scene, **given)
+        settings = ImageSettings.resolve(scene, **given, aovs=kernel_aovs)
     if spp is None and time_limit is None:
         spp = scene.settings.spp
     if resume and checkpoint is None:
         raise UserError("resume needs a checkpoint file")
-    film = checkpoints.load(checkpoint, scene, settings)[0] if resume else Film(settings.width, settings.height)
+    film = (checkpoints.load(checkpoint, scene, settings)[0] if resume
+            else Film.new(settings.width, settings.height, settings.film_aovs))
     resumed = film.passes
     todo = None if spp is None else max(0, int(spp) - film.passes)
     saver = checkpoints.Checkpointer(checkpoint, scene, settings, checkpoint_every)
     if progress is not None and hasattr(progress, "base"):
         progress.base = film.passes  # passes before a resume: the bar shows the total
-    job = _Job(scene, settings, film, todo, time_limit, device, wave_size, intersector, progress, profile, saver)
+    periodic = [saver] + ([_Every(lambda f: preview(f.image()), preview_every)] if preview is not None else [])
+    job = _Job(scene, settings, film, todo, time_limit, device if args.devices is None else args.devices, wave_size,
+               intersector, kernel_mode, progress, profile, periodic, device_timeout=args.device_timeout)
     with checkpoints.stop_on_signals(handle_signals) as stop:
         job.cancel = stop.is_set
         if wavefront is not None:
@@ -80,15 +140,24 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
         else:
             run = _render_local(job)
     extra = dict(run.extra)
-    if checkpoint is not None and (run.stats.interrupted or checkpoint_every is not None or resume):
-        saver.save(film)
-        extra["checkpoint"] = str(checkpoint)
+    if checkpoint is not None and film.passes > 0 and (run.stats.interrupted or checkpoint_every is not None or resume):
+        if saver.save(film) is not None:
+            extra["checkpoint"] = str(checkpoint)
     if resume:
         extra["resumed_from_spp"] = resumed
     info = sidecar(scene, settings, film, run, spp=spp, time_limit=time_limit, intersector=intersector,
                    profile=profile)
     info.update(extra)
-    return RenderResult(film.image(), run.stats, info, film)
+    image = film.image()
+    layers = aov_layers(film, names, scene.camera.eye) if film.passes else {}
+    info["aovs"] = list(names)
+    if denoise and film.passes:
+        from .denoise import denoise as oidn
+
+        guides = aov_layers(film, GUIDES)
+        layers["noisy"] = image
+        image, info["denoise"] = oidn(image, guides["albedo"], guides["normal"])
+    return RenderResult(image, run.stats, info, film, layers)
 
 
 @dataclass
@@ -102,10 +171,36 @@ class _Job:
     device: object
     wave_size: int | None
     intersector: object
+    kernel_mode: str | None
     progress: object
     profile: bool
-    saver: object
+    periodic: list  # objects with due() and save(film): the checkpointer, the preview
     cancel: object = None
+    device_timeout: float | None = None  # seconds without progress before one of several devices is dropped
+
+    def due(self) -> bool:
+        return any(p.due() for p in self.periodic)
+
+    def tick(self, film: Film) -> None:
+        """Whatever is due, with ``film`` (the image so far)."""
+        for p in self.periodic:
+            if p.due():
+                p.save(film)
+
+
+class _Every:
+    """``save(film)`` calls ``fn(film)``; ``due()`` once ``seconds`` have passed since the last call."""
+
+    def __init__(self, fn, seconds):
+        self.fn, self.every, self.last = fn, seconds, time.monotonic()
+
+    def due(self) -> bool:
+        return self.every is not None and time.monotonic() - self.last >= self.every
+
+    def save(self, film: Film) -> None:
+        if film.passes:
+            self.fn(film)
+        self.last = time.monotonic()
 
 
 @dataclass
@@ -123,7 +218,7 @@ def _render_prepared(job: _Job, wf: Wavefront) -> _Run:
     from ..device.devices import device_label
 
     def tick(passes, elapsed):
-        job.saver.maybe(job.film)
+        job.tick(job.film)
         if job.progress is not None:
             job.progress(passes, elapsed)
 
@@ -139,17 +234,19 @@ def _render_local(job: _Job) -> _Run:
     t0 = time.perf_counter()
     devices = resolve(job.device)
     if len(devices) == 1:
-        wf = Wavefront(job.scene, devices[0], job.settings, wave_size=job.wave_size, intersector=job.intersector)
+        wf = Wavefront(job.scene, devices[0], job.settings, wave_size=job.wave_size, intersector=job.intersector,
+                       kernel_mode=job.kernel_mode)
         run = _render_prepared(job, wf)
         run.setup_seconds = time.perf_counter() - t0 - run.stats.seconds
         return run
     from .multidevice import MultiDevice
 
-    md = MultiDevice(job.scene, devices, settings=job.settings, wave_size=job.wave_size, intersector=job.intersector)
+    md = MultiDevice(job.scene, devices, settings=job.settings, wave_size=job.wave_size, intersector=job.intersector,
+                     kernel_mode=job.kernel_mode, device_timeout=job.device_timeout)
     md.prepare()
     setup = time.perf_counter() - t0
     stats = md.run(job.film, passes=job.passes, time_limit=job.time_limit, progress=job.progress, profile=job.profile,
-                   cancel=job.cancel, on_tick=lambda pool: job.saver.due() and job.saver.save(pool.snapshot()))
+                   cancel=job.cancel, on_tick=lambda pool: job.due() and job.tick(pool.snapshot()))
     label = "; ".join(r["device"] for r in stats.devices if r["failed"] is None or r["passes"])
     return _Run(stats, label, md.wavefronts[0].description(), setup, {"devices": stats.devices})
 
@@ -162,8 +259,8 @@ def _render_dask(job: _Job, scheduler) -> _Run:
     stats, workers = distributed.run(
         job.scene, scheduler, job.film, settings=job.settings, key=render_key(job.scene, job.settings),
         passes=job.passes, time_limit=job.time_limit, device=job.device, wave_size=job.wave_size,
-        intersector=job.intersector, progress=job.progress, profile=job.profile, cancel=job.cancel,
-        on_tick=job.saver.maybe)
+        intersector=job.intersector, kernel_mode=job.kernel_mode, progress=job.progress, profile=job.profile, cancel=job.cancel,
+        on_tick=job.tick)
     address = scheduler if isinstance(scheduler, str) else getattr(getattr(scheduler, "scheduler", None), "address", None)
     engine = next(iter(workers.values()), {})
     setup = engine.get("setup_seconds", time.perf_counter() - t0 - stats.seconds)
@@ -184,7 +281,8 @@ def sidecar(scene: Scene, settings: ImageSettings, film: Film, run: _Run, *, spp
         "spp": film.passes,
         "spp_requested": spp,
         "time_limit": time_limit,
-        "intersector": getattr(intersector, "name", intersector),
+        "intersector": engine.get("intersector") or getattr(intersector, "name", intersector),  # what ran
+        "kernel_mode": engine.get("kernel_mode"),
         "wave_size": engine.get("wave_size"),
         "features": engine.get("features"),
         "triangles": int(len(scene.faces)),

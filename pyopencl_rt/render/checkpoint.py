@@ -1,6 +1,7 @@
 """Checkpoints: a film's sums saved so that a render can be interrupted and resumed.
 
-A checkpoint is one ``.npz`` file: the film (float64 ``sum`` and ``sum_sq``, ``passes``), the
+A checkpoint is one ``.npz`` file: the film (float64 ``sum`` and ``sum_sq``, ``passes``, and
+``aov_sum`` when the settings have ``film_aovs``, so that a resumed render keeps its AOVs), the
 ``key`` it belongs to and a JSON ``meta`` record.  The key is a SHA-256 of the scene's arrays
 (geometry, materials, camera) and of every setting that changes the image (width, height,
 max_depth, rr_depth, integrator, seed), so a checkpoint of another scene or of other settings is
@@ -32,11 +33,7 @@ from ..errors import UserError
 from .film import Film
 from .settings import ImageSettings
 
-FORMAT = 1
-
-
-class CheckpointError(UserError):
-    """A checkpoint that is missing, unreadable or belongs to another scene or settings."""
+from .checkpoint_schema import FORMAT, CheckpointError, read_checked  # noqa: F401 (CheckpointError: public)
 
 
 def scene_hash(scene) -> str:
@@ -97,6 +94,8 @@ def save(path, film: Film, scene, settings: ImageSettings, meta: dict | None = N
         "key": np.array(render_key(scene, settings)),
         "meta": np.array(json.dumps(record, default=str)),
     }
+    if film.aov_sum is not None:
+        arrays["aov_sum"] = np.asarray(film.aov_sum, np.float64)
 
     def writer(tmp):
         with open(tmp, "wb") as f:  # a file object: np.savez would append ".npz" to a name
@@ -109,21 +108,9 @@ def save(path, film: Film, scene, settings: ImageSettings, meta: dict | None = N
 
 
 def read(path) -> tuple[Film, str, dict]:
-    """The film, key and metadata stored in a checkpoint (no compatibility check)."""
-    path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(f"{path}: no checkpoint to resume from")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            key = str(z["key"])
-            s, sq, passes = z["sum"], z["sum_sq"], int(z["passes"])
-    except Exception as exc:  # truncated, not an npz, missing arrays
-        raise CheckpointError(f"{path}: not a readable checkpoint ({type(exc).__name__}: {exc})") from None
-    w, h = int(meta["settings"]["width"]), int(meta["settings"]["height"])
-    if s.shape != (w * h, 3) or sq.shape != s.shape:
-        raise CheckpointError(f"{path}: corrupt checkpoint (film of shape {s.shape} for {w}x{h})")
-    return Film(w, h, sum=s.copy(), sum_sq=sq.copy(), passes=passes), key, meta
+    """The film, key and metadata stored in a checkpoint (no compatibility check), every field
+    checked as untrusted input (:mod:`.checkpoint_schema`)."""
+    return read_checked(path)
 
 
 def load(path, scene, settings: ImageSettings) -> tuple[Film, dict]:
@@ -155,7 +142,15 @@ class Checkpointer:
     def save(self, film: Film) -> Path | None:
         if self.path is None:
             return None
-        p = save(self.path, film, self.scene, self.settings, self.meta)
+        try:
+            p = save(self.path, film, self.scene, self.settings, self.meta)
+        except OSError as exc:  # a full disk must not end the render that the checkpoint is for
+            import warnings
+
+            warnings.warn(f"{self.path}: cannot write the checkpoint ({exc.strerror or exc}); rendering on",
+                          RuntimeWarning, stacklevel=2)
+            self.last = time.monotonic()
+            return None
         self.last = time.monotonic()
         self.saved += 1
         return p

@@ -21,7 +21,6 @@ import threading
 import time
 
 from ..errors import UserError
-from .wavefront import STAGES
 from .film import Film, RunStats
 from .settings import ImageSettings
 
@@ -47,10 +46,31 @@ def connect(scheduler):
         cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                                            dashboard_address=None, silence_logs=40)
         return distributed.Client(cluster), cluster, True
+    _probe(text)
     try:
-        return distributed.Client(text, timeout=30), None, True
+        return distributed.Client(text, timeout=CONNECT_SECONDS), None, True
     except Exception as exc:
         raise UserError(f"cannot reach the Dask scheduler {text}: {exc}") from None
+
+
+CONNECT_SECONDS = 10  # the scheduler's handshake, once its port answers
+PROBE_SECONDS = 3  # whether anything listens at host:port
+
+
+def _probe(address: str) -> None:
+    """Fail in seconds, not after the client's timeout, when nothing listens at a tcp:// or
+    tls:// address (a typo, a scheduler that is not running, a host that does not resolve)."""
+    import socket
+
+    scheme, _, rest = address.partition("://")
+    host, _, port = rest.rpartition(":")
+    if scheme not in ("tcp", "tls") or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=PROBE_SECONDS).close()
+    except OSError as exc:
+        why = exc.strerror or str(exc) or type(exc).__name__
+        raise UserError(f"cannot reach the Dask scheduler {address}: {why}") from None
 
 
 # -- worker side ---------------------------------------------------------------------------------
@@ -65,14 +85,15 @@ def _renderer(scene, job):
 
     from ..device.devices import device_label, resolve
 
-    key = (get_worker().address, job["key"], repr(job["device"]), job["wave_size"], job["intersector"])
+    key = (get_worker().address, job["key"], repr(job["device"]), job["wave_size"], job["intersector"],
+               job["kernel_mode"])
     with _WORKER_LOCK:
         entry = _WORKER_CACHE.get(key)
         if entry is None:
             for k in [k for k in _WORKER_CACHE if k[0] == key[0]]:
                 del _WORKER_CACHE[k]  # one scene per worker at a time: free the device memory
             settings = ImageSettings.from_dict(job["settings"])
-            options = dict(wave_size=job["wave_size"], intersector=job["intersector"])
+            options = dict(wave_size=job["wave_size"], intersector=job["intersector"], kernel_mode=job["kernel_mode"])
             devices = resolve(job["device"])
             t0 = time.perf_counter()
             if len(devices) == 1:
@@ -95,12 +116,18 @@ def render_chunk(scene, job: dict, first: int, count: int) -> dict:
     """Worker task: passes [first, first + count) into a fresh film; returns its sums."""
     from distributed import get_worker
 
-    renderer, description, lock = _renderer(scene, job)
-    film = Film(job["settings"]["width"], job["settings"]["height"])
-    with lock:  # a worker with several threads shares one renderer
-        st = renderer.run(film, passes=count, first_pass=first, profile=job.get("profile", False))
+    film = Film.new(job["settings"]["width"], job["settings"]["height"], aovs=job["settings"].get("film_aovs", False))
+    # a time-limited render: stop at the client's deadline (whole passes), and start nothing after it
+    remaining = None if job.get("deadline_epoch") is None else job["deadline_epoch"] - time.time()
+    if remaining is not None and remaining <= 0:
+        st, description = RunStats(), None
+    else:
+        renderer, description, lock = _renderer(scene, job)
+        with lock:  # a worker with several threads shares one renderer
+            st = renderer.run(film, passes=count, first_pass=first, time_limit=remaining,
+                              profile=job.get("profile", False))
     return {
-        "first": first, "passes": film.passes, "sum": film.sum, "sum_sq": film.sum_sq,
+        "first": first, "passes": film.passes, "sum": film.sum, "sum_sq": film.sum_sq, "aov_sum": film.aov_sum,
         "worker": get_worker().address, "seconds": st.seconds, "description": description,
         "stats": {"iterations": st.iterations, "rays_extend": st.rays_extend, "rays_shadow": st.rays_shadow,
                   "nonfinite": st.nonfinite, "stage_seconds": dict(st.stage_seconds)},
@@ -109,7 +136,8 @@ def render_chunk(scene, job: dict, first: int, count: int) -> dict:
 
 # -- client side ---------------------------------------------------------------------------------
 def run(scene, scheduler, film: Film, *, settings: ImageSettings, key: str, passes=None, time_limit=None,
-        device=None, wave_size=None, intersector="opencl", progress=None, profile=False, cancel=None, on_tick=None,
+        device=None, wave_size=None, intersector="opencl", kernel_mode=None, progress=None, profile=False, cancel=None,
+        on_tick=None,
         chunk=None, tick_seconds=0.25) -> tuple[RunStats, dict]:
     """Render passes [film.passes, film.passes + passes) (or until time_limit) on the cluster into
     ``film``.  Returns (stats, {worker address: its renderer's description})."""
@@ -125,13 +153,17 @@ def run(scene, scheduler, film: Film, *, settings: ImageSettings, key: str, pass
     try:
         n_workers = max(1, len(client.scheduler_info()["workers"]))
         job = {"key": key, "settings": settings.as_dict(), "device": device, "wave_size": wave_size,
-               "intersector": getattr(intersector, "name", intersector), "profile": profile}
-        scene_f = client.scatter(scene, broadcast=True)  # the scene travels once to each worker
+               "intersector": getattr(intersector, "name", intersector), "kernel_mode": kernel_mode, "profile": profile}
+        # the scene travels once to each worker; under a key of its own (hash=False): two renders of
+        # one scene would share a content-hashed key, and the first to finish released the other's data
+        scene_f = client.scatter(scene, broadcast=True, hash=False)
         if chunk is None:
             chunk = max(1, min(16, math.ceil(passes / (4 * n_workers)))) if passes is not None else 1
         end = None if passes is None else first_pass + passes
         start = time.perf_counter()
-        deadline = None if time_limit is None else start + time_limit
+        # a time limit counts from the first pass a worker rendered (as Wavefront.run counts it,
+        # after its setup); the workers are told the deadline and stop on it themselves
+        deadline = None
         next_new = first_pass
         done: dict[int, dict] = {}
         in_flight: dict = {}
@@ -160,14 +192,17 @@ def run(scene, scheduler, film: Film, *, settings: ImageSettings, key: str, pass
                     first, k = in_flight.pop(fut)
                     r = fut.result()  # re-raises a chunk that failed after its retries
                     done[first] = r
-                    descriptions[r["worker"]] = r["description"]
+                    if time_limit is not None and deadline is None and r["passes"]:
+                        deadline = time.perf_counter() - r["seconds"] + time_limit
+                        job = {**job, "deadline_epoch": time.time() - r["seconds"] + time_limit}
+                    if r["description"] is not None:
+                        descriptions[r["worker"]] = r["description"]
                     w = workers.setdefault(r["worker"], {"passes": 0, "seconds": 0.0})
                     w["passes"] += r["passes"]
                     w["seconds"] += r["seconds"]
                     for name in ("iterations", "rays_extend", "rays_shadow", "nonfinite"):
                         setattr(stats, name, getattr(stats, name) + r["stats"][name])
-                    for s in STAGES:
-                        stats.stage_seconds[s] += r["stats"]["stage_seconds"][s]
+                    stats.add_stage_seconds(r["stats"]["stage_seconds"])
                     if chunk and passes is None and r["seconds"] > 0:  # time-limited: ~1 s chunks
                         chunk = max(1, int(r["passes"] / r["seconds"]))
                 _fold(done, film)
@@ -207,9 +242,7 @@ def _fold(done: dict, film: Film) -> None:
     """Add the chunk films that continue the film's prefix, in pass order."""
     while film.passes in done:
         r = done.pop(film.passes)
-        film.sum += r["sum"]
-        film.sum_sq += r["sum_sq"]
-        film.passes += r["passes"]
+        film.add(r["sum"], r["sum_sq"], r["passes"], r.get("aov_sum"))
         if r["passes"] == 0:
             break
 

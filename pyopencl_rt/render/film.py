@@ -6,19 +6,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-STAGES = ("generate", "extend", "shade", "shadow", "accumulate")
+from ..device import abi
+
 
 
 @dataclass
 class Film:
     """Radiance summed over completed passes (float64), its sum of squares (for the variance of
-    each pixel's estimate), and how many passes that is.  Films of the same size add up."""
+    each pixel's estimate), and how many passes that is.  Films of the same size add up.
+
+    ``aov_sum`` (a film made with ``aovs=True``): the per-sample AOVs of the kernels summed the
+    same way, ``abi.AOV_FLOATS`` per pixel at the ``abi.AOV_*`` offsets (render/aovs.py turns
+    them into layers); None otherwise."""
 
     width: int
     height: int
     sum: np.ndarray = None
     sum_sq: np.ndarray = None
     passes: int = 0
+    aov_sum: np.ndarray | None = None
 
     def __post_init__(self):
         if self.sum is None:
@@ -26,11 +32,35 @@ class Film:
         if self.sum_sq is None:
             self.sum_sq = np.zeros((self.height * self.width, 3), np.float64)
 
-    def add_pass(self, radiance: np.ndarray) -> None:
+    @classmethod
+    def new(cls, width: int, height: int, aovs: bool = False) -> "Film":
+        """An empty film; with ``aovs`` it also sums the kernels' AOVs."""
+        return cls(width, height, aov_sum=np.zeros((width * height, abi.AOV_FLOATS), np.float64) if aovs else None)
+
+    def add_pass(self, radiance: np.ndarray, aov: np.ndarray | None = None) -> None:
+        """One pass: radiance (P x 3) and, for a film with AOVs, the pass's AOV ring (P x AOV_FLOATS)."""
         r = radiance.astype(np.float64)
         self.sum += r
         self.sum_sq += r * r
+        if self.aov_sum is not None:
+            if aov is None:
+                raise ValueError("this film sums AOVs: the pass must bring them")
+            self.aov_sum += aov
         self.passes += 1
+
+    def add(self, sum: np.ndarray, sum_sq: np.ndarray, passes: int, aov_sum: np.ndarray | None = None) -> None:
+        """Another film's sums (passes that follow this film's, for the same pass order)."""
+        self.sum += sum
+        self.sum_sq += sum_sq
+        if self.aov_sum is not None:
+            if aov_sum is None:
+                raise ValueError("this film sums AOVs: the film added must have them")
+            self.aov_sum += aov_sum
+        self.passes += passes
+
+    def copy(self) -> "Film":
+        return Film(self.width, self.height, sum=self.sum.copy(), sum_sq=self.sum_sq.copy(), passes=self.passes,
+                    aov_sum=None if self.aov_sum is None else self.aov_sum.copy())
 
     def image(self) -> np.ndarray:
         scale = 1.0 / max(self.passes, 1)
@@ -56,4 +86,9 @@ class RunStats:
     rays_shadow: int = 0
     nonfinite: int = 0
     interrupted: bool = False
-    stage_seconds: dict = field(default_factory=lambda: {s: 0.0 for s in STAGES})
+    stage_seconds: dict = field(default_factory=dict)  # kernel or host stage -> seconds (with --profile)
+
+    def add_stage_seconds(self, stage_seconds: dict) -> None:
+        """Add another run's stage times (a device of several, a Dask chunk)."""
+        for name, seconds in stage_seconds.items():
+            self.stage_seconds[name] = self.stage_seconds.get(name, 0.0) + seconds

@@ -28,11 +28,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import UserError
-from .wavefront import STAGES, Wavefront
+from .wavefront import Wavefront, check_pass_range
 from .film import Film, RunStats
 
 TARGET_SECONDS = 0.5  # work per batch once a device's throughput is known
 BUFFER_BYTES = 512 << 20  # passes finished out of order that may wait for an earlier one
+DEVICE_TIMEOUT = 120.0  # seconds without progress (a wave iteration) before a device is dropped as hung
 
 
 class DeviceFailure(UserError):
@@ -53,6 +54,10 @@ class DeviceState:
     alive: bool = True
     error: str | None = None
     stats: list = field(default_factory=list)
+    beat: float = 0.0  # time.monotonic() of its last sign of progress (a wave iteration, a pass)
+    hung: bool = False  # dropped for making no progress: whatever its thread still does is ignored
+    batch: tuple = (0, 0)  # the range it renders now: (first, count)
+    batch_done: int = 0  # passes of that range delivered
 
     def row(self, n_pixels: int, total: int) -> dict:
         return {
@@ -72,8 +77,8 @@ class _PassForwarder:
         self.pool, self.dev, self.next = pool, dev, first
         self.count = 0
 
-    def add_pass(self, radiance: np.ndarray) -> None:
-        self.pool.deliver(self.dev, self.next, radiance)
+    def add_pass(self, radiance: np.ndarray, aov: np.ndarray | None = None) -> None:
+        self.pool.deliver(self.dev, self.next, radiance, aov)
         self.next += 1
         self.count += 1
 
@@ -93,21 +98,26 @@ class PassPool:
         self.returned: list[tuple[int, int]] = []  # ranges given back by failed / stopped devices
         self.buffer: dict[int, np.ndarray] = {}
         self.target = target_seconds
-        self.window = max(4 * len(devices), int(buffer_bytes // max(1, film.sum.shape[0] * 12)))
+        pass_bytes = film.sum.shape[0] * 12 + (0 if film.aov_sum is None else film.aov_sum[0].size * 4 * film.sum.shape[0])
+        self.window = max(4 * len(devices), int(buffer_bytes // max(1, pass_bytes)))
         self.stopped = False
 
     # -- called by device threads ---------------------------------------------------------
-    def deliver(self, dev: DeviceState, index: int, radiance: np.ndarray) -> None:
+    def deliver(self, dev: DeviceState, index: int, radiance: np.ndarray, aov: np.ndarray | None = None) -> None:
         with self.cond:
+            if dev.hung:  # its range went to the other devices
+                return
             dev.passes += 1
+            dev.beat = time.monotonic()
+            dev.batch_done = index - dev.batch[0] + 1
             if index == self.merged:
-                self.film.add_pass(radiance)
+                self.film.add_pass(radiance, aov)
                 self.merged += 1
                 while self.merged in self.buffer:
-                    self.film.add_pass(self.buffer.pop(self.merged))
+                    self.film.add_pass(*self.buffer.pop(self.merged))
                     self.merged += 1
-            elif index > self.merged:
-                self.buffer[index] = np.array(radiance, copy=True)  # the ring buffer is reused
+            elif index > self.merged:  # the ring buffers are reused: copies
+                self.buffer[index] = (np.array(radiance, copy=True), None if aov is None else np.array(aov, copy=True))
             self.cond.notify_all()
 
     def _size(self, dev: DeviceState, remaining: int | None) -> int:
@@ -134,8 +144,7 @@ class PassPool:
                     k = min(count, self._size(dev, None))
                     if k < count:
                         self.returned.append((first + k, count - k))
-                    dev.busy = True
-                    return first, k
+                    return self._hand_out(dev, first, k)
                 remaining = None if self.end is None else self.end - self.next_new
                 others_busy = any(d.busy for d in self.devices if d is not dev and d.alive)
                 if past_deadline or (remaining is not None and remaining <= 0):
@@ -154,8 +163,11 @@ class PassPool:
                     k = min(k, remaining)
                 first = self.next_new
                 self.next_new += k
-                dev.busy = True
-                return first, k
+                return self._hand_out(dev, first, k)
+
+    def _hand_out(self, dev: DeviceState, first: int, count: int) -> tuple[int, int]:
+        dev.busy, dev.batch, dev.batch_done, dev.beat = True, (first, count), 0, time.monotonic()
+        return first, count
 
     def _slower_than_the_rest(self, dev: DeviceState, remaining) -> bool:
         """Near the end, a slow device leaves the last passes to a much faster one."""
@@ -166,6 +178,8 @@ class PassPool:
 
     def finish(self, dev: DeviceState, first: int, count: int, done: int, seconds: float, failed=None) -> None:
         with self.cond:
+            if dev.hung:  # dropped already; its range was given back then
+                return
             dev.busy = False
             dev.busy_seconds += seconds
             dev.batches += 1
@@ -179,6 +193,21 @@ class PassPool:
                 dev.error = failed
             self.cond.notify_all()
 
+    def drop_hung(self, dev: DeviceState, seconds: float) -> tuple[int, int] | None:
+        """Drop ``dev`` if it is still busy with no sign of progress for ``seconds``, as if it
+        had failed: the undelivered rest of its range goes back to the pool.  Returns that range."""
+        with self.cond:
+            if not (dev.busy and dev.alive) or time.monotonic() - dev.beat < seconds:
+                return None
+            first, count = dev.batch
+            rest = (first + dev.batch_done, count - dev.batch_done)
+            if rest[1] > 0:
+                self.returned.append(rest)
+            dev.hung, dev.alive, dev.busy = True, False, False
+            dev.error = f"no progress for {seconds:g} s (hung)"
+            self.cond.notify_all()
+            return rest
+
     def stop(self) -> None:
         with self.cond:
             self.stopped = True
@@ -186,8 +215,7 @@ class PassPool:
 
     def snapshot(self) -> Film:
         with self.cond:
-            f = self.film
-            return Film(f.width, f.height, sum=f.sum.copy(), sum_sq=f.sum_sq.copy(), passes=f.passes)
+            return self.film.copy()
 
 
 class MultiDevice:
@@ -198,9 +226,10 @@ class MultiDevice:
     """
 
     def __init__(self, scene, devices, *, bvh=None, target_seconds=TARGET_SECONDS, buffer_bytes=BUFFER_BYTES,
-                 **wavefront_kwargs):
+                 device_timeout=DEVICE_TIMEOUT, **wavefront_kwargs):
         from ..device.devices import device_label
 
+        self.device_timeout = DEVICE_TIMEOUT if device_timeout is None else float(device_timeout)
         self.scene = scene if bvh is not None else scene.camera_relative()  # see Scene.camera_relative
         self.bvh = bvh
         self.kwargs = wavefront_kwargs
@@ -226,11 +255,16 @@ class MultiDevice:
                 d.alive, d.error = False, f"{type(exc).__name__}: {exc}"
                 warnings.warn(f"device {d.label} dropped: {d.error}", RuntimeWarning, stacklevel=2)
 
-        threads = [threading.Thread(target=build, args=(d,), daemon=True) for d in self.devices if d.wavefront is None]
+        pending = [d for d in self.devices if d.wavefront is None and d.alive]
+        threads = [threading.Thread(target=build, args=(d,), daemon=True) for d in pending]
         for t in threads:
             t.start()
-        for t in threads:
-            t.join()
+        deadline = time.monotonic() + self.device_timeout
+        for d, t in zip(pending, threads):
+            t.join(max(0.0, deadline - time.monotonic()))
+            if t.is_alive():  # a driver that never returns from the build: left behind, like a failure
+                d.alive, d.hung, d.error = False, True, f"kernel build did not finish in {self.device_timeout:g} s"
+                warnings.warn(f"device {d.label} dropped: {d.error}", RuntimeWarning, stacklevel=2)
         if not any(d.alive for d in self.devices):
             raise DeviceFailure("no device could build the kernels: " + "; ".join(d.error or "" for d in self.devices))
 
@@ -251,6 +285,7 @@ class MultiDevice:
             raise ValueError("give passes, time_limit or both")
         self.prepare()
         first_pass = film.passes if first_pass is None else first_pass
+        check_pass_range(first_pass, passes)
         start = time.perf_counter()
         deadline = None if time_limit is None else start + time_limit
         live = [d for d in self.devices if d.alive]
@@ -258,11 +293,13 @@ class MultiDevice:
         n_pixels = film.sum.shape[0]
         stats = RunStats()
 
-        def cancelled():
-            return pool.stopped
-
         def loop(d: DeviceState):
             wf = d.wavefront
+
+            def cancelled():  # called once per wave iteration: the device's heartbeat
+                d.beat = time.monotonic()
+                return pool.stopped or d.hung
+
             while True:
                 batch = pool.take(d)
                 if batch is None:
@@ -288,11 +325,12 @@ class MultiDevice:
             t.start()
         try:
             last_report = 0.0
-            while any(t.is_alive() for t in threads):
+            while any(t.is_alive() and not d.hung for t, d in zip(threads, live)):
                 with pool.cond:
                     pool.cond.wait(timeout=tick_seconds)
                 if cancel is not None and cancel():
                     raise KeyboardInterrupt
+                self._drop_hung(pool, live)
                 now = time.perf_counter()
                 if progress is not None and now - last_report >= 0.1:
                     last_report = now
@@ -302,10 +340,9 @@ class MultiDevice:
         except KeyboardInterrupt:
             stats.interrupted = True
             pool.stop()
-            for t in threads:
+        for t, d in zip(threads, live):
+            if not d.hung:  # a hung device's thread is left to the driver (a daemon thread)
                 t.join()
-        for t in threads:
-            t.join()
         if pool.end is not None and pool.merged < pool.end and not stats.interrupted and not pool.stopped:
             if not any(d.alive for d in live):
                 raise DeviceFailure("every device failed: " + "; ".join(f"{d.label}: {d.error}" for d in live))
@@ -320,10 +357,17 @@ class MultiDevice:
                 stats.rays_extend += st.rays_extend
                 stats.rays_shadow += st.rays_shadow
                 stats.nonfinite += st.nonfinite
-                for s in STAGES:
-                    stats.stage_seconds[s] += st.stage_seconds[s]
+                stats.add_stage_seconds(st.stage_seconds)
         stats.devices = self.rows(n_pixels)
         return stats
+
+    def _drop_hung(self, pool: PassPool, live) -> None:
+        for d in live:
+            rest = pool.drop_hung(d, self.device_timeout)
+            if rest is not None:
+                warnings.warn(f"device {d.label} made no progress for {self.device_timeout:g} s and was dropped; its "
+                              f"unfinished passes [{rest[0]}, {rest[0] + rest[1]}) go to the other devices",
+                              RuntimeWarning, stacklevel=3)
 
     def rows(self, n_pixels: int) -> list[dict]:
         total = sum(d.passes for d in self.devices)

@@ -12,13 +12,14 @@ with, so that a scene compiles only the code it uses.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import MISSING, asdict, dataclass, fields
 
 import numpy as np
 
 from ..device import abi
-from ..errors import UserError
-from ..scene.model import INTEGRATORS  # MIS path tracing, BSDF sampling only, light sampling only
+from .. import validate
+from ..errors import UsageError, UserError
+from ..scene.model import INTEGRATORS, SAMPLERS  # integrators: MIS path tracing, BSDF sampling only, light sampling only
 
 MAX_PIXELS = 1 << 26  # 8192 x 8192
 
@@ -31,20 +32,31 @@ class ImageSettings:
     rr_depth: int  # Russian roulette starts after this many bounces
     integrator: str
     seed: int  # 32 bits: the kernels' RNG key
+    # the kernels also record the per-sample AOVs (albedo, normal, depth, position) and the film
+    # sums them (render/aovs.py): the beauty is the same, but the film is not
+    film_aovs: bool = False
+    sampler: str = "sobol"  # where the random numbers come from (cl/render/sampler.h)
 
     @classmethod
     def resolve(cls, scene, *, width=None, height=None, max_depth=None, rr_depth=None, integrator=None,
-                seed=None) -> "ImageSettings":
+                seed=None, aovs=None, sampler=None) -> "ImageSettings":
         """The scene's settings with every argument that is not None taking precedence; a
-        UserError (one line) for values no render can use."""
+        UserError (one line) for values no render can use.  ``aovs``: the AOV layers wanted
+        (names of render/aovs.py; default the scene's ``[film] aovs``)."""
+        from .aovs import needs_kernel_aovs, parse_aovs
+
         st = scene.settings
         settings = cls(
-            width=int(st.width if width is None else width),
-            height=int(st.height if height is None else height),
-            max_depth=int(st.max_depth if max_depth is None else max_depth),
-            rr_depth=int(st.rr_depth if rr_depth is None else rr_depth),
-            integrator=str(st.integrator if integrator is None else integrator),
-            seed=int(st.seed if seed is None else seed) & 0xFFFFFFFF,
+            width=validate.integer(st.width if width is None else width, "--width"),
+            height=validate.integer(st.height if height is None else height, "--height"),
+            max_depth=validate.integer(st.max_depth if max_depth is None else max_depth, "--max-depth", minimum=-1),
+            rr_depth=validate.integer(st.rr_depth if rr_depth is None else rr_depth, "--rr-depth", minimum=0),
+            integrator=validate.choice(st.integrator if integrator is None else integrator, "integrator",
+                                       INTEGRATORS),
+            seed=validate.seed(st.seed if seed is None else seed),  # 32 bits, never wrapped
+            film_aovs=needs_kernel_aovs(parse_aovs(getattr(st, "aovs", ()) if aovs is None else aovs)),
+            sampler=validate.choice(getattr(st, "sampler", "sobol") if sampler is None else sampler, "sampler",
+                                    SAMPLERS),
         )
         settings.check()
         return settings
@@ -52,9 +64,11 @@ class ImageSettings:
     def check(self) -> None:
         check_resolution(self.width, self.height)
         if self.max_depth == 0:
-            raise UserError("--max-depth 0 renders nothing: use 1 for emitters only, -1 for no limit")
+            raise UsageError("--max-depth 0 renders nothing: use 1 for emitters only, -1 for no limit")
         if self.integrator not in INTEGRATORS:
-            raise UserError(f"unknown integrator {self.integrator!r}: use one of {', '.join(INTEGRATORS)}")
+            raise UsageError(f"unknown integrator {self.integrator!r}: use one of {', '.join(INTEGRATORS)}")
+        if self.sampler not in SAMPLERS:
+            raise UsageError(f"unknown sampler {self.sampler!r}: use one of {', '.join(SAMPLERS)}")
 
     @property
     def n_pixels(self) -> int:
@@ -65,7 +79,8 @@ class ImageSettings:
 
     @classmethod
     def from_dict(cls, values: dict) -> "ImageSettings":
-        return cls(**{f.name: values[f.name] for f in fields(cls)})
+        return cls(**{f.name: values[f.name] if f.name in values or f.default is MISSING else f.default
+                      for f in fields(cls)})
 
     def differences(self, values: dict) -> str:
         """'name theirs -> mine' for each setting that ``values`` (e.g. a checkpoint's record) has otherwise."""
@@ -77,17 +92,18 @@ IMAGE_SETTINGS = tuple(f.name for f in fields(ImageSettings))
 
 
 def check_resolution(width, height) -> None:
-    if int(width) < 1 or int(height) < 1 or int(width) * int(height) > MAX_PIXELS:
-        raise UserError(f"impossible resolution {width}x{height}: each side must be >= 1 and at most "
+    width, height = validate.integer(width, "--width"), validate.integer(height, "--height")
+    if width < 1 or height < 1 or width * height > MAX_PIXELS:
+        raise UsageError(f"impossible resolution {width}x{height}: each side must be >= 1 and at most "
                         f"{MAX_PIXELS} pixels in all")
 
 
 def check_run(spp=None, time_limit=None) -> None:
     """The arguments that say how long to render."""
-    if spp is not None and int(spp) < 1:
-        raise UserError(f"--spp must be at least 1 (got {spp})")
-    if time_limit is not None and not (float(time_limit) > 0):
-        raise UserError(f"--time-limit must be positive (got {time_limit})")
+    if spp is not None:
+        validate.integer(spp, "--spp", minimum=1)
+    if time_limit is not None:
+        validate.number(time_limit, "--time-limit", positive=True)
 
 
 def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layout: str) -> dict:
@@ -98,7 +114,7 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
     """
     from ..accel.device_bvh import layout_defines
 
-    defines = {"INTEGRATOR": INTEGRATORS.index(settings.integrator)}
+    defines = {"INTEGRATOR": INTEGRATORS.index(settings.integrator), "SAMPLER": abi.SAMPLERS[settings.sampler]}
     if len(scene.faces):
         defines["HAS_TRIANGLES"] = True
     if len(scene.spheres):
@@ -118,6 +134,8 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
     if np.isin(kinds, (abi.LIGHT_DIRECTIONAL, abi.LIGHT_ENVIRONMENT)).any():
         defines["HAS_INFINITE_LIGHTS"] = True
     defines.update(layout_defines(bvh_layout))
+    if settings.film_aovs:
+        defines["HAS_AOVS"] = True  # cl/render/aov.h
     return defines
 
 

@@ -8,18 +8,21 @@ order, so the image is the same whatever order the atomics gave the queues).
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import validate
 from ..device import abi
 from ..accel.bvh import build_bvh
-from .film import STAGES, Film, RunStats
+from .film import Film, RunStats
 from .lights import build_lights, environment_buffers
 from .settings import ImageSettings, feature_names, kernel_features
 from ..scene.model import Scene
 
+STAGES = ("generate", "extend", "shade", "shadow", "accumulate")  # cl/wavefront/<stage>.cl, kernel wf_<stage>
 SOURCES = tuple(f"wavefront/{s}.cl" for s in STAGES)
 LOCAL_SIZE = abi.WAVE_LOCAL_SIZE
 # the per-stage scalars of abi.WAVE_PARAMS, set (0 unless given) at every launch
@@ -29,6 +32,15 @@ STAGE_SCALARS = tuple(p.name for p in abi.WAVE_PARAMS if p.launch and p.kind == 
 # small enough that the path state stays in cache (measured with `pyopencl-rt bench wave`).
 DEFAULT_WAVE_GPU = 1 << 20
 DEFAULT_WAVE_CPU = 1 << 16
+
+
+def check_pass_range(first_pass, passes) -> None:
+    """Passes [first_pass, first_pass + passes): whole numbers, never negative (a negative first
+    pass would index the pass ring out of bounds)."""
+    if isinstance(first_pass, bool) or not isinstance(first_pass, numbers.Integral) or first_pass < 0:
+        raise ValueError(f"first_pass must be an integer >= 0, got {first_pass!r}")
+    if passes is not None and (isinstance(passes, bool) or not isinstance(passes, numbers.Integral) or passes < 0):
+        raise ValueError(f"passes must be an integer >= 0 or None, got {passes!r}")
 
 
 def default_wave_size(device) -> int:
@@ -44,15 +56,18 @@ class Wavefront:
     it the scene's own settings are used, with ``overrides`` (width=, seed=, ...) taking precedence.
     ``intersector`` traces the extend and shadow rays (:mod:`pyopencl_rt.render.intersectors`):
     a name ("opencl", "embree") or an :class:`~pyopencl_rt.render.intersectors.Intersector`.
+    ``kernel_mode`` ("auto", "wavefront", "megakernel"): how the paths are scheduled
+    (:mod:`pyopencl_rt.render.megakernel`); the image is the same either way.
     """
 
     def __init__(self, scene: Scene, device, settings: ImageSettings | None = None, *, wave_size=None, bvh=None,
-                 intersector="opencl", **overrides):
+                 intersector="opencl", kernel_mode=None, **overrides):
         import pyopencl as cl
 
         from ..accel.device_bvh import bvh_layout
         from ..device.kernel_args import KernelArgs
         from ..device.kernels import runtime
+        from . import megakernel
         from .intersectors import make_intersector
 
         if settings is None:
@@ -64,6 +79,10 @@ class Wavefront:
         self.intersector.check(scene)
         self.scene = scene
         self.device = device
+        if wave_size is not None:
+            from .arguments import MAX_WAVE_SIZE, check_wave_memory
+
+            check_wave_memory(device, validate.integer(wave_size, "--wave-size", minimum=1, maximum=MAX_WAVE_SIZE))
         self.wave_size = int(wave_size or default_wave_size(device))
         self.timings = {}
 
@@ -81,11 +100,16 @@ class Wavefront:
             warnings.warn("scene has no lights: the image will be black", stacklevel=2)
         self.bvh_layout = bvh_layout(device)  # wide (cl/accel/bvh_wide.h) on CPUs; $PYOPENCL_RT_BVH_LAYOUT overrides
         self.features = kernel_features(scene, settings, lights, self.bvh_layout)
+        self.kernel_mode = megakernel.kernel_mode(device, self.intersector.name, getattr(settings, "film_aovs", None),
+                                                  kernel_mode)
 
         self.rt = runtime(device)
         t0 = time.perf_counter()
-        prog = self.rt.program(SOURCES, self.features)
-        self.kernels = {s: cl.Kernel(prog, f"wf_{s}") for s in STAGES}
+        if self.kernel_mode == "megakernel":
+            self.kernels = {"path": cl.Kernel(self.rt.program(megakernel.SOURCES, self.features), "mk_path")}
+        else:
+            prog = self.rt.program(SOURCES, self.features)
+            self.kernels = {s: cl.Kernel(prog, f"wf_{s}") for s in STAGES}
         self.timings["build_seconds"] = time.perf_counter() - t0
 
         ctx = self.rt.context
@@ -117,7 +141,7 @@ class Wavefront:
             tri_material=const(tri_material), tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
-            **self._texture_buffers(const, scratch, W),
+            **self._texture_buffers(const, scratch, W), **self._aov_buffers(scratch, W, P),
             free_q=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32)),
             counters=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host),
             pass_ring=scratch(3 * 4 * P * self.ring_size), env_map=const(env_map), env_cdf=const(env_cdf),
@@ -143,6 +167,7 @@ class Wavefront:
         return {
             "wave_size": self.wave_size,
             "intersector": self.intersector.name,
+            "kernel_mode": self.kernel_mode,
             "features": feature_names(self.features),
             "lights": self.n_lights,
             "bvh_seconds": self.timings.get("bvh_seconds"),
@@ -173,6 +198,11 @@ class Wavefront:
         table, texels = pack_textures(self.scene.textures())
         return {"tri_uv": const(uv), "textures": const(table), "tex_data": const(texels),
                 "mat_scratch": scratch(abi.MATERIAL.itemsize * W)}
+
+    def _aov_buffers(self, scratch, W, P) -> dict:
+        """aov_path and aov_ring (cl/render/aov.h) when the settings ask for AOVs, else dummies."""
+        n = abi.AOV_FLOATS * 4 if self.settings.film_aovs else 0
+        return {"aov_path": scratch(n * W), "aov_ring": scratch(n * P * self.ring_size)}
 
     def buffer(self, name: str):
         """The buffer bound to the wavefront kernels' parameter ``name`` (abi.WAVE_PARAMS)."""
@@ -206,11 +236,16 @@ class Wavefront:
         """
         import pyopencl as cl
 
+        check_pass_range(first_pass, passes)
+        if self.kernel_mode == "megakernel":
+            from . import megakernel
+
+            return megakernel.run(self, film, passes, time_limit, progress, profile, first_pass, cancel)
         if passes is None and time_limit is None:
             raise ValueError("give passes, time_limit or both")
         P = self.n_pixels
         queue = self.rt.queue
-        stats = RunStats()
+        stats = RunStats(stage_seconds=dict.fromkeys(STAGES, 0.0))
         host_before = dict(self.intersector.host_seconds)
         self.next_sample = first_pass * P
         self.oldest_pass = first_pass
@@ -220,6 +255,7 @@ class Wavefront:
         counters = self.buffer("counters")
         iteration_zeros = np.zeros(abi.ITERATION_COUNTERS, np.int32)
         ring_host = np.empty((P, 3), np.float32)
+        aov_host = np.empty((P, abi.AOV_FLOATS), np.float32) if self.settings.film_aovs else None
         events = []
         try:
             while True:
@@ -270,10 +306,12 @@ class Wavefront:
                 while c[abi.COUNTER_PASS_DONE + self.oldest_pass % self.ring_size] == P:
                     ring = self.oldest_pass % self.ring_size
                     cl.enqueue_copy(queue, ring_host, self.buffer("pass_ring"), src_offset=ring * P * 12)
+                    if aov_host is not None:
+                        cl.enqueue_copy(queue, aov_host, self.buffer("aov_ring"), src_offset=ring * aov_host.nbytes)
                     cl.enqueue_copy(queue, counters, np.zeros(1, np.int32),
                                     dst_offset=(abi.COUNTER_PASS_DONE + ring) * 4)
                     c[abi.COUNTER_PASS_DONE + ring] = 0
-                    film.add_pass(ring_host)
+                    film.add_pass(ring_host, aov_host)
                     self.oldest_pass += 1
                     stats.passes += 1
                     if progress is not None:

@@ -14,6 +14,11 @@ from ..device import abi
 from .materials import REGISTRY, MaterialType
 
 INTEGRATORS = ("path", "bsdf", "nee")
+# where the random numbers come from (cl/render/sampler.h), the default first
+SAMPLERS = ("sobol", "stratified", "independent")
+assert set(SAMPLERS) == set(abi.SAMPLERS)
+# AOV layers a render can write beside the beauty (pyopencl_rt/render/aovs.py documents them)
+AOVS = ("albedo", "normal", "depth", "position", "variance", "spp")
 
 
 @dataclass
@@ -163,6 +168,8 @@ class RenderSettings:
     integrator: str = "path"
     seed: int = 0
     rr_depth: int = 3  # Russian roulette starts after this many bounces
+    sampler: str = "sobol"  # one of SAMPLERS
+    aovs: tuple = ()  # AOV layers written beside the beauty (names of AOVS)
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Whole traversal (BVH + triangle test) against Embree in its robust (watertight) mode, and
-against brute force in float64, on every available device and for both BVH layouts (binary:
-cl/accel/bvh.h; wide: cl/accel/bvh_wide.h), held to identical bounds."""
+against brute force in float64, on every available device and for every BVH layout (binary:
+cl/accel/bvh.h; wide: cl/accel/bvh_wide.h; wide8: cl/accel/bvh_wide8.h), held to identical bounds."""
 import numpy as np
 import pytest
 
@@ -32,7 +32,7 @@ def brute_force_hit(vertices, faces, o, d):
     return hit, margin
 
 
-@pytest.fixture(params=["binary", "wide"])
+@pytest.fixture(params=["binary", "wide", "wide8"])
 def layout(request):
     return request.param
 

@@ -18,12 +18,13 @@ import pytest
 from pyopencl_rt.device import abi
 from pyopencl_rt.device.kernel_args import KernelArgs
 from pyopencl_rt.device.kernels import assemble, cl_dir
-from pyopencl_rt.render.film import STAGES
+from pyopencl_rt.render.wavefront import STAGES
 from pyopencl_rt.render.wavefront import SOURCES
 
 # The headers the kernels include: a hand-written copy of a generated define in one of them
 # (redefining it) shows up in the probe.
-KERNEL_HEADERS = '#include "render/lights.h"\n#include "scene/textures.h"\n#include "accel/bvh_wide.h"\n'
+KERNEL_HEADERS = ('#include "render/lights.h"\n#include "scene/textures.h"\n#include "accel/bvh_wide.h"\n'
+                  '#include "accel/bvh_wide8.h"\n')
 FLOAT_BITS = int(np.float32(1.5).view(np.int32))  # a float field stores 1.5 as these bits, an int one as 1
 
 

@@ -3,6 +3,7 @@ machine (loopback only) gives the single-process image for the same seed."""
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -82,3 +83,40 @@ def test_cli_without_dask_says_what_to_install(tmp_path):
                        timeout=120)
     assert r.returncode == 1
     assert r.stderr.strip().count("\n") == 0 and "pip install" in r.stderr and "distributed" in r.stderr
+
+
+def test_time_limit_stops_on_time(client, device_spec):
+    """The time limit counts from the first pass rendered (after the workers' setup, as on one
+    device), and the workers are told the deadline and stop on it: the render ends well within a
+    second of it.  (Before, ~1 s chunks queued two per worker ran on: 1 s took 3.4 s.)"""
+    scene = small_scene()
+    render_full(scene, spp=2, device=device_spec, scheduler=client)  # the workers build their renderers
+    limit = 1.5
+    t0 = time.perf_counter()
+    r = render_full(scene, time_limit=limit, device=device_spec, scheduler=client)
+    took = time.perf_counter() - t0
+    assert r.film.passes >= 1 and np.isfinite(r.image).all() and not r.stats.interrupted
+    assert took < limit + 1.25, f"{took:.2f} s for a {limit} s limit"
+
+
+def test_intersector_reaches_the_workers(client, device, device_spec):
+    """--intersector embree with --scheduler: the workers trace with Embree (their engines say so)
+    and the image is the local Embree render's."""
+    from pyopencl_rt import load_scene
+
+    scene = load_scene(str(REPO / "scenes" / "cornell-box.toml"))
+    ref = render_full(scene, spp=4, width=8, height=8, device=device, intersector="embree")
+    r = render_full(scene, spp=4, width=8, height=8, device=device_spec, scheduler=client, intersector="embree")
+    assert r.info["intersector"] == ref.info["intersector"] == "embree"
+    assert all(w["intersector"] == "embree" for w in r.info["workers"].values())
+    np.testing.assert_allclose(r.film.sum, ref.film.sum, rtol=1e-12, atol=0)
+
+
+def test_unreachable_scheduler_fails_fast():
+    """Nothing listens on the port: one line in a few seconds (was the client's 30 s timeout)."""
+    from pyopencl_rt.errors import UserError
+
+    t0 = time.perf_counter()
+    with pytest.raises(UserError, match="cannot reach the Dask scheduler tcp://127.0.0.1:1"):
+        render_full(small_scene(), spp=1, scheduler="tcp://127.0.0.1:1")
+    assert time.perf_counter() - t0 < 5

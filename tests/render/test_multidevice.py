@@ -145,3 +145,47 @@ def test_cancel_keeps_a_prefix_of_passes(device):
     again = Film(48, 32)
     wfs[0].run(again, passes=film.passes)
     assert np.array_equal(film.sum, again.sum)
+
+
+def test_hung_device_is_dropped_and_its_passes_redone(device):
+    """A device whose run stops returning (a driver that never comes back) is dropped after
+    device_timeout seconds without progress, like a failing one: the others render its passes
+    and the film is the single-device film, bit for bit."""
+    import threading
+
+    scene, wfs, ref = two_wavefronts(device, 6)
+    stuck = wfs[1]
+    real_run, release, calls = stuck.run, threading.Event(), {"n": 0}
+
+    def hanging_run(film, **kw):
+        calls["n"] += 1
+        if calls["n"] == 1:
+            return real_run(film, **kw)
+        release.wait(60)  # never returns on its own, never calls cancel (no heartbeat)
+        return real_run(film, **kw)  # woken at the end of the test: what it renders is ignored
+
+    stuck.run = hanging_run
+    film = Film(48, 32)
+    try:
+        with pytest.warns(RuntimeWarning, match=r"made no progress for 1 s and was dropped"):
+            st = MultiDevice(scene, wfs, target_seconds=0.01, device_timeout=1.0).run(film, passes=6)
+    finally:
+        release.set()
+    assert calls["n"] >= 2 and film.passes == 6 and not st.interrupted
+    assert np.array_equal(film.sum, ref.sum) and np.array_equal(film.sum_sq, ref.sum_sq)
+    (hung,) = [d for d in st.devices if d["failed"]]
+    assert hung["failed"] == "no progress for 1 s (hung)"
+
+
+def test_several_devices_use_the_intersector_given(device):
+    """--intersector embree on several devices: every device's engine traces with Embree (not
+    silently our traversal), and the merged film is the one-device Embree film."""
+    from pyopencl_rt.render.api import render_full
+    from pyopencl_rt import load_scene
+
+    scene = load_scene(str(REPO / "scenes" / "cornell-box.toml"))
+    one = render_full(scene, spp=4, width=8, height=8, device=device, intersector="embree")
+    two = render_full(scene, spp=4, width=8, height=8, device=[device, device], intersector="embree")
+    assert one.info["intersector"] == two.info["intersector"] == "embree"
+    assert len(two.info["devices"]) == 2
+    assert np.array_equal(one.film.sum, two.film.sum)

@@ -1,4 +1,4 @@
-"""cl/render/rng.h, cl/render/sampling.h and the host alias table (pyopencl_rt/sampling.py).
+"""cl/render/rng.h, cl/render/sampling.h and the host alias table (pyopencl_rt/render/sampling.py).
 
 Statistical tests use a significance threshold of ALPHA = 1e-4: a correct implementation fails
 one of them with probability 1e-4 (and every input is drawn from fixed seeds, so a run is

@@ -251,7 +251,7 @@ def test_mesh_formats_default_material_and_camera(tmp_path, ext):
     scene = load_scene(path)
     assert len(scene.faces) == 12
     assert len(scene.materials) == 1
-    if ext == "glb":  # glTF: the file's material (glTF's default white one here; tests/test_textures.py)
+    if ext == "glb":  # glTF: the file's material (glTF's default white one here; tests/scene/test_textures.py)
         assert scene.materials[0].type == "gltf" and scene.materials[0].albedo == (1.0, 1.0, 1.0)
     else:
         assert scene.materials[0].albedo == (0.8, 0.8, 0.8)

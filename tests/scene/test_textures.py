@@ -1,4 +1,4 @@
-"""Textures and UVs (cl/scene/textures.h, pyopencl_rt/textures.py) and the glTF / OBJ loaders that
+"""Textures and UVs (cl/scene/textures.h, pyopencl_rt/scene/textures.py) and the glTF / OBJ loaders that
 bring them in (pyopencl_rt/scene/loaders/)."""
 import json
 import math

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from ...errors import UserError
 from ..model import Scene
 from .assembly import framing_camera
@@ -41,23 +43,38 @@ def load_scene(path, defines: dict | None = None) -> Scene:
     suffix = p.suffix.lower()
     if defines and suffix != ".xml":
         raise SceneError(f"{name}: --define sets parameters of Mitsuba XML (.xml) scenes only")
+    scene = _load(p, name, suffix, defines)
+    from ..validate import check_scene
+
+    check_scene(scene)  # the kernels' float32 limits, whichever format the values came from
+    return scene
+
+
+def _load(p: Path, name: str, suffix: str, defines):
     try:
-        if suffix == ".xml":  # Mitsuba 3 XML
-            from .mitsuba_scene import load_mitsuba_xml
-
-            return load_mitsuba_xml(p, name, defines)
-        if suffix == ".pbrt":  # pbrt-v4
-            from .pbrt_scene import load_pbrt
-
-            return load_pbrt(p, name)
-        if suffix == ".toml":
-            return load_toml_scene(p, name)
-        if suffix == ".obj":
-            return load_obj_scene(p, name)
-        if suffix in (".gltf", ".glb"):
-            return load_gltf_scene(p, name)
-        return load_mesh_scene(p, name)
+        # casts to float32 that overflow or underflow are found by check_scene (one line), not
+        # reported by numpy on the way
+        with np.errstate(over="ignore", under="ignore"):
+            return _load_format(p, name, suffix, defines)
     except SceneError:
         raise
     except UserError as exc:  # MeshError / GltfError: they name the file; make sure it is one line
         raise type(exc)(one_line(str(exc))) from None
+
+
+def _load_format(p: Path, name: str, suffix: str, defines):
+    if suffix == ".xml":  # Mitsuba 3 XML
+        from .mitsuba_scene import load_mitsuba_xml
+
+        return load_mitsuba_xml(p, name, defines)
+    if suffix == ".pbrt":  # pbrt-v4
+        from .pbrt_scene import load_pbrt
+
+        return load_pbrt(p, name)
+    if suffix == ".toml":
+        return load_toml_scene(p, name)
+    if suffix == ".obj":
+        return load_obj_scene(p, name)
+    if suffix in (".gltf", ".glb"):
+        return load_gltf_scene(p, name)
+    return load_mesh_scene(p, name)

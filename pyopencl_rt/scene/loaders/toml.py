@@ -9,6 +9,7 @@
     [film]
     width = 512                   # pixels, default 512
     height = 512                  # pixels, default 512
+    aovs = ["albedo", "normal"]   # AOV layers of the EXR (pyopencl_rt/render/aovs.py), default none
 
     [render]
     spp = 64                      # samples per pixel, default 64
@@ -16,6 +17,7 @@
     integrator = "path"           # "path" | "bsdf" | "nee", default "path"
     seed = 0                      # default 0
     rr_depth = 3                  # Russian roulette starts after this many bounces, default 3
+    sampler = "sobol"             # "sobol" | "stratified" | "independent", default "sobol"
 
     [materials.white]             # one table per material, referred to by NAME
     type = "diffuse"              # a type of pyopencl_rt.scene.materials (default "diffuse"),
@@ -60,8 +62,8 @@ from ...errors import UserError
 from ...imageio import read_exr
 from ..materials import REGISTRY
 from ..mesh import MeshError, flatten, load_trimesh
-from ..model import (INTEGRATORS, Camera, DirectionalLight, Environment, Material, PointLight, RenderSettings,
-                     Scene)
+from ..model import (AOVS, INTEGRATORS, SAMPLERS, Camera, DirectionalLight, Environment, Material, PointLight,
+                     RenderSettings, Scene)
 from .assembly import DEFAULT_FOV, frame_scene, triangle_scene
 from .gltf import read_gltf
 from .meshfile import trimesh_uvs
@@ -85,8 +87,8 @@ _TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environ
 _CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance"}
 _LIGHT_KEYS = {"point": {"type", "position", "intensity"}, "directional": {"type", "direction", "irradiance"}}
 _ENVIRONMENT_KEYS = {"radiance", "file", "scale"}
-_FILM_KEYS = {"width", "height"}
-_RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth"}
+_FILM_KEYS = {"width", "height", "aovs"}
+_RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth", "sampler"}
 # the keys of every [materials.NAME]; each type adds its own (MaterialType.toml_keys)
 MATERIAL_COMMON_KEYS = frozenset({"type", "emission", "two_sided", "emission_texture"})
 _TRANSFORM_KEYS = {"translate", "scale", "rotate", "matrix", "flip_normals"}
@@ -185,6 +187,9 @@ def load_toml_scene(path: Path, name: str) -> Scene:
                     raise ctx.error(where, f"missing '{req}'")
             centre = check_vector(ctx, where, "center", table["center"])
             radius = check_number(ctx, where, "radius", table["radius"], positive=True)
+            _check_reach(ctx, where, np.abs(centre).max() + radius, "it reaches")
+            if not np.float32(radius) > 0:
+                raise ctx.error(where, f"'radius' {radius:g} is 0 in float32")
             spheres.append([*centre, radius])
             sphere_mats.append(material_for(where, table))
             continue
@@ -227,6 +232,8 @@ def load_toml_scene(path: Path, name: str) -> Scene:
             if np.linalg.det(matrix[:3, :3]) < 0:
                 f = f[:, ::-1]
                 uvc = uvc[:, ::-1] if uvc is not None else None
+        finite = v[np.isfinite(v).all(axis=1)]  # a mesh file's NaN vertices are dropped, with a warning
+        _check_reach(ctx, where, np.abs(finite).max() if len(finite) else 0.0, "its vertices reach")
         if check_boolean(ctx, where, "flip_normals", table.get("flip_normals", False)):
             f = f[:, ::-1]
             uvc = uvc[:, ::-1] if uvc is not None else None
@@ -255,6 +262,15 @@ def load_toml_scene(path: Path, name: str) -> Scene:
     if "environment" in doc:
         scene.environment = _read_environment(ctx, path, doc["environment"])
     return scene
+
+
+def _check_reach(ctx, where, reach, what):
+    """Geometry within GEOMETRY_LIMIT of the origin (scene/validate.py says why)."""
+    from ..validate import GEOMETRY_LIMIT
+
+    if not reach <= GEOMETRY_LIMIT:
+        raise ctx.error(where, f"{what} {reach:.3g} from the origin, beyond {GEOMETRY_LIMIT:.3g}: the float32 kernels "
+                               "cannot intersect it (scale the scene down)")
 
 
 def _read_lights(ctx, lights) -> list:
@@ -326,6 +342,11 @@ def _read_settings(ctx, film, render) -> RenderSettings:
         s.width = check_integer(ctx, "[film]", "width", film["width"], minimum=1, maximum=65536)
     if "height" in film:
         s.height = check_integer(ctx, "[film]", "height", film["height"], minimum=1, maximum=65536)
+    if "aovs" in film:
+        aovs = film["aovs"]
+        if not isinstance(aovs, list):
+            raise ctx.error("[film]", f"'aovs' must be a list of names ({', '.join(AOVS)}), got {describe(aovs)}")
+        s.aovs = tuple(check_choice(ctx, "[film]", "AOV", a, AOVS) for a in aovs)
     if "spp" in render:
         s.spp = check_integer(ctx, "[render]", "spp", render["spp"], minimum=1)
     if "max_depth" in render:
@@ -336,6 +357,8 @@ def _read_settings(ctx, film, render) -> RenderSettings:
         s.seed = check_integer(ctx, "[render]", "seed", render["seed"], minimum=0, maximum=2**32 - 1)
     if "integrator" in render:
         s.integrator = check_choice(ctx, "[render]", "integrator", render["integrator"], INTEGRATORS)
+    if "sampler" in render:
+        s.sampler = check_choice(ctx, "[render]", "sampler", render["sampler"], SAMPLERS)
     return s
 
 

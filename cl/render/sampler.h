@@ -1,0 +1,174 @@
+/* Samplers: the random numbers of one sample (a pixel's pass) as 1D and 2D samples.
+ *
+ *   SampleKey k = sampler_key(seed, pixel, width, pass);
+ *   float  u  = sample_1d(k, dim);    a 1D sample (light pick, lobe, Russian roulette)
+ *   float2 uv = sample_2d(k, dim);    a 2D sample (pixel, lens, light point, BSDF direction)
+ *
+ * dim names the sample (cl/scene/scene.h lays them out); a 2D sample at dim takes the ids dim and
+ * dim + 1.  SAMPLER (one of the generated SAMPLER_* values, chosen by kernel_features) selects:
+ *
+ * SAMPLER_INDEPENDENT  rng_uniform (cl/render/rng.h): every dimension an independent hash.
+ * SAMPLER_SOBOL        Owen-scrambled Sobol in pbrt-v4's ZSobol arrangement.  Within a tile of
+ *                      2^SOBOL_TILE_BITS x 2^SOBOL_TILE_BITS pixels, pixel (x, y) owns the indices
+ *                      morton(x, y) * 2^SOBOL_LOG2_ROUND + [0, 2^SOBOL_LOG2_ROUND) of one Sobol
+ *                      sequence, and its pass s takes the index of its block at s mod the block
+ *                      size.  Each sample gets its own index shuffle and output scramble (padding:
+ *                      every 2D sample is its own scrambled (0,2)-sequence, every 1D sample the
+ *                      first dimension of one), both nested uniform scrambles in Burley's
+ *                      hash-based form (JCGT 2020): a bit of the index, or of the coordinate,
+ *                      flips as a hash of the bits above it, so aligned blocks of indices map to
+ *                      aligned blocks and nets stay nets.  Hence the first 2^k passes of a pixel
+ *                      (k <= SOBOL_LOG2_ROUND), and every aligned run of 2^k of them, are a
+ *                      (0,k,2)-net in each 2D sample, and the 2^(k+2) samples of a 2x2 pixel group
+ *                      at the end of a block are one too (the blue-noise arrangement).  The tile,
+ *                      the round (s / block size) and the seed key the scrambles.
+ * SAMPLER_STRATIFIED   progressive jittered stratification per pixel: pass s's base-4 digits,
+ *                      after the same per-sample index shuffle and a nested scramble of the
+ *                      quadtree, pick the cell at every level (the first 4^k passes fill a
+ *                      2^k x 2^k grid, one sample a cell, each jittered on its own), and an Owen
+ *                      scramble of each axis permutes rows and columns.
+ *                      1D samples: a scrambled van der Corput sequence (2^k passes, one per
+ *                      1/2^k interval).  Unlike Sobol, the 2D projections are not stratified
+ *                      in 1D beyond sqrt(N) intervals.
+ *
+ * Everything is integer arithmetic keyed by (seed, pixel, pass, dim): any device and any split of
+ * the work gives the same numbers.  tests/render/test_sampler.py checks a numpy copy bit for bit
+ * and the (0,2)-net, uniformity and independence properties. */
+#ifndef PYOPENCL_RT_SAMPLER_H
+#define PYOPENCL_RT_SAMPLER_H
+
+#include "render/rng.h"
+
+#ifndef SAMPLER
+#define SAMPLER SAMPLER_INDEPENDENT
+#endif
+
+#define SOBOL_TILE_BITS ((32 - SOBOL_LOG2_ROUND) / 2)
+#define SAMPLER_KEY_SOBOL 0x50B01u     /* rng_hash dimension keys of the per-path key */
+#define SAMPLER_KEY_STRATIFIED 0x57A7u
+
+/* independent: (seed, pixel, pass); sobol: (index of the pass, key of tile and round, unused);
+ * stratified: (pass, key of the pixel, unused) */
+typedef struct { uint a, b, c; } SampleKey;
+
+RT_INLINE uint reverse_bits32(uint x)
+{
+    x = (x << 16) | (x >> 16);
+    x = ((x & 0x00ff00ffu) << 8) | ((x >> 8) & 0x00ff00ffu);
+    x = ((x & 0x0f0f0f0fu) << 4) | ((x >> 4) & 0x0f0f0f0fu);
+    x = ((x & 0x33333333u) << 2) | ((x >> 2) & 0x33333333u);
+    x = ((x & 0x55555555u) << 1) | ((x >> 1) & 0x55555555u);
+    return x;
+}
+
+/* A seeded bijection of 32-bit words in which bit i depends on bits 0..i only (additions and
+ * products by even constants carry upwards): Laine and Karras's permutation with Burley's
+ * constants. */
+RT_INLINE uint lk_permute(uint x, uint seed)
+{
+    x += seed;
+    x ^= x * 0x6c50b47cu;
+    x ^= x * 0xb82f1e52u;
+    x ^= x * 0xc7afe638u;
+    x ^= x * 0x8d22f6e6u;
+    return x;
+}
+
+/* Nested uniform (Owen) scramble: bit i flips as a function of the bits above it. */
+RT_INLINE uint nested_scramble(uint x, uint seed) { return reverse_bits32(lk_permute(reverse_bits32(x), seed)); }
+
+/* Sobol dimension 1 (dimension 0 is reverse_bits32). */
+RT_INLINE uint sobol_dim1(uint index)
+{
+    uint v = 0u;
+    for (int k = 0; index; index >>= 1, ++k)
+        if (index & 1u) v ^= SOBOL_MATRIX[1][k];
+    return v;
+}
+
+/* The bits of x (16 used) spread to the even positions. */
+RT_INLINE uint spread_bits(uint x)
+{
+    x &= 0xffffu;
+    x = (x | (x << 8)) & 0x00ff00ffu;
+    x = (x | (x << 4)) & 0x0f0f0f0fu;
+    x = (x | (x << 2)) & 0x33333333u;
+    x = (x | (x << 1)) & 0x55555555u;
+    return x;
+}
+
+/* The even bits of x, packed into the low 16. */
+RT_INLINE uint gather_even_bits(uint x)
+{
+    x &= 0x55555555u;
+    x = (x | (x >> 1)) & 0x33333333u;
+    x = (x | (x >> 2)) & 0x0f0f0f0fu;
+    x = (x | (x >> 4)) & 0x00ff00ffu;
+    x = (x | (x >> 8)) & 0x0000ffffu;
+    return x;
+}
+
+RT_INLINE SampleKey sampler_key(uint seed, uint pixel, uint width, uint pass)
+{
+    SampleKey k;
+#if SAMPLER == SAMPLER_SOBOL
+    const uint x = pixel % width, y = pixel / width;
+    const uint tile_mask = (1u << SOBOL_TILE_BITS) - 1u;
+    const uint morton = spread_bits(x & tile_mask) | (spread_bits(y & tile_mask) << 1);
+    const uint round_mask = (1u << SOBOL_LOG2_ROUND) - 1u;
+    k.a = (morton << SOBOL_LOG2_ROUND) | (pass & round_mask);
+    const uint tile = (x >> SOBOL_TILE_BITS) | ((y >> SOBOL_TILE_BITS) << 16);
+    k.b = rng_hash(seed, tile, pass >> SOBOL_LOG2_ROUND, SAMPLER_KEY_SOBOL);
+    k.c = 0u;
+#elif SAMPLER == SAMPLER_STRATIFIED
+    k.a = pass;
+    k.b = rng_hash(seed, pixel, 0u, SAMPLER_KEY_STRATIFIED);
+    k.c = 0u;
+#else
+    k.a = seed; k.b = pixel; k.c = pass;
+#endif
+    return k;
+}
+
+#if SAMPLER != SAMPLER_INDEPENDENT
+/* The scramble seeds of sample dim: which = 0 index shuffle, 1 and 2 the two coordinates, 3 the
+ * stratified sampler's cells. */
+RT_INLINE uint sample_seed(SampleKey k, uint dim, uint which)
+{
+    return hash_u32(k.b ^ hash_u32(dim * 4u + which + RNG_KEY_OFFSET));
+}
+#endif
+
+RT_INLINE float sample_1d(SampleKey k, uint dim)
+{
+#if SAMPLER == SAMPLER_INDEPENDENT
+    return rng_uniform(k.a, k.b, k.c, dim);
+#else
+    /* both: the first Sobol dimension (van der Corput) of the shuffled index, scrambled */
+    const uint index = nested_scramble(k.a, sample_seed(k, dim, 0u));
+    return u32_to_unit_float(nested_scramble(reverse_bits32(index), sample_seed(k, dim, 1u)));
+#endif
+}
+
+RT_INLINE float2 sample_2d(SampleKey k, uint dim)
+{
+#if SAMPLER == SAMPLER_INDEPENDENT
+    return rng_uniform2(k.a, k.b, k.c, dim);
+#else
+    const uint index = nested_scramble(k.a, sample_seed(k, dim, 0u));
+#if SAMPLER == SAMPLER_SOBOL
+    const uint u = reverse_bits32(index), v = sobol_dim1(index);
+#else
+    /* the cell of each level from a base-4 digit: even bits to x, odd bits to y, coarsest first.
+     * lk_permute flips each digit as a hash of the coarser ones (a nested scramble of the
+     * quadtree), which also fills the digits below the first 4^k passes' cells with bits that
+     * differ from sample to sample: the jitter inside a cell is not shared by a grid column. */
+    const uint cells = lk_permute(index, sample_seed(k, dim, 3u));
+    const uint u = reverse_bits32(gather_even_bits(cells)), v = reverse_bits32(gather_even_bits(cells >> 1));
+#endif
+    return (float2)(u32_to_unit_float(nested_scramble(u, sample_seed(k, dim, 1u))),
+                    u32_to_unit_float(nested_scramble(v, sample_seed(k, dim, 2u))));
+#endif
+}
+
+#endif

@@ -1,0 +1,502 @@
+"""The binned SAH builder behind ``build_bvh(method="binned")``, compiled with numba.
+
+Top-down, one node at a time, in place (the classic binned build of Wald 2007):
+
+* A node is a range ``[begin, end)`` of two arrays permuted together: ``pb`` (T, 6) float32
+  triangle boxes (lo xyz, hi xyz) and ``idx`` (T,) the original face indices.
+* Binning: ``bins`` equal bins per axis over the node's **centroid** bounds (centroids are
+  ``lo + hi`` in float64, exact for most inputs and never overflowing); each bin keeps a count
+  and the float32 box of its triangles.  Every split plane between bins on the three axes is
+  costed in float64; the first minimum wins (x before y before z, low bins first).
+* The leaf / split decision is :func:`pyopencl_rt.accel.bvh._decide`'s, node by node: a node
+  becomes a leaf when it holds ``<= max_leaf_size`` triangles, when it is at depth
+  :data:`~pyopencl_rt.accel.bvh.MAX_DEPTH`, or when it holds at most ``MAX_SAH_LEAF`` triangles
+  and the SAH says a leaf is no dearer; a node that no plane separates (all centroids equal), and
+  every node from depth ``_MEDIAN_DEPTH`` on, is split into index halves.
+* Partition: a two-pointer (Hoare) pass sends each triangle to the side of its bin, recomputed by
+  the very same expression as in binning, so the child boxes come exactly from the bins (float32
+  min/max, no arithmetic); the pass also gathers each child's centroid bounds.
+
+Node ids: the subtree of a node with ``n`` triangles and id ``i`` uses ids in ``[i, i + 2n - 1)``
+(a binary tree with ``n`` triangles has at most ``2n - 1`` nodes): the left child is ``i + 1``,
+the right child ``i + 2 * n_left``.  Ids therefore depend only on the tree, not on which thread
+built what, and the records keep this depth-first order (a left child follows its parent), with
+the unused ids dropped.
+
+Parallelism (meshes of at least ``_PARALLEL_MIN`` triangles): nodes bigger than
+``max(T / (8 * threads), _BIG_MIN)`` are split one by one as tasks of a thread pool; the smaller
+subtrees are built whole by one compiled call each, also in the pool (every
+compiled function releases the GIL).  The tree does not depend on the thread count.
+
+Compilation: the first call in a process compiles the kernels (a few seconds) unless numba's
+on-disk cache has them.  The cache sits in ``__pycache__`` next to this file, or, where that is
+not writable (an installed wheel in a read-only location), in numba's per-user cache directory
+(``NUMBA_CACHE_DIR`` overrides both); :func:`warm_up` compiles or loads them on purpose.
+"""
+from __future__ import annotations
+
+import os
+import time
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+
+import numpy as np
+from numba import njit
+
+from ..device import abi
+
+
+def _jit(inline="never"):
+    """numba.njit, releasing the GIL, cached on disk where numba finds a writable place."""
+    def decorate(fn):
+        options = dict(nogil=True, error_model="numpy", inline=inline)
+        try:
+            return njit(cache=True, **options)(fn)
+        except RuntimeError:    # no writable cache location: compile in every process instead
+            return njit(**options)(fn)
+    return decorate
+
+
+# _records and build write the records as raw words: per side bmin xyz, child, bmax xyz, count
+assert [abi.BVH_NODE.fields[f"{k}_{s}"][1] for s in ("left", "right") for k in ("bmin", "child", "bmax", "count")] \
+    == [0, 12, 16, 28, 32, 44, 48, 60] and abi.BVH_NODE.itemsize == 64
+assert [abi.TRIANGLE.fields[f"v{i}"][1] for i in range(3)] == [0, 16, 32] and abi.TRIANGLE.itemsize == 48
+
+_STACK = 128            # explicit traversal stack of the subtree builder (depth <= MAX_DEPTH + 1)
+_PARALLEL_MIN = 32768   # meshes below this are built by one call on the calling thread
+_BIG_MIN = 4096         # nodes above max(this, T / (8 * threads)) are split as single tasks
+
+
+@_jit(inline="always")
+def _bin_of(c, cmin, scale, nb):
+    b = (c - cmin) * scale
+    if b >= nb - 1:
+        return nb - 1
+    if not b > 0.0:     # never below 0 for c in the node's bounds; a guard for the indexing
+        return 0
+    return int(b)
+
+
+@_jit(inline="always")
+def _bin_add(cnt, bb, k, lo0, lo1, lo2, hi0, hi1, hi2):
+    cnt[k] += 1
+    bb[k, 0] = min(bb[k, 0], lo0)
+    bb[k, 1] = min(bb[k, 1], lo1)
+    bb[k, 2] = min(bb[k, 2], lo2)
+    bb[k, 3] = max(bb[k, 3], hi0)
+    bb[k, 4] = max(bb[k, 4], hi1)
+    bb[k, 5] = max(bb[k, 5], hi2)
+
+
+@_jit(inline="always")
+def _centroid(pb, i):
+    """Twice the box centre, in float64 (exact for most inputs, never overflows)."""
+    return (np.float64(pb[i, 0]) + np.float64(pb[i, 3]), np.float64(pb[i, 1]) + np.float64(pb[i, 4]),
+            np.float64(pb[i, 2]) + np.float64(pb[i, 5]))
+
+
+@_jit(inline="always")
+def _area(lo0, lo1, lo2, hi0, hi1, hi2):
+    dx = max(np.float64(hi0) - np.float64(lo0), 0.0)
+    dy = max(np.float64(hi1) - np.float64(lo1), 0.0)
+    dz = max(np.float64(hi2) - np.float64(lo2), 0.0)
+    return 2.0 * (dx * dy + dy * dz + dz * dx)
+
+
+@_jit()
+def _range_bounds(pb, begin, end, box, cb):
+    """box (6,) float32: exact bounds of pb[begin:end]; cb (6,) float64: its centroid bounds."""
+    for d in range(3):
+        box[d] = np.inf
+        box[3 + d] = -np.inf
+        cb[d] = np.inf
+        cb[3 + d] = -np.inf
+    for i in range(begin, end):
+        for d in range(3):
+            lo = pb[i, d]
+            hi = pb[i, 3 + d]
+            box[d] = min(box[d], lo)
+            box[3 + d] = max(box[3 + d], hi)
+            c = np.float64(lo) + np.float64(hi)
+            cb[d] = min(cb[d], c)
+            cb[3 + d] = max(cb[3 + d], c)
+
+
+@_jit()
+def _process_node(pb, idx, begin, end, depth, nid, box, cb, cbox, ccb, tree, kind, nbox, bins, max_leaf,
+                  ct, ci, max_depth, median_depth, max_sah_leaf, cnt, bb, scale, rarea):
+    """Decide and, for a split, partition one node.  Writes node ``nid`` and returns the split
+    position (-1 for a leaf); cbox (2, 6) / ccb (2, 6) receive the children's boxes and centroid
+    bounds.  cnt (3 * bins,), bb (3 * bins, 6), scale (3,) and rarea (bins,) are scratch; bin b
+    of axis a is row a * nb + b."""
+    n = end - begin
+    for d in range(6):
+        nbox[nid, d] = box[d]
+    tree[nid, 0] = begin
+    tree[nid, 1] = n
+    tree[nid, 4] = depth
+    if n <= max_leaf or depth >= max_depth:
+        kind[nid] = 1
+        return -1
+    # fewer bins for small nodes: the per-node sweep then stays below the per-triangle work
+    nb = bins
+    while nb > 4 and nb > n:
+        nb //= 2
+    for a in range(3):
+        ext = cb[3 + a] - cb[a]
+        scale[a] = nb / ext if ext > 0.0 else 0.0
+    for k in range(3 * nb):
+        cnt[k] = 0
+        for d in range(3):
+            bb[k, d] = np.inf
+            bb[k, 3 + d] = -np.inf
+    # a degenerate axis (scale 0) puts everything in its bin 0, where no plane separates anything
+    m0, m1, m2 = cb[0], cb[1], cb[2]
+    s0, s1, s2 = scale[0], scale[1], scale[2]
+    for i in range(begin, end):
+        lo0, lo1, lo2 = pb[i, 0], pb[i, 1], pb[i, 2]
+        hi0, hi1, hi2 = pb[i, 3], pb[i, 4], pb[i, 5]
+        _bin_add(cnt, bb, _bin_of(np.float64(lo0) + np.float64(hi0), m0, s0, nb), lo0, lo1, lo2, hi0, hi1, hi2)
+        _bin_add(cnt, bb, nb + _bin_of(np.float64(lo1) + np.float64(hi1), m1, s1, nb), lo0, lo1, lo2, hi0, hi1, hi2)
+        _bin_add(cnt, bb, 2 * nb + _bin_of(np.float64(lo2) + np.float64(hi2), m2, s2, nb),
+                 lo0, lo1, lo2, hi0, hi1, hi2)
+    # SAH over the nb - 1 planes of each axis: suffix areas/counts, then a prefix sweep
+    best = np.inf
+    bax = -1
+    bbin = -1
+    for a in range(3):
+        if scale[a] == 0.0:
+            continue
+        r0 = r1 = r2 = np.inf
+        r3 = r4 = r5 = -np.inf
+        for b in range(nb - 1, 0, -1):
+            k = a * nb + b
+            r0 = min(r0, bb[k, 0])
+            r1 = min(r1, bb[k, 1])
+            r2 = min(r2, bb[k, 2])
+            r3 = max(r3, bb[k, 3])
+            r4 = max(r4, bb[k, 4])
+            r5 = max(r5, bb[k, 5])
+            rarea[b] = _area(r0, r1, r2, r3, r4, r5)
+        l0 = l1 = l2 = np.inf
+        l3 = l4 = l5 = -np.inf
+        nl = 0
+        for b in range(nb - 1):
+            k = a * nb + b
+            l0 = min(l0, bb[k, 0])
+            l1 = min(l1, bb[k, 1])
+            l2 = min(l2, bb[k, 2])
+            l3 = max(l3, bb[k, 3])
+            l4 = max(l4, bb[k, 4])
+            l5 = max(l5, bb[k, 5])
+            nl += cnt[k]
+            nr = n - nl
+            if nl == 0 or nr == 0:
+                continue
+            cost = _area(l0, l1, l2, l3, l4, l5) * nl + rarea[b + 1] * nr
+            if cost < best:
+                best = cost
+                bax = a
+                bbin = b
+    # leaf, SAH split or index halves (the rule of bvh._decide)
+    valid = bax >= 0
+    node_area = _area(box[0], box[1], box[2], box[3], box[4], box[5])
+    if node_area > 0.0:
+        split_cost = ct + ci * best / node_area
+    else:
+        split_cost = ct + ci * n
+    if n <= max(max_sah_leaf, max_leaf) and (not valid or split_cost >= ci * n):
+        kind[nid] = 1
+        return -1
+    kind[nid] = 0
+    for s in range(2):
+        for d in range(3):
+            cbox[s, d] = np.inf
+            cbox[s, 3 + d] = -np.inf
+            ccb[s, d] = np.inf
+            ccb[s, 3 + d] = -np.inf
+    if not valid or depth >= median_depth:
+        mid = begin + n // 2
+        for i in range(begin, end):
+            s = 0 if i < mid else 1
+            for d in range(3):
+                lo = pb[i, d]
+                hi = pb[i, 3 + d]
+                cbox[s, d] = min(cbox[s, d], lo)
+                cbox[s, 3 + d] = max(cbox[s, 3 + d], hi)
+                c = np.float64(lo) + np.float64(hi)
+                ccb[s, d] = min(ccb[s, d], c)
+                ccb[s, 3 + d] = max(ccb[s, 3 + d], c)
+        return mid
+    # child boxes exactly from the bins
+    for b in range(nb):
+        s = 0 if b <= bbin else 1
+        for d in range(3):
+            cbox[s, d] = min(cbox[s, d], bb[bax * nb + b, d])
+            cbox[s, 3 + d] = max(cbox[s, 3 + d], bb[bax * nb + b, 3 + d])
+    cmin = cb[bax]
+    sc = scale[bax]
+    # centroid bounds of the left (x0..x2 min, y0..y2 max) and right (u, v) children
+    x0 = x1 = x2 = u0 = u1 = u2 = np.inf
+    y0 = y1 = y2 = v0 = v1 = v2 = -np.inf
+    i = begin
+    j = end - 1
+    while True:
+        while i <= j:
+            c0, c1, c2 = _centroid(pb, i)
+            if _bin_of(c0 if bax == 0 else (c1 if bax == 1 else c2), cmin, sc, nb) > bbin:
+                break
+            x0, x1, x2 = min(x0, c0), min(x1, c1), min(x2, c2)
+            y0, y1, y2 = max(y0, c0), max(y1, c1), max(y2, c2)
+            i += 1
+        while i < j:
+            c0, c1, c2 = _centroid(pb, j)
+            if _bin_of(c0 if bax == 0 else (c1 if bax == 1 else c2), cmin, sc, nb) <= bbin:
+                break
+            u0, u1, u2 = min(u0, c0), min(u1, c1), min(u2, c2)
+            v0, v1, v2 = max(v0, c0), max(v1, c1), max(v2, c2)
+            j -= 1
+        if i >= j:
+            break
+        # pb[i] goes right and pb[j] left: swap them
+        for d in range(6):
+            t = pb[i, d]
+            pb[i, d] = pb[j, d]
+            pb[j, d] = t
+        t2 = idx[i]
+        idx[i] = idx[j]
+        idx[j] = t2
+        c0, c1, c2 = _centroid(pb, i)
+        x0, x1, x2 = min(x0, c0), min(x1, c1), min(x2, c2)
+        y0, y1, y2 = max(y0, c0), max(y1, c1), max(y2, c2)
+        c0, c1, c2 = _centroid(pb, j)
+        u0, u1, u2 = min(u0, c0), min(u1, c1), min(u2, c2)
+        v0, v1, v2 = max(v0, c0), max(v1, c1), max(v2, c2)
+        i += 1
+        j -= 1
+    # [begin, i) goes left; when the loops stopped on i == j that element was on the right
+    if i == j:
+        c0, c1, c2 = _centroid(pb, j)
+        u0, u1, u2 = min(u0, c0), min(u1, c1), min(u2, c2)
+        v0, v1, v2 = max(v0, c0), max(v1, c1), max(v2, c2)
+    ccb[0, 0], ccb[0, 1], ccb[0, 2], ccb[0, 3], ccb[0, 4], ccb[0, 5] = x0, x1, x2, y0, y1, y2
+    ccb[1, 0], ccb[1, 1], ccb[1, 2], ccb[1, 3], ccb[1, 4], ccb[1, 5] = u0, u1, u2, v0, v1, v2
+    return i
+
+
+@_jit()
+def _build_subtree(pb, idx, begin, end, depth, nid, box, cb, tree, kind, nbox, bins, max_leaf, ct, ci,
+                   max_depth, median_depth, max_sah_leaf, cbox, ccb, single):
+    """The whole subtree of one node, depth first with an explicit stack; with ``single``, only
+    the node itself: returns its split position (-1: a leaf), its children's boxes and centroid
+    bounds in cbox / ccb (2, 6)."""
+    cnt = np.zeros(3 * bins, np.int64)
+    bb = np.empty((3 * bins, 6), np.float32)
+    scale = np.empty(3)
+    rarea = np.empty(bins)
+    s_int = np.empty((_STACK, 4), np.int64)     # begin, end, depth, id
+    s_box = np.empty((_STACK, 6), np.float32)
+    s_cb = np.empty((_STACK, 6))
+    cur_box = box.copy()
+    cur_cb = cb.copy()
+    top = 0
+    while True:
+        mid = _process_node(pb, idx, begin, end, depth, nid, cur_box, cur_cb, cbox, ccb, tree, kind, nbox,
+                            bins, max_leaf, ct, ci, max_depth, median_depth, max_sah_leaf, cnt, bb, scale,
+                            rarea)
+        if mid >= 0:
+            left = nid + 1
+            right = nid + 2 * (mid - begin)
+            tree[nid, 2] = left
+            tree[nid, 3] = right
+            if single:
+                return mid
+            s_int[top, 0] = mid
+            s_int[top, 1] = end
+            s_int[top, 2] = depth + 1
+            s_int[top, 3] = right
+            for d in range(6):
+                s_box[top, d] = cbox[1, d]
+                s_cb[top, d] = ccb[1, d]
+                cur_box[d] = cbox[0, d]
+                cur_cb[d] = ccb[0, d]
+            top += 1
+            end = mid
+            depth += 1
+            nid = left
+            continue
+        if top == 0:
+            return -1
+        top -= 1
+        begin = s_int[top, 0]
+        end = s_int[top, 1]
+        depth = s_int[top, 2]
+        nid = s_int[top, 3]
+        for d in range(6):
+            cur_box[d] = s_box[top, d]
+            cur_cb[d] = s_cb[top, d]
+
+
+@_jit()
+def _prim_boxes(V, F, pb, begin, end):
+    for i in range(begin, end):
+        for d in range(3):
+            a = V[F[i, 0], d]
+            b = V[F[i, 1], d]
+            c = V[F[i, 2], d]
+            pb[i, d] = min(a, min(b, c))
+            pb[i, 3 + d] = max(a, max(b, c))
+
+
+@_jit()
+def _gather_triangles(V, F, order, out, begin, end):
+    """out (T, 12) float32, the abi.TRIANGLE records: v0, v1, v2 of face order[i], w = 0."""
+    for i in range(begin, end):
+        f = order[i]
+        for k in range(3):
+            v = F[f, k]
+            for d in range(3):
+                out[i, 4 * k + d] = V[v, d]
+            out[i, 4 * k + 3] = 0.0
+
+
+def _scratch():
+    """Room for a node's two children: boxes (float32) and centroid bounds (float64)."""
+    return np.empty((2, 6), np.float32), np.empty((2, 6))
+
+
+def thread_count() -> int:
+    """Threads the build uses: the CPUs this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:      # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _chunked(pool, n, fn, T, *args):
+    """fn(*args, begin, end) over [0, T) in n chunks run by ``pool`` (or inline without one)."""
+    if pool is None:
+        fn(*args, 0, T)
+        return
+    bounds = [T * k // n for k in range(n + 1)]
+    for f in [pool.submit(fn, *args, bounds[k], bounds[k + 1]) for k in range(n)]:
+        f.result()
+
+
+@_jit()
+def _records(tree, kind, nbox, rec_f, rec_i, leaf_counts):
+    """abi.BVH_NODE records of the inner nodes, in id order (rec_f / rec_i: float32 / int32 views
+    (R, 16) of the same records); leaf_counts receives each leaf's size.  Returns the deepest
+    leaf's depth and the two sums of bvh.sah_cost: of the records' areas and of leaf area * count."""
+    M = kind.shape[0]
+    rec_of = np.empty(M, np.int64)
+    r = 0
+    for i in range(M):
+        if kind[i] == 0:
+            rec_of[i] = r
+            r += 1
+    r = 0
+    nleaf = 0
+    depth = 0
+    record_area = 0.0
+    leaf_area = 0.0
+    for i in range(M):
+        if kind[i] == 1:
+            leaf_counts[nleaf] = tree[i, 1]
+            nleaf += 1
+            depth = max(depth, tree[i, 4])
+            leaf_area += _area(nbox[i, 0], nbox[i, 1], nbox[i, 2], nbox[i, 3], nbox[i, 4], nbox[i, 5]) * tree[i, 1]
+        if kind[i] != 0:
+            continue
+        record_area += _area(nbox[i, 0], nbox[i, 1], nbox[i, 2], nbox[i, 3], nbox[i, 4], nbox[i, 5])
+        for s in range(2):
+            ch = tree[i, 2 + s]
+            o = 8 * s
+            for d in range(3):
+                rec_f[r, o + d] = nbox[ch, d]
+                rec_f[r, o + 4 + d] = nbox[ch, 3 + d]
+            if kind[ch] == 1:
+                rec_i[r, o + 3] = tree[ch, 0]
+                rec_i[r, o + 7] = tree[ch, 1]
+            else:
+                rec_i[r, o + 3] = rec_of[ch]
+                rec_i[r, o + 7] = 0
+        r += 1
+    return depth, record_area, leaf_area
+
+
+def build(V, F, max_leaf_size, bins, ct, ci, max_depth, median_depth, max_sah_leaf, threads=None):
+    """Binned SAH BVH over the triangles V[F] (T >= 1) -> (abi.BVH_NODE records, or None when the
+    whole mesh is one leaf; order; the reordered abi.TRIANGLE records as a (T, 12) float32 array;
+    leaf sizes; deepest leaf depth; the SAH cost (bvh.sah_cost), None where the root has no
+    area)."""
+    T = len(F)
+    bins = int(bins)
+    threads = thread_count() if threads is None else max(1, int(threads))
+    pool = ThreadPoolExecutor(threads) if threads > 1 and T >= _PARALLEL_MIN else None
+    try:
+        pb = np.empty((T, 6), np.float32)
+        _chunked(pool, threads, _prim_boxes, T, V, F, pb)
+        idx = np.arange(T, dtype=np.int32)
+        M = 2 * T - 1
+        tree = np.empty((M, 5), np.int64)       # first, count, left, right, depth
+        kind = np.full(M, -1, np.int8)          # -1 unused id, 0 inner, 1 leaf
+        nbox = np.empty((M, 6), np.float32)
+        box = np.empty(6, np.float32)
+        cb = np.empty(6)
+        _range_bounds(pb, 0, T, box, cb)
+        params = (bins, max_leaf_size, float(ct), float(ci), max_depth, median_depth, max_sah_leaf)
+        if pool is None:
+            _build_subtree(pb, idx, 0, T, 0, 0, box, cb, tree, kind, nbox, *params, *_scratch(), False)
+        else:
+            _build_tasks(pool, threads, pb, idx, T, box, cb, tree, kind, nbox, params)
+        tris = np.empty((T, 12), np.float32)
+        _chunked(pool, threads, _gather_triangles, T, V, F, idx, tris)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    if kind[0] == 1:        # the whole mesh is one leaf
+        return None, idx, tris, np.array([T]), 0, None
+    nodes = np.zeros(int(np.count_nonzero(kind == 0)), abi.BVH_NODE)
+    raw = nodes.view(np.float32).reshape(len(nodes), 16)
+    leaf_counts = np.empty(len(nodes) + 1, np.int64)
+    depth, record_area, leaf_area = _records(tree, kind, nbox, raw, raw.view(np.int32), leaf_counts)
+    d = np.maximum(nbox[0, 3:].astype(np.float64) - nbox[0, :3], 0.0)
+    root_area = 2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
+    sah = (ct * record_area + ci * leaf_area) / root_area if root_area > 0 else None
+    return nodes, idx, tris, leaf_counts, int(depth), sah
+
+
+def warm_up() -> float:
+    """Compile the kernels, or load them from the on-disk cache, with a tiny build; returns the
+    seconds it took."""
+    start = time.perf_counter()
+    V = np.random.default_rng(0).random((15, 3)).astype(np.float32)
+    build(V, np.arange(15, dtype=np.int32).reshape(5, 3), 1, 16, 1.0, 1.0, 60, 48, 64, threads=1)
+    return time.perf_counter() - start
+
+
+def _build_tasks(pool, threads, pb, idx, T, box, cb, tree, kind, nbox, params):
+    """Split the big nodes as single tasks, then build the subtrees below them as whole tasks."""
+    big = max(T // (8 * threads), _BIG_MIN)
+
+    def split(begin, end, depth, nid, nbox_, ncb):
+        cbox, ccb = _scratch()
+        mid = _build_subtree(pb, idx, begin, end, depth, nid, nbox_, ncb, tree, kind, nbox, *params, cbox, ccb, True)
+        if mid < 0:
+            return []
+        left, right = nid + 1, nid + 2 * (mid - begin)
+        return [(begin, mid, depth + 1, left, cbox[0], ccb[0]), (mid, end, depth + 1, right, cbox[1], ccb[1])]
+
+    def subtree(begin, end, depth, nid, nbox_, ncb):
+        _build_subtree(pb, idx, begin, end, depth, nid, nbox_, ncb, tree, kind, nbox, *params, *_scratch(), False)
+        return []
+
+    def submit(task):
+        return pool.submit(split if task[1] - task[0] > big else subtree, *task)
+
+    pending = {submit((0, T, 0, 0, box, cb))}
+    while pending:
+        done, pending = wait(pending, return_when=FIRST_COMPLETED)
+        for future in done:
+            for task in future.result():
+                pending.add(submit(task))

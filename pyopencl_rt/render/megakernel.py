@@ -1,0 +1,104 @@
+"""The megakernel schedule: one work-item per sample follows its whole path (cl/megakernel/path.cl).
+
+The wavefront (:mod:`pyopencl_rt.render.wavefront`) keeps every path's state in memory between
+five small kernels and compacts queues after each bounce, which keeps a GPU's SIMD lanes busy.  On
+a CPU each work-item runs as scalar code anyway, so those round trips are pure cost: the
+megakernel keeps the path in registers and traces its shadow ray at once.  It computes the same
+samples in the same order with the same random numbers, so the image is identical, bit for bit;
+only the speed differs (docs/BENCHMARKS.md, "Megakernel").
+
+Which schedule a render uses (:func:`kernel_mode`): ``"megakernel"`` on CPU devices, the wavefront
+on the others, when the Embree intersector traces on the host (it needs the wavefront's ray
+queues) and when film AOVs are requested (their per-path state lives in the wavefront's buffers).
+``$PYOPENCL_RT_KERNEL_MODE`` or the ``kernel_mode`` argument overrides the choice.
+"""
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+from ..device import abi
+from ..errors import UserError
+from .film import Film, RunStats
+
+KERNEL_MODES = ("wavefront", "megakernel")
+KERNEL_MODE_ENV = "PYOPENCL_RT_KERNEL_MODE"
+SOURCES = ("megakernel/path.cl",)
+
+
+def kernel_mode(device, intersector: str, film_aovs, requested: str | None = None) -> str:
+    """The schedule for a render on ``device`` (see the module docstring)."""
+    import pyopencl as cl
+
+    requested = requested or os.environ.get(KERNEL_MODE_ENV) or "auto"
+    if requested not in KERNEL_MODES + ("auto",):
+        raise UserError(f"unknown kernel mode {requested!r}: use auto, wavefront or megakernel "
+                        f"(argument or ${KERNEL_MODE_ENV})")
+    can_megakernel = intersector == "opencl" and not film_aovs
+    if requested == "megakernel" and not can_megakernel:
+        raise UserError("--kernel-mode megakernel traces in OpenCL and has no AOVs: it cannot be combined with "
+                        "--intersector embree or film AOVs")
+    if requested == "auto":
+        return "megakernel" if can_megakernel and device.type & cl.device_type.CPU else "wavefront"
+    return requested
+
+
+def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=False, first_pass=0,
+        cancel=None) -> RunStats:
+    """:meth:`Wavefront.run` for the megakernel: whole passes per launch, as many as the wave
+    size allows, added to the film in pass order after each launch."""
+    import pyopencl as cl
+
+    if passes is None and time_limit is None:
+        raise ValueError("give passes, time_limit or both")
+    n_pixels = wf.n_pixels
+    queue = wf.rt.queue
+    kernel = wf.kernels["path"]
+    counters = wf.buffer("counters")
+    stats = RunStats()
+    ring_host = np.empty((n_pixels, 3), np.float32)
+    passes_per_launch = max(1, min(wf.wave_size // n_pixels, wf.ring_size))
+    samples_per_launch = passes_per_launch * n_pixels
+    local = abi.WAVE_LOCAL_SIZE
+    end = None if passes is None else first_pass + passes
+    next_pass = first_pass
+    start = time.perf_counter()
+    try:
+        while end is None or next_pass < end:
+            if cancel is not None and cancel():
+                raise KeyboardInterrupt
+            if time_limit is not None and time.perf_counter() - start >= time_limit:
+                break
+            count = passes_per_launch if end is None else min(passes_per_launch, end - next_pass)
+            # one launch renders at most the wave size, so a pass bigger than it takes several
+            for first_pixel in range(0, count * n_pixels, samples_per_launch):
+                n = min(samples_per_launch, count * n_pixels - first_pixel)
+                wf.args.set("path", n_items=n, first_pass=next_pass, first_pixel=first_pixel,
+                            queue_in=wf.queue_a, queue_out=wf.queue_b, queue_base=0, free_base=0)
+                event = cl.enqueue_nd_range_kernel(queue, kernel, (-(-n // local) * local,), (local,))
+                if profile:
+                    event.wait()
+                    stats.stage_seconds["path"] = stats.stage_seconds.get("path", 0.0) + \
+                        (event.profile.end - event.profile.start) * 1e-9
+            for k in range(count):
+                ring = (next_pass + k) % wf.ring_size
+                cl.enqueue_copy(queue, ring_host, wf.buffer("pass_ring"), src_offset=ring * n_pixels * 12)
+                film.add_pass(ring_host)
+                stats.passes += 1
+                stats.iterations += 1
+                if progress is not None:
+                    progress(stats.passes, time.perf_counter() - start)
+            next_pass += count
+    except KeyboardInterrupt:
+        stats.interrupted = True
+    queue.finish()
+    cl.enqueue_copy(queue, wf.counters_host, counters)
+    stats.nonfinite = int(wf.counters_host[abi.COUNTER_NONFINITE])
+    stats.rays_extend = int(wf.counters_host[abi.COUNTER_RAYS_EXTEND])
+    stats.rays_shadow = int(wf.counters_host[abi.COUNTER_RAYS_SHADOW])
+    cl.enqueue_copy(queue, counters, np.zeros(2, np.int32), dst_offset=abi.COUNTER_RAYS_EXTEND * 4)
+    stats.samples = stats.passes * n_pixels
+    stats.seconds = time.perf_counter() - start
+    return stats

@@ -1,0 +1,185 @@
+"""The values of a :class:`~pyopencl_rt.scene.model.Scene` checked against what the float32
+kernels can hold, whatever made the scene (a loader or Python code).
+
+Scene files are checked key by key by their loaders; this is the last check, on the finished
+scene, that :func:`~pyopencl_rt.scene.loaders.load_scene` and ``render_full`` both run before
+anything is built.  It refuses, with one line naming the scene:
+
+* arrays of the wrong shape or kind, face and material indices out of range;
+* geometry that is not finite, or beyond ``GEOMETRY_LIMIT`` from the origin: values finite in
+  float64 can overflow in float32 (1e39), and the triangle test forms products of three
+  coordinates (``n . a``, with n a cross product), which overflow float32 beyond ~7e12;
+* a sphere whose radius float32 rounds to 0, a camera that sees nothing;
+* radiance (emission, light intensity, irradiance, environment) that is negative, NaN, or finite
+  but above ``RADIANCE_LIMIT``, where a path's products overflow float32.  An infinite emission
+  is left to the kernels, which count such samples as non-finite and discard them.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import UserError, one_line
+
+GEOMETRY_LIMIT = float(2**40)  # ~1.1e12: a cube of it (n . a) stays below float32's 3.4e38
+RADIANCE_LIMIT = 1e30
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+class SceneValueError(UserError):
+    """A scene value the kernels cannot use; the message is one line naming the scene."""
+
+
+def _fail(scene, what: str):
+    raise SceneValueError(one_line(f"{getattr(scene, 'source', '<memory>')}: {what}"))
+
+
+def _array(scene, value, what, width, kinds):
+    a = np.asarray(value)
+    if a.size == 0:
+        return a.reshape(0, width) if width else a.reshape(0)
+    if a.dtype.kind not in kinds:
+        _fail(scene, f"{what} must hold {'integers' if kinds == 'iu' else 'numbers'}, got dtype {a.dtype}")
+    if (width and (a.ndim != 2 or a.shape[1] != width)) or (not width and a.ndim != 1):
+        _fail(scene, f"{what} must have shape {'(N, %d)' % width if width else '(N,)'}, got {tuple(a.shape)}")
+    return a
+
+
+def _indices(scene, a, what, count):
+    if a.size and (a.min() < 0 or a.max() >= count):
+        _fail(scene, f"{what} must lie in 0 .. {count - 1}, got {a.min()} .. {a.max()}")
+
+
+def _vector(scene, value, what, limit=None, n=3):
+    try:
+        v = np.asarray(value, np.float64)
+    except (TypeError, ValueError):
+        _fail(scene, f"{what} must be {n} numbers, got {value!r}")
+    if v.shape != (n,):
+        _fail(scene, f"{what} must be {n} numbers, got {value!r}")
+    if not np.isfinite(v).all():
+        _fail(scene, f"{what} must be finite, got {v.tolist()}")
+    if limit is not None and np.abs(v).max() > limit:
+        _fail(scene, f"{what} {v.tolist()} is beyond {limit:.3g} from the origin, more than the float32 kernels "
+                     "can hold")
+    return v
+
+
+def _radiance(scene, value, what, allow_inf=False):
+    v = np.asarray(value, np.float64).reshape(-1)
+    if np.isnan(v).any() or (v < 0).any():
+        _fail(scene, f"{what} must be >= 0, got {v.tolist()}")
+    finite = v[np.isfinite(v)]
+    if (not allow_inf and len(finite) < len(v)) or (finite > RADIANCE_LIMIT).any():
+        _fail(scene, f"{what} {v.tolist()} is above {RADIANCE_LIMIT:g}, where float32 path contributions overflow")
+
+
+def check_geometry(scene) -> None:
+    """Triangles and spheres: shapes, indices, finite and within GEOMETRY_LIMIT."""
+    n_mat = len(scene.materials)
+    v = _array(scene, scene.vertices, "vertices", 3, "fiu")
+    f = _array(scene, scene.faces, "faces", 3, "iu")
+    fm = _array(scene, scene.face_materials, "face_materials", 0, "iu")
+    _indices(scene, f, "face vertex indices", len(v))
+    if len(fm) != len(f):
+        _fail(scene, f"face_materials has {len(fm)} entries for {len(f)} faces")
+    _indices(scene, fm, "face material indices", n_mat)
+    if len(f):
+        used = np.asarray(v, np.float64)[np.unique(f)]
+        bad = ~np.isfinite(used).all(axis=1)
+        if bad.any():
+            _fail(scene, f"{int(bad.sum())} vertices used by faces are not finite (NaN, Inf or beyond float32)")
+        reach = float(np.abs(used).max())
+        if reach > GEOMETRY_LIMIT:
+            _fail(scene, f"triangle vertices reach {reach:.3g} from the origin, beyond {GEOMETRY_LIMIT:.3g}: the float32 "
+                         "kernels cannot intersect them (scale the scene down)")
+    s = _array(scene, scene.spheres, "spheres", 4, "fiu")
+    sm = _array(scene, scene.sphere_materials, "sphere_materials", 0, "iu")
+    if len(sm) != len(s):
+        _fail(scene, f"sphere_materials has {len(sm)} entries for {len(s)} spheres")
+    _indices(scene, sm, "sphere material indices", n_mat)
+    if len(s):
+        s64 = np.asarray(s, np.float64)
+        with np.errstate(over="ignore"):
+            r32 = s64[:, 3].astype(np.float32)
+        for i in range(len(s64)):
+            c, r = s64[i, :3], s64[i, 3]
+            if not (np.isfinite(c).all() and math.isfinite(r)):
+                _fail(scene, f"sphere #{i + 1}: centre and radius must be finite, got {s64[i].tolist()}")
+            if not (r > 0 and r32[i] > 0):
+                _fail(scene, f"sphere #{i + 1}: radius {r:g} is not positive in float32")
+            if np.abs(c).max() + r > GEOMETRY_LIMIT:
+                _fail(scene, f"sphere #{i + 1} (centre {c.tolist()}, radius {r:g}) reaches beyond {GEOMETRY_LIMIT:.3g} "
+                             "from the origin: the float32 kernels cannot intersect it (scale the scene down)")
+
+
+def check_camera(scene) -> None:
+    cam = scene.camera
+    eye = _vector(scene, cam.eye, "camera eye", GEOMETRY_LIMIT)
+    look_at = _vector(scene, cam.look_at, "camera look_at", GEOMETRY_LIMIT)
+    up = _vector(scene, cam.up, "camera up")
+    forward = look_at - eye
+    if not np.linalg.norm(forward) > 0:
+        _fail(scene, "camera eye and look_at are the same point")
+    if not np.linalg.norm(np.cross(forward / np.linalg.norm(forward), up)) > 1e-9:
+        _fail(scene, "camera up must not be zero or parallel to the viewing direction")
+    if not (isinstance(cam.fov, (int, float, np.number)) and 0 < cam.fov < 180):
+        _fail(scene, f"camera fov must be between 0 and 180 degrees, got {cam.fov!r}")
+    aperture = float(cam.aperture_radius)
+    if not (math.isfinite(aperture) and aperture >= 0):
+        _fail(scene, f"camera aperture_radius must be finite and >= 0, got {aperture}")
+    if cam.focus_distance is not None and not (math.isfinite(float(cam.focus_distance)) and cam.focus_distance > 0):
+        _fail(scene, f"camera focus_distance must be finite and > 0, got {cam.focus_distance}")
+
+
+def check_lights(scene) -> None:
+    for i, m in enumerate(scene.materials):
+        _radiance(scene, m.emission, f"material {m.name!r}: emission", allow_inf=True)
+        rec = m.record({})
+        for name in rec.dtype.names:
+            if name != "emission" and rec.dtype[name].base.kind == "f" and not np.isfinite(rec[name]).all():
+                _fail(scene, f"material {m.name!r}: {name} must be finite, got {np.asarray(rec[name]).tolist()}")
+    for i, light in enumerate(scene.lights or [], 1):
+        kind = type(light).__name__
+        if hasattr(light, "position"):
+            _vector(scene, light.position, f"light #{i} ({kind}): position", GEOMETRY_LIMIT)
+            _radiance(scene, light.intensity, f"light #{i} ({kind}): intensity")
+        else:
+            d = _vector(scene, light.direction, f"light #{i} ({kind}): direction")
+            if not np.linalg.norm(d) > 0:
+                _fail(scene, f"light #{i} ({kind}): direction must not be zero")
+            _radiance(scene, light.irradiance, f"light #{i} ({kind}): irradiance")
+    env = scene.environment
+    if env is not None:
+        _radiance(scene, env.radiance, "environment radiance")
+        if env.image is not None:
+            img = np.asarray(env.image)
+            if img.ndim != 3 or img.shape[2] != 3 or img.dtype.kind not in "fiu" or 0 in img.shape:
+                _fail(scene, f"environment image must be an H x W x 3 array of numbers, got shape {img.shape}")
+
+
+def check_settings(scene) -> None:
+    from ..validate import integer
+
+    st = scene.settings
+    for name, minimum in (("width", 1), ("height", 1), ("spp", 1), ("max_depth", -1), ("rr_depth", 0), ("seed", 0)):
+        try:
+            integer(getattr(st, name), name, minimum=minimum, maximum=2**32 - 1 if name == "seed" else None)
+        except UserError as exc:
+            _fail(scene, f"settings: {exc}")
+
+
+def check_scene(scene) -> None:
+    """Every check above; a SceneValueError (one line naming the scene) at the first problem."""
+    from .model import Scene
+
+    if not isinstance(scene, Scene):
+        raise SceneValueError(f"not a Scene: {type(scene).__name__}")
+    if not isinstance(scene.materials, (list, tuple)):
+        _fail(scene, "materials must be a list of Material")
+    with np.errstate(over="ignore", invalid="ignore"):
+        check_geometry(scene)
+        check_camera(scene)
+        check_lights(scene)
+    check_settings(scene)

@@ -1,0 +1,121 @@
+"""The compiled binned SAH builder (pyopencl_rt.accel.bvh_binned): its split against a float64
+numpy reference, the thread pool against the one-thread build, and its numba cache fallback."""
+import numpy as np
+import pytest
+
+from pyopencl_rt.accel import bvh_binned
+from pyopencl_rt.accel.bvh import build_bvh
+from pyopencl_rt.accel.bvh_validate import validate
+
+
+def soup(n, rng, size=0.05):
+    c = rng.random((n, 1, 3))
+    v = c + (rng.random((n, 3, 3)) - 0.5) * size
+    return v.reshape(-1, 3).astype(np.float32), np.arange(3 * n, dtype=np.int32).reshape(n, 3)
+
+
+def slivers(n, rng):
+    c = rng.random((n, 1, 3))
+    d = rng.normal(size=(n, 1, 3))
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    v = c + d * np.array([-0.15, 0.15, 0.0])[None, :, None] + rng.normal(size=(n, 3, 3)) * 1e-3
+    return v.reshape(-1, 3).astype(np.float32), np.arange(3 * n, dtype=np.int32).reshape(n, 3)
+
+
+def _area(lo, hi):
+    d = np.maximum(hi.astype(np.float64) - lo.astype(np.float64), 0.0)
+    return 2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
+
+
+def reference_root_split(V, F, bins=16):
+    """The best binned SAH plane of the whole mesh, by brute force in numpy: centroids lo + hi in
+    float64, ``bins`` equal bins over the centroid bounds per axis, every plane costed as
+    area(left) * n_left + area(right) * n_right; the first minimum (x, y, z; low bins first)."""
+    tv = V[F]
+    lo, hi = tv.min(axis=1), tv.max(axis=1)
+    c = lo.astype(np.float64) + hi.astype(np.float64)
+    cmin, cmax = c.min(axis=0), c.max(axis=0)
+    best, left_best = np.inf, None
+    for a in range(3):
+        if cmax[a] <= cmin[a]:
+            continue
+        b = np.minimum(np.floor((c[:, a] - cmin[a]) * (bins / (cmax[a] - cmin[a]))), bins - 1)
+        for j in range(bins - 1):
+            left = b <= j
+            nl = int(left.sum())
+            if nl in (0, len(F)):
+                continue
+            cost = (_area(lo[left].min(0), hi[left].max(0)) * nl
+                    + _area(lo[~left].min(0), hi[~left].max(0)) * (len(F) - nl))
+            if cost < best:
+                best, left_best = cost, left
+    return left_best, lo, hi
+
+
+@pytest.mark.parametrize("make", [soup, slivers])
+def test_root_split_is_the_binned_sah_minimum(make, rng):
+    V, F = make(3000, rng)
+    b = build_bvh(V, F, bins=16)
+    validate(b)
+    left, lo, hi = reference_root_split(V, F, 16)
+    nl = int(left.sum())
+    root = b.nodes[0]
+    np.testing.assert_array_equal(root["bmin_left"], lo[left].min(0))
+    np.testing.assert_array_equal(root["bmax_left"], hi[left].max(0))
+    np.testing.assert_array_equal(root["bmin_right"], lo[~left].min(0))
+    np.testing.assert_array_equal(root["bmax_right"], hi[~left].max(0))
+    # the left child's triangles are the first nl of the reordered array, exactly the reference's
+    assert set(b.prim_ids[:nl].tolist()) == set(np.flatnonzero(left).tolist())
+
+
+def test_threads_do_not_change_the_tree(rng):
+    V, F = soup(40_000, rng, size=0.02)          # above _PARALLEL_MIN: the pooled build runs
+    assert len(F) >= bvh_binned._PARALLEL_MIN
+    one = build_bvh(V, F, threads=1)
+    validate(one)
+    for threads in (2, 3):
+        many = build_bvh(V, F, threads=threads)
+        assert many.nodes.tobytes() == one.nodes.tobytes(), threads
+        assert np.array_equal(many.prim_ids, one.prim_ids)
+        assert many.triangles.tobytes() == one.triangles.tobytes()
+        assert many.stats["sah_cost"] == one.stats["sah_cost"]
+
+
+def test_task_path_on_degenerate_meshes(rng, monkeypatch):
+    """Small meshes through the thread pool (split tasks down to 64 triangles, then subtrees):
+    the same trees as on one thread, valid, on inputs with degenerate splits."""
+    monkeypatch.setattr(bvh_binned, "_PARALLEL_MIN", 0)
+    monkeypatch.setattr(bvh_binned, "_BIG_MIN", 64)
+    v, f = soup(700, rng)
+    cases = [
+        soup(2000, rng),
+        slivers(1500, rng),
+        (np.repeat(rng.random((400, 1, 3)), 3, axis=1).reshape(-1, 3).astype(np.float32),   # zero area
+         np.arange(1200).reshape(400, 3)),
+        (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.zeros((900, 3), np.int32) + [0, 1, 2]),
+        (v, np.concatenate([f, f, f])),                                                          # duplicates
+        (np.stack([np.linspace(0, 1, 1500), np.zeros(1500), np.zeros(1500)], 1).astype(np.float32),
+         np.arange(1500).reshape(500, 3)),                                                      # collinear
+    ]
+    for V, F in cases:
+        pooled = build_bvh(V, F, threads=2)
+        validate(pooled)
+        one = build_bvh(V, F, threads=1)
+        assert pooled.nodes.tobytes() == one.nodes.tobytes()
+        assert np.array_equal(pooled.prim_ids, one.prim_ids)
+
+
+def _double(x):
+    return 2 * x
+
+
+def test_cache_falls_back_when_no_location_is_writable(monkeypatch):
+    from numba.core import config
+    from numba.core.caching import CacheImpl, NullCache
+
+    cached = bvh_binned._jit()(_double)
+    assert cached(21) == 42 and not isinstance(cached._cache, NullCache)
+    monkeypatch.setattr(config, "CACHE_LOCATOR_CLASSES", "")
+    monkeypatch.setattr(CacheImpl, "_locator_classes", [])     # as if no place were writable
+    uncached = bvh_binned._jit()(_double)
+    assert uncached(21) == 42 and isinstance(uncached._cache, NullCache)
