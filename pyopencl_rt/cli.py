@@ -332,6 +332,16 @@ def bench_rays(device, sizes, n_rays, repeat, no_embree, json_path, layout, embr
     )
 
 
+def mitsuba_options(f):
+    """Where Mitsuba 3 and the libLLVM of its llvm_* variants are (nothing is guessed)."""
+    f = click.option("--llvm-path", type=click.Path(dir_okay=False),
+                     help="libLLVM shared library for the llvm_* variants [default: $DRJIT_LIBLLVM_PATH, "
+                     "else Dr.Jit's own search].")(f)
+    f = click.option("--mitsuba-python", type=click.Path(dir_okay=False),
+                     help="Interpreter that imports mitsuba [default: $PYOPENCL_RT_MITSUBA_PYTHON, else this one].")(f)
+    return f
+
+
 @bench.command("render")
 @click.argument("scene_path", metavar="SCENE", default="scenes/cornell-box.toml", type=click.Path(dir_okay=False))
 @device_option
@@ -344,16 +354,24 @@ def bench_rays(device, sizes, n_rays, repeat, no_embree, json_path, layout, embr
 @click.option("--wave-size", type=click.IntRange(min=1))
 @click.option("--intersector", default="opencl", show_default=True,
               help="Comma-separated: opencl,embree (extend and shadow rays on embreex), each timed on each device.")
+@click.option("--kernel-mode", default="auto", show_default=True,
+              help="Comma-separated: auto,wavefront,megakernel (path schedules), each timed on each device.")
+@click.option("--mitsuba", is_flag=True, help="Also time Mitsuba 3 on its own Cornell box (mi.cornell_box()) in this run.")
+@click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
+@mitsuba_options
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
-def bench_render(scene_path, device, width, height, spp, max_depth, repeat, wave_size, intersector, json_path):
+def bench_render(scene_path, device, width, height, spp, max_depth, repeat, wave_size, intersector, kernel_mode, mitsuba,
+                 mitsuba_variant, mitsuba_python, llvm_path, json_path):
     """Samples/s of the path tracer on each device (kernel build and BVH not timed)."""
     from .bench.render import run_render_bench
 
     intersectors = parse_intersectors(intersector)
+    kernel_modes = comma_list(kernel_mode, ("auto", "wavefront", "megakernel"), "kernel mode")
     _check_json(json_path)
+    options = dict(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=mitsuba_variant) if mitsuba else None
     run_render_bench(scene_path, devices=list(device) or None, width=width, height=height, spp=spp,
-                     max_depth=max_depth, repeat=repeat, wave_size=wave_size,
-                     intersectors=intersectors, json_path=json_path, echo=click.echo)
+                     max_depth=max_depth, repeat=repeat, wave_size=wave_size, intersectors=intersectors,
+                     kernel_modes=kernel_modes, mitsuba=options, json_path=json_path, echo=click.echo)
 
 
 def _check_json(json_path) -> None:
@@ -421,16 +439,6 @@ def bench_materials(device, scenes_dir, pairs, width, height, spp, repeat, json_
                         width=width, height=height, spp=spp, repeat=repeat, json_path=json_path, echo=click.echo)
 
 
-def mitsuba_options(f):
-    """Where Mitsuba 3 and the libLLVM of its llvm_* variants are (nothing is guessed)."""
-    f = click.option("--llvm-path", type=click.Path(dir_okay=False),
-                     help="libLLVM shared library for the llvm_* variants [default: $DRJIT_LIBLLVM_PATH, "
-                     "else Dr.Jit's own search].")(f)
-    f = click.option("--mitsuba-python", type=click.Path(dir_okay=False),
-                     help="Interpreter that imports mitsuba [default: $PYOPENCL_RT_MITSUBA_PYTHON, else this one].")(f)
-    return f
-
-
 @bench.command("mitsuba-cornell-box")
 @mitsuba_options
 @click.option("--variant", default="llvm_ad_rgb", show_default=True, help="Mitsuba variant.")
@@ -456,6 +464,8 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path
 @device_option
 @click.option("--integrator", default="path", show_default=True, help="Comma-separated: path,bsdf,nee.")
 @click.option("--intersector", default="opencl", show_default=True, help="Comma-separated: opencl,embree.")
+@click.option("--sampler", default=None,
+              help="Comma-separated: sobol,stratified,independent, one curve each [default: the scene's].")
 @click.option("--reference", type=click.Path(dir_okay=False), help="Reference OpenEXR (default: render one and cache it).")
 @click.option("--reference-spp", type=click.IntRange(min=1), help="Samples per pixel of the rendered reference (default: a share of --budget).")
 @click.option("--no-cache", is_flag=True, help="Neither read nor write the cached reference.")
@@ -467,19 +477,25 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path
 @click.option("--compare", default="", help="Peer renderers beside ours: 'mitsuba' (needs Mitsuba 3; skipped if absent).")
 @mitsuba_options
 @click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
+@click.option("--mitsuba-sampler", default="independent,multijitter", show_default=True,
+              help="With --compare mitsuba, comma-separated Mitsuba samplers, one curve each: independent, stratified, "
+              "multijitter, ldsampler.")
 @click.option("--json", "json_path", default="out/convergence.json", show_default=True, type=click.Path(dir_okay=False))
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="PNG plot (default: the JSON path with .png).")
 @click.option("--denoise", is_flag=True, help="Beside each of our curves, its Open Image Denoise curve (needs the "
               "denoise extra): where denoising stops helping.")
-def bench_convergence(scene_path, device, integrator, intersector, reference, reference_spp, no_cache, budget, width,
-                      height, max_depth, compare, mitsuba_python, llvm_path, mitsuba_variant, json_path, plot_path,
-                      denoise):
+def bench_convergence(scene_path, device, integrator, intersector, sampler, reference, reference_spp, no_cache, budget,
+                      width, height, max_depth, compare, mitsuba_python, llvm_path, mitsuba_variant, mitsuba_sampler,
+                      json_path, plot_path, denoise):
     """Error (RMSE, relMSE, MAE) against a reference as a function of render time, per device x
     integrator x intersector, optionally beside Mitsuba 3: JSON, a log-log plot and a table."""
     from .bench.convergence import run_convergence
-    from .scene.model import INTEGRATORS
+    from .scene.model import INTEGRATORS, SAMPLERS
 
     integrators = comma_list(integrator, INTEGRATORS, "integrator")
+    samplers = comma_list(sampler, SAMPLERS, "sampler") if sampler is not None else [None]
+    mitsuba_samplers = comma_list(mitsuba_sampler, ("independent", "stratified", "multijitter", "ldsampler"),
+                                  "Mitsuba sampler")
     intersectors = parse_intersectors(intersector)
     if budget is not None and not budget > 0:
         raise UserError(f"--budget must be positive (got {budget})")
@@ -496,7 +512,8 @@ def bench_convergence(scene_path, device, integrator, intersector, reference, re
                     reference=reference, reference_spp=reference_spp, budget=budget, width=width, height=height,
                     max_depth=max_depth, compare=[c.strip() for c in compare.split(",") if c.strip()],
                     mitsuba_python=mitsuba_python, mitsuba_variant=mitsuba_variant, llvm_path=llvm_path,
-                    json_path=json_path, plot_path=plot_path, use_cache=not no_cache, denoise=denoise, echo=click.echo)
+                    json_path=json_path, plot_path=plot_path, use_cache=not no_cache, denoise=denoise,
+                    samplers=samplers, mitsuba_samplers=mitsuba_samplers, echo=click.echo)
 
 
 def main(argv=None):

@@ -1,5 +1,7 @@
 """``pyopencl-rt bench render``: samples/s of the path tracer on each device, and optionally with
-the extend and shadow stages on Embree (``--intersector opencl,embree``) beside our traversal.
+the extend and shadow stages on Embree (``--intersector opencl,embree``) beside our traversal, with
+each path schedule (``--kernel-mode wavefront,megakernel``), and Mitsuba 3 on its own Cornell box
+in the same run (``--mitsuba``; compare with ``scenes/mitsuba-cbox.toml``, its transcription).
 
 Kernel build and BVH upload are not timed (see :func:`.timing.interleaved_render_rates`); every
 device x intersector is timed in each repetition and the median is reported.
@@ -13,9 +15,12 @@ from .timing import interleaved_render_rates, machine_info, write_results
 
 
 def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, max_depth=8, repeat=3,
-                     wave_size=None, intersectors=("opencl",), json_path=None, echo=print) -> dict:
-    """Rows are labelled by device, or "<intersector>: <device>" when more than one intersector is
-    timed."""
+                     wave_size=None, intersectors=("opencl",), kernel_modes=("auto",), mitsuba=None, json_path=None,
+                     echo=print) -> dict:
+    """Rows are labelled by device, prefixed by "<intersector>: " when more than one intersector
+    and by "<kernel mode>: " when more than one schedule is timed.  ``mitsuba``: None, or the
+    options of :func:`.mitsuba_host.run_mitsuba_cornell_box` (its samples/s are then reported, with
+    the ratio of ours to it)."""
     from ..device import devices as device_registry
     from ..render.wavefront import Wavefront
     from ..scene.loaders import load_scene
@@ -25,15 +30,20 @@ def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, ma
     variants, setup_seconds, intersector_of = {}, {}, {}
     for device in chosen:
         for intersector in intersectors:
-            label = device_registry.device_label(device)
-            if len(intersectors) > 1:
-                label = f"{intersector}: {label}"
-            start = time.perf_counter()
-            wavefront = Wavefront(scene, device, width=width, height=height, max_depth=max_depth, wave_size=wave_size,
-                                  intersector=intersector)
-            setup_seconds[label] = time.perf_counter() - start
-            variants[label] = (scene, wavefront)
-            intersector_of[label] = intersector
+            for mode in kernel_modes:
+                if mode == "megakernel" and intersector != "opencl":
+                    continue  # Embree traces the wavefront's queues
+                label = device_registry.device_label(device)
+                if len(intersectors) > 1:
+                    label = f"{intersector}: {label}"
+                if len(kernel_modes) > 1:
+                    label = f"{mode}: {label}"
+                start = time.perf_counter()
+                wavefront = Wavefront(scene, device, width=width, height=height, max_depth=max_depth,
+                                      wave_size=wave_size, intersector=intersector, kernel_mode=mode)
+                setup_seconds[label] = time.perf_counter() - start
+                variants[label] = (scene, wavefront)
+                intersector_of[label] = intersector
     rates, last_info = interleaved_render_rates(variants, spp, repeat, profile=True)
     results = {"scene": str(scene_path), "width": width, "height": height, "spp": spp, "max_depth": max_depth,
                "repeat": repeat, "machine": machine_info(), "devices": {}}
@@ -44,13 +54,27 @@ def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, ma
         rays_per_sample = (info["rays_extend"] + info["rays_shadow"]) / max(info["samples"], 1)
         results["devices"][label] = {
             "samples_per_second_median": median, "samples_per_second_all": rates[label],
-            "intersector": intersector_of[label], "setup_seconds": setup_seconds[label],
+            "intersector": intersector_of[label], "kernel_mode": wavefront.kernel_mode,
+            "setup_seconds": setup_seconds[label],
             "kernel_build_seconds": wavefront.timings.get("build_seconds"),
             "bvh_seconds": wavefront.timings.get("bvh_seconds"), "wave_size": wavefront.wave_size,
             "rays_per_sample": rays_per_sample, "stage_seconds": info.get("stage_seconds"),
             "features": info["features"],
         }
         echo(f"{label[:60]:<60} {median / 1e6:10.3f} {rays_per_sample:11.2f} {setup_seconds[label]:8.2f}")
+    if mitsuba is not None:
+        from .mitsuba_host import run_mitsuba_cornell_box
+
+        # the first render includes Dr.Jit's compilation; the others are timed as ours are
+        theirs = run_mitsuba_cornell_box(spps=(spp,) * (repeat + 1), echo=echo, **mitsuba)
+        rates_theirs = [r["samples_per_second"] for r in theirs["renders"][1:]]
+        theirs["samples_per_second_median"] = statistics.median(rates_theirs)
+        results["mitsuba"] = theirs
+        echo(f"{'Mitsuba ' + theirs['version'] + ' ' + theirs['variant'] + ' (mi.cornell_box())':<60} "
+             f"{theirs['samples_per_second_median'] / 1e6:10.3f}")
+        for label, row in results["devices"].items():
+            row["ratio_to_mitsuba"] = row["samples_per_second_median"] / theirs["samples_per_second_median"]
+            echo(f"  {label[:58]}: {row['ratio_to_mitsuba']:.2f}x Mitsuba's samples/s")
     if json_path:
         write_results(json_path, results, echo)
     return results
