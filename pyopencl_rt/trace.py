@@ -129,13 +129,18 @@ def _embree(bvh, o, d, tmin, tmax, any_hit):
         return {"t": np.full(n, np.inf, np.float32), "prim_id": np.full(n, -1, np.int32),
                 "u": np.zeros(n, np.float32), "v": np.zeros(n, np.float32), "normal": np.zeros((n, 3), np.float32)}
     scene = embree_scene(bvh)
-    # embreex has no tnear argument: start the ray at tmin instead, and add tmin back.
-    start = np.ascontiguousarray(o + tmin[:, None] * d, dtype=np.float32)
-    span = np.ascontiguousarray(tmax - tmin, dtype=np.float32)
+    # embreex has no tnear argument: start the ray at tmin instead, and add tmin back.  A start
+    # beyond float32 (a huge tmin) has nothing to hit there: a miss, as in the OpenCL kernels.
+    with np.errstate(over="ignore", invalid="ignore"):
+        start = np.ascontiguousarray(o + tmin[:, None] * d, dtype=np.float32)
+        span = np.ascontiguousarray(tmax - tmin, dtype=np.float32)
+    lost = ~np.isfinite(start).all(axis=1)
+    start[lost] = 0.0
     if any_hit:
-        return scene.run(start, d, dists=span, query="OCCLUDED") != -1
+        return (scene.run(start, d, dists=span, query="OCCLUDED") != -1) & ~lost
     r = scene.run(start, d, dists=span, output=1)
-    hit = r["primID"] >= 0
+    hit = (r["primID"] >= 0) & ~lost
+    r["primID"] = np.where(hit, r["primID"], -1)
     t = np.where(hit, r["tfar"] + tmin, np.inf).astype(np.float32)
     ng = r["Ng"].astype(np.float32)
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -212,7 +212,7 @@ CLI_OPTIONS = {
     "--seed": ["-1", "0", "7", "4294967295", "4294967296", "18446744073709551616"],
     "--max-depth": ["-2", "-1", "0", "1", "3", "2147483648"],
     "--time-limit": ["0", "-1", "0.05", "nan", "inf", "1e-300"],
-    "--wave-size": ["0", "-1", "1", "7", "64", "134217728", "1099511627776"],
+    "--wave-size": ["0", "-1", "64", "1000", "134217728", "1099511627776"],  # valid ones not tiny: slow, not wrong
     "--integrator": ["path", "bsdf", "nee", "mis"],
     "--intersector": ["opencl", "embree", "optix"],
     "--kernel-mode": ["auto", "wavefront", "megakernel", "warp"],
@@ -256,7 +256,8 @@ def test_fuzz_cli_options(tmp_path_factory, monkeypatch, capsys, measured, size)
         except SystemExit as exc:
             code = exc.code
         err = capsys.readouterr().err.strip().splitlines()
-        assert all(line.startswith("pyopencl-rt: ") for line in err), err
+        if "--profile" not in args:  # (--profile prints its table on stderr)
+            assert all(line.startswith("pyopencl-rt: ") for line in err), err
         errors = [line for line in err if line.startswith("pyopencl-rt: error: ")]
         if code:
             assert code in (1, 2) and len(errors) == 1, (code, err)
@@ -284,7 +285,7 @@ API_VALUES = {
     "rr_depth": [None, 0, 3, -1, "x"],
     "integrator": [None, "path", "bsdf", "nee", "x", 3],
     "time_limit": [None, 0.05, 0, -1, math.nan, math.inf, "1"],
-    "wave_size": [None, 1, 64, 0, -1, 2**40, 3.5, "64"],
+    "wave_size": [None, 64, 1000, 0, -1, 2**40, 3.5, "64"],
     "intersector": ["opencl", "embree", "optix", None, 0],
     "device": [None, "cpu", "0:0", ["cpu"], 3, "9:9", object()],
     "kernel_mode": [None, "auto", "wavefront", "megakernel", "warp"],
@@ -369,7 +370,8 @@ def test_fuzz_ray_arrays(measured, size):
                 counts["refused: " + clean_error(exc)] += 1
                 return
         assert not numpy_warnings(caught)
-        n = max(np.asarray(o).reshape(-1, 3).shape[0], np.asarray(d).reshape(-1, 3).shape[0])
+        # one row of either is used for every ray of the other (numpy's broadcasting: 1 and 0 give 0)
+        n = np.broadcast_shapes((np.asarray(o).reshape(-1, 3).shape[0],), (np.asarray(d).reshape(-1, 3).shape[0],))[0]
         if any_hit:
             assert out.shape == (n,) and out.dtype == bool
         else:

@@ -11,7 +11,8 @@
  * bmin_z, bmax_x, bmax_y, bmax_z: lane i = child slot i), then int8 child and int8 count, with
  * bvh_wide.h's meaning (0 inner, > 0 leaf of count packets, -1 absent with an empty box).  A
  * packet is v0x, v0y, ..., v2z (float8 index 3 * vertex + axis), then int8 tri (-1 = padding lane,
- * NaN vertices).  Leaves hold up to 8 triangles in one packet (the host merges small subtrees).
+ * NaN vertices).  The host makes every binary subtree of up to 8 triangles one leaf (one packet);
+ * larger binary leaves (the SAH allows up to 64 triangles) span several packets.
  *
  * Stack: every 8-wide level descends three binary levels, so the depth is at most 20 and, with at
  * most 7 children pushed per node, WIDE8_STACK_SIZE = 144 entries cannot overflow (checked on the

@@ -43,12 +43,25 @@
 #define SAMPLER SAMPLER_INDEPENDENT
 #endif
 
+/* The samples of a path: their dimension ids.  The pixel jitter (2D) takes
+ * 0 and 1, then each bounce DIMS_PER_BOUNCE ids from 2 + DIMS_PER_BOUNCE * depth on: a 1D light
+ * pick, a 2D light point, a 2D BSDF direction, 1D Russian roulette and a 1D BSDF lobe choice.
+ * Every 1D or 2D sample is scrambled on its own, so the ids only need to differ. */
+#define DIM_PIXEL 0
+#define DIM_LENS 0xFFFFFFF0u /* and + 1: the thin lens, far from every bounce's dimensions */
+#define DIMS_PER_BOUNCE 8
+#define DIM_LIGHT_PICK 0
+#define DIM_LIGHT_POINT 1 /* and 2 */
+#define DIM_BSDF 3        /* and 4 */
+#define DIM_RR 5
+#define DIM_BSDF_LOBE 6
+
 #define SOBOL_TILE_BITS ((32 - SOBOL_LOG2_ROUND) / 2)
 #define SAMPLER_KEY_SOBOL 0x50B01u     /* rng_hash dimension keys of the per-path key */
 #define SAMPLER_KEY_STRATIFIED 0x57A7u
 
-/* independent: (seed, pixel, pass); sobol: (index of the pass, key of tile and round, unused);
- * stratified: (pass, key of the pixel, unused) */
+/* independent: (seed, pixel, pass); sobol: (index of the pass, key of tile and round, the index
+ * bit-reversed); stratified: (pass, key of the pixel, the pass bit-reversed) */
 typedef struct { uint a, b, c; } SampleKey;
 
 RT_INLINE uint reverse_bits32(uint x)
@@ -74,11 +87,27 @@ RT_INLINE uint lk_permute(uint x, uint seed)
     return x;
 }
 
-/* Nested uniform (Owen) scramble: bit i flips as a function of the bits above it. */
+/* Nested uniform (Owen) scramble: bit i flips as a function of the bits above it.  A coordinate
+ * given bit-reversed (r = reverse_bits32(x)) is scrambled as reverse_bits32(lk_permute(r, seed)). */
 RT_INLINE uint nested_scramble(uint x, uint seed) { return reverse_bits32(lk_permute(reverse_bits32(x), seed)); }
 
-/* Sobol dimension 1 (dimension 0 is reverse_bits32). */
-RT_INLINE uint sobol_dim1(uint index)
+/* Sobol dimension 1, bit-reversed: reverse_bits32(SOBOL_MATRIX[1] * index).  Column k of that
+ * matrix is row k of Pascal's triangle mod 2 (its primitive polynomial is x + 1), so digit r
+ * (from the most significant) is the XOR of the index bits k with C(k, r) odd, that is with
+ * r a bit subset of k (Lucas): a superset-sum transform over the 5 bits of the positions, in 5
+ * steps instead of a 32-column loop.  tests/render/test_sampler.py checks it against the table. */
+RT_INLINE uint sobol_dim1_reversed(uint index)
+{
+    index ^= (index >> 1) & 0x55555555u;
+    index ^= (index >> 2) & 0x33333333u;
+    index ^= (index >> 4) & 0x0f0f0f0fu;
+    index ^= (index >> 8) & 0x00ff00ffu;
+    index ^= (index >> 16) & 0x0000ffffu;
+    return index;
+}
+
+/* Sobol dimension 1 from the generated table (the reference of the closed form above). */
+RT_INLINE uint sobol_dim1_table(uint index)
 {
     uint v = 0u;
     for (int k = 0; index; index >>= 1, ++k)
@@ -119,24 +148,27 @@ RT_INLINE SampleKey sampler_key(uint seed, uint pixel, uint width, uint pass)
     k.a = (morton << SOBOL_LOG2_ROUND) | (pass & round_mask);
     const uint tile = (x >> SOBOL_TILE_BITS) | ((y >> SOBOL_TILE_BITS) << 16);
     k.b = rng_hash(seed, tile, pass >> SOBOL_LOG2_ROUND, SAMPLER_KEY_SOBOL);
-    k.c = 0u;
 #elif SAMPLER == SAMPLER_STRATIFIED
     k.a = pass;
     k.b = rng_hash(seed, pixel, 0u, SAMPLER_KEY_STRATIFIED);
-    k.c = 0u;
 #else
     k.a = seed; k.b = pixel; k.c = pass;
+#endif
+#if SAMPLER != SAMPLER_INDEPENDENT
+    k.c = reverse_bits32(k.a);
 #endif
     return k;
 }
 
 #if SAMPLER != SAMPLER_INDEPENDENT
-/* The scramble seeds of sample dim: which = 0 index shuffle, 1 and 2 the two coordinates, 3 the
- * stratified sampler's cells. */
-RT_INLINE uint sample_seed(SampleKey k, uint dim, uint which)
+/* The first scramble seed of sample dim (the index shuffle); the others follow by hashing. */
+RT_INLINE uint sample_seed(SampleKey k, uint dim)
 {
-    return hash_u32(k.b ^ hash_u32(dim * 4u + which + RNG_KEY_OFFSET));
+    return hash_u32(k.b ^ hash_u32(dim + RNG_KEY_OFFSET));
 }
+
+/* The shuffled index of sample dim: nested_scramble(k.a, seed), computed from k.c = k.a reversed. */
+RT_INLINE uint shuffled_index(SampleKey k, uint seed) { return reverse_bits32(lk_permute(k.c, seed)); }
 #endif
 
 RT_INLINE float sample_1d(SampleKey k, uint dim)
@@ -144,9 +176,11 @@ RT_INLINE float sample_1d(SampleKey k, uint dim)
 #if SAMPLER == SAMPLER_INDEPENDENT
     return rng_uniform(k.a, k.b, k.c, dim);
 #else
-    /* both: the first Sobol dimension (van der Corput) of the shuffled index, scrambled */
-    const uint index = nested_scramble(k.a, sample_seed(k, dim, 0u));
-    return u32_to_unit_float(nested_scramble(reverse_bits32(index), sample_seed(k, dim, 1u)));
+    /* both: the first Sobol dimension (van der Corput: the index reversed) of the shuffled index,
+     * scrambled */
+    const uint s0 = sample_seed(k, dim);
+    const uint index = shuffled_index(k, s0);
+    return u32_to_unit_float(reverse_bits32(lk_permute(index, hash_u32(s0 ^ 1u))));
 #endif
 }
 
@@ -155,19 +189,21 @@ RT_INLINE float2 sample_2d(SampleKey k, uint dim)
 #if SAMPLER == SAMPLER_INDEPENDENT
     return rng_uniform2(k.a, k.b, k.c, dim);
 #else
-    const uint index = nested_scramble(k.a, sample_seed(k, dim, 0u));
+    const uint s0 = sample_seed(k, dim);
+    const uint index = shuffled_index(k, s0);
 #if SAMPLER == SAMPLER_SOBOL
-    const uint u = reverse_bits32(index), v = sobol_dim1(index);
+    /* both coordinates bit-reversed: dimension 0 is the index itself */
+    const uint ru = index, rv = sobol_dim1_reversed(index);
 #else
     /* the cell of each level from a base-4 digit: even bits to x, odd bits to y, coarsest first.
      * lk_permute flips each digit as a hash of the coarser ones (a nested scramble of the
      * quadtree), which also fills the digits below the first 4^k passes' cells with bits that
      * differ from sample to sample: the jitter inside a cell is not shared by a grid column. */
-    const uint cells = lk_permute(index, sample_seed(k, dim, 3u));
-    const uint u = reverse_bits32(gather_even_bits(cells)), v = reverse_bits32(gather_even_bits(cells >> 1));
+    const uint cells = lk_permute(index, hash_u32(s0 ^ 3u));
+    const uint ru = gather_even_bits(cells), rv = gather_even_bits(cells >> 1);
 #endif
-    return (float2)(u32_to_unit_float(nested_scramble(u, sample_seed(k, dim, 1u))),
-                    u32_to_unit_float(nested_scramble(v, sample_seed(k, dim, 2u))));
+    return (float2)(u32_to_unit_float(reverse_bits32(lk_permute(ru, hash_u32(s0 ^ 1u)))),
+                    u32_to_unit_float(reverse_bits32(lk_permute(rv, hash_u32(s0 ^ 2u)))));
 #endif
 }
 

@@ -20,19 +20,6 @@
 #define IS_SPHERE(prim) ((prim) <= PRIM_SPHERE_FIRST)
 #define SPHERE_INDEX(prim) (PRIM_SPHERE_FIRST - (prim))
 
-/* The samples of a path (cl/render/sampler.h): their dimension ids.  The pixel jitter (2D) takes
- * 0 and 1, then each bounce DIMS_PER_BOUNCE ids from 2 + DIMS_PER_BOUNCE * depth on: a 1D light
- * pick, a 2D light point, a 2D BSDF direction, 1D Russian roulette and a 1D BSDF lobe choice.
- * Every 1D or 2D sample is scrambled on its own, so the ids only need to differ. */
-#define DIM_PIXEL 0
-#define DIM_LENS 0xFFFFFFF0u /* and + 1: the thin lens, far from every bounce's dimensions */
-#define DIMS_PER_BOUNCE 8
-#define DIM_LIGHT_PICK 0
-#define DIM_LIGHT_POINT 1 /* and 2 */
-#define DIM_BSDF 3        /* and 4 */
-#define DIM_RR 5
-#define DIM_BSDF_LOBE 6
-
 RT_INLINE Hit scene_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
                              __global const Sphere *spheres, int n_spheres,
                              float3 o, float3 d, float tmin, float tmax)

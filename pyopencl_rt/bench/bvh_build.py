@@ -7,7 +7,9 @@ two SAH costs is reported (binned / sweep: 1 is as good as the sweep).  Embree (
 each mesh too, timed alternately with ours, for scale: Embree builds its BVH when the scene is
 committed, which embreex does on the first ``run``, so ``embree_build_seconds`` is that first
 ``run`` of one ray, and ``embree_scene_seconds`` the embreex scene and mesh creation before it
-(what ``bench rays`` reports as its embree build time).
+(what ``bench rays`` reports as its embree build time).  ``cpu_seconds`` is the process CPU time
+of our build (all its threads): on a machine shared with other jobs the wall time stretches, the
+CPU time much less.
 
 The binned builder is compiled with numba: the first build in a process compiles it or loads it
 from numba's on-disk cache.  That one-off cost is measured on its own before anything else
@@ -44,14 +46,17 @@ def _timed_build(vertices, faces, method, repeat, embree=False):
         scene.run(np.zeros((1, 3), np.float32), np.array([[0, 0, 1]], np.float32), output=1)
         return created - start, time.perf_counter() - created
 
-    seconds, embree_seconds = [], []
+    seconds, cpu_seconds, embree_seconds = [], [], []
     for _ in range(repeat):
+        cpu = time.process_time()
         seconds += timed_repeats(build, 1)
+        cpu_seconds.append(time.process_time() - cpu)
         if embree:
             embree_seconds.append(build_embree())
     stats = dict(latest["bvh"].stats)
     stats["build_seconds"] = statistics.median(seconds)
     stats["build_seconds_all"] = seconds
+    stats["cpu_seconds"] = statistics.median(cpu_seconds)    # every thread's: what a loaded machine stretches
     if not embree:
         return latest["bvh"], stats, None
     return latest["bvh"], stats, tuple(statistics.median(s) for s in zip(*embree_seconds))
@@ -93,7 +98,7 @@ def run_bvh_bench(sizes=(10_000, 100_000, 1_000_000), kinds=MESH_KINDS, sweep_si
 def format_row(row) -> str:
     binned = row["binned"]
     text = (f"{row['kind']:8s} {row['triangles']:>9d}  binned {binned['build_seconds']:7.3f}s "
-            f"SAH {binned['sah_cost']:8.2f}  nodes {binned['node_count']:>8d} depth {binned['depth']:>2d}")
+            f"(cpu {binned['cpu_seconds']:.3f}s) SAH {binned['sah_cost']:8.2f}  nodes {binned['node_count']:>8d} depth {binned['depth']:>2d}")
     if row.get("embree_build_seconds") is not None:
         text += f"  embree {row['embree_build_seconds']:6.3f}s (+{row['embree_scene_seconds']:.3f}s scene)"
     if "sweep" in row:

@@ -66,8 +66,10 @@ def load_or_render_reference(scene, scene_path, *, width, height, max_depth, rr_
     """The reference image (float64 H x W x 3), its variance (or None) and a description."""
     from ..render.api import render_full
 
+    # independent samples: the film's variance is then the reference's error (the floor drawn on
+    # the plot); with Sobol it would overstate it (docs/SAMPLING.md)
     settings = {"width": width, "height": height, "max_depth": max_depth, "rr_depth": rr_depth,
-                "integrator": "path", "seed": REFERENCE_SEED}
+                "integrator": "path", "seed": REFERENCE_SEED, "sampler": "independent"}
     key = reference_key(scene_path, settings)
     folder = cache_dir()
     arrays_path, meta_path = folder / f"{key}.npz", folder / f"{key}.json"
@@ -80,7 +82,8 @@ def load_or_render_reference(scene, scene_path, *, width, height, max_depth, rr_
                         "info": {**info, "source": "cache", "path": str(arrays_path)}}
     echo(f"reference: rendering ({'%d spp' % spp if spp else '%.0f s' % seconds}) ...")
     result = render_full(scene, spp=spp, time_limit=None if spp else seconds, device=device, seed=REFERENCE_SEED,
-                         width=width, height=height, max_depth=max_depth, integrator="path")
+                         width=width, height=height, max_depth=max_depth, rr_depth=rr_depth, integrator="path",
+                         sampler="independent")
     if result.stats.passes < 2:
         raise UserError("the reference got fewer than 2 passes: raise --budget or give --reference-spp")
     info = {**settings, "spp": result.info["spp"], "seconds": result.info["render_seconds"],
@@ -107,11 +110,12 @@ def short_device(device) -> str:
 
 
 def run_curve(scene, *, device, integrator, intersector, width, height, max_depth, rr_depth, reference, seconds,
-              seed=1, denoise=False, echo=print) -> dict:
+              seed=1, denoise=False, sampler=None, echo=print) -> dict:
     """One curve: a growing film, metrics after each step of :func:`spp_schedule`, until ``seconds``.
     ``denoise``: the film also sums the albedo and normal AOVs, and each point is Open Image
     Denoise's image of the film so far (its time: the passes so far plus that one denoising),
-    with the raw image's errors beside it (``raw_rmse``, ``raw_relmse``)."""
+    with the raw image's errors beside it (``raw_rmse``, ``raw_relmse``).  ``sampler``: ours
+    (docs/SAMPLING.md; default the scene's)."""
     from ..device.devices import device_label, select_device
     from ..render.aovs import GUIDES, aov_layers
     from ..render.film import Film
@@ -120,7 +124,8 @@ def run_curve(scene, *, device, integrator, intersector, width, height, max_dept
     device = select_device(device)
     start = time.perf_counter()
     wavefront = Wavefront(scene, device, width=width, height=height, integrator=integrator, max_depth=max_depth,
-                          rr_depth=rr_depth, seed=seed, intersector=intersector, aovs=GUIDES if denoise else ())
+                          rr_depth=rr_depth, seed=seed, intersector=intersector, aovs=GUIDES if denoise else (),
+                          sampler=sampler)
     setup = time.perf_counter() - start
     start = time.perf_counter()
     # warm-up, not timed: PoCL compiles its work-group functions at the first launches
@@ -146,12 +151,14 @@ def run_curve(scene, *, device, integrator, intersector, width, height, max_dept
             point = {**point, "seconds": elapsed + denoise_seconds, **metrics(image, reference),
                      "raw_rmse": point["rmse"], "raw_relmse": point["relmse"], "denoise_seconds": denoise_seconds}
         points.append(point)
-    label = (f"{short_device(device)} / {integrator}" + (" / embree" if intersector == "embree" else "")
+    sampler = wavefront.settings.sampler
+    label = (f"{short_device(device)} / {integrator} / {sampler}" + (" / embree" if intersector == "embree" else "")
              + (" + OIDN" if denoise else ""))
     echo(f"  {label}: {done} spp in {elapsed:.2f} s (build {wavefront.timings.get('build_seconds', 0):.2f} s, "
          f"warm-up {warmup:.2f} s)")
     return {"label": label, "renderer": "pyopencl_rt", "device": device_label(device), "integrator": integrator,
-            "intersector": intersector, "denoised": denoise, "build_seconds": wavefront.timings.get("build_seconds"),
+            "intersector": intersector, "sampler": sampler, "denoised": denoise,
+            "build_seconds": wavefront.timings.get("build_seconds"),
             "bvh_seconds": wavefront.timings.get("bvh_seconds"), "setup_seconds": setup, "warmup_seconds": warmup,
             "points": points}
 
@@ -164,7 +171,10 @@ def run_convergence(scene_path, *, devices=None, integrators=("path",), intersec
                     reference_spp=None, budget=60.0, width=None, height=None, max_depth=None, compare=(),
                     mitsuba_python=None, mitsuba_variant=DEFAULT_VARIANT, llvm_path=None,
                     json_path="out/convergence.json", plot_path=None, use_cache=True, denoise=False,
-                    echo=print) -> dict:
+                    samplers=(None,), mitsuba_samplers=("independent",), echo=print) -> dict:
+    """The benchmark.  ``samplers``: one curve of ours per sampler (None: the scene's); with
+    ``compare=("mitsuba",)``, one Mitsuba curve per entry of ``mitsuba_samplers`` (its sampler
+    plugins: independent, stratified, multijitter, ldsampler)."""
     from ..device.devices import resolve
     from ..imageio import read_exr, write_json
     from ..scene.loaders import load_scene
@@ -210,12 +220,12 @@ def run_convergence(scene_path, *, devices=None, integrators=("path",), intersec
     floor = (reference_floor(ref["image"], ref["variance"]) if ref["variance"] is not None
              else {"mse": None, "relmse": None})
 
-    jobs = [("ours", device, integrator, intersector, den) for device in chosen for integrator in integrators
-            for intersector in intersectors for den in ((False, True) if denoise else (False,))]
+    jobs = [("ours", device, integrator, intersector, den, sampler) for device in chosen for integrator in integrators
+            for intersector in intersectors for sampler in samplers for den in ((False, True) if denoise else (False,))]
     if mitsuba_python_found:
-        jobs.append(("mitsuba", None, "path", "mitsuba", False))
+        jobs += [("mitsuba", None, "path", "mitsuba", False, sampler) for sampler in mitsuba_samplers]
     curves = []
-    for index, (renderer, device, integrator, intersector, den) in enumerate(jobs):
+    for index, (renderer, device, integrator, intersector, den, sampler) in enumerate(jobs):
         if budget is not None:
             left = budget - (time.perf_counter() - start)
             # a share of what is left, less a guess of the fixed costs (build, warm-up, start-up)
@@ -225,14 +235,14 @@ def run_convergence(scene_path, *, devices=None, integrators=("path",), intersec
         if renderer == "ours":
             curves.append(run_curve(scene, device=device, integrator=integrator, intersector=intersector, width=width,
                                     height=height, max_depth=max_depth, rr_depth=rr_depth, reference=ref["image"],
-                                    seconds=share, denoise=den, echo=echo))
+                                    seconds=share, denoise=den, sampler=sampler, echo=echo))
         else:
             workdir = tempfile.mkdtemp(prefix="pyopencl_rt_mitsuba_")
             try:
                 curves.append(run_mitsuba_curve(scene, mitsuba_python_found, width=width, height=height,
                                                 max_depth=max_depth, rr_depth=rr_depth, reference=ref["image"],
                                                 seconds=share, variant=mitsuba_variant, workdir=workdir,
-                                                llvm_path=llvm_path, echo=echo))
+                                                llvm_path=llvm_path, sampler=sampler, echo=echo))
             finally:
                 shutil.rmtree(workdir, ignore_errors=True)
     analyse(curves, floor)

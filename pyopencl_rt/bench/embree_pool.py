@@ -67,13 +67,13 @@ def _serve(conn_in: Connection, conn_out: Connection, index: int, workers: int) 
             views = _views(shm.buf, n)
             conn_out.send("ok")
         elif kind == "run":
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             for first in range(index * CHUNK, n, workers * CHUNK):
                 last = min(n, first + CHUNK)
                 r = scene.run(views["origins"][first:last], views["directions"][first:last], output=1)
                 views["t"][first:last] = r["tfar"]
                 views["prim"][first:last] = r["primID"]
-            conn_out.send((start, time.perf_counter()))
+            conn_out.send((start, time.perf_counter(), time.process_time() - cpu))
         else:  # "stop"
             views = None
             if shm is not None:
@@ -107,6 +107,7 @@ class EmbreePool:
             self._send.append(Connection(to_child, readable=False))
             self._recv.append(Connection(from_child, writable=False))
         self._shm, self._views, self.n = None, None, 0
+        self.cpu_seconds = 0.0
 
     def _all(self, message):
         for conn in self._send:
@@ -128,9 +129,11 @@ class EmbreePool:
         self._all(("rays", self._shm.name, n))
 
     def run(self) -> float:
-        """Trace the rays on every worker at once; the parallel wall time in seconds."""
+        """Trace the rays on every worker at once; the parallel wall time in seconds (the workers'
+        CPU seconds together are left in :attr:`cpu_seconds`)."""
         spans = self._all(("run",))
-        return max(end for _start, end in spans) - min(start for start, _end in spans)
+        self.cpu_seconds = sum(cpu for _start, _end, cpu in spans)
+        return max(end for _start, end, _cpu in spans) - min(start for start, _end, _cpu in spans)
 
     @property
     def t(self) -> np.ndarray:

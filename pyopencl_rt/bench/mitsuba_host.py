@@ -129,9 +129,10 @@ def find_mitsuba_python(explicit=None, variant=DEFAULT_VARIANT, llvm_path=None):
 
 
 def run_mitsuba_curve(scene, python, *, width, height, max_depth, rr_depth, reference, seconds, variant,
-                      workdir, llvm_path=None, echo=print) -> dict:
+                      workdir, llvm_path=None, sampler="independent", echo=print) -> dict:
     """One convergence curve of Mitsuba on ``scene`` (exported by :mod:`.mitsuba_export`), rendered
-    progressively by :mod:`.mitsuba_runner` for about ``seconds``."""
+    progressively by :mod:`.mitsuba_runner` for about ``seconds`` with Mitsuba's ``sampler``
+    plugin (other than independent, each point is a render of its own: see the runner)."""
     from ..render.settings import ImageSettings
     from .mitsuba_export import save_scene_npz, scene_arrays
 
@@ -139,7 +140,8 @@ def run_mitsuba_curve(scene, python, *, width, height, max_depth, rr_depth, refe
     settings = ImageSettings.resolve(scene, width=width, height=height, max_depth=max_depth, rr_depth=rr_depth)
     save_scene_npz(scene_file, scene_arrays(scene, settings, spp=1))
     command = [python, str(HERE / "mitsuba_runner.py"), str(scene_file), str(workdir), "--variant", variant,
-               "--budget", f"{seconds:.3f}", "--checkpoints", ",".join(str(s) for s in spp_schedule())]
+               "--budget", f"{seconds:.3f}", "--checkpoints", ",".join(str(s) for s in spp_schedule()),
+               "--sampler", sampler]
     start = time.perf_counter()
     run = subprocess.run(command, capture_output=True, text=True, env=mitsuba_env(llvm_path))
     wall = time.perf_counter() - start
@@ -154,10 +156,11 @@ def run_mitsuba_curve(scene, python, *, width, height, max_depth, rr_depth, refe
                        "samples_per_second": checkpoint["spp"] * width * height / seconds_so_far
                        if seconds_so_far > 0 else None})
     last = points[-1] if points else {"spp": 0, "seconds": 0.0}
-    echo(f"  mitsuba {info['version']} {variant}: {last['spp']} spp in {last['seconds']:.2f} s "
+    echo(f"  mitsuba {info['version']} {variant} {sampler}: {last['spp']} spp in {last['seconds']:.2f} s "
          f"(JIT warm-up {info['warmup_seconds']:.2f} s)")
-    return {"label": f"Mitsuba {info['version']} {variant} / path", "renderer": "mitsuba", "device": variant,
-            "integrator": "path", "intersector": "mitsuba", "build_seconds": info["warmup_seconds"],
+    return {"label": f"Mitsuba {info['version']} {variant} / path / {sampler}", "renderer": "mitsuba",
+            "device": variant, "integrator": "path", "intersector": "mitsuba", "sampler": sampler,
+            "build_seconds": info["warmup_seconds"],
             "warmup_seconds": info["warmup_seconds"], "setup_seconds": info["load_seconds"] + info["import_seconds"],
             "process_seconds": wall, "version": info["version"], "points": points}
 

@@ -9,7 +9,10 @@ SCENE.npz comes from :func:`pyopencl_rt.bench.mitsuba_export.save_scene_npz`.  T
 renders batches with distinct seeds, accumulating a sample-weighted mean, and at each checkpoint
 spp writes ``OUTDIR/mitsuba_<spp>.npy`` (H x W x 3 float32) with the cumulative render time.  A
 batch is at most ``--max-samples-per-call`` samples (the JIT variants hold a whole call's
-samples in memory).  The result is ``OUTDIR/mitsuba.json``.  Only numpy and mitsuba are needed:
+samples in memory).  With ``--sampler`` other than ``independent`` (``stratified``,
+``multijitter``, ``ldsampler``: Mitsuba's sampler plugins, which stratify the samples of one
+render), each checkpoint is a render of its own at that spp, timed alone: batches of such
+samplers would not be stratified together.  The result is ``OUTDIR/mitsuba.json``.  Only numpy and mitsuba are needed:
 ``mitsuba_export.py`` is loaded from beside this file, not through the package.
 """
 from __future__ import annotations
@@ -20,6 +23,10 @@ import json
 import os
 import sys
 import time
+
+
+# a render of a stratifying sampler is one call: allow it this many times the batch limit
+STRATIFIED_CALL_FACTOR = 8
 
 
 def _export_module():
@@ -39,6 +46,7 @@ def main(argv=None):
     parser.add_argument("--budget", type=float, default=None, help="stop before a batch that would start after this")
     parser.add_argument("--max-samples-per-call", type=int, default=1 << 22)
     parser.add_argument("--seed-offset", type=int, default=0)
+    parser.add_argument("--sampler", default="independent", help="Mitsuba's sampler plugin")
     args = parser.parse_args(argv)
 
     import numpy as np
@@ -53,7 +61,9 @@ def main(argv=None):
     arrays = export.load_scene_npz(args.scene)
     os.makedirs(args.outdir, exist_ok=True)
     start = time.perf_counter()
-    scene = mi.load_dict(export.dict_from_arrays(arrays, mi, tmpdir=args.outdir))
+    scene_dict = export.dict_from_arrays(arrays, mi, tmpdir=args.outdir)
+    scene_dict["sensor"]["sampler"]["type"] = args.sampler
+    scene = mi.load_dict(scene_dict)
     load_seconds = time.perf_counter() - start
     settings = json.loads(arrays["settings"])
     pixels = int(settings["width"]) * int(settings["height"])
@@ -72,6 +82,15 @@ def main(argv=None):
     results = []
     for target in checkpoints:
         stop = False
+        if args.sampler != "independent":  # one stratified render per checkpoint
+            if args.budget is not None and seconds * target / max(done, 1) > args.budget and done:
+                break
+            if target * pixels > STRATIFIED_CALL_FACTOR * args.max_samples_per_call:
+                break  # one call holds every sample of the render in memory
+            start = time.perf_counter()
+            accumulated = np.asarray(mi.render(scene, spp=target, seed=seed), np.float64)[..., :3] * target
+            seconds = time.perf_counter() - start
+            done, seed = target, seed + 1
         while done < target:
             if args.budget is not None and seconds >= args.budget:
                 stop = True
@@ -95,7 +114,7 @@ def main(argv=None):
         "load_seconds": load_seconds, "warmup_seconds": warmup, "points": results,
         "max_depth": settings["max_depth"], "rr_depth": settings["rr_depth"], "width": settings["width"],
         "height": settings["height"],
-        "samples_per_call": per_call,
+        "samples_per_call": per_call, "sampler": args.sampler,
     }
     with open(os.path.join(args.outdir, "mitsuba.json"), "w") as fh:
         json.dump(info, fh, indent=2)

@@ -4,10 +4,16 @@ and the host BVH build time, on bumpy tori of several sizes.
 Two ray sets per mesh: *primary* (pinhole camera rays, coherent) and *diffuse* (one
 cosine-distributed bounce from each primary hit, incoherent).
 
-Embree is timed twice: single-threaded (embreex's ``run`` alone: one ``rtcIntersect1`` per ray on
+Ours is :func:`pyopencl_rt.trace`'s OpenCL path (rays in host memory, the kernel, the hits back in
+host memory) on rays checked once beforehand, untimed: the API's input validation is not ray
+casting, and Embree's figure is embreex's ``run`` alone.  Embree is timed twice: single-threaded (embreex's ``run`` alone: one ``rtcIntersect1`` per ray on
 the calling thread) and with as many workers as PoCL has threads (the CPU devices' compute units,
 ``--embree-threads`` to override): embreex holds the GIL while it traces, so the workers are
 processes (:mod:`pyopencl_rt.bench.embree_pool`).  Ratios are given against both.
+
+Each backend's CPU seconds are recorded too (this process's for ours, PoCL's threads included;
+the workers' together for the pool): rays per CPU second is the work per thread, which a shared,
+loaded machine disturbs much less than the wall time.
 """
 from __future__ import annotations
 
@@ -56,7 +62,7 @@ def run_ray_bench(devices=None, sizes=(10_000, 100_000, 1_000_000), n_rays=1_000
     results = {"machine": machine_info(), "devices": [device_registry.device_label(d) for d in chosen],
                "repeat": repeat, "embree_threads": threads if embree else None, "meshes": []}
     echo(f"{'mesh':>10} {'rays':>10} {'set':>8} {'backend':<40} {'Mrays/s':>9} "
-         f"{'vs embree x' + str(threads):>14} {'vs embree x1':>13}")
+         f"{'vs embree x' + str(threads):>14} {'vs embree x1':>13} {'Mrays/cpu-s':>11}")
     with (EmbreePool(threads) if embree else contextlib.nullcontext()) as pool:
         for size in sizes:
             vertices, faces = bumpy_torus(size)
@@ -93,45 +99,59 @@ def _time_ray_set(bvh, set_name, origins, directions, configs, pool, repeat, n_t
     """Every configuration, Embree on one thread and Embree on the pool's workers, timed in turn
     within each repetition (so that load on the machine hits them alike); medians reported."""
     from ..accel.embree import embree_scene
-    from ..trace import trace
+    from ..trace import _opencl, _rays
 
     n = len(origins)
     row = {"set": set_name, "rays": n, "backends": {}}
+    o, d, tmin, tmax = _rays(origins, directions, 0.0, np.inf)  # checked once, untimed
+
+    def trace(device, layout, count=None):
+        return _opencl(bvh, o[:count], d[:count], tmin[:count], tmax[:count], device, any_hit=False, layout=layout)
+
     for _name, device, layout in configs:  # warm-up: kernel build, BVH collapse and upload are not timed
-        trace(bvh, origins[:1024], directions[:1024], device=device, layout=layout)
+        trace(device, layout, 1024)
     seconds = {name: [] for name, _device, _layout in configs}
-    parallel = []
+    cpu = {name: [] for name in seconds}
+    parallel, parallel_cpu = [], []
     if pool is not None:
-        seconds["embree"] = []
+        seconds["embree"], cpu["embree"] = [], []
         pool.set_rays(origins, directions)
     for _ in range(repeat):
         for name, device, layout in configs:
-            start = time.perf_counter()
-            trace(bvh, origins, directions, device=device, layout=layout)
+            start, cpu_start = time.perf_counter(), time.process_time()
+            trace(device, layout)
             seconds[name].append(time.perf_counter() - start)
+            cpu[name].append(time.process_time() - cpu_start)
         if pool is not None:  # embreex's own call alone, so Embree is not charged for our wrapper
             scene = embree_scene(bvh)
-            start = time.perf_counter()
+            start, cpu_start = time.perf_counter(), time.process_time()
             scene.run(origins, directions, output=1)
             seconds["embree"].append(time.perf_counter() - start)
+            cpu["embree"].append(time.process_time() - cpu_start)
             parallel.append(pool.run())
+            parallel_cpu.append(pool.cpu_seconds)
     one = statistics.median(seconds["embree"]) if pool is not None else None
     many = statistics.median(parallel) if pool is not None else None
     if pool is not None:
         row["embree_parallel"] = {"workers": pool.workers, "seconds_median": many, "rays_per_second": n / many,
-                                  "speedup_over_one_thread": one / many}
+                                  "speedup_over_one_thread": one / many,
+                                  "rays_per_cpu_second": n / statistics.median(parallel_cpu)}
     layouts = {name: layout for name, _device, layout in configs}
     rows = list(seconds.items()) + ([(f"embree x{pool.workers} (processes)", parallel)] if pool is not None else [])
+    cpu[rows[-1][0]] = parallel_cpu
     for name, times in rows:
         median = statistics.median(times)
         rate = n / median
+        cpu_rate = n / max(statistics.median(cpu[name]), 1e-9)
         if name in seconds:
             row["backends"][name] = {"seconds_median": median, "rays_per_second": rate,
+                                     "rays_per_cpu_second": cpu_rate,
                                      "ratio_to_embree": (one / median) if one else None,
                                      "ratio_to_embree_parallel": (many / median) if many else None}
             if layouts.get(name):
                 row["backends"][name]["layout"] = layouts[name]
         vs_many = f"{many / median:14.2f}" if many else f"{'-':>14}"
         vs_one = f"{one / median:13.2f}" if one else f"{'-':>13}"
-        echo(f"{n_triangles:>10} {n:>10} {set_name:>8} {name[:40]:<40} {rate / 1e6:9.3f} {vs_many} {vs_one}")
+        echo(f"{n_triangles:>10} {n:>10} {set_name:>8} {name[:40]:<40} {rate / 1e6:9.3f} {vs_many} {vs_one}"
+             f" {cpu_rate / 1e6:11.3f}")
     return row

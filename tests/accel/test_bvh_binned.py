@@ -27,37 +27,43 @@ def _area(lo, hi):
     return 2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
 
 
-def reference_root_split(V, F, bins=16):
+def reference_root_split(V, F, bins=16, step=1):
     """The best binned SAH plane of the whole mesh, by brute force in numpy: centroids lo + hi in
-    float64, ``bins`` equal bins over the centroid bounds per axis, every plane costed as
-    area(left) * n_left + area(right) * n_right; the first minimum (x, y, z; low bins first)."""
+    float64, ``bins`` equal bins over the centroid bounds per axis, every plane costed on the
+    triangles ``0, step, 2 * step, ...`` as area(left) * n_left + area(right) * n_right; the first
+    minimum (x, y, z; low bins first).  Returns every triangle's side of that plane."""
     tv = V[F]
     lo, hi = tv.min(axis=1), tv.max(axis=1)
     c = lo.astype(np.float64) + hi.astype(np.float64)
     cmin, cmax = c.min(axis=0), c.max(axis=0)
+    sample = np.zeros(len(F), bool)
+    sample[::step] = True
     best, left_best = np.inf, None
     for a in range(3):
         if cmax[a] <= cmin[a]:
             continue
         b = np.minimum(np.floor((c[:, a] - cmin[a]) * (bins / (cmax[a] - cmin[a]))), bins - 1)
         for j in range(bins - 1):
-            left = b <= j
-            nl = int(left.sum())
-            if nl in (0, len(F)):
+            left, right = (b <= j) & sample, (b > j) & sample
+            nl, nr = int(left.sum()), int(right.sum())
+            if nl == 0 or nr == 0:
                 continue
-            cost = (_area(lo[left].min(0), hi[left].max(0)) * nl
-                    + _area(lo[~left].min(0), hi[~left].max(0)) * (len(F) - nl))
+            cost = _area(lo[left].min(0), hi[left].max(0)) * nl + _area(lo[right].min(0), hi[right].max(0)) * nr
             if cost < best:
-                best, left_best = cost, left
+                best, left_best = cost, b <= j
     return left_best, lo, hi
 
 
-@pytest.mark.parametrize("make", [soup, slivers])
-def test_root_split_is_the_binned_sah_minimum(make, rng):
-    V, F = make(3000, rng)
+@pytest.mark.parametrize("make, n", [(soup, 3000), (slivers, 3000), (soup, 20000)])
+def test_root_split_is_the_binned_sah_minimum(make, n, rng):
+    """At 20k triangles the root bins a strided sample (every 2nd triangle) and grows the child
+    boxes in the partition; below 2 * _SAMPLE it bins every triangle."""
+    V, F = make(n, rng)
     b = build_bvh(V, F, bins=16)
     validate(b)
-    left, lo, hi = reference_root_split(V, F, 16)
+    step = n // bvh_binned._SAMPLE if n >= 2 * bvh_binned._SAMPLE else 1
+    assert step == (2 if n == 20000 else 1)
+    left, lo, hi = reference_root_split(V, F, 16, step)
     nl = int(left.sum())
     root = b.nodes[0]
     np.testing.assert_array_equal(root["bmin_left"], lo[left].min(0))

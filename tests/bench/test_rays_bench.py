@@ -56,6 +56,8 @@ def test_bench_reports_parallel_embree(tmp_path, device):
         assert par["speedup_over_one_thread"] == pytest.approx(one["seconds_median"] / par["seconds_median"])
         ours = [b for name, b in row["backends"].items() if name != "embree"]
         assert sorted(b["layout"] for b in ours) == ["wide", "wide8"]
+        for b in ours + [one, par]:   # CPU seconds: PoCL's threads (ours) or the workers' (pool) included
+            assert 0 < b["rays_per_cpu_second"] < 1e10
         for b in ours:
             assert b["ratio_to_embree_parallel"] == pytest.approx(par["seconds_median"] / b["seconds_median"])
     assert any(f"embree x{threads} (processes)" in line for line in lines)

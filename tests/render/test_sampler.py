@@ -16,6 +16,9 @@ default), progressive stratified, and independent; the Sobol table of pyopencl_r
   1/N with Sobol (and as 1/N with the independent sampler).
 
 ALPHA = 1e-4 for the chi2 tests; the inputs are fixed, so a run is reproducible."""
+import os
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -28,7 +31,7 @@ ALPHA = 1e-4
 Z_MAX = 5.0  # correlation tests: |r| sqrt(n) under this (two-sided p ~ 6e-7 each)
 
 SOURCE = r"""
-#include "scene/scene.h"
+#include "render/sampler.h"
 /* keys: (seed, pixel, width, pass, dim) per item; out: sample_2d then sample_1d */
 __kernel void h_sampler(__global const uint *keys, __global float *out)
 {
@@ -39,6 +42,14 @@ __kernel void h_sampler(__global const uint *keys, __global float *out)
     out[3 * i] = u.x;
     out[3 * i + 1] = u.y;
     out[3 * i + 2] = sample_1d(sk, k[4]);
+}
+
+/* Sobol dimension 1: the closed form (un-reversed) and the generated table */
+__kernel void h_sobol1(__global const uint *index, __global uint *out)
+{
+    const int i = get_global_id(0);
+    out[2 * i] = reverse_bits32(sobol_dim1_reversed(index[i]));
+    out[2 * i + 1] = sobol_dim1_table(index[i]);
 }
 
 __kernel void h_layout(__global uint *out)
@@ -146,7 +157,8 @@ def np_sampler(name, seed, pixel, width, passes, dim, log2_round=abi.SOBOL_LOG2_
     else:
         index = passes
         key = np_rng_hash(seed, pixel, 0, 0x57A7)
-    seeds = [np_hash(key ^ np_hash(dim * U(4) + U(j) + U(0x9E3779B9))) for j in range(4)]
+    s0 = np_hash(key ^ np_hash(dim + U(0x9E3779B9)))
+    seeds = [s0] + [np_hash(s0 ^ U(j)) for j in (1, 2, 3)]
     shuffled = np_nested_scramble(index, seeds[0])
     if name == "sobol":
         u, v = np_reverse(shuffled), np_sobol(shuffled, 1)
@@ -175,6 +187,16 @@ def test_sobol_matrices_equal_scipys_points():
     assert np.array_equal(ours.astype(np.float64) * 2.0 ** -32, theirs)
     table = sobol.cl_table()
     assert "SOBOL_MATRIX[2][32]" in table and f"0x{int(sobol.generator_matrix(1)[5]):08x}u" in table
+
+
+def test_sobol_closed_form_equals_table(runtime, rng):
+    """The kernels' 5-step form of Sobol dimension 1 equals the generated SOBOL_MATRIX table and
+    the host matrix, over random and structured indices."""
+    index = np.concatenate([rng.integers(0, 2 ** 32, 50_000, dtype=np.uint64).astype(U), np.arange(1 << 14, dtype=U),
+                            (U(1) << np.arange(32, dtype=U)), np.array([0xFFFFFFFF], U)])
+    out = KERNELS["sobol"](runtime, "h_sobol1", len(index), index=index, out=(len(index), 2))
+    assert np.array_equal(out[:, 0], out[:, 1])
+    assert np.array_equal(out[:, 0], np_sobol(index, 1))
 
 
 # ----------------------------------------------------------------------------- bit for bit
@@ -332,7 +354,6 @@ def test_sobol_error_falls_faster_than_monte_carlo(device):
     from pyopencl_rt.render.film import Film
     from pyopencl_rt.render.wavefront import Wavefront
     from pyopencl_rt.scene.loaders import load_scene
-    from pathlib import Path
 
     scene = load_scene(Path(__file__).resolve().parents[2] / "scenes" / "cornell-box.toml")
     spp = [4, 8, 16, 32, 64]
@@ -353,3 +374,50 @@ def test_sobol_error_falls_faster_than_monte_carlo(device):
         slopes[name] = float(np.polyfit(np.log(spp), np.log(relmse), 1)[0])
     assert -1.15 < slopes["independent"] < -0.85, slopes
     assert slopes["sobol"] < -1.1, slopes
+
+
+# ----------------------------------------------------------------------------- the setting
+def test_sampler_is_an_image_setting(tmp_path, device):
+    """The sampler comes from [render] sampler, the API and the CLI, is checked, compiled in as
+    -DSAMPLER, recorded in the sidecar and keyed into checkpoints; each sampler gives its own
+    image (same seed, same image: tests/render/test_multidevice.py and test_checkpoint.py)."""
+    import subprocess
+    import sys
+
+    from pyopencl_rt.errors import UserError
+    from pyopencl_rt.render import checkpoint as ckp
+    from pyopencl_rt.render.api import render_full
+    from pyopencl_rt.render.settings import ImageSettings
+    from pyopencl_rt.scene.loaders import load_scene
+    from scenes_small import small_scene
+
+    scene = small_scene(width=16, height=12)
+    assert ImageSettings.resolve(scene).sampler == "sobol"
+    assert ImageSettings.resolve(scene, sampler="stratified").sampler == "stratified"
+    with pytest.raises(UserError, match="sampler") as e:
+        ImageSettings.resolve(scene, sampler="halton")
+    assert "\n" not in str(e.value)
+
+    toml = tmp_path / "s.toml"
+    toml.write_text('[render]\nsampler = "independent"\n[materials.l]\nemission = [1, 1, 1]\n'
+                    '[[shape]]\ntype = "sphere"\nmaterial = "l"\ncenter = [0, 0, -3]\nradius = 1\n')
+    assert load_scene(toml).settings.sampler == "independent"
+    toml.write_text(toml.read_text().replace('"independent"', '"halton"'))
+    with pytest.raises(UserError, match="sampler"):
+        load_scene(toml)
+
+    path = tmp_path / "r.ckpt.npz"
+    images = {}
+    for name in ("sobol", "independent"):
+        r = render_full(scene, spp=2, device=device, sampler=name, checkpoint=path if name == "sobol" else None,
+                        checkpoint_every=1e-6 if name == "sobol" else None)
+        assert r.info["sampler"] == name and f"SAMPLER={abi.SAMPLERS[name]}" in r.info["features"]
+        images[name] = r.image
+    assert not np.array_equal(images["sobol"], images["independent"])
+    with pytest.raises(ckp.CheckpointError, match="sampler 'sobol' -> 'stratified'"):
+        render_full(scene, spp=3, device=device, checkpoint=path, resume=True, sampler="stratified")
+
+    repo = Path(__file__).resolve().parents[2]
+    run = subprocess.run([sys.executable, "-m", "pyopencl_rt.cli", "render", str(toml), "--sampler", "nope"],
+                         cwd=tmp_path, capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(repo)})
+    assert run.returncode == 2 and "--sampler" in run.stderr

@@ -152,4 +152,20 @@ def test_diffuse_maps_to_mitsuba_two_sided_diffuse():
     assert bsdf == {"type": "twosided", "material": {"type": "diffuse",
                                                      "reflectance": {"type": "rgb", "value": [0.25, 0.5, 0.75]}}}
     with pytest.raises(ValueError, match="not exported to Mitsuba"):
-        Material(type="conductor").mitsuba_bsdf()
+        Material(type="gltf").mitsuba_bsdf()
+
+
+def test_glass_and_metals_map_to_mitsuba():
+    """Dielectrics and conductors given by eta and k (or the f0 = 1 mirror) have Mitsuba
+    counterparts with the same parameters; Schlick's f0 < 1 has none."""
+    rgb = lambda v: {"type": "rgb", "value": list(v)}  # noqa: E731
+    assert Material(type="dielectric", ior=1.33, tint=(1.0, 0.5, 0.25)).mitsuba_bsdf() == {
+        "type": "dielectric", "int_ior": 1.33, "ext_ior": 1.0, "specular_reflectance": rgb((1.0, 0.5, 0.25)),
+        "specular_transmittance": rgb((1.0, 0.5, 0.25))}
+    assert Material(type="dielectric", alpha=0.25).mitsuba_bsdf()["type"] == "roughdielectric"
+    gold = Material(type="conductor", alpha=0.25, eta=(0.5, 0.25, 1.0), k=(3.0, 2.0, 1.5)).mitsuba_bsdf()
+    assert gold == {"type": "roughconductor", "distribution": "ggx", "alpha": 0.25, "eta": rgb((0.5, 0.25, 1.0)),
+                    "k": rgb((3.0, 2.0, 1.5))}
+    assert Material(type="conductor").mitsuba_bsdf() == {"type": "conductor", "material": "none"}
+    with pytest.raises(ValueError, match="f0"):
+        Material(type="conductor", f0=(0.9, 0.8, 0.7)).mitsuba_bsdf()

@@ -67,3 +67,20 @@ def pack(material, record) -> None:
     else:
         record["eta"] = material.eta
         record["k"] = material.k if material.k is not None else (0.0, 0.0, 0.0)
+
+
+def to_mitsuba(material) -> dict:
+    """Mitsuba's ``conductor`` (smooth) or ``roughconductor`` (GGX, same alpha) with our eta and k as
+    RGB values; f0 = 1 is Mitsuba's perfect mirror (``material = "none"``).  Schlick's f0 < 1 has
+    no Mitsuba counterpart (ValueError)."""
+    bsdf = {"type": "conductor"} if material.alpha <= 0.0 else {"type": "roughconductor", "distribution": "ggx",
+                                                                 "alpha": float(material.alpha)}
+    if material.eta is not None:
+        k = material.k if material.k is not None else (0.0, 0.0, 0.0)
+        bsdf["eta"] = {"type": "rgb", "value": [float(x) for x in material.eta]}
+        bsdf["k"] = {"type": "rgb", "value": [float(x) for x in k]}
+    elif all(float(x) == 1.0 for x in material.f0):
+        bsdf["material"] = "none"
+    else:
+        raise ValueError(f"material {material.name!r}: a conductor given by f0 (Schlick) has no Mitsuba counterpart")
+    return bsdf

@@ -37,3 +37,13 @@ def pack(material, record) -> None:
     record["alpha"] = material.alpha
     record["ior"] = material.ior
     record["specular"] = material.tint
+
+
+def to_mitsuba(material) -> dict:
+    """Mitsuba's ``dielectric`` (smooth) or ``roughdielectric`` (GGX, same alpha) of int_ior = ior,
+    ext_ior = 1, the tint as both specular reflectance and transmittance."""
+    tint = {"type": "rgb", "value": [float(x) for x in material.tint]}
+    bsdf = {"type": "dielectric"} if material.alpha <= 0.0 else {"type": "roughdielectric", "distribution": "ggx",
+                                                                  "alpha": float(material.alpha)}
+    return {**bsdf, "int_ior": float(material.ior), "ext_ior": 1.0, "specular_reflectance": tint,
+            "specular_transmittance": tint}
