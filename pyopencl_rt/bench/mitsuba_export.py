@@ -25,9 +25,9 @@ Correspondence (checked by tests/bench/test_convergence.py against our renderer)
   fov is vertical), ``hdrfilm`` with a ``box`` filter (our pixel jitter is uniform over the pixel)
   and ``pixel_format = 'rgb'``;
 * integrator: ``path`` with our ``max_depth`` (both count path segments: 1 = emitters only) and
-  ``rr_depth`` = our ``rr_depth`` (default 3, not Mitsuba's 5): both apply Russian roulette from
+  ``rr_depth`` = our ``rr_depth`` (default 5, as Mitsuba's): both apply Russian roulette from
   the ``rr_depth``-th surface interaction on, keeping a path with probability
-  min(max(throughput), 0.95).  Mitsuba's ``path`` is MIS of BSDF and emitter sampling, as our
+  min(max(throughput) eta^2, 0.95), eta^2 the product over the path's refractions.  Mitsuba's ``path`` is MIS of BSDF and emitter sampling, as our
   ``path`` integrator.
 """
 from __future__ import annotations

@@ -167,7 +167,7 @@ class RenderSettings:
     max_depth: int = 8
     integrator: str = "path"
     seed: int = 0
-    rr_depth: int = 3  # Russian roulette starts after this many bounces
+    rr_depth: int = 5  # Russian roulette starts after this many bounces (Mitsuba's default; docs/SAMPLING.md)
     sampler: str = "sobol"  # one of SAMPLERS
     aovs: tuple = ()  # AOV layers written beside the beauty (names of AOVS)
 

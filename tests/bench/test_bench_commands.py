@@ -18,8 +18,10 @@ def finite_positive(x):
 
 
 def test_bench_bvh_binned_against_sweep(tmp_path, capsys):
-    """Every kind at 2k triangles, swept too: the full sweep is the quality reference, so the
-    binned/sweep SAH ratio is at least 1, and within the 10% quality target."""
+    """Every kind at 2k triangles, swept too: the binned/sweep SAH ratio is within the 10% quality
+    target.  The full sweep is greedy (best split per node), not the optimal tree, so a binned
+    build may come out a little cheaper: the lower bound only rules out a broken cost (a ratio
+    far below 1 would mean the two are not measuring the same thing)."""
     out = tmp_path / "bvh.json"
     main(["bench", "bvh", "--sizes", "2k", "--sweep-size", "2000", "--repeat", "1", "--check", "--json", str(out)])
     data = json.loads(out.read_text())
@@ -30,7 +32,7 @@ def test_bench_bvh_binned_against_sweep(tmp_path, capsys):
         binned, sweep = row["binned"], row["sweep"]
         assert finite_positive(binned["build_seconds"]) and finite_positive(sweep["build_seconds"])
         assert row["sah_ratio"] == pytest.approx(binned["sah_cost"] / sweep["sah_cost"])
-        assert 1.0 - 1e-9 <= row["sah_ratio"] < 1.10, row
+        assert 0.9 < row["sah_ratio"] < 1.10, row
         assert sum(binned["leaf_size_histogram"].values()) > 0
     assert f"wrote {out}" in capsys.readouterr().out
 

@@ -16,7 +16,7 @@
     max_depth = 8                 # path length limit, default 8
     integrator = "path"           # "path" | "bsdf" | "nee", default "path"
     seed = 0                      # default 0
-    rr_depth = 3                  # Russian roulette starts after this many bounces, default 3
+    rr_depth = 5                  # Russian roulette starts after this many bounces, default 5
     sampler = "sobol"             # "sobol" | "stratified" | "independent", default "sobol"
 
     [materials.white]             # one table per material, referred to by NAME
