@@ -516,6 +516,43 @@ def bench_convergence(scene_path, device, integrator, intersector, sampler, refe
                     samplers=samplers, mitsuba_samplers=mitsuba_samplers, echo=click.echo)
 
 
+@bench.command("samplers")
+@click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
+@device_option
+@click.option("--spp", default=256, show_default=True, type=click.IntRange(min=1))
+@click.option("--sampler", default="sobol,stratified,independent", show_default=True,
+              help="Comma-separated samplers of ours, one row each.")
+@click.option("--seeds", default=2, show_default=True, type=click.IntRange(min=1),
+              help="Renders per row (the median relMSE is reported).")
+@click.option("--width", type=click.IntRange(min=1))
+@click.option("--height", type=click.IntRange(min=1))
+@click.option("--reference-spp", default=16384, show_default=True, type=click.IntRange(min=2),
+              help="Samples per pixel of the reference (Mitsuba's with --compare mitsuba, else ours).")
+@click.option("--no-cache", is_flag=True, help="Neither read nor write our cached reference.")
+@click.option("--compare", default="", help="'mitsuba': Mitsuba renders the reference and a row per --mitsuba-sampler.")
+@mitsuba_options
+@click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
+@click.option("--mitsuba-sampler", default="independent,stratified,multijitter,ldsampler", show_default=True,
+              help="Comma-separated Mitsuba samplers, one row each.")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
+def bench_samplers(scene_path, device, spp, sampler, seeds, width, height, reference_spp, no_cache, compare,
+                   mitsuba_python, llvm_path, mitsuba_variant, mitsuba_sampler, json_path):
+    """relMSE at equal spp of each sampler against one reference, ours beside Mitsuba's samplers
+    (docs/SAMPLING.md)."""
+    from .bench.samplers import MITSUBA_SAMPLERS, run_samplers
+    from .scene.model import SAMPLERS
+
+    _check_json(json_path)
+    if len(device) > 1:
+        raise UsageError("bench samplers renders on one device")
+    run_samplers(scene_path, spp=spp, samplers=comma_list(sampler, SAMPLERS, "sampler"), seeds=seeds,
+                 device=device[0] if device else None, width=width, height=height, reference_spp=reference_spp,
+                 compare=[c.strip() for c in compare.split(",") if c.strip()],
+                 mitsuba_samplers=comma_list(mitsuba_sampler, MITSUBA_SAMPLERS, "Mitsuba sampler"),
+                 mitsuba_python=mitsuba_python, mitsuba_variant=mitsuba_variant, llvm_path=llvm_path,
+                 json_path=json_path, use_cache=not no_cache, echo=click.echo)
+
+
 def main(argv=None):
     """Entry point: user errors become one line on stderr and a non-zero exit code (1 for bad
     input, 2 for a wrong command line, 130 when interrupted); warnings (e.g. a scene file's

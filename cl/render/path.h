@@ -190,15 +190,8 @@ RT_INLINE int path_shade_hit(PATH_PARAMS, int slot, SampleKey sk, int prim, floa
          * so light_pdf() at a BSDF hit sees the same point. */
         const float3 ref = offset_ray_origin_bound(p, p_err, n);
         float pick_pmf;
-#ifdef LIGHT_PICK_REMAP
-        float2 ul = sample_2d(sk, dim + DIM_LIGHT_POINT);
-        float u_pick = ul.x;
-        const int li = sample_alias_remap(lights, n_lights, &u_pick, &pick_pmf);
-        ul.x = u_pick;
-#else
         const int li = sample_alias(lights, n_lights, sample_1d(sk, dim + DIM_LIGHT_PICK), &pick_pmf);
         const float2 ul = sample_2d(sk, dim + DIM_LIGHT_POINT);
-#endif
         LightSample ls;
         const int sampled = pick_pmf > 0.0f &&
                             light_sample_all(tris, spheres, materials, env_map, env_cdf, lights + li, ref, ul, &ls);

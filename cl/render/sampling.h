@@ -122,27 +122,6 @@ RT_INLINE int sample_alias(__global const Light *lights, int n, float u, float *
     return i;
 }
 
-/* sample_alias that also returns, in *u, the position of u inside the part of [0, 1) that chose
- * light i, rescaled to [0, 1): uniform and independent of the choice, so that one sample both
- * picks the light and places the point on it (stratification of u carries over to the point). */
-RT_INLINE int sample_alias_remap(__global const Light *lights, int n, float *u, float *pmf)
-{
-    const float x = *u * (float)n;
-    int i = min((int)x, n - 1);
-    const float frac = x - (float)i;
-    const float keep = lights[i].alias_prob;
-    float r;
-    if (frac < keep) {
-        r = frac / keep;
-    } else {
-        r = (frac - keep) / (1.0f - keep);
-        i = lights[i].alias;
-    }
-    *u = fmin(r, 0x1.fffffep-1f);
-    *pmf = lights[i].pmf;
-    return i;
-}
-
 /* Veach's power heuristic (beta = 2): pdf_a^2 / (pdf_a^2 + pdf_b^2), computed as
  * 1 / (1 + (pdf_b / pdf_a)^2) so large pdfs do not overflow.  1 when pdf_b == 0 (also for
  * pdf_a == 0), 1 for pdf_a = inf, 0 for pdf_b = inf, 0.5 when both are inf; never NaN for
