@@ -154,12 +154,12 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
            preview_every, device_timeout, device):
     """Render SCENE (a .toml scene file, a Mitsuba 3 .xml or pbrt-v4 .pbrt scene, or any mesh file
     such as model.obj) to OUTPUT."""
+    from . import validate
     from .imageio import check_output, write_outputs
     from .render.aovs import GUIDES, parse_aovs
     from .render.api import render_full
-    from .render.checkpoint import default_path
-    from . import validate
     from .render.arguments import check_outputs, check_render_arguments
+    from .render.checkpoint import default_path
     from .render.settings import ImageSettings, check_resolution, check_run
     from .scene.loaders import load_scene
 
@@ -356,22 +356,27 @@ def mitsuba_options(f):
               help="Comma-separated: opencl,embree (extend and shadow rays on embreex), each timed on each device.")
 @click.option("--kernel-mode", default="auto", show_default=True,
               help="Comma-separated: auto,wavefront,megakernel (path schedules), each timed on each device.")
+@click.option("--sampler", help="Comma-separated: sobol,stratified,independent, each timed [default: the scene's].")
 @click.option("--mitsuba", is_flag=True, help="Also time Mitsuba 3 on its own Cornell box (mi.cornell_box()) in this run.")
 @click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
 @mitsuba_options
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
-def bench_render(scene_path, device, width, height, spp, max_depth, repeat, wave_size, intersector, kernel_mode, mitsuba,
-                 mitsuba_variant, mitsuba_python, llvm_path, json_path):
+def bench_render(scene_path, device, width, height, spp, max_depth, repeat, wave_size, intersector, kernel_mode, sampler,
+                 mitsuba, mitsuba_variant, mitsuba_python, llvm_path, json_path):
     """Samples/s of the path tracer on each device (kernel build and BVH not timed)."""
     from .bench.render import run_render_bench
 
     intersectors = parse_intersectors(intersector)
     kernel_modes = comma_list(kernel_mode, ("auto", "wavefront", "megakernel"), "kernel mode")
+    from .scene.model import SAMPLERS
+
+    samplers = comma_list(sampler, SAMPLERS, "sampler") if sampler is not None else [None]
     _check_json(json_path)
     options = dict(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=mitsuba_variant) if mitsuba else None
     run_render_bench(scene_path, devices=list(device) or None, width=width, height=height, spp=spp,
                      max_depth=max_depth, repeat=repeat, wave_size=wave_size, intersectors=intersectors,
-                     kernel_modes=kernel_modes, mitsuba=options, json_path=json_path, echo=click.echo)
+                     kernel_modes=kernel_modes, mitsuba=options, json_path=json_path, samplers=samplers,
+                     echo=click.echo)
 
 
 def _check_json(json_path) -> None:
@@ -464,8 +469,7 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path
 @device_option
 @click.option("--integrator", default="path", show_default=True, help="Comma-separated: path,bsdf,nee.")
 @click.option("--intersector", default="opencl", show_default=True, help="Comma-separated: opencl,embree.")
-@click.option("--sampler", default=None,
-              help="Comma-separated: sobol,stratified,independent, one curve each [default: the scene's].")
+@click.option("--sampler", help="Comma-separated: sobol,stratified,independent, a curve each [default: the scene's].")
 @click.option("--reference", type=click.Path(dir_okay=False), help="Reference OpenEXR (default: render one and cache it).")
 @click.option("--reference-spp", type=click.IntRange(min=1), help="Samples per pixel of the rendered reference (default: a share of --budget).")
 @click.option("--no-cache", is_flag=True, help="Neither read nor write the cached reference.")
@@ -478,8 +482,7 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path
 @mitsuba_options
 @click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
 @click.option("--mitsuba-sampler", default="independent,multijitter", show_default=True,
-              help="With --compare mitsuba, comma-separated Mitsuba samplers, one curve each: independent, stratified, "
-              "multijitter, ldsampler.")
+              help="With --compare mitsuba: Mitsuba's samplers (independent,stratified,multijitter,ldsampler).")
 @click.option("--json", "json_path", default="out/convergence.json", show_default=True, type=click.Path(dir_okay=False))
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="PNG plot (default: the JSON path with .png).")
 @click.option("--denoise", is_flag=True, help="Beside each of our curves, its Open Image Denoise curve (needs the "
@@ -520,37 +523,30 @@ def bench_convergence(scene_path, device, integrator, intersector, sampler, refe
 @click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
 @device_option
 @click.option("--spp", default=256, show_default=True, type=click.IntRange(min=1))
-@click.option("--sampler", default="sobol,stratified,independent", show_default=True,
-              help="Comma-separated samplers of ours, one row each.")
-@click.option("--seeds", default=2, show_default=True, type=click.IntRange(min=1),
-              help="Renders per row (the median relMSE is reported).")
+@click.option("--sampler", default="sobol,stratified,independent", show_default=True, help="Ours, a row each.")
+@click.option("--seeds", default=2, show_default=True, type=click.IntRange(min=1), help="Renders per row (median).")
 @click.option("--width", type=click.IntRange(min=1))
 @click.option("--height", type=click.IntRange(min=1))
-@click.option("--reference-spp", default=16384, show_default=True, type=click.IntRange(min=2),
-              help="Samples per pixel of the reference (Mitsuba's with --compare mitsuba, else ours).")
+@click.option("--reference-spp", default=16384, show_default=True, type=click.IntRange(min=2))
 @click.option("--no-cache", is_flag=True, help="Neither read nor write our cached reference.")
-@click.option("--compare", default="", help="'mitsuba': Mitsuba renders the reference and a row per --mitsuba-sampler.")
+@click.option("--compare", default="", help="'mitsuba': Mitsuba's reference, and a row per --mitsuba-sampler.")
 @mitsuba_options
 @click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
-@click.option("--mitsuba-sampler", default="independent,stratified,multijitter,ldsampler", show_default=True,
-              help="Comma-separated Mitsuba samplers, one row each.")
-@click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
-def bench_samplers(scene_path, device, spp, sampler, seeds, width, height, reference_spp, no_cache, compare,
-                   mitsuba_python, llvm_path, mitsuba_variant, mitsuba_sampler, json_path):
-    """relMSE at equal spp of each sampler against one reference, ours beside Mitsuba's samplers
-    (docs/SAMPLING.md)."""
+@click.option("--mitsuba-sampler", default="independent,stratified,multijitter,ldsampler", show_default=True)
+@click.option("--json", "json_path", type=click.Path(dir_okay=False))
+@click.option("--save-reference", type=click.Path(dir_okay=False), help="Write the reference as this OpenEXR.")
+def bench_samplers(device, sampler, compare, mitsuba_sampler, json_path, no_cache, **options):
+    """relMSE per sampler at equal spp against one reference, ours beside Mitsuba's (docs/SAMPLING.md)."""
     from .bench.samplers import MITSUBA_SAMPLERS, run_samplers
     from .scene.model import SAMPLERS
 
     _check_json(json_path)
     if len(device) > 1:
         raise UsageError("bench samplers renders on one device")
-    run_samplers(scene_path, spp=spp, samplers=comma_list(sampler, SAMPLERS, "sampler"), seeds=seeds,
-                 device=device[0] if device else None, width=width, height=height, reference_spp=reference_spp,
-                 compare=[c.strip() for c in compare.split(",") if c.strip()],
+    run_samplers(samplers=comma_list(sampler, SAMPLERS, "sampler"), device=device[0] if device else None,
+                 compare=[c.strip() for c in compare.split(",") if c.strip()], json_path=json_path,
                  mitsuba_samplers=comma_list(mitsuba_sampler, MITSUBA_SAMPLERS, "Mitsuba sampler"),
-                 mitsuba_python=mitsuba_python, mitsuba_variant=mitsuba_variant, llvm_path=llvm_path,
-                 json_path=json_path, use_cache=not no_cache, echo=click.echo)
+                 use_cache=not no_cache, echo=click.echo, **options)
 
 
 def main(argv=None):

@@ -59,7 +59,13 @@ class _Stderr(logging.Handler):
             pass
 
 
+_SHOW_IMPL = warnings._showwarnmsg_impl  # what shows a warning when nobody records them
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None):
+    if warnings._showwarnmsg_impl is not _SHOW_IMPL:  # inside catch_warnings(record=True): let it record
+        warnings._showwarnmsg_impl(warnings.WarningMessage(message, category, filename, lineno, file, line))
+        return
     LOGGER.warning("%s", message)
 
 

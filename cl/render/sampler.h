@@ -171,39 +171,8 @@ RT_INLINE uint sample_seed(SampleKey k, uint dim)
 RT_INLINE uint shuffled_index(SampleKey k, uint seed) { return reverse_bits32(lk_permute(k.c, seed)); }
 #endif
 
-#ifdef SOBOL_GLOBAL_DIMS
-RT_INLINE uint sobol_table(uint index, int d)
-{
-    uint v = 0u;
-    for (int k = 0; index; index >>= 1, ++k)
-        if (index & 1u) v ^= SOBOL_MATRIX[d][k];
-    return v;
-}
-/* the Sobol dimension of sample dim of the camera ray and first bounce, -1 for padded ones */
-RT_INLINE int global_dim(uint dim)
-{
-    switch (dim) {
-    case DIM_PIXEL: return 0;
-    case 2 + DIM_BSDF: return 2;
-    case 2 + DIM_LIGHT_POINT: return 4;
-    case 2 + DIM_LIGHT_PICK: return 6;
-    case 2 + DIM_BSDF_LOBE: return 7;
-    default: return -1;
-    }
-}
-RT_INLINE float global_coord(SampleKey k, int d)
-{
-    const uint index = shuffled_index(k, hash_u32(k.b ^ 0x6a09e667u));
-    const uint v = sobol_table(index, d);
-    return u32_to_unit_float(nested_scramble(v, hash_u32(k.b ^ hash_u32((uint)d + 0xbb67ae85u))));
-}
-#endif
-
 RT_INLINE float sample_1d(SampleKey k, uint dim)
 {
-#ifdef SOBOL_GLOBAL_DIMS
-    { const int d = global_dim(dim); if (d >= 0) return global_coord(k, d); }
-#endif
 #if SAMPLER == SAMPLER_INDEPENDENT
     return rng_uniform(k.a, k.b, k.c, dim);
 #else
@@ -217,9 +186,6 @@ RT_INLINE float sample_1d(SampleKey k, uint dim)
 
 RT_INLINE float2 sample_2d(SampleKey k, uint dim)
 {
-#ifdef SOBOL_GLOBAL_DIMS
-    { const int d = global_dim(dim); if (d >= 0) return (float2)(global_coord(k, d), global_coord(k, d + 1)); }
-#endif
 #if SAMPLER == SAMPLER_INDEPENDENT
     return rng_uniform2(k.a, k.b, k.c, dim);
 #else

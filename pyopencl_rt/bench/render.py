@@ -16,9 +16,10 @@ from .timing import interleaved_render_rates, machine_info, write_results
 
 def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, max_depth=8, repeat=3,
                      wave_size=None, intersectors=("opencl",), kernel_modes=("auto",), mitsuba=None, json_path=None,
-                     echo=print) -> dict:
+                     samplers=(None,), echo=print) -> dict:
     """Rows are labelled by device, prefixed by "<intersector>: " when more than one intersector
-    and by "<kernel mode>: " when more than one schedule is timed.  ``mitsuba``: None, or the
+    and by "<kernel mode>: " when more than one schedule is timed, "<sampler>: " when more than one
+    of ``samplers`` (None: the scene's) is.  ``mitsuba``: None, or the
     options of :func:`.mitsuba_host.run_mitsuba_cornell_box` (its samples/s are then reported, with
     the ratio of ours to it)."""
     from ..device import devices as device_registry
@@ -30,17 +31,19 @@ def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, ma
     variants, setup_seconds, intersector_of = {}, {}, {}
     for device in chosen:
         for intersector in intersectors:
-            for mode in kernel_modes:
+            for mode, sampler in ((m, s) for m in kernel_modes for s in samplers):
                 if mode == "megakernel" and intersector != "opencl":
                     continue  # Embree traces the wavefront's queues
                 label = device_registry.device_label(device)
+                if len(samplers) > 1:
+                    label = f"{sampler}: {label}"
                 if len(intersectors) > 1:
                     label = f"{intersector}: {label}"
                 if len(kernel_modes) > 1:
                     label = f"{mode}: {label}"
                 start = time.perf_counter()
                 wavefront = Wavefront(scene, device, width=width, height=height, max_depth=max_depth,
-                                      wave_size=wave_size, intersector=intersector, kernel_mode=mode)
+                                      wave_size=wave_size, intersector=intersector, kernel_mode=mode, sampler=sampler)
                 setup_seconds[label] = time.perf_counter() - start
                 variants[label] = (scene, wavefront)
                 intersector_of[label] = intersector

@@ -70,7 +70,9 @@ def mitsuba_reference(python, scene_npz, workdir, *, spp, width, height, variant
 def run_samplers(scene_path, *, spp=256, samplers=("sobol", "stratified", "independent"), seeds=2, device=None,
                  width=None, height=None, reference_spp=16384, compare=(), mitsuba_samplers=MITSUBA_SAMPLERS,
                  mitsuba_python=None, mitsuba_variant=DEFAULT_VARIANT, llvm_path=None, json_path=None,
-                 use_cache=True, echo=print) -> dict:
+                 use_cache=True, save_reference=None, echo=print) -> dict:
+    """The table (see the module docstring); ``save_reference``: also write the reference image as
+    an OpenEXR there (``bench convergence --reference`` takes it)."""
     from ..device.devices import resolve
     from ..render.api import render_full
     from ..render.settings import ImageSettings
@@ -103,6 +105,12 @@ def run_samplers(scene_path, *, spp=256, samplers=("sobol", "stratified", "indep
                                            max_depth=settings.max_depth, rr_depth=settings.rr_depth, device=device,
                                            spp=reference_spp, use_cache=use_cache, echo=echo)
         floor = reference_floor(ref["image"], ref["variance"])
+        if save_reference:
+            from ..imageio import write_exr
+
+            Path(save_reference).parent.mkdir(parents=True, exist_ok=True)
+            write_exr(save_reference, ref["image"].astype(np.float32))
+            echo(f"wrote {save_reference}")
         rows = []
         for sampler in samplers:
             runs = []

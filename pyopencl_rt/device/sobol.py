@@ -31,7 +31,7 @@ JOE_KUO = (
     (4, 4, (1, 3, 5, 13)),
     (5, 2, (1, 1, 5, 5, 17)),
 )
-KERNEL_DIMS = 8
+KERNEL_DIMS = 2
 
 
 def direction_numbers(dim: int, count: int = BITS) -> list[int]:

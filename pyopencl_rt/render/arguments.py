@@ -35,9 +35,9 @@ class RenderArguments:
 
 def check_render_arguments(*, spp=None, time_limit=None, width=None, height=None, max_depth=None, rr_depth=None,
                            integrator=None, seed=None, wave_size=None, intersector="opencl", kernel_mode=None,
-                           device=None,
-                           scheduler=None, checkpoint=None, resume=False, checkpoint_every=None, device_timeout=None,
-                           handle_signals=False, profile=False, progress=None) -> RenderArguments:
+                           device=None, scheduler=None, checkpoint=None, resume=False, checkpoint_every=None,
+                           device_timeout=None, handle_signals=False, profile=False,
+                           progress=None) -> RenderArguments:
     """Types, ranges and combinations of a render's arguments; a UserError (one line) otherwise.
     Local devices are resolved (listing them builds nothing) so that an unknown one is refused
     here; a Dask render's device spec is resolved by each worker."""

@@ -43,7 +43,7 @@ class CheckpointError(UserError):
 
 
 def _bad(path, what) -> CheckpointError:
-    return CheckpointError(one_line(f"{path}: not a valid checkpoint: {what}"))
+    return CheckpointError(one_line(f"{path}: not a readable checkpoint: {what}"))
 
 
 def _member(path, zf, name, *, kinds, ndim, shape=None, required=True, max_bytes=None):

@@ -21,7 +21,8 @@ def test_bench_samplers_end_to_end(tmp_path, monkeypatch, device_spec):
     out = tmp_path / "samplers.json"
     main(["bench", "samplers", CORNELL, "--device", device_spec, "--width", "16", "--height", "16", "--spp", "16",
           "--seeds", "1", "--sampler", "sobol,independent", "--reference-spp", "1024", "--compare", "mitsuba",
-          "--mitsuba-variant", "scalar_rgb", "--mitsuba-sampler", "multijitter", "--json", str(out)])
+          "--mitsuba-variant", "scalar_rgb", "--mitsuba-sampler", "multijitter", "--json", str(out),
+          "--save-reference", str(tmp_path / "ref.exr")])
     data = json.loads(out.read_text())
     assert data["reference"]["renderer"] == "mitsuba" and data["reference"]["spp"] == 1024
     floor = data["reference"]["floor"]["relmse"]
@@ -30,3 +31,6 @@ def test_bench_samplers_end_to_end(tmp_path, monkeypatch, device_spec):
     for row in rows.values():
         assert len(row["runs"]) == 1 and floor < row["relmse"] < 0.2, row
     assert rows["pyopencl_rt", "sobol"]["relmse"] < rows["pyopencl_rt", "independent"]["relmse"]
+    from pyopencl_rt.imageio import read_exr
+
+    assert read_exr(tmp_path / "ref.exr").shape == (16, 16, 3)  # for bench convergence --reference
