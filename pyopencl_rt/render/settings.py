@@ -19,7 +19,7 @@ import numpy as np
 from ..device import abi
 from .. import validate
 from ..errors import UsageError, UserError
-from ..scene.model import INTEGRATORS, SAMPLERS  # integrators: MIS path tracing, BSDF sampling only, light sampling only
+from ..scene.model import INTEGRATORS, SAMPLERS  # MIS path, BSDF only, light only; cl/render/sampler.h
 
 MAX_PIXELS = 1 << 26  # 8192 x 8192
 
