@@ -17,6 +17,9 @@
  * (seen with perf annotate: traversal spent a third of its time in call overhead). */
 #define RT_INLINE inline __attribute__((always_inline))
 
+/* Inline builtins on x86 CPUs (PoCL calls its own out of line). */
+#include "cpu_builtins.h"
+
 #define PI_F 3.14159265358979323846f
 #define INV_PI_F 0.31830988618379067154f
 

@@ -17,15 +17,16 @@ def test_denoise_gain_finds_where_denoising_stops_helping():
     assert g["stops_helping_at_spp_relmse"] == 8 and g["stops_helping_at_spp_rmse"] is None and g["max_spp"] == 16
 
 
-@pytest.mark.xfail(strict=False, reason="open bug on the denoise/AOV side: at 1 spp on a 24x24 Cornell box the denoised "
-                   "relMSE comes out worse than the raw one (also with independent samples); under investigation")
+# 64x64, not smaller: at 24x24 the light is one or two pixels whose HDR radiance OIDN spreads over
+# the ceiling pixels beside it (relMSE 0.78 denoised against 0.13 raw at 1 spp, with the light's
+# albedo guide 0 and the ceiling's 0.72); at 64x64 the denoised 1-spp relMSE is 0.012 against 0.21.
 def test_denoised_curve_has_raw_errors_beside_it(device):
     pytest.importorskip("pyoidn")
     scene = load_scene("scenes/cornell-box.toml")
-    size = dict(width=24, height=24, max_depth=4, rr_depth=3, integrator="path", intersector="opencl")
+    size = dict(width=64, height=64, max_depth=4, rr_depth=3, integrator="path", intersector="opencl")
     from pyopencl_rt.render.api import render_full
 
-    reference = render_full(scene, spp=32, device=device, width=24, height=24, max_depth=4, seed=5).image
+    reference = render_full(scene, spp=256, device=device, width=64, height=64, max_depth=4, seed=5).image
     curve = cv.run_curve(scene, device=device, reference=reference, seconds=1.0, denoise=True, **size)
     assert curve["denoised"] and curve["label"].endswith("+ OIDN")
     first = curve["points"][0]
