@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: all venv test render bench bench-rays bench-bvh bench-render bench-materials stress gpu-check clean
+.PHONY: all venv test render bench bench-rays bench-bvh bench-render bench-materials stress gpu-check gpu-wheels clean
 
 all: test
 
@@ -45,15 +45,18 @@ stress: $(STAMP)
 	$(PY) -m pytest -m stress tests -q -rxXf -p no:cacheprovider --report-json docs/bench/stress.json
 
 # On a machine with an NVIDIA GPU (docs/DEVICES.md): make its OpenCL driver visible, then the suite on
-# the GPU device and the ray and render benchmarks on every device, all results as JSON in $(OUT)/gpu/.
+# the GPU device and the ray and render benchmarks on every device, all results in $(OUT)/gpu/.
+# On the lent GPU machine (no network, Python 3.12): run `make gpu-wheels` here first, then there
+# `tools/gpu_check.sh` with .whl carried (it installs the wheels itself; no venv).
 gpu-check: $(STAMP)
-	mkdir -p $(OUT)/gpu /etc/OpenCL/vendors
-	test -e /etc/OpenCL/vendors/nvidia.icd || echo libnvidia-opencl.so.1 > /etc/OpenCL/vendors/nvidia.icd
-	$(VENV)/bin/pyopencl-rt devices --json > $(OUT)/gpu/devices.json
-	-PYOPENCL_TEST=gpu $(PY) -m pytest -q -p no:cacheprovider tests --report-json $(OUT)/gpu/tests.json
-	-$(VENV)/bin/pyopencl-rt bench rays --device all --layout both --sizes 100k,1M --json $(OUT)/gpu/rays.json
-	-$(VENV)/bin/pyopencl-rt bench render scenes/cornell-box.toml --device all --width 512 --height 512 \
-		--spp 64 --max-depth 8 --json $(OUT)/gpu/render.json
+	OUT=$(OUT) tools/gpu_check.sh $(PY)
+
+GPU_WHEELS := pyopencl==2026.1.4 pytools==2026.1.1 platformdirs==4.14.9 siphash24==1.9 embreex==4.4.0.post1 \
+	trimesh==5.2.0 OpenEXR==3.5.3
+gpu-wheels:
+	$(PYTHON) -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
+		--platform manylinux_2_28_x86_64 --platform manylinux_2_27_x86_64 --platform manylinux_2_17_x86_64 \
+		--platform manylinux2014_x86_64 -d .whl $(GPU_WHEELS)
 
 clean:
 	rm -rf $(VENV) build dist *.egg-info $(OUT) .pytest_cache
