@@ -74,7 +74,7 @@ class Progress:
             return
         self.last, self.shown = elapsed, passes
         if self.total:
-            frac = passes / self.total
+            frac = min(1.0, passes / self.total)  # adaptive: passes may go beyond the spp
             eta = elapsed * (1 - frac) / frac if frac > 0 else 0.0
         else:
             frac = min(1.0, elapsed / self.time_limit)
@@ -116,6 +116,9 @@ def _clock(seconds):
 @click.option("--sampler", type=click.Choice(["sobol", "stratified", "independent"]),
               help="Where the random numbers come from: Owen-scrambled Sobol (default), progressive stratified, "
               "or independent (docs/SAMPLING.md).")
+@click.option("--adaptive/--no-adaptive", default=None, help="Adaptive sampling: samples where the estimated error "
+              "is; --spp is each pixel's maximum with --target-error, the mean without (docs/SAMPLING.md).")
+@click.option("--target-error", type=float, help="With --adaptive: a pixel stops at this relative error (e.g. 0.02).")
 @click.option("--wave-size", type=int, help="Paths in flight (default: 2^20 on a GPU, 2^16 on a CPU).")
 @click.option("--profile", is_flag=True, help="Print the time spent in each wavefront stage.")
 @click.option("--kernel-mode", type=click.Choice(["auto", "wavefront", "megakernel"]), default="auto", show_default=True,
@@ -148,8 +151,8 @@ def _clock(seconds):
 @click.option("--device-timeout", type=float, metavar="SECONDS",
               help="With several devices: drop one that makes no progress for this long [default: 120].")
 @device_option
-def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, integrator, sampler, wave_size, profile,
-           kernel_mode, intersector,
+def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, integrator, sampler, adaptive,
+           target_error, wave_size, profile, kernel_mode, intersector,
            quiet, scheduler, checkpoint_path, checkpoint_every, resume, defines, aovs, denoise, exposure, tonemap, no_exr,
            preview_every, device_timeout, device):
     """Render SCENE (a .toml scene file, a Mitsuba 3 .xml or pbrt-v4 .pbrt scene, or any mesh file
@@ -173,7 +176,8 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
                            integrator=integrator, seed=seed, wave_size=wave_size, intersector=intersector,
                            kernel_mode=kernel_mode, device=list(device) or None, scheduler=scheduler,
                            checkpoint=checkpoint_path or str(default_path(output)), resume=resume,
-                           checkpoint_every=checkpoint_every, device_timeout=device_timeout)
+                           checkpoint_every=checkpoint_every, device_timeout=device_timeout, adaptive=adaptive,
+                           target_error=target_error)
     validate.number(exposure, "--exposure", minimum=-64, maximum=64)
     if preview_every is not None and not preview_every > 0:
         raise UserError(f"--preview-every must be positive (got {preview_every})")
@@ -191,7 +195,8 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
     scene = load_scene(scene_path, defines=_defines(defines))
     aov_names = parse_aovs(scene.settings.aovs if aovs is None else aovs)
     settings = ImageSettings.resolve(scene, width=width, height=height, max_depth=max_depth, integrator=integrator,
-                                     seed=seed, aovs=aov_names + (GUIDES if denoise else ()), sampler=sampler)
+                                     seed=seed, aovs=aov_names + (GUIDES if denoise else ()), sampler=sampler,
+                                     adaptive=adaptive, target_error=target_error)
     total = spp if spp is not None else (None if time_limit is not None else scene.settings.spp)
     bar = Progress(total, time_limit, settings.n_pixels, quiet)
     result = render_full(scene, spp=total, time_limit=time_limit, device=list(device) or None, wave_size=wave_size,
@@ -226,6 +231,8 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
             click.echo(f"extend: {info['rays_extend'] / max(stages['extend'], 1e-9) / 1e6:.3f} Mrays/s, "
                        f"shadow: {info['rays_shadow'] / max(stages['shadow'], 1e-9) / 1e6:.3f} Mrays/s", err=True)
     note = " (interrupted)" if info["interrupted"] else ""
+    if "adaptive_sampling" in info:
+        note += f" (adaptive: {info['adaptive_sampling']['spp_mean']:.1f} spp per pixel on average)"
     if info["interrupted"] and info.get("checkpoint"):
         note = f" (interrupted; checkpoint {info['checkpoint']}: continue with --resume)"
     click.echo(
@@ -470,6 +477,7 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path
 @click.option("--integrator", default="path", show_default=True, help="Comma-separated: path,bsdf,nee.")
 @click.option("--intersector", default="opencl", show_default=True, help="Comma-separated: opencl,embree.")
 @click.option("--sampler", help="Comma-separated: sobol,stratified,independent, a curve each [default: the scene's].")
+@click.option("--adaptive", is_flag=True, help="Also an adaptive curve per sampler (refining the worst pixels).")
 @click.option("--reference", type=click.Path(dir_okay=False), help="Reference OpenEXR (default: render one and cache it).")
 @click.option("--reference-spp", type=click.IntRange(min=1), help="Samples per pixel of the rendered reference (default: a share of --budget).")
 @click.option("--no-cache", is_flag=True, help="Neither read nor write the cached reference.")
@@ -487,7 +495,7 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="PNG plot (default: the JSON path with .png).")
 @click.option("--denoise", is_flag=True, help="Beside each of our curves, its Open Image Denoise curve (needs the "
               "denoise extra): where denoising stops helping.")
-def bench_convergence(scene_path, device, integrator, intersector, sampler, reference, reference_spp, no_cache, budget,
+def bench_convergence(scene_path, device, integrator, intersector, sampler, adaptive, reference, reference_spp, no_cache, budget,
                       width, height, max_depth, compare, mitsuba_python, llvm_path, mitsuba_variant, mitsuba_sampler,
                       json_path, plot_path, denoise):
     """Error (RMSE, relMSE, MAE) against a reference as a function of render time, per device x
@@ -516,7 +524,7 @@ def bench_convergence(scene_path, device, integrator, intersector, sampler, refe
                     max_depth=max_depth, compare=[c.strip() for c in compare.split(",") if c.strip()],
                     mitsuba_python=mitsuba_python, mitsuba_variant=mitsuba_variant, llvm_path=llvm_path,
                     json_path=json_path, plot_path=plot_path, use_cache=not no_cache, denoise=denoise,
-                    samplers=samplers, mitsuba_samplers=mitsuba_samplers, echo=click.echo)
+                    samplers=samplers, mitsuba_samplers=mitsuba_samplers, adaptive=adaptive, echo=click.echo)
 
 
 @bench.command("samplers")

@@ -73,6 +73,12 @@ OPTION_CASES = [
     (["--device-timeout", "0"], 2, "--device-timeout must be positive"),
     (["--device", "no-such-device"], 2, "no OpenCL device matches"),
     (["--kernel-mode", "warp"], 2, "'warp' is not one of"),
+    (["--adaptive", "--target-error", "0"], 2, "--target-error must be positive (got 0)"),
+    (["--adaptive", "--target-error", "nan"], 2, "--target-error must be finite"),
+    (["--no-adaptive", "--target-error", "0.1"], 2, "--target-error needs --adaptive"),
+    (["--adaptive", "--scheduler", "local"], 2, "--adaptive renders on one device"),
+    (["--adaptive", "--resume"], 2, "--adaptive cannot be combined with --resume"),
+    (["--adaptive", "--checkpoint-every", "5"], 2, "--adaptive cannot be combined with --resume or --checkpoint-every"),
     (["-o", "out.txt"], 1, "the output must be an .exr or a .png file"),
     (["-o", "/proc/x.exr"], 1, "/proc/x.exr: cannot write the output EXR"),
     (["-o", "/sys/nope/x.exr"], 1, "/sys/nope/x.exr: cannot write the output EXR"),
@@ -481,3 +487,26 @@ def test_sigint_before_the_first_pass_exits_cleanly(tmp_path, delay):
     assert p.returncode == 130, err
     assert "Traceback" not in err and err.strip().count("\n") == 0 and "interrupted" in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+# -- adaptive sampling: what it cannot be combined with, from the scene file and the API -----------
+def test_adaptive_from_the_scene_file_refused_where_it_cannot_run(tmp_path, monkeypatch, capsys):
+    """[render] adaptive = true decides only once the scene is read: still one line, nothing
+    rendered or written; the API says the same."""
+    monkeypatch.chdir(tmp_path)
+    scene = tmp_path / "adaptive.toml"
+    scene.write_text(Path(CORNELL).read_text().replace("[render]", "[render]\nadaptive = true", 1))
+    code, lines = cli(capsys, "render", scene, "--scheduler", "local:1", *TINY[:-2])
+    assert code == 2 and "--adaptive renders on one device: it cannot be combined with --scheduler" in one_error(lines)
+    code, lines = cli(capsys, "render", CORNELL, "--target-error", "0.1", *TINY)
+    assert code == 2 and "--target-error needs --adaptive" in one_error(lines)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["adaptive.toml"]
+    import pyopencl as cl
+
+    cpu = [d for p in cl.get_platforms() for d in p.get_devices() if d.type & cl.device_type.CPU][0]
+    with pytest.raises(UserError, match="--adaptive renders on one device, not 2: choose one with --device"):
+        rt.render_full(str(scene), spp=1, width=4, height=4, device=[cpu, cpu])
+    with pytest.raises(UserError, match="--adaptive renders on one device"):
+        rt.render_full(str(scene), spp=1, width=4, height=4, scheduler="local:1")
+    with pytest.raises(UserError, match="cannot be combined with --resume"):
+        rt.render_full(str(scene), spp=1, width=4, height=4, checkpoint=str(tmp_path / "c.npz"), resume=True)

@@ -149,3 +149,23 @@ def test_render_embree_profile_sidecar_has_host_stage_times(tmp_path):
     assert set(shown) == set(stages)
     for name, seconds in shown.items():
         assert abs(seconds - stages[name]) < 1e-3 + 1e-3 * seconds
+
+
+def test_render_adaptive_sidecar_and_spp_layer(tmp_path):
+    """--adaptive --target-error: the sidecar records both settings and the per-pixel spp (which
+    varies), the EXR's spp layer holds the counts, and the summary line gives the mean."""
+    from pyopencl_rt.imageio import read_exr_channels
+
+    out = tmp_path / "a.exr"
+    r = run_cli("render", str(REPO / "scenes" / "mitsuba-cbox.toml"), "-o", str(out), "--spp", "128", "--width", "16",
+                "--height", "12", "--adaptive", "--target-error", "0.05", "--aov", "spp", "--quiet", "--device", "cpu",
+                cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    info = json.loads(out.with_suffix(".json").read_text())
+    assert info["adaptive"] is True and info["target_error"] == 0.05 and info["spp"] == 128
+    record = info["adaptive_sampling"]
+    assert 32 <= record["spp_min"] < record["spp_mean"] < record["spp_max"] == 128
+    spp = read_exr_channels(out)["spp.Y"]
+    assert spp.shape == (12, 16) and spp.min() == record["spp_min"] and spp.mean() == pytest.approx(record["spp_mean"])
+    assert info["samples"] == int(spp.sum())
+    assert f"{record['spp_mean']:.1f} spp per pixel on average" in r.stdout

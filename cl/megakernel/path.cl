@@ -7,7 +7,10 @@
  *
  * Work-item i renders sample first_pixel + i of pass first_pass (wrapping into the next passes,
  * as wf_generate numbers them) and writes its radiance into that pass's buffer of the ring;
- * the host launches whole passes, so every pass is complete when the launch is.  The rays it
+ * the host launches whole passes, so every pass is complete when the launch is.  With
+ * n_listed > 0 (adaptive sampling) a pass covers only the pixels pixel_list[0..n_listed),
+ * first_pixel counts entries of that list, and work-item i writes entry i of the ring (the host
+ * reads the launch's n_items results in order).  The rays it
  * traces are counted in counters[COUNTER_RAYS_EXTEND] and [COUNTER_RAYS_SHADOW].
  * mat_scratch (textures) is indexed by work-item: n_items is at most the wave size. */
 #include "render/path.h"
@@ -16,9 +19,11 @@ __kernel void mk_path(WAVE_PARAMS)
 {
     const int i = get_global_id(0);
     if (i >= n_items) return;
+    const int n_take = n_listed > 0 ? n_listed : n_pixels;
     const int linear = first_pixel + i;
-    const int pass = first_pass + linear / n_pixels;
-    const int pixel = linear % n_pixels;
+    const int pass = first_pass + linear / n_take;
+    const int pixel = n_listed > 0 ? pixel_list[linear % n_take] : linear % n_take;
+    const int out = n_listed > 0 ? i : (pass % ring_size) * n_pixels + pixel;  /* its pass_ring entry */
     const SampleKey sk = sampler_key(seed, (uint)pixel, (uint)camera->width, (uint)pass);
     float3 o, d;
     camera_ray(camera, sk, pixel, &o, &d);
@@ -47,7 +52,7 @@ __kernel void mk_path(WAVE_PARAMS)
         atomic_inc(&counters[COUNTER_NONFINITE]);
         L = (float3)(0.0f);
     }
-    store3(pass_ring, (pass % ring_size) * n_pixels + pixel, L);
+    store3(pass_ring, out, L);
     atomic_add(&counters[COUNTER_RAYS_EXTEND], n_extend);
     atomic_add(&counters[COUNTER_RAYS_SHADOW], n_shadow);
 }

@@ -1,6 +1,8 @@
 /* Stage 1: n_items new camera paths into free slots, popped from the free stack (free_base
  * entries) and appended to the active queue (queue_base entries).  The first is the sample of
  * (first_pass, first_pixel); later ones take the following pixels, wrapping into the next pass.
+ * With n_listed > 0 (adaptive sampling) a pass covers only the pixels pixel_list[0..n_listed),
+ * and first_pixel counts entries of that list.
  * The camera ray: camera_ray() of cl/render/path.h. */
 #include "render/path.h"
 
@@ -8,9 +10,10 @@ __kernel void wf_generate(WAVE_PARAMS)
 {
     const int i = get_global_id(0);
     if (i >= n_items) return;
+    const int n_take = n_listed > 0 ? n_listed : n_pixels;
     const int linear = first_pixel + i;
-    const int pass = first_pass + linear / n_pixels;
-    const int pixel = linear % n_pixels;
+    const int pass = first_pass + linear / n_take;
+    const int pixel = n_listed > 0 ? pixel_list[linear % n_take] : linear % n_take;
     const int slot = free_q[free_base - 1 - i];
     queue_in[queue_base + i] = slot;
 

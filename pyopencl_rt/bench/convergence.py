@@ -110,12 +110,14 @@ def short_device(device) -> str:
 
 
 def run_curve(scene, *, device, integrator, intersector, width, height, max_depth, rr_depth, reference, seconds,
-              seed=1, denoise=False, sampler=None, echo=print) -> dict:
+              seed=1, denoise=False, sampler=None, adaptive=False, echo=print) -> dict:
     """One curve: a growing film, metrics after each step of :func:`spp_schedule`, until ``seconds``.
     ``denoise``: the film also sums the albedo and normal AOVs, and each point is Open Image
     Denoise's image of the film so far (its time: the passes so far plus that one denoising),
     with the raw image's errors beside it (``raw_rmse``, ``raw_relmse``).  ``sampler``: ours
-    (docs/SAMPLING.md; default the scene's)."""
+    (docs/SAMPLING.md; default the scene's).  ``adaptive``: one adaptive render of ``seconds``
+    without a target (it refines the pixels of largest estimated error, render/adaptive.py), a
+    point each time its pass count reaches a step of the schedule; its spp is the mean per pixel."""
     from ..device.devices import device_label, select_device
     from ..render.aovs import GUIDES, aov_layers
     from ..render.film import Film
@@ -128,12 +130,19 @@ def run_curve(scene, *, device, integrator, intersector, width, height, max_dept
                           sampler=sampler)
     setup = time.perf_counter() - start
     start = time.perf_counter()
-    # warm-up, not timed: PoCL compiles its work-group functions at the first launches
-    wavefront.run(Film.new(width, height, denoise), passes=1, first_pass=1 << 20)
+    # warm-up, not timed: PoCL compiles its work-group functions at the first launches, and again
+    # for the first launch of a whole wave (measured: 2.4 s on the first curve of a program)
+    wave_passes = -(-wavefront.wave_size // (width * height)) + 1
+    wavefront.run(Film.new(width, height, denoise), passes=wave_passes, first_pass=1 << 20)
+    if adaptive:  # and the launches over a pixel list
+        wavefront.run(Film.new(width, height), passes=wave_passes, first_pass=1 << 20,
+                      pixels=np.arange(0, width * height, 2))
     warmup = time.perf_counter() - start
     film = Film.new(width, height, denoise)
     points, elapsed, done, denoise_seconds = [], 0.0, 0, 0.0
-    for target in spp_schedule():
+    if adaptive:
+        elapsed, done = _adaptive_points(wavefront, film, reference, seconds, points)
+    for target in ([] if adaptive else spp_schedule()):
         if done and elapsed * target / done + denoise_seconds > seconds:  # the next step would overrun the share
             break
         stats = wavefront.run(film, passes=target - done, first_pass=done)
@@ -153,14 +162,29 @@ def run_curve(scene, *, device, integrator, intersector, width, height, max_dept
         points.append(point)
     sampler = wavefront.settings.sampler
     label = (f"{short_device(device)} / {integrator} / {sampler}" + (" / embree" if intersector == "embree" else "")
-             + (" + OIDN" if denoise else ""))
+             + (" + OIDN" if denoise else "") + (" / adaptive" if adaptive else ""))
     echo(f"  {label}: {done} spp in {elapsed:.2f} s (build {wavefront.timings.get('build_seconds', 0):.2f} s, "
          f"warm-up {warmup:.2f} s)")
     return {"label": label, "renderer": "pyopencl_rt", "device": device_label(device), "integrator": integrator,
-            "intersector": intersector, "sampler": sampler, "denoised": denoise,
+            "intersector": intersector, "sampler": sampler, "denoised": denoise, "adaptive": adaptive,
             "build_seconds": wavefront.timings.get("build_seconds"),
             "bvh_seconds": wavefront.timings.get("bvh_seconds"), "setup_seconds": setup, "warmup_seconds": warmup,
             "points": points}
+
+
+def _adaptive_points(wavefront, film, reference, seconds, points) -> tuple[float, int]:
+    """An adaptive render of ``seconds`` into ``film``, its points appended to ``points``;
+    returns (seconds, mean spp)."""
+    from ..render import adaptive
+
+    def observe(film, elapsed):
+        counts = film.pixel_counts()
+        points.append({"spp": int(round(counts.mean())), "seconds": elapsed, **metrics(film.image(), reference),
+                       "samples_per_second": float(counts.sum()) / elapsed if elapsed > 0 else None,
+                       "passes": film.passes, "spp_max": int(counts.max())})
+
+    stats, _ = adaptive.run(wavefront, film, time_limit=seconds, observe=observe, stops=spp_schedule())
+    return stats.seconds, points[-1]["spp"] if points else 0
 
 
 # --------------------------------------------------------------------------------------------
@@ -171,8 +195,9 @@ def run_convergence(scene_path, *, devices=None, integrators=("path",), intersec
                     reference_spp=None, budget=60.0, width=None, height=None, max_depth=None, compare=(),
                     mitsuba_python=None, mitsuba_variant=DEFAULT_VARIANT, llvm_path=None,
                     json_path="out/convergence.json", plot_path=None, use_cache=True, denoise=False,
-                    samplers=(None,), mitsuba_samplers=("independent",), echo=print) -> dict:
-    """The benchmark.  ``samplers``: one curve of ours per sampler (None: the scene's); with
+                    samplers=(None,), mitsuba_samplers=("independent",), adaptive=False, echo=print) -> dict:
+    """The benchmark.  ``samplers``: one curve of ours per sampler (None: the scene's), and with
+    ``adaptive`` an adaptive one beside each (docs/SAMPLING.md, "Adaptive sampling"); with
     ``compare=("mitsuba",)``, one Mitsuba curve per entry of ``mitsuba_samplers`` (its sampler
     plugins: independent, stratified, multijitter, ldsampler)."""
     from ..device.devices import resolve
@@ -220,12 +245,13 @@ def run_convergence(scene_path, *, devices=None, integrators=("path",), intersec
     floor = (reference_floor(ref["image"], ref["variance"]) if ref["variance"] is not None
              else {"mse": None, "relmse": None})
 
-    jobs = [("ours", device, integrator, intersector, den, sampler) for device in chosen for integrator in integrators
-            for intersector in intersectors for sampler in samplers for den in ((False, True) if denoise else (False,))]
+    jobs = [("ours", device, integrator, intersector, den, sampler, ad) for device in chosen
+            for integrator in integrators for intersector in intersectors for sampler in samplers
+            for den, ad in ((False, False),) + ((False, True),) * adaptive + ((True, False),) * denoise]
     if mitsuba_python_found:
-        jobs += [("mitsuba", None, "path", "mitsuba", False, sampler) for sampler in mitsuba_samplers]
+        jobs += [("mitsuba", None, "path", "mitsuba", False, sampler, False) for sampler in mitsuba_samplers]
     curves = []
-    for index, (renderer, device, integrator, intersector, den, sampler) in enumerate(jobs):
+    for index, (renderer, device, integrator, intersector, den, sampler, ad) in enumerate(jobs):
         if budget is not None:
             left = budget - (time.perf_counter() - start)
             # a share of what is left, less a guess of the fixed costs (build, warm-up, start-up)
@@ -235,7 +261,7 @@ def run_convergence(scene_path, *, devices=None, integrators=("path",), intersec
         if renderer == "ours":
             curves.append(run_curve(scene, device=device, integrator=integrator, intersector=intersector, width=width,
                                     height=height, max_depth=max_depth, rr_depth=rr_depth, reference=ref["image"],
-                                    seconds=share, denoise=den, sampler=sampler, echo=echo))
+                                    seconds=share, denoise=den, sampler=sampler, adaptive=ad, echo=echo))
         else:
             workdir = tempfile.mkdtemp(prefix="pyopencl_rt_mitsuba_")
             try:

@@ -104,7 +104,7 @@ def analyse(curves, floor) -> None:
             curve["denoise"] = denoise_gain(points)
     baselines = {}
     for curve in curves:
-        if curve.get("denoised"):
+        if curve.get("denoised") or curve.get("adaptive"):
             continue
         if curve["renderer"] == "pyopencl_rt" and curve["intersector"] == "opencl" and "cpu" in curve["device"].lower():
             baselines.setdefault(curve["integrator"], curve)
@@ -117,6 +117,25 @@ def analyse(curves, floor) -> None:
             if t_baseline and t_curve:
                 curve["speedup_vs_cpu"] = {"baseline": baseline["label"], "at_relmse": 1e-2,
                                            "speedup": t_baseline / t_curve}
+    for curve in curves:
+        if curve.get("adaptive"):
+            curve["adaptive_gain"] = adaptive_gain(curve, curves)
+
+
+def adaptive_gain(curve, curves) -> dict | None:
+    """An adaptive curve's time to relMSE against the plain curve of the same device, integrator,
+    intersector and sampler, at the lowest target both reach (measured, not extrapolated)."""
+    same = ("device", "integrator", "intersector", "sampler", "renderer")
+    plain = next((c for c in curves if not c.get("adaptive") and not c.get("denoised")
+                  and all(c.get(k) == curve.get(k) for k in same)), None)
+    if plain is None:
+        return None
+    for target in sorted(TARGETS):
+        a, b = curve["time_to_relmse"][f"{target:g}"], plain["time_to_relmse"][f"{target:g}"]
+        if a["seconds"] and b["seconds"] and not a["extrapolated"] and not b["extrapolated"]:
+            return {"plain": plain["label"], "at_relmse": target, "seconds": a["seconds"],
+                    "plain_seconds": b["seconds"], "speedup": b["seconds"] / a["seconds"]}
+    return None
 
 
 def denoise_gain(points) -> dict:
@@ -180,7 +199,7 @@ def write_plot(path, result) -> str | None:
             errors = [p[key] for p in curve["points"]]
             fit = curve[f"slope_{key}"]
             label = curve["label"] + (f"  (slope {fit['slope']:.2f})" if fit["slope"] is not None else "")
-            line, = ax.loglog(times, errors, "o-", ms=3, label=label)
+            line, = ax.loglog(times, errors, "s--" if curve.get("adaptive") else "o-", ms=3, label=label)
             if fit["slope"] is not None:
                 ends = np.array([min(times), max(times)])
                 ax.loglog(ends, 10 ** (fit["intercept"] + fit["slope"] * np.log10(ends)), ":", color=line.get_color())
@@ -227,6 +246,11 @@ def print_table(result, echo=print) -> None:
              f"{slope_cell('slope_rmse'):>10} {slope_cell('slope_relmse'):>12} {time_cell('0.01'):>10} "
              f"{time_cell('0.001'):>10} {(('%.2fx' % speedup['speedup']) if speedup else '-'):>7}")
     echo("* extrapolated along the fitted line")
+    for curve in result["curves"]:
+        gain = curve.get("adaptive_gain")
+        if gain:
+            echo(f"{curve['label']}: relMSE {gain['at_relmse']:g} in {gain['seconds']:.3g} s against "
+                 f"{gain['plain_seconds']:.3g} s without adaptive sampling ({gain['speedup']:.2f}x)")
     for curve in result["curves"]:
         d = curve.get("denoise")
         if d and d["relmse_gain"]:

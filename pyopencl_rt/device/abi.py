@@ -343,6 +343,8 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("free_q", "global", "int", "stack of free slots", per_slot=1),
     Param("counters", "global", "int", "COUNTER_* slots, then one per ring pass"),
     Param("pass_ring", "global", "float", "ring_size passes of n_pixels RGB sums"),
+    # adaptive sampling (render/adaptive.py): the pixels that take samples, when n_listed > 0
+    Param("pixel_list", "const", "int", "n_pixels entries, the first n_listed in use"),
     # AOVs (HAS_AOVS; AOV_* offsets): 16-byte dummies without them
     Param("aov_path", "global", "float", "the path's AOVs so far", per_slot=AOV_FLOATS),
     Param("aov_ring", "global", "float", "ring_size passes of n_pixels x AOV_FLOATS"),
@@ -363,6 +365,8 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("first_pixel", "scalar", "int", "generate: its pixel (later ones follow, wrapping)", launch=True),
     Param("queue_base", "scalar", "int", "generate: active-queue length before", launch=True),
     Param("free_base", "scalar", "int", "generate, accumulate: free-stack length before", launch=True),
+    Param("n_listed", "scalar", "int", "generate, path: samples go to pixel_list[0..n_listed); 0: every pixel",
+          launch=True),
 )
 WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
 assert len(WAVE_PARAM) == len(WAVE_PARAMS)

@@ -13,7 +13,7 @@ depth       Z           distance from the camera to the first hit, averaged over
 position    X, Y, Z     world-space first hit, averaged the same way; +inf where none did
 variance    R, G, B     variance of the pixel's mean (Film.variance_of_mean: the sample
                         variance over passes / passes; +inf below 2 passes)
-spp         Y           samples of the pixel
+spp         Y           samples of the pixel (they vary with adaptive sampling)
 ==========  ==========  ================================================================
 
 albedo, normal, depth and position are computed by the kernels (built with ``HAS_AOVS`` when
@@ -64,7 +64,7 @@ def aov_layers(film, names, origin=(0.0, 0.0, 0.0)) -> dict[str, np.ndarray]:
     position (the kernels record positions relative to it)."""
     h, w = film.height, film.width
     layers = {}
-    n = max(film.passes, 1)
+    n = np.maximum(film.pixel_counts(), 1).astype(np.float64)[:, None]  # per pixel: adaptive sampling
     kernel = [a for a in names if a in KERNEL_AOVS]
     if kernel and film.aov_sum is None:
         raise ValueError(f"the film holds no kernel AOVs (for {', '.join(kernel)}): render with film_aovs")
@@ -85,7 +85,7 @@ def aov_layers(film, names, origin=(0.0, 0.0, 0.0)) -> dict[str, np.ndarray]:
             elif name == "variance":
                 v = film.variance_of_mean().reshape(-1, 3)
             elif name == "spp":
-                v = np.full((h * w, 1), film.passes, np.float64)
+                v = film.pixel_counts().astype(np.float64)[:, None]
             else:
                 raise ValueError(f"unknown AOV {name!r}")
             layers[name] = v.astype(np.float32).reshape(h, w, -1)

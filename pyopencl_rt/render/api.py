@@ -53,7 +53,7 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
                 profile=False, wavefront: Wavefront | None = None, scheduler=None, checkpoint=None, resume=False,
                 checkpoint_every=None, handle_signals=False, kernel_mode=None, device_timeout=None,
                 settings: ImageSettings | None = None,
-                aovs=None, sampler=None,
+                aovs=None, sampler=None, adaptive=None, target_error=None,
                 denoise=False, preview=None, preview_every=None) -> RenderResult:
     """Render and return the image with statistics (see :func:`render`).
 
@@ -70,7 +70,9 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
     continues from it up to ``spp``.  ``handle_signals`` (the CLI): SIGINT and SIGTERM stop the
     render at a safe point instead of killing it.  ``settings``: an :class:`ImageSettings`
     resolved by the caller, instead of width, height, max_depth, rr_depth, integrator, seed and
-    sampler ("sobol", "stratified" or "independent": cl/render/sampler.h).
+    sampler ("sobol", "stratified" or "independent": cl/render/sampler.h), adaptive and
+    target_error (adaptive sampling, :mod:`pyopencl_rt.render.adaptive`: ``spp`` is then each
+    pixel's maximum with a target, the mean without; one device, no resume).
     ``aovs``: AOV layers (names or a comma list, :mod:`pyopencl_rt.render.aovs`; default the
     scene's ``[film] aovs``) returned in ``layers``.  ``denoise``: the image is Open Image
     Denoise's (:mod:`pyopencl_rt.render.denoise`, with the albedo and normal AOVs as guides) and
@@ -91,7 +93,7 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
         integrator=integrator, seed=seed, wave_size=wave_size, intersector=intersector, kernel_mode=kernel_mode,
         device=device, scheduler=scheduler if wavefront is None else None, checkpoint=checkpoint, resume=resume,
         checkpoint_every=checkpoint_every, device_timeout=device_timeout, handle_signals=handle_signals,
-        profile=profile, progress=progress)
+        profile=profile, progress=progress, adaptive=adaptive, target_error=target_error)
     spp, time_limit, wave_size, intersector = args.spp, args.time_limit, args.wave_size, args.intersector
     names = parse_aovs(scene.settings.aovs if aovs is None else aovs)
     kernel_aovs = [a for a in names if a in KERNEL_AOVS] + (list(GUIDES) if denoise else [])
@@ -102,7 +104,7 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
     if preview_every is not None and not float(preview_every) > 0:
         raise UserError(f"--preview-every must be positive (got {preview_every})")
     overrides = dict(width=width, height=height, max_depth=max_depth, rr_depth=rr_depth, integrator=integrator,
-                     seed=seed, sampler=sampler)
+                     seed=seed, sampler=sampler, adaptive=adaptive, target_error=target_error)
     given = {k: v for k, v in overrides.items() if v is not None}
     if wavefront is not None or settings is not None:  # settings made earlier; arguments may only repeat them
         if wavefront is not None and settings is not None and settings != wavefront.settings:
@@ -119,6 +121,10 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
         settings = ImageSettings.resolve(scene, **given, aovs=kernel_aovs)
     if spp is None and time_limit is None:
         spp = scene.settings.spp
+    from .arguments import check_adaptive
+
+    check_adaptive(settings.adaptive, devices=args.devices, scheduler=scheduler if wavefront is None else None,
+                   resume=resume, checkpoint_every=checkpoint_every)
     if resume and checkpoint is None:
         raise UserError("resume needs a checkpoint file")
     film = (checkpoints.load(checkpoint, scene, settings)[0] if resume
@@ -140,7 +146,8 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
         else:
             run = _render_local(job)
     extra = dict(run.extra)
-    if checkpoint is not None and film.passes > 0 and (run.stats.interrupted or checkpoint_every is not None or resume):
+    if checkpoint is not None and film.passes > 0 and not settings.adaptive and (
+            run.stats.interrupted or checkpoint_every is not None or resume):
         if saver.save(film) is not None:
             extra["checkpoint"] = str(checkpoint)
     if resume:
@@ -222,6 +229,12 @@ def _render_prepared(job: _Job, wf: Wavefront) -> _Run:
         if job.progress is not None:
             job.progress(passes, elapsed)
 
+    if job.settings.adaptive:
+        from . import adaptive
+
+        stats, record = adaptive.run(wf, job.film, target_error=job.settings.target_error, max_spp=job.passes,
+                                     time_limit=job.time_limit, progress=tick, profile=job.profile, cancel=job.cancel)
+        return _Run(stats, device_label(wf.device), wf.description(), 0.0, {"adaptive_sampling": record})
     stats = wf.run(job.film, passes=job.passes, time_limit=job.time_limit, progress=tick, profile=job.profile,
                    first_pass=job.film.passes, cancel=job.cancel)
     return _Run(stats, device_label(wf.device), wf.description(), 0.0, {})
@@ -278,7 +291,7 @@ def sidecar(scene: Scene, settings: ImageSettings, film: Film, run: _Run, *, spp
         "scene_warnings": list(getattr(scene, "warnings", None) or []),
         "device": run.label,
         **settings.as_dict(),
-        "spp": film.passes,
+        "spp": film.passes if film.counts is None else int(film.counts.max()),  # adaptive: the largest
         "spp_requested": spp,
         "time_limit": time_limit,
         "intersector": engine.get("intersector") or getattr(intersector, "name", intersector),  # what ran
@@ -310,7 +323,7 @@ def render(scene: Scene, spp=None, device=None, seed=None, **kwargs) -> np.ndarr
 
     Keyword arguments: ``width``, ``height``, ``max_depth``, ``rr_depth``, ``integrator`` ("path",
     "bsdf", "nee"), ``time_limit`` (seconds, instead of or as well as ``spp``), ``wave_size``,
-    ``intersector``.  Settings not given come from the scene file.  The same seed on the same
-    device gives the same image, bit for bit.
+    ``intersector``, ``sampler``, ``adaptive`` and ``target_error``.  Settings not given come from
+    the scene file.  The same seed on the same device gives the same image, bit for bit.
     """
     return render_full(scene, spp=spp, device=device, seed=seed, **kwargs).image

@@ -37,7 +37,7 @@ def check_render_arguments(*, spp=None, time_limit=None, width=None, height=None
                            integrator=None, seed=None, wave_size=None, intersector="opencl", kernel_mode=None,
                            device=None, scheduler=None, checkpoint=None, resume=False, checkpoint_every=None,
                            device_timeout=None, handle_signals=False, profile=False,
-                           progress=None) -> RenderArguments:
+                           progress=None, adaptive=None, target_error=None) -> RenderArguments:
     """Types, ranges and combinations of a render's arguments; a UserError (one line) otherwise.
     Local devices are resolved (listing them builds nothing) so that an unknown one is refused
     here; a Dask render's device spec is resolved by each worker."""
@@ -91,12 +91,35 @@ def check_render_arguments(*, spp=None, time_limit=None, width=None, height=None
     if shared and isinstance(intersector, Intersector) and intersector.name not in INTERSECTORS:
         raise UsageError(f"intersector {intersector.name!r}: several devices or a cluster need an intersector "
                          f"given by name ({', '.join(INTERSECTORS)}), one per device")
+    if adaptive is not None:
+        validate.flag(adaptive, "--adaptive")
+    if target_error is not None:
+        from .settings import check_target_error
+
+        check_target_error(target_error)
+        if adaptive is False:
+            raise UsageError("--target-error needs --adaptive")
+    check_adaptive(adaptive, devices=devices, scheduler=scheduler, resume=resume, checkpoint_every=checkpoint_every)
     if shared and isinstance(intersector, Intersector):
         intersector = intersector.name  # one instance per device (an instance holds one wavefront's state)
     if devices is not None and wave_size is not None:
         for d in devices:
             check_wave_memory(d, wave_size)
     return RenderArguments(spp, time_limit, wave_size, intersector, devices, checkpoint_every, device_timeout)
+
+
+def check_adaptive(adaptive, *, devices=None, scheduler=None, resume=False, checkpoint_every=None) -> None:
+    """Adaptive sampling (``adaptive``: the option, or ``ImageSettings.adaptive``) renders on one
+    device of this process, from the start: one line for what it cannot be combined with."""
+    if not adaptive:
+        return
+    if scheduler is not None:
+        raise UsageError("--adaptive renders on one device: it cannot be combined with --scheduler (Dask)")
+    if devices is not None and len(devices) > 1:
+        raise UsageError(f"--adaptive renders on one device, not {len(devices)}: choose one with --device")
+    if resume or checkpoint_every is not None:
+        raise UsageError("--adaptive cannot be combined with --resume or --checkpoint-every: a checkpoint does not "
+                         "hold the per-pixel sample counts")
 
 
 def _check_device_spec(device) -> None:

@@ -17,7 +17,11 @@ class Film:
 
     ``aov_sum`` (a film made with ``aovs=True``): the per-sample AOVs of the kernels summed the
     same way, ``abi.AOV_FLOATS`` per pixel at the ``abi.AOV_*`` offsets (render/aovs.py turns
-    them into layers); None otherwise."""
+    them into layers); None otherwise.
+
+    Adaptive sampling (render/adaptive.py) adds passes that cover some pixels only
+    (``add_pass(..., pixels=)``): ``counts`` then holds each pixel's samples (None while every
+    pixel has ``passes``), and ``passes`` stays the number of passes, the next pass's index."""
 
     width: int
     height: int
@@ -25,6 +29,7 @@ class Film:
     sum_sq: np.ndarray = None
     passes: int = 0
     aov_sum: np.ndarray | None = None
+    counts: np.ndarray | None = None  # int64 per pixel; None: every pixel has ``passes`` samples
 
     def __post_init__(self):
         if self.sum is None:
@@ -37,16 +42,47 @@ class Film:
         """An empty film; with ``aovs`` it also sums the kernels' AOVs."""
         return cls(width, height, aov_sum=np.zeros((width * height, abi.AOV_FLOATS), np.float64) if aovs else None)
 
-    def add_pass(self, radiance: np.ndarray, aov: np.ndarray | None = None) -> None:
-        """One pass: radiance (P x 3) and, for a film with AOVs, the pass's AOV ring (P x AOV_FLOATS)."""
+    def pixel_counts(self) -> np.ndarray:
+        """Samples of each pixel (P, int64)."""
+        return self.counts if self.counts is not None else np.full(self.width * self.height, self.passes, np.int64)
+
+    def add_pass(self, radiance: np.ndarray, aov: np.ndarray | None = None, pixels: np.ndarray | None = None) -> None:
+        """One pass: radiance (P x 3) and, for a film with AOVs, the pass's AOV ring (P x AOV_FLOATS).
+        With ``pixels`` (indices) the pass covers those pixels only and ``radiance`` holds their
+        values, in that order (len(pixels) x 3)."""
         r = radiance.astype(np.float64)
-        self.sum += r
-        self.sum_sq += r * r
+        if pixels is None:
+            self.sum += r
+            self.sum_sq += r * r
+            if self.counts is not None:
+                self.counts += 1
+        else:
+            if self.counts is None:
+                self.counts = self.pixel_counts().copy()
+            self.sum[pixels] += r
+            self.sum_sq[pixels] += r * r
+            self.counts[pixels] += 1
         if self.aov_sum is not None:
             if aov is None:
                 raise ValueError("this film sums AOVs: the pass must bring them")
-            self.aov_sum += aov
+            self.aov_sum[slice(None) if pixels is None else pixels] += aov
         self.passes += 1
+
+    def add_passes(self, radiance: np.ndarray, pixels: np.ndarray) -> None:
+        """Passes over the same ``pixels`` (k x len(pixels) x 3), without AOVs: the sums of
+        ``add_pass`` one pass after the other, bit for bit, gathered and scattered once."""
+        if self.aov_sum is not None:
+            raise ValueError("this film sums AOVs: add the passes one by one with them")
+        if self.counts is None:
+            self.counts = self.pixel_counts().copy()
+        s, q = self.sum[pixels], self.sum_sq[pixels]
+        for r in radiance:
+            r = r.astype(np.float64)
+            s += r
+            q += r * r
+        self.sum[pixels], self.sum_sq[pixels] = s, q
+        self.counts[pixels] += len(radiance)
+        self.passes += len(radiance)
 
     def add(self, sum: np.ndarray, sum_sq: np.ndarray, passes: int, aov_sum: np.ndarray | None = None) -> None:
         """Another film's sums (passes that follow this film's, for the same pass order)."""
@@ -56,24 +92,39 @@ class Film:
             if aov_sum is None:
                 raise ValueError("this film sums AOVs: the film added must have them")
             self.aov_sum += aov_sum
+        if self.counts is not None:
+            self.counts += passes
         self.passes += passes
 
     def copy(self) -> "Film":
+        def dup(a):
+            return None if a is None else a.copy()
+
         return Film(self.width, self.height, sum=self.sum.copy(), sum_sq=self.sum_sq.copy(), passes=self.passes,
-                    aov_sum=None if self.aov_sum is None else self.aov_sum.copy())
+                    aov_sum=dup(self.aov_sum), counts=dup(self.counts))
 
     def image(self) -> np.ndarray:
-        scale = 1.0 / max(self.passes, 1)
-        return (self.sum * scale).astype(np.float32).reshape(self.height, self.width, 3)
+        if self.counts is None:
+            scale = 1.0 / max(self.passes, 1)
+            return (self.sum * scale).astype(np.float32).reshape(self.height, self.width, 3)
+        scale = 1.0 / np.maximum(self.counts, 1)
+        return (self.sum * scale[:, None]).astype(np.float32).reshape(self.height, self.width, 3)
 
     def variance_of_mean(self) -> np.ndarray:
-        """Unbiased estimate of the variance of each pixel's mean (H x W x 3 float64)."""
-        n = self.passes
-        if n < 2:
-            return np.full((self.height, self.width, 3), np.inf)
-        mean = self.sum / n
-        var = np.maximum(self.sum_sq / n - mean * mean, 0.0) * (n / (n - 1))
-        return (var / n).reshape(self.height, self.width, 3)
+        """Unbiased estimate of the variance of each pixel's mean (H x W x 3 float64); +inf for a
+        pixel of fewer than 2 samples."""
+        if self.counts is None:
+            n = self.passes
+            if n < 2:
+                return np.full((self.height, self.width, 3), np.inf)
+            mean = self.sum / n
+            var = np.maximum(self.sum_sq / n - mean * mean, 0.0) * (n / (n - 1))
+            return (var / n).reshape(self.height, self.width, 3)
+        n = self.counts.astype(np.float64)[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mean = self.sum / n
+            var = np.maximum(self.sum_sq / n - mean * mean, 0.0) * (n / (n - 1)) / n
+        return np.where(n >= 2, var, np.inf).reshape(self.height, self.width, 3)
 
 
 @dataclass

@@ -46,21 +46,30 @@ def kernel_mode(device, intersector: str, film_aovs, requested: str | None = Non
 
 
 def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=False, first_pass=0,
-        cancel=None) -> RunStats:
+        cancel=None, pixels=None) -> RunStats:
     """:meth:`Wavefront.run` for the megakernel: whole passes per launch, as many as the wave
-    size allows, added to the film in pass order after each launch."""
+    size allows, added to the film in pass order after each launch.  ``pixels`` (adaptive
+    sampling; already in the ``pixel_list`` buffer): the passes cover those pixels only, and the
+    kernel writes each launch's results in order at the start of the ring, so that a short list
+    still fills the wave."""
     import pyopencl as cl
 
     if passes is None and time_limit is None:
         raise ValueError("give passes, time_limit or both")
-    n_pixels = wf.n_pixels
+    n_pixels = wf.n_pixels if pixels is None else len(pixels)  # samples of a pass
     queue = wf.rt.queue
     kernel = wf.kernels["path"]
     counters = wf.buffer("counters")
     stats = RunStats()
-    ring_host = np.empty((n_pixels, 3), np.float32)
-    passes_per_launch = max(1, min(wf.wave_size // n_pixels, wf.ring_size))
-    samples_per_launch = passes_per_launch * n_pixels
+    if pixels is None:
+        ring_host = np.empty((n_pixels, 3), np.float32)
+        passes_per_launch = max(1, min(wf.wave_size // n_pixels, wf.ring_size))
+    else:  # the ring holds ring_size * wf.n_pixels results in order: every launch's
+        passes_per_launch = max(1, min(wf.wave_size, wf.ring_size * wf.n_pixels) // n_pixels)
+        launch_host = np.empty((passes_per_launch * n_pixels, 3), np.float32)
+    # at most the wave (mat_scratch is indexed by work-item) and, with pixels, the ring's entries
+    samples_per_launch = min(passes_per_launch * n_pixels, wf.wave_size,
+                             passes_per_launch * n_pixels if pixels is None else wf.ring_size * wf.n_pixels)
     local = abi.WAVE_LOCAL_SIZE
     end = None if passes is None else first_pass + passes
     next_pass = first_pass
@@ -76,16 +85,22 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
             for first_pixel in range(0, count * n_pixels, samples_per_launch):
                 n = min(samples_per_launch, count * n_pixels - first_pixel)
                 wf.args.set("path", n_items=n, first_pass=next_pass, first_pixel=first_pixel,
-                            queue_in=wf.queue_a, queue_out=wf.queue_b, queue_base=0, free_base=0)
+                            queue_in=wf.queue_a, queue_out=wf.queue_b, queue_base=0, free_base=0,
+                            n_listed=0 if pixels is None else n_pixels)
                 event = cl.enqueue_nd_range_kernel(queue, kernel, (-(-n // local) * local,), (local,))
                 if profile:
                     event.wait()
                     stats.stage_seconds["path"] = stats.stage_seconds.get("path", 0.0) + \
                         (event.profile.end - event.profile.start) * 1e-9
+                if pixels is not None:  # n results in order, before the next launch overwrites them
+                    cl.enqueue_copy(queue, launch_host[first_pixel:first_pixel + n], wf.buffer("pass_ring"))
+            if pixels is not None:  # gathered once: the sums of add_pass pass after pass
+                film.add_passes(launch_host[:count * n_pixels].reshape(count, n_pixels, 3), pixels)
             for k in range(count):
-                ring = (next_pass + k) % wf.ring_size
-                cl.enqueue_copy(queue, ring_host, wf.buffer("pass_ring"), src_offset=ring * n_pixels * 12)
-                film.add_pass(ring_host)
+                if pixels is None:
+                    ring = (next_pass + k) % wf.ring_size
+                    cl.enqueue_copy(queue, ring_host, wf.buffer("pass_ring"), src_offset=ring * n_pixels * 12)
+                    film.add_pass(ring_host)
                 stats.passes += 1
                 stats.iterations += 1
                 if progress is not None:

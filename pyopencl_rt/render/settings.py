@@ -36,16 +36,23 @@ class ImageSettings:
     # sums them (render/aovs.py): the beauty is the same, but the film is not
     film_aovs: bool = False
     sampler: str = "sobol"  # where the random numbers come from (cl/render/sampler.h)
+    # adaptive sampling (render/adaptive.py): a pixel stops once its estimated relative error is at
+    # most target_error, the spp then being each pixel's maximum (None: no target, the spp a mean)
+    adaptive: bool = False
+    target_error: float | None = None
 
     @classmethod
     def resolve(cls, scene, *, width=None, height=None, max_depth=None, rr_depth=None, integrator=None,
-                seed=None, aovs=None, sampler=None) -> "ImageSettings":
+                seed=None, aovs=None, sampler=None, adaptive=None, target_error=None) -> "ImageSettings":
         """The scene's settings with every argument that is not None taking precedence; a
         UserError (one line) for values no render can use.  ``aovs``: the AOV layers wanted
         (names of render/aovs.py; default the scene's ``[film] aovs``)."""
         from .aovs import needs_kernel_aovs, parse_aovs
 
         st = scene.settings
+        adaptive = validate.flag(getattr(st, "adaptive", False) if adaptive is None else adaptive, "--adaptive")
+        if target_error is None and adaptive:  # the scene's target counts only when sampling is adaptive
+            target_error = getattr(st, "target_error", None)
         settings = cls(
             width=validate.integer(st.width if width is None else width, "--width"),
             height=validate.integer(st.height if height is None else height, "--height"),
@@ -57,6 +64,8 @@ class ImageSettings:
             film_aovs=needs_kernel_aovs(parse_aovs(getattr(st, "aovs", ()) if aovs is None else aovs)),
             sampler=validate.choice(getattr(st, "sampler", "sobol") if sampler is None else sampler, "sampler",
                                     SAMPLERS),
+            adaptive=adaptive,
+            target_error=check_target_error(target_error),
         )
         settings.check()
         return settings
@@ -69,6 +78,8 @@ class ImageSettings:
             raise UsageError(f"unknown integrator {self.integrator!r}: use one of {', '.join(INTEGRATORS)}")
         if self.sampler not in SAMPLERS:
             raise UsageError(f"unknown sampler {self.sampler!r}: use one of {', '.join(SAMPLERS)}")
+        if self.target_error is not None and not self.adaptive:
+            raise UsageError("--target-error needs --adaptive (or adaptive = true in the scene's [render])")
 
     @property
     def n_pixels(self) -> int:
@@ -96,6 +107,11 @@ def check_resolution(width, height) -> None:
     if width < 1 or height < 1 or width * height > MAX_PIXELS:
         raise UsageError(f"impossible resolution {width}x{height}: each side must be >= 1 and at most "
                         f"{MAX_PIXELS} pixels in all")
+
+
+def check_target_error(value) -> float | None:
+    """--target-error: a relative error > 0 (None: not given)."""
+    return None if value is None else validate.number(value, "--target-error", positive=True)
 
 
 def check_run(spp=None, time_limit=None) -> None:

@@ -145,6 +145,7 @@ class Wavefront:
             free_q=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32)),
             counters=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host),
             pass_ring=scratch(3 * 4 * P * self.ring_size), env_map=const(env_map), env_cdf=const(env_cdf),
+            pixel_list=scratch(4 * P),  # filled by run(pixels=) (adaptive sampling)
             n_spheres=len(scene.spheres), n_lights=self.n_lights, n_pixels=P, ring_size=self.ring_size,
             max_depth=self.settings.max_depth, rr_depth=self.settings.rr_depth, seed=self.settings.seed,
         )
@@ -226,8 +227,11 @@ class Wavefront:
         return cl.enqueue_nd_range_kernel(self.rt.queue, self.kernels[stage], (size,), (LOCAL_SIZE,))
 
     def run(self, film: Film, passes: int | None = None, time_limit: float | None = None,
-            progress=None, profile: bool = False, first_pass: int = 0, cancel=None) -> RunStats:
+            progress=None, profile: bool = False, first_pass: int = 0, cancel=None, pixels=None) -> RunStats:
         """Render passes [first_pass, first_pass + passes) (or until time_limit seconds) into film.
+
+        ``pixels`` (adaptive sampling, :mod:`pyopencl_rt.render.adaptive`): the passes cover only
+        these pixels (distinct indices), each added to the film with ``add_pass(..., pixels=)``.
 
         Returns when every started pass is complete; on KeyboardInterrupt the passes in flight are
         dropped and what is complete stays in the film (stats.interrupted is set).  ``cancel``, a
@@ -237,13 +241,15 @@ class Wavefront:
         import pyopencl as cl
 
         check_pass_range(first_pass, passes)
+        pixels = self._upload_pixels(pixels)
         if self.kernel_mode == "megakernel":
             from . import megakernel
 
-            return megakernel.run(self, film, passes, time_limit, progress, profile, first_pass, cancel)
+            return megakernel.run(self, film, passes, time_limit, progress, profile, first_pass, cancel, pixels)
         if passes is None and time_limit is None:
             raise ValueError("give passes, time_limit or both")
-        P = self.n_pixels
+        P = self.n_pixels if pixels is None else len(pixels)  # samples of a pass
+        n_listed = 0 if pixels is None else P
         queue = self.rt.queue
         stats = RunStats(stage_seconds=dict.fromkeys(STAGES, 0.0))
         host_before = dict(self.intersector.host_seconds)
@@ -254,8 +260,8 @@ class Wavefront:
         qin, qout = self.queue_a, self.queue_b
         counters = self.buffer("counters")
         iteration_zeros = np.zeros(abi.ITERATION_COUNTERS, np.int32)
-        ring_host = np.empty((P, 3), np.float32)
-        aov_host = np.empty((P, abi.AOV_FLOATS), np.float32) if self.settings.film_aovs else None
+        ring_host = np.empty((self.n_pixels, 3), np.float32)
+        aov_host = np.empty((self.n_pixels, abi.AOV_FLOATS), np.float32) if self.settings.film_aovs else None
         events = []
         try:
             while True:
@@ -274,7 +280,7 @@ class Wavefront:
                 if n_gen:
                     ev = self.launch("generate", n_gen, qin, qout, n_items=n_gen, first_pass=self.next_sample // P,
                                      first_pixel=self.next_sample % P, queue_base=self.n_active,
-                                     free_base=self.n_free)
+                                     free_base=self.n_free, n_listed=n_listed)
                     events.append(("generate", ev))
                     self.n_active += n_gen
                     self.n_free -= n_gen
@@ -305,13 +311,16 @@ class Wavefront:
                 # completed passes, in order, into the film
                 while c[abi.COUNTER_PASS_DONE + self.oldest_pass % self.ring_size] == P:
                     ring = self.oldest_pass % self.ring_size
-                    cl.enqueue_copy(queue, ring_host, self.buffer("pass_ring"), src_offset=ring * P * 12)
+                    cl.enqueue_copy(queue, ring_host, self.buffer("pass_ring"), src_offset=ring * ring_host.nbytes)
                     if aov_host is not None:
                         cl.enqueue_copy(queue, aov_host, self.buffer("aov_ring"), src_offset=ring * aov_host.nbytes)
                     cl.enqueue_copy(queue, counters, np.zeros(1, np.int32),
                                     dst_offset=(abi.COUNTER_PASS_DONE + ring) * 4)
                     c[abi.COUNTER_PASS_DONE + ring] = 0
-                    film.add_pass(ring_host, aov_host)
+                    if pixels is None:
+                        film.add_pass(ring_host, aov_host)
+                    else:  # the ring is indexed by pixel: the listed ones
+                        film.add_pass(ring_host[pixels], None if aov_host is None else aov_host[pixels], pixels=pixels)
                     self.oldest_pass += 1
                     stats.passes += 1
                     if progress is not None:
@@ -328,6 +337,19 @@ class Wavefront:
             for name, seconds in self.intersector.host_seconds.items():
                 stats.stage_seconds[name] += seconds - host_before[name]
         return stats
+
+    def _upload_pixels(self, pixels):
+        """The pixel list of an adaptive run, checked and copied to ``pixel_list`` (None: every pixel)."""
+        if pixels is None:
+            return None
+        import pyopencl as cl
+
+        pixels = np.ascontiguousarray(pixels, np.int32)
+        if pixels.ndim != 1 or not 0 < len(pixels) <= self.n_pixels or pixels.min() < 0 \
+                or pixels.max() >= self.n_pixels or len(np.unique(pixels)) != len(pixels):
+            raise ValueError(f"pixels must be 1 to {self.n_pixels} distinct pixel indices")
+        cl.enqueue_copy(self.rt.queue, self.buffer("pixel_list"), pixels)
+        return pixels
 
     def _reset_wave(self):
         """Forget the paths in flight (after an interrupt): every slot free, counters zero."""

@@ -169,6 +169,8 @@ class RenderSettings:
     seed: int = 0
     rr_depth: int = 5  # Russian roulette starts after this many bounces (Mitsuba's default; docs/SAMPLING.md)
     sampler: str = "sobol"  # one of SAMPLERS
+    adaptive: bool = False  # adaptive sampling (render/adaptive.py): spp a pixel's maximum (with a target) or the mean
+    target_error: float | None = None  # with adaptive: a pixel stops at this relative error
     aovs: tuple = ()  # AOV layers written beside the beauty (names of AOVS)
 
 

@@ -139,6 +139,51 @@ def test_convergence_command_end_to_end(tmp_path, monkeypatch, capsys, device_sp
     assert json.loads((tmp_path / "again.json").read_text())["reference"]["source"] == "cache"
 
 
+def test_convergence_adaptive_curves(tmp_path, monkeypatch, capsys, device_spec):
+    """--adaptive: an adaptive curve beside each sampler's on the same plot and JSON, whose
+    points are its film at the schedule's pass counts (the spp, a mean, grows; the error falls),
+    with its time to relMSE against the plain curve of the same sampler."""
+    monkeypatch.setenv("PYOPENCL_RT_CACHE", str(tmp_path / "cache"))
+    out = tmp_path / "conv.json"
+    main(["bench", "convergence", "scenes/mitsuba-cbox.toml", "--device", device_spec, "--width", "16", "--height",
+          "16", "--budget", "8", "--sampler", "sobol,independent", "--adaptive", "--json", str(out)])
+    data = json.loads(out.read_text())
+    cv.validate(data)
+    labels = [c["label"] for c in data["curves"]]
+    assert [c["adaptive"] for c in data["curves"]] == [False, True, False, True]
+    assert [c["sampler"] for c in data["curves"]] == ["sobol", "sobol", "independent", "independent"]
+    assert labels[1] == labels[0] + " / adaptive"
+    for curve in data["curves"][1::2]:
+        points = curve["points"]
+        assert len(points) >= 3 and points[-1]["relmse"] < points[0]["relmse"]
+        assert [p["seconds"] for p in points] == sorted(p["seconds"] for p in points)
+        assert all(p["spp_max"] >= p["spp"] for p in points)
+        assert points[-1]["spp_max"] > points[-1]["spp"]  # the samples went to some pixels only
+        gain = curve["adaptive_gain"]
+        if gain is not None:
+            assert gain["plain"] in labels and gain["speedup"] == pytest.approx(gain["plain_seconds"] / gain["seconds"])
+    assert "without adaptive sampling" in capsys.readouterr().out or all(
+        c.get("adaptive_gain") is None for c in data["curves"])
+
+
+def test_adaptive_gain_compares_the_same_sampler():
+    """The gain is read at the lowest target both curves reach, against the plain curve of the
+    same sampler, never one extrapolated."""
+    from pyopencl_rt.bench.convergence_analysis import adaptive_gain
+
+    def curve(sampler, adaptive, t2, t3, extrapolated=False):
+        return {"label": f"{sampler}{' a' if adaptive else ''}", "renderer": "pyopencl_rt", "device": "d",
+                "integrator": "path", "intersector": "opencl", "sampler": sampler, "adaptive": adaptive,
+                "time_to_relmse": {"0.01": {"seconds": t2, "extrapolated": False},
+                                   "0.001": {"seconds": t3, "extrapolated": extrapolated}}}
+    curves = [curve("sobol", False, 1.0, 10.0), curve("independent", False, 2.0, 20.0),
+              curve("independent", True, 1.0, 5.0), curve("sobol", True, 0.5, 4.0, extrapolated=True)]
+    assert adaptive_gain(curves[2], curves) == {
+        "plain": "independent", "at_relmse": 1e-3, "seconds": 5.0, "plain_seconds": 20.0, "speedup": 4.0}
+    assert adaptive_gain(curves[3], curves)["at_relmse"] == 1e-2
+    assert adaptive_gain(curves[3], curves[2:]) is None
+
+
 def test_convergence_rejects_bad_options():
     with pytest.raises(SystemExit) as exc:
         main(["bench", "convergence", CORNELL, "--integrator", "path,wrong"])

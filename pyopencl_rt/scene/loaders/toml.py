@@ -18,6 +18,8 @@
     seed = 0                      # default 0
     rr_depth = 5                  # Russian roulette starts after this many bounces, default 5
     sampler = "sobol"             # "sobol" | "stratified" | "independent", default "sobol"
+    adaptive = false              # adaptive sampling (spp: a pixel's maximum, or the mean), default false
+    target_error = 0.02           # with adaptive: a pixel stops at this relative error, default none
 
     [materials.white]             # one table per material, referred to by NAME
     type = "diffuse"              # a type of pyopencl_rt.scene.materials (default "diffuse"),
@@ -88,7 +90,7 @@ _CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distanc
 _LIGHT_KEYS = {"point": {"type", "position", "intensity"}, "directional": {"type", "direction", "irradiance"}}
 _ENVIRONMENT_KEYS = {"radiance", "file", "scale"}
 _FILM_KEYS = {"width", "height", "aovs"}
-_RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth", "sampler"}
+_RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth", "sampler", "adaptive", "target_error"}
 # the keys of every [materials.NAME]; each type adds its own (MaterialType.toml_keys)
 MATERIAL_COMMON_KEYS = frozenset({"type", "emission", "two_sided", "emission_texture"})
 _TRANSFORM_KEYS = {"translate", "scale", "rotate", "matrix", "flip_normals"}
@@ -359,6 +361,10 @@ def _read_settings(ctx, film, render) -> RenderSettings:
         s.integrator = check_choice(ctx, "[render]", "integrator", render["integrator"], INTEGRATORS)
     if "sampler" in render:
         s.sampler = check_choice(ctx, "[render]", "sampler", render["sampler"], SAMPLERS)
+    if "adaptive" in render:
+        s.adaptive = check_boolean(ctx, "[render]", "adaptive", render["adaptive"])
+    if "target_error" in render:
+        s.target_error = check_number(ctx, "[render]", "target_error", render["target_error"], positive=True)
     return s
 
 
