@@ -62,14 +62,18 @@ class Progress:
         self.base = 0  # passes already in the film (a resumed render); set by render_full
         self.rows = None  # per-device rows of a multi-device or Dask render
         self.shown = None
+        self.samples = None  # samples so far, where passes x pixels would be wrong (adaptive sampling)
 
     def device_rows(self, rows):
         """Each device's (or Dask worker's) samples/s and share of the passes, as LuxCore shows them."""
         self.rows = rows
 
     def __call__(self, passes, elapsed):
-        rate = passes * self.n_pixels / elapsed if elapsed > 0 else 0.0
+        samples = passes * self.n_pixels if self.samples is None else self.samples
+        rate = samples / elapsed if elapsed > 0 else 0.0
         passes += self.base
+        if self.samples is not None:  # adaptive: the mean spp, which is what --spp sets
+            passes = round(self.samples / self.n_pixels)
         if self.quiet or (elapsed - self.last < 0.5 and passes != self.total) or passes == self.shown == self.total:
             return
         self.last, self.shown = elapsed, passes

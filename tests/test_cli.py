@@ -169,3 +169,19 @@ def test_render_adaptive_sidecar_and_spp_layer(tmp_path):
     assert spp.shape == (12, 16) and spp.min() == record["spp_min"] and spp.mean() == pytest.approx(record["spp_mean"])
     assert info["samples"] == int(spp.sum())
     assert f"{record['spp_mean']:.1f} spp per pixel on average" in r.stdout
+
+
+def test_progress_bar_of_an_adaptive_render_counts_samples(tmp_path):
+    """The bar of an adaptive render shows the mean spp and the samples/s actually taken (the
+    passes reach far beyond --spp for the pixels refined most; passes x pixels overstated the
+    rate 8x), so its last figure agrees with the summary line's."""
+    out = tmp_path / "a.exr"
+    r = run_cli("render", str(REPO / "scenes" / "mitsuba-cbox.toml"), "-o", str(out), "--spp", "64", "--width", "32",
+                "--height", "32", "--adaptive", "--device", "cpu", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    last = r.stderr.replace("\r", "\n").strip().splitlines()[-1]
+    shown, total = (int(v) for v in re.search(r"(\d+)/(\d+) spp", last).groups())
+    bar_rate = float(re.search(r"([\d.]+) Msamples/s", last).group(1))
+    summary_rate = float(re.search(r"\(([\d.]+) Msamples/s\)", r.stdout).group(1))
+    assert shown == total == 64
+    assert bar_rate == pytest.approx(summary_rate, rel=0.3)

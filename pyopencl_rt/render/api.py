@@ -227,6 +227,8 @@ def _render_prepared(job: _Job, wf: Wavefront) -> _Run:
     def tick(passes, elapsed):
         job.tick(job.film)
         if job.progress is not None:
+            if job.settings.adaptive and hasattr(job.progress, "samples"):  # the CLI's bar: samples, not passes
+                job.progress.samples = int(job.film.pixel_counts().sum())
             job.progress(passes, elapsed)
 
     if job.settings.adaptive:
