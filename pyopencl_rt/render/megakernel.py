@@ -72,6 +72,15 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
                              passes_per_launch * n_pixels if pixels is None else wf.ring_size * wf.n_pixels)
     local = abi.WAVE_LOCAL_SIZE
     end = None if passes is None else first_pass + passes
+    zero_rays = np.zeros(2, np.int32)
+
+    def take_ray_counts():
+        # after each launch's (blocking) result copies: the int32 counters then hold one launch's
+        # rays, never a whole run's (2^31 rays is minutes of rendering)
+        cl.enqueue_copy(queue, wf.counters_host, counters)
+        stats.rays_extend += int(wf.counters_host[abi.COUNTER_RAYS_EXTEND])
+        stats.rays_shadow += int(wf.counters_host[abi.COUNTER_RAYS_SHADOW])
+        cl.enqueue_copy(queue, counters, zero_rays, dst_offset=abi.COUNTER_RAYS_EXTEND * 4)
     next_pass = first_pass
     start = time.perf_counter()
     try:
@@ -106,14 +115,12 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
                 if progress is not None:
                     progress(stats.passes, time.perf_counter() - start)
             next_pass += count
+            take_ray_counts()
     except KeyboardInterrupt:
         stats.interrupted = True
     queue.finish()
-    cl.enqueue_copy(queue, wf.counters_host, counters)
+    take_ray_counts()
     stats.nonfinite = int(wf.counters_host[abi.COUNTER_NONFINITE])
-    stats.rays_extend = int(wf.counters_host[abi.COUNTER_RAYS_EXTEND])
-    stats.rays_shadow = int(wf.counters_host[abi.COUNTER_RAYS_SHADOW])
-    cl.enqueue_copy(queue, counters, np.zeros(2, np.int32), dst_offset=abi.COUNTER_RAYS_EXTEND * 4)
     stats.samples = stats.passes * n_pixels
     stats.seconds = time.perf_counter() - start
     return stats
