@@ -69,11 +69,10 @@ class Progress:
         self.rows = rows
 
     def __call__(self, passes, elapsed):
-        samples = passes * self.n_pixels if self.samples is None else self.samples
-        rate = samples / elapsed if elapsed > 0 else 0.0
-        passes += self.base
-        if self.samples is not None:  # adaptive: the mean spp, which is what --spp sets
-            passes = round(self.samples / self.n_pixels)
+        if self.samples is None:
+            rate, passes = (passes * self.n_pixels / elapsed if elapsed > 0 else 0.0), passes + self.base
+        else:  # adaptive: the samples taken and the mean spp (what --spp sets), not passes x pixels
+            rate, passes = (self.samples / elapsed if elapsed > 0 else 0.0), round(self.samples / self.n_pixels)
         if self.quiet or (elapsed - self.last < 0.5 and passes != self.total) or passes == self.shown == self.total:
             return
         self.last, self.shown = elapsed, passes
@@ -84,8 +83,7 @@ class Progress:
             frac = min(1.0, elapsed / self.time_limit)
             eta = max(0.0, self.time_limit - elapsed)
         bar = "#" * int(24 * frac) + "-" * (24 - int(24 * frac))
-        total = self.total if self.total else "?"
-        line = (f"[{bar}] {passes}/{total} spp  {_clock(elapsed)} elapsed  ETA {_clock(eta)}  "
+        line = (f"[{bar}] {passes}/{self.total or '?'} spp  {_clock(elapsed)} elapsed  ETA {_clock(eta)}  "
                 f"{rate / 1e6:.3f} Msamples/s")
         for r in self.rows or ():
             sps = r["samples_per_second"]

@@ -5,7 +5,7 @@ five small kernels and compacts queues after each bounce, which keeps a GPU's SI
 a CPU each work-item runs as scalar code anyway, so those round trips are pure cost: the
 megakernel keeps the path in registers and traces its shadow ray at once.  It computes the same
 samples in the same order with the same random numbers, so the image is identical, bit for bit;
-only the speed differs (docs/BENCHMARKS.md, "Megakernel").
+only the speed differs (docs/BENCHMARKS.md, "Samples per second against Mitsuba on the CPU").
 
 Which schedule a render uses (:func:`kernel_mode`): ``"megakernel"`` on CPU devices, the wavefront
 on the others, when the Embree intersector traces on the host (it needs the wavefront's ray
