@@ -56,6 +56,8 @@ def one_error(lines):
 OPTION_CASES = [
     (["--spp", "0"], 2, "--spp must be at least 1 (got 0)"),
     (["--spp", "2.5"], 2, "'2.5' is not a valid integer"),
+    # the kernels number passes with a 32-bit int: a larger spp rendered (wrapping) forever
+    (["--spp", "99999999999999999999"], 2, "--spp must be at most 2147483647 (got 99999999999999999999)"),
     (["--seed", "4294967296"], 2, "--seed must be at most 4294967295"),
     (["--seed", "-1"], 2, "--seed must be at least 0 (got -1)"),
     (["--wave-size", "0"], 2, "--wave-size must be at least 1 (got 0)"),
@@ -307,6 +309,7 @@ API_CASES = [
     (dict(spp=2.5), "--spp must be an integer, got float 2.5"),
     (dict(spp="4"), "--spp must be an integer, got string '4'"),
     (dict(spp=0), "--spp must be at least 1 (got 0)"),
+    (dict(spp=2**31), "--spp must be at most 2147483647 (got 2147483648)"),
     (dict(spp=True), "--spp must be an integer, got boolean true"),
     (dict(width=0), "--width must be at least 1 (got 0)"),
     (dict(seed=2**32), "--seed must be at most 4294967295 (got 4294967296)"),
@@ -421,7 +424,8 @@ def test_scene_made_in_python_is_checked_too():
     for change, message in ((lambda s: setattr(s, "vertices", s.vertices * np.float32(1e13)), "beyond 1.1e+12"),
                             (lambda s: setattr(s, "faces", s.faces + 10), "face vertex indices"),
                             (lambda s: setattr(s.materials[2], "emission", (np.nan, 0, 0)), "emission must be >= 0"),
-                            (lambda s: setattr(s.settings, "spp", 0), "settings: spp must be at least 1")):
+                            (lambda s: setattr(s.settings, "spp", 0), "settings: spp must be at least 1"),
+                            (lambda s: setattr(s.settings, "spp", 2**31), "settings: spp must be at most 2147483647")):
         s = small_scene(8, 8)
         change(s)
         with pytest.raises(UserError, match=message.replace("+", r"\+").replace("(", r"\(")):

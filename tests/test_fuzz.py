@@ -225,8 +225,10 @@ CLI_OPTIONS = {
     "-o": ["out.exr", "out.png", "sub/dir/out.exr", "out.txt", "/proc/x.exr", ".", "out"],
     "--checkpoint": ["c.ckpt.npz", "/proc/c.npz", "out.exr", "."],
     "--aov": ["albedo", "all", "normal,depth", "nope", ""],
+    "--sampler": ["sobol", "stratified", "independent", "multijitter", ""],
+    "--target-error": ["0.05", "0", "-1", "nan", "inf", "1e-30", "x"],
 }
-FLAGS = ["--resume", "--profile", "--quiet", "--denoise", "--no-exr"]
+FLAGS = ["--resume", "--profile", "--quiet", "--denoise", "--no-exr", "--adaptive"]
 
 
 @st.composite
@@ -293,6 +295,9 @@ API_VALUES = {
     "resume": [False, True, "yes"],
     "profile": [False, True, 1],
     "scheduler": [None, "foo", "local:0", "tcp://127.0.0.1:1"],
+    "sampler": [None, "sobol", "independent", "multijitter", 1],
+    "adaptive": [None, False, True, "yes", 1],
+    "target_error": [None, 0.05, 0, -1, math.nan, math.inf, "0.1"],
 }
 
 

@@ -203,6 +203,9 @@ TRI8_UNITS = define("TRI8_UNITS", TRI8.itemsize // 32)  # float8s per Tri8 packe
 BOX_PAD_RELATIVE = define("BOX_PAD_RELATIVE", 2.0**-20)
 # Work-group size of every wavefront launch: shade.cl sizes its local arrays with it.
 WAVE_LOCAL_SIZE = define("WAVE_LOCAL_SIZE", 64, overridable=True)
+# Passes a render may have: the kernels number them with a 32-bit int (first_pass, pass), so
+# --spp, a scene's spp and a checkpoint's pass count are refused beyond it (not a define).
+MAX_PASSES = 2**31 - 1
 
 # Slots of the wavefront's counters[] buffer.  The first three are the per-iteration queue
 # lengths, zeroed by the host before every extend (shade.cl indexes a 3-entry array with them);

@@ -12,6 +12,7 @@ import re
 from dataclasses import dataclass
 
 from .. import validate
+from ..device import abi
 from ..errors import UsageError, UserError
 from ..scene.model import INTEGRATORS
 from .intersectors import INTERSECTORS, Intersector
@@ -42,7 +43,7 @@ def check_render_arguments(*, spp=None, time_limit=None, width=None, height=None
     Local devices are resolved (listing them builds nothing) so that an unknown one is refused
     here; a Dask render's device spec is resolved by each worker."""
     if spp is not None:
-        spp = validate.integer(spp, "--spp", minimum=1)
+        spp = validate.integer(spp, "--spp", minimum=1, maximum=abi.MAX_PASSES)  # the kernels' int pass index
     if time_limit is not None:
         time_limit = validate.number(time_limit, "--time-limit", positive=True)
     if width is not None:

@@ -29,12 +29,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..device import abi
 from ..errors import UserError, one_line
 
 FORMAT = 1  # the layout above; a checkpoint records the format it was written in
 READABLE_FORMATS = (1,)
 MAX_META_BYTES = 1 << 20
-MAX_PASSES = 1 << 40
+MAX_PASSES = abi.MAX_PASSES  # the kernels number passes with a 32-bit int
 _HEX64 = re.compile(r"^[0-9a-f]{64}$")
 
 

@@ -160,12 +160,14 @@ def check_lights(scene) -> None:
 
 
 def check_settings(scene) -> None:
+    from ..device import abi
     from ..validate import integer
 
     st = scene.settings
     for name, minimum in (("width", 1), ("height", 1), ("spp", 1), ("max_depth", -1), ("rr_depth", 0), ("seed", 0)):
         try:
-            integer(getattr(st, name), name, minimum=minimum, maximum=2**32 - 1 if name == "seed" else None)
+            integer(getattr(st, name), name, minimum=minimum,
+                    maximum={"seed": 2**32 - 1, "spp": abi.MAX_PASSES}.get(name))
         except UserError as exc:
             _fail(scene, f"settings: {exc}")
 
