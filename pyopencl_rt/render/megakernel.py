@@ -67,9 +67,9 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
     else:  # the ring holds ring_size * wf.n_pixels results in order: every launch's
         passes_per_launch = max(1, min(wf.wave_size, wf.ring_size * wf.n_pixels) // n_pixels)
         launch_host = np.empty((passes_per_launch * n_pixels, 3), np.float32)
-    # at most the wave (mat_scratch is indexed by work-item) and, with pixels, the ring's entries
-    samples_per_launch = min(passes_per_launch * n_pixels, wf.wave_size,
-                             passes_per_launch * n_pixels if pixels is None else wf.ring_size * wf.n_pixels)
+    # at most the wave (mat_scratch is indexed by work-item); with pixels, passes_per_launch already
+    # keeps a launch within the ring's ring_size * wf.n_pixels entries (n_pixels <= wf.n_pixels)
+    samples_per_launch = min(passes_per_launch * n_pixels, wf.wave_size)
     local = abi.WAVE_LOCAL_SIZE
     end = None if passes is None else first_pass + passes
     zero_rays = np.zeros(2, np.int32)
