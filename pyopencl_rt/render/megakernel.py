@@ -11,11 +11,6 @@ Which schedule a render uses (:func:`kernel_mode`): ``"megakernel"`` on CPU devi
 on the others, when the Embree intersector traces on the host (it needs the wavefront's ray
 queues) and when film AOVs are requested (their per-path state lives in the wavefront's buffers).
 ``$PYOPENCL_RT_KERNEL_MODE`` or the ``kernel_mode`` argument overrides the choice.
-
-On small scenes the megakernel traces its rays in packets (cl/megakernel/packet.cl): each work-item
-keeps :data:`PACKET_WIDTH` paths in the lanes of its vectors and traces their rays together, which
-costs less than one traversal per ray when the rays of a packet visit the same few BVH nodes
-(:func:`packet_width` says when; docs/BENCHMARKS.md has the measurements behind the threshold).
 """
 from __future__ import annotations
 
@@ -31,11 +26,6 @@ from .film import Film, RunStats
 KERNEL_MODES = ("wavefront", "megakernel")
 KERNEL_MODE_ENV = "PYOPENCL_RT_KERNEL_MODE"
 SOURCES = ("megakernel/path.cl",)
-PACKET_SOURCES = ("megakernel/packet.cl",)
-PACKET_ENV = "PYOPENCL_RT_PACKET_WIDTH"
-PACKET_WIDTH = 16           # paths per work-item: one AVX-512 register of floats (two AVX2 ones)
-PACKET_BLOCK = 16 * PACKET_WIDTH  # samples per work-item, taken in turn by its lanes
-PACKET_MAX_TRIANGLES = 4096  # above this the single-ray traversal is faster (docs/BENCHMARKS.md)
 
 
 def kernel_mode(device, intersector: str, film_aovs, requested: str | None = None) -> str:
@@ -53,26 +43,6 @@ def kernel_mode(device, intersector: str, film_aovs, requested: str | None = Non
     if requested == "auto":
         return "megakernel" if can_megakernel and device.type & cl.device_type.CPU else "wavefront"
     return requested
-
-
-def packet_width(mode: str, layout: str, n_triangles: int, requested=None) -> int:
-    """Paths per work-item of the megakernel: :data:`PACKET_WIDTH` (packet tracing) for a scene of
-    at most :data:`PACKET_MAX_TRIANGLES` triangles on the 8-wide BVH (the CPU layout, which the packet
-    traversal reads), else 0 (one path per work-item, cl/megakernel/path.cl).  ``requested`` or
-    ``$PYOPENCL_RT_PACKET_WIDTH`` overrides the choice: 0 (off), 8 or 16."""
-    if mode != "megakernel" or layout != "wide8" or n_triangles == 0:
-        return 0
-    text = requested if requested is not None else os.environ.get(PACKET_ENV)
-    if text is None or str(text).strip() == "":
-        return PACKET_WIDTH if n_triangles <= PACKET_MAX_TRIANGLES else 0
-    if str(text).strip() not in ("0", "8", "16"):
-        raise UserError(f"${PACKET_ENV}={text!r}: use 0 (one path per work-item), 8 or 16")
-    return int(text)
-
-
-def packet_features(width: int) -> dict:
-    """The defines of the packet megakernel (none without packets)."""
-    return {"PACKET_WIDTH": width, "PACKET_BLOCK": 16 * width} if width else {}
 
 
 def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=False, first_pass=0,
@@ -101,7 +71,6 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
     # keeps a launch within the ring's ring_size * wf.n_pixels entries (n_pixels <= wf.n_pixels)
     samples_per_launch = min(passes_per_launch * n_pixels, wf.wave_size)
     local = abi.WAVE_LOCAL_SIZE
-    block = packet_features(wf.packet_width).get("PACKET_BLOCK", 1)  # samples per work-item
     end = None if passes is None else first_pass + passes
     zero_rays = np.zeros(2, np.int32)
 
@@ -127,8 +96,7 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
                 wf.args.set("path", n_items=n, first_pass=next_pass, first_pixel=first_pixel,
                             queue_in=wf.queue_a, queue_out=wf.queue_b, queue_base=0, free_base=0,
                             n_listed=0 if pixels is None else n_pixels)
-                items = -(-n // block)
-                event = cl.enqueue_nd_range_kernel(queue, kernel, (-(-items // local) * local,), (local,))
+                event = cl.enqueue_nd_range_kernel(queue, kernel, (-(-n // local) * local,), (local,))
                 if profile:
                     event.wait()
                     stats.stage_seconds["path"] = stats.stage_seconds.get("path", 0.0) + \

@@ -103,14 +103,9 @@ class Wavefront:
         self.kernel_mode = megakernel.kernel_mode(device, self.intersector.name, getattr(settings, "film_aovs", None),
                                                   kernel_mode)
 
-        self.packet_width = megakernel.packet_width(self.kernel_mode, self.bvh_layout, len(self.bvh.prim_ids))
-        self.features.update(megakernel.packet_features(self.packet_width))
-
         self.rt = runtime(device)
         t0 = time.perf_counter()
-        if self.packet_width:
-            self.kernels = {"path": cl.Kernel(self.rt.program(megakernel.PACKET_SOURCES, self.features), "mk_packet")}
-        elif self.kernel_mode == "megakernel":
+        if self.kernel_mode == "megakernel":
             self.kernels = {"path": cl.Kernel(self.rt.program(megakernel.SOURCES, self.features), "mk_path")}
         else:
             prog = self.rt.program(SOURCES, self.features)
