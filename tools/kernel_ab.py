@@ -5,7 +5,8 @@
 
 Each ``--variant`` is ImageSettings overrides (kernel_mode, sampler, max_depth, ...) and
 optionally ``defines``: extra kernel defines (switches such as RT_PORTABLE_BUILTINS in
-cl/cpu_builtins.h).  Every variant is built and warmed up first; then each round renders every
+cl/cpu_builtins.h), and ``env``: environment variables set while the variant is built (such as
+``{"PYOPENCL_RT_PACKET_WIDTH": "0"}``, the megakernel without packets).  Every variant is built and warmed up first; then each round renders every
 variant once, in turn, so a shared machine's load falls on all of them alike.  Printed per
 variant: the median Msamples/s over the rounds, and its ratio to the first variant's median,
 plus the median of the per-round ratios (robust to load that drifts between rounds).  The images
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -47,9 +49,17 @@ def main(argv=None):
         for text in args.variant:
             config = json.loads(text)
             defines = config.pop("defines", {})
+            env = config.pop("env", {})
+            saved = {k: os.environ.get(k) for k in env}
+            os.environ.update(env)
             # the features are read when the kernels are built, in the constructor
             wavefront_module.kernel_features = lambda *a, _d=defines, **k: {**features(*a, **k), **_d}
             wf = wavefront_module.Wavefront(scene, device, width=args.width, height=args.width, **config)
+            for k, v in saved.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
             wf.run(Film(args.width, args.width), passes=1)  # warm-up
             engines.append((text, wf))
     finally:
