@@ -180,6 +180,11 @@ RT_INLINE int path_shade_hit(PATH_PARAMS, int slot, SampleKey sk, int prim, floa
 
     const int segments = s->depth + 1;
     if (max_depth >= 0 && segments >= max_depth) return 0;
+    /* the bounce's samples, all at once (sample_bounce: lane j is id dim + j) */
+    const float8 su = sample_bounce(sk, dim);
+#if DIM_LIGHT_PICK != 0 || DIM_LIGHT_POINT != 1 || DIM_BSDF != 3 || DIM_RR != 5 || DIM_BSDF_LOBE != 6
+#error "path_shade_hit reads sample_bounce's lanes by the DIM_* layout of cl/render/sampler.h"
+#endif
 
     /* -- next-event estimation -------------------------------------------------------------- */
 #if defined(HAS_LIGHTS) && INTEGRATOR != 1
@@ -190,8 +195,8 @@ RT_INLINE int path_shade_hit(PATH_PARAMS, int slot, SampleKey sk, int prim, floa
          * so light_pdf() at a BSDF hit sees the same point. */
         const float3 ref = offset_ray_origin_bound(p, p_err, n);
         float pick_pmf;
-        const int li = sample_alias(lights, n_lights, sample_1d(sk, dim + DIM_LIGHT_PICK), &pick_pmf);
-        const float2 ul = sample_2d(sk, dim + DIM_LIGHT_POINT);
+        const int li = sample_alias(lights, n_lights, su.s0, &pick_pmf);
+        const float2 ul = su.s12;
         LightSample ls;
         const int sampled = pick_pmf > 0.0f &&
                             light_sample_all(tris, spheres, materials, env_map, env_cdf, lights + li, ref, ul, &ls);
@@ -232,8 +237,7 @@ RT_INLINE int path_shade_hit(PATH_PARAMS, int slot, SampleKey sk, int prim, floa
     float3 wi;
     float pdf;
     int delta;
-    const float2 ud = sample_2d(sk, dim + DIM_BSDF);
-    const float3 lobe_u = (float3)(ud.x, ud.y, sample_1d(sk, dim + DIM_BSDF_LOBE));
+    const float3 lobe_u = (float3)(su.s3, su.s4, su.s6);
     const float3 weight = bsdf_sample(m, n, front, wo, lobe_u, &wi, &pdf, &delta);
     if (!((pdf > 0.0f || delta) && max3(weight) > 0.0f)) return result;
     const float3 beta = s->beta * weight;
@@ -246,7 +250,7 @@ RT_INLINE int path_shade_hit(PATH_PARAMS, int slot, SampleKey sk, int prim, floa
 #else
         q = fmin(max3(beta) * eta_scale, 0.95f);
 #endif
-        if (sample_1d(sk, dim + DIM_RR) >= q) return result;
+        if (su.s5 >= q) return result;
     }
     s->beta = segments >= rr_depth ? beta / q : beta;
     s->o = offset_ray_origin_bound(p, p_err, dot(ng, wi) > 0.0f ? ng : -ng);

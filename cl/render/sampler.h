@@ -207,4 +207,91 @@ RT_INLINE float2 sample_2d(SampleKey k, uint dim)
 #endif
 }
 
+/* ---------------------------------------------------------------------------------------------
+ * All the samples of one bounce at once: lane j of the result is sample id dim + j of the
+ * layout above (lane DIM_LIGHT_PICK = sample_1d(k, dim + DIM_LIGHT_PICK), lanes DIM_LIGHT_POINT
+ * and + 1 = sample_2d(k, dim + DIM_LIGHT_POINT), and so on; lane 7, unused, is sample_1d of id
+ * dim + 7), bit for bit the values of those calls (tests/render/test_sampler.py).
+ *
+ * Why: the samplers are integer hashing, permutations and bit reversals, 100-150 instructions a
+ * sample; path_shade_hit draws seven values a bounce, a fifth of the megakernel's time outside
+ * the traversal (perf, functions kept out of line).  The eight lanes do the same steps, so one
+ * pass over uint8 vectors (one AVX2 register) computes them together.
+ * --------------------------------------------------------------------------------------------- */
+RT_INLINE uint8 hash_u32x8(uint8 x)
+{
+    x ^= x >> 16;
+    x *= 0x7feb352du;
+    x ^= x >> 15;
+    x *= 0x846ca68bu;
+    x ^= x >> 16;
+    return x;
+}
+
+RT_INLINE float8 u32_to_unit_float8(uint8 h) { return convert_float8(h >> 8) * 0x1.0p-24f; }
+
+#if SAMPLER != SAMPLER_INDEPENDENT
+RT_INLINE uint8 reverse_bits32x8(uint8 x)
+{
+    x = (x << 16) | (x >> 16);
+    x = ((x & 0x00ff00ffu) << 8) | ((x >> 8) & 0x00ff00ffu);
+    x = ((x & 0x0f0f0f0fu) << 4) | ((x >> 4) & 0x0f0f0f0fu);
+    x = ((x & 0x33333333u) << 2) | ((x >> 2) & 0x33333333u);
+    x = ((x & 0x55555555u) << 1) | ((x >> 1) & 0x55555555u);
+    return x;
+}
+
+RT_INLINE uint8 lk_permute_x8(uint8 x, uint8 seed)
+{
+    x += seed;
+    x ^= x * 0x6c50b47cu;
+    x ^= x * 0xb82f1e52u;
+    x ^= x * 0xc7afe638u;
+    x ^= x * 0x8d22f6e6u;
+    return x;
+}
+#endif
+
+/* lane j: 1 where id dim + j is the second coordinate of a 2D sample (DIM_LIGHT_POINT + 1,
+ * DIM_BSDF + 1), else 0 */
+#define BOUNCE_SECOND ((uint8)(0u, 0u, 1u, 0u, 1u, 0u, 0u, 0u))
+#define BOUNCE_IS_2D ((uint8)(0u, 1u, 1u, 1u, 1u, 0u, 0u, 0u))
+
+RT_INLINE float8 sample_bounce(SampleKey k, uint dim)
+{
+    const uint8 ids = (uint8)(dim) + (uint8)(0u, 1u, 2u, 3u, 4u, 5u, 6u, 7u);
+#if SAMPLER == SAMPLER_INDEPENDENT
+    /* rng_uniform(k.a, k.b, k.c, id) per lane: a 2D sample is ids dim and dim + 1 */
+    uint8 h = hash_u32x8(ids + RNG_KEY_OFFSET);
+    h = hash_u32x8((uint8)(k.c) ^ h);
+    h = hash_u32x8((uint8)(k.b) ^ h);
+    return u32_to_unit_float8(hash_u32x8((uint8)(k.a) ^ h));
+#else
+    /* a 2D sample's second coordinate uses its first id's seed and index */
+    const uint8 seed_ids = ids - BOUNCE_SECOND;
+    const uint8 s0 = hash_u32x8((uint8)(k.b) ^ hash_u32x8(seed_ids + RNG_KEY_OFFSET));
+    const uint8 index = reverse_bits32x8(lk_permute_x8((uint8)(k.c), s0));
+#if SAMPLER == SAMPLER_SOBOL
+    /* second coordinates: Sobol dimension 1 of the index (sobol_dim1_reversed) */
+    uint8 rv = index;
+    rv ^= (rv >> 1) & 0x55555555u;
+    rv ^= (rv >> 2) & 0x33333333u;
+    rv ^= (rv >> 4) & 0x0f0f0f0fu;
+    rv ^= (rv >> 8) & 0x00ff00ffu;
+    rv ^= (rv >> 16) & 0x0000ffffu;
+    const uint8 r = BOUNCE_SECOND != 0u ? rv : index;
+#else
+    /* 2D: the quadtree cells' even (first) or odd (second) bits, as gather_even_bits */
+    uint8 cells = lk_permute_x8(index, hash_u32x8(s0 ^ 3u)) >> BOUNCE_SECOND;
+    cells &= 0x55555555u;
+    cells = (cells | (cells >> 1)) & 0x33333333u;
+    cells = (cells | (cells >> 2)) & 0x0f0f0f0fu;
+    cells = (cells | (cells >> 4)) & 0x00ff00ffu;
+    cells = (cells | (cells >> 8)) & 0x0000ffffu;
+    const uint8 r = BOUNCE_IS_2D != 0u ? cells : index;
+#endif
+    return u32_to_unit_float8(reverse_bits32x8(lk_permute_x8(r, hash_u32x8(s0 ^ (1u + BOUNCE_SECOND)))));
+#endif
+}
+
 #endif

@@ -52,6 +52,26 @@ __kernel void h_sobol1(__global const uint *index, __global uint *out)
     out[2 * i + 1] = sobol_dim1_table(index[i]);
 }
 
+/* sample_bounce's eight lanes, then the seven samples of a bounce drawn one call at a time in
+ * its layout (lane 7 is sample_1d of id dim + 7) */
+__kernel void h_bounce(__global const uint *keys, __global float *out)
+{
+    const int i = get_global_id(0);
+    __global const uint *k = keys + 5 * i;
+    const SampleKey sk = sampler_key(k[0], k[1], k[2], k[3]);
+    const uint dim = k[4];
+    vstore8(sample_bounce(sk, dim), 2 * i, out);
+    const float2 point = sample_2d(sk, dim + DIM_LIGHT_POINT), bsdf = sample_2d(sk, dim + DIM_BSDF);
+    float one[8];
+    one[DIM_LIGHT_PICK] = sample_1d(sk, dim + DIM_LIGHT_PICK);
+    one[DIM_LIGHT_POINT] = point.x; one[DIM_LIGHT_POINT + 1] = point.y;
+    one[DIM_BSDF] = bsdf.x; one[DIM_BSDF + 1] = bsdf.y;
+    one[DIM_RR] = sample_1d(sk, dim + DIM_RR);
+    one[DIM_BSDF_LOBE] = sample_1d(sk, dim + DIM_BSDF_LOBE);
+    one[7] = sample_1d(sk, dim + 7);
+    for (int j = 0; j < 8; ++j) out[16 * i + 8 + j] = one[j];
+}
+
 __kernel void h_layout(__global uint *out)
 {
     out[0] = DIM_PIXEL; out[1] = DIM_LENS; out[2] = DIMS_PER_BOUNCE; out[3] = DIM_LIGHT_PICK;
@@ -215,6 +235,24 @@ def test_device_equals_numpy_copy(runtime, rng, name):
     assert np.array_equal(got, again)  # deterministic
     other = draw(runtime, KERNELS[name], seed + U(1), pixel, width, passes.astype(U), dim)
     assert np.mean(other == got) < 0.01  # another seed, other numbers
+
+
+@pytest.mark.parametrize("name", list(abi.SAMPLERS))
+def test_bounce_samples_equal_single_draws(runtime, rng, name):
+    """sample_bounce (all of a bounce's samples in one pass over eight lanes, what path_shade_hit
+    uses) gives each sample's sample_1d / sample_2d value bit for bit, at every bounce's ids and
+    at arbitrary ones (the lanes follow whatever the ids are)."""
+    n = 20_000
+    width = rng.integers(1, 9000, n).astype(U)
+    keys = np.stack([rng.integers(0, 2 ** 32, n, dtype=np.uint64).astype(U), (rng.integers(0, 2 ** 26, n) % width).astype(U),
+                     width, np.where(rng.random(n) < 0.5, rng.integers(0, 300, n),
+                                     rng.integers(0, 2 ** 32, n, dtype=np.uint64)).astype(U),
+                     np.where(rng.random(n) < 0.8, 2 + 8 * rng.integers(0, 64, n),
+                              rng.integers(0, 2 ** 32, n, dtype=np.uint64)).astype(U)], -1)
+    out = KERNELS[name](runtime, "h_bounce", n, keys=np.ascontiguousarray(keys), out=(n, 16))
+    assert np.array_equal(out[:, :8].view(np.uint32), out[:, 8:].view(np.uint32))
+    assert out.min() >= 0.0 and out.max() < 1.0
+    assert len(np.unique(out[:, :7])) > 0.99 * 7 * n  # seven different numbers per bounce
 
 
 def test_small_round_equals_numpy_copy(runtime, rng):
