@@ -186,14 +186,15 @@ RT_INLINE int path_shade_hit(PATH_PARAMS, int slot, SampleKey sk, int prim, floa
 #error "path_shade_hit reads sample_bounce's lanes by the DIM_* layout of cl/render/sampler.h"
 #endif
 
+    /* The spawn point on the viewer's side: the reference point of light sampling, not p
+     * itself (for an emitter whose own surface holds p, the inside of an emissive sphere, p is
+     * neither inside nor outside it), and the origin of a BSDF sample that leaves on that side,
+     * so light_pdf() at a BSDF hit sees the same point.  Computed once for both. */
+    const float3 ref = offset_ray_origin_bound(p, p_err, n);
+
     /* -- next-event estimation -------------------------------------------------------------- */
 #if defined(HAS_LIGHTS) && INTEGRATOR != 1
     if (bsdf_has_nondelta_lobes(m)) {
-        /* The reference point is the spawn point on the viewer's side, not p itself: for an
-         * emitter whose own surface holds p (the inside of an emissive sphere), p is neither
-         * inside nor outside it.  It is also the origin that a BSDF-sampled ray leaves from,
-         * so light_pdf() at a BSDF hit sees the same point. */
-        const float3 ref = offset_ray_origin_bound(p, p_err, n);
         float pick_pmf;
         const int li = sample_alias(lights, n_lights, su.s0, &pick_pmf);
         const float2 ul = su.s12;
@@ -253,7 +254,9 @@ RT_INLINE int path_shade_hit(PATH_PARAMS, int slot, SampleKey sk, int prim, floa
         if (su.s5 >= q) return result;
     }
     s->beta = segments >= rr_depth ? beta / q : beta;
-    s->o = offset_ray_origin_bound(p, p_err, dot(ng, wi) > 0.0f ? ng : -ng);
+    /* off the side wi leaves to: ng's if dot(ng, wi) > 0, else -ng's; that is n's (ref) when
+     * it agrees with front */
+    s->o = (dot(ng, wi) > 0.0f) == front ? ref : offset_ray_origin_bound(p, p_err, -n);
     s->d = wi;
     s->pdf = delta ? 0.0f : pdf;
     s->eta_scale = eta_scale;
