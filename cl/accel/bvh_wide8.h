@@ -203,16 +203,16 @@ RT_INLINE void wide8_decode(__global const float8 *base, int code, int *off, int
 /* Closest hit in (tmin, tmax), ordered as bvh_wide_closest_hit: the hit children of a node nearest
  * entry first (two compared directly, more through the sorting network), the others pushed far to
  * near, and a popped entry skipped when it was entered beyond the closest hit found since. */
-RT_INLINE Hit bvh_wide8_closest_hit(__global const void *bvh, __global const float4 *tris,
-                                    float3 o, float3 d, float tmin, float tmax)
+/* The traversal of the subtree at (off, cnt) (a node: cnt 0; a leaf: cnt packets), closer than
+ * hit->t; the packet traversal (bvh_packet.h) calls it for the few rays that enter a subtree. */
+RT_INLINE void wide8_closest_from(__global const float8 *base, const WideRay *rp, float tmin, Hit *hitp, int off,
+                                  int cnt)
 {
-    __global const float8 *base = (__global const float8 *)bvh;
-    Hit hit; hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.prim = PRIM_MISS;
-    const WideRay r = wide_ray(o, d);
+    const WideRay r = *rp;
+    Hit hit = *hitp;
     int stack_code[WIDE8_STACK_SIZE];
     float stack_t[WIDE8_STACK_SIZE];
     int sp = 0;
-    int off = 0, cnt = 0; /* the root node */
     for (;;) {
         if (cnt == 0) {
             __global const float8 *node = base + off;
@@ -251,22 +251,28 @@ RT_INLINE Hit bvh_wide8_closest_hit(__global const void *bvh, __global const flo
             intersect_leaf8(base + off, cnt, &r, tmin, &hit);
         }
         for (;;) {
-            if (sp == 0) return hit;
+            if (sp == 0) { *hitp = hit; return; }
             --sp;
             if (stack_t[sp] <= hit.t) { wide8_decode(base, stack_code[sp], &off, &cnt); break; }
         }
     }
 }
 
-/* Any hit in (tmin, tmax): returns 1 as soon as one triangle is hit (children in slot order). */
-RT_INLINE int bvh_wide8_any_hit(__global const void *bvh, __global const float4 *tris,
-                                float3 o, float3 d, float tmin, float tmax)
+RT_INLINE Hit bvh_wide8_closest_hit(__global const void *bvh, __global const float4 *tris,
+                                    float3 o, float3 d, float tmin, float tmax)
 {
-    __global const float8 *base = (__global const float8 *)bvh;
+    Hit hit; hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.prim = PRIM_MISS;
     const WideRay r = wide_ray(o, d);
+    wide8_closest_from((__global const float8 *)bvh, &r, tmin, &hit, 0, 0); /* from the root */
+    return hit;
+}
+
+/* Any hit in (tmin, tmax): returns 1 as soon as one triangle is hit (children in slot order). */
+RT_INLINE int wide8_any_from(__global const float8 *base, const WideRay *rp, float tmin, float tmax, int off, int cnt)
+{
+    const WideRay r = *rp;
     int stack_code[WIDE8_STACK_SIZE];
     int sp = 0;
-    int off = 0, cnt = 0;
     for (;;) {
         if (cnt == 0) {
             __global const float8 *node = base + off;
@@ -288,6 +294,13 @@ RT_INLINE int bvh_wide8_any_hit(__global const void *bvh, __global const float4 
         --sp;
         wide8_decode(base, stack_code[sp], &off, &cnt);
     }
+}
+
+RT_INLINE int bvh_wide8_any_hit(__global const void *bvh, __global const float4 *tris,
+                                float3 o, float3 d, float tmin, float tmax)
+{
+    const WideRay r = wide_ray(o, d);
+    return wide8_any_from((__global const float8 *)bvh, &r, tmin, tmax, 0, 0); /* from the root */
 }
 
 #endif

@@ -17,16 +17,20 @@
 
 #define RNG_KEY_OFFSET 0x9E3779B9u
 
-/* Chris Wellons' "lowbias32" integer finaliser (a bijection on 32 bits with low avalanche bias). */
-RT_INLINE uint hash_u32(uint x)
-{
-    x ^= x >> 16;
-    x *= 0x7feb352du;
-    x ^= x >> 15;
-    x *= 0x846ca68bu;
-    x ^= x >> 16;
-    return x;
-}
+/* Chris Wellons' "lowbias32" integer finaliser (a bijection on 32 bits with low avalanche bias).
+ * Defined through a macro for uint and for vectors of uint (the samplers' lane versions,
+ * cl/render/sampler.h and sampler_lanes.h), so that every version is the same code. */
+#define RT_DEFINE_HASH_U32(T, name)   \
+    RT_INLINE T name(T x)             \
+    {                                 \
+        x ^= x >> 16;                 \
+        x *= 0x7feb352du;             \
+        x ^= x >> 15;                 \
+        x *= 0x846ca68bu;             \
+        x ^= x >> 16;                 \
+        return x;                     \
+    }
+RT_DEFINE_HASH_U32(uint, hash_u32)
 
 /* The top 24 bits as a float in [0, 1): exact (24 bits fit the mantissa), at most 1 - 2^-24. */
 RT_INLINE float u32_to_unit_float(uint h) { return (float)(h >> 8) * 0x1.0p-24f; }

@@ -64,28 +64,35 @@
  * bit-reversed); stratified: (pass, key of the pixel, the pass bit-reversed) */
 typedef struct { uint a, b, c; } SampleKey;
 
-RT_INLINE uint reverse_bits32(uint x)
-{
-    x = (x << 16) | (x >> 16);
-    x = ((x & 0x00ff00ffu) << 8) | ((x >> 8) & 0x00ff00ffu);
-    x = ((x & 0x0f0f0f0fu) << 4) | ((x >> 4) & 0x0f0f0f0fu);
-    x = ((x & 0x33333333u) << 2) | ((x >> 2) & 0x33333333u);
-    x = ((x & 0x55555555u) << 1) | ((x >> 1) & 0x55555555u);
-    return x;
-}
+/* The integer steps below are defined through macros for uint and for vectors of uint (one path's
+ * samples of a bounce in sample_bounce, or one sample of many paths in sampler_lanes.h), so that
+ * every version is the same code. */
+#define RT_DEFINE_REVERSE_BITS32(T, name)                                  \
+    RT_INLINE T name(T x)                                                  \
+    {                                                                      \
+        x = (x << 16) | (x >> 16);                                         \
+        x = ((x & 0x00ff00ffu) << 8) | ((x >> 8) & 0x00ff00ffu);           \
+        x = ((x & 0x0f0f0f0fu) << 4) | ((x >> 4) & 0x0f0f0f0fu);           \
+        x = ((x & 0x33333333u) << 2) | ((x >> 2) & 0x33333333u);           \
+        x = ((x & 0x55555555u) << 1) | ((x >> 1) & 0x55555555u);           \
+        return x;                                                          \
+    }
+RT_DEFINE_REVERSE_BITS32(uint, reverse_bits32)
 
 /* A seeded bijection of 32-bit words in which bit i depends on bits 0..i only (additions and
  * products by even constants carry upwards): Laine and Karras's permutation with Burley's
  * constants. */
-RT_INLINE uint lk_permute(uint x, uint seed)
-{
-    x += seed;
-    x ^= x * 0x6c50b47cu;
-    x ^= x * 0xb82f1e52u;
-    x ^= x * 0xc7afe638u;
-    x ^= x * 0x8d22f6e6u;
-    return x;
-}
+#define RT_DEFINE_LK_PERMUTE(T, name)   \
+    RT_INLINE T name(T x, T seed)       \
+    {                                   \
+        x += seed;                      \
+        x ^= x * 0x6c50b47cu;           \
+        x ^= x * 0xb82f1e52u;           \
+        x ^= x * 0xc7afe638u;           \
+        x ^= x * 0x8d22f6e6u;           \
+        return x;                       \
+    }
+RT_DEFINE_LK_PERMUTE(uint, lk_permute)
 
 /* Nested uniform (Owen) scramble: bit i flips as a function of the bits above it.  A coordinate
  * given bit-reversed (r = reverse_bits32(x)) is scrambled as reverse_bits32(lk_permute(r, seed)). */
@@ -96,15 +103,17 @@ RT_INLINE uint nested_scramble(uint x, uint seed) { return reverse_bits32(lk_per
  * (from the most significant) is the XOR of the index bits k with C(k, r) odd, that is with
  * r a bit subset of k (Lucas): a superset-sum transform over the 5 bits of the positions, in 5
  * steps instead of a 32-column loop.  tests/render/test_sampler.py checks it against the table. */
-RT_INLINE uint sobol_dim1_reversed(uint index)
-{
-    index ^= (index >> 1) & 0x55555555u;
-    index ^= (index >> 2) & 0x33333333u;
-    index ^= (index >> 4) & 0x0f0f0f0fu;
-    index ^= (index >> 8) & 0x00ff00ffu;
-    index ^= (index >> 16) & 0x0000ffffu;
-    return index;
-}
+#define RT_DEFINE_SOBOL_DIM1(T, name)             \
+    RT_INLINE T name(T index)                     \
+    {                                             \
+        index ^= (index >> 1) & 0x55555555u;      \
+        index ^= (index >> 2) & 0x33333333u;      \
+        index ^= (index >> 4) & 0x0f0f0f0fu;      \
+        index ^= (index >> 8) & 0x00ff00ffu;      \
+        index ^= (index >> 16) & 0x0000ffffu;     \
+        return index;                             \
+    }
+RT_DEFINE_SOBOL_DIM1(uint, sobol_dim1_reversed)
 
 /* Sobol dimension 1 from the generated table (the reference of the closed form above). */
 RT_INLINE uint sobol_dim1_table(uint index)
@@ -127,15 +136,17 @@ RT_INLINE uint spread_bits(uint x)
 }
 
 /* The even bits of x, packed into the low 16. */
-RT_INLINE uint gather_even_bits(uint x)
-{
-    x &= 0x55555555u;
-    x = (x | (x >> 1)) & 0x33333333u;
-    x = (x | (x >> 2)) & 0x0f0f0f0fu;
-    x = (x | (x >> 4)) & 0x00ff00ffu;
-    x = (x | (x >> 8)) & 0x0000ffffu;
-    return x;
-}
+#define RT_DEFINE_GATHER_EVEN_BITS(T, name)    \
+    RT_INLINE T name(T x)                      \
+    {                                          \
+        x &= 0x55555555u;                      \
+        x = (x | (x >> 1)) & 0x33333333u;      \
+        x = (x | (x >> 2)) & 0x0f0f0f0fu;      \
+        x = (x | (x >> 4)) & 0x00ff00ffu;      \
+        x = (x | (x >> 8)) & 0x0000ffffu;      \
+        return x;                              \
+    }
+RT_DEFINE_GATHER_EVEN_BITS(uint, gather_even_bits)
 
 RT_INLINE SampleKey sampler_key(uint seed, uint pixel, uint width, uint pass)
 {
@@ -218,38 +229,15 @@ RT_INLINE float2 sample_2d(SampleKey k, uint dim)
  * the traversal (perf, functions kept out of line).  The eight lanes do the same steps, so one
  * pass over uint8 vectors (one AVX2 register) computes them together.
  * --------------------------------------------------------------------------------------------- */
-RT_INLINE uint8 hash_u32x8(uint8 x)
-{
-    x ^= x >> 16;
-    x *= 0x7feb352du;
-    x ^= x >> 15;
-    x *= 0x846ca68bu;
-    x ^= x >> 16;
-    return x;
-}
+RT_DEFINE_HASH_U32(uint8, hash_u32x8)
 
 RT_INLINE float8 u32_to_unit_float8(uint8 h) { return convert_float8(h >> 8) * 0x1.0p-24f; }
 
 #if SAMPLER != SAMPLER_INDEPENDENT
-RT_INLINE uint8 reverse_bits32x8(uint8 x)
-{
-    x = (x << 16) | (x >> 16);
-    x = ((x & 0x00ff00ffu) << 8) | ((x >> 8) & 0x00ff00ffu);
-    x = ((x & 0x0f0f0f0fu) << 4) | ((x >> 4) & 0x0f0f0f0fu);
-    x = ((x & 0x33333333u) << 2) | ((x >> 2) & 0x33333333u);
-    x = ((x & 0x55555555u) << 1) | ((x >> 1) & 0x55555555u);
-    return x;
-}
-
-RT_INLINE uint8 lk_permute_x8(uint8 x, uint8 seed)
-{
-    x += seed;
-    x ^= x * 0x6c50b47cu;
-    x ^= x * 0xb82f1e52u;
-    x ^= x * 0xc7afe638u;
-    x ^= x * 0x8d22f6e6u;
-    return x;
-}
+RT_DEFINE_REVERSE_BITS32(uint8, reverse_bits32x8)
+RT_DEFINE_LK_PERMUTE(uint8, lk_permute_x8)
+RT_DEFINE_SOBOL_DIM1(uint8, sobol_dim1_reversed_x8)
+RT_DEFINE_GATHER_EVEN_BITS(uint8, gather_even_bits_x8)
 #endif
 
 /* lane j: 1 where id dim + j is the second coordinate of a 2D sample (DIM_LIGHT_POINT + 1,
@@ -272,22 +260,11 @@ RT_INLINE float8 sample_bounce(SampleKey k, uint dim)
     const uint8 s0 = hash_u32x8((uint8)(k.b) ^ hash_u32x8(seed_ids + RNG_KEY_OFFSET));
     const uint8 index = reverse_bits32x8(lk_permute_x8((uint8)(k.c), s0));
 #if SAMPLER == SAMPLER_SOBOL
-    /* second coordinates: Sobol dimension 1 of the index (sobol_dim1_reversed) */
-    uint8 rv = index;
-    rv ^= (rv >> 1) & 0x55555555u;
-    rv ^= (rv >> 2) & 0x33333333u;
-    rv ^= (rv >> 4) & 0x0f0f0f0fu;
-    rv ^= (rv >> 8) & 0x00ff00ffu;
-    rv ^= (rv >> 16) & 0x0000ffffu;
-    const uint8 r = BOUNCE_SECOND != 0u ? rv : index;
+    /* second coordinates: Sobol dimension 1 of the index */
+    const uint8 r = BOUNCE_SECOND != 0u ? sobol_dim1_reversed_x8(index) : index;
 #else
     /* 2D: the quadtree cells' even (first) or odd (second) bits, as gather_even_bits */
-    uint8 cells = lk_permute_x8(index, hash_u32x8(s0 ^ 3u)) >> BOUNCE_SECOND;
-    cells &= 0x55555555u;
-    cells = (cells | (cells >> 1)) & 0x33333333u;
-    cells = (cells | (cells >> 2)) & 0x0f0f0f0fu;
-    cells = (cells | (cells >> 4)) & 0x00ff00ffu;
-    cells = (cells | (cells >> 8)) & 0x0000ffffu;
+    const uint8 cells = gather_even_bits_x8(lk_permute_x8(index, hash_u32x8(s0 ^ 3u)) >> BOUNCE_SECOND);
     const uint8 r = BOUNCE_IS_2D != 0u ? cells : index;
 #endif
     return u32_to_unit_float8(reverse_bits32x8(lk_permute_x8(r, hash_u32x8(s0 ^ (1u + BOUNCE_SECOND)))));

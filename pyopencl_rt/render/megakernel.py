@@ -11,6 +11,13 @@ Which schedule a render uses (:func:`kernel_mode`): ``"megakernel"`` on CPU devi
 on the others, when the Embree intersector traces on the host (it needs the wavefront's ray
 queues) and when film AOVs are requested (their per-path state lives in the wavefront's buffers).
 ``$PYOPENCL_RT_KERNEL_MODE`` or the ``kernel_mode`` argument overrides the choice.
+
+Paths in SIMD lanes (:func:`lane_width`): on PoCL's CPU device, for the scenes
+cl/render/path_lanes.h covers (triangles with the diffuse material lit by emissive triangles, the
+MIS integrator, no textures), each work-item follows :data:`LANE_WIDTH` paths at once in the lanes
+of its vectors (cl/megakernel/lanes.cl): their rays are traced as packets and their hits shaded
+together, as Mitsuba's LLVM backend runs its paths.  Same samples, bit for bit, except where two
+triangles give a ray exactly the same distance.  ``$PYOPENCL_RT_LANES`` = 0 turns it off.
 """
 from __future__ import annotations
 
@@ -26,6 +33,13 @@ from .film import Film, RunStats
 KERNEL_MODES = ("wavefront", "megakernel")
 KERNEL_MODE_ENV = "PYOPENCL_RT_KERNEL_MODE"
 SOURCES = ("megakernel/path.cl",)
+LANES_SOURCES = ("megakernel/lanes.cl",)
+LANES_ENV = "PYOPENCL_RT_LANES"
+LANE_WIDTH = 16           # paths per work-item: one AVX-512 register of floats (two AVX2 ones)
+LANE_BLOCK = 16           # samples per work-item, in units of LANE_WIDTH, taken in turn by its lanes
+# the defines a scene may have for the lane kernel (with INTEGRATOR 0, lights and triangles)
+_LANE_DEFINES = {"BVH_WIDE8", "HAS_LIGHTS", "HAS_TRIANGLES", "INTEGRATOR", "MATERIALS_SELECTED", "SAMPLER",
+                 "RR_NO_ETA", "PACKET_HYBRID"}
 
 
 def kernel_mode(device, intersector: str, film_aovs, requested: str | None = None) -> str:
@@ -43,6 +57,30 @@ def kernel_mode(device, intersector: str, film_aovs, requested: str | None = Non
     if requested == "auto":
         return "megakernel" if can_megakernel and device.type & cl.device_type.CPU else "wavefront"
     return requested
+
+
+def lane_width(mode: str, device, features: dict, requested=None) -> int:
+    """Paths per work-item of the megakernel: :data:`LANE_WIDTH` where the lane kernel applies (the
+    megakernel on PoCL's CPU device, a scene whose defines path_lanes.h covers), else 0 (one path
+    per work-item).  ``requested`` or ``$PYOPENCL_RT_LANES`` overrides: 0 (off), 8 or 16 (where it
+    applies)."""
+    import pyopencl as cl
+
+    text = requested if requested is not None else os.environ.get(LANES_ENV)
+    text = "" if text is None else str(text).strip()
+    if text not in ("", "0", "8", "16"):
+        raise UserError(f"${LANES_ENV}={text!r}: use 0 (one path per work-item), 8 or 16")
+    covered = (set(features) <= _LANE_DEFINES and features.get("INTEGRATOR") == 0
+               and {"HAS_LIGHTS", "HAS_TRIANGLES", "BVH_WIDE8", "MATERIALS_SELECTED"} <= set(features))
+    pocl_cpu = bool(device.type & cl.device_type.CPU) and "Portable Computing Language" in device.platform.name
+    if mode != "megakernel" or not covered or not pocl_cpu or text == "0":
+        return 0
+    return int(text) if text else LANE_WIDTH
+
+
+def lane_features(width: int) -> dict:
+    """The defines of the lane kernel (none for one path per work-item)."""
+    return {"PACKET_WIDTH": width, "PACKET_BLOCK": LANE_BLOCK * width} if width else {}
 
 
 def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=False, first_pass=0,
@@ -71,6 +109,7 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
     # keeps a launch within the ring's ring_size * wf.n_pixels entries (n_pixels <= wf.n_pixels)
     samples_per_launch = min(passes_per_launch * n_pixels, wf.wave_size)
     local = abi.WAVE_LOCAL_SIZE
+    block = lane_features(wf.lane_width).get("PACKET_BLOCK", 1)  # samples per work-item
     end = None if passes is None else first_pass + passes
     zero_rays = np.zeros(2, np.int32)
 
@@ -96,7 +135,8 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
                 wf.args.set("path", n_items=n, first_pass=next_pass, first_pixel=first_pixel,
                             queue_in=wf.queue_a, queue_out=wf.queue_b, queue_base=0, free_base=0,
                             n_listed=0 if pixels is None else n_pixels)
-                event = cl.enqueue_nd_range_kernel(queue, kernel, (-(-n // local) * local,), (local,))
+                items = -(-n // block)
+                event = cl.enqueue_nd_range_kernel(queue, kernel, (-(-items // local) * local,), (local,))
                 if profile:
                     event.wait()
                     stats.stage_seconds["path"] = stats.stage_seconds.get("path", 0.0) + \

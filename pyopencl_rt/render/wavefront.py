@@ -103,9 +103,14 @@ class Wavefront:
         self.kernel_mode = megakernel.kernel_mode(device, self.intersector.name, getattr(settings, "film_aovs", None),
                                                   kernel_mode)
 
+        self.lane_width = megakernel.lane_width(self.kernel_mode, device, self.features)
+        self.features.update(megakernel.lane_features(self.lane_width))
+
         self.rt = runtime(device)
         t0 = time.perf_counter()
-        if self.kernel_mode == "megakernel":
+        if self.lane_width:
+            self.kernels = {"path": cl.Kernel(self.rt.program(megakernel.LANES_SOURCES, self.features), "mk_lanes")}
+        elif self.kernel_mode == "megakernel":
             self.kernels = {"path": cl.Kernel(self.rt.program(megakernel.SOURCES, self.features), "mk_path")}
         else:
             prog = self.rt.program(SOURCES, self.features)

@@ -1,0 +1,374 @@
+/* Packet traversal of the 8-wide BVH (bvh_wide8.h's buffer) for CPU devices: PACKET_WIDTH rays
+ * (16 on AVX-512, 8 on AVX2) in the lanes of one work-item's vectors, closest hit and any hit.
+ *
+ * Why: PoCL runs a work-item as scalar code, and the single-ray traversal (bvh_wide8.h) gets its
+ * SIMD from eight child boxes or eight triangles per instruction.  On a small scene (the Cornell
+ * box: 36 triangles, a handful of leaves) most rays of a packet visit the same few nodes, so
+ * testing one box or one triangle against every ray at once does the same work with a fraction
+ * of the instructions, and without the per-ray stack and branches (Embree's rtcIntersect16, which
+ * Mitsuba's LLVM variants call, works this way).  On large scenes with incoherent rays the rays
+ * of a packet part ways and the single-ray traversal is better; the host chooses.
+ *
+ * Results, lane by lane, are those of bvh_wide8_closest_hit / bvh_wide8_any_hit bit for bit: the
+ * triangle test is intersect_tri8's arithmetic in the same order (FP_CONTRACT off), with each
+ * lane's own axis permutation and shear applied by selects instead of load offsets, and the same
+ * double-precision fallbacks (per lane, in scalar code: they are rare).  Only the order in which
+ * a ray meets the leaves differs, so where two triangles give a ray exactly the same t the one
+ * reported can differ (as between the binary and wide layouts).
+ *
+ * Traversal: a node's eight child boxes are tested one after another, each against all rays; the
+ * children that some ray enters are visited nearest first (by the smallest entry distance over
+ * the packet) and the others pushed with that distance, and a popped entry is skipped when it
+ * lies beyond every ray's closest hit so far.  A lane whose tmax is below its tmin is inactive
+ * (no box test passes for it): a dead path's slot in the packet.
+ */
+#ifndef PYOPENCL_RT_BVH_PACKET_H
+#define PYOPENCL_RT_BVH_PACKET_H
+
+#include "accel/bvh_wide8.h"
+
+#include "render/lanes.h"
+
+/* the smallest / largest lane (operands never NaN: entry distances and hit distances) */
+#if PACKET_WIDTH == 16
+RT_INLINE float pmin_all(pfloat v) { const float8 a = VMIN(v.lo, v.hi); const float4 b = VMIN(a.lo, a.hi); const float2 c = VMIN(b.lo, b.hi); return FAST_MIN(c.x, c.y); }
+RT_INLINE float pmax_all(pfloat v) { const float8 a = VMAX(v.lo, v.hi); const float4 b = VMAX(a.lo, a.hi); const float2 c = VMAX(b.lo, b.hi); return FAST_MAX(c.x, c.y); }
+#else
+RT_INLINE float pmin_all(pfloat v) { const float4 b = VMIN(v.lo, v.hi); const float2 c = VMIN(b.lo, b.hi); return FAST_MIN(c.x, c.y); }
+RT_INLINE float pmax_all(pfloat v) { const float4 b = VMAX(v.lo, v.hi); const float2 c = VMAX(b.lo, b.hi); return FAST_MAX(c.x, c.y); }
+#endif
+
+/* A packet of rays: wide_ray's constants per lane, the permutation as two masks per axis
+ * (k == 0, k == 1; else 2) so that a vertex coordinate is picked per lane with two selects. */
+typedef struct {
+    pfloat ox, oy, oz, dx, dy, dz, ix, iy, iz;
+    pint kx0, kx1, ky0, ky1, kz0, kz1;
+    pfloat okx, oky, okz, sx, sy;
+} PacketRay;
+
+/* Lane k of the packet from one ray (wide_ray's constants, so the same bits). */
+RT_INLINE void packet_set_ray(PacketRay *p, int k, float3 o, float3 d)
+{
+    const WideRay r = wide_ray(o, d);
+    PLANE(p->ox, k) = o.x; PLANE(p->oy, k) = o.y; PLANE(p->oz, k) = o.z;
+    PLANE(p->dx, k) = d.x; PLANE(p->dy, k) = d.y; PLANE(p->dz, k) = d.z;
+    PLANE(p->ix, k) = r.inv_d.x; PLANE(p->iy, k) = r.inv_d.y; PLANE(p->iz, k) = r.inv_d.z;
+    PLANE_I(p->kx0, k) = -(r.kx == 0); PLANE_I(p->kx1, k) = -(r.kx == 1);
+    PLANE_I(p->ky0, k) = -(r.ky == 0); PLANE_I(p->ky1, k) = -(r.ky == 1);
+    PLANE_I(p->kz0, k) = -(r.kz == 0); PLANE_I(p->kz1, k) = -(r.kz == 1);
+    PLANE(p->okx, k) = r.okx; PLANE(p->oky, k) = r.oky; PLANE(p->okz, k) = r.okz;
+    PLANE(p->sx, k) = r.sx; PLANE(p->sy, k) = r.sy;
+}
+
+/* The packet of rays (o, d) per lane: packet_set_ray for every lane at once, with wide_ray's
+ * arithmetic (safe reciprocals, the permutation and shear of ray_shear) done on the lanes. */
+RT_INLINE pfloat packet_rcp(pfloat x)
+{
+    return 1.0f / (pabs(x) < RCP_MIN_INPUT ? pcopysign(PFLOAT(RCP_MIN_INPUT), x) : x);
+}
+
+RT_INLINE PacketRay packet_rays(pvec3 o, pvec3 d)
+{
+    PacketRay r;
+    r.ox = o.x; r.oy = o.y; r.oz = o.z;
+    r.dx = d.x; r.dy = d.y; r.dz = d.z;
+    r.ix = packet_rcp(d.x); r.iy = packet_rcp(d.y); r.iz = packet_rcp(d.z);
+    const pfloat ax = pabs(d.x), ay = pabs(d.y), az = pabs(d.z);
+    /* kz: the dominant axis, as ray_shear picks it (ties and NaN to z) */
+    const pint kz0 = (ax > ay) & (ax > az), kz1 = ~(ax > ay) & (ay > az), kz2 = ~kz0 & ~kz1;
+    const pfloat dz = kz0 ? d.x : (kz1 ? d.y : d.z);
+    /* kx = kz + 1, ky = kz + 2 (mod 3), swapped where dz < 0 to keep the winding */
+    const pint swap = dz < 0.0f;
+    r.kz0 = kz0; r.kz1 = kz1;
+    r.kx0 = swap ? kz1 : kz2; r.kx1 = swap ? kz2 : kz0;
+    r.ky0 = swap ? kz2 : kz1; r.ky1 = swap ? kz0 : kz2;
+    r.okx = r.kx0 ? o.x : (r.kx1 ? o.y : o.z);
+    r.oky = r.ky0 ? o.x : (r.ky1 ? o.y : o.z);
+    r.okz = kz0 ? o.x : (kz1 ? o.y : o.z);
+    r.sx = (r.kx0 ? d.x : (r.kx1 ? d.y : d.z)) / dz;
+    r.sy = (r.ky0 ? d.x : (r.ky1 ? d.y : d.z)) / dz;
+    return r;
+}
+
+/* Coordinate k of (x, y, z) per lane, k given by the masks (k == 0, k == 1). */
+#define PICK(x, y, z, k0, k1) SEL(SEL(PFLOAT(z), PFLOAT(y), (k1)), PFLOAT(x), (k0))
+
+/* One child box against every lane: intersect_children8's arithmetic for one slot, with the
+ * near/far plane taken by min/max (the same values: inv_d is never 0 or NaN, and the box is
+ * present).  Returns the lanes that enter it; *enter their entry distances. */
+RT_INLINE pint packet_box(const PacketRay *r, float bx0, float by0, float bz0, float bx1, float by1, float bz1,
+                          pfloat tmin, pfloat tmax, pfloat *enter)
+{
+    const pfloat t0x = (PFLOAT(bx0) - r->ox) * r->ix, t1x = (PFLOAT(bx1) - r->ox) * r->ix;
+    const pfloat t0y = (PFLOAT(by0) - r->oy) * r->iy, t1y = (PFLOAT(by1) - r->oy) * r->iy;
+    const pfloat t0z = (PFLOAT(bz0) - r->oz) * r->iz, t1z = (PFLOAT(bz1) - r->oz) * r->iz;
+    const pfloat e = VMAX(VMAX(VMIN(t0x, t1x), VMIN(t0y, t1y)), VMAX(VMIN(t0z, t1z), tmin));
+    const pfloat l = VMIN(VMIN(VMAX(t0x, t1x), VMAX(t0y, t1y)), VMAX(t0z, t1z)) * SLAB_FAR_SCALE;
+    *enter = e;
+    return (e <= VMIN(l, tmax)) & (e < PFLOAT(INFINITY));
+}
+
+#ifdef cl_khr_fp64
+RT_INLINE float edge_double(float a, float b, float c, float d)
+{
+    return (float)((double)a * (double)b - (double)c * (double)d);
+}
+#endif
+
+/* One triangle (p0, p1, p2) against every lane: intersect_tri8's arithmetic per lane.  Returns
+ * the lanes hit in (tmin, tmax); *t_out, *U_out, *V_out, *W_out hold their values. */
+RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 p2, pfloat tmin, pfloat tmax,
+                               pfloat *t_out, pfloat *U_out, pfloat *V_out, pfloat *W_out)
+{
+    const pfloat Ax = PICK(p0.x, p0.y, p0.z, r->kx0, r->kx1) - r->okx;
+    const pfloat Ay = PICK(p0.x, p0.y, p0.z, r->ky0, r->ky1) - r->oky;
+    const pfloat Az = PICK(p0.x, p0.y, p0.z, r->kz0, r->kz1) - r->okz;
+    const pfloat Bx = PICK(p1.x, p1.y, p1.z, r->kx0, r->kx1) - r->okx;
+    const pfloat By = PICK(p1.x, p1.y, p1.z, r->ky0, r->ky1) - r->oky;
+    const pfloat Bz = PICK(p1.x, p1.y, p1.z, r->kz0, r->kz1) - r->okz;
+    const pfloat Cx = PICK(p2.x, p2.y, p2.z, r->kx0, r->kx1) - r->okx;
+    const pfloat Cy = PICK(p2.x, p2.y, p2.z, r->ky0, r->ky1) - r->oky;
+    const pfloat Cz = PICK(p2.x, p2.y, p2.z, r->kz0, r->kz1) - r->okz;
+    const pfloat ax = Ax - r->sx * Az, ay = Ay - r->sy * Az;
+    const pfloat bx = Bx - r->sx * Bz, by = By - r->sy * Bz;
+    const pfloat cx = Cx - r->sx * Cz, cy = Cy - r->sy * Cz;
+    pfloat U = cx * by - cy * bx;
+    pfloat V = ax * cy - ay * cx;
+    pfloat W = bx * ay - by * ax;
+#ifdef cl_khr_fp64
+    const pint zero = (U == 0.0f) | (V == 0.0f) | (W == 0.0f);
+    if (pany(zero)) {
+        for (int k = 0; k < PACKET_WIDTH; ++k) {
+            if (PLANE_I(zero, k) == 0) continue;
+            const float lax = PLANE(ax, k), lay = PLANE(ay, k), lbx = PLANE(bx, k);
+            const float lby = PLANE(by, k), lcx = PLANE(cx, k), lcy = PLANE(cy, k);
+            PLANE(U, k) = edge_double(lcx, lby, lcy, lbx);
+            PLANE(V, k) = edge_double(lax, lcy, lay, lcx);
+            PLANE(W, k) = edge_double(lbx, lay, lby, lax);
+        }
+    }
+#endif
+    const pint mixed = ((U < 0.0f) | (V < 0.0f) | (W < 0.0f)) & ((U > 0.0f) | (V > 0.0f) | (W > 0.0f));
+    const pfloat det = U + V + W;
+    const pint inside = ~mixed & ((det < 0.0f) | (det > 0.0f)) & (tmin <= tmax);
+    if (!pany(inside))
+        return inside;
+    /* the plane equation: n and its magnitudes are the triangle's, computed once (scalars) */
+    const float e1x = p1.x - p0.x, e1y = p1.y - p0.y, e1z = p1.z - p0.z;
+    const float e2x = p2.x - p0.x, e2y = p2.y - p0.y, e2z = p2.z - p0.z;
+    const float nx = e1y * e2z - e1z * e2y;
+    const float ny = e1z * e2x - e1x * e2z;
+    const float nz = e1x * e2y - e1y * e2x;
+    const float nabs_x = fabs(e1y * e2z) + fabs(e1z * e2y);
+    const float nabs_y = fabs(e1z * e2x) + fabs(e1x * e2z);
+    const float nabs_z = fabs(e1x * e2y) + fabs(e1y * e2x);
+    const int sliver = fabs(nx) + fabs(ny) + fabs(nz) < SLIVER_CANCELLATION * (nabs_x + nabs_y + nabs_z);
+    const pfloat den = nx * r->dx + ny * r->dy + nz * r->dz;
+    const pfloat ax0 = p0.x - r->ox, ay0 = p0.y - r->oy, az0 = p0.z - r->oz;
+    const pfloat num = nx * ax0 + ny * ay0 + nz * az0;
+    const pint doubt = pabs(num) <= NUM_DOUBT * (nabs_x * pabs(ax0) + nabs_y * pabs(ay0) + nabs_z * pabs(az0));
+    pfloat tt = num / den;
+    pint ok = den != 0.0f;
+#ifdef cl_khr_fp64
+    const pint refine = inside & (sliver ? PINT(-1) : doubt);
+    if (pany(refine)) {
+        const double3 q0 = convert_double3(p0);
+        const double3 f1 = convert_double3(p1) - q0, f2 = convert_double3(p2) - q0;
+        const double mx = f1.y * f2.z - f1.z * f2.y, my = f1.z * f2.x - f1.x * f2.z, mz = f1.x * f2.y - f1.y * f2.x;
+        for (int k = 0; k < PACKET_WIDTH; ++k) {
+            if (PLANE_I(refine, k) == 0) continue;
+            const double dden = mx * (double)PLANE(r->dx, k) + my * (double)PLANE(r->dy, k) + mz * (double)PLANE(r->dz, k);
+            const double dnum = mx * (q0.x - (double)PLANE(r->ox, k)) + my * (q0.y - (double)PLANE(r->oy, k)) +
+                                mz * (q0.z - (double)PLANE(r->oz, k));
+            PLANE_I(ok, k) = -(dden != 0.0);
+            PLANE(tt, k) = (float)(dnum / dden);
+        }
+    }
+#else
+    ok &= ~doubt;
+#endif
+    *t_out = tt; *U_out = U; *V_out = V; *W_out = W;
+    return inside & ok & (tt > tmin) & (tt < tmax);
+}
+
+#ifndef PACKET_HYBRID
+#define PACKET_HYBRID 4 /* a subtree that at most this many lanes enter is traversed ray by ray */
+#endif
+
+/* Lane k's ray as bvh_wide8.h's WideRay (wide_ray's constants, the same bits). */
+RT_INLINE WideRay packet_lane_ray(const PacketRay *r, int k)
+{
+    WideRay w;
+    w.o = (float3)(PLANE(r->ox, k), PLANE(r->oy, k), PLANE(r->oz, k));
+    w.d = (float3)(PLANE(r->dx, k), PLANE(r->dy, k), PLANE(r->dz, k));
+    w.inv_d = (float3)(PLANE(r->ix, k), PLANE(r->iy, k), PLANE(r->iz, k));
+    w.nx = w.inv_d.x >= 0.0f ? 0 : 3;
+    w.ny = w.inv_d.y >= 0.0f ? 1 : 4;
+    w.nz = w.inv_d.z >= 0.0f ? 2 : 5;
+    w.kx = PLANE_I(r->kx0, k) ? 0 : (PLANE_I(r->kx1, k) ? 1 : 2);
+    w.ky = PLANE_I(r->ky0, k) ? 0 : (PLANE_I(r->ky1, k) ? 1 : 2);
+    w.kz = PLANE_I(r->kz0, k) ? 0 : (PLANE_I(r->kz1, k) ? 1 : 2);
+    w.okx = PLANE(r->okx, k); w.oky = PLANE(r->oky, k); w.okz = PLANE(r->okz, k);
+    w.sx = PLANE(r->sx, k); w.sy = PLANE(r->sy, k);
+    return w;
+}
+
+/* The children of node `off` that some lane of `lanes` enters: their slots nearest first (by the
+ * smallest entry over the lanes), their lanes, and how many there are. */
+RT_INLINE int packet_node(__global const float8 *base, int off, const PacketRay *r, pfloat tmin, pfloat tmax,
+                          int lanes, int *slots, float *near, int *masks)
+{
+    __global const float *box = (__global const float *)(base + off);
+    __global const int *count = (__global const int *)(base + off + 7);
+    int n = 0;
+    for (int c = 0; c < 8; ++c) {
+        if (count[c] < 0) continue;
+        pfloat enter;
+        const pint m = packet_box(r, box[c], box[8 + c], box[16 + c], box[24 + c], box[32 + c], box[40 + c],
+                                  tmin, tmax, &enter) & pmask(lanes);
+        if (!pany(m)) continue;
+        const float e = pmin_all(SEL(PFLOAT(INFINITY), enter, m));
+        int j = n++;
+        for (; j > 0 && near[j - 1] > e; --j) { near[j] = near[j - 1]; slots[j] = slots[j - 1]; masks[j] = masks[j - 1]; }
+        near[j] = e; slots[j] = c; masks[j] = pbits(m);
+    }
+    return n;
+}
+
+/* The closest hits of the packet in (tmin, tmax) (per lane; tmax < tmin: inactive lane).  *t
+ * holds tmax on entry and the hit distance on return; prim (PRIM_MISS on entry), u, v as Hit.
+ * Each stack entry keeps the lanes that entered its box; a leaf that at most PACKET_HYBRID of
+ * them enter is tested ray by ray with intersect_leaf8 (as Embree's hybrid traversal switches to
+ * single rays), the others triangle by triangle against all its lanes. */
+RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, pfloat tmin, pfloat *t,
+                                  pint *prim, pfloat *u, pfloat *v)
+{
+    __global const float8 *base = (__global const float8 *)bvh;
+    int stack_code[WIDE8_STACK_SIZE], stack_lanes[WIDE8_STACK_SIZE];
+    float stack_t[WIDE8_STACK_SIZE];
+    int sp = 0;
+    int off = 0, cnt = 0, lanes = pbits(tmin <= *t);
+    for (;;) {
+        if (bit_count(lanes) <= PACKET_HYBRID) { /* few rays in this subtree: one at a time */
+            for (int bits = lanes; bits; bits &= bits - 1) {
+                const int k = lowest_bit(bits);
+                const WideRay w = packet_lane_ray(r, k);
+                Hit h;
+                h.t = PLANE(*t, k); h.prim = PLANE_I(*prim, k); h.u = PLANE(*u, k); h.v = PLANE(*v, k);
+                wide8_closest_from(base, &w, PLANE(tmin, k), &h, off, cnt);
+                PLANE(*t, k) = h.t; PLANE_I(*prim, k) = h.prim; PLANE(*u, k) = h.u; PLANE(*v, k) = h.v;
+            }
+        } else if (cnt == 0) {
+            int slots[8], masks[8];
+            float near[8];
+            const int n = packet_node(base, off, r, tmin, *t, lanes, slots, near, masks);
+            if (n > 0) {
+                __global const int *child = (__global const int *)(base + off + 6);
+                __global const int *count = (__global const int *)(base + off + 7);
+                for (int j = n - 1; j >= 1; --j) {
+                    stack_code[sp] = WIDE_CODE(off, slots[j]); stack_t[sp] = near[j]; stack_lanes[sp] = masks[j]; ++sp;
+                }
+                lanes = masks[0];
+                off = child[slots[0]]; cnt = count[slots[0]];
+                continue;
+            }
+        } else {
+            __global const float8 *pk = base + off;
+            const pfloat lane_tmin = pmask(lanes) ? tmin : PFLOAT(INFINITY); /* the lanes that entered */
+            for (int q = 0; q < cnt; ++q, pk += TRI8_UNITS) {
+                __global const float *vf = (__global const float *)pk;
+                __global const int *tri = (__global const int *)(pk + 9);
+                for (int j = 0; j < 8; ++j) {
+                    const int id = tri[j];
+                    if (id < 0) continue;
+                    const float3 p0 = (float3)(vf[j], vf[8 + j], vf[16 + j]);
+                    const float3 p1 = (float3)(vf[24 + j], vf[32 + j], vf[40 + j]);
+                    const float3 p2 = (float3)(vf[48 + j], vf[56 + j], vf[64 + j]);
+                    pfloat tt, U, V, W;
+                    const pint m = packet_triangle(r, p0, p1, p2, lane_tmin, *t, &tt, &U, &V, &W);
+                    if (!pany(m)) continue;
+                    const pfloat rcp = 1.0f / (U + V + W);
+                    *t = SEL(*t, tt, m);
+                    *u = SEL(*u, V * rcp, m);
+                    *v = SEL(*v, W * rcp, m);
+                    *prim = SEL(*prim, PINT(id), m);
+                }
+            }
+        }
+        for (;;) {
+            if (sp == 0) return;
+            --sp;
+            /* skipped when every lane that entered it has a closer hit by now */
+            if (stack_t[sp] <= pmax_all(pmask(stack_lanes[sp]) ? *t : PFLOAT(-INFINITY))) {
+                wide8_decode(base, stack_code[sp], &off, &cnt);
+                lanes = stack_lanes[sp];
+                break;
+            }
+        }
+    }
+}
+
+/* Any hit per lane in (tmin, tmax): returns the lanes occluded (-1).  Lanes stop testing once
+ * they are (their tmax drops below tmin), and the traversal ends when every lane has.  Leaves
+ * entered by at most PACKET_HYBRID lanes are tested ray by ray, as in packet_closest_hit. */
+RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pfloat tmin, pfloat tmax)
+{
+    __global const float8 *base = (__global const float8 *)bvh;
+    pint hit = PINT(0);
+    int stack_code[WIDE8_STACK_SIZE], stack_lanes[WIDE8_STACK_SIZE];
+    int sp = 0;
+    int off = 0, cnt = 0, lanes = pbits(tmin <= tmax);
+    for (;;) {
+        lanes &= pbits(tmin <= tmax); /* not yet occluded */
+        if (bit_count(lanes) <= PACKET_HYBRID) { /* few rays in this subtree: one at a time */
+            for (int bits = lanes; bits; bits &= bits - 1) {
+                const int k = lowest_bit(bits);
+                const WideRay w = packet_lane_ray(r, k);
+                if (wide8_any_from(base, &w, PLANE(tmin, k), PLANE(tmax, k), off, cnt)) {
+                    PLANE_I(hit, k) = -1;
+                    PLANE(tmax, k) = -INFINITY;
+                }
+            }
+            if (!pany(tmin <= tmax)) return hit;
+        } else if (cnt == 0) {
+            int slots[8], masks[8];
+            float near[8];
+            const int n = packet_node(base, off, r, tmin, tmax, lanes, slots, near, masks);
+            if (n > 0) {
+                __global const int *child = (__global const int *)(base + off + 6);
+                __global const int *count = (__global const int *)(base + off + 7);
+                for (int j = n - 1; j >= 1; --j) {
+                    stack_code[sp] = WIDE_CODE(off, slots[j]); stack_lanes[sp] = masks[j]; ++sp;
+                }
+                lanes = masks[0];
+                off = child[slots[0]]; cnt = count[slots[0]];
+                continue;
+            }
+        } else {
+            __global const float8 *pk = base + off;
+            const pfloat lane_tmin = pmask(lanes) ? tmin : PFLOAT(INFINITY);
+            for (int q = 0; q < cnt; ++q, pk += TRI8_UNITS) {
+                __global const float *vf = (__global const float *)pk;
+                __global const int *tri = (__global const int *)(pk + 9);
+                for (int j = 0; j < 8; ++j) {
+                    if (tri[j] < 0) continue;
+                    const float3 p0 = (float3)(vf[j], vf[8 + j], vf[16 + j]);
+                    const float3 p1 = (float3)(vf[24 + j], vf[32 + j], vf[40 + j]);
+                    const float3 p2 = (float3)(vf[48 + j], vf[56 + j], vf[64 + j]);
+                    pfloat tt, U, V, W;
+                    const pint m = packet_triangle(r, p0, p1, p2, lane_tmin, tmax, &tt, &U, &V, &W);
+                    if (!pany(m)) continue;
+                    hit |= m;
+                    tmax = SEL(tmax, PFLOAT(-INFINITY), m);
+                    if (!pany(tmin <= tmax)) return hit;
+                }
+            }
+        }
+        if (sp == 0) return hit;
+        --sp;
+        wide8_decode(base, stack_code[sp], &off, &cnt);
+        lanes = stack_lanes[sp];
+    }
+}
+
+#endif

@@ -1,0 +1,156 @@
+/* Paths in SIMD lanes: PACKET_WIDTH values of one kind (one per path) in a vector, and the
+ * arithmetic the lane integrator (cl/render/path_lanes.h) and packet traversal
+ * (cl/accel/bvh_packet.h) need on them, for clang on x86 CPUs (PoCL).
+ *
+ * Every function here gives, lane by lane, the bits the scalar code gives for that lane with
+ * cpu_builtins.h's builtins (sqrt correctly rounded; fmin/fmax as minnum/maxnum, so NaN operands
+ * behave as in the scalar code; dot, cross, length and normalize as defined, products summed
+ * left to right; length and normalize of a lane whose squared length could over- or underflow
+ * fall back to the scalar function, which rescales).  FP_CONTRACT is off (common.h). */
+#ifndef PYOPENCL_RT_LANES_H
+#define PYOPENCL_RT_LANES_H
+
+#include "common.h"
+
+#ifndef RT_CPU_BUILTINS
+#error "lanes.h is for clang on x86 (cpu_builtins.h), where the lane kernels run"
+#endif
+
+#ifndef PACKET_WIDTH
+#define PACKET_WIDTH 16
+#endif
+#if PACKET_WIDTH == 16
+typedef float16 pfloat;
+typedef int16 pint;
+typedef uint16 puint;
+#define PFLOAT(x) ((float16)(x))
+#define PINT(x) ((int16)(x))
+#define PUINT(x) ((uint16)(x))
+#define as_pfloat as_float16
+#define as_pint as_int16
+#define as_puint as_uint16
+#define convert_pfloat convert_float16
+#define convert_pint convert_int16
+#define convert_puint convert_uint16
+#define LANE_IDS ((int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
+RT_INLINE int pany(pint m) { const int8 a = m.lo | m.hi; const int4 b = a.lo | a.hi; const int2 c = b.lo | b.hi; return (c.x | c.y) < 0; }
+#elif PACKET_WIDTH == 8
+typedef float8 pfloat;
+typedef int8 pint;
+typedef uint8 puint;
+#define PFLOAT(x) ((float8)(x))
+#define PINT(x) ((int8)(x))
+#define PUINT(x) ((uint8)(x))
+#define as_pfloat as_float8
+#define as_pint as_int8
+#define as_puint as_uint8
+#define convert_pfloat convert_float8
+#define convert_pint convert_int8
+#define convert_puint convert_uint8
+#define LANE_IDS ((int8)(0, 1, 2, 3, 4, 5, 6, 7))
+RT_INLINE int pany(pint m) { const int4 b = m.lo | m.hi; const int2 c = b.lo | b.hi; return (c.x | c.y) < 0; }
+#else
+#error "PACKET_WIDTH must be 8 or 16"
+#endif
+
+/* lane k of a vector (in memory: used to gather and scatter one lane at a time) */
+#define PLANE(v, k) (((float *)&(v))[k])
+#define PLANE_I(v, k) (((int *)&(v))[k])
+#define PLANE_U(v, k) (((uint *)&(v))[k])
+
+/* the mask of the lanes set in bits (bit k: lane k), and back */
+RT_INLINE pint pmask(int bits) { return -((PINT(bits) >> LANE_IDS) & 1); }
+RT_INLINE int pbits(pint m)
+{
+    int bits = 0;
+    for (int k = 0; k < PACKET_WIDTH; ++k) bits |= (PLANE_I(m, k) < 0) << k;
+    return bits;
+}
+
+RT_INLINE pfloat pabs(pfloat x) { return as_pfloat(as_puint(x) & PUINT(0x7fffffffu)); }
+RT_INLINE pfloat pfmin(pfloat a, pfloat b) { return __builtin_elementwise_min(a, b); }
+RT_INLINE pfloat pfmax(pfloat a, pfloat b) { return __builtin_elementwise_max(a, b); }
+RT_INLINE pfloat pcopysign(pfloat x, pfloat y)
+{
+    return as_pfloat((as_puint(x) & PUINT(0x7fffffffu)) | (as_puint(y) & PUINT(0x80000000u)));
+}
+RT_INLINE pint pisinf(pfloat x) { return (as_puint(x) & PUINT(0x7fffffffu)) == PUINT(0x7f800000u); }
+
+/* sqrt, correctly rounded (as sqrtss) */
+RT_INLINE pfloat psqrt(pfloat x)
+{
+#if PACKET_WIDTH == 16 && defined(__AVX512F__)
+    return __builtin_ia32_sqrtps512(x, 4); /* _MM_FROUND_CUR_DIRECTION */
+#elif defined(__AVX__)
+#if PACKET_WIDTH == 16
+    return (pfloat)(__builtin_ia32_sqrtps256(x.lo), __builtin_ia32_sqrtps256(x.hi));
+#else
+    return __builtin_ia32_sqrtps256(x);
+#endif
+#else
+    pfloat r;
+    for (int k = 0; k < PACKET_WIDTH; ++k) PLANE(r, k) = __builtin_sqrtf(PLANE(x, k));
+    return r;
+#endif
+}
+
+/* A 3-vector per lane. */
+typedef struct { pfloat x, y, z; } pvec3;
+
+RT_INLINE pvec3 pv3(pfloat x, pfloat y, pfloat z) { pvec3 v; v.x = x; v.y = y; v.z = z; return v; }
+RT_INLINE pvec3 pv3_splat(float3 a) { return pv3(PFLOAT(a.x), PFLOAT(a.y), PFLOAT(a.z)); }
+RT_INLINE pvec3 pv3_add(pvec3 a, pvec3 b) { return pv3(a.x + b.x, a.y + b.y, a.z + b.z); }
+RT_INLINE pvec3 pv3_sub(pvec3 a, pvec3 b) { return pv3(a.x - b.x, a.y - b.y, a.z - b.z); }
+RT_INLINE pvec3 pv3_mul(pvec3 a, pvec3 b) { return pv3(a.x * b.x, a.y * b.y, a.z * b.z); }
+RT_INLINE pvec3 pv3_scale(pvec3 a, pfloat s) { return pv3(a.x * s, a.y * s, a.z * s); }
+RT_INLINE pvec3 pv3_div(pvec3 a, pfloat s) { return pv3(a.x / s, a.y / s, a.z / s); }
+RT_INLINE pvec3 pv3_neg(pvec3 a) { return pv3(-a.x, -a.y, -a.z); }
+RT_INLINE pvec3 pv3_abs(pvec3 a) { return pv3(pabs(a.x), pabs(a.y), pabs(a.z)); }
+/* m ? b : a, per lane */
+RT_INLINE pvec3 pv3_sel(pvec3 a, pvec3 b, pint m) { return pv3(m ? b.x : a.x, m ? b.y : a.y, m ? b.z : a.z); }
+RT_INLINE pfloat pv3_dot(pvec3 a, pvec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+RT_INLINE pvec3 pv3_cross(pvec3 a, pvec3 b)
+{
+    return pv3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+RT_INLINE pfloat pv3_max3(pvec3 v) { return pfmax(v.x, pfmax(v.y, v.z)); }
+RT_INLINE float3 pv3_lane(pvec3 v, int k) { return (float3)(PLANE(v.x, k), PLANE(v.y, k), PLANE(v.z, k)); }
+RT_INLINE void pv3_set_lane(pvec3 *v, int k, float3 a) { PLANE(v->x, k) = a.x; PLANE(v->y, k) = a.y; PLANE(v->z, k) = a.z; }
+
+/* length and normalize as cpu_builtins.h computes them: sqrt of the dot product where it cannot
+ * over- or underflow, else (rare lanes, only those in `live`) the scalar function. */
+#define LANES_LENGTH_SQ_OK(d) (((d) >= RT_LENGTH_SQ_MIN) & ((d) <= RT_LENGTH_SQ_MAX))
+RT_INLINE pfloat pv3_length(pvec3 v, pint live)
+{
+    const pfloat d = pv3_dot(v, v);
+    pfloat r = psqrt(d);
+    const pint slow = live & ~LANES_LENGTH_SQ_OK(d);
+    if (pany(slow))
+        for (int k = 0; k < PACKET_WIDTH; ++k)
+            if (PLANE_I(slow, k)) PLANE(r, k) = length(pv3_lane(v, k));
+    return r;
+}
+
+RT_INLINE pvec3 pv3_normalize(pvec3 v, pint live)
+{
+    const pfloat d = pv3_dot(v, v);
+    pvec3 r = pv3_div(v, psqrt(d));
+    const pint slow = live & ~LANES_LENGTH_SQ_OK(d);
+    if (pany(slow))
+        for (int k = 0; k < PACKET_WIDTH; ++k)
+            if (PLANE_I(slow, k)) pv3_set_lane(&r, k, normalize(pv3_lane(v, k)));
+    return r;
+}
+
+/* nextafter(x, +-infinity) as cpu_builtins.h's rt_nextafter, for up = the lanes going to +inf */
+RT_INLINE pfloat pnextafter_inf(pfloat x, pint up)
+{
+    const pfloat y = up ? PFLOAT(INFINITY) : PFLOAT(-INFINITY);
+    const pint away = (x < y) == (x > 0.0f); /* away from zero */
+    pfloat r = as_pfloat(as_puint(x) + (away ? PUINT(1u) : PUINT(0xffffffffu)));
+    r = x == 0.0f ? as_pfloat((as_puint(y) & PUINT(0x80000000u)) | PUINT(1u)) : r;
+    r = x == y ? y : r;
+    return x != x ? x + y : r;
+}
+
+#endif
