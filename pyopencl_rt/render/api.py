@@ -298,6 +298,7 @@ def sidecar(scene: Scene, settings: ImageSettings, film: Film, run: _Run, *, spp
         "time_limit": time_limit,
         "intersector": engine.get("intersector") or getattr(intersector, "name", intersector),  # what ran
         "kernel_mode": engine.get("kernel_mode"),
+        "lanes": engine.get("lanes"),  # paths per work-item of the lane megakernel (0: one path)
         "wave_size": engine.get("wave_size"),
         "features": engine.get("features"),
         "triangles": int(len(scene.faces)),

@@ -174,6 +174,7 @@ class Wavefront:
             "wave_size": self.wave_size,
             "intersector": self.intersector.name,
             "kernel_mode": self.kernel_mode,
+            "lanes": self.lane_width,  # paths per work-item of the lane megakernel (0: one)
             "features": feature_names(self.features),
             "lights": self.n_lights,
             "bvh_seconds": self.timings.get("bvh_seconds"),

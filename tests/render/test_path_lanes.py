@@ -1,0 +1,214 @@
+"""Paths in SIMD lanes (cl/megakernel/lanes.cl, cl/render/path_lanes.h, lanes.h, sampler_lanes.h):
+the lane megakernel renders the same samples as the one-path megakernel, so the same image bit for
+bit and the same rays, for every sampler, depth, camera and schedule option it covers; it is
+chosen exactly where it applies; and its building blocks give the scalar code's bits lane by lane
+(the lane sampler, length/normalize with their rescaling fallbacks, nextafter, sqrt, min/max with
+NaN).  The packet traversal it traces with: tests/accel/test_bvh_packet.py."""
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pyopencl_rt as rt
+from pyopencl_rt.device import abi
+from pyopencl_rt.errors import UserError
+from pyopencl_rt.render import megakernel
+from pyopencl_rt.render.film import Film
+from pyopencl_rt.render.wavefront import Wavefront
+
+import harness
+
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
+
+
+def is_pocl_cpu(device):
+    import pyopencl as cl
+
+    return bool(device.type & cl.device_type.CPU) and "Portable Computing Language" in device.platform.name
+
+
+def lane_device(device):
+    if not is_pocl_cpu(device):
+        pytest.skip("the lane kernels are built for PoCL's CPU device only (test_selection checks the others)")
+
+
+def renders(scene, device, monkeypatch, widths=("0", "16", "8"), **options):
+    """The same render with the lane kernel off (one path per work-item) and at each width."""
+    out = {}
+    for width in widths:
+        monkeypatch.setenv(megakernel.LANES_ENV, width)
+        out[width] = rt.render_full(scene, device=device, kernel_mode="megakernel", **options)
+    return out
+
+
+def assert_same(results):
+    base = results["0"]
+    assert base.info["lanes"] == 0
+    for width, r in results.items():
+        assert r.info["lanes"] == int(width)
+        assert np.array_equal(r.film.sum, base.film.sum), width
+        assert np.array_equal(r.film.sum_sq, base.film.sum_sq), width
+        assert r.stats.rays_extend == base.stats.rays_extend > 0, width
+        assert r.stats.rays_shadow == base.stats.rays_shadow, width
+
+
+# ----------------------------------------------------------------------------- which kernel
+def test_selection(device, monkeypatch):
+    """On PoCL's CPU device the megakernel runs the lanes for diffuse scenes lit by emissive
+    triangles (the Cornell boxes), not for spheres, other materials or textures, nor for the
+    wavefront; $PYOPENCL_RT_LANES = 0 turns it off, 8 or 16 sets the width, anything else is one
+    clear error.  Other devices never get it."""
+    monkeypatch.delenv(megakernel.LANES_ENV, raising=False)
+    expected = megakernel.LANE_WIDTH if is_pocl_cpu(device) else 0
+    for name, lanes in (("mitsuba-cbox", expected), ("cornell-box", expected), ("cornell-spheres", 0),
+                        ("veach-mis", 0), ("textured", 0), ("cornell-jensen", 0)):
+        wf = Wavefront(rt.load_scene(SCENES / f"{name}.toml"), device, width=8, height=8, kernel_mode="megakernel")
+        assert wf.lane_width == lanes, name
+        assert ("PACKET_WIDTH" in wf.features) == bool(lanes), name
+    scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
+    assert Wavefront(scene, device, width=8, height=8, kernel_mode="wavefront").lane_width == 0
+    for value, lanes in (("0", 0), ("8", 8 if expected else 0), ("16", expected)):
+        monkeypatch.setenv(megakernel.LANES_ENV, value)
+        assert Wavefront(scene, device, width=8, height=8, kernel_mode="megakernel").lane_width == lanes
+    monkeypatch.setenv(megakernel.LANES_ENV, "4")
+    with pytest.raises(UserError, match="PYOPENCL_RT_LANES"):
+        Wavefront(scene, device, width=8, height=8, kernel_mode="megakernel")
+
+
+# ----------------------------------------------------------------------------- same samples
+@pytest.mark.parametrize("sampler", list(abi.SAMPLERS))
+def test_same_image_and_rays(device, monkeypatch, sampler):
+    """Mitsuba's Cornell box and ours (their lights and materials differ), each sampler: the film
+    sums bit for bit and the same numbers of rays, at 16 and 8 lanes."""
+    lane_device(device)
+    for name in ("mitsuba-cbox", "cornell-box"):
+        scene = rt.load_scene(SCENES / f"{name}.toml")
+        assert_same(renders(scene, device, monkeypatch, spp=4, seed=3, width=40, height=30, sampler=sampler))
+
+
+@pytest.mark.parametrize("options", [{"max_depth": 1}, {"max_depth": 2}, {"max_depth": 3, "rr_depth": 1},
+                                     {"max_depth": -1, "rr_depth": 2}])
+def test_depths_and_roulette(device, monkeypatch, options):
+    """Emitters seen directly only, direct light only, short paths rouletted from the first
+    bounce, unbounded paths ended by roulette alone."""
+    lane_device(device)
+    scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
+    assert_same(renders(scene, device, monkeypatch, widths=("0", "16"), spp=4, seed=5, width=32, height=24,
+                        **options))
+
+
+def test_thin_lens_two_sided_light_and_ior(device, monkeypatch):
+    """A thin-lens camera (its rays start per lane in scalar code), a two-sided emitter, a diffuse
+    surface with an ior (the eta scale of roulette) and a 1 x 1 image."""
+    lane_device(device)
+    scene = rt.load_scene(SCENES / "cornell-box.toml")
+    scene.camera = dataclasses.replace(scene.camera, aperture_radius=20.0)
+    materials = [dataclasses.replace(m, two_sided=True) if max(m.emission) > 0 else m for m in scene.materials]
+    materials[0] = dataclasses.replace(materials[0], ior=1.5)
+    scene.materials = materials
+    assert_same(renders(scene, device, monkeypatch, widths=("0", "16"), spp=6, seed=2, width=24, height=20))
+    assert_same(renders(scene, device, monkeypatch, widths=("0", "16"), spp=9, seed=2, width=1, height=1))
+
+
+def test_small_waves_and_adaptive_pixel_lists(device, monkeypatch):
+    """Launches that end inside a work-item's block (a wave smaller than a pass), and adaptive
+    sampling's pixel lists (listed passes, results in launch order)."""
+    lane_device(device)
+    scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
+    films = {}
+    for width in ("0", "16"):
+        monkeypatch.setenv(megakernel.LANES_ENV, width)
+        wf = Wavefront(scene, device, width=30, height=20, seed=4, kernel_mode="megakernel", wave_size=333)
+        film = Film(30, 20)
+        wf.run(film, passes=3)
+        films[width] = film
+    assert np.array_equal(films["0"].sum, films["16"].sum)
+    adaptive = renders(scene, device, monkeypatch, widths=("0", "16"), spp=64, seed=1, width=24, height=16,
+                       adaptive=True, target_error=0.05)
+    assert adaptive["16"].film.counts.min() < adaptive["16"].film.counts.max()  # pixel lists were used
+    assert np.array_equal(adaptive["0"].film.counts, adaptive["16"].film.counts)
+    assert_same(adaptive)
+
+
+# ----------------------------------------------------------------------------- building blocks
+LANES = harness.Kernels(r"""
+#include "render/sampler_lanes.h"
+/* sample_1d_lanes / sample_2d_lanes against sample_1d / sample_2d: keys (a, b, c, dim) per item */
+__kernel void h_samples(__global const uint *keys, __global float *out)
+{
+    const int base = get_global_id(0) * PACKET_WIDTH;
+    SampleKeyLanes k;
+    puint dim;
+    for (int j = 0; j < PACKET_WIDTH; ++j) {
+        __global const uint *q = keys + 4 * (base + j);
+        PLANE_U(k.a, j) = q[0]; PLANE_U(k.b, j) = q[1]; PLANE_U(k.c, j) = q[2]; PLANE_U(dim, j) = q[3];
+    }
+    pfloat u1 = sample_1d_lanes(k, dim), u, v;
+    sample_2d_lanes(k, dim, &u, &v);
+    for (int j = 0; j < PACKET_WIDTH; ++j) {
+        __global const uint *q = keys + 4 * (base + j);
+        SampleKey sk; sk.a = q[0]; sk.b = q[1]; sk.c = q[2];
+        const float2 s2 = sample_2d(sk, q[3]);
+        __global float *o = out + 6 * (base + j);
+        o[0] = PLANE(u1, j); o[1] = PLANE(u, j); o[2] = PLANE(v, j);
+        o[3] = sample_1d(sk, q[3]); o[4] = s2.x; o[5] = s2.y;
+    }
+}
+
+/* length, normalize, nextafter toward +-inf, sqrt, fmin/fmax: lanes, then the scalar code */
+__kernel void h_math(__global const float *a, __global const float *b, __global float *out)
+{
+    const int base = get_global_id(0) * PACKET_WIDTH;
+    pvec3 v;
+    pfloat x, y;
+    for (int j = 0; j < PACKET_WIDTH; ++j) {
+        pv3_set_lane(&v, j, load3(a, base + j));
+        PLANE(x, j) = a[3 * (base + j)];
+        PLANE(y, j) = b[base + j];
+    }
+    const pint all = PINT(-1);
+    const pfloat len = pv3_length(v, all);
+    const pvec3 nv = pv3_normalize(v, all);
+    const pfloat up = pnextafter_inf(x, y > 0.0f), sq = psqrt(pabs(x)), lo = pfmin(x, y), hi = pfmax(x, y);
+    for (int j = 0; j < PACKET_WIDTH; ++j) {
+        const float3 s = load3(a, base + j);
+        const float xs = a[3 * (base + j)], ys = b[base + j];
+        const float3 ns = normalize(s);
+        __global float *o = out + 16 * (base + j);
+        o[0] = PLANE(len, j); o[1] = PLANE(nv.x, j); o[2] = PLANE(nv.y, j); o[3] = PLANE(nv.z, j);
+        o[4] = PLANE(up, j); o[5] = PLANE(sq, j); o[6] = PLANE(lo, j); o[7] = PLANE(hi, j);
+        o[8] = length(s); o[9] = ns.x; o[10] = ns.y; o[11] = ns.z;
+        o[12] = nextafter(xs, ys > 0.0f ? INFINITY : -INFINITY); o[13] = sqrt(fabs(xs)); o[14] = fmin(xs, ys);
+        o[15] = fmax(xs, ys);
+    }
+}
+""", defines={"PACKET_WIDTH": 16})
+
+
+@pytest.mark.parametrize("sampler", list(abi.SAMPLERS))
+def test_lane_sampler_equals_scalar(device, runtime, rng, sampler):
+    lane_device(device)
+    kernels = harness.Kernels(LANES.source, defines={"PACKET_WIDTH": 16, "SAMPLER": abi.SAMPLERS[sampler]})
+    n = 16 * 512
+    keys = rng.integers(0, 2 ** 32, (n, 4), dtype=np.uint64).astype(np.uint32)
+    keys[: n // 2, 3] %= 64  # the ids the bounces use, and any
+    out = kernels(runtime, "h_samples", n // 16, keys=keys, out=(n, 6))
+    assert np.array_equal(out[:, :3].view(np.uint32), out[:, 3:].view(np.uint32))
+    assert len(np.unique(out[:, 1:3])) > 0.99 * 2 * n  # (sample_1d(id) is sample_2d(id).x by design)
+
+
+def test_lane_math_equals_scalar(device, runtime, rng):
+    """Bit for bit, including vectors whose squared length under- or overflows (the scalar code
+    rescales: the lanes take its result), zeros, denormals, infinities and NaN."""
+    lane_device(device)
+    n = 16 * 256
+    scale = 10.0 ** rng.uniform(-30, 30, (n, 1))
+    a = (rng.normal(size=(n, 3)) * scale).astype(np.float32)
+    a[:16] = [[0, 0, 0], [1e-38, 0, 0], [1e-45, 0, 0], [-0.0, 0, 0], [np.inf, 1, 0], [np.nan, 0, 1], [3e38, 3e38, 0],
+              [-1e-30, 2e-30, 0], [1, 1, 1], [-2, 0, 0], [5e-20, 5e-20, 5e-20], [1e20, -1e20, 1e19],
+              [np.float32(1.17549435e-38), 0, 0], [-3.4e38, 0, 0], [0.5, 0, 0], [7, 8, 9]]
+    b = np.where(rng.random(n) < 0.5, -1.0, 1.0).astype(np.float32) * rng.uniform(0, 2, n).astype(np.float32)
+    b[:8] = [np.nan, 0.0, -0.0, np.inf, -np.inf, 1.0, -1.0, np.nan]
+    out = LANES(runtime, "h_math", n // 16, a=a, b=b, out=(n, 16))
+    assert np.array_equal(out[:, :8].view(np.uint32), out[:, 8:].view(np.uint32))
