@@ -12,8 +12,8 @@
  * host (pyopencl_rt/render/megakernel.py). */
 #include "render/path_lanes.h"
 
-#ifndef PACKET_BLOCK
-#error "PACKET_BLOCK: samples per work-item, defined by the host"
+#if !defined(PACKET_BLOCK) || !defined(LANE_GROUP)
+#error "PACKET_BLOCK (samples per work-item) and LANE_GROUP (work-items per group) come from the host"
 #endif
 
 /* Starts the block's next samples in the lanes of `starting` (bit k: lane k), in lane order:
@@ -77,7 +77,9 @@ RT_INLINE int start_lanes(__global const Camera *camera, int starting, int *next
 
 __kernel void mk_lanes(WAVE_PARAMS)
 {
-    __local int group_rays[2 * WAVE_LOCAL_SIZE];
+    /* small groups (LANE_GROUP work-items of PACKET_BLOCK samples each): a launch of the CPU
+     * wave size still has enough groups for every core */
+    __local int group_rays[2 * LANE_GROUP];
     const int i = get_global_id(0), lid = get_local_id(0);
     int n_extend = 0, n_shadow = 0;
     const int last = min((i + 1) * PACKET_BLOCK, n_items);
@@ -129,13 +131,13 @@ __kernel void mk_lanes(WAVE_PARAMS)
                                 ring_size, seed, &s, &out);
     }
     group_rays[lid] = n_extend;
-    group_rays[WAVE_LOCAL_SIZE + lid] = n_shadow;
+    group_rays[LANE_GROUP + lid] = n_shadow;
     barrier(CLK_LOCAL_MEM_FENCE);
     if (lid == 0) {
         int extend = 0, shadow_rays = 0;
-        for (int k = 0; k < WAVE_LOCAL_SIZE; ++k) {
+        for (int k = 0; k < LANE_GROUP; ++k) {
             extend += group_rays[k];
-            shadow_rays += group_rays[WAVE_LOCAL_SIZE + k];
+            shadow_rays += group_rays[LANE_GROUP + k];
         }
         atomic_add(&counters[COUNTER_RAYS_EXTEND], extend);
         atomic_add(&counters[COUNTER_RAYS_SHADOW], shadow_rays);

@@ -37,9 +37,10 @@ LANES_SOURCES = ("megakernel/lanes.cl",)
 LANES_ENV = "PYOPENCL_RT_LANES"
 LANE_WIDTH = 16           # paths per work-item: one AVX-512 register of floats (two AVX2 ones)
 LANE_BLOCK = 16           # samples per work-item, in units of LANE_WIDTH, taken in turn by its lanes
+LANE_GROUP = 8            # work-items per group: the CPU wave (65536 samples) makes 64 groups, for 64 cores
 # the defines a scene may have for the lane kernel (with INTEGRATOR 0, lights and triangles)
 _LANE_DEFINES = {"BVH_WIDE8", "HAS_LIGHTS", "HAS_TRIANGLES", "INTEGRATOR", "MATERIALS_SELECTED", "SAMPLER",
-                 "RR_NO_ETA", "PACKET_HYBRID"}
+                 "RR_NO_ETA", "PACKET_HYBRID", "LANE_GROUP"}
 
 
 def kernel_mode(device, intersector: str, film_aovs, requested: str | None = None) -> str:
@@ -80,7 +81,7 @@ def lane_width(mode: str, device, features: dict, requested=None) -> int:
 
 def lane_features(width: int) -> dict:
     """The defines of the lane kernel (none for one path per work-item)."""
-    return {"PACKET_WIDTH": width, "PACKET_BLOCK": LANE_BLOCK * width} if width else {}
+    return {"PACKET_WIDTH": width, "PACKET_BLOCK": LANE_BLOCK * width, "LANE_GROUP": LANE_GROUP} if width else {}
 
 
 def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=False, first_pass=0,
@@ -108,8 +109,9 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
     # at most the wave (mat_scratch is indexed by work-item); with pixels, passes_per_launch already
     # keeps a launch within the ring's ring_size * wf.n_pixels entries (n_pixels <= wf.n_pixels)
     samples_per_launch = min(passes_per_launch * n_pixels, wf.wave_size)
-    local = abi.WAVE_LOCAL_SIZE
-    block = lane_features(wf.lane_width).get("PACKET_BLOCK", 1)  # samples per work-item
+    lanes = lane_features(wf.lane_width)
+    local = lanes.get("LANE_GROUP", abi.WAVE_LOCAL_SIZE)
+    block = lanes.get("PACKET_BLOCK", 1)  # samples per work-item
     end = None if passes is None else first_pass + passes
     zero_rays = np.zeros(2, np.int32)
 
