@@ -138,8 +138,8 @@ RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 
 #ifdef cl_khr_fp64
     const pint zero = (U == 0.0f) | (V == 0.0f) | (W == 0.0f);
     if (pany(zero)) {
-        for (int k = 0; k < PACKET_WIDTH; ++k) {
-            if (PLANE_I(zero, k) == 0) continue;
+        for (int bits = pbits(zero); bits; bits &= bits - 1) {
+            const int k = lowest_bit(bits);
             const float lax = PLANE(ax, k), lay = PLANE(ay, k), lbx = PLANE(bx, k);
             const float lby = PLANE(by, k), lcx = PLANE(cx, k), lcy = PLANE(cy, k);
             PLANE(U, k) = edge_double(lcx, lby, lcy, lbx);
@@ -175,8 +175,8 @@ RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 
         const double3 q0 = convert_double3(p0);
         const double3 f1 = convert_double3(p1) - q0, f2 = convert_double3(p2) - q0;
         const double mx = f1.y * f2.z - f1.z * f2.y, my = f1.z * f2.x - f1.x * f2.z, mz = f1.x * f2.y - f1.y * f2.x;
-        for (int k = 0; k < PACKET_WIDTH; ++k) {
-            if (PLANE_I(refine, k) == 0) continue;
+        for (int bits = pbits(refine); bits; bits &= bits - 1) {
+            const int k = lowest_bit(bits);
             const double dden = mx * (double)PLANE(r->dx, k) + my * (double)PLANE(r->dy, k) + mz * (double)PLANE(r->dz, k);
             const double dnum = mx * (q0.x - (double)PLANE(r->ox, k)) + my * (q0.y - (double)PLANE(r->oy, k)) +
                                 mz * (q0.z - (double)PLANE(r->oz, k));

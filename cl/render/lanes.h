@@ -60,12 +60,22 @@ RT_INLINE int pany(pint m) { const int4 b = m.lo | m.hi; const int2 c = b.lo | b
 
 /* the mask of the lanes set in bits (bit k: lane k), and back */
 RT_INLINE pint pmask(int bits) { return -((PINT(bits) >> LANE_IDS) & 1); }
-RT_INLINE int pbits(pint m)
+#if defined(__AVX__)
+/* vmovmskps: the sign bits of eight lanes */
+RT_INLINE int pbits8(int8 m) { return __builtin_ia32_movmskps256(as_float8(m)); }
+#else
+RT_INLINE int pbits8(int8 m)
 {
     int bits = 0;
-    for (int k = 0; k < PACKET_WIDTH; ++k) bits |= (PLANE_I(m, k) < 0) << k;
+    for (int k = 0; k < 8; ++k) bits |= (((const int *)&m)[k] < 0) << k;
     return bits;
 }
+#endif
+#if PACKET_WIDTH == 16
+RT_INLINE int pbits(pint m) { return pbits8(m.lo) | (pbits8(m.hi) << 8); }
+#else
+RT_INLINE int pbits(pint m) { return pbits8(m); }
+#endif
 
 RT_INLINE pfloat pabs(pfloat x) { return as_pfloat(as_puint(x) & PUINT(0x7fffffffu)); }
 RT_INLINE pfloat pfmin(pfloat a, pfloat b) { return __builtin_elementwise_min(a, b); }
