@@ -228,6 +228,8 @@ RT_INLINE void shade_lanes(__global const float4 *tris, __global const int *tri_
     sample_2d_lanes(key, dim + DIM_LIGHT_POINT, &ulx, &uly);
     sample_2d_lanes(key, dim + DIM_BSDF, &ubx, &uby);
     const pvec3 ref = offset_ray_origin_bound_lanes(p, p_err, n);
+    /* the spawn point on the other side: a shadow ray or a sample leaving below n */
+    const pvec3 below = offset_ray_origin_bound_lanes(p, p_err, pv3_neg(n));
 
     /* -- next-event estimation: one emissive triangle, picked by power (sample_alias) -------- */
     {
@@ -275,7 +277,6 @@ RT_INLINE void shade_lanes(__global const float4 *tris, __global const int *tri_
             if (pany(lit)) {
                 const pfloat lpdf = pick_pmf * ls_pdf;
                 const pfloat w = power_heuristic_lanes(lpdf, bpdf);
-                const pvec3 below = offset_ray_origin_bound_lanes(p, p_err, pv3_neg(n));
                 const pvec3 o_shadow = pv3_sel(below, ref, cos_i > 0.0f);
                 const pvec3 sp = offset_ray_origin_bound_lanes(lp, lp_err, ln);
                 *so = o_shadow;
@@ -308,7 +309,7 @@ RT_INLINE void shade_lanes(__global const float4 *tris, __global const int *tri_
     if (pany(roulette & sampled))
         on &= ~roulette | (sample_1d_lanes(key, dim + DIM_RR) < q);
     s->beta = pv3_sel(s->beta, pv3_sel(beta, pv3_div(beta, q), roulette), on);
-    const pvec3 o_next = pv3_sel(offset_ray_origin_bound_lanes(p, p_err, pv3_neg(n)), ref, (pv3_dot(ng, wi) > 0.0f) == front);
+    const pvec3 o_next = pv3_sel(below, ref, (pv3_dot(ng, wi) > 0.0f) == front);
     s->o = pv3_sel(s->o, o_next, on);
     s->d = pv3_sel(s->d, wi, on);
     s->pdf = on ? pdf : s->pdf;
