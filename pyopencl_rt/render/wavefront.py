@@ -32,6 +32,10 @@ STAGE_SCALARS = tuple(p.name for p in abi.WAVE_PARAMS if p.launch and p.kind == 
 # small enough that the path state stays in cache (measured with `pyopencl-rt bench wave`).
 DEFAULT_WAVE_GPU = 1 << 20
 DEFAULT_WAVE_CPU = 1 << 16
+# The megakernel keeps no path state in memory, so its wave is only how many samples one launch
+# renders: 4x the wavefront's amortises the host's wait for each launch and its last groups'
+# tail (+7% samples/s at 256 x 256, tools/kernel_ab.py; docs/BENCHMARKS.md).
+DEFAULT_WAVE_MEGAKERNEL = 1 << 18
 
 
 def check_pass_range(first_pass, passes) -> None:
@@ -43,10 +47,12 @@ def check_pass_range(first_pass, passes) -> None:
         raise ValueError(f"passes must be an integer >= 0 or None, got {passes!r}")
 
 
-def default_wave_size(device) -> int:
+def default_wave_size(device, kernel_mode: str = "wavefront") -> int:
     import pyopencl as cl
 
-    return DEFAULT_WAVE_GPU if device.type & cl.device_type.GPU else DEFAULT_WAVE_CPU
+    if device.type & cl.device_type.GPU:
+        return DEFAULT_WAVE_GPU
+    return DEFAULT_WAVE_MEGAKERNEL if kernel_mode == "megakernel" else DEFAULT_WAVE_CPU
 
 
 class Wavefront:
@@ -83,7 +89,6 @@ class Wavefront:
             from .arguments import MAX_WAVE_SIZE, check_wave_memory
 
             check_wave_memory(device, validate.integer(wave_size, "--wave-size", minimum=1, maximum=MAX_WAVE_SIZE))
-        self.wave_size = int(wave_size or default_wave_size(device))
         self.timings = {}
 
         t0 = time.perf_counter()
@@ -102,6 +107,7 @@ class Wavefront:
         self.features = kernel_features(scene, settings, lights, self.bvh_layout)
         self.kernel_mode = megakernel.kernel_mode(device, self.intersector.name, getattr(settings, "film_aovs", None),
                                                   kernel_mode)
+        self.wave_size = int(wave_size or default_wave_size(device, self.kernel_mode))
 
         self.lane_width = megakernel.lane_width(self.kernel_mode, device, self.features)
         self.features.update(megakernel.lane_features(self.lane_width))
@@ -155,7 +161,9 @@ class Wavefront:
             max_depth=self.settings.max_depth, rr_depth=self.settings.rr_depth, seed=self.settings.seed,
         )
         # the rest of the path state and queues, sized by the table, written by the kernels first
-        self.args.bind(**{p.name: scratch(p.per_slot * p.itemsize * W) for p in abi.WAVE_PARAMS
+        # (the megakernel keeps them in registers: it gets placeholders)
+        per_slot = 0 if self.kernel_mode == "megakernel" else W
+        self.args.bind(**{p.name: scratch(p.per_slot * p.itemsize * per_slot) for p in abi.WAVE_PARAMS
                           if p.per_slot and not p.launch and p.name not in self.args.values})
         queue_bytes = abi.WAVE_PARAM["queue_in"].itemsize * W
         self.queue_a, self.queue_b = scratch(queue_bytes), scratch(queue_bytes)  # queue_in/out, swapped

@@ -91,9 +91,10 @@ def test_failing_device_is_dropped_and_its_passes_redone(device):
     real_run = bad.run
 
     def flaky_run(film, **kw):
+        # its first batch (each device gets one before any has finished: which batch comes
+        # later depends on the timing; a fast device could take all the passes before the
+        # second one's second call, so it fails in its first)
         calls["n"] += 1
-        if calls["n"] == 1:
-            return real_run(film, **kw)
 
         class Broken:  # one pass of the batch gets through, then the device "fails"
             n = 0
@@ -111,7 +112,7 @@ def test_failing_device_is_dropped_and_its_passes_redone(device):
     film = Film(48, 32)
     with pytest.warns(RuntimeWarning, match="failed and was dropped"):
         st = MultiDevice(scene, wfs, target_seconds=0.01).run(film, passes=8)
-    assert calls["n"] >= 2
+    assert calls["n"] >= 1
     assert film.passes == 8 and not st.interrupted
     assert np.array_equal(film.sum, ref.sum) and np.array_equal(film.sum_sq, ref.sum_sq)
     failed = [d for d in st.devices if d["failed"]]
