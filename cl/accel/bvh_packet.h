@@ -120,40 +120,11 @@ RT_INLINE float edge_double(float a, float b, float c, float d)
 RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 p2, pfloat tmin, pfloat tmax,
                                pfloat *t_out, pfloat *U_out, pfloat *V_out, pfloat *W_out)
 {
-    const pfloat Ax = PICK(p0.x, p0.y, p0.z, r->kx0, r->kx1) - r->okx;
-    const pfloat Ay = PICK(p0.x, p0.y, p0.z, r->ky0, r->ky1) - r->oky;
-    const pfloat Az = PICK(p0.x, p0.y, p0.z, r->kz0, r->kz1) - r->okz;
-    const pfloat Bx = PICK(p1.x, p1.y, p1.z, r->kx0, r->kx1) - r->okx;
-    const pfloat By = PICK(p1.x, p1.y, p1.z, r->ky0, r->ky1) - r->oky;
-    const pfloat Bz = PICK(p1.x, p1.y, p1.z, r->kz0, r->kz1) - r->okz;
-    const pfloat Cx = PICK(p2.x, p2.y, p2.z, r->kx0, r->kx1) - r->okx;
-    const pfloat Cy = PICK(p2.x, p2.y, p2.z, r->ky0, r->ky1) - r->oky;
-    const pfloat Cz = PICK(p2.x, p2.y, p2.z, r->kz0, r->kz1) - r->okz;
-    const pfloat ax = Ax - r->sx * Az, ay = Ay - r->sy * Az;
-    const pfloat bx = Bx - r->sx * Bz, by = By - r->sy * Bz;
-    const pfloat cx = Cx - r->sx * Cz, cy = Cy - r->sy * Cz;
-    pfloat U = cx * by - cy * bx;
-    pfloat V = ax * cy - ay * cx;
-    pfloat W = bx * ay - by * ax;
-#ifdef cl_khr_fp64
-    const pint zero = (U == 0.0f) | (V == 0.0f) | (W == 0.0f);
-    if (pany(zero)) {
-        for (int bits = pbits(zero); bits; bits &= bits - 1) {
-            const int k = lowest_bit(bits);
-            const float lax = PLANE(ax, k), lay = PLANE(ay, k), lbx = PLANE(bx, k);
-            const float lby = PLANE(by, k), lcx = PLANE(cx, k), lcy = PLANE(cy, k);
-            PLANE(U, k) = edge_double(lcx, lby, lcy, lbx);
-            PLANE(V, k) = edge_double(lax, lcy, lay, lcx);
-            PLANE(W, k) = edge_double(lbx, lay, lby, lax);
-        }
-    }
-#endif
-    const pint mixed = ((U < 0.0f) | (V < 0.0f) | (W < 0.0f)) & ((U > 0.0f) | (V > 0.0f) | (W > 0.0f));
-    const pfloat det = U + V + W;
-    const pint inside = ~mixed & ((det < 0.0f) | (det > 0.0f)) & (tmin <= tmax);
-    if (!pany(inside))
-        return inside;
-    /* the plane equation: n and its magnitudes are the triangle's, computed once (scalars) */
+    /* The plane equation first (intersect_tri8's t, the same arithmetic; n and its magnitudes
+     * are the triangle's, computed once as scalars): a lane can only hit where its plane
+     * crossing lies in (tmin, tmax), or where the double-precision refinement may move it (a
+     * sliver, a numerator in doubt).  When no lane can, the edge test is skipped: walls behind
+     * the rays or beyond the hits found so far, and for shadow rays almost every triangle. */
     const float e1x = p1.x - p0.x, e1y = p1.y - p0.y, e1z = p1.z - p0.z;
     const float e2x = p2.x - p0.x, e2y = p2.y - p0.y, e2z = p2.z - p0.z;
     const float nx = e1y * e2z - e1z * e2y;
@@ -170,7 +141,48 @@ RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 
     pfloat tt = num / den;
     pint ok = den != 0.0f;
 #ifdef cl_khr_fp64
-    const pint refine = inside & (sliver ? PINT(-1) : doubt);
+    const pint may_move = sliver ? PINT(-1) : doubt;
+    const pint maybe = (tmin <= tmax) & ((ok & (tt > tmin) & (tt < tmax)) | may_move);
+#else
+    ok &= ~doubt;
+    const pint maybe = (tmin <= tmax) & ok & (tt > tmin) & (tt < tmax);
+#endif
+    if (!pany(maybe))
+        return maybe;
+    /* the edge functions in the ray's sheared space (Woop et al.), each lane's own permutation */
+    const pfloat Ax = PICK(p0.x, p0.y, p0.z, r->kx0, r->kx1) - r->okx;
+    const pfloat Ay = PICK(p0.x, p0.y, p0.z, r->ky0, r->ky1) - r->oky;
+    const pfloat Az = PICK(p0.x, p0.y, p0.z, r->kz0, r->kz1) - r->okz;
+    const pfloat Bx = PICK(p1.x, p1.y, p1.z, r->kx0, r->kx1) - r->okx;
+    const pfloat By = PICK(p1.x, p1.y, p1.z, r->ky0, r->ky1) - r->oky;
+    const pfloat Bz = PICK(p1.x, p1.y, p1.z, r->kz0, r->kz1) - r->okz;
+    const pfloat Cx = PICK(p2.x, p2.y, p2.z, r->kx0, r->kx1) - r->okx;
+    const pfloat Cy = PICK(p2.x, p2.y, p2.z, r->ky0, r->ky1) - r->oky;
+    const pfloat Cz = PICK(p2.x, p2.y, p2.z, r->kz0, r->kz1) - r->okz;
+    const pfloat ax = Ax - r->sx * Az, ay = Ay - r->sy * Az;
+    const pfloat bx = Bx - r->sx * Bz, by = By - r->sy * Bz;
+    const pfloat cx = Cx - r->sx * Cz, cy = Cy - r->sy * Cz;
+    pfloat U = cx * by - cy * bx;
+    pfloat V = ax * cy - ay * cx;
+    pfloat W = bx * ay - by * ax;
+#ifdef cl_khr_fp64
+    const pint zero = maybe & ((U == 0.0f) | (V == 0.0f) | (W == 0.0f));
+    if (pany(zero)) {
+        for (int bits = pbits(zero); bits; bits &= bits - 1) {
+            const int k = lowest_bit(bits);
+            const float lax = PLANE(ax, k), lay = PLANE(ay, k), lbx = PLANE(bx, k);
+            const float lby = PLANE(by, k), lcx = PLANE(cx, k), lcy = PLANE(cy, k);
+            PLANE(U, k) = edge_double(lcx, lby, lcy, lbx);
+            PLANE(V, k) = edge_double(lax, lcy, lay, lcx);
+            PLANE(W, k) = edge_double(lbx, lay, lby, lax);
+        }
+    }
+#endif
+    const pint mixed = ((U < 0.0f) | (V < 0.0f) | (W < 0.0f)) & ((U > 0.0f) | (V > 0.0f) | (W > 0.0f));
+    const pfloat det = U + V + W;
+    const pint inside = maybe & ~mixed & ((det < 0.0f) | (det > 0.0f));
+#ifdef cl_khr_fp64
+    const pint refine = inside & may_move;
     if (pany(refine)) {
         const double3 q0 = convert_double3(p0);
         const double3 f1 = convert_double3(p1) - q0, f2 = convert_double3(p2) - q0;
@@ -184,8 +196,6 @@ RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 
             PLANE(tt, k) = (float)(dnum / dden);
         }
     }
-#else
-    ok &= ~doubt;
 #endif
     *t_out = tt; *U_out = U; *V_out = V; *W_out = W;
     return inside & ok & (tt > tmin) & (tt < tmax);
