@@ -223,10 +223,11 @@ RT_INLINE WideRay packet_lane_ray(const PacketRay *r, int k)
     return w;
 }
 
-/* The children of node `off` that some lane of `lanes` enters: their slots nearest first (by the
- * smallest entry over the lanes), their lanes, and how many there are. */
+/* The children of node `off` that some lane of `lanes` enters: their slots (`sorted`: nearest
+ * first, by the smallest entry over the lanes, in near[]; else in slot order), their lanes, and
+ * how many there are. */
 RT_INLINE int packet_node(__global const float8 *base, int off, const PacketRay *r, pfloat tmin, pfloat tmax,
-                          int lanes, int *slots, float *near, int *masks)
+                          int lanes, int *slots, float *near, int *masks, const int sorted)
 {
     __global const float *box = (__global const float *)(base + off);
     __global const int *count = (__global const int *)(base + off + 7);
@@ -237,6 +238,7 @@ RT_INLINE int packet_node(__global const float8 *base, int off, const PacketRay 
         const pint m = packet_box(r, box[c], box[8 + c], box[16 + c], box[24 + c], box[32 + c], box[40 + c],
                                   tmin, tmax, &enter) & pmask(lanes);
         if (!pany(m)) continue;
+        if (!sorted) { slots[n] = c; masks[n] = pbits(m); ++n; continue; }
         const float e = pmin_all(SEL(PFLOAT(INFINITY), enter, m));
         int j = n++;
         for (; j > 0 && near[j - 1] > e; --j) { near[j] = near[j - 1]; slots[j] = slots[j - 1]; masks[j] = masks[j - 1]; }
@@ -271,7 +273,7 @@ RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, 
         } else if (cnt == 0) {
             int slots[8], masks[8];
             float near[8];
-            const int n = packet_node(base, off, r, tmin, *t, lanes, slots, near, masks);
+            const int n = packet_node(base, off, r, tmin, *t, lanes, slots, near, masks, 1);
             if (n > 0) {
                 __global const int *child = (__global const int *)(base + off + 6);
                 __global const int *count = (__global const int *)(base + off + 7);
@@ -343,7 +345,7 @@ RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pflo
         } else if (cnt == 0) {
             int slots[8], masks[8];
             float near[8];
-            const int n = packet_node(base, off, r, tmin, tmax, lanes, slots, near, masks);
+            const int n = packet_node(base, off, r, tmin, tmax, lanes, slots, near, masks, 0); /* any order */
             if (n > 0) {
                 __global const int *child = (__global const int *)(base + off + 6);
                 __global const int *count = (__global const int *)(base + off + 7);
