@@ -267,7 +267,8 @@ RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, 
                 const WideRay w = packet_lane_ray(r, k);
                 Hit h;
                 h.t = PLANE(*t, k); h.prim = PLANE_I(*prim, k); h.u = PLANE(*u, k); h.v = PLANE(*v, k);
-                wide8_closest_from(base, &w, PLANE(tmin, k), &h, off, cnt);
+                if (cnt > 0) intersect_leaf8(base + off, cnt, &w, PLANE(tmin, k), &h); /* a leaf: no traversal */
+                else wide8_closest_from(base, &w, PLANE(tmin, k), &h, off, cnt);
                 PLANE(*t, k) = h.t; PLANE_I(*prim, k) = h.prim; PLANE(*u, k) = h.u; PLANE(*v, k) = h.v;
             }
         } else if (cnt == 0) {
@@ -336,7 +337,8 @@ RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pflo
             for (int bits = lanes; bits; bits &= bits - 1) {
                 const int k = lowest_bit(bits);
                 const WideRay w = packet_lane_ray(r, k);
-                if (wide8_any_from(base, &w, PLANE(tmin, k), PLANE(tmax, k), off, cnt)) {
+                if (cnt > 0 ? occluded_leaf8(base + off, cnt, &w, PLANE(tmin, k), PLANE(tmax, k))
+                            : wide8_any_from(base, &w, PLANE(tmin, k), PLANE(tmax, k), off, cnt)) {
                     PLANE_I(hit, k) = -1;
                     PLANE(tmax, k) = -INFINITY;
                 }
