@@ -16,30 +16,66 @@
 #error "PACKET_BLOCK (samples per work-item) and LANE_GROUP (work-items per group) come from the host"
 #endif
 
+/* Where a work-item's next sample is: sample j of the launch (path.cl's numbering) as its pass,
+ * its index in the pass (in pixel order, or into pixel_list) and its pass's ring slot, and, for
+ * whole passes, its pixel's (x, y).  Stepped by increments: the divisions of path.cl's numbering
+ * (five a sample) cost more than the rest of starting a path. */
+typedef struct { int j, pass, index, slot, x, y; } SampleCursor;
+
+RT_INLINE SampleCursor cursor_at(int j, int first_pixel, int first_pass, int n_pixels, int n_listed, int ring_size,
+                                 int width)
+{
+    SampleCursor c;
+    const int n_take = n_listed > 0 ? n_listed : n_pixels;
+    const int linear = first_pixel + j;
+    c.j = j;
+    c.pass = first_pass + linear / n_take;
+    c.index = linear % n_take;
+    c.slot = c.pass % ring_size;
+    c.x = c.index % width;
+    c.y = c.index / width;
+    return c;
+}
+
+RT_INLINE void cursor_step(SampleCursor *c, int n_take, int ring_size, int width)
+{
+    ++c->j;
+    ++c->index;
+    if (++c->x == width) { c->x = 0; ++c->y; }
+    if (c->index == n_take) {
+        c->index = c->x = c->y = 0;
+        ++c->pass;
+        c->slot = c->slot + 1 == ring_size ? 0 : c->slot + 1;
+    }
+}
+
 /* Starts the block's next samples in the lanes of `starting` (bit k: lane k), in lane order:
- * sample j's pixel, pass and ring entry as path.cl numbers them, its SampleKey (sampler_key, per
+ * each sample's pixel and ring entry as path.cl numbers them, its SampleKey (sampler_key, per
  * lane) and its camera ray (camera_ray, on the lanes; a thin lens per lane in scalar code).
  * Returns the lanes started (all of `starting`, or fewer when the block runs out). */
-RT_INLINE int start_lanes(__global const Camera *camera, int starting, int *next, int last, int first_pixel,
-                          int first_pass, int n_pixels, __global const int *pixel_list, int n_listed, int ring_size,
-                          uint seed, PathLanes *s, pint *out)
+RT_INLINE int start_lanes(__global const Camera *camera, int starting, SampleCursor *cur, int last, int n_pixels,
+                          __global const int *pixel_list, int n_listed, int ring_size, uint seed, PathLanes *s,
+                          pint *out)
 {
     const Camera cam = *camera;
     const int n_take = n_listed > 0 ? n_listed : n_pixels;
     int started = 0;
     pint px, py;
-    for (int k = 0; k < PACKET_WIDTH && *next < last; ++k) {
+    for (int k = 0; k < PACKET_WIDTH && cur->j < last; ++k) {
         if (!((starting >> k) & 1)) continue;
-        const int j = (*next)++;
-        const int linear = first_pixel + j;
-        const int pass = first_pass + linear / n_take;
-        const int pixel = n_listed > 0 ? pixel_list[linear % n_take] : linear % n_take;
-        PLANE_I(*out, k) = n_listed > 0 ? j : (pass % ring_size) * n_pixels + pixel;
-        const SampleKey sk = sampler_key(seed, (uint)pixel, (uint)cam.width, (uint)pass);
+        int pixel = cur->index, x = cur->x, y = cur->y;
+        if (n_listed > 0) { /* adaptive sampling: a pixel of the list */
+            pixel = pixel_list[cur->index];
+            x = pixel % cam.width;
+            y = pixel / cam.width;
+        }
+        PLANE_I(*out, k) = n_listed > 0 ? cur->j : cur->slot * n_pixels + pixel;
+        const SampleKey sk = sampler_key_xy(seed, (uint)pixel, (uint)x, (uint)y, (uint)cur->pass);
         PLANE_U(s->key.a, k) = sk.a; PLANE_U(s->key.b, k) = sk.b; PLANE_U(s->key.c, k) = sk.c;
-        PLANE_I(px, k) = pixel % cam.width;
-        PLANE_I(py, k) = pixel / cam.width;
+        PLANE_I(px, k) = x;
+        PLANE_I(py, k) = y;
         started |= 1 << k;
+        cursor_step(cur, n_take, ring_size, cam.width);
     }
     if (!started) return 0;
     const pint on = pmask(started);
@@ -83,7 +119,7 @@ __kernel void mk_lanes(WAVE_PARAMS)
     const int i = get_global_id(0), lid = get_local_id(0);
     int n_extend = 0, n_shadow = 0;
     const int last = min((i + 1) * PACKET_BLOCK, n_items);
-    int next = i * PACKET_BLOCK;
+    SampleCursor cur = cursor_at(i * PACKET_BLOCK, first_pixel, first_pass, n_pixels, n_listed, ring_size, camera->width);
     PathLanes s;
     /* idle lanes hold a harmless path (never traced: their tmax is below tmin) */
     const PathState idle = path_start((float3)(0.0f), (float3)(0.0f, 0.0f, 1.0f));
@@ -91,8 +127,8 @@ __kernel void mk_lanes(WAVE_PARAMS)
     idle_key.a = idle_key.b = idle_key.c = 0u;
     for (int k = 0; k < PACKET_WIDTH; ++k) lanes_set_path(&s, k, idle, idle_key);
     pint out = PINT(0);
-    int live = start_lanes(camera, (1 << PACKET_WIDTH) - 1, &next, last, first_pixel, first_pass, n_pixels,
-                           pixel_list, n_listed, ring_size, seed, &s, &out); /* bit k: lane k holds a path */
+    int live = start_lanes(camera, (1 << PACKET_WIDTH) - 1, &cur, last, n_pixels, pixel_list, n_listed, ring_size,
+                           seed, &s, &out); /* bit k: lane k holds a path */
     while (live) {
         const pint live_lanes = pmask(live);
         /* -- extend: the live lanes' rays, one packet ---------------------------------------- */
@@ -126,9 +162,8 @@ __kernel void mk_lanes(WAVE_PARAMS)
             store3(pass_ring, PLANE_I(out, k), L);
         }
         live &= ~ended;
-        if (ended && next < last)
-            live |= start_lanes(camera, ended, &next, last, first_pixel, first_pass, n_pixels, pixel_list, n_listed,
-                                ring_size, seed, &s, &out);
+        if (ended && cur.j < last)
+            live |= start_lanes(camera, ended, &cur, last, n_pixels, pixel_list, n_listed, ring_size, seed, &s, &out);
     }
     group_rays[lid] = n_extend;
     group_rays[LANE_GROUP + lid] = n_shadow;

@@ -148,11 +148,12 @@ RT_INLINE uint spread_bits(uint x)
     }
 RT_DEFINE_GATHER_EVEN_BITS(uint, gather_even_bits)
 
-RT_INLINE SampleKey sampler_key(uint seed, uint pixel, uint width, uint pass)
+/* sampler_key of pixel (x, y) = (pixel % width, pixel / width), for a caller that has them
+ * already (the lane megakernel steps through pixels without dividing) */
+RT_INLINE SampleKey sampler_key_xy(uint seed, uint pixel, uint x, uint y, uint pass)
 {
     SampleKey k;
 #if SAMPLER == SAMPLER_SOBOL
-    const uint x = pixel % width, y = pixel / width;
     const uint tile_mask = (1u << SOBOL_TILE_BITS) - 1u;
     const uint morton = spread_bits(x & tile_mask) | (spread_bits(y & tile_mask) << 1);
     const uint round_mask = (1u << SOBOL_LOG2_ROUND) - 1u;
@@ -169,6 +170,11 @@ RT_INLINE SampleKey sampler_key(uint seed, uint pixel, uint width, uint pass)
     k.c = reverse_bits32(k.a);
 #endif
     return k;
+}
+
+RT_INLINE SampleKey sampler_key(uint seed, uint pixel, uint width, uint pass)
+{
+    return sampler_key_xy(seed, pixel, pixel % width, pixel / width, pass);
 }
 
 #if SAMPLER != SAMPLER_INDEPENDENT
