@@ -182,6 +182,7 @@ RT_INLINE void shade_lanes(__global const float4 *tris, __global const int *tri_
                            pint *goes_on, pint *with_shadow, pvec3 *so, pvec3 *sd, pvec3 *contribution)
 {
     prim = hit ? prim : PINT(0); /* a valid index in every lane for the gathers */
+    *so = *sd = *contribution = pv3_splat((float3)(0.0f)); /* defined in every lane */
     const TriLanes tri = gather_triangles(tris, prim);
     pvec3 p_err;
     const pvec3 p = triangle_point_lanes(tri, u, v, &p_err);

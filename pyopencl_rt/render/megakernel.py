@@ -37,10 +37,12 @@ LANES_SOURCES = ("megakernel/lanes.cl",)
 LANES_ENV = "PYOPENCL_RT_LANES"
 LANE_WIDTH = 16           # paths per work-item: one AVX-512 register of floats (two AVX2 ones)
 LANE_BLOCK = 16           # samples per work-item, in units of LANE_WIDTH, taken in turn by its lanes
-LANE_GROUP = 8            # work-items per group: the CPU wave (65536 samples) makes 64 groups, for 64 cores
-# the defines a scene may have for the lane kernel (with INTEGRATOR 0, lights and triangles)
+LANE_GROUP = 8            # work-items per group: a launch of the CPU wave (2^18 samples) makes 128 groups
+# the defines a scene may have for the lane kernel (with INTEGRATOR 0, lights and triangles), and
+# the switches kept for A/B measurements (RR_NO_ETA: tools/variance_audit.py; PACKET_HYBRID, the
+# ray-by-ray threshold of cl/accel/bvh_packet.h: tools/kernel_ab.py)
 _LANE_DEFINES = {"BVH_WIDE8", "HAS_LIGHTS", "HAS_TRIANGLES", "INTEGRATOR", "MATERIALS_SELECTED", "SAMPLER",
-                 "RR_NO_ETA", "PACKET_HYBRID", "LANE_GROUP"}
+                 "RR_NO_ETA", "PACKET_HYBRID"}
 
 
 def kernel_mode(device, intersector: str, film_aovs, requested: str | None = None) -> str:
