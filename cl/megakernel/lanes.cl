@@ -11,6 +11,7 @@
  * the lanes stay full until the block runs out.  PACKET_WIDTH and PACKET_BLOCK come from the
  * host (pyopencl_rt/render/megakernel.py). */
 #include "render/path_lanes.h"
+#include "megakernel/ray_counts.h"
 
 #if !defined(PACKET_BLOCK) || !defined(LANE_GROUP)
 #error "PACKET_BLOCK (samples per work-item) and LANE_GROUP (work-items per group) come from the host"
@@ -116,7 +117,7 @@ __kernel void mk_lanes(WAVE_PARAMS)
     /* small groups (LANE_GROUP work-items of PACKET_BLOCK samples each): a launch of the CPU
      * wave size still has enough groups for every core */
     __local int group_rays[2 * LANE_GROUP];
-    const int i = get_global_id(0), lid = get_local_id(0);
+    const int i = get_global_id(0);
     int n_extend = 0, n_shadow = 0;
     const int last = min((i + 1) * PACKET_BLOCK, n_items);
     SampleCursor cur = cursor_at(i * PACKET_BLOCK, first_pixel, first_pass, n_pixels, n_listed, ring_size, camera->width);
@@ -165,16 +166,5 @@ __kernel void mk_lanes(WAVE_PARAMS)
         if (ended && cur.j < last)
             live |= start_lanes(camera, ended, &cur, last, n_pixels, pixel_list, n_listed, ring_size, seed, &s, &out);
     }
-    group_rays[lid] = n_extend;
-    group_rays[LANE_GROUP + lid] = n_shadow;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    if (lid == 0) {
-        int extend = 0, shadow_rays = 0;
-        for (int k = 0; k < LANE_GROUP; ++k) {
-            extend += group_rays[k];
-            shadow_rays += group_rays[LANE_GROUP + k];
-        }
-        atomic_add(&counters[COUNTER_RAYS_EXTEND], extend);
-        atomic_add(&counters[COUNTER_RAYS_SHADOW], shadow_rays);
-    }
+    add_group_ray_counts(group_rays, LANE_GROUP, n_extend, n_shadow, counters);
 }

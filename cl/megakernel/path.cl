@@ -14,13 +14,12 @@
  * traces are counted in counters[COUNTER_RAYS_EXTEND] and [COUNTER_RAYS_SHADOW].
  * mat_scratch (textures) is indexed by work-item: n_items is at most the wave size. */
 #include "render/path.h"
+#include "megakernel/ray_counts.h"
 
 __kernel void mk_path(WAVE_PARAMS)
 {
-    /* the group's rays, summed here and added to counters[] once per group: two global atomics
-     * per work-item, contended by every CPU thread, cost 3.5% of the kernel (perf) */
-    __local int group_rays[2 * WAVE_LOCAL_SIZE];
-    const int i = get_global_id(0), lid = get_local_id(0);
+    __local int group_rays[2 * WAVE_LOCAL_SIZE]; /* add_group_ray_counts (ray_counts.h) */
+    const int i = get_global_id(0);
     int n_extend = 0, n_shadow = 0;
     if (i < n_items) {
         const int n_take = n_listed > 0 ? n_listed : n_pixels;
@@ -58,16 +57,5 @@ __kernel void mk_path(WAVE_PARAMS)
         }
         store3(pass_ring, out, L);
     }
-    group_rays[lid] = n_extend;
-    group_rays[WAVE_LOCAL_SIZE + lid] = n_shadow;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    if (lid == 0) {
-        int extend = 0, shadow = 0;
-        for (int k = 0; k < WAVE_LOCAL_SIZE; ++k) {
-            extend += group_rays[k];
-            shadow += group_rays[WAVE_LOCAL_SIZE + k];
-        }
-        atomic_add(&counters[COUNTER_RAYS_EXTEND], extend);
-        atomic_add(&counters[COUNTER_RAYS_SHADOW], shadow);
-    }
+    add_group_ray_counts(group_rays, WAVE_LOCAL_SIZE, n_extend, n_shadow, counters);
 }
