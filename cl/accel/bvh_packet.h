@@ -2,25 +2,27 @@
  * (16 on AVX-512, 8 on AVX2) in the lanes of one work-item's vectors, closest hit and any hit.
  *
  * Why: PoCL runs a work-item as scalar code, and the single-ray traversal (bvh_wide8.h) gets its
- * SIMD from eight child boxes or eight triangles per instruction.  On a small scene (the Cornell
- * box: 36 triangles, a handful of leaves) most rays of a packet visit the same few nodes, so
- * testing one box or one triangle against every ray at once does the same work with a fraction
- * of the instructions, and without the per-ray stack and branches (Embree's rtcIntersect16, which
- * Mitsuba's LLVM variants call, works this way).  On large scenes with incoherent rays the rays
- * of a packet part ways and the single-ray traversal is better; the host chooses.
+ * SIMD from eight child boxes or eight triangles per instruction.  Where the rays of a packet
+ * visit the same nodes (camera rays; every ray of a small scene such as the Cornell box), testing
+ * one box or one triangle against all of them at once does the same work with a fraction of the
+ * instructions and without the per-ray stacks and branches (Embree's rtcIntersect16, which
+ * Mitsuba's LLVM variants call, works this way).  Where they part ways, a subtree that at most
+ * PACKET_HYBRID lanes enter is traversed ray by ray with bvh_wide8.h's functions, so large scenes
+ * lose little (docs/BENCHMARKS.md: a 1.3M-triangle scene still renders faster with lanes).
  *
  * Results, lane by lane, are those of bvh_wide8_closest_hit / bvh_wide8_any_hit bit for bit: the
- * triangle test is intersect_tri8's arithmetic in the same order (FP_CONTRACT off), with each
- * lane's own axis permutation and shear applied by selects instead of load offsets, and the same
+ * triangle test is intersect_tri8's arithmetic (FP_CONTRACT off), with each lane's own axis
+ * permutation and shear applied by selects instead of load offsets, and the same
  * double-precision fallbacks (per lane, in scalar code: they are rare).  Only the order in which
  * a ray meets the leaves differs, so where two triangles give a ray exactly the same t the one
- * reported can differ (as between the binary and wide layouts).
+ * reported can differ (as between the binary and wide layouts; tests/accel/test_bvh_packet.py).
  *
- * Traversal: a node's eight child boxes are tested one after another, each against all rays; the
- * children that some ray enters are visited nearest first (by the smallest entry distance over
- * the packet) and the others pushed with that distance, and a popped entry is skipped when it
- * lies beyond every ray's closest hit so far.  A lane whose tmax is below its tmin is inactive
- * (no box test passes for it): a dead path's slot in the packet.
+ * Traversal: a node's child boxes are tested one after another, each against the lanes that
+ * entered the node; the children some lane enters are visited nearest first (by the smallest
+ * entry distance over those lanes; any order for any-hit queries) and the others pushed with
+ * that distance and their lanes, and a popped entry is skipped when every lane that entered it
+ * has a closer hit by now.  A lane whose tmax is below its tmin is inactive (no box test passes
+ * for it): an idle path's slot in the packet.
  */
 #ifndef PYOPENCL_RT_BVH_PACKET_H
 #define PYOPENCL_RT_BVH_PACKET_H
@@ -46,7 +48,8 @@ typedef struct {
     pfloat okx, oky, okz, sx, sy;
 } PacketRay;
 
-/* Lane k of the packet from one ray (wide_ray's constants, so the same bits). */
+/* Lane k of the packet from one ray, through wide_ray itself: the reference that packet_rays
+ * (below, all lanes at once) is checked against (tests/accel/test_bvh_packet.py). */
 RT_INLINE void packet_set_ray(PacketRay *p, int k, float3 o, float3 d)
 {
     const WideRay r = wide_ray(o, d);
