@@ -22,6 +22,7 @@ triangles give a ray exactly the same distance.  ``$PYOPENCL_RT_LANES`` = 0 turn
 from __future__ import annotations
 
 import os
+import platform
 import time
 
 import numpy as np
@@ -64,7 +65,7 @@ def kernel_mode(device, intersector: str, film_aovs, requested: str | None = Non
 
 def lane_width(mode: str, device, features: dict, requested=None) -> int:
     """Paths per work-item of the megakernel: :data:`LANE_WIDTH` where the lane kernel applies (the
-    megakernel on PoCL's CPU device, a scene whose defines path_lanes.h covers), else 0 (one path
+    megakernel on PoCL's CPU device of an x86 host, a scene whose defines path_lanes.h covers), else 0 (one path
     per work-item).  ``requested`` or ``$PYOPENCL_RT_LANES`` overrides: 0 (off), 8 or 16 (where it
     applies)."""
     import pyopencl as cl
@@ -75,7 +76,9 @@ def lane_width(mode: str, device, features: dict, requested=None) -> int:
         raise UserError(f"${LANES_ENV}={text!r}: use 0 (one path per work-item), 8 or 16")
     covered = (set(features) <= _LANE_DEFINES and features.get("INTEGRATOR") == 0
                and {"HAS_LIGHTS", "HAS_TRIANGLES", "BVH_WIDE8", "MATERIALS_SELECTED"} <= set(features))
-    pocl_cpu = bool(device.type & cl.device_type.CPU) and "Portable Computing Language" in device.platform.name
+    # PoCL's CPU device runs on this host: the lane code is written for clang on x86 (lanes.h)
+    pocl_cpu = (bool(device.type & cl.device_type.CPU) and "Portable Computing Language" in device.platform.name
+                and platform.machine().lower() in ("x86_64", "amd64"))
     if mode != "megakernel" or not covered or not pocl_cpu or text == "0":
         return 0
     return int(text) if text else LANE_WIDTH
