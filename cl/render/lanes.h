@@ -11,6 +11,8 @@
 #define PYOPENCL_RT_LANES_H
 
 #include "common.h"
+/* mask_bits8 (vmovmskps) and any8, the 8-wide traversal's mask helpers, serve the lanes too */
+#include "accel/bvh_wide8.h"
 
 #ifndef RT_CPU_BUILTINS
 #error "lanes.h is for clang on x86 (cpu_builtins.h), where the lane kernels run"
@@ -33,7 +35,7 @@ typedef uint16 puint;
 #define convert_pint convert_int16
 #define convert_puint convert_uint16
 #define LANE_IDS ((int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
-RT_INLINE int pany(pint m) { const int8 a = m.lo | m.hi; const int4 b = a.lo | a.hi; const int2 c = b.lo | b.hi; return (c.x | c.y) < 0; }
+RT_INLINE int pany(pint m) { return any8(m.lo | m.hi); }
 #elif PACKET_WIDTH == 8
 typedef float8 pfloat;
 typedef int8 pint;
@@ -48,7 +50,7 @@ typedef uint8 puint;
 #define convert_pint convert_int8
 #define convert_puint convert_uint8
 #define LANE_IDS ((int8)(0, 1, 2, 3, 4, 5, 6, 7))
-RT_INLINE int pany(pint m) { const int4 b = m.lo | m.hi; const int2 c = b.lo | b.hi; return (c.x | c.y) < 0; }
+RT_INLINE int pany(pint m) { return any8(m); }
 #else
 #error "PACKET_WIDTH must be 8 or 16"
 #endif
@@ -60,21 +62,10 @@ RT_INLINE int pany(pint m) { const int4 b = m.lo | m.hi; const int2 c = b.lo | b
 
 /* the mask of the lanes set in bits (bit k: lane k), and back */
 RT_INLINE pint pmask(int bits) { return -((PINT(bits) >> LANE_IDS) & 1); }
-#if defined(__AVX__)
-/* vmovmskps: the sign bits of eight lanes */
-RT_INLINE int pbits8(int8 m) { return __builtin_ia32_movmskps256(as_float8(m)); }
-#else
-RT_INLINE int pbits8(int8 m)
-{
-    int bits = 0;
-    for (int k = 0; k < 8; ++k) bits |= (((const int *)&m)[k] < 0) << k;
-    return bits;
-}
-#endif
 #if PACKET_WIDTH == 16
-RT_INLINE int pbits(pint m) { return pbits8(m.lo) | (pbits8(m.hi) << 8); }
+RT_INLINE int pbits(pint m) { return mask_bits8(m.lo) | (mask_bits8(m.hi) << 8); }
 #else
-RT_INLINE int pbits(pint m) { return pbits8(m); }
+RT_INLINE int pbits(pint m) { return mask_bits8(m); }
 #endif
 
 RT_INLINE pfloat pabs(pfloat x) { return as_pfloat(as_puint(x) & PUINT(0x7fffffffu)); }
