@@ -163,8 +163,7 @@ RT_INLINE pvec3 sample_cosine_hemisphere_lanes(pfloat ux, pfloat uy)
     const pfloat major = wide_x ? ox : oy, minor = wide_x ? oy : ox;
     const pfloat x = (0.25f * PI_F) * (minor / major);
     const pfloat x2 = x * x;
-    const pfloat s = x * (1.0f + x2 * (-1.0f / 6.0f + x2 * (1.0f / 120.0f + x2 * (-1.0f / 5040.0f + x2 * (1.0f / 362880.0f)))));
-    const pfloat c = 1.0f + x2 * (-0.5f + x2 * (1.0f / 24.0f + x2 * (-1.0f / 720.0f + x2 * (1.0f / 40320.0f + x2 * (-1.0f / 3628800.0f)))));
+    const pfloat s = SIN_QUARTER(x, x2), c = COS_QUARTER(x2); /* sincos_quarter */
     const pint center = (ox == 0.0f) & (oy == 0.0f);
     const pfloat dx = center ? PFLOAT(0.0f) : major * (wide_x ? c : s);
     const pfloat dy = center ? PFLOAT(0.0f) : major * (wide_x ? s : c);

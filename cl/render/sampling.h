@@ -31,12 +31,14 @@ RT_INLINE float3 to_local(float3 w, float3 t, float3 b, float3 n)
 /* sin and cos of |x| <= pi/4 by their Taylor series to x^9 / x^10: the truncation error is
  * below 2e-9, under float rounding, and there is no argument reduction (the library sin/cos
  * spent a visible share of the shade stage reducing arguments, per `perf`). */
+/* The two series as expressions of x and x2 = x * x, for floats or vectors of them (the lane
+ * sampler, cl/render/path_lanes.h, evaluates the same polynomials). */
+#define SIN_QUARTER(x, x2) ((x) * (1.0f + (x2) * (-1.0f / 6.0f + (x2) * (1.0f / 120.0f + (x2) * (-1.0f / 5040.0f + (x2) * (1.0f / 362880.0f))))))
+#define COS_QUARTER(x2) (1.0f + (x2) * (-0.5f + (x2) * (1.0f / 24.0f + (x2) * (-1.0f / 720.0f + (x2) * (1.0f / 40320.0f + (x2) * (-1.0f / 3628800.0f))))))
 RT_INLINE float2 sincos_quarter(float x)
 {
     const float x2 = x * x;
-    const float s = x * (1.0f + x2 * (-1.0f / 6.0f + x2 * (1.0f / 120.0f + x2 * (-1.0f / 5040.0f + x2 * (1.0f / 362880.0f)))));
-    const float c = 1.0f + x2 * (-0.5f + x2 * (1.0f / 24.0f + x2 * (-1.0f / 720.0f + x2 * (1.0f / 40320.0f + x2 * (-1.0f / 3628800.0f)))));
-    return (float2)(s, c);
+    return (float2)(SIN_QUARTER(x, x2), COS_QUARTER(x2));
 }
 
 /* Shirley & Chiu's concentric map of the square onto the unit disk: pdf 1/pi per unit area.
