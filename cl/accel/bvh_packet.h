@@ -124,23 +124,17 @@ RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 
                                pfloat *t_out, pfloat *U_out, pfloat *V_out, pfloat *W_out)
 {
     /* The plane equation first (intersect_tri8's t, the same arithmetic; n and its magnitudes
-     * are the triangle's, computed once as scalars): a lane can only hit where its plane
+     * are the triangle's, from triangle_plane, once for all lanes): a lane can only hit where its plane
      * crossing lies in (tmin, tmax), or where the double-precision refinement may move it (a
      * sliver, a numerator in doubt).  When no lane can, the edge test is skipped: walls behind
      * the rays or beyond the hits found so far, and for shadow rays almost every triangle. */
-    const float e1x = p1.x - p0.x, e1y = p1.y - p0.y, e1z = p1.z - p0.z;
-    const float e2x = p2.x - p0.x, e2y = p2.y - p0.y, e2z = p2.z - p0.z;
-    const float nx = e1y * e2z - e1z * e2y;
-    const float ny = e1z * e2x - e1x * e2z;
-    const float nz = e1x * e2y - e1y * e2x;
-    const float nabs_x = fabs(e1y * e2z) + fabs(e1z * e2y);
-    const float nabs_y = fabs(e1z * e2x) + fabs(e1x * e2z);
-    const float nabs_z = fabs(e1x * e2y) + fabs(e1y * e2x);
-    const int sliver = fabs(nx) + fabs(ny) + fabs(nz) < SLIVER_CANCELLATION * (nabs_x + nabs_y + nabs_z);
-    const pfloat den = nx * r->dx + ny * r->dy + nz * r->dz;
+    float3 nabs;
+    int sliver;
+    const float3 n = triangle_plane(p0, p1, p2, &nabs, &sliver);
+    const pfloat den = n.x * r->dx + n.y * r->dy + n.z * r->dz;
     const pfloat ax0 = p0.x - r->ox, ay0 = p0.y - r->oy, az0 = p0.z - r->oz;
-    const pfloat num = nx * ax0 + ny * ay0 + nz * az0;
-    const pint doubt = pabs(num) <= NUM_DOUBT * (nabs_x * pabs(ax0) + nabs_y * pabs(ay0) + nabs_z * pabs(az0));
+    const pfloat num = n.x * ax0 + n.y * ay0 + n.z * az0;
+    const pint doubt = pabs(num) <= NUM_DOUBT * (nabs.x * pabs(ax0) + nabs.y * pabs(ay0) + nabs.z * pabs(az0));
     pfloat tt = num / den;
     pint ok = den != 0.0f;
 #ifdef cl_khr_fp64
@@ -250,11 +244,21 @@ RT_INLINE int packet_node(__global const float8 *base, int off, const PacketRay 
     return n;
 }
 
+/* Triangle j of a Tri8 packet (bvh_wide8.h's layout: float8 3 * vertex + axis, lane j). */
+RT_INLINE void tri8_vertices(__global const float8 *pk, int j, float3 *p0, float3 *p1, float3 *p2)
+{
+    __global const float *vf = (__global const float *)pk;
+    *p0 = (float3)(vf[j], vf[8 + j], vf[16 + j]);
+    *p1 = (float3)(vf[24 + j], vf[32 + j], vf[40 + j]);
+    *p2 = (float3)(vf[48 + j], vf[56 + j], vf[64 + j]);
+}
+
 /* The closest hits of the packet in (tmin, tmax) (per lane; tmax < tmin: inactive lane).  *t
  * holds tmax on entry and the hit distance on return; prim (PRIM_MISS on entry), u, v as Hit.
- * Each stack entry keeps the lanes that entered its box; a leaf that at most PACKET_HYBRID of
- * them enter is tested ray by ray with intersect_leaf8 (as Embree's hybrid traversal switches to
- * single rays), the others triangle by triangle against all its lanes. */
+ * Each stack entry keeps the lanes that entered its box; a subtree that at most PACKET_HYBRID of
+ * them enter is traversed ray by ray (bvh_wide8.h; a leaf with intersect_leaf8), as Embree's
+ * hybrid traversal switches to single rays; a leaf entered by more is tested triangle by triangle
+ * against all its lanes. */
 RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, pfloat tmin, pfloat *t,
                                   pint *prim, pfloat *u, pfloat *v)
 {
@@ -292,14 +296,12 @@ RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, 
             __global const float8 *pk = base + off;
             const pfloat lane_tmin = pmask(lanes) ? tmin : PFLOAT(INFINITY); /* the lanes that entered */
             for (int q = 0; q < cnt; ++q, pk += TRI8_UNITS) {
-                __global const float *vf = (__global const float *)pk;
                 __global const int *tri = (__global const int *)(pk + 9);
                 for (int j = 0; j < 8; ++j) {
                     const int id = tri[j];
                     if (id < 0) continue;
-                    const float3 p0 = (float3)(vf[j], vf[8 + j], vf[16 + j]);
-                    const float3 p1 = (float3)(vf[24 + j], vf[32 + j], vf[40 + j]);
-                    const float3 p2 = (float3)(vf[48 + j], vf[56 + j], vf[64 + j]);
+                    float3 p0, p1, p2;
+                    tri8_vertices(pk, j, &p0, &p1, &p2);
                     pfloat tt, U, V, W;
                     const pint m = packet_triangle(r, p0, p1, p2, lane_tmin, *t, &tt, &U, &V, &W);
                     if (!pany(m)) continue;
@@ -325,17 +327,17 @@ RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, 
 }
 
 /* Any hit per lane in (tmin, tmax): returns the lanes occluded (-1).  Lanes stop testing once
- * they are (their tmax drops below tmin), and the traversal ends when every lane has.  Leaves
- * entered by at most PACKET_HYBRID lanes are tested ray by ray, as in packet_closest_hit. */
+ * they are (their tmax drops below tmin), and the traversal ends when every lane has.  Subtrees
+ * entered by at most PACKET_HYBRID lanes are traversed ray by ray, as in packet_closest_hit. */
 RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pfloat tmin, pfloat tmax)
 {
     __global const float8 *base = (__global const float8 *)bvh;
     pint hit = PINT(0);
     int stack_code[WIDE8_STACK_SIZE], stack_lanes[WIDE8_STACK_SIZE];
     int sp = 0;
-    int off = 0, cnt = 0, lanes = pbits(tmin <= tmax);
+    int off = 0, cnt = 0, lanes = (1 << PACKET_WIDTH) - 1;
     for (;;) {
-        lanes &= pbits(tmin <= tmax); /* not yet occluded */
+        lanes &= pbits(tmin <= tmax); /* active and not yet occluded */
         if (bit_count(lanes) <= PACKET_HYBRID) { /* few rays in this subtree: one at a time */
             for (int bits = lanes; bits; bits &= bits - 1) {
                 const int k = lowest_bit(bits);
@@ -365,13 +367,11 @@ RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pflo
             __global const float8 *pk = base + off;
             const pfloat lane_tmin = pmask(lanes) ? tmin : PFLOAT(INFINITY);
             for (int q = 0; q < cnt; ++q, pk += TRI8_UNITS) {
-                __global const float *vf = (__global const float *)pk;
                 __global const int *tri = (__global const int *)(pk + 9);
                 for (int j = 0; j < 8; ++j) {
                     if (tri[j] < 0) continue;
-                    const float3 p0 = (float3)(vf[j], vf[8 + j], vf[16 + j]);
-                    const float3 p1 = (float3)(vf[24 + j], vf[32 + j], vf[40 + j]);
-                    const float3 p2 = (float3)(vf[48 + j], vf[56 + j], vf[64 + j]);
+                    float3 p0, p1, p2;
+                    tri8_vertices(pk, j, &p0, &p1, &p2);
                     pfloat tt, U, V, W;
                     const pint m = packet_triangle(r, p0, p1, p2, lane_tmin, tmax, &tt, &U, &V, &W);
                     if (!pany(m)) continue;

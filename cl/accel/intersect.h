@@ -43,6 +43,19 @@ RT_INLINE RayShear ray_shear(float3 d)
 #define SLIVER_CANCELLATION 0.03125f   /* 2^-5: |n| below this share of its products: refine */
 #define NUM_DOUBT 3.814697265625e-06f  /* 2^-18: n.a this close to 0 (relative): sign in doubt */
 
+/* The plane of triangle (p0, p1, p2): its normal n = (p1 - p0) x (p2 - p0), the magnitudes of
+ * the products each component of n is made of (*n_abs: the rounding bound of n.a below), and in
+ * *sliver whether n cancelled by more than SLIVER_CANCELLATION (see intersect_triangle).  The
+ * packet test (bvh_packet.h) takes a triangle's plane from here too. */
+RT_INLINE float3 triangle_plane(float3 p0, float3 p1, float3 p2, float3 *n_abs, int *sliver)
+{
+    const float3 e1 = p1 - p0, e2 = p2 - p0;
+    const float3 n = cross(e1, e2);
+    *n_abs = fabs(e1.yzx * e2.zxy) + fabs(e1.zxy * e2.yzx);
+    *sliver = fabs(n.x) + fabs(n.y) + fabs(n.z) < SLIVER_CANCELLATION * (n_abs->x + n_abs->y + n_abs->z);
+    return n;
+}
+
 /* Returns 1 and sets *t, *u, *v (barycentrics of v1 and v2) on a hit with tmin < t < tmax. */
 RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, float3 p1, float3 p2,
                               float tmin, float tmax, float *t, float *u, float *v)
@@ -74,8 +87,9 @@ RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, floa
      * from the paper's T = U*Az + V*Bz + W*Cz: for a long sliver whose far vertices are much
      * farther than the hit, T cancels catastrophically and its sign can flip, so a ray leaving a
      * thin closed mesh from inside was judged "behind" and escaped (tests/accel/test_traversal.py). */
-    const float3 e1 = p1 - p0, e2 = p2 - p0;
-    const float3 n = cross(e1, e2);
+    float3 n_abs;
+    int sliver;
+    const float3 n = triangle_plane(p0, p1, p2, &n_abs, &sliver);
     const float den = dot(n, d);
     const float num = dot(n, a);
     /* On a sliver the float32 cross product cancels (|n| much smaller than the products it is
@@ -84,8 +98,6 @@ RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, floa
      * (tests/test_robustness.py).  When n cancelled by more than 32x, or n.a is within its
      * rounding bound of zero, t is recomputed in double from the float vertices (exact
      * differences); without fp64 a hit whose sign is in doubt is rejected, as pbrt does. */
-    const float3 n_abs = fabs(e1.yzx * e2.zxy) + fabs(e1.zxy * e2.yzx);
-    const int sliver = fabs(n.x) + fabs(n.y) + fabs(n.z) < SLIVER_CANCELLATION * (n_abs.x + n_abs.y + n_abs.z);
     const int doubt = fabs(num) <= NUM_DOUBT * dot(n_abs, fabs(a));
     float tt;
 #ifdef cl_khr_fp64
