@@ -207,6 +207,27 @@ def device_spec(device) -> str:
     raise LookupError(f"{device} is not among the OpenCL devices found")
 
 
+def lane_kernels_build_on(device) -> bool:
+    """Whether the lane kernels (cl/megakernel/lanes.cl, cl/accel/bvh_packet.h) are meant for
+    ``device``: PoCL's CPU device on an x86 host (clang on x86).  Written here apart from
+    pyopencl_rt.render.megakernel.lane_width, which tests/render/test_path_lanes.py checks
+    against it."""
+    import platform
+
+    import pyopencl as cl
+
+    return (bool(device.type & cl.device_type.CPU) and "Portable Computing Language" in device.platform.name
+            and platform.machine().lower() in ("x86_64", "amd64"))
+
+
+def require_lane_kernels(device) -> None:
+    """Skip a test of the lane kernels' code on a device they are never built for."""
+    import pytest
+
+    if not lane_kernels_build_on(device):
+        pytest.skip("the lane kernels are built for PoCL's CPU device on x86 only (never selected elsewhere)")
+
+
 # ----------------------------------------------------------------------------- random numbers
 def uniforms(rng, shape):
     """float32 uniforms on the 2^-24 grid of [0, 1) (a float64 draw cast to float32 can round to 1)."""

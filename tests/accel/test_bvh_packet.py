@@ -82,16 +82,6 @@ KERNELS = {v: harness.Kernels(SOURCE, defines={"BVH_WIDE8": True, "PACKET_WIDTH"
            for v in VARIANTS}
 
 
-def lane_device(device):
-    import platform
-
-    import pyopencl as cl
-
-    if not (device.type & cl.device_type.CPU and "Portable Computing Language" in device.platform.name
-            and platform.machine().lower() in ("x86_64", "amd64")):
-        pytest.skip("the lane kernels are built for PoCL's CPU device on x86 only (never selected elsewhere)")
-
-
 def rays_for(mesh, rng, n=6000):
     v, f = MESHES[mesh]()
     o1, d1 = coherent_rays(v, n // 2)
@@ -112,7 +102,7 @@ def test_packets_equal_single_rays(device, runtime, rng, mesh, variant):
     different triangle where two tie at the same t (packets meet leaves in another order); ray by
     ray (hybrid 16) exactly the single-ray traversal.  Any hit: exactly the single-ray answer.
     Idle lanes: no hit, t as given."""
-    lane_device(device)
+    harness.require_lane_kernels(device)
     bvh, o, d, tmax = rays_for(mesh, rng)
     n = len(o)
     blob = device_blob(wide_bvh(bvh, 8))
@@ -143,7 +133,7 @@ def test_packets_equal_single_rays(device, runtime, rng, mesh, variant):
 def test_packets_of_the_cornell_box(device, runtime, rng):
     """Mitsuba's Cornell box, the scene the lane megakernel was measured on: rays from points
     spread through the room in every direction, equal to the single-ray traversal."""
-    lane_device(device)
+    harness.require_lane_kernels(device)
     from pathlib import Path
 
     from pyopencl_rt import load_scene
@@ -171,7 +161,7 @@ def test_packet_rays_equal_wide_ray(device, runtime, rng):
     """packet_rays (the lanes at once) gives wide_ray's constants lane by lane, bit for bit: axis
     picks, sign swaps, reciprocals clamped for tiny components, for directions with ties, zeros
     (both signs), tiny and huge components."""
-    lane_device(device)
+    harness.require_lane_kernels(device)
     n = 4096
     d = rng.normal(size=(n, 3)).astype(np.float32)
     special = np.array([[1, 0, 0], [0, -1, 0], [0, 0, 1], [-0.0, 0.0, -1], [1, 1, 1], [-1, 1, -1], [1, -1, 0],

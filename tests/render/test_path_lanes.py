@@ -22,20 +22,6 @@ import harness
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 
 
-def is_pocl_cpu(device):
-    import platform
-
-    import pyopencl as cl
-
-    return (bool(device.type & cl.device_type.CPU) and "Portable Computing Language" in device.platform.name
-            and platform.machine().lower() in ("x86_64", "amd64"))
-
-
-def lane_device(device):
-    if not is_pocl_cpu(device):
-        pytest.skip("the lane kernels are built for PoCL's CPU device only (test_selection checks the others)")
-
-
 def renders(scene, device, monkeypatch, widths=("0", "16", "8"), **options):
     """The same render with the lane kernel off (one path per work-item) and at each width."""
     out = {}
@@ -63,7 +49,7 @@ def test_selection(device, monkeypatch):
     wavefront; $PYOPENCL_RT_LANES = 0 turns it off, 8 or 16 sets the width, anything else is one
     clear error.  Other devices never get it."""
     monkeypatch.delenv(megakernel.LANES_ENV, raising=False)
-    expected = megakernel.LANE_WIDTH if is_pocl_cpu(device) else 0
+    expected = megakernel.LANE_WIDTH if harness.lane_kernels_build_on(device) else 0
     for name, lanes in (("mitsuba-cbox", expected), ("cornell-box", expected), ("cornell-spheres", 0),
                         ("veach-mis", 0), ("textured", 0), ("cornell-jensen", 0)):
         wf = Wavefront(rt.load_scene(SCENES / f"{name}.toml"), device, width=8, height=8, kernel_mode="megakernel")
@@ -88,7 +74,7 @@ def test_same_image_and_rays(device, monkeypatch, sampler):
     """Mitsuba's Cornell box and ours (their lights and materials differ), each sampler: the film
     sums bit for bit and the same numbers of rays, at 16 lanes (and 8, with the default sampler:
     each width is a kernel build of several seconds)."""
-    lane_device(device)
+    harness.require_lane_kernels(device)
     widths = ("0", "16", "8") if sampler == "sobol" else ("0", "16")
     for name in ("mitsuba-cbox", "cornell-box"):
         scene = rt.load_scene(SCENES / f"{name}.toml")
@@ -101,7 +87,7 @@ def test_same_image_and_rays(device, monkeypatch, sampler):
 def test_depths_and_roulette(device, monkeypatch, options):
     """Emitters seen directly only, direct light only, short paths rouletted from the first
     bounce, unbounded paths ended by roulette alone."""
-    lane_device(device)
+    harness.require_lane_kernels(device)
     scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
     assert_same(renders(scene, device, monkeypatch, widths=("0", "16"), spp=4, seed=5, width=32, height=24,
                         **options))
@@ -110,7 +96,7 @@ def test_depths_and_roulette(device, monkeypatch, options):
 def test_thin_lens_two_sided_light_and_ior(device, monkeypatch):
     """A thin-lens camera (its rays start per lane in scalar code), a two-sided emitter, a diffuse
     surface with an ior (the eta scale of roulette) and a 1 x 1 image."""
-    lane_device(device)
+    harness.require_lane_kernels(device)
     scene = rt.load_scene(SCENES / "cornell-box.toml")
     scene.camera = dataclasses.replace(scene.camera, aperture_radius=20.0)
     materials = [dataclasses.replace(m, two_sided=True) if max(m.emission) > 0 else m for m in scene.materials]
@@ -123,7 +109,7 @@ def test_thin_lens_two_sided_light_and_ior(device, monkeypatch):
 def test_small_waves_and_adaptive_pixel_lists(device, monkeypatch):
     """Launches that end inside a work-item's block (a wave smaller than a pass), and adaptive
     sampling's pixel lists (listed passes, results in launch order)."""
-    lane_device(device)
+    harness.require_lane_kernels(device)
     scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
     films = {}
     for width in ("0", "16"):
@@ -197,7 +183,7 @@ __kernel void h_math(__global const float *a, __global const float *b, __global 
 
 @pytest.mark.parametrize("sampler", list(abi.SAMPLERS))
 def test_lane_sampler_equals_scalar(device, runtime, rng, sampler):
-    lane_device(device)
+    harness.require_lane_kernels(device)
     kernels = harness.Kernels(LANES.source, defines={"PACKET_WIDTH": 16, "SAMPLER": abi.SAMPLERS[sampler]})
     n = 16 * 512
     keys = rng.integers(0, 2 ** 32, (n, 4), dtype=np.uint64).astype(np.uint32)
@@ -210,7 +196,7 @@ def test_lane_sampler_equals_scalar(device, runtime, rng, sampler):
 def test_lane_math_equals_scalar(device, runtime, rng):
     """Bit for bit, including vectors whose squared length under- or overflows (the scalar code
     rescales: the lanes take its result), zeros, denormals, infinities and NaN."""
-    lane_device(device)
+    harness.require_lane_kernels(device)
     n = 16 * 256
     scale = 10.0 ** rng.uniform(-30, 30, (n, 1))
     a = (rng.normal(size=(n, 3)) * scale).astype(np.float32)
