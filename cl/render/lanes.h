@@ -35,7 +35,6 @@ typedef uint16 puint;
 #define convert_pint convert_int16
 #define convert_puint convert_uint16
 #define LANE_IDS ((int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
-RT_INLINE int pany(pint m) { return any8(m.lo | m.hi); }
 #elif PACKET_WIDTH == 8
 typedef float8 pfloat;
 typedef int8 pint;
@@ -50,7 +49,6 @@ typedef uint8 puint;
 #define convert_pint convert_int8
 #define convert_puint convert_uint8
 #define LANE_IDS ((int8)(0, 1, 2, 3, 4, 5, 6, 7))
-RT_INLINE int pany(pint m) { return any8(m); }
 #else
 #error "PACKET_WIDTH must be 8 or 16"
 #endif
@@ -60,12 +58,22 @@ RT_INLINE int pany(pint m) { return any8(m); }
 #define PLANE_I(v, k) (((int *)&(v))[k])
 #define PLANE_U(v, k) (((uint *)&(v))[k])
 
-/* the mask of the lanes set in bits (bit k: lane k), and back */
+/* the mask of the lanes set in bits (bit k: lane k), and back; with AVX-512 one instruction
+ * each (vpmovm2d, vpmovd2m), which also lets a comparison's mask register be tested directly
+ * instead of being widened to a vector and reduced with shuffles (pany) */
+#if PACKET_WIDTH == 16 && defined(__AVX512DQ__)
+RT_INLINE pint pmask(int bits) { return __builtin_ia32_cvtmask2d512((ushort)bits); }
+RT_INLINE int pbits(pint m) { return __builtin_ia32_cvtd2mask512(m); }
+RT_INLINE int pany(pint m) { return pbits(m) != 0; }
+#else
 RT_INLINE pint pmask(int bits) { return -((PINT(bits) >> LANE_IDS) & 1); }
 #if PACKET_WIDTH == 16
 RT_INLINE int pbits(pint m) { return mask_bits8(m.lo) | (mask_bits8(m.hi) << 8); }
+RT_INLINE int pany(pint m) { return any8(m.lo | m.hi); }
 #else
 RT_INLINE int pbits(pint m) { return mask_bits8(m); }
+RT_INLINE int pany(pint m) { return any8(m); }
+#endif
 #endif
 
 RT_INLINE pfloat pabs(pfloat x) { return as_pfloat(as_puint(x) & PUINT(0x7fffffffu)); }
