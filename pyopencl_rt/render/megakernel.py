@@ -92,10 +92,14 @@ def lane_features(width: int) -> dict:
 def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=False, first_pass=0,
         cancel=None, pixels=None) -> RunStats:
     """:meth:`Wavefront.run` for the megakernel: whole passes per launch, as many as the wave
-    size allows, added to the film in pass order after each launch.  ``pixels`` (adaptive
-    sampling; already in the ``pixel_list`` buffer): the passes cover those pixels only, and the
-    kernel writes each launch's results in order at the start of the ring, so that a short list
-    still fills the wave."""
+    size allows, added to the film in pass order.  ``pixels`` (adaptive sampling; already in the
+    ``pixel_list`` buffer): the passes cover those pixels only, and the kernel writes each launch's
+    results in order at the start of the ring, so that a short list still fills the wave.
+
+    One launch is kept in flight: launch N+1 is queued (after launch N's result copies, which the
+    in-order queue runs between the two) before the host adds launch N's passes to the film, so
+    the device does not wait for the host's sums (docs/BENCHMARKS.md).  An interrupt waits for
+    what is queued and adds it: nothing computed is lost."""
     import pyopencl as cl
 
     if passes is None and time_limit is None:
@@ -106,28 +110,79 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
     counters = wf.buffer("counters")
     stats = RunStats()
     if pixels is None:
-        ring_host = np.empty((n_pixels, 3), np.float32)
         passes_per_launch = max(1, min(wf.wave_size // n_pixels, wf.ring_size))
     else:  # the ring holds ring_size * wf.n_pixels results in order: every launch's
         passes_per_launch = max(1, min(wf.wave_size, wf.ring_size * wf.n_pixels) // n_pixels)
-        launch_host = np.empty((passes_per_launch * n_pixels, 3), np.float32)
     # at most the wave (mat_scratch is indexed by work-item); with pixels, passes_per_launch already
     # keeps a launch within the ring's ring_size * wf.n_pixels entries (n_pixels <= wf.n_pixels)
     samples_per_launch = min(passes_per_launch * n_pixels, wf.wave_size)
+    # two sets of host buffers: one being filled by the queue while the host sums the other
+    results = [np.empty((passes_per_launch, n_pixels, 3), np.float32) for _ in range(2)]
+    ray_counts = [np.zeros(2, np.int32) for _ in range(2)]
     lanes = lane_features(wf.lane_width)
     local = lanes.get("LANE_GROUP", abi.WAVE_LOCAL_SIZE)
     block = lanes.get("PACKET_BLOCK", 1)  # samples per work-item
     end = None if passes is None else first_pass + passes
     zero_rays = np.zeros(2, np.int32)
+    rays_at = abi.COUNTER_RAYS_EXTEND * 4
+    assert abi.COUNTER_RAYS_SHADOW == abi.COUNTER_RAYS_EXTEND + 1
 
-    def take_ray_counts():
-        # after each launch's (blocking) result copies: the int32 counters then hold one launch's
-        # rays, never a whole run's (2^31 rays is minutes of rendering)
-        cl.enqueue_copy(queue, wf.counters_host, counters)
-        stats.rays_extend += int(wf.counters_host[abi.COUNTER_RAYS_EXTEND])
-        stats.rays_shadow += int(wf.counters_host[abi.COUNTER_RAYS_SHADOW])
-        cl.enqueue_copy(queue, counters, zero_rays, dst_offset=abi.COUNTER_RAYS_EXTEND * 4)
+    def enqueue(first, count, slot):
+        """Queues the launches of passes first .. first + count - 1 and the copies of their
+        results and ray counts into host buffer set `slot`; returns what finish() needs."""
+        events = []
+        # one launch renders at most the wave size, so a pass bigger than it takes several
+        for first_pixel in range(0, count * n_pixels, samples_per_launch):
+            n = min(samples_per_launch, count * n_pixels - first_pixel)
+            wf.args.set("path", n_items=n, first_pass=first, first_pixel=first_pixel,
+                        queue_in=wf.queue_a, queue_out=wf.queue_b, queue_base=0, free_base=0,
+                        n_listed=0 if pixels is None else n_pixels)
+            items = -(-n // block)
+            event = cl.enqueue_nd_range_kernel(queue, kernel, (-(-items // local) * local,), (local,))
+            if profile:
+                event.wait()
+                stats.stage_seconds["path"] = stats.stage_seconds.get("path", 0.0) + \
+                    (event.profile.end - event.profile.start) * 1e-9
+            if pixels is not None:  # n results in order, before the next launch overwrites them
+                flat = results[slot].reshape(-1, 3)
+                events.append(cl.enqueue_copy(queue, flat[first_pixel:first_pixel + n], wf.buffer("pass_ring"),
+                                              is_blocking=False))
+        if pixels is None:
+            for k in range(count):
+                ring = (first + k) % wf.ring_size
+                events.append(cl.enqueue_copy(queue, results[slot][k], wf.buffer("pass_ring"),
+                                              src_offset=ring * n_pixels * 12, is_blocking=False))
+        # the int32 counters hold one launch's rays, never a whole run's (2^31 rays is minutes)
+        events.append(cl.enqueue_copy(queue, ray_counts[slot], counters, src_offset=rays_at, is_blocking=False))
+        cl.enqueue_copy(queue, counters, zero_rays, dst_offset=rays_at, is_blocking=False)
+        queue.flush()
+        return {"events": events, "slot": slot, "count": count, "added": 0, "counted": False, "gathered": False}
+
+    def finish(launch):
+        """Waits for a launch's copies and adds its passes to the film; resumable (an interrupt
+        inside leaves the launch's flags at what is already in)."""
+        cl.wait_for_events(launch["events"])
+        slot, count = launch["slot"], launch["count"]
+        if not launch["counted"]:
+            stats.rays_extend += int(ray_counts[slot][0])
+            stats.rays_shadow += int(ray_counts[slot][1])
+            launch["counted"] = True
+        if pixels is not None and not launch["gathered"]:  # gathered once: add_pass's sums, pass after pass
+            film.add_passes(results[slot][:count], pixels)
+            launch["gathered"] = True
+        while launch["added"] < count:
+            if pixels is None:
+                film.add_pass(results[slot][launch["added"]])
+            launch["added"] += 1
+            stats.passes += 1
+            stats.iterations += 1
+            if progress is not None:
+                progress(stats.passes, time.perf_counter() - start)
+
     next_pass = first_pass
+    pending = []  # queued launches whose passes are not in the film yet, oldest first
+    # rays of an earlier run's launch that an interrupt left uncounted are not this run's
+    cl.enqueue_copy(queue, counters, zero_rays, dst_offset=rays_at, is_blocking=False)
     start = time.perf_counter()
     try:
         while end is None or next_pass < end:
@@ -136,37 +191,22 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
             if time_limit is not None and time.perf_counter() - start >= time_limit:
                 break
             count = passes_per_launch if end is None else min(passes_per_launch, end - next_pass)
-            # one launch renders at most the wave size, so a pass bigger than it takes several
-            for first_pixel in range(0, count * n_pixels, samples_per_launch):
-                n = min(samples_per_launch, count * n_pixels - first_pixel)
-                wf.args.set("path", n_items=n, first_pass=next_pass, first_pixel=first_pixel,
-                            queue_in=wf.queue_a, queue_out=wf.queue_b, queue_base=0, free_base=0,
-                            n_listed=0 if pixels is None else n_pixels)
-                items = -(-n // block)
-                event = cl.enqueue_nd_range_kernel(queue, kernel, (-(-items // local) * local,), (local,))
-                if profile:
-                    event.wait()
-                    stats.stage_seconds["path"] = stats.stage_seconds.get("path", 0.0) + \
-                        (event.profile.end - event.profile.start) * 1e-9
-                if pixels is not None:  # n results in order, before the next launch overwrites them
-                    cl.enqueue_copy(queue, launch_host[first_pixel:first_pixel + n], wf.buffer("pass_ring"))
-            if pixels is not None:  # gathered once: the sums of add_pass pass after pass
-                film.add_passes(launch_host[:count * n_pixels].reshape(count, n_pixels, 3), pixels)
-            for k in range(count):
-                if pixels is None:
-                    ring = (next_pass + k) % wf.ring_size
-                    cl.enqueue_copy(queue, ring_host, wf.buffer("pass_ring"), src_offset=ring * n_pixels * 12)
-                    film.add_pass(ring_host)
-                stats.passes += 1
-                stats.iterations += 1
-                if progress is not None:
-                    progress(stats.passes, time.perf_counter() - start)
+            slot = 1 - pending[-1]["slot"] if pending else 0
+            pending.append(enqueue(next_pass, count, slot))
             next_pass += count
-            take_ray_counts()
+            while len(pending) > 1:  # the launch before this one, while this one runs
+                finish(pending[0])
+                pending.pop(0)
     except KeyboardInterrupt:
         stats.interrupted = True
-    queue.finish()
-    take_ray_counts()
+    try:
+        queue.finish()
+        while pending:  # what is queued (or was being added when interrupted)
+            finish(pending[0])
+            pending.pop(0)
+    except KeyboardInterrupt:  # a second interrupt while the last launches are added: keep what is in
+        stats.interrupted = True
+    cl.enqueue_copy(queue, wf.counters_host, counters)
     stats.nonfinite = int(wf.counters_host[abi.COUNTER_NONFINITE])
     stats.samples = stats.passes * n_pixels
     stats.seconds = time.perf_counter() - start
