@@ -76,6 +76,32 @@ RT_INLINE int pany(pint m) { return any8(m); }
 #endif
 #endif
 
+/* base[index[k]] in lane k (every index valid): an AVX-512 gather, else lane by lane.  The
+ * structure fields the lanes read are gathered this way (FIELD_INDEX: a field's index in floats). */
+#define FIELD_INDEX(type, field) ((int)(__builtin_offsetof(type, field) / 4))
+#define STRIDE_INDEX(type) ((int)(sizeof(type) / 4))
+RT_INLINE pfloat pgather(__global const float *base, pint index)
+{
+#if PACKET_WIDTH == 16 && defined(__AVX512F__)
+    return __builtin_ia32_gathersiv16sf(PFLOAT(0.0f), base, index, (ushort)0xffff, 4);
+#else
+    pfloat r;
+    for (int k = 0; k < PACKET_WIDTH; ++k) PLANE(r, k) = base[PLANE_I(index, k)];
+    return r;
+#endif
+}
+
+RT_INLINE pint pgather_int(__global const int *base, pint index)
+{
+#if PACKET_WIDTH == 16 && defined(__AVX512F__)
+    return __builtin_ia32_gathersiv16si(PINT(0), base, index, (ushort)0xffff, 4);
+#else
+    pint r;
+    for (int k = 0; k < PACKET_WIDTH; ++k) PLANE_I(r, k) = base[PLANE_I(index, k)];
+    return r;
+#endif
+}
+
 RT_INLINE pfloat pabs(pfloat x) { return as_pfloat(as_puint(x) & PUINT(0x7fffffffu)); }
 RT_INLINE pfloat pfmin(pfloat a, pfloat b) { return __builtin_elementwise_min(a, b); }
 RT_INLINE pfloat pfmax(pfloat a, pfloat b) { return __builtin_elementwise_max(a, b); }

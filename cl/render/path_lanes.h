@@ -48,11 +48,12 @@ typedef struct { pvec3 p0, p1, p2; } TriLanes;
 
 RT_INLINE TriLanes gather_triangles(__global const float4 *tris, pint prim)
 {
+    __global const float *f = (__global const float *)tris;
+    const pint i = prim * 12; /* three float4 a triangle */
     TriLanes t;
-    for (int k = 0; k < PACKET_WIDTH; ++k) {
-        __global const float4 *v = tris + 3 * PLANE_I(prim, k);
-        pv3_set_lane(&t.p0, k, v[0].xyz); pv3_set_lane(&t.p1, k, v[1].xyz); pv3_set_lane(&t.p2, k, v[2].xyz);
-    }
+    t.p0 = pv3(pgather(f, i), pgather(f, i + 1), pgather(f, i + 2));
+    t.p1 = pv3(pgather(f, i + 4), pgather(f, i + 5), pgather(f, i + 6));
+    t.p2 = pv3(pgather(f, i + 8), pgather(f, i + 9), pgather(f, i + 10));
     return t;
 }
 
@@ -114,16 +115,15 @@ typedef struct {
 
 RT_INLINE MaterialLanes gather_materials(__global const Material *materials, pint index)
 {
+    __global const float *f = (__global const float *)materials;
+    const pint i = index * STRIDE_INDEX(Material);
+    const pint albedo = i + FIELD_INDEX(Material, albedo), emission = i + FIELD_INDEX(Material, emission);
     MaterialLanes m;
-    for (int k = 0; k < PACKET_WIDTH; ++k) {
-        __global const Material *mk = materials + PLANE_I(index, k);
-        /* field by field: PoCL's vload3 is an out-of-line call */
-        PLANE(m.albedo.x, k) = mk->albedo[0]; PLANE(m.albedo.y, k) = mk->albedo[1]; PLANE(m.albedo.z, k) = mk->albedo[2];
-        PLANE(m.emission.x, k) = mk->emission[0]; PLANE(m.emission.y, k) = mk->emission[1];
-        PLANE(m.emission.z, k) = mk->emission[2];
-        PLANE_I(m.two_sided, k) = -((mk->flags & MATERIAL_FLAG_TWO_SIDED) != 0);
-        PLANE(m.ior, k) = mk->ior;
-    }
+    m.albedo = pv3(pgather(f, albedo), pgather(f, albedo + 1), pgather(f, albedo + 2));
+    m.emission = pv3(pgather(f, emission), pgather(f, emission + 1), pgather(f, emission + 2));
+    const pint flags = pgather_int((__global const int *)f, i + FIELD_INDEX(Material, flags));
+    m.two_sided = (flags & MATERIAL_FLAG_TWO_SIDED) != 0; /* a vector comparison: -1 where true */
+    m.ior = pgather(f, i + FIELD_INDEX(Material, ior));
     return m;
 }
 
@@ -189,11 +189,7 @@ RT_INLINE void shade_lanes(__global const float4 *tris, __global const int *tri_
     const pvec3 wo = pv3_neg(s->d);
     const pint front = pv3_dot(ng, wo) >= 0.0f;
     const pvec3 n = pv3_sel(pv3_neg(ng), ng, front);
-    pint mat_index, light_index;
-    for (int k = 0; k < PACKET_WIDTH; ++k) {
-        PLANE_I(mat_index, k) = tri_material[PLANE_I(prim, k)];
-        PLANE_I(light_index, k) = tri_light[PLANE_I(prim, k)];
-    }
+    const pint mat_index = pgather_int(tri_material, prim), light_index = pgather_int(tri_light, prim);
     const MaterialLanes m = gather_materials(materials, mat_index);
     const puint dim = convert_puint(2 + DIMS_PER_BOUNCE * s->depth);
 
@@ -203,12 +199,9 @@ RT_INLINE void shade_lanes(__global const float4 *tris, __global const int *tri_
     if (pany(glows)) {
         /* MIS weight against light sampling (light_pdf of the hit light, from the ray's origin) */
         const pint mis = glows & (s->pdf > 0.0f) & (light_index >= 0);
-        pfloat pmf, area;
-        for (int k = 0; k < PACKET_WIDTH; ++k) {
-            __global const Light *lt = lights + max(PLANE_I(light_index, k), 0);
-            PLANE(pmf, k) = lt->pmf;
-            PLANE(area, k) = lt->area;
-        }
+        __global const float *lf = (__global const float *)lights;
+        const pint li = (light_index < 0 ? PINT(0) : light_index) * STRIDE_INDEX(Light);
+        const pfloat pmf = pgather(lf, li + FIELD_INDEX(Light, pmf)), area = pgather(lf, li + FIELD_INDEX(Light, area));
         const pvec3 to_ref = pv3_sub(s->o, p);
         const pfloat dist2 = pv3_dot(to_ref, to_ref);
         const pfloat cos_l = pabs(pv3_dot(ng, to_ref)) * (1.0f / psqrt(dist2));
@@ -237,17 +230,15 @@ RT_INLINE void shade_lanes(__global const float4 *tris, __global const int *tri_
         pint li = convert_pint(x);
         li = li < n_lights - 1 ? li : PINT(n_lights - 1);
         const pfloat frac = x - convert_pfloat(li);
-        pfloat pick_pmf, area;
-        pint lprim, lmat;
-        for (int k = 0; k < PACKET_WIDTH; ++k) {
-            __global const Light *col = lights + PLANE_I(li, k);
-            const int pick = PLANE(frac, k) >= col->alias_prob ? col->alias : PLANE_I(li, k);
-            __global const Light *lt = lights + pick;
-            PLANE(pick_pmf, k) = lt->pmf;
-            PLANE(area, k) = lt->area;
-            PLANE_I(lprim, k) = lt->prim;
-            PLANE_I(lmat, k) = lt->material;
-        }
+        __global const float *lf = (__global const float *)lights;
+        __global const int *li_ = (__global const int *)lights;
+        const pint col = li * STRIDE_INDEX(Light);
+        const pint pick = (frac >= pgather(lf, col + FIELD_INDEX(Light, alias_prob)))
+                              ? pgather_int(li_, col + FIELD_INDEX(Light, alias)) : li;
+        const pint at = pick * STRIDE_INDEX(Light);
+        const pfloat pick_pmf = pgather(lf, at + FIELD_INDEX(Light, pmf)), area = pgather(lf, at + FIELD_INDEX(Light, area));
+        const pint lprim = pgather_int(li_, at + FIELD_INDEX(Light, prim));
+        const pint lmat = pgather_int(li_, at + FIELD_INDEX(Light, material));
         const TriLanes lt = gather_triangles(tris, going ? lprim : PINT(0));
         /* light_sample for a triangle: sample_triangle_barycentrics, then the point */
         const pint upper = uly > ulx;
