@@ -31,13 +31,11 @@
 
 #include "render/lanes.h"
 
-/* the smallest / largest lane (operands never NaN: entry distances and hit distances) */
+/* the smallest lane (operands never NaN: entry distances) */
 #if PACKET_WIDTH == 16
 RT_INLINE float pmin_all(pfloat v) { const float8 a = VMIN(v.lo, v.hi); const float4 b = VMIN(a.lo, a.hi); const float2 c = VMIN(b.lo, b.hi); return FAST_MIN(c.x, c.y); }
-RT_INLINE float pmax_all(pfloat v) { const float8 a = VMAX(v.lo, v.hi); const float4 b = VMAX(a.lo, a.hi); const float2 c = VMAX(b.lo, b.hi); return FAST_MAX(c.x, c.y); }
 #else
 RT_INLINE float pmin_all(pfloat v) { const float4 b = VMIN(v.lo, v.hi); const float2 c = VMIN(b.lo, b.hi); return FAST_MIN(c.x, c.y); }
-RT_INLINE float pmax_all(pfloat v) { const float4 b = VMAX(v.lo, v.hi); const float2 c = VMAX(b.lo, b.hi); return FAST_MAX(c.x, c.y); }
 #endif
 
 /* A packet of rays: wide_ray's constants per lane, the permutation as two masks per axis
@@ -316,8 +314,9 @@ RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, 
         for (;;) {
             if (sp == 0) return;
             --sp;
-            /* skipped when every lane that entered it has a closer hit by now */
-            if (stack_t[sp] <= pmax_all(pmask(stack_lanes[sp]) ? *t : PFLOAT(-INFINITY))) {
+            /* skipped when every lane that entered it has a closer hit by now (one comparison
+             * of the lanes against its smallest entry distance, not a reduction of them) */
+            if (pbits(PFLOAT(stack_t[sp]) <= *t) & stack_lanes[sp]) {
                 wide8_decode(base, stack_code[sp], &off, &cnt);
                 lanes = stack_lanes[sp];
                 break;
