@@ -131,13 +131,19 @@ def parse_signatures(source: str) -> dict[str, tuple[Param, ...]]:
 
 class Kernels:
     """Harness kernels: ``source`` (OpenCL C; ``#include "x.h"`` pulls in ``cl/x.h``) built after
-    the ``cl/`` files ``names`` (usually none) with the preprocessor ``defines``."""
+    the ``cl/`` files ``names`` (usually none) with the preprocessor ``defines``.  ``local_size``:
+    work-groups of that size (the global size rounded up to it: kernels then ignore work-items
+    beyond ``n``), else the runtime's choice.  PoCL's CPU device keeps a work-group's private
+    memory on one thread's stack, so a kernel with large private arrays (a packet's rays and
+    traversal stack) needs small groups: the whole grid in one group overflowed it."""
 
-    def __init__(self, source: str, *, defines: dict | None = None, names: tuple[str, ...] = ()):
+    def __init__(self, source: str, *, defines: dict | None = None, names: tuple[str, ...] = (),
+                 local_size: int | None = None):
         self.source = source
         self.defines = dict(defines or {})
         self.names = tuple(names)
         self.signatures = parse_signatures(source)
+        self.local_size = local_size
 
     def program(self, runtime):
         """The built program (pyopencl.Program), cached per runtime."""
@@ -187,7 +193,11 @@ class Kernels:
                 bufs.append(cl.Buffer(ctx, flags | mf.COPY_HOST_PTR, hostbuf=v))
             if p.kind == "out":
                 outs.append((v, bufs[-1]))
-        self.kernel(runtime, name)(q, (int(n),), None, *bufs)
+        if self.local_size:
+            size = -(-int(n) // self.local_size) * self.local_size
+            self.kernel(runtime, name)(q, (size,), (self.local_size,), *bufs)
+        else:
+            self.kernel(runtime, name)(q, (int(n),), None, *bufs)
         for host, buf in outs:
             if host.nbytes:
                 cl.enqueue_copy(q, host, buf)

@@ -78,7 +78,8 @@ __kernel void h_rays(__global const float *d, int n, __global uint *out_vec, __g
 """
 # (packet width, PACKET_HYBRID): all packets, hybrid (the default), ray by ray; and 8 lanes
 VARIANTS = [(16, 0), (16, 4), (16, 16), (8, 2)]
-KERNELS = {v: harness.Kernels(SOURCE, defines={"BVH_WIDE8": True, "PACKET_WIDTH": v[0], "PACKET_HYBRID": v[1]})
+KERNELS = {v: harness.Kernels(SOURCE, defines={"BVH_WIDE8": True, "PACKET_WIDTH": v[0], "PACKET_HYBRID": v[1]},
+                              local_size=8)
            for v in VARIANTS}
 
 
