@@ -8,7 +8,9 @@
  * instructions and without the per-ray stacks and branches (Embree's rtcIntersect16, which
  * Mitsuba's LLVM variants call, works this way).  Where they part ways, a subtree that at most
  * PACKET_HYBRID lanes enter is traversed ray by ray with bvh_wide8.h's functions, so large scenes
- * lose little (docs/BENCHMARKS.md: a 1.3M-triangle scene still renders faster with lanes).
+ * lose little (docs/BENCHMARKS.md: a 1.3M-triangle scene still renders faster with lanes).  A
+ * leaf (one Tri8) whose lanes and triangles fill at most PACKET_PAIR_PASSES vectors as pairs is
+ * tested that way instead: each lane a pair of one ray and one triangle (packet_pairs).
  *
  * Results, lane by lane, are those of bvh_wide8_closest_hit / bvh_wide8_any_hit bit for bit: the
  * triangle test is intersect_tri8's arithmetic (FP_CONTRACT off), with each lane's own axis
@@ -116,19 +118,20 @@ RT_INLINE float edge_double(float a, float b, float c, float d)
 }
 #endif
 
-/* One triangle (p0, p1, p2) against every lane: intersect_tri8's arithmetic per lane.  Returns
- * the lanes hit in (tmin, tmax); *t_out, *U_out, *V_out, *W_out hold their values. */
-RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 p2, pfloat tmin, pfloat tmax,
-                               pfloat *t_out, pfloat *U_out, pfloat *V_out, pfloat *W_out)
+/* Each lane's ray against its own triangle (p0, p1, p2 per lane) whose plane (triangle_plane:
+ * n, its magnitudes nabs, the sliver flag) is given: intersect_tri8's arithmetic per lane.
+ * Returns the lanes hit in (tmin, tmax); *t_out, *U_out, *V_out, *W_out hold their values.
+ * packet_triangle (one triangle against every lane) and packet_pairs (pairs of rays and
+ * triangles) both test through here. */
+RT_INLINE pint packet_triangle_lanes(const PacketRay *r, pvec3 p0, pvec3 p1, pvec3 p2, pvec3 n, pvec3 nabs,
+                                     pint sliver, pfloat tmin, pfloat tmax,
+                                     pfloat *t_out, pfloat *U_out, pfloat *V_out, pfloat *W_out)
 {
-    /* The plane equation first (intersect_tri8's t, the same arithmetic; n and its magnitudes
-     * are the triangle's, from triangle_plane, once for all lanes): a lane can only hit where its plane
-     * crossing lies in (tmin, tmax), or where the double-precision refinement may move it (a
-     * sliver, a numerator in doubt).  When no lane can, the edge test is skipped: walls behind
-     * the rays or beyond the hits found so far, and for shadow rays almost every triangle. */
-    float3 nabs;
-    int sliver;
-    const float3 n = triangle_plane(p0, p1, p2, &nabs, &sliver);
+    /* The plane equation first (intersect_tri8's t, the same arithmetic): a lane can only hit
+     * where its plane crossing lies in (tmin, tmax), or where the double-precision refinement may
+     * move it (a sliver, a numerator in doubt).  When no lane can, the edge test is skipped:
+     * walls behind the rays or beyond the hits found so far, and for shadow rays almost every
+     * triangle. */
     const pfloat den = n.x * r->dx + n.y * r->dy + n.z * r->dz;
     const pfloat ax0 = p0.x - r->ox, ay0 = p0.y - r->oy, az0 = p0.z - r->oz;
     const pfloat num = n.x * ax0 + n.y * ay0 + n.z * az0;
@@ -136,7 +139,7 @@ RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 
     pfloat tt = num / den;
     pint ok = den != 0.0f;
 #ifdef cl_khr_fp64
-    const pint may_move = sliver ? PINT(-1) : doubt;
+    const pint may_move = sliver | doubt;
     const pint maybe = (tmin <= tmax) & ((ok & (tt > tmin) & (tt < tmax)) | may_move);
 #else
     ok &= ~doubt;
@@ -179,11 +182,11 @@ RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 
 #ifdef cl_khr_fp64
     const pint refine = inside & may_move;
     if (pany(refine)) {
-        const double3 q0 = convert_double3(p0);
-        const double3 f1 = convert_double3(p1) - q0, f2 = convert_double3(p2) - q0;
-        const double mx = f1.y * f2.z - f1.z * f2.y, my = f1.z * f2.x - f1.x * f2.z, mz = f1.x * f2.y - f1.y * f2.x;
         for (int bits = pbits(refine); bits; bits &= bits - 1) {
             const int k = lowest_bit(bits);
+            const double3 q0 = convert_double3(pv3_lane(p0, k));
+            const double3 f1 = convert_double3(pv3_lane(p1, k)) - q0, f2 = convert_double3(pv3_lane(p2, k)) - q0;
+            const double mx = f1.y * f2.z - f1.z * f2.y, my = f1.z * f2.x - f1.x * f2.z, mz = f1.x * f2.y - f1.y * f2.x;
             const double dden = mx * (double)PLANE(r->dx, k) + my * (double)PLANE(r->dy, k) + mz * (double)PLANE(r->dz, k);
             const double dnum = mx * (q0.x - (double)PLANE(r->ox, k)) + my * (q0.y - (double)PLANE(r->oy, k)) +
                                 mz * (q0.z - (double)PLANE(r->oz, k));
@@ -196,9 +199,95 @@ RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 
     return inside & ok & (tt > tmin) & (tt < tmax);
 }
 
+/* One triangle (p0, p1, p2) against every lane: its plane once (triangle_plane), the rest per
+ * lane (packet_triangle_lanes). */
+RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 p2, pfloat tmin, pfloat tmax,
+                               pfloat *t_out, pfloat *U_out, pfloat *V_out, pfloat *W_out)
+{
+    float3 nabs;
+    int sliver;
+    const float3 n = triangle_plane(p0, p1, p2, &nabs, &sliver);
+    return packet_triangle_lanes(r, pv3_splat(p0), pv3_splat(p1), pv3_splat(p2), pv3_splat(n), pv3_splat(nabs),
+                                 PINT(sliver ? -1 : 0), tmin, tmax, t_out, U_out, V_out, W_out);
+}
+
+/* The plane of each lane's triangle: triangle_plane on the lanes (the same arithmetic). */
+RT_INLINE pvec3 triangle_plane_lanes(pvec3 p0, pvec3 p1, pvec3 p2, pvec3 *n_abs, pint *sliver)
+{
+    const pvec3 e1 = pv3_sub(p1, p0), e2 = pv3_sub(p2, p0);
+    const pvec3 n = pv3_cross(e1, e2);
+    *n_abs = pv3(pabs(e1.y * e2.z) + pabs(e1.z * e2.y), pabs(e1.z * e2.x) + pabs(e1.x * e2.z),
+                 pabs(e1.x * e2.y) + pabs(e1.y * e2.x));
+    *sliver = pabs(n.x) + pabs(n.y) + pabs(n.z) < SLIVER_CANCELLATION * (n_abs->x + n_abs->y + n_abs->z);
+    return n;
+}
+
+/* Coordinate c of the Tri8's triangle tri[k] in lane k (tri < 8). */
+RT_INLINE pfloat tri8_lanes(__global const float8 *pk, int c, pint tri)
+{
+#if PACKET_WIDTH == 16
+    const float8 v = pk[c];
+    return ppermute((float16)(v, v), tri);
+#else
+    return ppermute(pk[c], tri);
+#endif
+}
+
+/* Pairs of rays and triangles, one pair per lane: lane k tests the packet's ray ray[k] against
+ * the Tri8's triangle tri[k].  For a leaf that few lanes enter, this fills the vector where the
+ * packet test (one triangle against every lane) would run mostly empty and the ray-by-ray test
+ * (one ray against the Tri8's eight slots) half empty and once per lane: three rays and five
+ * triangles are 15 lanes of one test. */
+RT_INLINE pint packet_pairs(const PacketRay *r, __global const float8 *pk, pint ray, pint tri, pfloat tmin,
+                            pfloat tmax, pfloat *t_out, pfloat *U_out, pfloat *V_out, pfloat *W_out)
+{
+    PacketRay q; /* the fields the triangle test reads, of each lane's ray */
+    q.ox = ppermute(r->ox, ray); q.oy = ppermute(r->oy, ray); q.oz = ppermute(r->oz, ray);
+    q.dx = ppermute(r->dx, ray); q.dy = ppermute(r->dy, ray); q.dz = ppermute(r->dz, ray);
+    q.kx0 = ppermute_int(r->kx0, ray); q.kx1 = ppermute_int(r->kx1, ray);
+    q.ky0 = ppermute_int(r->ky0, ray); q.ky1 = ppermute_int(r->ky1, ray);
+    q.kz0 = ppermute_int(r->kz0, ray); q.kz1 = ppermute_int(r->kz1, ray);
+    q.okx = ppermute(r->okx, ray); q.oky = ppermute(r->oky, ray); q.okz = ppermute(r->okz, ray);
+    q.sx = ppermute(r->sx, ray); q.sy = ppermute(r->sy, ray);
+    const pvec3 p0 = pv3(tri8_lanes(pk, 0, tri), tri8_lanes(pk, 1, tri), tri8_lanes(pk, 2, tri));
+    const pvec3 p1 = pv3(tri8_lanes(pk, 3, tri), tri8_lanes(pk, 4, tri), tri8_lanes(pk, 5, tri));
+    const pvec3 p2 = pv3(tri8_lanes(pk, 6, tri), tri8_lanes(pk, 7, tri), tri8_lanes(pk, 8, tri));
+    pvec3 nabs;
+    pint sliver;
+    const pvec3 n = triangle_plane_lanes(p0, p1, p2, &nabs, &sliver);
+    return packet_triangle_lanes(&q, p0, p1, p2, n, nabs, sliver, tmin, tmax, t_out, U_out, V_out, W_out);
+}
+
 #ifndef PACKET_HYBRID
 #define PACKET_HYBRID 4 /* a subtree that at most this many lanes enter is traversed ray by ray */
 #endif
+#ifndef PACKET_PAIR_PASSES
+#define PACKET_PAIR_PASSES 3 /* a one-Tri8 leaf is tested as pairs when they fill at most this many tests */
+#endif
+
+/* The pairs of a leaf (one Tri8): every lane of `lanes` with every triangle of the packet.
+ * Returns their number where pairs are the test to use (they fit PACKET_PAIR_PASSES tests, fewer
+ * than the packet test's one per triangle, or the lanes are few enough for ray by ray), else 0. */
+RT_INLINE int leaf_pairs(__global const float8 *pk, int cnt, int lanes, int *tri_bits)
+{
+    if (cnt != 1) return 0;
+    *tri_bits = ~mask_bits8(as_int8(pk[9])) & 0xff; /* the slots holding a triangle */
+    const int k = bit_count(lanes), n = bit_count(*tri_bits), pairs = k * n;
+    const int passes = (pairs + PACKET_WIDTH - 1) / PACKET_WIDTH;
+    return passes <= PACKET_PAIR_PASSES && (passes < n || k <= PACKET_HYBRID) ? pairs : 0;
+}
+
+/* Chunk c of the pairs (ray-major: pair p is ray p / n with triangle p % n, of ray_ids and
+ * tri_ids): each lane's ray and triangle, and the lanes holding a pair. */
+RT_INLINE pint pair_chunk(int c, int n, int n_pairs, pint ray_ids, pint tri_ids, pint *ray, pint *tri)
+{
+    const pint p = LANE_IDS + c * PACKET_WIDTH;
+    const pint i = (p * (65536 / n + 1)) >> 16; /* p / n, exact for p < 256 and n <= 8 */
+    *ray = ppermute_int(ray_ids, i);
+    *tri = ppermute_int(tri_ids, p - i * n);
+    return p < n_pairs;
+}
+
 
 /* Lane k's ray as bvh_wide8.h's WideRay (wide_ray's constants, the same bits). */
 RT_INLINE WideRay packet_lane_ray(const PacketRay *r, int k)
@@ -266,7 +355,31 @@ RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, 
     int sp = 0;
     int off = 0, cnt = 0, lanes = pbits(tmin <= *t);
     for (;;) {
-        if (bit_count(lanes) <= PACKET_HYBRID) { /* few rays in this subtree: one at a time */
+        int tri_bits, n_pairs;
+        if ((n_pairs = leaf_pairs(base + off, cnt, lanes, &tri_bits))) { /* a leaf: its pairs */
+            __global const float8 *pk = base + off;
+            __global const int *tri_id = (__global const int *)(pk + 9);
+            const pint ray_ids = pcompress_ids(lanes), tri_ids = pcompress_ids(tri_bits);
+            for (int c = 0; c * PACKET_WIDTH < n_pairs; ++c) {
+                pint ray, tri;
+                const pint on = pair_chunk(c, bit_count(tri_bits), n_pairs, ray_ids, tri_ids, &ray, &tri);
+                pfloat tt, U, V, W;
+                const pint m = packet_pairs(r, pk, ray, tri, on ? ppermute(tmin, ray) : PFLOAT(INFINITY),
+                                            ppermute(*t, ray), &tt, &U, &V, &W);
+                /* in pair order (a ray's triangles in slot order): a strictly nearer hit replaces,
+                 * so among equal t the lower slot stays, as in intersect_leaf8 */
+                for (int bits = pbits(m); bits; bits &= bits - 1) {
+                    const int q = lowest_bit(bits), k = PLANE_I(ray, q);
+                    if (PLANE(tt, q) < PLANE(*t, k)) {
+                        const float rcp = 1.0f / (PLANE(U, q) + PLANE(V, q) + PLANE(W, q));
+                        PLANE(*t, k) = PLANE(tt, q);
+                        PLANE(*u, k) = PLANE(V, q) * rcp;
+                        PLANE(*v, k) = PLANE(W, q) * rcp;
+                        PLANE_I(*prim, k) = tri_id[PLANE_I(tri, q)];
+                    }
+                }
+            }
+        } else if (bit_count(lanes) <= PACKET_HYBRID) { /* few rays in this subtree: one at a time */
             for (int bits = lanes; bits; bits &= bits - 1) {
                 const int k = lowest_bit(bits);
                 const WideRay w = packet_lane_ray(r, k);
@@ -337,7 +450,24 @@ RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pflo
     int off = 0, cnt = 0, lanes = (1 << PACKET_WIDTH) - 1;
     for (;;) {
         lanes &= pbits(tmin <= tmax); /* active and not yet occluded */
-        if (bit_count(lanes) <= PACKET_HYBRID) { /* few rays in this subtree: one at a time */
+        int tri_bits, n_pairs;
+        if ((n_pairs = leaf_pairs(base + off, cnt, lanes, &tri_bits))) { /* a leaf: its pairs */
+            __global const float8 *pk = base + off;
+            const pint ray_ids = pcompress_ids(lanes), tri_ids = pcompress_ids(tri_bits);
+            for (int c = 0; c * PACKET_WIDTH < n_pairs; ++c) {
+                pint ray, tri;
+                const pint on = pair_chunk(c, bit_count(tri_bits), n_pairs, ray_ids, tri_ids, &ray, &tri);
+                pfloat tt, U, V, W;
+                const pint m = packet_pairs(r, pk, ray, tri, on ? ppermute(tmin, ray) : PFLOAT(INFINITY),
+                                            ppermute(tmax, ray), &tt, &U, &V, &W);
+                for (int bits = pbits(m); bits; bits &= bits - 1) {
+                    const int k = PLANE_I(ray, lowest_bit(bits));
+                    PLANE_I(hit, k) = -1;
+                    PLANE(tmax, k) = -INFINITY;
+                }
+            }
+            if (!pany(tmin <= tmax)) return hit;
+        } else if (bit_count(lanes) <= PACKET_HYBRID) { /* few rays in this subtree: one at a time */
             for (int bits = lanes; bits; bits &= bits - 1) {
                 const int k = lowest_bit(bits);
                 const WideRay w = packet_lane_ray(r, k);

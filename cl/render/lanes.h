@@ -102,6 +102,42 @@ RT_INLINE pint pgather_int(__global const int *base, pint index)
 #endif
 }
 
+/* v[index[k]] in lane k (index < PACKET_WIDTH): vpermps / vpermd with AVX-512, else lane by lane */
+RT_INLINE pfloat ppermute(pfloat v, pint index)
+{
+#if PACKET_WIDTH == 16 && defined(__AVX512F__)
+    return __builtin_ia32_permvarsf512(v, index);
+#else
+    pfloat r;
+    for (int k = 0; k < PACKET_WIDTH; ++k) PLANE(r, k) = PLANE(v, PLANE_I(index, k) & (PACKET_WIDTH - 1));
+    return r;
+#endif
+}
+
+RT_INLINE pint ppermute_int(pint v, pint index)
+{
+#if PACKET_WIDTH == 16 && defined(__AVX512F__)
+    return __builtin_ia32_permvarsi512(v, index);
+#else
+    pint r;
+    for (int k = 0; k < PACKET_WIDTH; ++k) PLANE_I(r, k) = PLANE_I(v, PLANE_I(index, k) & (PACKET_WIDTH - 1));
+    return r;
+#endif
+}
+
+/* the indices of the bits set in `bits`, ascending, packed into the first lanes (0 after them):
+ * vpcompressd with AVX-512 */
+RT_INLINE pint pcompress_ids(int bits)
+{
+#if PACKET_WIDTH == 16 && defined(__AVX512F__)
+    return __builtin_ia32_compresssi512_mask(LANE_IDS, PINT(0), (ushort)bits);
+#else
+    pint r = PINT(0);
+    for (int k = 0; bits; bits &= bits - 1) PLANE_I(r, k++) = lowest_bit(bits);
+    return r;
+#endif
+}
+
 RT_INLINE pfloat pabs(pfloat x) { return as_pfloat(as_puint(x) & PUINT(0x7fffffffu)); }
 RT_INLINE pfloat pfmin(pfloat a, pfloat b) { return __builtin_elementwise_min(a, b); }
 RT_INLINE pfloat pfmax(pfloat a, pfloat b) { return __builtin_elementwise_max(a, b); }

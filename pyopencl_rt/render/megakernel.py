@@ -41,9 +41,9 @@ LANE_BLOCK = 16           # samples per work-item, in units of LANE_WIDTH, taken
 LANE_GROUP = 8            # work-items per group: a launch of the CPU wave (2^18 samples) makes 128 groups
 # the defines a scene may have for the lane kernel (with INTEGRATOR 0, lights and triangles), and
 # the switches kept for A/B measurements (RR_NO_ETA: tools/variance_audit.py; PACKET_HYBRID, the
-# ray-by-ray threshold of cl/accel/bvh_packet.h: tools/kernel_ab.py)
+# ray-by-ray threshold of cl/accel/bvh_packet.h, and PACKET_PAIR_PASSES: tools/kernel_ab.py)
 _LANE_DEFINES = {"BVH_WIDE8", "HAS_LIGHTS", "HAS_TRIANGLES", "INTEGRATOR", "MATERIALS_SELECTED", "SAMPLER",
-                 "RR_NO_ETA", "PACKET_HYBRID"}
+                 "RR_NO_ETA", "PACKET_HYBRID", "PACKET_PAIR_PASSES"}
 
 
 def kernel_mode(device, intersector: str, film_aovs, requested: str | None = None) -> str:

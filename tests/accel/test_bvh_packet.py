@@ -76,10 +76,12 @@ __kernel void h_rays(__global const float *d, int n, __global uint *out_vec, __g
         }
 }
 """
-# (packet width, PACKET_HYBRID): all packets, hybrid (the default), ray by ray; and 8 lanes
-VARIANTS = [(16, 0), (16, 4), (16, 16), (8, 2)]
-KERNELS = {v: harness.Kernels(SOURCE, defines={"BVH_WIDE8": True, "PACKET_WIDTH": v[0], "PACKET_HYBRID": v[1]},
-                              local_size=8)
+# (packet width, PACKET_HYBRID, PACKET_PAIR_PASSES): all packets, hybrid, hybrid with leaves tested
+# as pairs of rays and triangles (the default), ray by ray; and 8 lanes
+DEFAULT = (16, 4, 3)
+VARIANTS = [(16, 0, 0), (16, 4, 0), DEFAULT, (16, 16, 0), (8, 2, 3)]
+KERNELS = {v: harness.Kernels(SOURCE, defines={"BVH_WIDE8": True, "PACKET_WIDTH": v[0], "PACKET_HYBRID": v[1],
+                                               "PACKET_PAIR_PASSES": v[2]}, local_size=8)
            for v in VARIANTS}
 
 
@@ -96,12 +98,13 @@ def rays_for(mesh, rng, n=6000):
     return build_bvh(v, f), o, d, tmax
 
 
-@pytest.mark.parametrize("variant", VARIANTS, ids=lambda v: f"w{v[0]}-hybrid{v[1]}")
+@pytest.mark.parametrize("variant", VARIANTS, ids=lambda v: f"w{v[0]}-hybrid{v[1]}-pairs{v[2]}")
 @pytest.mark.parametrize("mesh", ["icosphere", "torus", "slivers", "grid"])
 def test_packets_equal_single_rays(device, runtime, rng, mesh, variant):
     """Closest hit: per lane the single-ray wide8 result (t, triangle, u, v bit for bit), except a
-    different triangle where two tie at the same t (packets meet leaves in another order); ray by
-    ray (hybrid 16) exactly the single-ray traversal.  Any hit: exactly the single-ray answer.
+    different triangle where two tie at the same t (packets meet leaves in another order), with
+    leaves tested triangle by triangle against the packet, ray by ray, or as pairs of a ray and a
+    triangle per lane; ray by ray (hybrid 16) exactly the single-ray traversal.  Any hit: exactly the single-ray answer.
     Idle lanes: no hit, t as given."""
     harness.require_lane_kernels(device)
     bvh, o, d, tmax = rays_for(mesh, rng)
@@ -147,7 +150,7 @@ def test_packets_of_the_cornell_box(device, runtime, rng):
     d = rng.normal(size=(n, 3)).astype(np.float32)
     tmax = np.full(n, np.inf, np.float32)
     blob = device_blob(wide_bvh(bvh, 8))
-    t, prim, u, v = KERNELS[(16, 4)](runtime, "h_closest", n // 16, blob, o, d, tmax, n,
+    t, prim, u, v = KERNELS[DEFAULT](runtime, "h_closest", n // 16, blob, o, d, tmax, n,
                                      out_t=n, out_prim=n, out_u=n, out_v=n)
     ref = trace(bvh, o, d, device=device, layout="wide8")
     ours = np.where(prim >= 0, bvh.prim_ids[np.maximum(prim, 0)], -1)
@@ -169,7 +172,7 @@ def test_packet_rays_equal_wide_ray(device, runtime, rng):
                         [1e-30, 1, 0], [1e-19, -1e-20, 1e-21], [3e38, -1, 2], [0.5, 0.5, -0.5]], np.float32)
     d[:len(special)] = special
     d[len(special):len(special) + 500] = rng.choice([-1.0, 0.0, 1.0, 2.0], size=(500, 3))
-    for variant in ((16, 4), (8, 2)):
+    for variant in (DEFAULT, (8, 2, 3)):
         width = variant[0]
         vec, lane = KERNELS[variant](runtime, "h_rays", n // width, d, n, out_vec=(n, 20), out_lane=(n, 20))
         assert np.array_equal(vec, lane)
