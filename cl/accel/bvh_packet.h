@@ -10,7 +10,8 @@
  * PACKET_HYBRID lanes enter is traversed ray by ray with bvh_wide8.h's functions, so large scenes
  * lose little (docs/BENCHMARKS.md: a 1.3M-triangle scene still renders faster with lanes).  A
  * leaf (one Tri8) whose lanes and triangles fill at most PACKET_PAIR_PASSES vectors as pairs is
- * tested that way instead: each lane a pair of one ray and one triangle (packet_pairs).
+ * tested that way instead: each lane a pair of one ray and one triangle (packet_pairs; closest
+ * hits only).
  *
  * Results, lane by lane, are those of bvh_wide8_closest_hit / bvh_wide8_any_hit bit for bit: the
  * triangle test is intersect_tri8's arithmetic (FP_CONTRACT off), with each lane's own axis
@@ -440,7 +441,8 @@ RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, 
 
 /* Any hit per lane in (tmin, tmax): returns the lanes occluded (-1).  Lanes stop testing once
  * they are (their tmax drops below tmin), and the traversal ends when every lane has.  Subtrees
- * entered by at most PACKET_HYBRID lanes are traversed ray by ray, as in packet_closest_hit. */
+ * entered by at most PACKET_HYBRID lanes are traversed ray by ray, as in packet_closest_hit; leaves
+ * are not tested as pairs here (no faster for shadow rays, docs/BENCHMARKS.md). */
 RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pfloat tmin, pfloat tmax)
 {
     __global const float8 *base = (__global const float8 *)bvh;
@@ -450,24 +452,7 @@ RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pflo
     int off = 0, cnt = 0, lanes = (1 << PACKET_WIDTH) - 1;
     for (;;) {
         lanes &= pbits(tmin <= tmax); /* active and not yet occluded */
-        int tri_bits, n_pairs;
-        if ((n_pairs = leaf_pairs(base + off, cnt, lanes, &tri_bits))) { /* a leaf: its pairs */
-            __global const float8 *pk = base + off;
-            const pint ray_ids = pcompress_ids(lanes), tri_ids = pcompress_ids(tri_bits);
-            for (int c = 0; c * PACKET_WIDTH < n_pairs; ++c) {
-                pint ray, tri;
-                const pint on = pair_chunk(c, bit_count(tri_bits), n_pairs, ray_ids, tri_ids, &ray, &tri);
-                pfloat tt, U, V, W;
-                const pint m = packet_pairs(r, pk, ray, tri, on ? ppermute(tmin, ray) : PFLOAT(INFINITY),
-                                            ppermute(tmax, ray), &tt, &U, &V, &W);
-                for (int bits = pbits(m); bits; bits &= bits - 1) {
-                    const int k = PLANE_I(ray, lowest_bit(bits));
-                    PLANE_I(hit, k) = -1;
-                    PLANE(tmax, k) = -INFINITY;
-                }
-            }
-            if (!pany(tmin <= tmax)) return hit;
-        } else if (bit_count(lanes) <= PACKET_HYBRID) { /* few rays in this subtree: one at a time */
+        if (bit_count(lanes) <= PACKET_HYBRID) { /* few rays in this subtree: one at a time */
             for (int bits = lanes; bits; bits &= bits - 1) {
                 const int k = lowest_bit(bits);
                 const WideRay w = packet_lane_ray(r, k);
