@@ -260,7 +260,7 @@ RT_INLINE pint packet_pairs(const PacketRay *r, __global const float8 *pk, pint 
 }
 
 #ifndef PACKET_HYBRID
-#define PACKET_HYBRID 4 /* a subtree that at most this many lanes enter is traversed ray by ray */
+#define PACKET_HYBRID 2 /* a subtree that at most this many lanes enter is traversed ray by ray */
 #endif
 #ifndef PACKET_PAIR_PASSES
 #define PACKET_PAIR_PASSES 3 /* a one-Tri8 leaf is tested as pairs when they fill at most this many tests */

@@ -78,7 +78,7 @@ __kernel void h_rays(__global const float *d, int n, __global uint *out_vec, __g
 """
 # (packet width, PACKET_HYBRID, PACKET_PAIR_PASSES): all packets, hybrid, hybrid with leaves tested
 # as pairs of rays and triangles (the default), ray by ray; and 8 lanes
-DEFAULT = (16, 4, 3)
+DEFAULT = (16, 2, 3)
 VARIANTS = [(16, 0, 0), (16, 4, 0), DEFAULT, (16, 16, 0), (8, 2, 3)]
 KERNELS = {v: harness.Kernels(SOURCE, defines={"BVH_WIDE8": True, "PACKET_WIDTH": v[0], "PACKET_HYBRID": v[1],
                                                "PACKET_PAIR_PASSES": v[2]}, local_size=8)
