@@ -259,11 +259,15 @@ RT_INLINE pint packet_pairs(const PacketRay *r, __global const float8 *pk, pint 
     return packet_triangle_lanes(&q, p0, p1, p2, n, nabs, sliver, tmin, tmax, t_out, U_out, V_out, W_out);
 }
 
-#ifndef PACKET_HYBRID
-#define PACKET_HYBRID 2 /* a subtree that at most this many lanes enter is traversed ray by ray */
-#endif
+/* A one-Tri8 leaf is tested as pairs when they fill at most PACKET_PAIR_PASSES tests; not where a
+ * permutation of the lanes is not one instruction (16 lanes on AVX2): then the lanes' loops cost
+ * more than the pairs save.  A subtree that at most PACKET_HYBRID lanes enter is traversed ray by
+ * ray (fewer with pairs, which serve the leaves of few lanes better). */
 #ifndef PACKET_PAIR_PASSES
-#define PACKET_PAIR_PASSES 3 /* a one-Tri8 leaf is tested as pairs when they fill at most this many tests */
+#define PACKET_PAIR_PASSES (PERMUTE_IN_REGISTER ? 3 : 0)
+#endif
+#ifndef PACKET_HYBRID
+#define PACKET_HYBRID (PACKET_PAIR_PASSES ? 2 : 4)
 #endif
 
 /* The pairs of a leaf (one Tri8): every lane of `lanes` with every triangle of the packet.

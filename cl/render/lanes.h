@@ -102,11 +102,19 @@ RT_INLINE pint pgather_int(__global const int *base, pint index)
 #endif
 }
 
-/* v[index[k]] in lane k (index < PACKET_WIDTH): vpermps / vpermd with AVX-512, else lane by lane */
+/* v[index[k]] in lane k (index < PACKET_WIDTH): one vpermps / vpermd where the lanes are one register
+ * (16 with AVX-512, 8 with AVX2: PERMUTE_IN_REGISTER), else lane by lane */
+#if (PACKET_WIDTH == 16 && defined(__AVX512F__)) || (PACKET_WIDTH == 8 && defined(__AVX2__))
+#define PERMUTE_IN_REGISTER 1
+#else
+#define PERMUTE_IN_REGISTER 0
+#endif
 RT_INLINE pfloat ppermute(pfloat v, pint index)
 {
 #if PACKET_WIDTH == 16 && defined(__AVX512F__)
     return __builtin_ia32_permvarsf512(v, index);
+#elif PACKET_WIDTH == 8 && defined(__AVX2__)
+    return __builtin_ia32_permvarsf256(v, index);
 #else
     pfloat r;
     for (int k = 0; k < PACKET_WIDTH; ++k) PLANE(r, k) = PLANE(v, PLANE_I(index, k) & (PACKET_WIDTH - 1));
@@ -118,6 +126,8 @@ RT_INLINE pint ppermute_int(pint v, pint index)
 {
 #if PACKET_WIDTH == 16 && defined(__AVX512F__)
     return __builtin_ia32_permvarsi512(v, index);
+#elif PACKET_WIDTH == 8 && defined(__AVX2__)
+    return __builtin_ia32_permvarsi256(v, index);
 #else
     pint r;
     for (int k = 0; k < PACKET_WIDTH; ++k) PLANE_I(r, k) = PLANE_I(v, PLANE_I(index, k) & (PACKET_WIDTH - 1));
