@@ -6,12 +6,12 @@
 Each ``--variant`` is ImageSettings overrides (kernel_mode, sampler, max_depth, ...) and
 optionally ``defines``: extra kernel defines (switches such as RT_PORTABLE_BUILTINS in
 cl/cpu_builtins.h), and ``env``: environment variables set while the variant is built (such as
-``{"PYOPENCL_RT_PACKET_WIDTH": "0"}``, the megakernel without packets).  Every variant is built and warmed up first; then each round renders every
-variant once, in turn, so a shared machine's load falls on all of them alike.  Printed per
-variant: the median Msamples/s over the rounds, and its ratio to the first variant's median,
-plus the median of the per-round ratios (robust to load that drifts between rounds).  The images
-are compared too: variants that should compute the same thing report their max relative
-difference.
+``{"PYOPENCL_RT_LANES": "0"}``, the megakernel with one path per work-item). Every variant is
+built and warmed up first; then each round renders every variant once, in turn, so a shared
+machine's load falls on all of them alike. Printed per variant: the median Msamples/s over the
+rounds, and its ratio to the first variant's median, plus the median of the per-round ratios
+(robust to load that drifts between rounds). The images are compared too: variants that should
+compute the same thing report their max relative difference.
 """
 from __future__ import annotations
 

@@ -199,9 +199,10 @@ RT_INLINE void shade_lanes(__global const float4 *tris, __global const int *tri_
     if (pany(glows)) {
         /* MIS weight against light sampling (light_pdf of the hit light, from the ray's origin) */
         const pint mis = glows & (s->pdf > 0.0f) & (light_index >= 0);
-        __global const float *lf = (__global const float *)lights;
-        const pint li = (light_index < 0 ? PINT(0) : light_index) * STRIDE_INDEX(Light);
-        const pfloat pmf = pgather(lf, li + FIELD_INDEX(Light, pmf)), area = pgather(lf, li + FIELD_INDEX(Light, area));
+        __global const float *light_f = (__global const float *)lights;
+        const pint row = (light_index < 0 ? PINT(0) : light_index) * STRIDE_INDEX(Light);
+        const pfloat pmf = pgather(light_f, row + FIELD_INDEX(Light, pmf));
+        const pfloat area = pgather(light_f, row + FIELD_INDEX(Light, area));
         const pvec3 to_ref = pv3_sub(s->o, p);
         const pfloat dist2 = pv3_dot(to_ref, to_ref);
         const pfloat cos_l = pabs(pv3_dot(ng, to_ref)) * (1.0f / psqrt(dist2));
@@ -230,15 +231,17 @@ RT_INLINE void shade_lanes(__global const float4 *tris, __global const int *tri_
         pint li = convert_pint(x);
         li = li < n_lights - 1 ? li : PINT(n_lights - 1);
         const pfloat frac = x - convert_pfloat(li);
-        __global const float *lf = (__global const float *)lights;
-        __global const int *li_ = (__global const int *)lights;
-        const pint col = li * STRIDE_INDEX(Light);
-        const pint pick = (frac >= pgather(lf, col + FIELD_INDEX(Light, alias_prob)))
-                              ? pgather_int(li_, col + FIELD_INDEX(Light, alias)) : li;
-        const pint at = pick * STRIDE_INDEX(Light);
-        const pfloat pick_pmf = pgather(lf, at + FIELD_INDEX(Light, pmf)), area = pgather(lf, at + FIELD_INDEX(Light, area));
-        const pint lprim = pgather_int(li_, at + FIELD_INDEX(Light, prim));
-        const pint lmat = pgather_int(li_, at + FIELD_INDEX(Light, material));
+        /* sample_alias: column li keeps its light below alias_prob, else takes its alias */
+        __global const float *light_f = (__global const float *)lights;
+        __global const int *light_i = (__global const int *)lights;
+        const pint column = li * STRIDE_INDEX(Light);
+        const pint pick = (frac >= pgather(light_f, column + FIELD_INDEX(Light, alias_prob)))
+                              ? pgather_int(light_i, column + FIELD_INDEX(Light, alias)) : li;
+        const pint row = pick * STRIDE_INDEX(Light);
+        const pfloat pick_pmf = pgather(light_f, row + FIELD_INDEX(Light, pmf));
+        const pfloat area = pgather(light_f, row + FIELD_INDEX(Light, area));
+        const pint lprim = pgather_int(light_i, row + FIELD_INDEX(Light, prim));
+        const pint lmat = pgather_int(light_i, row + FIELD_INDEX(Light, material));
         const TriLanes lt = gather_triangles(tris, going ? lprim : PINT(0));
         /* light_sample for a triangle: sample_triangle_barycentrics, then the point */
         const pint upper = uly > ulx;
