@@ -9,6 +9,7 @@ import json
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -86,14 +87,21 @@ def test_split_is_bitwise_on_one_device(device):
 
 def test_failing_device_is_dropped_and_its_passes_redone(device):
     scene, wfs, ref = two_wavefronts(device, 8)
-    bad = wfs[1]
+    good, bad = wfs
     calls = {"n": 0}
-    real_run = bad.run
+    real_run, real_good_run = bad.run, good.run
+    bad_started = threading.Event()
+
+    def waiting_run(film, **kw):
+        # the good device holds its first batch until the bad one has one too: on a loaded
+        # machine the bad device's thread could otherwise start after every pass was taken
+        bad_started.wait(timeout=60)
+        return real_good_run(film, **kw)
 
     def flaky_run(film, **kw):
-        # its first batch (each device gets one before any has finished: which batch comes
-        # later depends on the timing; a fast device could take all the passes before the
-        # second one's second call, so it fails in its first)
+        # its first batch (which batch comes later depends on the timing; a fast device could
+        # take all the passes before the second one's second call, so it fails in its first)
+        bad_started.set()
         calls["n"] += 1
 
         class Broken:  # one pass of the batch gets through, then the device "fails"
@@ -108,7 +116,7 @@ def test_failing_device_is_dropped_and_its_passes_redone(device):
         kw["passes"] = max(kw["passes"], 2)  # make sure the batch has passes left to hand back
         return real_run(Broken(), **kw)
 
-    bad.run = flaky_run
+    bad.run, good.run = flaky_run, waiting_run
     film = Film(48, 32)
     with pytest.warns(RuntimeWarning, match="failed and was dropped"):
         st = MultiDevice(scene, wfs, target_seconds=0.01).run(film, passes=8)
@@ -152,20 +160,28 @@ def test_hung_device_is_dropped_and_its_passes_redone(device):
     """A device whose run stops returning (a driver that never comes back) is dropped after
     device_timeout seconds without progress, like a failing one: the others render its passes
     and the film is the single-device film, bit for bit."""
-    import threading
-
     scene, wfs, ref = two_wavefronts(device, 6)
-    stuck = wfs[1]
+    good, stuck = wfs
     real_run, release, calls = stuck.run, threading.Event(), {"n": 0}
+    real_good_run, stuck_hangs, good_calls = good.run, threading.Event(), {"n": 0}
 
     def hanging_run(film, **kw):
         calls["n"] += 1
         if calls["n"] == 1:
             return real_run(film, **kw)
+        stuck_hangs.set()
         release.wait(60)  # never returns on its own, never calls cancel (no heartbeat)
         return real_run(film, **kw)  # woken at the end of the test: what it renders is ignored
 
-    stuck.run = hanging_run
+    def waiting_run(film, **kw):
+        # the good device's second batch waits until the other one hangs in its second: on a
+        # loaded machine the good device could otherwise take every pass first (nothing hangs)
+        good_calls["n"] += 1
+        if good_calls["n"] == 2:
+            stuck_hangs.wait(timeout=60)
+        return real_good_run(film, **kw)
+
+    stuck.run, good.run = hanging_run, waiting_run
     film = Film(48, 32)
     try:
         with pytest.warns(RuntimeWarning, match=r"made no progress for 1 s and was dropped"):
