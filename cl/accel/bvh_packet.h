@@ -200,16 +200,28 @@ RT_INLINE pint packet_triangle_lanes(const PacketRay *r, pvec3 p0, pvec3 p1, pve
     return inside & ok & (tt > tmin) & (tt < tmax);
 }
 
-/* One triangle (p0, p1, p2) against every lane: its plane once (triangle_plane), the rest per
- * lane (packet_triangle_lanes). */
-RT_INLINE pint packet_triangle(const PacketRay *r, float3 p0, float3 p1, float3 p2, pfloat tmin, pfloat tmax,
-                               pfloat *t_out, pfloat *U_out, pfloat *V_out, pfloat *W_out)
+/* Triangle j of a Tri8 (pk) against every lane: its plane from `plane` (tri8_plane's results for
+ * the Tri8, once for its triangles), the rest per lane (packet_triangle_lanes). */
+typedef struct { float8 nx, ny, nz, ax, ay, az; int8 sliver; } Tri8Plane;
+
+RT_INLINE Tri8Plane tri8_planes(__global const float8 *pk)
 {
-    float3 nabs;
-    int sliver;
-    const float3 n = triangle_plane(p0, p1, p2, &nabs, &sliver);
-    return packet_triangle_lanes(r, pv3_splat(p0), pv3_splat(p1), pv3_splat(p2), pv3_splat(n), pv3_splat(nabs),
-                                 PINT(sliver ? -1 : 0), tmin, tmax, t_out, U_out, V_out, W_out);
+    Tri8Plane p;
+    p.sliver = tri8_plane(pk, &p.nx, &p.ny, &p.nz, &p.ax, &p.ay, &p.az);
+    return p;
+}
+
+RT_INLINE pint packet_triangle(const PacketRay *r, __global const float8 *pk, const Tri8Plane *plane, int j,
+                               pfloat tmin, pfloat tmax, pfloat *t_out, pfloat *U_out, pfloat *V_out, pfloat *W_out)
+{
+    __global const float *vf = (__global const float *)pk;
+    const pvec3 p0 = pv3(PFLOAT(vf[j]), PFLOAT(vf[8 + j]), PFLOAT(vf[16 + j]));
+    const pvec3 p1 = pv3(PFLOAT(vf[24 + j]), PFLOAT(vf[32 + j]), PFLOAT(vf[40 + j]));
+    const pvec3 p2 = pv3(PFLOAT(vf[48 + j]), PFLOAT(vf[56 + j]), PFLOAT(vf[64 + j]));
+    const pvec3 n = pv3(PFLOAT(lane8(plane->nx, j)), PFLOAT(lane8(plane->ny, j)), PFLOAT(lane8(plane->nz, j)));
+    const pvec3 nabs = pv3(PFLOAT(lane8(plane->ax, j)), PFLOAT(lane8(plane->ay, j)), PFLOAT(lane8(plane->az, j)));
+    return packet_triangle_lanes(r, p0, p1, p2, n, nabs, PINT(((const int *)&plane->sliver)[j]), tmin, tmax,
+                                 t_out, U_out, V_out, W_out);
 }
 
 /* The plane of each lane's triangle: triangle_plane on the lanes (the same arithmetic). */
@@ -336,15 +348,6 @@ RT_INLINE int packet_node(__global const float8 *base, int off, const PacketRay 
     return n;
 }
 
-/* Triangle j of a Tri8 packet (bvh_wide8.h's layout: float8 3 * vertex + axis, lane j). */
-RT_INLINE void tri8_vertices(__global const float8 *pk, int j, float3 *p0, float3 *p1, float3 *p2)
-{
-    __global const float *vf = (__global const float *)pk;
-    *p0 = (float3)(vf[j], vf[8 + j], vf[16 + j]);
-    *p1 = (float3)(vf[24 + j], vf[32 + j], vf[40 + j]);
-    *p2 = (float3)(vf[48 + j], vf[56 + j], vf[64 + j]);
-}
-
 /* The closest hits of the packet in (tmin, tmax) (per lane; tmax < tmin: inactive lane).  *t
  * holds tmax on entry and the hit distance on return; prim (PRIM_MISS on entry), u, v as Hit.
  * Each stack entry keeps the lanes that entered its box; a subtree that at most PACKET_HYBRID of
@@ -413,13 +416,12 @@ RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, 
             const pfloat lane_tmin = pmask(lanes) ? tmin : PFLOAT(INFINITY); /* the lanes that entered */
             for (int q = 0; q < cnt; ++q, pk += TRI8_UNITS) {
                 __global const int *tri = (__global const int *)(pk + 9);
+                const Tri8Plane plane = tri8_planes(pk);
                 for (int j = 0; j < 8; ++j) {
                     const int id = tri[j];
                     if (id < 0) continue;
-                    float3 p0, p1, p2;
-                    tri8_vertices(pk, j, &p0, &p1, &p2);
                     pfloat tt, U, V, W;
-                    const pint m = packet_triangle(r, p0, p1, p2, lane_tmin, *t, &tt, &U, &V, &W);
+                    const pint m = packet_triangle(r, pk, &plane, j, lane_tmin, *t, &tt, &U, &V, &W);
                     if (!pany(m)) continue;
                     const pfloat rcp = 1.0f / (U + V + W);
                     *t = SEL(*t, tt, m);
@@ -486,12 +488,11 @@ RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pflo
             const pfloat lane_tmin = pmask(lanes) ? tmin : PFLOAT(INFINITY);
             for (int q = 0; q < cnt; ++q, pk += TRI8_UNITS) {
                 __global const int *tri = (__global const int *)(pk + 9);
+                const Tri8Plane plane = tri8_planes(pk);
                 for (int j = 0; j < 8; ++j) {
                     if (tri[j] < 0) continue;
-                    float3 p0, p1, p2;
-                    tri8_vertices(pk, j, &p0, &p1, &p2);
                     pfloat tt, U, V, W;
-                    const pint m = packet_triangle(r, p0, p1, p2, lane_tmin, tmax, &tt, &U, &V, &W);
+                    const pint m = packet_triangle(r, pk, &plane, j, lane_tmin, tmax, &tt, &U, &V, &W);
                     if (!pany(m)) continue;
                     hit |= m;
                     tmax = SEL(tmax, PFLOAT(-INFINITY), m);

@@ -81,6 +81,23 @@ RT_INLINE float4 plane_t_double4(float4 p0x, float4 p0y, float4 p0z, float4 p1x,
 }
 #endif
 
+/* The planes of a Tri8's eight triangles: triangle_plane (intersect.h) on eight lanes, the same
+ * arithmetic (n, the magnitudes of its products, the sliver flag). */
+RT_INLINE int8 tri8_plane(__global const float8 *pk, float8 *nx, float8 *ny, float8 *nz, float8 *nabs_x,
+                          float8 *nabs_y, float8 *nabs_z)
+{
+    const float8 p0x = pk[0], p0y = pk[1], p0z = pk[2];
+    const float8 e1x = pk[3] - p0x, e1y = pk[4] - p0y, e1z = pk[5] - p0z;
+    const float8 e2x = pk[6] - p0x, e2y = pk[7] - p0y, e2z = pk[8] - p0z;
+    *nx = e1y * e2z - e1z * e2y;
+    *ny = e1z * e2x - e1x * e2z;
+    *nz = e1x * e2y - e1y * e2x;
+    *nabs_x = abs8(e1y * e2z) + abs8(e1z * e2y);
+    *nabs_y = abs8(e1z * e2x) + abs8(e1x * e2z);
+    *nabs_z = abs8(e1x * e2y) + abs8(e1y * e2x);
+    return abs8(*nx) + abs8(*ny) + abs8(*nz) < SLIVER_CANCELLATION * (*nabs_x + *nabs_y + *nabs_z);
+}
+
 /* Watertight test of eight triangles (one Tri8 packet): intersect_tri4 (bvh_wide.h) with eight
  * lanes, the same arithmetic in the same order, so that each lane gives intersect_triangle's
  * result bit for bit (tests/accel/test_bvh_wide.py compares every layout with the binary one).
@@ -112,18 +129,11 @@ RT_INLINE int8 intersect_tri8(__global const float8 *pk, const WideRay *r, float
     if (!any8(inside))
         return inside;
     const float8 p0x = pk[0], p0y = pk[1], p0z = pk[2];
-    const float8 e1x = pk[3] - p0x, e1y = pk[4] - p0y, e1z = pk[5] - p0z;
-    const float8 e2x = pk[6] - p0x, e2y = pk[7] - p0y, e2z = pk[8] - p0z;
-    const float8 nx = e1y * e2z - e1z * e2y;
-    const float8 ny = e1z * e2x - e1x * e2z;
-    const float8 nz = e1x * e2y - e1y * e2x;
+    float8 nx, ny, nz, nabs_x, nabs_y, nabs_z;
+    const int8 sliver = tri8_plane(pk, &nx, &ny, &nz, &nabs_x, &nabs_y, &nabs_z);
     const float8 den = nx * r->d.x + ny * r->d.y + nz * r->d.z;
     const float8 ax0 = p0x - r->o.x, ay0 = p0y - r->o.y, az0 = p0z - r->o.z;
     const float8 num = nx * ax0 + ny * ay0 + nz * az0;
-    const float8 nabs_x = abs8(e1y * e2z) + abs8(e1z * e2y);
-    const float8 nabs_y = abs8(e1z * e2x) + abs8(e1x * e2z);
-    const float8 nabs_z = abs8(e1x * e2y) + abs8(e1y * e2x);
-    const int8 sliver = abs8(nx) + abs8(ny) + abs8(nz) < SLIVER_CANCELLATION * (nabs_x + nabs_y + nabs_z);
     const int8 doubt = abs8(num) <= NUM_DOUBT * (nabs_x * abs8(ax0) + nabs_y * abs8(ay0) + nabs_z * abs8(az0));
     float8 tt = num / den;
     int8 ok = den != 0.0f;
