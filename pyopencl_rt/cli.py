@@ -121,8 +121,7 @@ def _clock(seconds):
 @click.option("--adaptive/--no-adaptive", default=None, help="Adaptive sampling: samples where the estimated error "
               "is; --spp is each pixel's maximum with --target-error, the mean without (docs/SAMPLING.md).")
 @click.option("--target-error", type=float, help="With --adaptive: a pixel stops at this relative error (e.g. 0.02).")
-@click.option("--wave-size", type=int,
-              help="Paths in flight (default: 2^20 on a GPU, 2^16 on a CPU; 2^18 samples a launch for the CPU megakernel).")
+@click.option("--wave-size", type=int, help="Paths in flight (default: 2^20 GPU, 2^16 CPU, 2^18 CPU megakernel).")
 @click.option("--profile", is_flag=True, help="Print the time spent in each wavefront stage.")
 @click.option("--kernel-mode", type=click.Choice(["auto", "wavefront", "megakernel"]), default="auto", show_default=True,
               help="How paths are scheduled: a megakernel (one work-item per path; the CPU default) or the "
