@@ -202,12 +202,12 @@ RT_INLINE pint packet_triangle_lanes(const PacketRay *r, pvec3 p0, pvec3 p1, pve
 
 /* Triangle j of a Tri8 (pk) against every lane: its plane from `plane` (tri8_plane's results for
  * the Tri8, once for its triangles), the rest per lane (packet_triangle_lanes). */
-typedef struct { float8 nx, ny, nz, ax, ay, az; int8 sliver; } Tri8Plane;
+typedef struct { float8 nx, ny, nz, nabs_x, nabs_y, nabs_z; int8 sliver; } Tri8Plane;
 
 RT_INLINE Tri8Plane tri8_planes(__global const float8 *pk)
 {
     Tri8Plane p;
-    p.sliver = tri8_plane(pk, &p.nx, &p.ny, &p.nz, &p.ax, &p.ay, &p.az);
+    p.sliver = tri8_plane(pk, &p.nx, &p.ny, &p.nz, &p.nabs_x, &p.nabs_y, &p.nabs_z);
     return p;
 }
 
@@ -219,40 +219,29 @@ RT_INLINE pint packet_triangle(const PacketRay *r, __global const float8 *pk, co
     const pvec3 p1 = pv3(PFLOAT(vf[24 + j]), PFLOAT(vf[32 + j]), PFLOAT(vf[40 + j]));
     const pvec3 p2 = pv3(PFLOAT(vf[48 + j]), PFLOAT(vf[56 + j]), PFLOAT(vf[64 + j]));
     const pvec3 n = pv3(PFLOAT(lane8(plane->nx, j)), PFLOAT(lane8(plane->ny, j)), PFLOAT(lane8(plane->nz, j)));
-    const pvec3 nabs = pv3(PFLOAT(lane8(plane->ax, j)), PFLOAT(lane8(plane->ay, j)), PFLOAT(lane8(plane->az, j)));
+    const pvec3 nabs = pv3(PFLOAT(lane8(plane->nabs_x, j)), PFLOAT(lane8(plane->nabs_y, j)),
+                           PFLOAT(lane8(plane->nabs_z, j)));
     return packet_triangle_lanes(r, p0, p1, p2, n, nabs, PINT(((const int *)&plane->sliver)[j]), tmin, tmax,
                                  t_out, U_out, V_out, W_out);
 }
 
-/* The plane of each lane's triangle: triangle_plane on the lanes (the same arithmetic). */
-RT_INLINE pvec3 triangle_plane_lanes(pvec3 p0, pvec3 p1, pvec3 p2, pvec3 *n_abs, pint *sliver)
-{
-    const pvec3 e1 = pv3_sub(p1, p0), e2 = pv3_sub(p2, p0);
-    const pvec3 n = pv3_cross(e1, e2);
-    *n_abs = pv3(pabs(e1.y * e2.z) + pabs(e1.z * e2.y), pabs(e1.z * e2.x) + pabs(e1.x * e2.z),
-                 pabs(e1.x * e2.y) + pabs(e1.y * e2.x));
-    *sliver = pabs(n.x) + pabs(n.y) + pabs(n.z) < SLIVER_CANCELLATION * (n_abs->x + n_abs->y + n_abs->z);
-    return n;
-}
-
-/* Coordinate c of the Tri8's triangle tri[k] in lane k (tri < 8). */
-RT_INLINE pfloat tri8_lanes(__global const float8 *pk, int c, pint tri)
-{
+/* Lane tri[k] of v in lane k (tri < 8): a Tri8's value for each lane's triangle. */
 #if PACKET_WIDTH == 16
-    const float8 v = pk[c];
-    return ppermute((float16)(v, v), tri);
+#define TRI8_WIDE(v) ((v), (v)) /* the eight lanes twice: a 16-lane index picks lane tri & 7 */
 #else
-    return ppermute(pk[c], tri);
+#define TRI8_WIDE(v) (v)
 #endif
-}
+RT_INLINE pfloat spread8(float8 v, pint tri) { return ppermute((pfloat)TRI8_WIDE(v), tri); }
+RT_INLINE pint spread8_int(int8 v, pint tri) { return ppermute_int((pint)TRI8_WIDE(v), tri); }
 
 /* Pairs of rays and triangles, one pair per lane: lane k tests the packet's ray ray[k] against
  * the Tri8's triangle tri[k].  For a leaf that few lanes enter, this fills the vector where the
  * packet test (one triangle against every lane) would run mostly empty and the ray-by-ray test
  * (one ray against the Tri8's eight slots) half empty and once per lane: three rays and five
  * triangles are 15 lanes of one test. */
-RT_INLINE pint packet_pairs(const PacketRay *r, __global const float8 *pk, pint ray, pint tri, pfloat tmin,
-                            pfloat tmax, pfloat *t_out, pfloat *U_out, pfloat *V_out, pfloat *W_out)
+RT_INLINE pint packet_pairs(const PacketRay *r, __global const float8 *pk, const Tri8Plane *plane, pint ray,
+                            pint tri, pfloat tmin, pfloat tmax, pfloat *t_out, pfloat *U_out, pfloat *V_out,
+                            pfloat *W_out)
 {
     PacketRay q; /* the fields the triangle test reads, of each lane's ray */
     q.ox = ppermute(r->ox, ray); q.oy = ppermute(r->oy, ray); q.oz = ppermute(r->oz, ray);
@@ -262,12 +251,13 @@ RT_INLINE pint packet_pairs(const PacketRay *r, __global const float8 *pk, pint 
     q.kz0 = ppermute_int(r->kz0, ray); q.kz1 = ppermute_int(r->kz1, ray);
     q.okx = ppermute(r->okx, ray); q.oky = ppermute(r->oky, ray); q.okz = ppermute(r->okz, ray);
     q.sx = ppermute(r->sx, ray); q.sy = ppermute(r->sy, ray);
-    const pvec3 p0 = pv3(tri8_lanes(pk, 0, tri), tri8_lanes(pk, 1, tri), tri8_lanes(pk, 2, tri));
-    const pvec3 p1 = pv3(tri8_lanes(pk, 3, tri), tri8_lanes(pk, 4, tri), tri8_lanes(pk, 5, tri));
-    const pvec3 p2 = pv3(tri8_lanes(pk, 6, tri), tri8_lanes(pk, 7, tri), tri8_lanes(pk, 8, tri));
-    pvec3 nabs;
-    pint sliver;
-    const pvec3 n = triangle_plane_lanes(p0, p1, p2, &nabs, &sliver);
+    const pvec3 p0 = pv3(spread8(pk[0], tri), spread8(pk[1], tri), spread8(pk[2], tri));
+    const pvec3 p1 = pv3(spread8(pk[3], tri), spread8(pk[4], tri), spread8(pk[5], tri));
+    const pvec3 p2 = pv3(spread8(pk[6], tri), spread8(pk[7], tri), spread8(pk[8], tri));
+    /* the planes of tri8_plane (once for the leaf), each lane its triangle's */
+    const pvec3 n = pv3(spread8(plane->nx, tri), spread8(plane->ny, tri), spread8(plane->nz, tri));
+    const pvec3 nabs = pv3(spread8(plane->nabs_x, tri), spread8(plane->nabs_y, tri), spread8(plane->nabs_z, tri));
+    const pint sliver = spread8_int(plane->sliver, tri);
     return packet_triangle_lanes(&q, p0, p1, p2, n, nabs, sliver, tmin, tmax, t_out, U_out, V_out, W_out);
 }
 
@@ -304,7 +294,6 @@ RT_INLINE pint pair_chunk(int c, int n, int n_pairs, pint ray_ids, pint tri_ids,
     *tri = ppermute_int(tri_ids, p - i * n);
     return p < n_pairs;
 }
-
 
 /* Lane k's ray as bvh_wide8.h's WideRay (wide_ray's constants, the same bits). */
 RT_INLINE WideRay packet_lane_ray(const PacketRay *r, int k)
@@ -368,11 +357,13 @@ RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, 
             __global const float8 *pk = base + off;
             __global const int *tri_id = (__global const int *)(pk + 9);
             const pint ray_ids = pcompress_ids(lanes), tri_ids = pcompress_ids(tri_bits);
+            const Tri8Plane plane = tri8_planes(pk);
+            const int n_tris = bit_count(tri_bits);
             for (int c = 0; c * PACKET_WIDTH < n_pairs; ++c) {
                 pint ray, tri;
-                const pint on = pair_chunk(c, bit_count(tri_bits), n_pairs, ray_ids, tri_ids, &ray, &tri);
+                const pint on = pair_chunk(c, n_tris, n_pairs, ray_ids, tri_ids, &ray, &tri);
                 pfloat tt, U, V, W;
-                const pint m = packet_pairs(r, pk, ray, tri, on ? ppermute(tmin, ray) : PFLOAT(INFINITY),
+                const pint m = packet_pairs(r, pk, &plane, ray, tri, on ? ppermute(tmin, ray) : PFLOAT(INFINITY),
                                             ppermute(*t, ray), &tt, &U, &V, &W);
                 /* in pair order (a ray's triangles in slot order): a strictly nearer hit replaces,
                  * so among equal t the lower slot stays, as in intersect_leaf8 */

@@ -46,8 +46,8 @@ RT_INLINE RayShear ray_shear(float3 d)
 /* The plane of triangle (p0, p1, p2): its normal n = (p1 - p0) x (p2 - p0), the magnitudes of
  * the products each component of n is made of (*n_abs: the rounding bound of n.a below), and in
  * *sliver whether n cancelled by more than SLIVER_CANCELLATION (see intersect_triangle).  The
- * same arithmetic on eight or sixteen lanes: tri8_plane (bvh_wide8.h), triangle_plane_lanes
- * (bvh_packet.h). */
+ * same arithmetic on a Tri8's eight triangles: tri8_plane (bvh_wide8.h), which the single-ray
+ * and the packet tests (bvh_packet.h) take their planes from. */
 RT_INLINE float3 triangle_plane(float3 p0, float3 p1, float3 p2, float3 *n_abs, int *sliver)
 {
     const float3 e1 = p1 - p0, e2 = p2 - p0;
