@@ -224,6 +224,7 @@ COUNTERS = {"queue_out": COUNTER_QUEUE_OUT, "shadow": COUNTER_SHADOW, "term": CO
 ITERATION_COUNTERS = 3
 assert sorted((COUNTER_QUEUE_OUT, COUNTER_SHADOW, COUNTER_TERM)) == list(range(ITERATION_COUNTERS))
 assert max(COUNTERS.values()) < COUNTER_PASS_DONE
+assert COUNTER_RAYS_SHADOW == COUNTER_RAYS_EXTEND + 1  # the megakernel copies the two as one pair
 
 # Samplers (cl/render/sampler.h; SAMPLER is one of these, set by render/settings.py:kernel_features).
 # SOBOL_LOG2_ROUND: the Sobol sampler gives each pixel a block of 2^SOBOL_LOG2_ROUND consecutive

@@ -124,8 +124,7 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
     block = lanes.get("PACKET_BLOCK", 1)  # samples per work-item
     end = None if passes is None else first_pass + passes
     zero_rays = np.zeros(2, np.int32)
-    rays_at = abi.COUNTER_RAYS_EXTEND * 4
-    assert abi.COUNTER_RAYS_SHADOW == abi.COUNTER_RAYS_EXTEND + 1
+    rays_at = abi.COUNTER_RAYS_EXTEND * 4  # both ray counters, read and zeroed as one pair
 
     def enqueue(first, count, slot):
         """Queues the launches of passes first .. first + count - 1 and the copies of their
