@@ -43,6 +43,16 @@ __kernel void h_vector(__global const float *a, __global const float *b, __globa
     length_out[i] = length(u);
     store3(normalize_out, i, normalize(u));
 }
+__kernel void h_load3(__global const float *x, __constant float *c, __global float *global_out,
+                      __global float *constant_out, __global float *private_out)
+{
+    const int i = get_global_id(0), n = get_global_size(0);
+    vstore3(vload3(n - 1 - i, x), i, global_out);      /* reversed: the index scales by 3 */
+    vstore3(vload3(n - 1 - i, c), i, constant_out);
+    float p[6] = {x[3 * i], x[3 * i + 1], x[3 * i + 2], 0.0f, 0.0f, 0.0f};
+    vstore3(vload3(0, p), 1, p);                        /* private in and out */
+    vstore3(vload3(1, p), i, private_out);
+}
 __kernel void h_flag(__global int *out) { out[0] = 0;
 #ifdef RT_CPU_BUILTINS
     out[0] = 1;
@@ -110,6 +120,20 @@ def test_bit_exact_unary_and_binary(runtime):
         assert np.array_equal(_bits(o)[~nan], _bits(t)[~nan]), name
         e = expected[name]
         assert np.array_equal(_bits(o)[~nan], _bits(e)[~nan]), name
+
+
+def test_vload3_vstore3_move_bits(runtime):
+    """vload3/vstore3 copy the three components of element i (offset 3i) bit for bit (NaN payloads,
+    signed zeros, denormals), from global, constant and private memory."""
+    x = _specials(np.random.default_rng(3), 3000)[:3 * 1000].copy()
+    x.view(np.uint32)[7] = 0x7fc01234                    # a NaN with a payload
+    n = len(x) // 3
+    for kernels in (INLINE, PORTABLE):
+        out_global, out_constant, out_private = kernels(runtime, "h_load3", n, x, x, global_out=(n, 3),
+                                                        constant_out=(n, 3), private_out=(n, 3))
+        assert np.array_equal(_bits(out_global), _bits(x.reshape(n, 3)[::-1]))
+        assert np.array_equal(_bits(out_constant), _bits(x.reshape(n, 3)[::-1]))
+        assert np.array_equal(_bits(out_private), _bits(x.reshape(n, 3)))
 
 
 @pytest.mark.parametrize("scale", [1e-30, 1e-20, 1e-8, 1.0, 1e8, 1e18, 1e30])
