@@ -366,7 +366,7 @@ def mitsuba_options(f):
 @click.option("--kernel-mode", default="auto", show_default=True,
               help="Comma-separated: auto,wavefront,megakernel (path schedules), each timed on each device.")
 @click.option("--sampler", help="Comma-separated: sobol,stratified,independent, each timed [default: the scene's].")
-@click.option("--mitsuba", is_flag=True, help="Also time Mitsuba 3 on its own Cornell box (mi.cornell_box()) in this run.")
+@click.option("--mitsuba", is_flag=True, help="Also time Mitsuba 3 on its own Cornell box (mi.cornell_box()), a render after ours in each repetition.")
 @click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
 @mitsuba_options
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")

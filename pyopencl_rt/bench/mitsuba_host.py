@@ -189,3 +189,63 @@ def run_mitsuba_cornell_box(*, mitsuba_python=None, llvm_path=None, variant=DEFA
     if json_path:
         write_results(json_path, results, echo)
     return results
+
+
+class MitsubaCornellBoxServer:
+    """Mitsuba rendering its Cornell box on request, for timings interleaved with ours
+    (``bench render --mitsuba``): :mod:`.mitsuba_cornell_box` ``--serve`` in Mitsuba's interpreter,
+    warmed up (JIT) with one ``warmup_spp`` render when entered; :meth:`render` times one more.
+    ``info``: Mitsuba's version, variant and image size; ``renders``: every timed render."""
+
+    def __init__(self, *, mitsuba_python=None, llvm_path=None, variant=DEFAULT_VARIANT, warmup_spp=16, echo=print):
+        self.options = dict(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=variant)
+        self.warmup_spp, self.echo = warmup_spp, echo
+        self.process = self.info = None
+        self.renders: list[dict] = []
+
+    def __enter__(self):
+        import tempfile
+
+        python, how = find_mitsuba_python(self.options["mitsuba_python"], self.options["variant"],
+                                          self.options["llvm_path"])
+        if python is None:
+            raise UserError(how)
+        self.echo(f"Mitsuba: {python} ({how})")
+        variant = self.options["variant"]
+        self._stderr = tempfile.TemporaryFile(mode="w+")  # a file, not a pipe nobody drains
+        self.process = subprocess.Popen(
+            [python, str(HERE / "mitsuba_cornell_box.py"), "--serve", "--variant", variant,
+             "--spp", str(self.warmup_spp)],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr, text=True,
+            env=mitsuba_env(self.options["llvm_path"]))
+        self.info = self._reply()
+        return self
+
+    def _reply(self) -> dict:
+        line = self.process.stdout.readline()
+        try:
+            return json.loads(line)
+        except ValueError:  # it died (no line) or said something else
+            self.process.kill()
+            self.process.wait()
+            self._stderr.seek(0)
+            raise UserError(failure_reason(self._stderr.read() + line, self.options["variant"])) from None
+
+    def render(self, spp: int) -> float:
+        """Samples/s of one render of ``spp`` samples per pixel (timed in Mitsuba's process)."""
+        self.process.stdin.write(f"{int(spp)}\n")
+        self.process.stdin.flush()
+        render = self._reply()
+        render["samples_per_second"] = self.info["width"] * self.info["height"] * render["spp"] / render["seconds"]
+        self.renders.append(render)
+        return render["samples_per_second"]
+
+    def __exit__(self, *exc):
+        if self.process is not None:
+            self.process.stdin.close()
+            try:
+                self.process.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+        self._stderr.close()
+        return False

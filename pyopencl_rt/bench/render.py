@@ -4,14 +4,24 @@ each path schedule (``--kernel-mode wavefront,megakernel``), and Mitsuba 3 on it
 in the same run (``--mitsuba``; compare with ``scenes/mitsuba-cbox.toml``, its transcription).
 
 Kernel build and BVH upload are not timed (see :func:`.timing.interleaved_render_rates`); every
-device x intersector is timed in each repetition and the median is reported.
+device x intersector is timed in each repetition and the median is reported.  Mitsuba renders its
+box in every repetition too, right after ours (its JIT warm-up untimed), so each repetition gives
+a ratio of two renders run back to back; their median is the figure a shared machine's drifting
+load disturbs least.
 """
 from __future__ import annotations
 
+import contextlib
 import statistics
 import time
 
 from .timing import interleaved_render_rates, machine_info, write_results
+
+MITSUBA = "mitsuba"  # its rates' key beside our variants' labels
+# idle seconds before each timed render when Mitsuba takes turns with us: without them, each
+# renderer's worker threads still running after its render slowed the other's next one (7 rounds
+# on 2 cores: Mitsuba 2.30 Msamples/s without the pause, 2.45 with it; ours 2.72 and 2.86)
+MITSUBA_PAUSE = 1.0
 
 
 def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, max_depth=8, repeat=3,
@@ -47,7 +57,15 @@ def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, ma
                 setup_seconds[label] = time.perf_counter() - start
                 variants[label] = (scene, wavefront)
                 intersector_of[label] = intersector
-    rates, last_info = interleaved_render_rates(variants, spp, repeat, profile=True)
+    with contextlib.ExitStack() as stack:
+        others = {}
+        if mitsuba is not None:  # warmed up (JIT) with one render of spp, then timed in our rounds
+            from .mitsuba_host import MitsubaCornellBoxServer
+
+            server = stack.enter_context(MitsubaCornellBoxServer(warmup_spp=spp, echo=echo, **mitsuba))
+            others[MITSUBA] = server.render
+        rates, last_info = interleaved_render_rates(variants, spp, repeat, profile=True, others=others,
+                                                    pause=MITSUBA_PAUSE if others else 0.0)
     results = {"scene": str(scene_path), "width": width, "height": height, "spp": spp, "max_depth": max_depth,
                "repeat": repeat, "machine": machine_info(), "devices": {}}
     echo(f"{'device':<60} {'Msamples/s':>10} {'rays/sample':>11} {'setup s':>8}")
@@ -66,18 +84,20 @@ def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, ma
         }
         echo(f"{label[:60]:<60} {median / 1e6:10.3f} {rays_per_sample:11.2f} {setup_seconds[label]:8.2f}")
     if mitsuba is not None:
-        from .mitsuba_host import run_mitsuba_cornell_box
-
-        # the first render includes Dr.Jit's compilation; the others are timed as ours are
-        theirs = run_mitsuba_cornell_box(spps=(spp,) * (repeat + 1), echo=echo, **mitsuba)
-        rates_theirs = [r["samples_per_second"] for r in theirs["renders"][1:]]
-        theirs["samples_per_second_median"] = statistics.median(rates_theirs)
+        theirs_rates = rates[MITSUBA]
+        theirs = {**server.info, "renders": server.renders, "samples_per_second_all": theirs_rates,
+                  "samples_per_second_median": statistics.median(theirs_rates)}
         results["mitsuba"] = theirs
         echo(f"{'Mitsuba ' + theirs['version'] + ' ' + theirs['variant'] + ' (mi.cornell_box())':<60} "
              f"{theirs['samples_per_second_median'] / 1e6:10.3f}")
         for label, row in results["devices"].items():
             row["ratio_to_mitsuba"] = row["samples_per_second_median"] / theirs["samples_per_second_median"]
-            echo(f"  {label[:58]}: {row['ratio_to_mitsuba']:.2f}x Mitsuba's samples/s")
+            # each round's ratio: ours and Mitsuba's renders of that round ran back to back
+            row["ratio_to_mitsuba_per_round"] = [a / b for a, b in zip(rates[label], theirs_rates)]
+            row["ratio_to_mitsuba_per_round_median"] = statistics.median(row["ratio_to_mitsuba_per_round"])
+            echo(f"  {label[:58]}: {row['ratio_to_mitsuba']:.2f}x Mitsuba's samples/s (ratio of medians); "
+                 f"per round {', '.join(f'{r:.2f}' for r in row['ratio_to_mitsuba_per_round'])}, "
+                 f"median {row['ratio_to_mitsuba_per_round_median']:.2f}x")
     if json_path:
         write_results(json_path, results, echo)
     return results

@@ -26,23 +26,32 @@ def timed_repeats(fn, repeat: int) -> list[float]:
     return seconds
 
 
-def interleaved_render_rates(variants: dict, spp: int, repeat: int, profile: bool = False):
+def interleaved_render_rates(variants: dict, spp: int, repeat: int, profile: bool = False, others=None,
+                             pause: float = 0.0):
     """Samples/s of each ``name -> (scene, wavefront)`` variant: one untimed 1-spp warm-up render
     each (kernel build, BVH upload, the first launches that make PoCL compile its work-group
-    functions), then ``repeat`` rounds rendering ``spp`` with every variant in turn.
+    functions), then ``repeat`` rounds rendering ``spp`` with every variant in turn.  ``others``:
+    ``name -> callable(spp)`` returning samples/s (another renderer, already warmed up), called in
+    each round after the variants.  ``pause``: seconds of idleness before each timed render, so
+    that the worker threads of the render before (ours or another renderer's) have gone to sleep.
 
     Returns ({name: [samples/s per round]}, {name: info dict of its last render})."""
     from ..render.api import render_full
 
     for scene, wavefront in variants.values():
         render_full(scene, spp=1, wavefront=wavefront)
-    rates = {name: [] for name in variants}
+    others = others or {}
+    rates = {name: [] for name in [*variants, *others]}
     last_info = {}
     for _ in range(repeat):
         for name, (scene, wavefront) in variants.items():
+            time.sleep(pause)
             result = render_full(scene, spp=spp, wavefront=wavefront, profile=profile)
             rates[name].append(result.info["samples_per_second"])
             last_info[name] = result.info
+        for name, render in others.items():
+            time.sleep(pause)
+            rates[name].append(render(spp))
     return rates, last_info
 
 

@@ -160,3 +160,66 @@ def test_mitsuba_export_loads_without_the_package():
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     assert callable(module.dict_from_arrays) and callable(module.load_scene_npz)
+
+
+# -- bench render --mitsuba: Mitsuba takes its turn in every round -------------------------------------
+
+def test_interleaved_rates_call_other_renderers_in_every_round(monkeypatch):
+    """Each round renders every variant, then every other renderer, after the variants' untimed
+    warm-ups, with the pause before each timed render."""
+    from types import SimpleNamespace
+
+    from pyopencl_rt.bench import timing
+    from pyopencl_rt.render import api
+
+    log = []
+
+    def fake_render_full(scene, spp, wavefront, profile=False):
+        log.append((wavefront, spp))
+        return SimpleNamespace(info={"samples_per_second": 10.0 * len(log)})
+
+    monkeypatch.setattr(api, "render_full", fake_render_full)
+    monkeypatch.setattr(timing.time, "sleep", lambda s: log.append(("sleep", s)))
+
+    def other(spp):
+        log.append(("other", spp))
+        return 7.0
+
+    rates, _info = timing.interleaved_render_rates({"a": (None, "A"), "b": (None, "B")}, 4, 2,
+                                                   others={"other": other}, pause=0.5)
+    round_ = [("sleep", 0.5), ("A", 4), ("sleep", 0.5), ("B", 4), ("sleep", 0.5), ("other", 4)]
+    assert log == [("A", 1), ("B", 1)] + round_ + round_
+    assert rates == {"a": [40.0, 100.0], "b": [60.0, 120.0], "other": [7.0, 7.0]}
+
+
+def test_bench_render_with_mitsuba_takes_turns(tmp_path):
+    """--mitsuba: Mitsuba's box is rendered once per repetition (its warm-up apart), its rates are
+    what its timings say, and each row's per-round ratio is ours over Mitsuba's of that round."""
+    pytest.importorskip("mitsuba")
+    out = tmp_path / "render.json"
+    main(["bench", "render", CORNELL, "--device", "cpu", "--width", "16", "--height", "16", "--spp", "1",
+          "--repeat", "3", "--mitsuba", "--mitsuba-variant", "scalar_rgb", "--json", str(out)])
+    data = json.loads(out.read_text())
+    theirs = data["mitsuba"]
+    assert theirs["variant"] == "scalar_rgb" and len(theirs["renders"]) == 3
+    pixels = theirs["width"] * theirs["height"]
+    for render, rate in zip(theirs["renders"], theirs["samples_per_second_all"]):
+        assert render["spp"] == 1 and rate == pytest.approx(pixels / render["seconds"])
+    (row,) = data["devices"].values()
+    ours = row["samples_per_second_all"]
+    assert row["ratio_to_mitsuba_per_round"] == pytest.approx([a / b for a, b in zip(ours, theirs["samples_per_second_all"])])
+    assert row["ratio_to_mitsuba"] == pytest.approx(row["samples_per_second_median"] / theirs["samples_per_second_median"])
+
+
+def test_bench_render_mitsuba_that_fails_is_one_line(tmp_path, capsys):
+    """A Mitsuba interpreter that passes the probe but whose box server dies: one line, exit 1."""
+    script = tmp_path / "python"
+    script.write_text("#!/bin/sh\ncase \"$1\" in\n  *cornell_box.py) echo 'RuntimeError: out of luck' >&2; exit 5;;\n"
+                      "esac\necho 3.9.1\nexit 0\n")
+    script.chmod(script.stat().st_mode | stat.S_IXUSR)
+    with pytest.raises(SystemExit) as exc:
+        main(["bench", "render", CORNELL, "--device", "cpu", "--width", "8", "--height", "8", "--spp", "1",
+              "--repeat", "1", "--mitsuba", "--mitsuba-variant", "scalar_rgb", "--mitsuba-python", str(script)])
+    assert exc.value.code == 1
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("pyopencl-rt: error: Mitsuba (scalar_rgb) failed") and "out of luck" in line
