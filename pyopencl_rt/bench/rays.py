@@ -11,6 +11,8 @@ the calling thread) and with as many workers as PoCL has threads (the CPU device
 ``--embree-threads`` to override): embreex holds the GIL while it traces, so the workers are
 processes (:mod:`pyopencl_rt.bench.embree_pool`).  Ratios are given against both.
 
+Every backend is timed once per repetition, in turn, after a short pause (:data:`PAUSE`); besides
+the medians, each row records its per-repetition ratios to the Embree processes and their median.
 Each backend's CPU seconds are recorded too (this process's for ours, PoCL's threads included;
 the workers' together for the pool): rays per CPU second is the work per thread, which a shared,
 loaded machine disturbs much less than the wall time.
@@ -25,6 +27,10 @@ import numpy as np
 
 from .timing import machine_info, timed_repeats, write_results
 from .workloads import bumpy_torus, diffuse_rays, primary_rays
+
+# idle seconds before each timed run, so that the threads or processes of the run before (PoCL's,
+# Embree's workers) have gone to sleep and take no core from the next
+PAUSE = 0.2
 
 
 def pocl_threads(devices) -> int:
@@ -62,7 +68,7 @@ def run_ray_bench(devices=None, sizes=(10_000, 100_000, 1_000_000), n_rays=1_000
     results = {"machine": machine_info(), "devices": [device_registry.device_label(d) for d in chosen],
                "repeat": repeat, "embree_threads": threads if embree else None, "meshes": []}
     echo(f"{'mesh':>10} {'rays':>10} {'set':>8} {'backend':<40} {'Mrays/s':>9} "
-         f"{'vs embree x' + str(threads):>14} {'vs embree x1':>13} {'Mrays/cpu-s':>11}")
+         f"{'vs embree x' + str(threads):>14} {'per round':>10} {'vs embree x1':>13} {'Mrays/cpu-s':>11}")
     with (EmbreePool(threads) if embree else contextlib.nullcontext()) as pool:
         for size in sizes:
             vertices, faces = bumpy_torus(size)
@@ -118,22 +124,26 @@ def _time_ray_set(bvh, set_name, origins, directions, configs, pool, repeat, n_t
         pool.set_rays(origins, directions)
     for _ in range(repeat):
         for name, device, layout in configs:
+            time.sleep(PAUSE)
             start, cpu_start = time.perf_counter(), time.process_time()
             trace(device, layout)
             seconds[name].append(time.perf_counter() - start)
             cpu[name].append(time.process_time() - cpu_start)
         if pool is not None:  # embreex's own call alone, so Embree is not charged for our wrapper
             scene = embree_scene(bvh)
+            time.sleep(PAUSE)
             start, cpu_start = time.perf_counter(), time.process_time()
             scene.run(origins, directions, output=1)
             seconds["embree"].append(time.perf_counter() - start)
             cpu["embree"].append(time.process_time() - cpu_start)
+            time.sleep(PAUSE)
             parallel.append(pool.run())
             parallel_cpu.append(pool.cpu_seconds)
     one = statistics.median(seconds["embree"]) if pool is not None else None
     many = statistics.median(parallel) if pool is not None else None
     if pool is not None:
-        row["embree_parallel"] = {"workers": pool.workers, "seconds_median": many, "rays_per_second": n / many,
+        row["embree_parallel"] = {"workers": pool.workers, "seconds_median": many, "seconds_all": parallel,
+                                  "rays_per_second": n / many,
                                   "speedup_over_one_thread": one / many,
                                   "rays_per_cpu_second": n / statistics.median(parallel_cpu)}
     layouts = {name: layout for name, _device, layout in configs}
@@ -144,14 +154,19 @@ def _time_ray_set(bvh, set_name, origins, directions, configs, pool, repeat, n_t
         rate = n / median
         cpu_rate = n / max(statistics.median(cpu[name]), 1e-9)
         if name in seconds:
-            row["backends"][name] = {"seconds_median": median, "rays_per_second": rate,
+            row["backends"][name] = {"seconds_median": median, "seconds_all": times, "rays_per_second": rate,
                                      "rays_per_cpu_second": cpu_rate,
                                      "ratio_to_embree": (one / median) if one else None,
                                      "ratio_to_embree_parallel": (many / median) if many else None}
+            if many:  # each repetition's ratio: ours and the Embree processes ran one after the other
+                per_round = [b / a for a, b in zip(times, parallel)]
+                row["backends"][name]["ratio_to_embree_parallel_per_round"] = per_round
+                row["backends"][name]["ratio_to_embree_parallel_per_round_median"] = statistics.median(per_round)
             if layouts.get(name):
                 row["backends"][name]["layout"] = layouts[name]
         vs_many = f"{many / median:14.2f}" if many else f"{'-':>14}"
+        per_round = f"{statistics.median(b / a for a, b in zip(times, parallel)):10.2f}" if many else f"{'-':>10}"
         vs_one = f"{one / median:13.2f}" if one else f"{'-':>13}"
-        echo(f"{n_triangles:>10} {n:>10} {set_name:>8} {name[:40]:<40} {rate / 1e6:9.3f} {vs_many} {vs_one}"
-             f" {cpu_rate / 1e6:11.3f}")
+        echo(f"{n_triangles:>10} {n:>10} {set_name:>8} {name[:40]:<40} {rate / 1e6:9.3f} {vs_many} {per_round}"
+             f" {vs_one} {cpu_rate / 1e6:11.3f}")
     return row

@@ -46,7 +46,7 @@ def test_bench_reports_parallel_embree(tmp_path, device):
     assert pocl_threads([device]) == threads
     out = tmp_path / "rays.json"
     lines = []
-    data = run_ray_bench(devices=[device], sizes=(1000,), n_rays=4096, repeat=1, json_path=out, echo=lines.append,
+    data = run_ray_bench(devices=[device], sizes=(1000,), n_rays=4096, repeat=2, json_path=out, echo=lines.append,
                          layouts=("wide", "wide8"))
     assert json.loads(out.read_text())["embree_threads"] == threads
     for row in data["meshes"][0]["sets"]:
@@ -60,4 +60,8 @@ def test_bench_reports_parallel_embree(tmp_path, device):
             assert 0 < b["rays_per_cpu_second"] < 1e10
         for b in ours:
             assert b["ratio_to_embree_parallel"] == pytest.approx(par["seconds_median"] / b["seconds_median"])
+            # per repetition: the Embree processes' time over ours, of the same repetition
+            per_round = [p / o for o, p in zip(b["seconds_all"], par["seconds_all"])]
+            assert len(per_round) == 2 and b["ratio_to_embree_parallel_per_round"] == pytest.approx(per_round)
+            assert b["ratio_to_embree_parallel_per_round_median"] == pytest.approx(np.median(per_round))
     assert any(f"embree x{threads} (processes)" in line for line in lines)
