@@ -302,6 +302,7 @@ RT_INLINE WideRay packet_lane_ray(const PacketRay *r, int k)
     w.o = (float3)(PLANE(r->ox, k), PLANE(r->oy, k), PLANE(r->oz, k));
     w.d = (float3)(PLANE(r->dx, k), PLANE(r->dy, k), PLANE(r->dz, k));
     w.inv_d = (float3)(PLANE(r->ix, k), PLANE(r->iy, k), PLANE(r->iz, k));
+    w.inv_far = w.inv_d * SLAB_FAR_SCALE;
     w.nx = w.inv_d.x >= 0.0f ? 0 : 3;
     w.ny = w.inv_d.y >= 0.0f ? 1 : 4;
     w.nz = w.inv_d.z >= 0.0f ? 2 : 5;

@@ -76,6 +76,7 @@ RT_INLINE int bit_count(int bits) { return popcount(bits); }
  * --------------------------------------------------------------------------------------------- */
 typedef struct {
     float3 o, d, inv_d;
+    float3 inv_far;          /* inv_d * SLAB_FAR_SCALE, for the far planes (intersect_children4) */
     int nx, ny, nz;          /* float4 index of the near plane per axis (far = 3 + near mod 6) */
     int kx, ky, kz;          /* ray_shear's permutation */
     float okx, oky, okz;     /* origin permuted */
@@ -97,6 +98,7 @@ RT_INLINE WideRay wide_ray(float3 o, float3 d)
     WideRay r;
     r.o = o; r.d = d;
     r.inv_d = (float3)(wide_rcp(d.x), wide_rcp(d.y), wide_rcp(d.z));
+    r.inv_far = r.inv_d * SLAB_FAR_SCALE;
     r.nx = r.inv_d.x >= 0.0f ? 0 : 3;
     r.ny = r.inv_d.y >= 0.0f ? 1 : 4;
     r.nz = r.inv_d.z >= 0.0f ? 2 : 5;
@@ -115,24 +117,27 @@ RT_INLINE WideRay wide_ray(float3 o, float3 d)
 }
 
 /* Four child boxes in one slab test.  Returns the hit mask (-1 per hit lane) and the entry
- * distances in *enter.  Conservative exactly as intersect_box (cl/accel/intersect.h, "Conservative on
- * purpose"): the far distance is widened by SLAB_FAR_SCALE and the host pads every box by 2^-20
- * of the scene's largest coordinate (bvh_wide.device_blob).  No operand can be NaN (see above),
- * so the plain comparisons of VMIN/VMAX equal fmin/fmax without their NaN handling.
- * An entry distance of +inf counts as a miss, as INFINITY is the binary test's miss value. */
+ * distances in *enter.  Conservative as intersect_box (cl/accel/intersect.h, "Conservative on
+ * purpose"): the far distances are widened by SLAB_FAR_SCALE and the host pads every box by 2^-20
+ * of the scene's largest coordinate (bvh_wide.device_blob).  The widening is folded into the far
+ * planes' inverse direction (inv_far), which rounds as much as widening each far distance does
+ * (two roundings either way) and takes a multiply off the test's dependency chain; tmax joins the
+ * minimum there.  No operand can be NaN (see above), so the plain comparisons of VMIN/VMAX equal
+ * fmin/fmax without their NaN handling.  An entry distance of +inf counts as a miss, as INFINITY
+ * is the binary test's miss value. */
 RT_INLINE int4 intersect_children4(__global const float4 *node, const WideRay *r, float tmin, float tmax,
                                    float4 *enter)
 {
     const float4 tnx = (node[r->nx] - r->o.x) * r->inv_d.x;
     const float4 tny = (node[r->ny] - r->o.y) * r->inv_d.y;
     const float4 tnz = (node[r->nz] - r->o.z) * r->inv_d.z;
-    const float4 tfx = (node[3 - r->nx] - r->o.x) * r->inv_d.x;
-    const float4 tfy = (node[5 - r->ny] - r->o.y) * r->inv_d.y;
-    const float4 tfz = (node[7 - r->nz] - r->o.z) * r->inv_d.z;
+    const float4 tfx = (node[3 - r->nx] - r->o.x) * r->inv_far.x;
+    const float4 tfy = (node[5 - r->ny] - r->o.y) * r->inv_far.y;
+    const float4 tfz = (node[7 - r->nz] - r->o.z) * r->inv_far.z;
     const float4 e = VMAX(VMAX(tnx, tny), VMAX(tnz, (float4)(tmin)));
-    const float4 l = VMIN(VMIN(tfx, tfy), tfz) * SLAB_FAR_SCALE;
+    const float4 l = VMIN(VMIN(tfx, tfy), VMIN(tfz, (float4)(tmax)));
     *enter = e;
-    return (e <= VMIN(l, (float4)(tmax))) & (e < (float4)(INFINITY));
+    return (e <= l) & (e < (float4)(INFINITY));
 }
 
 /* ---------------------------------------------------------------------------------------------

@@ -50,13 +50,13 @@ RT_INLINE int8 intersect_children8(__global const float8 *node, const WideRay *r
     const float8 tnx = (node[r->nx] - r->o.x) * r->inv_d.x;
     const float8 tny = (node[r->ny] - r->o.y) * r->inv_d.y;
     const float8 tnz = (node[r->nz] - r->o.z) * r->inv_d.z;
-    const float8 tfx = (node[3 - r->nx] - r->o.x) * r->inv_d.x;
-    const float8 tfy = (node[5 - r->ny] - r->o.y) * r->inv_d.y;
-    const float8 tfz = (node[7 - r->nz] - r->o.z) * r->inv_d.z;
+    const float8 tfx = (node[3 - r->nx] - r->o.x) * r->inv_far.x;
+    const float8 tfy = (node[5 - r->ny] - r->o.y) * r->inv_far.y;
+    const float8 tfz = (node[7 - r->nz] - r->o.z) * r->inv_far.z;
     const float8 e = VMAX(VMAX(tnx, tny), VMAX(tnz, (float8)(tmin)));
-    const float8 l = VMIN(VMIN(tfx, tfy), tfz) * SLAB_FAR_SCALE;
+    const float8 l = VMIN(VMIN(tfx, tfy), VMIN(tfz, (float8)(tmax)));
     *enter = e;
-    return (e <= VMIN(l, (float8)(tmax))) & (e < (float8)(INFINITY));
+    return (e <= l) & (e < (float8)(INFINITY));
 }
 
 #ifdef cl_khr_fp64
