@@ -192,10 +192,13 @@ def test_interleaved_rates_call_other_renderers_in_every_round(monkeypatch):
     assert rates == {"a": [40.0, 100.0], "b": [60.0, 120.0], "other": [7.0, 7.0]}
 
 
-def test_bench_render_with_mitsuba_takes_turns(tmp_path):
+def test_bench_render_with_mitsuba_takes_turns(tmp_path, monkeypatch):
     """--mitsuba: Mitsuba's box is rendered once per repetition (its warm-up apart), its rates are
     what its timings say, and each row's per-round ratio is ours over Mitsuba's of that round."""
     pytest.importorskip("mitsuba")
+    from pyopencl_rt.bench import render
+
+    monkeypatch.setattr(render, "MITSUBA_PAUSE", 0.0)  # the round order is tested above
     out = tmp_path / "render.json"
     main(["bench", "render", CORNELL, "--device", "cpu", "--width", "16", "--height", "16", "--spp", "1",
           "--repeat", "3", "--mitsuba", "--mitsuba-variant", "scalar_rgb", "--json", str(out)])

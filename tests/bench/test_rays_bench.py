@@ -36,10 +36,14 @@ def test_pool_traces_what_one_call_traces():
         assert np.array_equal(pool.prim, ref["primID"][:100])
 
 
-def test_bench_reports_parallel_embree(tmp_path, device):
+def test_bench_reports_parallel_embree(tmp_path, device, monkeypatch):
     import os
 
     import pyopencl as cl
+
+    from pyopencl_rt.bench import rays
+
+    monkeypatch.setattr(rays, "PAUSE", 0.0)
 
     # PoCL's pthread device runs one thread per compute unit; without a CPU device, the host's CPUs
     threads = device.max_compute_units if device.type & cl.device_type.CPU else os.cpu_count()
