@@ -11,7 +11,7 @@ import numpy as np
 from .accel.bvh import BVH, build_bvh
 from . import validate
 from .errors import UsageError
-from .accel.device_bvh import bvh_layout, device_bvh
+from .accel.device_bvh import PACKET_ORIGIN_SPREAD, bvh_layout, device_bvh, packet_width
 from .accel.embree import embree_scene
 from .scene.mesh import flatten
 
@@ -85,12 +85,21 @@ def _opencl(bvh, o, d, tmin, tmax, device, any_hit, layout=None):
 
     bo, bd, bmin, bmax = inbuf(o), inbuf(d), inbuf(tmin), inbuf(tmax)
     gsize, lsize = (n,), None
+    defines, suffix, spread = dev.defines, "", ()
     if dev.layout != "binary":  # small work-groups: PoCL keeps a private stack per work-item of a group
         gsize, lsize = ((n + 63) // 64 * 64,), (64,)
+    width = packet_width(rt.device) if dev.layout == "wide8" else 0
+    if width:  # packets of `width` consecutive rays per work-item (cl/accel/trace.cl), groups of 8
+        items = -(-n // width)
+        gsize, lsize = (-(-items // 8) * 8,), (8,)
+        defines, suffix = {**dev.defines, "PACKET_WIDTH": width}, "_packets"
+        extent = float(np.max(bvh.bounds[1] - bvh.bounds[0])) if len(bvh.triangles) else 0.0
+        spread = (np.float32(PACKET_ORIGIN_SPREAD * extent),)
     if any_hit:
         out = _page_aligned(n, np.uint8)
         bout = outbuf(out)
-        rt.kernel(("accel/trace.cl",), "trace_any", dev.defines)(queue, gsize, lsize, dev.nodes, dev.triangles, bo, bd, bmin, bmax, np.int32(n), bout)
+        rt.kernel(("accel/trace.cl",), "trace_any" + suffix, defines)(
+            queue, gsize, lsize, dev.nodes, dev.triangles, bo, bd, bmin, bmax, np.int32(n), *spread, bout)
         read(bout, out)
         queue.finish()
         return out.view(bool)  # the kernel writes 0 or 1
@@ -102,8 +111,8 @@ def _opencl(bvh, o, d, tmin, tmax, device, any_hit, layout=None):
         "normal": _page_aligned((n, 3), np.float32),
     }
     bufs = {k: outbuf(a) for k, a in res.items()}
-    rt.kernel(("accel/trace.cl",), "trace_closest", dev.defines)(
-        queue, gsize, lsize, dev.nodes, dev.triangles, dev.prim_ids, bo, bd, bmin, bmax, np.int32(n),
+    rt.kernel(("accel/trace.cl",), "trace_closest" + suffix, defines)(
+        queue, gsize, lsize, dev.nodes, dev.triangles, dev.prim_ids, bo, bd, bmin, bmax, np.int32(n), *spread,
         bufs["t"], bufs["prim_id"], bufs["u"], bufs["v"], bufs["normal"],
     )
     for k, a in res.items():

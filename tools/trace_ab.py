@@ -1,4 +1,4 @@
-"""Rays/s of pyopencl_rt.trace() for several source trees, interleaved, beside Embree on one thread:
+"""Rays/s of pyopencl_rt.trace() (or occluded()) for several source trees, interleaved, beside Embree on one thread:
 the A/B measurement behind the single-ray traversal steps (docs/BENCHMARKS.md).
 
     python tools/trace_ab.py . /tmp/base --size 1M --set diffuse --rounds 9
@@ -35,13 +35,15 @@ from pyopencl_rt.trace import _opencl, _rays
 data = np.load(sys.argv[2])
 bvh = build_bvh(data["vertices"], data["faces"])
 o, d, tmin, tmax = _rays(data["origins"], data["directions"], 0.0, np.inf)
-_opencl(bvh, o[:1024], d[:1024], tmin[:1024], tmax[:1024], sys.argv[3], any_hit=False)
+_opencl(bvh, o[:1024], d[:1024], tmin[:1024], tmax[:1024], sys.argv[3], any_hit=sys.argv[4] == "1")
 print("ready", flush=True)
+any_hit = sys.argv[4] == "1"
 for line in sys.stdin:
     wall, cpu = time.perf_counter(), time.process_time()
-    res = _opencl(bvh, o, d, tmin, tmax, sys.argv[3], any_hit=False)
+    res = _opencl(bvh, o, d, tmin, tmax, sys.argv[3], any_hit=any_hit)
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
-    digest = hashlib.sha1(b"".join(np.ascontiguousarray(res[k]).tobytes() for k in ("t", "prim_id", "u", "v"))).hexdigest()
+    arrays = [res] if any_hit else [res[k] for k in ("t", "prim_id", "u", "v")]
+    digest = hashlib.sha1(b"".join(np.ascontiguousarray(a).tobytes() for a in arrays)).hexdigest()
     print(cpu, wall, digest, flush=True)
 '''
 
@@ -57,6 +59,8 @@ def main(argv=None):
     parser.add_argument("--size", default="1M", help="torus triangles (as bench rays' --sizes)")
     parser.add_argument("--set", choices=("primary", "diffuse"), default="diffuse")
     parser.add_argument("--rays", type=int, default=1_000_000, help="primary rays (diffuse: one per hit)")
+    parser.add_argument("--shuffle", action="store_true", help="the rays in random order (no neighbours in a packet)")
+    parser.add_argument("--any-hit", action="store_true", help="occluded() instead of trace()")
     parser.add_argument("--rounds", type=int, default=9)
     parser.add_argument("--device", default="cpu")
     args = parser.parse_args(argv)
@@ -67,12 +71,16 @@ def main(argv=None):
     if args.set == "diffuse":
         hits = trace(bvh, origins, directions, backend="embree")
         origins, directions = diffuse_rays(hits, origins, directions, np.random.default_rng(7))
+    if args.shuffle:
+        order = np.random.default_rng(5).permutation(len(origins))
+        origins, directions = origins[order], directions[order]
     scene = embree_scene(bvh)
     n = len(origins)
     with tempfile.TemporaryDirectory() as tmp:
         data = Path(tmp) / "rays.npz"
         np.savez(data, vertices=vertices, faces=faces, origins=origins, directions=directions)
-        workers = [subprocess.Popen([sys.executable, "-c", WORKER, str(tree.resolve()), str(data), args.device],
+        workers = [subprocess.Popen([sys.executable, "-c", WORKER, str(tree.resolve()), str(data), args.device,
+                                     "1" if args.any_hit else "0"],
                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
                    for tree in args.trees]
         for w in workers:
@@ -89,13 +97,17 @@ def main(argv=None):
                 cpu[str(tree)].append(float(seconds))
                 digests[str(tree)] = digest
             start = time.process_time()
-            scene.run(origins, directions, output=1)
+            if args.any_hit:
+                scene.run(origins, directions, query="OCCLUDED")
+            else:
+                scene.run(origins, directions, output=1)
             cpu["embree x1"].append(time.process_time() - start)
         for w in workers:
             w.stdin.close()
             w.wait()
     first = names[0]
-    print(f"{n} {args.set} rays on {len(faces)} triangles, {args.rounds} rounds")
+    print(f"{n} {args.set} rays{' (shuffled)' if args.shuffle else ''}, {'any' if args.any_hit else 'closest'} hit, "
+          f"on {len(faces)} triangles, {args.rounds} rounds")
     for name in names:
         ratios = [a / b for a, b in zip(cpu[first], cpu[name])]
         same = "" if name == "embree x1" else ("  hits equal" if digests[name] == digests[first] else "  HITS DIFFER")

@@ -50,6 +50,37 @@ def bvh_layout(device, layout: str | None = None) -> str:
     return layout
 
 
+# Rays (paths) per work-item of the packet kernels on PoCL's x86 CPU device: one AVX-512 register of
+# floats (two AVX2 ones); $PYOPENCL_RT_LANES = 0 turns packets off, 8 or 16 pick the width.
+LANES_ENV = "PYOPENCL_RT_LANES"
+LANE_WIDTH = 16
+# trace()/occluded(): a packet whose ray origins lie further apart than this share of the scene's
+# largest extent goes ray by ray (cl/accel/trace.cl); the bench's diffuse bounces of 16
+# neighbouring pixels span 2-4% of the torus, a batch in random order about 80%
+PACKET_ORIGIN_SPREAD = 0.125
+
+
+def packet_width(device, requested=None) -> int:
+    """Rays per work-item of cl/accel/bvh_packet.h's packet traversal on ``device``: :data:`LANE_WIDTH`
+    on PoCL's CPU device of an x86 host (the lane code is written for clang on x86: cl/render/lanes.h),
+    else 0 (one ray per work-item).  ``requested`` or ``$PYOPENCL_RT_LANES`` overrides: 0 (off), 8 or
+    16 (where packets apply)."""
+    import os
+    import platform
+
+    import pyopencl as cl
+
+    text = requested if requested is not None else os.environ.get(LANES_ENV)
+    text = "" if text is None else str(text).strip()
+    if text not in ("", "0", "8", "16"):
+        raise UserError(f"${LANES_ENV}={text!r}: use 0 (one path per work-item), 8 or 16")
+    pocl_cpu = (bool(device.type & cl.device_type.CPU) and "Portable Computing Language" in device.platform.name
+                and platform.machine().lower() in ("x86_64", "amd64"))
+    if not pocl_cpu or text == "0":
+        return 0
+    return int(text) if text else LANE_WIDTH
+
+
 def layout_defines(layout: str) -> dict:
     """Preprocessor defines that make cl/accel/traverse.h (trace.cl, scene.h) traverse ``layout``."""
     return {"wide": {"BVH_WIDE": True}, "wide8": {"BVH_WIDE8": True}}.get(layout, {})

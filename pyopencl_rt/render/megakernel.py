@@ -22,11 +22,11 @@ triangles give a ray exactly the same distance.  ``$PYOPENCL_RT_LANES`` = 0 turn
 from __future__ import annotations
 
 import os
-import platform
 import time
 
 import numpy as np
 
+from ..accel.device_bvh import LANE_WIDTH, LANES_ENV, packet_width  # noqa: F401 (LANES_ENV: tests, tools)
 from ..device import abi
 from ..errors import UserError
 from .film import Film, RunStats
@@ -35,8 +35,6 @@ KERNEL_MODES = ("wavefront", "megakernel")
 KERNEL_MODE_ENV = "PYOPENCL_RT_KERNEL_MODE"
 SOURCES = ("megakernel/path.cl",)
 LANES_SOURCES = ("megakernel/lanes.cl",)
-LANES_ENV = "PYOPENCL_RT_LANES"
-LANE_WIDTH = 16           # paths per work-item: one AVX-512 register of floats (two AVX2 ones)
 LANE_BLOCK = 16           # samples per work-item, in units of LANE_WIDTH, taken in turn by its lanes
 LANE_GROUP = 8            # work-items per group: a launch of the CPU wave (2^18 samples) makes 128 groups
 # the defines a scene may have for the lane kernel (with INTEGRATOR 0, lights and triangles), and
@@ -68,20 +66,10 @@ def lane_width(mode: str, device, features: dict, requested=None) -> int:
     megakernel on PoCL's CPU device of an x86 host, a scene whose defines path_lanes.h covers), else 0 (one path
     per work-item).  ``requested`` or ``$PYOPENCL_RT_LANES`` overrides: 0 (off), 8 or 16 (where it
     applies)."""
-    import pyopencl as cl
-
-    text = requested if requested is not None else os.environ.get(LANES_ENV)
-    text = "" if text is None else str(text).strip()
-    if text not in ("", "0", "8", "16"):
-        raise UserError(f"${LANES_ENV}={text!r}: use 0 (one path per work-item), 8 or 16")
+    width = packet_width(device, requested)  # checks the setting first, whatever the scene
     covered = (set(features) <= _LANE_DEFINES and features.get("INTEGRATOR") == 0
                and {"HAS_LIGHTS", "HAS_TRIANGLES", "BVH_WIDE8", "MATERIALS_SELECTED"} <= set(features))
-    # PoCL's CPU device runs on this host: the lane code is written for clang on x86 (lanes.h)
-    pocl_cpu = (bool(device.type & cl.device_type.CPU) and "Portable Computing Language" in device.platform.name
-                and platform.machine().lower() in ("x86_64", "amd64"))
-    if mode != "megakernel" or not covered or not pocl_cpu or text == "0":
-        return 0
-    return int(text) if text else LANE_WIDTH
+    return width if mode == "megakernel" and covered else 0
 
 
 def lane_features(width: int) -> dict:

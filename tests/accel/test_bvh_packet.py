@@ -10,6 +10,7 @@ import pytest
 from meshes import MESHES, coherent_rays, incoherent_rays
 from pyopencl_rt import build_bvh, occluded, trace
 from pyopencl_rt.accel.bvh_wide import device_blob, wide_bvh
+from pyopencl_rt.accel.device_bvh import LANES_ENV
 
 import harness
 
@@ -100,13 +101,14 @@ def rays_for(mesh, rng, n=6000):
 
 @pytest.mark.parametrize("variant", VARIANTS, ids=lambda v: f"w{v[0]}-hybrid{v[1]}-pairs{v[2]}")
 @pytest.mark.parametrize("mesh", ["icosphere", "torus", "slivers", "grid"])
-def test_packets_equal_single_rays(device, runtime, rng, mesh, variant):
+def test_packets_equal_single_rays(device, runtime, rng, mesh, variant, monkeypatch):
     """Closest hit: per lane the single-ray wide8 result (t, triangle, u, v bit for bit), except a
     different triangle where two tie at the same t (packets meet leaves in another order), with
     leaves tested triangle by triangle against the packet, ray by ray, or as pairs of a ray and a
     triangle per lane; ray by ray (hybrid 16) exactly the single-ray traversal.  Any hit: exactly the single-ray answer.
     Idle lanes: no hit, t as given."""
     harness.require_lane_kernels(device)
+    monkeypatch.setenv(LANES_ENV, "0")  # trace()/occluded() below: one ray per work-item, the reference
     bvh, o, d, tmax = rays_for(mesh, rng)
     n = len(o)
     blob = device_blob(wide_bvh(bvh, 8))
@@ -134,10 +136,11 @@ def test_packets_equal_single_rays(device, runtime, rng, mesh, variant):
                                                      layout="wide8"))
 
 
-def test_packets_of_the_cornell_box(device, runtime, rng):
+def test_packets_of_the_cornell_box(device, runtime, rng, monkeypatch):
     """Mitsuba's Cornell box, the scene the lane megakernel was measured on: rays from points
     spread through the room in every direction, equal to the single-ray traversal."""
     harness.require_lane_kernels(device)
+    monkeypatch.setenv(LANES_ENV, "0")  # trace() below: one ray per work-item, the reference
     from pathlib import Path
 
     from pyopencl_rt import load_scene

@@ -5,6 +5,7 @@ chosen exactly where it applies; and its building blocks give the scalar code's 
 (the lane sampler, length/normalize with their rescaling fallbacks, nextafter, sqrt, min/max with
 NaN).  The packet traversal it traces with: tests/accel/test_bvh_packet.py."""
 import dataclasses
+import platform
 from pathlib import Path
 
 import numpy as np
@@ -64,7 +65,7 @@ def test_selection(device, monkeypatch):
     with pytest.raises(UserError, match="PYOPENCL_RT_LANES"):
         Wavefront(scene, device, width=8, height=8, kernel_mode="megakernel")
     monkeypatch.setenv(megakernel.LANES_ENV, "16")
-    monkeypatch.setattr(megakernel.platform, "machine", lambda: "aarch64")  # not on an ARM host
+    monkeypatch.setattr(platform, "machine", lambda: "aarch64")  # not on an ARM host
     assert Wavefront(scene, device, width=8, height=8, kernel_mode="megakernel").lane_width == 0
 
 
