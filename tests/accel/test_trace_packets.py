@@ -32,11 +32,14 @@ def ray_batch(v, f, rng):
     return o, d, tmin, tmax
 
 
+@pytest.mark.parametrize("width", ["16", "8"])
 @pytest.mark.parametrize("spread", ["default", "every packet", "ray by ray"])
 @pytest.mark.parametrize("mesh", ["torus", "slivers", "grid"])
-def test_packets_equal_one_ray_per_work_item(device, monkeypatch, rng, mesh, spread):
+def test_packets_equal_one_ray_per_work_item(device, monkeypatch, rng, mesh, spread, width):
     harness.require_lane_kernels(device)
-    assert packet_width(device) == LANE_WIDTH  # so the default below does trace packets
+    monkeypatch.delenv(LANES_ENV, raising=False)
+    assert packet_width(device) == LANE_WIDTH  # so that packets are traced below
+    monkeypatch.setenv(LANES_ENV, width)
     limit = {"default": trace_module.PACKET_ORIGIN_SPREAD, "every packet": np.inf, "ray by ray": -1.0}[spread]
     monkeypatch.setattr(trace_module, "PACKET_ORIGIN_SPREAD", limit)
     v, f = MESHES[mesh]()
