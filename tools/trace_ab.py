@@ -1,16 +1,19 @@
-"""Rays/s of pyopencl_rt.trace() (or occluded()) for several source trees, interleaved, beside Embree on one thread:
-the A/B measurement behind the single-ray traversal steps (docs/BENCHMARKS.md).
+"""Rays/s of pyopencl_rt.trace() (or occluded()) for several source trees, interleaved, beside
+Embree on one thread: the A/B measurement behind the ray-casting steps (docs/BENCHMARKS.md).
 
     python tools/trace_ab.py . /tmp/base --size 1M --set diffuse --rounds 9
+    python tools/trace_ab.py . /tmp/base --shuffle --any-hit      # rays in random order, occluded()
 
 The bumpy torus of ``bench rays`` and its ray sets (primary, or the diffuse bounce of each primary
-hit) are made once, by this tree, and handed to one worker process per tree, which builds the BVH
+hit; ``--shuffle`` puts them in random order, so that no packet holds neighbours) are made once, by
+this tree, and handed to one worker process per tree, which builds the BVH
 with its own code and traces the rays with its own kernels (one untimed warm-up first). Each round
 then runs every tree once in turn, and Embree (embreex, one thread, in this process), so that load
 on a shared machine falls on all of them alike. Printed per backend: the median over the rounds of
 Mrays per CPU second (the process's CPU time, PoCL's threads included: the work per thread, which
 load disturbs less than the wall time), the median of the per-round ratios to the first tree, and
-whether each tree's hits equal the first tree's bit for bit.
+whether each tree's hits equal the first tree's bit for bit.  Set ``PYOPENCL_RT_LANES=0`` to time
+one ray per work-item instead of packets (the workers inherit the environment).
 """
 from __future__ import annotations
 
