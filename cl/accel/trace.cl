@@ -76,12 +76,12 @@ typedef struct {
     int coherent;   /* origins within origin_spread of each other on every axis */
 } TracePacket;
 
+/* The packet of rays base .. base + PACKET_WIDTH - 1 (base < n_rays). */
 RT_INLINE TracePacket load_trace_packet(__global const float *origins, __global const float *directions,
-                                        __global const float *tmin, __global const float *tmax, int n_rays,
-                                        float origin_spread)
+                                        __global const float *tmin, __global const float *tmax, int base,
+                                        int n_rays, float origin_spread)
 {
     TracePacket p;
-    const int base = get_global_id(0) * PACKET_WIDTH;
     p.n = min(PACKET_WIDTH, n_rays - base);
     float3 lo = (float3)(INFINITY), hi = (float3)(-INFINITY);
     for (int k = 0; k < PACKET_WIDTH; ++k) {
@@ -108,8 +108,8 @@ __kernel void trace_closest_packets(__global const float8 *nodes, __global const
                                     __global float *out_u, __global float *out_v, __global float *out_ng)
 {
     if (get_global_id(0) * PACKET_WIDTH >= n_rays) return;
-    const TracePacket p = load_trace_packet(origins, directions, tmin, tmax, n_rays, origin_spread);
     const int base = get_global_id(0) * PACKET_WIDTH;
+    const TracePacket p = load_trace_packet(origins, directions, tmin, tmax, base, n_rays, origin_spread);
     pfloat t = p.tmax, u = PFLOAT(0.0f), v = PFLOAT(0.0f);
     pint prim = PINT(PRIM_MISS);
     if (p.coherent) {
@@ -134,8 +134,8 @@ __kernel void trace_any_packets(__global const float8 *nodes, __global const flo
                                 const int n_rays, const float origin_spread, __global uchar *out_hit)
 {
     if (get_global_id(0) * PACKET_WIDTH >= n_rays) return;
-    const TracePacket p = load_trace_packet(origins, directions, tmin, tmax, n_rays, origin_spread);
     const int base = get_global_id(0) * PACKET_WIDTH;
+    const TracePacket p = load_trace_packet(origins, directions, tmin, tmax, base, n_rays, origin_spread);
     if (p.coherent) {
         const PacketRay r = packet_rays(p.o, p.d);
         const pint hit = packet_any_hit(nodes, &r, p.tmin, p.tmax);

@@ -153,20 +153,21 @@ def _time_ray_set(bvh, set_name, origins, directions, configs, pool, repeat, n_t
         median = statistics.median(times)
         rate = n / median
         cpu_rate = n / max(statistics.median(cpu[name]), 1e-9)
+        # each repetition's ratio: this backend and the Embree processes ran one after the other
+        per_round = [b / a for a, b in zip(times, parallel)] if many else None
         if name in seconds:
             row["backends"][name] = {"seconds_median": median, "seconds_all": times, "rays_per_second": rate,
                                      "rays_per_cpu_second": cpu_rate,
                                      "ratio_to_embree": (one / median) if one else None,
                                      "ratio_to_embree_parallel": (many / median) if many else None}
-            if many:  # each repetition's ratio: ours and the Embree processes ran one after the other
-                per_round = [b / a for a, b in zip(times, parallel)]
+            if many:
                 row["backends"][name]["ratio_to_embree_parallel_per_round"] = per_round
                 row["backends"][name]["ratio_to_embree_parallel_per_round_median"] = statistics.median(per_round)
             if layouts.get(name):
                 row["backends"][name]["layout"] = layouts[name]
         vs_many = f"{many / median:14.2f}" if many else f"{'-':>14}"
-        per_round = f"{statistics.median(b / a for a, b in zip(times, parallel)):10.2f}" if many else f"{'-':>10}"
+        vs_round = f"{statistics.median(per_round):10.2f}" if many else f"{'-':>10}"
         vs_one = f"{one / median:13.2f}" if one else f"{'-':>13}"
-        echo(f"{n_triangles:>10} {n:>10} {set_name:>8} {name[:40]:<40} {rate / 1e6:9.3f} {vs_many} {per_round}"
+        echo(f"{n_triangles:>10} {n:>10} {set_name:>8} {name[:40]:<40} {rate / 1e6:9.3f} {vs_many} {vs_round}"
              f" {vs_one} {cpu_rate / 1e6:11.3f}")
     return row

@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from ..accel.device_bvh import LANE_WIDTH, LANES_ENV, packet_width  # noqa: F401 (LANES_ENV: tests, tools)
+from ..accel.device_bvh import LANE_WIDTH, LANES_ENV, packet_width  # noqa: F401 (LANE_WIDTH, LANES_ENV: tests, tools)
 from ..device import abi
 from ..errors import UserError
 from .film import Film, RunStats
