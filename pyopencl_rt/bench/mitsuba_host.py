@@ -128,6 +128,16 @@ def find_mitsuba_python(explicit=None, variant=DEFAULT_VARIANT, llvm_path=None):
     return None, failure_reason(output, variant)
 
 
+def require_mitsuba_python(mitsuba_python=None, variant=DEFAULT_VARIANT, llvm_path=None, echo=print) -> str:
+    """:func:`find_mitsuba_python`'s interpreter, said with where it came from; a UserError with its
+    one-line reason when there is none."""
+    python, how = find_mitsuba_python(mitsuba_python, variant, llvm_path)
+    if python is None:
+        raise UserError(how)
+    echo(f"Mitsuba: {python} ({how})")
+    return python
+
+
 def run_mitsuba_curve(scene, python, *, width, height, max_depth, rr_depth, reference, seconds, variant,
                       workdir, llvm_path=None, sampler="independent", echo=print) -> dict:
     """One convergence curve of Mitsuba on ``scene`` (exported by :mod:`.mitsuba_export`), rendered
@@ -171,10 +181,7 @@ def run_mitsuba_cornell_box(*, mitsuba_python=None, llvm_path=None, variant=DEFA
     one render per entry of ``spps``, the first including the JIT compilation."""
     from .timing import machine_info, write_results
 
-    python, how = find_mitsuba_python(mitsuba_python, variant, llvm_path)
-    if python is None:
-        raise UserError(how)
-    echo(f"Mitsuba: {python} ({how})")
+    python = require_mitsuba_python(mitsuba_python, variant, llvm_path, echo)
     command = [python, str(HERE / "mitsuba_cornell_box.py"), "--variant", variant,
                "--spp", ",".join(str(s) for s in spps)]
     run = subprocess.run(command, capture_output=True, text=True, env=mitsuba_env(llvm_path))
@@ -198,7 +205,7 @@ class MitsubaCornellBoxServer:
     ``info``: Mitsuba's version, variant and image size; ``renders``: every timed render."""
 
     def __init__(self, *, mitsuba_python=None, llvm_path=None, variant=DEFAULT_VARIANT, warmup_spp=16, echo=print):
-        self.options = dict(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=variant)
+        self.mitsuba_python, self.llvm_path, self.variant = mitsuba_python, llvm_path, variant
         self.warmup_spp, self.echo = warmup_spp, echo
         self.process = self.info = None
         self.renders: list[dict] = []
@@ -206,18 +213,13 @@ class MitsubaCornellBoxServer:
     def __enter__(self):
         import tempfile
 
-        python, how = find_mitsuba_python(self.options["mitsuba_python"], self.options["variant"],
-                                          self.options["llvm_path"])
-        if python is None:
-            raise UserError(how)
-        self.echo(f"Mitsuba: {python} ({how})")
-        variant = self.options["variant"]
+        python = require_mitsuba_python(self.mitsuba_python, self.variant, self.llvm_path, self.echo)
         self._stderr = tempfile.TemporaryFile(mode="w+")  # a file, not a pipe nobody drains
         self.process = subprocess.Popen(
-            [python, str(HERE / "mitsuba_cornell_box.py"), "--serve", "--variant", variant,
+            [python, str(HERE / "mitsuba_cornell_box.py"), "--serve", "--variant", self.variant,
              "--spp", str(self.warmup_spp)],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr, text=True,
-            env=mitsuba_env(self.options["llvm_path"]))
+            env=mitsuba_env(self.llvm_path))
         self.info = self._reply()
         return self
 
@@ -229,7 +231,7 @@ class MitsubaCornellBoxServer:
             self.process.kill()
             self.process.wait()
             self._stderr.seek(0)
-            raise UserError(failure_reason(self._stderr.read() + line, self.options["variant"])) from None
+            raise UserError(failure_reason(self._stderr.read() + line, self.variant)) from None
 
     def render(self, spp: int) -> float:
         """Samples/s of one render of ``spp`` samples per pixel (timed in Mitsuba's process)."""

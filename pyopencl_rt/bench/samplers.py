@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import UserError
 from .convergence_analysis import EPS, metrics
-from .mitsuba_host import DEFAULT_VARIANT, HERE, failure_reason, find_mitsuba_python, mitsuba_env
+from .mitsuba_host import DEFAULT_VARIANT, HERE, failure_reason, mitsuba_env, require_mitsuba_python
 
 MITSUBA_SAMPLERS = ("independent", "stratified", "multijitter", "ldsampler")
 REFERENCE_CALL = 64  # spp per Mitsuba call of the reference
@@ -92,10 +92,7 @@ def run_samplers(scene_path, *, spp=256, samplers=("sobol", "stratified", "indep
     workdir = Path(tempfile.mkdtemp(prefix="pyopencl_rt_samplers_"))
     try:
         if "mitsuba" in compare:
-            python, how = find_mitsuba_python(mitsuba_python, mitsuba_variant, llvm_path)
-            if python is None:
-                raise UserError(how)
-            echo(f"Mitsuba: {python} ({how})")
+            python = require_mitsuba_python(mitsuba_python, mitsuba_variant, llvm_path, echo)
             scene_npz = workdir / "scene.npz"
             save_scene_npz(scene_npz, scene_arrays(scene, settings, spp=spp))
             ref = mitsuba_reference(python, scene_npz, workdir / "reference", spp=reference_spp, width=width,
