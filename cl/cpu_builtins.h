@@ -112,7 +112,20 @@ RT_OVL double3 rt_cross(double3 a, double3 b)
 {
     return (double3)(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
-RT_OVL double rt_length(double3 v) { return length(v); }
+/* sqrt of the dot product where the square neither overflows nor loses bits to denormals (always,
+ * for the cross products of float coordinates spawn.h takes it of), else of the vector scaled by
+ * its largest component: no double3 is passed to the library (see the conversions below). */
+RT_OVL double rt_length(double3 v)
+{
+    const double d = rt_dot(v, v);
+    if (d >= 0x1.0p-1000 && d <= 0x1.0p1000)
+        return __builtin_sqrt(d);
+    const double m = __builtin_fmax(__builtin_fmax(__builtin_fabs(v.x), __builtin_fabs(v.y)), __builtin_fabs(v.z));
+    if (!(m > 0.0) || m == (double)INFINITY)
+        return m;  /* 0, +inf, NaN */
+    const double3 u = v / m;
+    return m * __builtin_sqrt(rt_dot(u, u));
+}
 #endif
 /* Squared lengths in [2^-100, 2^100] neither overflow nor lose bits to denormals; outside, the
  * builtin (which rescales) decides. */
@@ -140,6 +153,39 @@ RT_OVL float3 rt_vload3(size_t i, __constant float *p) { p += 3 * i; return (flo
 RT_OVL float3 rt_vload3(size_t i, const float *p) { p += 3 * i; return (float3)(p[0], p[1], p[2]); }
 RT_OVL void rt_vstore3(float3 v, size_t i, __global float *p) { p += 3 * i; p[0] = v.x; p[1] = v.y; p[2] = v.z; }
 RT_OVL void rt_vstore3(float3 v, size_t i, float *p) { p += 3 * i; p[0] = v.x; p[1] = v.y; p[2] = v.z; }
+
+/* Conversions of vectors of three components and more as clang's vector conversion (the same
+ * arithmetic: round to nearest into floating point, truncation into integers), so that no vector
+ * of 32 bytes or more (double3/4, float8, long4, the lanes' 16-wide ones) is passed to PoCL's
+ * built-in library: where PoCL compiles for a CPU without the library's register width (Zen 4
+ * under PoCL 3.0: no AVX-512 in the compile, the AVX-512 library linked), such a vector would
+ * travel in a register on one side and in memory on the other (pyopencl_rt/device/isa.py). */
+#undef convert_float3
+#define convert_float3(a) __builtin_convertvector((a), float3)
+#undef convert_float4
+#define convert_float4(a) __builtin_convertvector((a), float4)
+#undef convert_float8
+#define convert_float8(a) __builtin_convertvector((a), float8)
+#undef convert_float16
+#define convert_float16(a) __builtin_convertvector((a), float16)
+#undef convert_int3
+#define convert_int3(a) __builtin_convertvector((a), int3)
+#undef convert_int4
+#define convert_int4(a) __builtin_convertvector((a), int4)
+#undef convert_int8
+#define convert_int8(a) __builtin_convertvector((a), int8)
+#undef convert_int16
+#define convert_int16(a) __builtin_convertvector((a), int16)
+#undef convert_uint8
+#define convert_uint8(a) __builtin_convertvector((a), uint8)
+#undef convert_uint16
+#define convert_uint16(a) __builtin_convertvector((a), uint16)
+#ifdef cl_khr_fp64
+#undef convert_double3
+#define convert_double3(a) __builtin_convertvector((a), double3)
+#undef convert_double4
+#define convert_double4(a) __builtin_convertvector((a), double4)
+#endif
 
 #undef fabs
 #define fabs(a) rt_fabs(a)

@@ -230,12 +230,28 @@ def lane_kernels_build_on(device) -> bool:
             and platform.machine().lower() in ("x86_64", "amd64"))
 
 
-def require_lane_kernels(device) -> None:
-    """Skip a test of the lane kernels' code on a device they are never built for."""
+def require_lane_kernels(device, width: int = 16) -> None:
+    """Skip a test of the lane kernels' code at ``width`` lanes on a device they are never built
+    for: another than PoCL's CPU device on x86, or one whose compile and built-in library pass
+    vectors of that width differently (pyopencl_rt/device/isa.py refuses the width there)."""
     import pytest
+
+    from pyopencl_rt.device import isa
 
     if not lane_kernels_build_on(device):
         pytest.skip("the lane kernels are built for PoCL's CPU device on x86 only (never selected elsewhere)")
+    cpu = isa.probe(device)
+    if not cpu.passes_alike(4 * int(width)):
+        pytest.skip(f"{width} lanes are never built here: {cpu.describe()}")
+
+
+def forced_lanes(device) -> str:
+    """The widest lane count a test may force on ``device`` ("16", else "8"), as $PYOPENCL_RT_LANES
+    gives it; skips where neither is built."""
+    from pyopencl_rt.device import isa
+
+    require_lane_kernels(device, 8)
+    return "16" if isa.probe(device).passes_alike(64) else "8"
 
 
 # ----------------------------------------------------------------------------- random numbers

@@ -64,9 +64,10 @@ RT_INLINE void intersect_children(__global const float4 *node, float8 o8, float8
                                float *tl, float *tr)
 {
     const float4 q0 = node[0], q1 = node[1], q2 = node[2], q3 = node[3];
-    const uint8 pick = (uint8)(0, 1, 2, 2, 4, 5, 6, 6); /* lanes 3 and 7 repeat z: harmless */
-    const float8 t0 = (shuffle2(q0, q2, pick) - o8) * inv8;
-    const float8 t1 = (shuffle2(q1, q3, pick) - o8) * inv8;
+    /* lanes 3 and 7 repeat z: harmless (a vector literal, not shuffle2: no 32-byte vector passed to a
+     * built-in, cl/cpu_builtins.h) */
+    const float8 t0 = ((float8)(q0.xyz, q0.z, q2.xyz, q2.z) - o8) * inv8;
+    const float8 t1 = ((float8)(q1.xyz, q1.z, q3.xyz, q3.z) - o8) * inv8;
     /* No operand here can be NaN (safe_rcp3 keeps inv_d finite; empty boxes give +-inf), so
      * the plain comparisons below equal fmin/fmax, without IEEE fmin's NaN handling, which
      * costs a compare-and-blend per call on x86. */

@@ -50,35 +50,67 @@ def bvh_layout(device, layout: str | None = None) -> str:
     return layout
 
 
-# Rays (paths) per work-item of the packet kernels on PoCL's x86 CPU device: one AVX-512 register of
-# floats (two AVX2 ones); $PYOPENCL_RT_LANES = 0 turns packets off, 8 or 16 pick the width.
+# Rays (paths) per work-item of the packet kernels on PoCL's x86 CPU device: 16 (one AVX-512 register of
+# floats), 8 (one AVX2 register) or 0 (one per work-item), from what PoCL compiles for
+# (pyopencl_rt/device/isa.py); $PYOPENCL_RT_LANES = 0 turns packets off, 8 or 16 asks for that width.
 LANES_ENV = "PYOPENCL_RT_LANES"
-LANE_WIDTH = 16
 # trace()/occluded(): a packet whose ray origins lie further apart than this share of the scene's
 # largest extent goes ray by ray (cl/accel/trace.cl); the bench's diffuse bounces of 16
 # neighbouring pixels span 2-4% of the torus, a batch in random order about 80%
 PACKET_ORIGIN_SPREAD = 0.125
+_REFUSALS_SAID: set = set()
 
 
-def packet_width(device, requested=None) -> int:
-    """Rays per work-item of cl/accel/bvh_packet.h's packet traversal on ``device``: :data:`LANE_WIDTH`
-    on PoCL's CPU device of an x86 host (the lane code is written for clang on x86: cl/render/lanes.h),
-    else 0 (one ray per work-item).  ``requested`` or ``$PYOPENCL_RT_LANES`` overrides: 0 (off), 8 or
-    16 (where packets apply)."""
+def lanes_setting(requested=None) -> str:
+    """``requested`` or ``$PYOPENCL_RT_LANES`` as given ("" for the default), checked."""
     import os
-    import platform
-
-    import pyopencl as cl
 
     text = requested if requested is not None else os.environ.get(LANES_ENV)
     text = "" if text is None else str(text).strip()
     if text not in ("", "0", "8", "16"):
         raise UserError(f"${LANES_ENV}={text!r}: use 0 (one path per work-item), 8 or 16")
+    return text
+
+
+def packet_choice(device, requested=None) -> tuple[int, str]:
+    """Rays per work-item of cl/accel/bvh_packet.h's packet traversal on ``device``, and why: on
+    PoCL's CPU device of an x86 host (the lane code is written for clang on x86: cl/render/lanes.h)
+    the width :func:`pyopencl_rt.device.isa.simd_width` gives for what PoCL compiles for, else 0
+    (one ray per work-item).  ``requested`` or ``$PYOPENCL_RT_LANES`` overrides: 0 (off), 8 or 16,
+    the latter two only where their vectors cross PoCL's built-in library alike (else one warning
+    line and the rule's width)."""
+    import platform
+    import warnings
+
+    import pyopencl as cl
+
+    from ..device import isa as isa_module
+
+    text = lanes_setting(requested)
     pocl_cpu = (bool(device.type & cl.device_type.CPU) and "Portable Computing Language" in device.platform.name
                 and platform.machine().lower() in ("x86_64", "amd64"))
-    if not pocl_cpu or text == "0":
-        return 0
-    return int(text) if text else LANE_WIDTH
+    if not pocl_cpu:
+        return 0, "one path per work-item: the lane kernels are for PoCL's CPU device on x86"
+    if text == "0":
+        return 0, f"one path per work-item: ${LANES_ENV}=0"
+    try:
+        isa = isa_module.probe(device)
+    except cl.Error as exc:  # a device that cannot build the probe cannot be trusted with lanes
+        return 0, f"one path per work-item: the instruction-set probe failed ({str(exc).splitlines()[0]})"
+    if not text:
+        return isa_module.simd_width(isa)
+    width, refusal = isa_module.checked_width(isa, int(text))
+    if refusal:
+        if refusal not in _REFUSALS_SAID:
+            _REFUSALS_SAID.add(refusal)
+            warnings.warn(f"${LANES_ENV}={text}: {refusal}", stacklevel=3)
+        return width, refusal
+    return width, f"{width} lanes: ${LANES_ENV}={text} ({isa.describe()})"
+
+
+def packet_width(device, requested=None) -> int:
+    """The width of :func:`packet_choice`."""
+    return packet_choice(device, requested)[0]
 
 
 def layout_defines(layout: str) -> dict:

@@ -62,6 +62,20 @@ def define_options(defines: dict | None) -> list[str]:
     return opts
 
 
+def _never_release(obj) -> None:
+    """Keep a pyopencl object alive until the process ends.  PoCL 3.0 keeps a reference to the IR
+    of a program whose kernels it could not create, and aborts the process ("still have
+    references to IRs") when the last context is released; a program never released keeps its
+    context, so that release never comes."""
+    import ctypes
+
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(obj))
+
+
+# a define that changes nothing but the build options, hence PoCL's cache key (DeviceRuntime.new_kernels)
+CACHE_RETRY_DEFINE = "RT_KERNEL_CACHE_RETRY"
+
+
 class DeviceRuntime:
     """A context and an in-order queue for one device (profiling enabled, for per-stage timings)."""
 
@@ -81,11 +95,15 @@ class DeviceRuntime:
     def has_fp64(self) -> bool:
         return "cl_khr_fp64" in self.device.extensions
 
+    @staticmethod
+    def _program_key(names, defines, extra) -> tuple:
+        return tuple(names), tuple(sorted((defines or {}).items())), extra
+
     def program(self, names: tuple[str, ...], defines: dict | None = None, extra: str = ""):
         """Build (once per runtime) the program made of ``names`` (+ ``extra`` text) with ``defines``."""
         import pyopencl as cl
 
-        key = (tuple(names), tuple(sorted((defines or {}).items())), extra)
+        key = self._program_key(names, defines, extra)
         with self.lock:
             prog = self._programs.get(key)
             if prog is None:
@@ -96,17 +114,38 @@ class DeviceRuntime:
                 self._programs[key] = prog
             return prog
 
-    def kernel(self, names: tuple[str, ...], kernel_name: str, defines: dict | None = None, extra: str = ""):
-        """One kernel object per (program, name), reused across calls (kernel retrieval is costly)."""
+    def new_kernels(self, names: tuple[str, ...], kernel_names, defines: dict | None = None, extra: str = "") -> dict:
+        """New kernel objects (their own arguments) named ``kernel_names`` of the program
+        :meth:`program` builds.  A program whose kernels cannot be created, as when PoCL serves a
+        cache entry that a crash left half written (``INVALID_KERNEL_NAME``), is built once more
+        under another cache key (:data:`CACHE_RETRY_DEFINE`), with one warning line."""
+        import warnings
+
         import pyopencl as cl
 
         prog = self.program(names, defines, extra)
-        key = (id(prog), kernel_name)
+        try:
+            return {name: cl.Kernel(prog, name) for name in kernel_names}
+        except cl.Error as exc:
+            if (defines or {}).get(CACHE_RETRY_DEFINE):
+                raise
+            warnings.warn(f"PoCL served a program whose kernels cannot be created ({str(exc).splitlines()[0]}; "
+                          "a broken kernel-cache entry?): building it again", stacklevel=2)
+            with self.lock:
+                self._programs.pop(self._program_key(names, defines, extra), None)
+            _never_release(prog)
+            return self.new_kernels(names, kernel_names, {**(defines or {}), CACHE_RETRY_DEFINE: 1}, extra)
+
+    def kernel(self, names: tuple[str, ...], kernel_name: str, defines: dict | None = None, extra: str = ""):
+        """One kernel object per (program, name), reused across calls (kernel retrieval is costly)."""
+        key = (self._program_key(names, defines, extra), kernel_name)
         with self.lock:
             k = self._kernels.get(key)
-            if k is None:
-                k = self._kernels[key] = cl.Kernel(prog, kernel_name)
-            return k
+        if k is None:
+            k = self.new_kernels(names, (kernel_name,), defines, extra)[kernel_name]
+            with self.lock:
+                k = self._kernels.setdefault(key, k)
+        return k
 
 
 @lru_cache(maxsize=None)

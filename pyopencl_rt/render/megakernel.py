@@ -14,7 +14,7 @@ queues) and when film AOVs are requested (their per-path state lives in the wave
 
 Paths in SIMD lanes (:func:`lane_width`): on PoCL's CPU device, for the scenes
 cl/render/path_lanes.h covers (triangles with the diffuse material lit by emissive triangles, the
-MIS integrator, no textures), each work-item follows :data:`LANE_WIDTH` paths at once in the lanes
+MIS integrator, no textures), each work-item follows 16 or 8 paths at once (:func:`lane_choice`) in the lanes
 of its vectors (cl/megakernel/lanes.cl): their rays are traced as packets and their hits shaded
 together, as Mitsuba's LLVM backend runs its paths.  Same samples, bit for bit, except where two
 triangles give a ray exactly the same distance.  ``$PYOPENCL_RT_LANES`` = 0 turns it off.
@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from ..accel.device_bvh import LANE_WIDTH, LANES_ENV, packet_width  # noqa: F401 (LANE_WIDTH, LANES_ENV: tests, tools)
+from ..accel.device_bvh import LANES_ENV, lanes_setting, packet_choice  # noqa: F401 (LANES_ENV: tests, tools)
 from ..device import abi
 from ..errors import UserError
 from .film import Film, RunStats
@@ -35,7 +35,7 @@ KERNEL_MODES = ("wavefront", "megakernel")
 KERNEL_MODE_ENV = "PYOPENCL_RT_KERNEL_MODE"
 SOURCES = ("megakernel/path.cl",)
 LANES_SOURCES = ("megakernel/lanes.cl",)
-LANE_BLOCK = 16           # samples per work-item, in units of LANE_WIDTH, taken in turn by its lanes
+LANE_BLOCK = 16           # samples per work-item, in units of the lane width, taken in turn by its lanes
 LANE_GROUP = 8            # work-items per group: a launch of the CPU wave (2^18 samples) makes 128 groups
 # the defines a scene may have for the lane kernel (with INTEGRATOR 0, lights and triangles), and
 # the switches kept for A/B measurements (RR_NO_ETA: tools/variance_audit.py; PACKET_HYBRID, the
@@ -61,15 +61,25 @@ def kernel_mode(device, intersector: str, film_aovs, requested: str | None = Non
     return requested
 
 
-def lane_width(mode: str, device, features: dict, requested=None) -> int:
-    """Paths per work-item of the megakernel: :data:`LANE_WIDTH` where the lane kernel applies (the
-    megakernel on PoCL's CPU device of an x86 host, a scene whose defines path_lanes.h covers), else 0 (one path
-    per work-item).  ``requested`` or ``$PYOPENCL_RT_LANES`` overrides: 0 (off), 8 or 16 (where it
-    applies)."""
-    width = packet_width(device, requested)  # checks the setting first, whatever the scene
+def lane_choice(mode: str, device, features: dict, requested=None) -> tuple[int, str]:
+    """Paths per work-item of the megakernel, and why: the packet width of the device
+    (:func:`~pyopencl_rt.accel.device_bvh.packet_choice`: 16, 8 or 0 from what PoCL compiles for)
+    where the lane kernel applies (the megakernel on PoCL's CPU device of an x86 host, a scene
+    whose defines path_lanes.h covers), else 0 (one path per work-item).  ``requested`` or
+    ``$PYOPENCL_RT_LANES`` overrides: 0 (off), 8 or 16 (where it applies and is safe)."""
+    lanes_setting(requested)  # checks the setting first, whatever the scene
+    if mode != "megakernel":
+        return 0, f"one path per work-item: the {mode} schedule"
     covered = (set(features) <= _LANE_DEFINES and features.get("INTEGRATOR") == 0
                and {"HAS_LIGHTS", "HAS_TRIANGLES", "BVH_WIDE8", "MATERIALS_SELECTED"} <= set(features))
-    return width if mode == "megakernel" and covered else 0
+    if not covered:
+        return 0, "one path per work-item: the scene uses what the lane kernel does not cover"
+    return packet_choice(device, requested)
+
+
+def lane_width(mode: str, device, features: dict, requested=None) -> int:
+    """The width of :func:`lane_choice`."""
+    return lane_choice(mode, device, features, requested)[0]
 
 
 def lane_features(width: int) -> dict:

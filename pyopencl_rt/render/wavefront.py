@@ -109,18 +109,26 @@ class Wavefront:
                                                   kernel_mode)
         self.wave_size = int(wave_size or default_wave_size(device, self.kernel_mode))
 
-        self.lane_width = megakernel.lane_width(self.kernel_mode, device, self.features)
-        self.features.update(megakernel.lane_features(self.lane_width))
-
         self.rt = runtime(device)
         t0 = time.perf_counter()
+        self.lane_width, self.lane_reason = megakernel.lane_choice(self.kernel_mode, device, self.features)
         if self.lane_width:
-            self.kernels = {"path": cl.Kernel(self.rt.program(megakernel.LANES_SOURCES, self.features), "mk_lanes")}
-        elif self.kernel_mode == "megakernel":
-            self.kernels = {"path": cl.Kernel(self.rt.program(megakernel.SOURCES, self.features), "mk_path")}
-        else:
-            prog = self.rt.program(SOURCES, self.features)
-            self.kernels = {s: cl.Kernel(prog, f"wf_{s}") for s in STAGES}
+            try:
+                lane_features = {**self.features, **megakernel.lane_features(self.lane_width)}
+                self.kernels = {"path": self.rt.new_kernels(megakernel.LANES_SOURCES, ("mk_lanes",),
+                                                            lane_features)["mk_lanes"]}
+                self.features = lane_features
+            except cl.Error as exc:  # a kernel of ours that fails never ends the render
+                import warnings
+
+                failure = f"the {self.lane_width}-lane kernel failed ({str(exc).splitlines()[0]})"
+                warnings.warn(f"{failure}: rendering with one path per work-item", stacklevel=2)
+                self.lane_width, self.lane_reason = 0, f"one path per work-item: {failure}"
+        if not self.lane_width and self.kernel_mode == "megakernel":
+            self.kernels = {"path": self.rt.new_kernels(megakernel.SOURCES, ("mk_path",), self.features)["mk_path"]}
+        elif not self.lane_width:
+            kernels = self.rt.new_kernels(SOURCES, [f"wf_{s}" for s in STAGES], self.features)
+            self.kernels = {s: kernels[f"wf_{s}"] for s in STAGES}
         self.timings["build_seconds"] = time.perf_counter() - t0
 
         ctx = self.rt.context
@@ -183,6 +191,7 @@ class Wavefront:
             "intersector": self.intersector.name,
             "kernel_mode": self.kernel_mode,
             "lanes": self.lane_width,  # paths per work-item of the lane megakernel (0: one)
+            "lanes_reason": self.lane_reason,  # why that width (pyopencl_rt/device/isa.py)
             "features": feature_names(self.features),
             "lights": self.n_lights,
             "bvh_seconds": self.timings.get("bvh_seconds"),

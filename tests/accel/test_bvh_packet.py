@@ -107,7 +107,7 @@ def test_packets_equal_single_rays(device, runtime, rng, mesh, variant, monkeypa
     leaves tested triangle by triangle against the packet, ray by ray, or as pairs of a ray and a
     triangle per lane; ray by ray (hybrid 16) exactly the single-ray traversal.  Any hit: exactly the single-ray answer.
     Idle lanes: no hit, t as given."""
-    harness.require_lane_kernels(device)
+    harness.require_lane_kernels(device, variant[0])
     monkeypatch.setenv(LANES_ENV, "0")  # trace()/occluded() below: one ray per work-item, the reference
     bvh, o, d, tmax = rays_for(mesh, rng)
     n = len(o)

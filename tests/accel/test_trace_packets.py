@@ -10,7 +10,7 @@ import pytest
 
 from meshes import MESHES, coherent_rays, incoherent_rays
 from pyopencl_rt import build_bvh, occluded, trace
-from pyopencl_rt.accel.device_bvh import LANE_WIDTH, LANES_ENV, packet_width
+from pyopencl_rt.accel.device_bvh import LANES_ENV, packet_width
 
 import harness
 
@@ -36,10 +36,9 @@ def ray_batch(v, f, rng):
 @pytest.mark.parametrize("spread", ["default", "every packet", "ray by ray"])
 @pytest.mark.parametrize("mesh", ["torus", "slivers", "grid"])
 def test_packets_equal_one_ray_per_work_item(device, monkeypatch, rng, mesh, spread, width):
-    harness.require_lane_kernels(device)
-    monkeypatch.delenv(LANES_ENV, raising=False)
-    assert packet_width(device) == LANE_WIDTH  # so that packets are traced below
+    harness.require_lane_kernels(device, int(width))
     monkeypatch.setenv(LANES_ENV, width)
+    assert packet_width(device) == int(width)  # so that packets are traced below
     limit = {"default": trace_module.PACKET_ORIGIN_SPREAD, "every packet": np.inf, "ray by ray": -1.0}[spread]
     monkeypatch.setattr(trace_module, "PACKET_ORIGIN_SPREAD", limit)
     v, f = MESHES[mesh]()

@@ -23,7 +23,7 @@ import harness
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 
 
-def renders(scene, device, monkeypatch, widths=("0", "16", "8"), **options):
+def renders(scene, device, monkeypatch, widths, **options):
     """The same render with the lane kernel off (one path per work-item) and at each width."""
     out = {}
     for width in widths:
@@ -47,20 +47,28 @@ def assert_same(results):
 def test_selection(device, monkeypatch):
     """On PoCL's CPU device (of an x86 host: the lane code is clang-on-x86 C) the megakernel runs the lanes for diffuse scenes lit by emissive
     triangles (the Cornell boxes), not for spheres, other materials or textures, nor for the
-    wavefront; $PYOPENCL_RT_LANES = 0 turns it off, 8 or 16 sets the width, anything else is one
-    clear error.  Other devices never get it."""
+    wavefront; at the width pyopencl_rt/device/isa.py's rule gives for what PoCL compiles for
+    (tests/device/test_isa.py); $PYOPENCL_RT_LANES = 0 turns it off, 8 or 16 sets the width where
+    its vectors cross PoCL's library alike, anything else is one clear error.  Other devices
+    never get it."""
+    from pyopencl_rt.device import isa
+
     monkeypatch.delenv(megakernel.LANES_ENV, raising=False)
-    expected = megakernel.LANE_WIDTH if harness.lane_kernels_build_on(device) else 0
+    builds = harness.lane_kernels_build_on(device)
+    cpu = isa.probe(device) if builds else None
+    expected = isa.simd_width(cpu)[0] if builds else 0
     for name, lanes in (("mitsuba-cbox", expected), ("cornell-box", expected), ("cornell-spheres", 0),
                         ("veach-mis", 0), ("textured", 0), ("cornell-jensen", 0)):
         wf = Wavefront(rt.load_scene(SCENES / f"{name}.toml"), device, width=8, height=8, kernel_mode="megakernel")
         assert wf.lane_width == lanes, name
         assert ("PACKET_WIDTH" in wf.features) == bool(lanes), name
+        assert wf.description()["lanes_reason"].startswith(f"{lanes} lanes" if lanes else "one path"), name
     scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
     assert Wavefront(scene, device, width=8, height=8, kernel_mode="wavefront").lane_width == 0
-    for value, lanes in (("0", 0), ("8", 8 if expected else 0), ("16", expected)):
+    for value in ("0", "8", "16"):
         monkeypatch.setenv(megakernel.LANES_ENV, value)
-        assert Wavefront(scene, device, width=8, height=8, kernel_mode="megakernel").lane_width == lanes
+        lanes = 0 if value == "0" or not builds else int(value) if cpu.passes_alike(4 * int(value)) else expected
+        assert Wavefront(scene, device, width=8, height=8, kernel_mode="megakernel").lane_width == lanes, value
     monkeypatch.setenv(megakernel.LANES_ENV, "4")
     with pytest.raises(UserError, match="PYOPENCL_RT_LANES"):
         Wavefront(scene, device, width=8, height=8, kernel_mode="megakernel")
@@ -74,9 +82,9 @@ def test_selection(device, monkeypatch):
 def test_same_image_and_rays(device, monkeypatch, sampler):
     """Mitsuba's Cornell box and ours (their lights and materials differ), each sampler: the film
     sums bit for bit and the same numbers of rays, at 16 lanes (and 8, with the default sampler:
-    each width is a kernel build of several seconds)."""
-    harness.require_lane_kernels(device)
-    widths = ("0", "16", "8") if sampler == "sobol" else ("0", "16")
+    each width is a kernel build of several seconds; 8 only where 16 is never built)."""
+    wide = harness.forced_lanes(device)
+    widths = tuple(dict.fromkeys(("0", wide, "8"))) if sampler == "sobol" else ("0", wide)
     for name in ("mitsuba-cbox", "cornell-box"):
         scene = rt.load_scene(SCENES / f"{name}.toml")
         assert_same(renders(scene, device, monkeypatch, widths=widths, spp=4, seed=3, width=40, height=30,
@@ -88,42 +96,42 @@ def test_same_image_and_rays(device, monkeypatch, sampler):
 def test_depths_and_roulette(device, monkeypatch, options):
     """Emitters seen directly only, direct light only, short paths rouletted from the first
     bounce, unbounded paths ended by roulette alone."""
-    harness.require_lane_kernels(device)
+    wide = harness.forced_lanes(device)
     scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
-    assert_same(renders(scene, device, monkeypatch, widths=("0", "16"), spp=4, seed=5, width=32, height=24,
+    assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=4, seed=5, width=32, height=24,
                         **options))
 
 
 def test_thin_lens_two_sided_light_and_ior(device, monkeypatch):
     """A thin-lens camera (its rays start per lane in scalar code), a two-sided emitter, a diffuse
     surface with an ior (the eta scale of roulette) and a 1 x 1 image."""
-    harness.require_lane_kernels(device)
+    wide = harness.forced_lanes(device)
     scene = rt.load_scene(SCENES / "cornell-box.toml")
     scene.camera = dataclasses.replace(scene.camera, aperture_radius=20.0)
     materials = [dataclasses.replace(m, two_sided=True) if max(m.emission) > 0 else m for m in scene.materials]
     materials[0] = dataclasses.replace(materials[0], ior=1.5)
     scene.materials = materials
-    assert_same(renders(scene, device, monkeypatch, widths=("0", "16"), spp=6, seed=2, width=24, height=20))
-    assert_same(renders(scene, device, monkeypatch, widths=("0", "16"), spp=9, seed=2, width=1, height=1))
+    assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=6, seed=2, width=24, height=20))
+    assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=9, seed=2, width=1, height=1))
 
 
 def test_small_waves_and_adaptive_pixel_lists(device, monkeypatch):
     """Launches that end inside a work-item's block (a wave smaller than a pass), and adaptive
     sampling's pixel lists (listed passes, results in launch order)."""
-    harness.require_lane_kernels(device)
+    wide = harness.forced_lanes(device)
     scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
     films = {}
-    for width in ("0", "16"):
+    for width in ("0", wide):
         monkeypatch.setenv(megakernel.LANES_ENV, width)
         wf = Wavefront(scene, device, width=30, height=20, seed=4, kernel_mode="megakernel", wave_size=333)
         film = Film(30, 20)
         wf.run(film, passes=3)
         films[width] = film
-    assert np.array_equal(films["0"].sum, films["16"].sum)
-    adaptive = renders(scene, device, monkeypatch, widths=("0", "16"), spp=64, seed=1, width=24, height=16,
+    assert np.array_equal(films["0"].sum, films[wide].sum)
+    adaptive = renders(scene, device, monkeypatch, widths=("0", wide), spp=64, seed=1, width=24, height=16,
                        adaptive=True, target_error=0.05)
-    assert adaptive["16"].film.counts.min() < adaptive["16"].film.counts.max()  # pixel lists were used
-    assert np.array_equal(adaptive["0"].film.counts, adaptive["16"].film.counts)
+    assert adaptive[wide].film.counts.min() < adaptive[wide].film.counts.max()  # pixel lists were used
+    assert np.array_equal(adaptive["0"].film.counts, adaptive[wide].film.counts)
     assert_same(adaptive)
 
 
