@@ -30,6 +30,7 @@ that case runs one path per work-item.  docs/DEVICES.md, "SIMD width on CPUs", s
 """
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass
 
@@ -135,26 +136,50 @@ def checked_width(isa: CpuISA, requested: int) -> tuple[int, str | None]:
                    f"differently; using {width or 'one path per work-item'}{' lanes' if width else ''}")
 
 
-# clang's warning at a call whose vector argument or result is passed by a feature the caller lacks;
-# `<Spelling=...>` names the macro the call came through (PoCL's built-ins are renamed by macros)
-_ABI_WARNING = re.compile(r"(?:<Spelling=(?P<spelling>[^>]*)>)?: AVX vector (?:argument|return) of type "
-                          r"'(?P<type>[^']*)'.*?without '(?P<feature>[\w.]+)' enabled changes the ABI")
+# clang's warning at a call (or definition) whose vector argument or result is passed by a feature
+# the compile lacks; `<Spelling=...>` is where the callee's name was spelled, when a macro wrote it
+_ABI_WARNING = re.compile(r"(?P<file>[^\s<>]+?):(?P<line>\d+):(?P<col>\d+)"
+                          r"(?: <Spelling=(?P<sfile>[^<>]+?):(?P<sline>\d+):(?P<scol>\d+)>)?"
+                          r": AVX vector (?:argument|return) of type '(?P<type>[^']*)'.*?"
+                          r"without '(?P<feature>[\w.]+)' enabled changes the ABI")
+_NAME = re.compile(r"[A-Za-z_]\w*")
 
 
-def builtin_abi_crossings(log: str) -> list[tuple[str, str]]:
-    """(vector type, missing feature) of each call into PoCL's built-in library, in a build log,
-    whose vector is passed differently with and without that feature.  Calls between our own
-    functions do not count: both sides are compiled alike."""
+def builtin_abi_crossings(log: str, source: str) -> list[tuple[str, str, str]]:
+    """(built-in, vector type, missing feature) of each call into PoCL's built-in library, in the
+    build log of ``source``, whose vector is passed differently with and without that feature.
+    PoCL's headers rename every built-in to ``_cl_<name>``: a call counts when the name spelled
+    where clang points (through any macro, ours or PoCL's) is such a name.  Calls between our
+    own functions do not count: both sides are compiled alike."""
+    files = {}
+
+    def name_at(path, line, col):
+        if path not in files:
+            try:  # PoCL compiles a temporary copy of the program source; its headers stay on disk
+                text = source if os.path.basename(path).startswith("tempfile") else open(path).read()
+            except OSError:
+                text = ""
+            files[path] = text.splitlines()
+        lines = files[path]
+        m = _NAME.match(lines[line - 1], col - 1) if 0 < line <= len(lines) else None
+        return m.group(0) if m else ""
+
     found = []
-    for chunk in (log or "").split("warning:"):
-        m = _ABI_WARNING.search(chunk)
-        if m and m.group("spelling") and re.search(r"[/\\]pocl[/\\]include[/\\]", m.group("spelling")):
-            found.append((m.group("type").replace("__private ", ""), m.group("feature")))
+    for chunk in (log or "").split("warning: ")[1:]:
+        m = _ABI_WARNING.match(chunk)
+        if not m:
+            continue
+        if m.group("sfile"):
+            name = name_at(m.group("sfile"), int(m.group("sline")), int(m.group("scol")))
+        else:
+            name = name_at(m.group("file"), int(m.group("line")), int(m.group("col")))
+        if name.startswith("_cl_"):
+            found.append((name, m.group("type").replace("__private ", ""), m.group("feature")))
     return found
 
 
-def unsafe_crossings(log: str, isa: CpuISA) -> list[tuple[str, str]]:
+def unsafe_crossings(log: str, source: str, isa: CpuISA) -> list[tuple[str, str, str]]:
     """The crossings of :func:`builtin_abi_crossings` that break with ``isa``'s library: those
     whose feature the library has (the compile lacks it, or clang would not have warned)."""
     have = isa.library_features()
-    return [c for c in builtin_abi_crossings(log) if c[1] in have]
+    return [c for c in builtin_abi_crossings(log, source) if c[2] in have]

@@ -299,6 +299,7 @@ def sidecar(scene: Scene, settings: ImageSettings, film: Film, run: _Run, *, spp
         "intersector": engine.get("intersector") or getattr(intersector, "name", intersector),  # what ran
         "kernel_mode": engine.get("kernel_mode"),
         "lanes": engine.get("lanes"),  # paths per work-item of the lane megakernel (0: one path)
+        "lanes_reason": engine.get("lanes_reason"),  # why that width (pyopencl_rt/device/isa.py)
         "wave_size": engine.get("wave_size"),
         "features": engine.get("features"),
         "triangles": int(len(scene.faces)),
