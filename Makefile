@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: all venv test render bench bench-rays bench-bvh bench-render bench-materials stress gpu-check gpu-wheels clean
+.PHONY: all venv test render bench bench-rays bench-bvh bench-render bench-materials stress isa-check gpu-check gpu-wheels clean
 
 all: test
 
@@ -43,6 +43,14 @@ bench: bench-bvh bench-rays bench-render bench-materials
 # runs the quick ones), with their summary in docs/bench/stress.{json,md}.
 stress: $(STAMP)
 	$(PY) -m pytest -m stress tests -q -rxXf -p no:cacheprovider --report-json docs/bench/stress.json
+
+# The ISA matrix (docs/DEVICES.md, "SIMD width on CPUs"): tools/isa_check.py under qemu-user as an AVX2
+# (Haswell) and an SSE4.2 (Nehalem) CPU, each with an empty PoCL cache; installs Debian's qemu-user
+# where qemu-x86_64 is missing (as root, else through sudo).
+isa-check: $(STAMP)
+	command -v qemu-x86_64 > /dev/null || { s=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+		$$s apt-get update -qq && $$s apt-get install -y -qq qemu-user; }
+	$(PY) -m pytest -m isa tests -q -rA -p no:cacheprovider
 
 # On a machine with an NVIDIA GPU (docs/DEVICES.md): make its OpenCL driver visible, then the suite on
 # the GPU device and the ray and render benchmarks on every device, all results in $(OUT)/gpu/.

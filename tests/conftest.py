@@ -3,8 +3,8 @@
 Select devices with ``PYOPENCL_TEST`` (comma-separated specs as for ``--device``, e.g.
 ``PYOPENCL_TEST=cpu`` or ``PYOPENCL_TEST=0:0,1:0``); by default every device found is used.
 
-Long variants of size-dependent tests carry the ``stress`` marker (registered in setup.cfg).
-They are deselected unless ``-m`` is given: ``pytest tests`` (``make test``) runs the quick
+Long variants of size-dependent tests carry the ``stress`` marker (registered in setup.cfg), the
+ISA matrix under qemu-user the ``isa`` marker (``make isa-check``).  Both are deselected unless ``-m`` is given: ``pytest tests`` (``make test``) runs the quick
 versions, ``pytest -m stress tests`` (``make stress``) only the long ones.  ``--report-json PATH``
 writes a summary of the run (counts, failures and xfails, and every line a test reported
 through the ``measured`` fixture) to PATH, and as markdown next to it (``make stress`` writes
@@ -73,13 +73,13 @@ def pytest_addoption(parser):
 
 
 def pytest_collection_modifyitems(config, items):
-    """Without ``-m``, deselect the long (``stress``) variants."""
+    """Without ``-m``, deselect the long (``stress``) variants and the ISA matrix (``isa``)."""
     if config.option.markexpr:
         return
-    keep = [item for item in items if item.get_closest_marker("stress") is None]
-    if len(keep) < len(items):
-        config.hook.pytest_deselected(items=[item for item in items if item.get_closest_marker("stress")])
-        items[:] = keep
+    slow = [item for item in items if item.get_closest_marker("stress") or item.get_closest_marker("isa")]
+    if slow:
+        config.hook.pytest_deselected(items=slow)
+        items[:] = [item for item in items if item not in slow]
 
 
 def pytest_configure(config):
