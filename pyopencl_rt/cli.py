@@ -224,6 +224,7 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
     except UserError as exc:
         raise _rescued(exc, result, scene, settings, checkpoint_path, output) from None
     if profile:
+        click.echo(f"lanes: {info.get('lanes_reason')}", err=True)  # which SIMD width ran, and why
         stages = info["stage_seconds"]
         total_s = sum(stages.values()) or 1.0
         click.echo("stage         seconds   share", err=True)

@@ -89,6 +89,8 @@ def _opencl(bvh, o, d, tmin, tmax, device, any_hit, layout=None):
     if dev.layout != "binary":  # small work-groups: PoCL keeps a private stack per work-item of a group
         gsize, lsize = ((n + 63) // 64 * 64,), (64,)
     width = packet_width(rt.device) if dev.layout == "wide8" else 0
+    if width and not _packets_build(rt, {**dev.defines, "PACKET_WIDTH": width}):
+        width = 0
     if width:  # packets of `width` consecutive rays per work-item (cl/accel/trace.cl), groups of 8
         items = -(-n // width)
         gsize, lsize = (-(-items // 8) * 8,), (8,)
@@ -119,6 +121,30 @@ def _opencl(bvh, o, d, tmin, tmax, device, any_hit, layout=None):
         read(bufs[k], a)
     queue.finish()
     return res
+
+
+_PACKETS_FAILED: dict = {}
+
+
+def _packets_build(rt, defines) -> bool:
+    """Whether the packet kernels build and create on ``rt``'s device; where they do not, one
+    warning line and trace()/occluded() go one ray per work-item (a kernel of ours never ends the
+    process)."""
+    import warnings
+
+    import pyopencl as cl
+
+    key = (id(rt), tuple(sorted(defines.items())))
+    if key not in _PACKETS_FAILED:
+        try:
+            rt.kernel(("accel/trace.cl",), "trace_closest_packets", defines)
+            rt.kernel(("accel/trace.cl",), "trace_any_packets", defines)
+            _PACKETS_FAILED[key] = False
+        except cl.Error as exc:
+            warnings.warn(f"the {defines['PACKET_WIDTH']}-ray packet kernels failed ({str(exc).splitlines()[0]}): "
+                          "tracing one ray per work-item", stacklevel=3)
+            _PACKETS_FAILED[key] = True
+    return not _PACKETS_FAILED[key]
 
 
 def _page_aligned(shape, dtype):

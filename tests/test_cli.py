@@ -147,6 +147,7 @@ def test_render_embree_profile_sidecar_has_host_stage_times(tmp_path):
     # what the terminal shows is what the sidecar holds
     shown = {m.group(1): float(m.group(2)) for m in re.finditer(r"^(\w+)\s+([0-9.]+)\s+[0-9.]+%$", r.stderr, re.M)}
     assert set(shown) == set(stages)
+    assert f"lanes: {info['lanes_reason']}" in r.stderr and info["lanes"] == 0  # the wavefront: one path
     for name, seconds in shown.items():
         assert abs(seconds - stages[name]) < 1e-3 + 1e-3 * seconds
 

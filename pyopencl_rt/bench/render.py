@@ -15,6 +15,7 @@ import contextlib
 import statistics
 import time
 
+from ..device.isa import target_cpu
 from .timing import interleaved_render_rates, machine_info, write_results
 
 MITSUBA = "mitsuba"  # its rates' key beside our variants' labels
@@ -68,7 +69,7 @@ def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, ma
                                                     pause=MITSUBA_PAUSE if others else 0.0)
     results = {"scene": str(scene_path), "width": width, "height": height, "spp": spp, "max_depth": max_depth,
                "repeat": repeat, "machine": machine_info(), "devices": {}}
-    echo(f"{'device':<60} {'Msamples/s':>10} {'rays/sample':>11} {'setup s':>8}")
+    echo(f"{'device':<60} {'Msamples/s':>10} {'rays/sample':>11} {'setup s':>8} {'lanes':>5}")
     for label, (_scene, wavefront) in variants.items():
         info = last_info[label]
         median = statistics.median(rates[label])
@@ -81,8 +82,12 @@ def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, ma
             "bvh_seconds": wavefront.timings.get("bvh_seconds"), "wave_size": wavefront.wave_size,
             "rays_per_sample": rays_per_sample, "stage_seconds": info.get("stage_seconds"),
             "features": info["features"],
+            # the width and why, with what PoCL compiles for (pyopencl_rt/device/isa.py)
+            "lanes": wavefront.lane_width, "lanes_reason": wavefront.lane_reason,
+            "target_cpu": target_cpu(wavefront.device),
         }
-        echo(f"{label[:60]:<60} {median / 1e6:10.3f} {rays_per_sample:11.2f} {setup_seconds[label]:8.2f}")
+        echo(f"{label[:60]:<60} {median / 1e6:10.3f} {rays_per_sample:11.2f} {setup_seconds[label]:8.2f} "
+             f"{wavefront.lane_width or 1:5d}")
     if mitsuba is not None:
         theirs_rates = rates[MITSUBA]
         theirs = {**server.info, "renders": server.renders, "samples_per_second_all": theirs_rates,

@@ -13,7 +13,17 @@ from pathlib import Path
 
 
 def machine_info() -> dict:
-    return {"platform": platform.platform(), "processor": platform.processor(), "python": platform.python_version()}
+    return {"platform": platform.platform(), "processor": platform.processor(), "cpu_model": cpu_model(),
+            "python": platform.python_version()}
+
+
+def cpu_model() -> str | None:
+    """The CPU's model name (Linux: /proc/cpuinfo), which every speed figure names."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            return next((line.split(":", 1)[1].strip() for line in f if line.startswith("model name")), None)
+    except OSError:
+        return None
 
 
 def timed_repeats(fn, repeat: int) -> list[float]:

@@ -56,3 +56,20 @@ def test_packets_equal_one_ray_per_work_item(device, monkeypatch, rng, mesh, spr
         assert np.array_equal(ours[k][same], ref[k][same]), k
     assert (~same).sum() <= 5e-3 * len(o)  # ties: rays aimed at shared vertices and edges (slivers: 0.3%)
     assert np.array_equal(hit_ours, hit_ref)
+
+
+def test_packet_kernels_that_fail_to_build_fall_back(device, monkeypatch, rng):
+    """Packet kernels that do not build (here a width lanes.h rejects with #error): one warning
+    line, and trace()/occluded() answer as one ray per work-item."""
+    harness.require_lane_kernels(device, 8)
+    v, f = MESHES["torus"]()
+    bvh = build_bvh(v, f)
+    o, d, tmin, tmax = ray_batch(v, f, rng)
+    monkeypatch.setenv(LANES_ENV, "0")
+    ref = trace(bvh, o, d, tmin=tmin, tmax=tmax, device=device, layout="wide8")
+    hit_ref = occluded(bvh, o, d, tmin=tmin, tmax=tmax, device=device, layout="wide8")
+    monkeypatch.setattr(trace_module, "packet_width", lambda dev: 12)
+    with pytest.warns(UserWarning, match="12-ray packet kernels failed.*one ray per work-item"):
+        ours = trace(bvh, o, d, tmin=tmin, tmax=tmax, device=device, layout="wide8")
+    assert np.array_equal(ours["t"], ref["t"]) and np.array_equal(ours["prim_id"], ref["prim_id"])
+    assert np.array_equal(occluded(bvh, o, d, tmin=tmin, tmax=tmax, device=device, layout="wide8"), hit_ref)
