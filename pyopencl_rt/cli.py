@@ -224,10 +224,9 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
     except UserError as exc:
         raise _rescued(exc, result, scene, settings, checkpoint_path, output) from None
     if profile:
-        click.echo(f"lanes: {info.get('lanes_reason')}", err=True)  # which SIMD width ran, and why
         stages = info["stage_seconds"]
         total_s = sum(stages.values()) or 1.0
-        click.echo("stage         seconds   share", err=True)
+        click.echo(f"lanes: {info.get('lanes_reason')}\nstage         seconds   share", err=True)  # lanes: which ran, why
         for name, sec in stages.items():
             click.echo(f"{name:<12} {sec:8.3f}  {100 * sec / total_s:5.1f}%", err=True)
         if "extend" in stages:  # the wavefront times its ray-casting stages apart (the megakernel cannot)
