@@ -123,28 +123,29 @@ def _opencl(bvh, o, d, tmin, tmax, device, any_hit, layout=None):
     return res
 
 
-_PACKETS_FAILED: dict = {}
+_PACKETS_FAILED: set = set()  # (runtime, defines) whose packet kernels did not build
 
 
 def _packets_build(rt, defines) -> bool:
-    """Whether the packet kernels build and create on ``rt``'s device; where they do not, one
-    warning line and trace()/occluded() go one ray per work-item (a kernel of ours never ends the
-    process)."""
+    """Whether the packet kernels build and create on ``rt``'s device (the runtime keeps them once
+    built); where they do not, one warning line and trace()/occluded() go one ray per work-item (a
+    kernel of ours never ends the process)."""
     import warnings
 
     import pyopencl as cl
 
     key = (id(rt), tuple(sorted(defines.items())))
-    if key not in _PACKETS_FAILED:
-        try:
-            rt.kernel(("accel/trace.cl",), "trace_closest_packets", defines)
-            rt.kernel(("accel/trace.cl",), "trace_any_packets", defines)
-            _PACKETS_FAILED[key] = False
-        except cl.Error as exc:
-            warnings.warn(f"the {defines['PACKET_WIDTH']}-ray packet kernels failed ({str(exc).splitlines()[0]}): "
-                          "tracing one ray per work-item", stacklevel=3)
-            _PACKETS_FAILED[key] = True
-    return not _PACKETS_FAILED[key]
+    if key in _PACKETS_FAILED:
+        return False
+    try:
+        rt.kernel(("accel/trace.cl",), "trace_closest_packets", defines)
+        rt.kernel(("accel/trace.cl",), "trace_any_packets", defines)
+        return True
+    except cl.Error as exc:
+        warnings.warn(f"the {defines['PACKET_WIDTH']}-ray packet kernels failed ({str(exc).splitlines()[0]}): "
+                      "tracing one ray per work-item", stacklevel=3)
+        _PACKETS_FAILED.add(key)
+        return False
 
 
 def _page_aligned(shape, dtype):

@@ -35,8 +35,6 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     warnings.simplefilter("ignore")  # the compiler's warnings: counted below, not printed
 
-    import pyopencl as cl
-
     import pyopencl_rt as rt
     from pyopencl_rt.accel.device_bvh import LANES_ENV
     from pyopencl_rt.device import isa
@@ -67,9 +65,7 @@ def main(argv=None) -> int:
         builds[f"trace packets {lanes}"] = (("accel/trace.cl",), {"BVH_WIDE8": True, "PACKET_WIDTH": lanes})
     rt_dev = runtime(device)
     for name, (names, defines) in builds.items():
-        prog = rt_dev.program(names, defines)
-        found = isa.builtin_abi_crossings(prog.get_build_info(device, cl.program_build_info.LOG),
-                                          prog.get_info(cl.program_info.SOURCE))
+        found = isa.program_crossings(rt_dev.program(names, defines), device)
         check(f"crossings {name}", not found, f"{len(found)} built-in calls with a wide vector {sorted(set(found))[:4]}")
 
     films = {}
@@ -82,15 +78,9 @@ def main(argv=None) -> int:
         check(f"render {lanes or 'default'}", same, f"{films[lanes][1]} lanes, film equal to one path: {same}")
 
     from pyopencl_rt import build_bvh, occluded, trace
+    from pyopencl_rt.bench.workloads import bumpy_torus
 
-    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 40, endpoint=False), np.linspace(0, 2 * np.pi, 20, endpoint=False))
-    verts = np.stack([(1 + 0.3 * np.cos(v)) * np.cos(u), (1 + 0.3 * np.cos(v)) * np.sin(u), 0.3 * np.sin(v)], -1)
-    verts = verts.reshape(-1, 3).astype(np.float32)
-    i, j = np.meshgrid(np.arange(40), np.arange(20))
-    a, b = j * 40 + i, j * 40 + (i + 1) % 40
-    c, d = ((j + 1) % 20) * 40 + i, ((j + 1) % 20) * 40 + (i + 1) % 40
-    faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
-    bvh = build_bvh(verts, faces.astype(np.int32))
+    bvh = build_bvh(*bumpy_torus(1600))
     rng = np.random.default_rng(3)
     origins = np.repeat(rng.normal(scale=0.2, size=(64, 3)), 16, axis=0).astype(np.float32)
     directions = rng.normal(size=(len(origins), 3)).astype(np.float32)

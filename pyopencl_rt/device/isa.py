@@ -183,3 +183,13 @@ def unsafe_crossings(log: str, source: str, isa: CpuISA) -> list[tuple[str, str,
     whose feature the library has (the compile lacks it, or clang would not have warned)."""
     have = isa.library_features()
     return [c for c in builtin_abi_crossings(log, source) if c[2] in have]
+
+
+def program_crossings(program, device, isa: CpuISA | None = None) -> list[tuple[str, str, str]]:
+    """:func:`builtin_abi_crossings` of a built pyopencl program (against ``isa``'s library: the
+    unsafe ones, :func:`unsafe_crossings`)."""
+    import pyopencl as cl
+
+    log = program.get_build_info(device, cl.program_build_info.LOG)
+    source = program.get_info(cl.program_info.SOURCE)
+    return builtin_abi_crossings(log, source) if isa is None else unsafe_crossings(log, source, isa)

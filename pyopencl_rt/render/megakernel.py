@@ -12,9 +12,9 @@ on the others, when the Embree intersector traces on the host (it needs the wave
 queues) and when film AOVs are requested (their per-path state lives in the wavefront's buffers).
 ``$PYOPENCL_RT_KERNEL_MODE`` or the ``kernel_mode`` argument overrides the choice.
 
-Paths in SIMD lanes (:func:`lane_width`): on PoCL's CPU device, for the scenes
+Paths in SIMD lanes (:func:`lane_choice`): on PoCL's CPU device, for the scenes
 cl/render/path_lanes.h covers (triangles with the diffuse material lit by emissive triangles, the
-MIS integrator, no textures), each work-item follows 16 or 8 paths at once (:func:`lane_choice`) in the lanes
+MIS integrator, no textures), each work-item follows 16 or 8 paths at once in the lanes
 of its vectors (cl/megakernel/lanes.cl): their rays are traced as packets and their hits shaded
 together, as Mitsuba's LLVM backend runs its paths.  Same samples, bit for bit, except where two
 triangles give a ray exactly the same distance.  ``$PYOPENCL_RT_LANES`` = 0 turns it off.
@@ -75,11 +75,6 @@ def lane_choice(mode: str, device, features: dict, requested=None) -> tuple[int,
     if not covered:
         return 0, "one path per work-item: the scene uses what the lane kernel does not cover"
     return packet_choice(device, requested)
-
-
-def lane_width(mode: str, device, features: dict, requested=None) -> int:
-    """The width of :func:`lane_choice`."""
-    return lane_choice(mode, device, features, requested)[0]
 
 
 def lane_features(width: int) -> dict:

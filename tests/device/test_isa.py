@@ -110,14 +110,8 @@ def test_probe_says_what_the_compile_has(device, feature):
 
 # ----------------------------------------------------------------------------- no wide vector into the library
 def crossings(runtime, names, defines, machine=None):
-    """The built-in ABI crossings of a program's build log (against ``machine``'s library: the
-    unsafe ones; else all)."""
-    import pyopencl as cl
-
-    prog = runtime.program(names, defines)
-    log = prog.get_build_info(runtime.device, cl.program_build_info.LOG)
-    source = prog.get_info(cl.program_info.SOURCE)
-    return isa.builtin_abi_crossings(log, source) if machine is None else isa.unsafe_crossings(log, source, machine)
+    """The built-in ABI crossings of a program (against ``machine``'s library: the unsafe ones)."""
+    return isa.program_crossings(runtime.program(names, defines), runtime.device, machine)
 
 
 def kernel_builds(device, width):
@@ -140,8 +134,9 @@ def test_no_wide_vector_is_passed_to_a_builtin(device, runtime):
     at 16 lanes: a library of any width reads what they pass."""
     machine = pocl_x86(device)
     width = isa.simd_width(machine)[0]
-    for name, (names, defines) in {**kernel_builds(device, width),
-                                   "lanes at 16": kernel_builds(device, 16)["lanes"]}.items():
+    builds = kernel_builds(device, width)
+    builds["lanes at 16"] = (megakernel.LANES_SOURCES, {**builds["one path"][1], **megakernel.lane_features(16)})
+    for name, (names, defines) in builds.items():
         assert crossings(runtime, names, defines) == [], name
 
 
@@ -164,8 +159,7 @@ def test_the_crossing_check_sees_a_crossing(device, runtime):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         prog = cl.Program(runtime.context, source).build(options=["-DRT_CROSSING_CONTROL"])
-    log = prog.get_build_info(device, cl.program_build_info.LOG)
-    found = {(name, kind) for name, kind, _ in isa.builtin_abi_crossings(log, source)}
+    found = {(name, kind) for name, kind, _ in isa.program_crossings(prog, device)}
     expected = set()
     if "avx512f" not in machine.features:
         expected.add(("_cl_sin", "float16"))
@@ -173,9 +167,9 @@ def test_the_crossing_check_sees_a_crossing(device, runtime):
         expected.add(("_cl_exp", "double4"))
     assert found == expected
     wide = CpuISA(machine.target_cpu, machine.features, 64)
-    assert {(n, k) for n, k, _ in isa.unsafe_crossings(log, source, wide)} == expected
+    assert {(n, k) for n, k, _ in isa.program_crossings(prog, device, wide)} == expected
     same = CpuISA(machine.target_cpu, machine.features, machine.compile_vector_bytes)
-    assert isa.unsafe_crossings(log, source, same) == []
+    assert isa.program_crossings(prog, device, same) == []
 
 
 def test_zen4_like_library_gets_no_unsafe_crossing(device, runtime):
