@@ -1,27 +1,53 @@
-/* Paths in SIMD lanes: PACKET_WIDTH values of one kind (one per path) in a vector, and the
- * arithmetic the lane integrator (cl/render/path_lanes.h) and packet traversal
- * (cl/accel/bvh_packet.h) need on them, for clang on x86 CPUs (PoCL).
+/* Lanes: PACKET_WIDTH values of one kind (one per path) side by side, and the arithmetic the
+ * integrator (cl/render/path.h), the materials, lights and samplers, and the packet traversal
+ * (cl/accel/bvh_packet.h) do on them.  The integrator is written once over these types, as
+ * Mitsuba 3 writes its integrators over DrJit arrays: PACKET_WIDTH 1 (the default: GPUs, the
+ * wavefront stages, the one-path megakernel) makes them float, int and uint; 8 or 16 (x86 CPUs
+ * under PoCL, pyopencl_rt/device/isa.py picks the width) makes them OpenCL vectors.
  *
- * Every function here gives, lane by lane, the bits the scalar code gives for that lane with
+ * Masks (pint): what comparisons give.  At width 1 that is 0 or 1, in vectors 0 or -1 per lane;
+ * combine them with & and | and negate them with pnot() (never ~: ~1 is not false), test them
+ * with pany(), and select with `m ? b : a` (psel, pv3_sel).  PTRUE is an all-true mask.
+ *
+ * Every function here gives, lane by lane, the bits the width-1 code gives for that lane with
  * cpu_builtins.h's builtins (sqrt correctly rounded; fmin/fmax as minnum/maxnum, so NaN operands
- * behave as in the scalar code; dot, cross, length and normalize as defined, products summed
- * left to right; length and normalize of a lane whose squared length could over- or underflow
- * fall back to the scalar function, which rescales).  FP_CONTRACT is off (common.h). */
+ * behave alike; dot, cross, length and normalize as defined, products summed left to right;
+ * length and normalize of a lane whose squared length could over- or underflow fall back to the
+ * scalar function, which rescales), so every width renders the same image.  Library functions
+ * with no inline form (sin, cos, atan2, acos, ...) are called lane by lane (plib1): a vector of
+ * 32 bytes or more never crosses into PoCL's built-in library (issue 22).  FP_CONTRACT is off
+ * (common.h). */
 #ifndef PYOPENCL_RT_LANES_H
 #define PYOPENCL_RT_LANES_H
 
 #include "common.h"
-/* mask_bits8 (vmovmskps) and any8, the 8-wide traversal's mask helpers, serve the lanes too */
-#include "accel/bvh_wide8.h"
-
-#ifndef RT_CPU_BUILTINS
-#error "lanes.h is for clang on x86 (cpu_builtins.h), where the lane kernels run"
-#endif
 
 #ifndef PACKET_WIDTH
-#define PACKET_WIDTH 16
+#define PACKET_WIDTH 1
 #endif
-#if PACKET_WIDTH == 16
+#if PACKET_WIDTH > 1
+#ifndef RT_CPU_BUILTINS
+#error "lanes wider than 1 are for clang on x86 (cpu_builtins.h)"
+#endif
+/* mask_bits8 (vmovmskps) and any8, the 8-wide traversal's mask helpers, serve the lanes too */
+#include "accel/bvh_wide8.h"
+#endif
+
+#if PACKET_WIDTH == 1
+typedef float pfloat;
+typedef int pint;
+typedef uint puint;
+#define PFLOAT(x) ((float)(x))
+#define PINT(x) ((int)(x))
+#define PUINT(x) ((uint)(x))
+#define as_pfloat as_float
+#define as_pint as_int
+#define as_puint as_uint
+#define convert_pfloat(x) ((float)(x))
+#define convert_pint(x) ((int)(x))
+#define convert_puint(x) ((uint)(x))
+#define LANE_IDS 0
+#elif PACKET_WIDTH == 16
 typedef float16 pfloat;
 typedef int16 pint;
 typedef uint16 puint;
@@ -50,7 +76,7 @@ typedef uint8 puint;
 #define convert_puint convert_uint8
 #define LANE_IDS ((int8)(0, 1, 2, 3, 4, 5, 6, 7))
 #else
-#error "PACKET_WIDTH must be 8 or 16"
+#error "PACKET_WIDTH must be 1, 8 or 16"
 #endif
 
 /* lane k of a vector (in memory: used to gather and scatter one lane at a time) */
@@ -61,7 +87,12 @@ typedef uint8 puint;
 /* the mask of the lanes set in bits (bit k: lane k), and back; with AVX-512 one instruction
  * each (vpmovm2d, vpmovd2m), which also lets a comparison's mask register be tested directly
  * instead of being widened to a vector and reduced with shuffles (pany) */
-#if PACKET_WIDTH == 16 && defined(__AVX512DQ__)
+#if PACKET_WIDTH == 1
+RT_INLINE pint pmask(int bits) { return bits & 1; }
+RT_INLINE int pbits(pint m) { return m != 0; }
+RT_INLINE int pany(pint m) { return m != 0; }
+RT_INLINE pint pnot(pint m) { return !m; }
+#elif PACKET_WIDTH == 16 && defined(__AVX512DQ__)
 RT_INLINE pint pmask(int bits) { return __builtin_ia32_cvtmask2d512((ushort)bits); }
 RT_INLINE int pbits(pint m) { return __builtin_ia32_cvtd2mask512(m); }
 RT_INLINE int pany(pint m) { return pbits(m) != 0; }
@@ -75,6 +106,12 @@ RT_INLINE int pbits(pint m) { return mask_bits8(m); }
 RT_INLINE int pany(pint m) { return any8(m); }
 #endif
 #endif
+#if PACKET_WIDTH > 1
+RT_INLINE pint pnot(pint m) { return ~m; }
+#endif
+#define PTRUE PINT(-1)
+/* every lane of m set (of the lanes in `of`) */
+RT_INLINE int pall(pint m) { return !pany(pnot(m)); }
 
 /* base[index[k]] in lane k (every index valid): an AVX-512 gather, else lane by lane.  The
  * structure fields the lanes read are gathered this way (FIELD_INDEX: a field's index in floats). */
@@ -82,7 +119,9 @@ RT_INLINE int pany(pint m) { return any8(m); }
 #define STRIDE_INDEX(type) ((int)(sizeof(type) / 4))
 RT_INLINE pfloat pgather(__global const float *base, pint index)
 {
-#if PACKET_WIDTH == 16 && defined(__AVX512F__)
+#if PACKET_WIDTH == 1
+    return base[index];
+#elif PACKET_WIDTH == 16 && defined(__AVX512F__)
     return __builtin_ia32_gathersiv16sf(PFLOAT(0.0f), base, index, (ushort)0xffff, 4);
 #else
     pfloat r;
@@ -93,7 +132,9 @@ RT_INLINE pfloat pgather(__global const float *base, pint index)
 
 RT_INLINE pint pgather_int(__global const int *base, pint index)
 {
-#if PACKET_WIDTH == 16 && defined(__AVX512F__)
+#if PACKET_WIDTH == 1
+    return base[index];
+#elif PACKET_WIDTH == 16 && defined(__AVX512F__)
     return __builtin_ia32_gathersiv16si(PINT(0), base, index, (ushort)0xffff, 4);
 #else
     pint r;
@@ -102,6 +143,7 @@ RT_INLINE pint pgather_int(__global const int *base, pint index)
 #endif
 }
 
+#if PACKET_WIDTH > 1 /* the packet traversal's (cl/accel/bvh_packet.h) */
 /* v[index[k]] in lane k (index < PACKET_WIDTH): one vpermps / vpermd where the lanes are one register
  * (16 with AVX-512, 8 with AVX2: PERMUTE_IN_REGISTER), else lane by lane */
 #if (PACKET_WIDTH == 16 && defined(__AVX512F__)) || (PACKET_WIDTH == 8 && defined(__AVX2__))
@@ -148,9 +190,17 @@ RT_INLINE pint pcompress_ids(int bits)
 #endif
 }
 
+#endif
+
 RT_INLINE pfloat pabs(pfloat x) { return as_pfloat(as_puint(x) & PUINT(0x7fffffffu)); }
+#if PACKET_WIDTH == 1
+RT_INLINE pfloat pfmin(pfloat a, pfloat b) { return fmin(a, b); }
+RT_INLINE pfloat pfmax(pfloat a, pfloat b) { return fmax(a, b); }
+#else
 RT_INLINE pfloat pfmin(pfloat a, pfloat b) { return __builtin_elementwise_min(a, b); }
 RT_INLINE pfloat pfmax(pfloat a, pfloat b) { return __builtin_elementwise_max(a, b); }
+#endif
+RT_INLINE pfloat pclamp(pfloat x, float lo, float hi) { return pfmin(pfmax(x, PFLOAT(lo)), PFLOAT(hi)); }
 RT_INLINE pfloat pcopysign(pfloat x, pfloat y)
 {
     return as_pfloat((as_puint(x) & PUINT(0x7fffffffu)) | (as_puint(y) & PUINT(0x80000000u)));
@@ -160,7 +210,9 @@ RT_INLINE pint pisinf(pfloat x) { return (as_puint(x) & PUINT(0x7fffffffu)) == P
 /* sqrt, correctly rounded (as sqrtss) */
 RT_INLINE pfloat psqrt(pfloat x)
 {
-#if PACKET_WIDTH == 16 && defined(__AVX512F__)
+#if PACKET_WIDTH == 1
+    return sqrt(x);
+#elif PACKET_WIDTH == 16 && defined(__AVX512F__)
     return __builtin_ia32_sqrtps512(x, 4); /* _MM_FROUND_CUR_DIRECTION */
 #elif defined(__AVX__)
 #if PACKET_WIDTH == 16
@@ -174,6 +226,21 @@ RT_INLINE pfloat psqrt(pfloat x)
     return r;
 #endif
 }
+
+/* f(x) of a library function with no inline form, lane by lane (see the top) */
+#if PACKET_WIDTH == 1
+#define PLIB1(f, x) f(x)
+#define PLIB2(f, x, y) f(x, y)
+#else
+#define PLIB1(f, x) ({ const pfloat x_ = (x); pfloat r_; for (int k_ = 0; k_ < PACKET_WIDTH; ++k_) PLANE(r_, k_) = f(PLANE(x_, k_)); r_; })
+#define PLIB2(f, x, y) ({ const pfloat x_ = (x), y_ = (y); pfloat r_; for (int k_ = 0; k_ < PACKET_WIDTH; ++k_) PLANE(r_, k_) = f(PLANE(x_, k_), PLANE(y_, k_)); r_; })
+#endif
+RT_INLINE pfloat psin(pfloat x) { return PLIB1(sin, x); }
+RT_INLINE pfloat pcos(pfloat x) { return PLIB1(cos, x); }
+RT_INLINE pfloat pacos(pfloat x) { return PLIB1(acos, x); }
+RT_INLINE pfloat patan2(pfloat y, pfloat x) { return PLIB2(atan2, y, x); }
+RT_INLINE pfloat pfloor(pfloat x) { return PLIB1(floor, x); }
+RT_INLINE pint pisfinite(pfloat x) { return (as_puint(x) & PUINT(0x7f800000u)) != PUINT(0x7f800000u); }
 
 /* A 3-vector per lane. */
 typedef struct { pfloat x, y, z; } pvec3;
@@ -195,6 +262,11 @@ RT_INLINE pvec3 pv3_cross(pvec3 a, pvec3 b)
     return pv3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
 RT_INLINE pfloat pv3_max3(pvec3 v) { return pfmax(v.x, pfmax(v.y, v.z)); }
+RT_INLINE pvec3 pv3_from(float3 a) { return pv3_splat(a); } /* width 1: the same vector */
+RT_INLINE pfloat pv3_min3(pvec3 v) { return pfmin(v.x, pfmin(v.y, v.z)); }
+RT_INLINE pvec3 pv3_sel_f(pvec3 a, pfloat b, pint m) { return pv3(m ? b : a.x, m ? b : a.y, m ? b : a.z); }
+RT_INLINE pvec3 pv3_zero(void) { return pv3_splat((float3)(0.0f)); }
+RT_INLINE pint pv3_isfinite(pvec3 v) { return pisfinite(v.x) & pisfinite(v.y) & pisfinite(v.z); }
 RT_INLINE float3 pv3_lane(pvec3 v, int k) { return (float3)(PLANE(v.x, k), PLANE(v.y, k), PLANE(v.z, k)); }
 RT_INLINE void pv3_set_lane(pvec3 *v, int k, float3 a) { PLANE(v->x, k) = a.x; PLANE(v->y, k) = a.y; PLANE(v->z, k) = a.z; }
 
