@@ -61,7 +61,7 @@ def main(argv=None) -> int:
     base = Wavefront(scene, device, width=8, height=8, kernel_mode="megakernel").features
     builds = {"one path": (megakernel.SOURCES, base), "trace": (("accel/trace.cl",), {"BVH_WIDE8": True})}
     for lanes in (8, 16):
-        builds[f"lanes {lanes}"] = (megakernel.LANES_SOURCES, {**base, **megakernel.lane_features(lanes)})
+        builds[f"lanes {lanes}"] = (megakernel.SOURCES, {**base, **megakernel.lane_features(lanes)})
         builds[f"trace packets {lanes}"] = (("accel/trace.cl",), {"BVH_WIDE8": True, "PACKET_WIDTH": lanes})
     rt_dev = runtime(device)
     for name, (names, defines) in builds.items():

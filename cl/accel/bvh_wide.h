@@ -29,35 +29,9 @@
 #define PYOPENCL_RT_BVH_WIDE_H
 
 #include "accel/bvh.h"
+#include "accel/masks.h"
 
-/* PoCL links the OpenCL builtins select, any, fabs, clz and popcount as calls that LLVM leaves
- * out of line (objdump of the kernel: a call and a vzeroupper at every use, dozens per traversal
- * step), so the traversal spells them with operators and clang builtins, which compile to one or
- * two instructions.  SEL(a, b, m) is select(a, b, m) for a mask of -1 / 0 lanes (the vector ?:
- * of OpenCL C tests each lane's sign bit, as select does). */
-#define SEL(a, b, m) ((m) ? (b) : (a))
-#define VMIN(a, b) SEL((b), (a), (a) < (b)) /* any width; operands never NaN (see below) */
-#define VMAX(a, b) SEL((b), (a), (a) > (b))
-RT_INLINE float4 abs4(float4 x) { return as_float4(as_uint4(x) & (uint4)(0x7fffffffu)); }
-RT_INLINE int any4(int4 m) { const int2 p = m.lo | m.hi; return (p.x | p.y) < 0; }
-/* Bit i set where lane i of the mask is set: movmskps where the compiler has it. */
-#if defined(__SSE__) && defined(__clang__)
-RT_INLINE int mask_bits4(int4 m) { return __builtin_ia32_movmskps(as_float4(m)); }
-#else
-RT_INLINE int mask_bits4(int4 m) { return (m.s0 & 1) | (m.s1 & 2) | (m.s2 & 4) | (m.s3 & 8); }
-#endif
-#if defined(__has_builtin)
-#if __has_builtin(__builtin_ctz) && __has_builtin(__builtin_popcount)
-#define WIDE_CLANG_BITS
-#endif
-#endif
-#ifdef WIDE_CLANG_BITS
-RT_INLINE int lowest_bit(int bits) { return __builtin_ctz(bits); }
-RT_INLINE int bit_count(int bits) { return __builtin_popcount(bits); }
-#else
-RT_INLINE int lowest_bit(int bits) { return 31 - clz(bits & -bits); }
-RT_INLINE int bit_count(int bits) { return popcount(bits); }
-#endif
+/* SEL, VMIN, VMAX, abs4, any4, mask_bits4, lowest_bit, bit_count: accel/masks.h */
 
 /* ---------------------------------------------------------------------------------------------
  * Per-ray constants.

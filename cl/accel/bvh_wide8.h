@@ -25,22 +25,7 @@
 /* WideRay, wide_ray, SEL/VMIN/VMAX (any width), lowest_bit, bit_count, WIDE_CODE */
 #include "accel/bvh_wide.h"
 
-/* Bit i set where lane i of the mask is set (-1), and whether any is: with AVX-512 (VL, DQ) one
- * vpmovd2m, so that a comparison's mask register is tested directly; with AVX vmovmskps; else
- * OR reductions. */
-#if defined(__AVX512VL__) && defined(__AVX512DQ__) && defined(__clang__)
-RT_INLINE int mask_bits8(int8 m) { return __builtin_ia32_cvtd2mask256(m); }
-RT_INLINE int any8(int8 m) { return mask_bits8(m) != 0; }
-#else
-#if defined(__AVX__) && defined(__clang__)
-RT_INLINE int mask_bits8(int8 m) { return __builtin_ia32_movmskps256(as_float8(m)); }
-#else
-RT_INLINE int mask_bits8(int8 m) { return mask_bits4(m.lo) | (mask_bits4(m.hi) << 4); }
-#endif
-RT_INLINE int any8(int8 m) { const int4 q = m.lo | m.hi; const int2 p = q.lo | q.hi; return (p.x | p.y) < 0; }
-#endif
-RT_INLINE float8 abs8(float8 x) { return as_float8(as_uint8(x) & (uint8)(0x7fffffffu)); }
-RT_INLINE float lane8(float8 v, int k) { return ((const float *)&v)[k]; }
+/* mask_bits8, any8, abs8, lane8: accel/masks.h */
 
 /* Eight child boxes in one slab test: intersect_children4 with eight lanes (same arithmetic, same
  * conservative widening; see there and "Conservative on purpose" in intersect.h). */

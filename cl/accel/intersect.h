@@ -5,7 +5,7 @@
 #ifndef PYOPENCL_RT_INTERSECT_H
 #define PYOPENCL_RT_INTERSECT_H
 
-#include "common.h"
+#include "render/lanes.h"
 
 /* ---------------------------------------------------------------------------------------------
  * Watertight ray/triangle intersection (Woop, Benthin & Wald, JCGT 2013).
@@ -161,26 +161,27 @@ RT_INLINE float intersect_box(float3 o, float3 inv_d, float3 bmin, float3 bmax, 
  * The discriminant is evaluated as a (r^2 - |f - (b'/a) d|^2) = a (r - l)(r + l), which avoids the
  * cancellation of b'^2 - a cc for a small sphere far away; the roots are q/a and cc/q with
  * q = -(b' + sign(b') sqrt(disc)), which avoids cancellation in -b' +- sqrt(disc)
- * (Haines et al., Ray Tracing Gems ch. 7).  Returns 1 with the nearest root in (tmin, tmax).
+ * (Haines et al., Ray Tracing Gems ch. 7).  Over the lanes (cl/render/lanes.h): returns the mask of
+ * the lanes of `live` with a root in (tmin, tmax), *t set to the nearest there (else unchanged).
  * --------------------------------------------------------------------------------------------- */
-RT_INLINE int intersect_sphere(float3 o, float3 d, float3 center, float radius, float tmin, float tmax, float *t)
+RT_INLINE pint intersect_sphere(pvec3 o, pvec3 d, pvec3 center, pfloat radius, pfloat tmin, pfloat tmax, pfloat *t,
+                               pint live)
 {
-    const float3 f = o - center;
-    const float a = dot(d, d);
-    const float bh = dot(f, d);
-    const float cc = dot(f, f) - radius * radius;
-    const float3 lvec = f - (bh / a) * d;
-    const float l = length(lvec);
-    const float disc = a * (radius - l) * (radius + l);
-    if (disc < 0.0f)
-        return 0;
-    const float q = -(bh + copysign(sqrt(disc), bh));
-    float t0 = q / a, t1 = cc / q;
-    if (q == 0.0f) { t0 = 0.0f; t1 = 0.0f; } /* ray origin at the centre's tangent point: both roots 0 */
-    if (t0 > t1) { float tmp = t0; t0 = t1; t1 = tmp; }
-    if (t0 > tmin && t0 < tmax) { *t = t0; return 1; }
-    if (t1 > tmin && t1 < tmax) { *t = t1; return 1; }
-    return 0;
+    const pvec3 f = pv3_sub(o, center);
+    const pfloat a = pv3_dot(d, d);
+    const pfloat bh = pv3_dot(f, d);
+    const pfloat cc = pv3_dot(f, f) - radius * radius;
+    const pvec3 lvec = pv3_sub(f, pv3_scale(d, bh / a));
+    const pfloat l = pv3_length(lvec, live);
+    const pfloat disc = a * (radius - l) * (radius + l);
+    const pfloat q = -(bh + pcopysign(psqrt(disc), bh));
+    const pint tangent = q == 0.0f; /* ray origin at the centre's tangent point: both roots 0 */
+    const pfloat r0 = tangent ? PFLOAT(0.0f) : q / a, r1 = tangent ? PFLOAT(0.0f) : cc / q;
+    const pfloat t0 = r0 > r1 ? r1 : r0, t1 = r0 > r1 ? r0 : r1;
+    const pint near = (t0 > tmin) & (t0 < tmax);
+    const pint hit = live & (disc >= 0.0f) & (near | ((t1 > tmin) & (t1 < tmax)));
+    *t = hit ? (near ? t0 : t1) : *t;
+    return hit;
 }
 
 #endif

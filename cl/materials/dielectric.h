@@ -30,93 +30,102 @@
  * uniform emitter renders exactly the emitter's radiance.
  *
  *   tint    (the Material's specular field) multiplies both lobes; 1 for clear glass.
+ *
+ * Over the lanes (cl/render/lanes.h): alpha, eta and tint per lane; lanes outside `active`
+ * give 0 (*pdf = 0, *delta = 0).
  */
 #ifndef PYOPENCL_RT_DIELECTRIC_H
 #define PYOPENCL_RT_DIELECTRIC_H
 
 #include "materials/microfacet.h"
 
-RT_INLINE int dielectric_is_smooth(float alpha, float eta)
+/* mask */
+RT_INLINE pint dielectric_is_smooth(pfloat alpha, pfloat eta)
 {
-    return microfacet_is_smooth(alpha) || eta == 1.0f;
+    return microfacet_is_smooth(alpha) | (eta == 1.0f);
 }
 
 /* f * |cos_i| and *pdf for local wo (wo.z >= 0) and wi; eta = relative index seen by wo. */
-RT_INLINE float3 dielectric_eval(float alpha, float eta, float3 tint, float3 wo, float3 wi, float *pdf)
+RT_INLINE pvec3 dielectric_eval(pfloat alpha, pfloat eta, pvec3 tint, pint active, pvec3 wo, pvec3 wi, pfloat *pdf)
 {
-    *pdf = 0.0f;
-    const float cos_o = wo.z, cos_i = wi.z;
-    if (dielectric_is_smooth(alpha, eta) || cos_o <= 0.0f || cos_i == 0.0f) return (float3)(0.0f);
-    const int reflect = cos_i > 0.0f;
-    const float etap = reflect ? 1.0f : eta;
-    float3 h = wo + etap * wi;
-    const float len2 = dot(h, h);
-    if (!(len2 > 1e-12f)) return (float3)(0.0f);
-    h *= rsqrt(len2);
-    if (h.z < 0.0f) h = -h;
-    const float wh = dot(wo, h), ih = dot(wi, h);
+    const pfloat cos_o = wo.z, cos_i = wi.z;
+    pint ok = active & pnot(dielectric_is_smooth(alpha, eta) | (cos_o <= 0.0f) | (cos_i == 0.0f));
+    *pdf = PFLOAT(0.0f);
+    if (!pany(ok)) return pv3_zero();
+    const pint reflect = cos_i > 0.0f;
+    const pfloat etap = reflect ? PFLOAT(1.0f) : eta;
+    pvec3 h = pv3_add(wo, pv3_scale(wi, etap));
+    const pfloat len2 = pv3_dot(h, h);
+    ok &= len2 > 1e-12f;
+    h = pv3_scale(h, microfacet_rsqrt(len2));
+    h = pv3_sel(h, pv3_neg(h), h.z < 0.0f);
+    const pfloat wh = pv3_dot(wo, h), ih = pv3_dot(wi, h);
     /* discard back-facing microfacets */
-    if (wh <= 0.0f || ih * cos_i <= 0.0f) return (float3)(0.0f);
-    const float F = fresnel_dielectric(wh, eta);
-    const float d = ggx_d(h, alpha);
-    const float g = ggx_g2(wo, wi, alpha);
-    const float pdf_h = ggx_vndf_pdf(wo, h, alpha);
-    float f, p;
-    if (reflect) {
-        f = d * g * F / (4.0f * cos_o);
-        p = pdf_h * F / (4.0f * wh);
-    } else {
-        const float den = wh + eta * ih; /* > 0: h is along wo + eta wi */
-        const float den2 = den * den;
-        if (!(den2 > 0.0f)) return (float3)(0.0f);
-        f = d * g * (1.0f - F) * fabs(ih) * wh / (cos_o * den2);
-        p = pdf_h * (1.0f - F) * eta * eta * fabs(ih) / den2;
-    }
-    if (!isfinite(f) || !isfinite(p) || !(p >= 0.0f)) return (float3)(0.0f);
-    *pdf = p;
-    return tint * f;
+    ok &= pnot((wh <= 0.0f) | (ih * cos_i <= 0.0f));
+    const pfloat F = fresnel_dielectric(wh, eta);
+    const pfloat d = ggx_d(h, alpha);
+    const pfloat g = ggx_g2(wo, wi, alpha);
+    const pfloat pdf_h = ggx_vndf_pdf(wo, h, alpha);
+    /* reflection */
+    const pfloat f_r = d * g * F / (4.0f * cos_o);
+    const pfloat p_r = pdf_h * F / (4.0f * wh);
+    /* transmission */
+    const pfloat den = wh + eta * ih; /* > 0: h is along wo + eta wi */
+    const pfloat den2 = den * den;
+    const pfloat f_t = d * g * (1.0f - F) * pabs(ih) * wh / (cos_o * den2);
+    const pfloat p_t = pdf_h * (1.0f - F) * eta * eta * pabs(ih) / den2;
+    ok &= reflect | (den2 > 0.0f);
+    const pfloat f = reflect ? f_r : f_t, p = reflect ? p_r : p_t;
+    ok &= pisfinite(f) & pisfinite(p) & (p >= 0.0f);
+    *pdf = ok ? p : PFLOAT(0.0f);
+    return pv3_sel(pv3_zero(), pv3_scale(tint, f), ok);
 }
 
-/* Samples wi from u (u.xy: the microfacet normal, u.z: reflection or refraction); returns
- * f |cos| / pdf, sets *pdf (0 for delta samples and failures) and *delta. */
-RT_INLINE float3 dielectric_sample(float alpha, float eta, float3 tint, float3 wo, float3 u, float3 *wi, float *pdf,
-                                   int *delta)
+/* Samples wi from (u0, u1) (the microfacet normal) and u2 (reflection or refraction); returns
+ * f |cos| / pdf, sets *pdf (0 for delta samples and failures) and *delta (mask).  *wi: the
+ * sampled direction, also where the sample failed after drawing one; (0, 0, 1) where none was
+ * drawn (wo below the surface, total internal reflection of a refraction, a back-facing
+ * microfacet normal, lanes outside `active`). */
+RT_INLINE pvec3 dielectric_sample(pfloat alpha, pfloat eta, pvec3 tint, pint active, pvec3 wo, pfloat u0, pfloat u1,
+                                  pfloat u2, pvec3 *wi, pfloat *pdf, pint *delta)
 {
-    *pdf = 0.0f;
-    *delta = 0;
-    if (wo.z <= 0.0f) return (float3)(0.0f);
-    if (dielectric_is_smooth(alpha, eta)) {
-        const float F = fresnel_dielectric(wo.z, eta);
-        *delta = 1;
-        if (u.z < F) {
-            *wi = (float3)(-wo.x, -wo.y, wo.z);
-            return tint;
-        }
-        if (!refract_about(wo, (float3)(0.0f, 0.0f, 1.0f), eta, wi)) { *delta = 0; return (float3)(0.0f); }
-        return tint / (eta * eta);
+    const pint up = active & pnot(wo.z <= 0.0f);
+    const pint smooth = dielectric_is_smooth(alpha, eta);
+    const pint rough = up & pnot(smooth);
+    /* the microfacet normal: the normal itself for the smooth interface */
+    pvec3 h = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f));
+    if (pany(rough)) h = pv3_sel(h, ggx_sample_vndf(wo, alpha, u0, u1, rough), rough);
+    const pfloat wh = pv3_dot(wo, h);
+    const pint facing = smooth | pnot(wh <= 0.0f); /* rough: a back-facing h fails */
+    const pfloat F = fresnel_dielectric(smooth ? wo.z : wh, eta);
+    const pint refl = u2 < F;
+    pvec3 t;
+    const pint tok = refract_about(wo, h, eta, &t, up & facing & pnot(refl));
+    const pvec3 r = pv3_sel(reflect_about(wo, h), pv3(-wo.x, -wo.y, wo.z), smooth);
+    const pvec3 none = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f));
+    const pvec3 li = pv3_sel(none, pv3_sel(t, r, refl), up & facing & (refl | tok));
+    const pint sd = up & smooth & (refl | tok); /* a delta sample */
+    /* the smooth interface's weight: tint, or tint / eta^2 refracted */
+    pvec3 w = pv3_sel(pv3_div(tint, eta * eta), tint, refl);
+    pfloat p = PFLOAT(0.0f);
+    pint ok = sd;
+    if (pany(rough)) {
+        const pfloat pdf_h = ggx_vndf_pdf(wo, h, alpha);
+        const pfloat ih = pv3_dot(li, h);
+        const pfloat den = wh + eta * ih;
+        const pfloat pr = refl ? pdf_h * F / (4.0f * wh) : pdf_h * (1.0f - F) * eta * eta * pabs(ih) / (den * den);
+        pfloat wr = ggx_g2_over_g1(wo, pv3_sel(pv3_neg(li), li, refl), alpha);
+        wr = refl ? wr : wr / (eta * eta);
+        const pint rok = rough & facing & (refl ? pnot(li.z <= 0.0f) : tok & pnot(li.z >= 0.0f)) & (pr > 0.0f) &
+                         pisfinite(pr) & pisfinite(wr);
+        w = pv3_sel(w, pv3_scale(tint, wr), rough);
+        p = rok ? pr : p;
+        ok |= rok;
     }
-    const float3 h = ggx_sample_vndf(wo, alpha, u.xy);
-    const float wh = dot(wo, h);
-    if (wh <= 0.0f) return (float3)(0.0f);
-    const float F = fresnel_dielectric(wh, eta);
-    const float pdf_h = ggx_vndf_pdf(wo, h, alpha);
-    float p;
-    float w;
-    if (u.z < F) {
-        *wi = reflect_about(wo, h);
-        if (wi->z <= 0.0f) return (float3)(0.0f);
-        p = pdf_h * F / (4.0f * wh);
-        w = ggx_g2_over_g1(wo, *wi, alpha);
-    } else {
-        if (!refract_about(wo, h, eta, wi) || wi->z >= 0.0f) return (float3)(0.0f);
-        const float ih = dot(*wi, h);
-        const float den = wh + eta * ih;
-        p = pdf_h * (1.0f - F) * eta * eta * fabs(ih) / (den * den);
-        w = ggx_g2_over_g1(wo, -*wi, alpha) / (eta * eta);
-    }
-    if (!(p > 0.0f) || !isfinite(p) || !isfinite(w)) return (float3)(0.0f);
+    *wi = li;
     *pdf = p;
-    return tint * w;
+    *delta = sd;
+    return pv3_sel(pv3_zero(), w, ok);
 }
 
 #endif

@@ -6,6 +6,9 @@
  * the sample weight f * cos / pdf is exactly the albedo.
  *
  * Parameters: albedo (linear RGB in [0, 1]).
+ *
+ * Over the lanes (cl/render/lanes.h), as every material: lanes outside `active` give 0 (and
+ * *pdf = 0; diffuse_sample sets their *wi to n).
  */
 #ifndef PYOPENCL_RT_DIFFUSE_H
 #define PYOPENCL_RT_DIFFUSE_H
@@ -13,24 +16,25 @@
 #include "render/sampling.h"
 
 /* n is the unit normal on the side of wo.  Returns f * |cos(theta_i)|, sets *pdf. */
-RT_INLINE float3 diffuse_eval(float3 albedo, float3 n, float3 wi, float *pdf)
+RT_INLINE pvec3 diffuse_eval(pvec3 albedo, pint active, pvec3 n, pvec3 wi, pfloat *pdf)
 {
-    const float cos_i = dot(n, wi);
-    if (cos_i <= 0.0f) { *pdf = 0.0f; return (float3)(0.0f); }
-    *pdf = cos_i * INV_PI_F;
-    return albedo * (cos_i * INV_PI_F);
+    const pfloat cos_i = pv3_dot(n, wi);
+    const pint ok = active & pnot(cos_i <= 0.0f);
+    *pdf = ok ? cos_i * INV_PI_F : PFLOAT(0.0f);
+    return pv3_sel(pv3_zero(), pv3_scale(albedo, cos_i * INV_PI_F), ok);
 }
 
-/* Samples wi; returns the weight f * cos / pdf (= albedo) and sets *pdf. */
-RT_INLINE float3 diffuse_sample(float3 albedo, float3 n, float2 u, float3 *wi, float *pdf)
+/* Samples wi from (u0, u1); returns the weight f * cos / pdf (= albedo) and sets *pdf. */
+RT_INLINE pvec3 diffuse_sample(pvec3 albedo, pint active, pvec3 n, pfloat u0, pfloat u1, pvec3 *wi, pfloat *pdf)
 {
-    float3 t, b;
+    pvec3 t, b;
     make_onb(n, &t, &b);
-    const float3 h = sample_cosine_hemisphere(u);
-    *wi = normalize(to_world(h, t, b, n));
-    *pdf = pdf_cosine_hemisphere(h.z);
-    if (*pdf <= 0.0f) return (float3)(0.0f);
-    return albedo;
+    const pvec3 h = sample_cosine_hemisphere(u0, u1);
+    *wi = pv3_sel(n, pv3_normalize(to_world(h, t, b, n), active), active);
+    const pfloat p = pdf_cosine_hemisphere(h.z);
+    const pint ok = active & pnot(p <= 0.0f);
+    *pdf = active ? p : PFLOAT(0.0f);
+    return pv3_sel(pv3_zero(), albedo, ok);
 }
 
 #endif

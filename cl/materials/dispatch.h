@@ -1,27 +1,46 @@
-/* BSDF dispatch on Material.type.  Each material lives in cl/materials/<name>.h with its
- * documentation at the top; this file only routes calls and unpacks the Material record
- * (pyopencl_rt/device/abi.py documents its fields).
+/* BSDF dispatch on Material.type, over the lanes (cl/render/lanes.h).  Each material lives in
+ * cl/materials/<name>.h with its documentation at the top; this file only gathers the Material
+ * records into the lanes (pyopencl_rt/device/abi.py documents their fields) and routes calls.
  *
  * Materials compiled in: all of them, unless the host defines MATERIALS_SELECTED together with
  * HAS_MATERIAL_<NAME> for the types a scene uses (Scene.material_defines() gives that set), so
- * a scene need pay only for what it uses.  MATERIAL_DIFFUSE is always compiled (the fallback).
+ * a scene need pay only for what it uses.  MATERIAL_DIFFUSE is always compiled (the fallback:
+ * a type not compiled in shades as diffuse).
  *
- * Interface (used by cl/wavefront/shade.cl):
+ * Dispatch over lanes: a material type's code runs when some active lane has that type (pany),
+ * over all lanes, and its results are selected into the lanes of that type.  Each lane gets
+ * exactly what the one-material (width-1) code computes for it, so every width gives the same
+ * bits.
+ *
+ * Interface (used by cl/render/path.h; all arguments per lane; masks as lanes.h defines them):
+ *   m      the lanes' materials: material_lanes(materials, index) gathers the records
+ *          (textures are applied to them by the caller, cl/scene/textures.h)
+ *   active the mask of the lanes to compute; the others give weight / f 0, *pdf 0, *delta 0
+ *          (bsdf_sample sets their *wi to n)
  *   n      the unit geometric normal flipped to wo's side
- *   front  1 when wo lies on the side the geometric normal points to (the outside: a sphere's
- *          outward normal, a triangle's (v1 - v0) x (v2 - v0)); dielectrics refract into the
- *          inside then, with relative index ior, else out of it with 1 / ior
+ *   front  mask: the lanes where wo lies on the side the geometric normal points to (the
+ *          outside: a sphere's outward normal, a triangle's (v1 - v0) x (v2 - v0)); dielectrics
+ *          refract into the inside then, with relative index ior, else out of it with 1 / ior
  *   wo, wi unit directions away from the surface (toward the viewer / toward the light)
  *
- *   bsdf_eval(m, n, front, wo, wi, &pdf)   f(wo, wi) |cos(theta_i)|, and the solid-angle pdf of
- *            bsdf_sample drawing wi; both 0 for delta (perfectly specular) lobes
- *   bsdf_sample(m, n, front, wo, u, &wi, &pdf, &delta)   draws wi from u in [0,1)^3 (u.xy: the
- *            direction, u.z: the choice of lobe / reflection or refraction) and returns the
- *            weight f |cos| / pdf.  *delta = 1 for a sample of a delta lobe: then *pdf is 0
- *            (no density exists; callers skip MIS and treat the next emitter hit as seen by a
- *            specular path) and the weight is the lobe's (Fresnel) factor over its selection
- *            probability.  A failed sample returns weight 0 with *pdf = 0 and *delta = 0.
- *   bsdf_has_nondelta_lobes(m)  0 when every lobe is a delta lobe (light sampling is useless)
+ *   bsdf_eval(m, active, n, front, wo, wi, &pdf)   f(wo, wi) |cos(theta_i)|, and the solid-angle
+ *            pdf of bsdf_sample drawing wi; both 0 for delta (perfectly specular) lobes
+ *   bsdf_sample(m, active, n, front, wo, u0, u1, u2, &wi, &pdf, &delta)   draws wi from u0, u1,
+ *            u2 in [0, 1) (u0, u1: the direction, u2: the choice of lobe / reflection or
+ *            refraction) and returns the weight f |cos| / pdf.  *delta (mask) is set for a
+ *            sample of a delta lobe: then *pdf is 0 (no density exists; callers skip MIS and
+ *            treat the next emitter hit as seen by a specular path) and the weight is the
+ *            lobe's (Fresnel) factor over its selection probability.  A failed sample returns
+ *            weight 0 with *pdf = 0 and *delta = 0 (a non-finite weight or direction of a
+ *            non-diffuse lobe, too); its *wi means nothing.
+ *   bsdf_has_nondelta_lobes(m)  mask: 0 where every lobe is a delta lobe (light sampling is
+ *            useless)
+ *   dielectric_eta(m, front)   the relative index eta = eta_t / eta_i seen by wo (ior or
+ *            1 / ior; 1 for ior <= 0): a refracted sample scales radiance by 1 / eta^2
+ *   material_albedo_aov(m, n, wo)   the albedo guide of cl/render/aov.h: the surface's
+ *            reflectance seen from wo, clamped to [0, 1] (diffuse: its albedo; conductor: its
+ *            Fresnel reflectance at the viewing angle; dielectric: its tint; glTF: the specular
+ *            Fresnel term plus the diffuse base's share)
  */
 #ifndef PYOPENCL_RT_BSDF_H
 #define PYOPENCL_RT_BSDF_H
@@ -39,119 +58,234 @@
 #define HAS_MATERIAL_GLTF
 #endif
 
-RT_INLINE float3 material_albedo(__global const Material *m) { return vload3(0, m->albedo); }
-RT_INLINE float3 material_emission(__global const Material *m) { return vload3(0, m->emission); }
+/* The Material records' fields, per lane. */
+typedef struct {
+    pint type, flags;
+    pvec3 albedo, emission, specular, eta, k;
+    pfloat alpha, metallic, ior;
+    pint tex_base, tex_mr, tex_emission; /* texture indices, -1 none */
+} MaterialLanes;
 
-RT_INLINE ConductorParams conductor_params(__global const Material *m)
+RT_INLINE pvec3 material_gather3(__global const float *f, pint i)
+{
+    return pv3(pgather(f, i), pgather(f, i + 1), pgather(f, i + 2));
+}
+
+/* materials[index] in each lane (index valid in every lane) */
+RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint index)
+{
+    __global const float *f = (__global const float *)materials;
+    __global const int *n = (__global const int *)materials;
+    const pint i = index * STRIDE_INDEX(Material);
+    MaterialLanes m;
+    m.type = pgather_int(n, i + FIELD_INDEX(Material, type));
+    m.flags = pgather_int(n, i + FIELD_INDEX(Material, flags));
+    m.albedo = material_gather3(f, i + FIELD_INDEX(Material, albedo));
+    m.emission = material_gather3(f, i + FIELD_INDEX(Material, emission));
+    m.specular = material_gather3(f, i + FIELD_INDEX(Material, specular));
+    m.eta = material_gather3(f, i + FIELD_INDEX(Material, eta));
+    m.k = material_gather3(f, i + FIELD_INDEX(Material, k));
+    m.alpha = pgather(f, i + FIELD_INDEX(Material, alpha));
+    m.metallic = pgather(f, i + FIELD_INDEX(Material, metallic));
+    m.ior = pgather(f, i + FIELD_INDEX(Material, ior));
+    m.tex_base = pgather_int(n, i + FIELD_INDEX(Material, tex_base));
+    m.tex_mr = pgather_int(n, i + FIELD_INDEX(Material, tex_mr));
+    m.tex_emission = pgather_int(n, i + FIELD_INDEX(Material, tex_emission));
+    return m;
+}
+
+RT_INLINE ConductorParams conductor_params(const MaterialLanes *m)
 {
     ConductorParams c;
-    c.f0 = vload3(0, m->specular);
-    c.eta = vload3(0, m->eta);
-    c.k = vload3(0, m->k);
+    c.f0 = m->specular;
+    c.eta = m->eta;
+    c.k = m->k;
     c.alpha = m->alpha;
     c.schlick = (m->flags & MATERIAL_FLAG_CONDUCTOR_F0) != 0;
     return c;
 }
 
-RT_INLINE GltfParams gltf_params(__global const Material *m)
+RT_INLINE GltfParams gltf_params(const MaterialLanes *m)
 {
     GltfParams g;
-    g.base = vload3(0, m->albedo);
-    g.metallic = clamp(m->metallic, 0.0f, 1.0f);
+    g.base = m->albedo;
+    g.metallic = pclamp(m->metallic, 0.0f, 1.0f);
     g.alpha = m->alpha;
-    const float r = (m->ior - 1.0f) / (m->ior + 1.0f);
-    g.f0d = isfinite(r) ? r * r : 0.0f;
+    const pfloat r = (m->ior - 1.0f) / (m->ior + 1.0f);
+    g.f0d = pisfinite(r) ? r * r : PFLOAT(0.0f);
     return g;
 }
 
-RT_INLINE float dielectric_eta(__global const Material *m, int front)
+RT_INLINE pfloat dielectric_eta(const MaterialLanes *m, pint front)
 {
-    const float ior = m->ior > 0.0f ? m->ior : 1.0f;
+    const pfloat ior = m->ior > 0.0f ? m->ior : PFLOAT(1.0f);
     return front ? ior : 1.0f / ior;
 }
 
-RT_INLINE int bsdf_has_nondelta_lobes(__global const Material *m)
+RT_INLINE pint bsdf_has_nondelta_lobes(const MaterialLanes *m)
 {
-    switch (m->type) {
+    pint r = pnot(PINT(0)); /* diffuse, and any type not compiled in */
 #ifdef HAS_MATERIAL_CONDUCTOR
-    case MATERIAL_CONDUCTOR: return !microfacet_is_smooth(m->alpha);
+    r = m->type == MATERIAL_CONDUCTOR ? pnot(microfacet_is_smooth(m->alpha)) : r;
 #endif
 #ifdef HAS_MATERIAL_DIELECTRIC
-    case MATERIAL_DIELECTRIC: return !dielectric_is_smooth(m->alpha, m->ior);
+    r = m->type == MATERIAL_DIELECTRIC ? pnot(dielectric_is_smooth(m->alpha, m->ior)) : r;
 #endif
 #ifdef HAS_MATERIAL_GLTF
-    case MATERIAL_GLTF: return !microfacet_is_smooth(m->alpha) || m->metallic < 1.0f;
+    r = m->type == MATERIAL_GLTF ? pnot(microfacet_is_smooth(m->alpha)) | (m->metallic < 1.0f) : r;
 #endif
-    default: return 1;
-    }
+    return r;
 }
 
-RT_INLINE float3 bsdf_eval(__global const Material *m, float3 n, int front, float3 wo, float3 wi, float *pdf)
+/* The active lanes of each type compiled in, and the others (diffuse, and any type not compiled
+ * in, which shades as diffuse). */
+typedef struct { pint conductor, dielectric, gltf, diffuse; } MaterialMasks;
+
+RT_INLINE MaterialMasks material_masks(const MaterialLanes *m, pint active)
 {
-    const int type = m->type;
-    if (type == MATERIAL_DIFFUSE) return diffuse_eval(material_albedo(m), n, wi, pdf);
-    float3 t, b;
-    make_onb(n, &t, &b);
-    const float3 lo = to_local(wo, t, b, n), li = to_local(wi, t, b, n);
+    MaterialMasks k;
+    k.conductor = k.dielectric = k.gltf = PINT(0);
+    pint other = PINT(0);
 #ifdef HAS_MATERIAL_CONDUCTOR
-    if (type == MATERIAL_CONDUCTOR) {
-        const ConductorParams c = conductor_params(m);
-        return conductor_eval(&c, lo, li, pdf);
-    }
+    k.conductor = active & (m->type == MATERIAL_CONDUCTOR);
+    other |= k.conductor;
 #endif
 #ifdef HAS_MATERIAL_DIELECTRIC
-    if (type == MATERIAL_DIELECTRIC)
-        return dielectric_eval(m->alpha, dielectric_eta(m, front), vload3(0, m->specular), lo, li, pdf);
+    k.dielectric = active & (m->type == MATERIAL_DIELECTRIC);
+    other |= k.dielectric;
 #endif
 #ifdef HAS_MATERIAL_GLTF
-    if (type == MATERIAL_GLTF) {
-        const GltfParams g = gltf_params(m);
-        return gltf_eval(&g, lo, li, pdf);
-    }
+    k.gltf = active & (m->type == MATERIAL_GLTF);
+    other |= k.gltf;
 #endif
-    return diffuse_eval(material_albedo(m), n, wi, pdf);
+    k.diffuse = active & pnot(other);
+    return k;
 }
 
-RT_INLINE float3 bsdf_sample(__global const Material *m, float3 n, int front, float3 wo, float3 u, float3 *wi,
-                             float *pdf, int *delta)
+RT_INLINE pvec3 bsdf_eval(const MaterialLanes *m, pint active, pvec3 n, pint front, pvec3 wo, pvec3 wi, pfloat *pdf)
 {
-    const int type = m->type;
-    *delta = 0;
-    if (type == MATERIAL_DIFFUSE) return diffuse_sample(material_albedo(m), n, u.xy, wi, pdf);
-    float3 t, b;
-    make_onb(n, &t, &b);
-    const float3 lo = to_local(wo, t, b, n);
-    float3 li = (float3)(0.0f, 0.0f, 1.0f);
-    float3 w;
-    int handled = 0;
+    const MaterialMasks k = material_masks(m, active);
+    pvec3 f = pv3_zero();
+    pfloat p = PFLOAT(0.0f);
+    if (pany(k.diffuse)) f = diffuse_eval(m->albedo, k.diffuse, n, wi, &p);
+    if (pany(k.conductor | k.dielectric | k.gltf)) {
+        pvec3 t, b;
+        make_onb(n, &t, &b);
+        const pvec3 lo = to_local(wo, t, b, n), li = to_local(wi, t, b, n);
+        pfloat q;
+        pvec3 g;
 #ifdef HAS_MATERIAL_CONDUCTOR
-    if (type == MATERIAL_CONDUCTOR) {
-        const ConductorParams c = conductor_params(m);
-        w = conductor_sample(&c, lo, u, &li, pdf, delta);
-        handled = 1;
-    }
+        if (pany(k.conductor)) {
+            const ConductorParams c = conductor_params(m);
+            g = conductor_eval(&c, k.conductor, lo, li, &q);
+            f = pv3_sel(f, g, k.conductor);
+            p = k.conductor ? q : p;
+        }
 #endif
 #ifdef HAS_MATERIAL_DIELECTRIC
-    if (type == MATERIAL_DIELECTRIC) {
-        w = dielectric_sample(m->alpha, dielectric_eta(m, front), vload3(0, m->specular), lo, u, &li, pdf, delta);
-        handled = 1;
-    }
+        if (pany(k.dielectric)) {
+            g = dielectric_eval(m->alpha, dielectric_eta(m, front), m->specular, k.dielectric, lo, li, &q);
+            f = pv3_sel(f, g, k.dielectric);
+            p = k.dielectric ? q : p;
+        }
 #endif
 #ifdef HAS_MATERIAL_GLTF
-    if (type == MATERIAL_GLTF) {
-        const GltfParams g = gltf_params(m);
-        w = gltf_sample(&g, lo, u, &li, pdf, delta);
-        handled = 1;
-    }
+        if (pany(k.gltf)) {
+            const GltfParams gp = gltf_params(m);
+            g = gltf_eval(&gp, k.gltf, lo, li, &q);
+            f = pv3_sel(f, g, k.gltf);
+            p = k.gltf ? q : p;
+        }
 #endif
-    if (!handled) return diffuse_sample(material_albedo(m), n, u.xy, wi, pdf);
-    *wi = normalize(to_world(li, t, b, n));
-    if (!isfinite(w.x + w.y + w.z) || !isfinite(wi->x + wi->y + wi->z)) {
-        *pdf = 0.0f;
-        *delta = 0;
-        return (float3)(0.0f);
     }
+    *pdf = p;
+    return f;
+}
+
+RT_INLINE pvec3 bsdf_sample(const MaterialLanes *m, pint active, pvec3 n, pint front, pvec3 wo, pfloat u0, pfloat u1,
+                            pfloat u2, pvec3 *wi, pfloat *pdf, pint *delta)
+{
+    const MaterialMasks k = material_masks(m, active);
+    pvec3 w = pv3_zero();
+    pfloat p = PFLOAT(0.0f);
+    pint dl = PINT(0);
+    *wi = n;
+    if (pany(k.diffuse)) w = diffuse_sample(m->albedo, k.diffuse, n, u0, u1, wi, &p);
+    const pint framed = k.conductor | k.dielectric | k.gltf;
+    if (pany(framed)) {
+        pvec3 t, b;
+        make_onb(n, &t, &b);
+        const pvec3 lo = to_local(wo, t, b, n);
+        pvec3 li = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f)), wl = li, g = pv3_zero();
+        pfloat ql = PFLOAT(0.0f), q;
+        pint dd = PINT(0), d;
+#ifdef HAS_MATERIAL_CONDUCTOR
+        if (pany(k.conductor)) {
+            const ConductorParams c = conductor_params(m);
+            g = pv3_sel(g, conductor_sample(&c, k.conductor, lo, u0, u1, &wl, &q, &d), k.conductor);
+            li = pv3_sel(li, wl, k.conductor);
+            ql = k.conductor ? q : ql;
+            dd = k.conductor ? d : dd;
+        }
+#endif
+#ifdef HAS_MATERIAL_DIELECTRIC
+        if (pany(k.dielectric)) {
+            g = pv3_sel(g, dielectric_sample(m->alpha, dielectric_eta(m, front), m->specular, k.dielectric, lo, u0, u1,
+                                             u2, &wl, &q, &d),
+                        k.dielectric);
+            li = pv3_sel(li, wl, k.dielectric);
+            ql = k.dielectric ? q : ql;
+            dd = k.dielectric ? d : dd;
+        }
+#endif
+#ifdef HAS_MATERIAL_GLTF
+        if (pany(k.gltf)) {
+            const GltfParams gp = gltf_params(m);
+            g = pv3_sel(g, gltf_sample(&gp, k.gltf, lo, u0, u1, u2, &wl, &q, &d), k.gltf);
+            li = pv3_sel(li, wl, k.gltf);
+            ql = k.gltf ? q : ql;
+            dd = k.gltf ? d : dd;
+        }
+#endif
+        const pvec3 ww = pv3_normalize(to_world(li, t, b, n), framed);
+        /* a non-finite weight or direction fails the sample */
+        const pint bad = pnot(pisfinite(g.x + g.y + g.z)) | pnot(pisfinite(ww.x + ww.y + ww.z));
+        const pint good = framed & pnot(bad);
+        *wi = pv3_sel(*wi, ww, framed);
+        w = pv3_sel(pv3_sel(w, pv3_zero(), framed), g, good);
+        p = good ? ql : (framed ? PFLOAT(0.0f) : p);
+        dl = good & dd;
+    }
+    *pdf = p;
+    *delta = dl;
     return w;
+}
+
+/* The albedo guide of cl/render/aov.h for the lanes' hits (n on wo's side). */
+RT_INLINE pvec3 material_albedo_aov(const MaterialLanes *m, pvec3 n, pvec3 wo)
+{
+    const pfloat cos_o = pclamp(pv3_dot(n, wo), 0.0f, 1.0f);
+    pvec3 a = m->albedo;
+#ifdef HAS_MATERIAL_CONDUCTOR
+    const pint mc = m->type == MATERIAL_CONDUCTOR;
+    if (pany(mc)) {
+        const ConductorParams c = conductor_params(m);
+        a = pv3_sel(a, conductor_fresnel(&c, cos_o), mc);
+    }
+#endif
+#ifdef HAS_MATERIAL_DIELECTRIC
+    a = pv3_sel(a, m->specular, m->type == MATERIAL_DIELECTRIC);
+#endif
+#ifdef HAS_MATERIAL_GLTF
+    const pint mg = m->type == MATERIAL_GLTF;
+    if (pany(mg)) {
+        const GltfParams g = gltf_params(m);
+        const pfloat s = 1.0f - fresnel_schlick1(g.f0d, cos_o);
+        const pvec3 d = pv3_scale(pv3_scale(g.base, 1.0f - g.metallic), s); /* (1 - metallic) base (1 - Fd) */
+        a = pv3_sel(a, pv3_add(fresnel_schlick(gltf_f0(&g), cos_o), d), mg);
+    }
+#endif
+    return pv3(pclamp(a.x, 0.0f, 1.0f), pclamp(a.y, 0.0f, 1.0f), pclamp(a.z, 0.0f, 1.0f));
 }
 
 #endif

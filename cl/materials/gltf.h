@@ -26,6 +26,9 @@
  * (one-sample MIS over the lobes), the weight f cos_i / pdf.  With a smooth specular layer the
  * mirror direction is a delta sample (weight F(cos_o) / p_s) and eval/pdf cover the diffuse
  * lobe only: pdf = (1 - p_s) cos_i / pi.
+ *
+ * Over the lanes (cl/render/lanes.h): GltfParams holds each lane's parameters; lanes outside
+ * `active` give 0 (*pdf = 0, *delta = 0).
  */
 #ifndef PYOPENCL_RT_GLTF_H
 #define PYOPENCL_RT_GLTF_H
@@ -33,85 +36,89 @@
 #include "materials/microfacet.h"
 
 typedef struct {
-    float3 base;
-    float metallic, alpha, f0d;
+    pvec3 base;
+    pfloat metallic, alpha, f0d;
 } GltfParams;
 
-RT_INLINE float gltf_luminance(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+RT_INLINE pfloat gltf_luminance(pvec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 
-RT_INLINE float3 gltf_f0(const GltfParams *g) { return mix((float3)(g->f0d), g->base, g->metallic); }
-
-/* probability of sampling the specular lobe for wo */
-RT_INLINE float gltf_spec_prob(const GltfParams *g, float cos_o)
+/* mix(f0d, base, metallic) */
+RT_INLINE pvec3 gltf_f0(const GltfParams *g)
 {
-    const float ws = gltf_luminance(fresnel_schlick(gltf_f0(g), cos_o));
-    const float wd = (1.0f - g->metallic) * gltf_luminance(g->base) * (1.0f - fresnel_schlick1(g->f0d, cos_o));
-    const float sum = ws + wd;
-    return sum > 0.0f ? clamp(ws / sum, 0.0f, 1.0f) : 1.0f;
+    const pfloat f = g->f0d, t = g->metallic;
+    return pv3(f + (g->base.x - f) * t, f + (g->base.y - f) * t, f + (g->base.z - f) * t);
 }
 
-RT_INLINE float3 gltf_diffuse(const GltfParams *g, float cos_o, float cos_i)
+/* probability of sampling the specular lobe for wo */
+RT_INLINE pfloat gltf_spec_prob(const GltfParams *g, pfloat cos_o)
 {
-    return g->base * ((1.0f - g->metallic) * INV_PI_F * (1.0f - fresnel_schlick1(g->f0d, cos_o)) *
-                      (1.0f - fresnel_schlick1(g->f0d, cos_i)));
+    const pfloat ws = gltf_luminance(fresnel_schlick(gltf_f0(g), cos_o));
+    const pfloat wd = (1.0f - g->metallic) * gltf_luminance(g->base) * (1.0f - fresnel_schlick1(g->f0d, cos_o));
+    const pfloat sum = ws + wd;
+    return sum > 0.0f ? pclamp(ws / sum, 0.0f, 1.0f) : PFLOAT(1.0f);
+}
+
+RT_INLINE pvec3 gltf_diffuse(const GltfParams *g, pfloat cos_o, pfloat cos_i)
+{
+    return pv3_scale(g->base, (1.0f - g->metallic) * INV_PI_F * (1.0f - fresnel_schlick1(g->f0d, cos_o)) *
+                                  (1.0f - fresnel_schlick1(g->f0d, cos_i)));
 }
 
 /* f * cos_i and *pdf for local wo, wi. */
-RT_INLINE float3 gltf_eval(const GltfParams *g, float3 wo, float3 wi, float *pdf)
+RT_INLINE pvec3 gltf_eval(const GltfParams *g, pint active, pvec3 wo, pvec3 wi, pfloat *pdf)
 {
-    *pdf = 0.0f;
-    const float cos_o = wo.z, cos_i = wi.z;
-    if (cos_o <= 0.0f || cos_i <= 0.0f) return (float3)(0.0f);
-    const float ps = gltf_spec_prob(g, cos_o);
-    float3 f = gltf_diffuse(g, cos_o, cos_i) * cos_i;
-    float p = (1.0f - ps) * cos_i * INV_PI_F;
-    if (!microfacet_is_smooth(g->alpha)) {
-        const float3 hs = wo + wi;
-        const float len2 = dot(hs, hs);
-        if (len2 > 1e-12f) {
-            const float3 h = hs * rsqrt(len2);
-            const float wh = dot(wo, h);
-            if (wh > 0.0f) {
-                const float3 fs = fresnel_schlick(gltf_f0(g), wh) *
-                                  (ggx_d(h, g->alpha) * ggx_g2(wo, wi, g->alpha) / (4.0f * cos_o));
-                const float ph = ggx_vndf_pdf(wo, h, g->alpha) / (4.0f * wh);
-                if (isfinite(fs.x + fs.y + fs.z) && isfinite(ph)) {
-                    f += fs;
-                    p += ps * ph;
-                }
-            }
-        }
+    const pfloat cos_o = wo.z, cos_i = wi.z;
+    const pint ok = active & pnot((cos_o <= 0.0f) | (cos_i <= 0.0f));
+    *pdf = PFLOAT(0.0f);
+    if (!pany(ok)) return pv3_zero();
+    const pfloat ps = gltf_spec_prob(g, cos_o);
+    pvec3 f = pv3_scale(gltf_diffuse(g, cos_o, cos_i), cos_i);
+    pfloat p = (1.0f - ps) * cos_i * INV_PI_F;
+    const pint rough = ok & pnot(microfacet_is_smooth(g->alpha));
+    if (pany(rough)) {
+        const pvec3 hs = pv3_add(wo, wi);
+        const pfloat len2 = pv3_dot(hs, hs);
+        const pvec3 h = pv3_scale(hs, microfacet_rsqrt(len2));
+        const pfloat wh = pv3_dot(wo, h);
+        const pvec3 fs = pv3_scale(fresnel_schlick(gltf_f0(g), wh),
+                                   ggx_d(h, g->alpha) * ggx_g2(wo, wi, g->alpha) / (4.0f * cos_o));
+        const pfloat ph = ggx_vndf_pdf(wo, h, g->alpha) / (4.0f * wh);
+        const pint spec = rough & (len2 > 1e-12f) & (wh > 0.0f) & pisfinite(fs.x + fs.y + fs.z) & pisfinite(ph);
+        f = pv3_sel(f, pv3_add(f, fs), spec);
+        p = spec ? p + ps * ph : p;
     }
-    *pdf = p;
-    return f;
+    *pdf = ok ? p : PFLOAT(0.0f);
+    return pv3_sel(pv3_zero(), f, ok);
 }
 
-/* Samples wi: u.z picks the lobe, u.xy the direction.  Returns f cos / pdf; sets *pdf (0 for
- * the delta mirror and failures) and *delta. */
-RT_INLINE float3 gltf_sample(const GltfParams *g, float3 wo, float3 u, float3 *wi, float *pdf, int *delta)
+/* Samples wi: u2 picks the lobe, (u0, u1) the direction.  Returns f cos / pdf; sets *pdf (0 for
+ * the delta mirror and failures) and *delta (mask).  *wi: the sampled direction, also where the
+ * sample failed after drawing one; (0, 0, 1) where none was drawn (wo below the surface, lanes
+ * outside `active`). */
+RT_INLINE pvec3 gltf_sample(const GltfParams *g, pint active, pvec3 wo, pfloat u0, pfloat u1, pfloat u2, pvec3 *wi,
+                            pfloat *pdf, pint *delta)
 {
-    *pdf = 0.0f;
-    *delta = 0;
-    if (wo.z <= 0.0f) return (float3)(0.0f);
-    const float ps = gltf_spec_prob(g, wo.z);
-    if (u.z < ps) {
-        if (microfacet_is_smooth(g->alpha)) {
-            *wi = (float3)(-wo.x, -wo.y, wo.z);
-            *delta = 1;
-            return fresnel_schlick(gltf_f0(g), wo.z) / ps;
-        }
-        *wi = reflect_about(wo, ggx_sample_vndf(wo, g->alpha, u.xy));
-    } else {
-        *wi = sample_cosine_hemisphere(u.xy);
-    }
-    if (wi->z <= 0.0f) return (float3)(0.0f);
-    float p;
-    const float3 f = gltf_eval(g, wo, *wi, &p);
-    if (!(p > 0.0f)) return (float3)(0.0f);
-    const float3 w = f / p;
-    if (!isfinite(w.x + w.y + w.z)) return (float3)(0.0f);
-    *pdf = p;
-    return w;
+    const pint up = active & pnot(wo.z <= 0.0f);
+    const pfloat ps = gltf_spec_prob(g, wo.z);
+    const pint spec = up & (u2 < ps);
+    const pint smooth = spec & microfacet_is_smooth(g->alpha);
+    const pint rough = spec & pnot(smooth);
+    const pint diffuse = up & pnot(spec);
+    pvec3 li = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f));
+    if (pany(rough)) li = pv3_sel(li, reflect_about(wo, ggx_sample_vndf(wo, g->alpha, u0, u1, rough)), rough);
+    if (pany(diffuse)) li = pv3_sel(li, sample_cosine_hemisphere(u0, u1), diffuse);
+    li = pv3_sel(li, pv3(-wo.x, -wo.y, wo.z), smooth);
+    pfloat p;
+    const pint drawn = (rough | diffuse) & pnot(li.z <= 0.0f);
+    const pvec3 f = gltf_eval(g, drawn, wo, li, &p);
+    const pvec3 w = pv3_div(f, p);
+    const pint ok = drawn & (p > 0.0f) & pisfinite(w.x + w.y + w.z);
+    *wi = li;
+    *pdf = ok ? p : PFLOAT(0.0f);
+    *delta = smooth;
+    pvec3 r = pv3_sel(pv3_zero(), w, ok);
+    if (pany(smooth)) r = pv3_sel(r, pv3_div(fresnel_schlick(gltf_f0(g), wo.z), ps), smooth);
+    return r;
 }
 
 #endif

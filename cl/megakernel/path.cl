@@ -1,61 +1,158 @@
-/* The megakernel: one work-item follows one sample's whole path (camera ray, every bounce,
- * every shadow ray) in registers, for CPU devices, where the wavefront's structure-of-arrays
- * round trips, queue compaction and five launches per bounce cost more than the divergence they
- * avoid (a CPU runs each work-item as scalar code either way).  It computes exactly what the
- * wavefront stages compute, in the same order, with the same random numbers, so its image is the
- * wavefront's bit for bit (tests/render/test_megakernel.py).
+/* The megakernel, for CPU devices: each work-item follows whole paths (camera ray, every
+ * bounce, every shadow ray) in registers, where the wavefront's structure-of-arrays round trips,
+ * queue compaction and five launches per bounce cost more than the divergence they avoid.  Its
+ * PACKET_WIDTH lanes (cl/render/lanes.h: 1, or 8 or 16 on x86 CPUs) are PACKET_WIDTH paths at
+ * once: their rays are traced together (as packets, cl/accel/bvh_packet.h, in lanes) and their
+ * hits shaded together by the one integrator (cl/render/path.h).  It computes the samples the
+ * wavefront computes, with the same random numbers and arithmetic, so its image is the
+ * wavefront's bit for bit at every width, except where two triangles give a ray exactly the same
+ * distance (tests/render/test_megakernel.py, tests/render/test_path_lanes.py).
  *
- * Work-item i renders sample first_pixel + i of pass first_pass (wrapping into the next passes,
- * as wf_generate numbers them) and writes its radiance into that pass's buffer of the ring;
- * the host launches whole passes, so every pass is complete when the launch is.  With
- * n_listed > 0 (adaptive sampling) a pass covers only the pixels pixel_list[0..n_listed),
- * first_pixel counts entries of that list, and work-item i writes entry i of the ring (the host
- * reads the launch's n_items results in order).  The rays it
- * traces are counted in counters[COUNTER_RAYS_EXTEND] and [COUNTER_RAYS_SHADOW].
- * mat_scratch (textures) is indexed by work-item: n_items is at most the wave size. */
+ * Work-item i renders the samples i * PACKET_BLOCK .. + PACKET_BLOCK of the launch (sample
+ * first_pixel + j of pass first_pass, wrapping into the next passes, as wf_generate numbers
+ * them; with n_listed > 0, entries of pixel_list), PACKET_WIDTH at a time: when a lane's path
+ * ends, its radiance is written to its pass_ring entry (entry j of the launch with n_listed > 0)
+ * and the lane starts the block's next sample, so the lanes stay full until the block runs out.
+ * PACKET_BLOCK and LANE_GROUP come from the host (pyopencl_rt/render/megakernel.py; one sample
+ * per work-item and the wave's group size at width 1).  The rays it traces are counted in
+ * counters[COUNTER_RAYS_EXTEND] and [COUNTER_RAYS_SHADOW]. */
 #include "render/path.h"
 #include "megakernel/ray_counts.h"
 
+#ifndef PACKET_BLOCK
+#define PACKET_BLOCK 1
+#endif
+#ifndef LANE_GROUP
+#define LANE_GROUP WAVE_LOCAL_SIZE
+#endif
+
+/* Where a work-item's next sample is: sample j of the launch (path.cl's numbering) as its pass,
+ * its index in the pass (in pixel order, or into pixel_list) and its pass's ring slot, and, for
+ * whole passes, its pixel's (x, y).  Stepped by increments: the divisions of path.cl's numbering
+ * (five a sample) cost more than the rest of starting a path. */
+typedef struct { int j, pass, index, slot, x, y; } SampleCursor;
+
+RT_INLINE SampleCursor cursor_at(int j, int first_pixel, int first_pass, int n_pixels, int n_listed, int ring_size,
+                                 int width)
+{
+    SampleCursor c;
+    const int n_take = n_listed > 0 ? n_listed : n_pixels;
+    const int linear = first_pixel + j;
+    c.j = j;
+    c.pass = first_pass + linear / n_take;
+    c.index = linear % n_take;
+    c.slot = c.pass % ring_size;
+    c.x = c.index % width;
+    c.y = c.index / width;
+    return c;
+}
+
+RT_INLINE void cursor_step(SampleCursor *c, int n_take, int ring_size, int width)
+{
+    ++c->j;
+    ++c->index;
+    if (++c->x == width) { c->x = 0; ++c->y; }
+    if (c->index == n_take) {
+        c->index = c->x = c->y = 0;
+        ++c->pass;
+        c->slot = c->slot + 1 == ring_size ? 0 : c->slot + 1;
+    }
+}
+
+/* Starts the block's next samples in the lanes of `starting` (bit k: lane k), in lane order:
+ * each sample's pixel and ring entry as the wavefront numbers them, then on the lanes its
+ * SampleKey (sampler_key) and its camera ray (camera_ray).  Returns the lanes started (all of
+ * `starting`, or fewer when the block runs out). */
+RT_INLINE int start_lanes(__global const Camera *camera, int starting, SampleCursor *cur, int last, int n_pixels,
+                          __global const int *pixel_list, int n_listed, int ring_size, uint seed, PathState *s,
+                          SampleKey *key, pint *out)
+{
+    const int width = camera->width;
+    const int n_take = n_listed > 0 ? n_listed : n_pixels;
+    int started = 0;
+    pint px = PINT(0), py = PINT(0), pixels = PINT(0), passes = PINT(0);
+    for (int k = 0; k < PACKET_WIDTH && cur->j < last; ++k) {
+        if (!((starting >> k) & 1)) continue;
+        int pixel = cur->index, x = cur->x, y = cur->y;
+        if (n_listed > 0) { /* adaptive sampling: a pixel of the list */
+            pixel = pixel_list[cur->index];
+            x = pixel % width;
+            y = pixel / width;
+        }
+        PLANE_I(*out, k) = n_listed > 0 ? cur->j : cur->slot * n_pixels + pixel;
+        PLANE_I(pixels, k) = pixel;
+        PLANE_I(passes, k) = cur->pass;
+        PLANE_I(px, k) = x;
+        PLANE_I(py, k) = y;
+        started |= 1 << k;
+        cursor_step(cur, n_take, ring_size, width);
+    }
+    if (!started) return 0;
+    const pint on = pmask(started);
+    const SampleKey fresh = sampler_key_xy(seed, as_puint(pixels), as_puint(px), as_puint(py), as_puint(passes));
+    key->a = on ? fresh.a : key->a;
+    key->b = on ? fresh.b : key->b;
+    key->c = on ? fresh.c : key->c;
+    pvec3 o, d;
+    camera_ray(camera, *key, px, py, on, &o, &d);
+    path_start(s, on, o, d);
+    return started;
+}
+
 __kernel void mk_path(WAVE_PARAMS)
 {
-    __local int group_rays[2 * WAVE_LOCAL_SIZE]; /* add_group_ray_counts (ray_counts.h) */
+    /* small groups (LANE_GROUP work-items of PACKET_BLOCK samples each): a launch of the CPU
+     * wave size still has enough groups for every core */
+    __local int group_rays[2 * LANE_GROUP];
     const int i = get_global_id(0);
     int n_extend = 0, n_shadow = 0;
-    if (i < n_items) {
-        const int n_take = n_listed > 0 ? n_listed : n_pixels;
-        const int linear = first_pixel + i;
-        const int pass = first_pass + linear / n_take;
-        const int pixel = n_listed > 0 ? pixel_list[linear % n_take] : linear % n_take;
-        const int out = n_listed > 0 ? i : (pass % ring_size) * n_pixels + pixel;  /* its pass_ring entry */
-        const SampleKey sk = sampler_key(seed, (uint)pixel, (uint)camera->width, (uint)pass);
-        float3 o, d;
-        camera_ray(camera, sk, pixel, &o, &d);
-        PathState s = path_start(o, d);
-        int goes_on = 1;
-        while (goes_on) {
-            const Hit h = scene_closest_hit(nodes, tris, spheres, n_spheres, s.o, s.d, 0.0f, INFINITY);
-            ++n_extend;
-            if (h.prim == PRIM_MISS) {
+    const int last = min((i + 1) * PACKET_BLOCK, n_items);
+    SampleCursor cur = cursor_at(i * PACKET_BLOCK, first_pixel, first_pass, n_pixels, n_listed, ring_size, camera->width);
+    /* idle lanes hold a harmless path (never traced) */
+    PathState s;
+    path_start(&s, PTRUE, pv3_zero(), pv3_splat((float3)(0.0f, 0.0f, 1.0f)));
+    SampleKey key;
+    key.a = key.b = key.c = PUINT(0);
+    pint out = PINT(0);
+    int live = start_lanes(camera, (1 << PACKET_WIDTH) - 1, &cur, last, n_pixels, pixel_list, n_listed, ring_size,
+                           seed, &s, &key, &out); /* bit k: lane k holds a path */
+    while (live) {
+        const pint live_lanes = pmask(live);
+        /* -- extend: the live lanes' rays ------------------------------------------------------ */
+        pfloat t, u, v;
+        pint prim;
+        scene_closest_hit(nodes, tris, spheres, n_spheres, s.o, s.d, live_lanes, &t, &prim, &u, &v);
+        n_extend += popcount(live);
+        const pint hit = live_lanes & (prim != PRIM_MISS);
 #ifdef HAS_ENVIRONMENT
-                path_escape(lights, env_map, env_cdf, &s);
+        path_escape(lights, env_map, env_cdf, live_lanes & pnot(hit), &s);
 #endif
-                break;
-            }
-            ShadowRay shadow;
-            const int result = path_shade_hit(PATH_ARGS, i, sk, h.prim, h.t, h.u, h.v, &s, &shadow);
-            if (result & 2) {  /* after the emission of this hit, as the wavefront's shadow stage adds it */
-                ++n_shadow;
-                if (!scene_occluded(nodes, tris, spheres, n_spheres, shadow.o, shadow.d, 0.0f, 1.0f))
-                    s.L += shadow.contribution;
-            }
-            goes_on = result & 1;
+        pint goes_on, with_shadow;
+        ShadowRay shadow;
+        path_shade(PATH_ARGS, PINT(0), key, hit, prim, t, u, v, &s, &goes_on, &with_shadow, &shadow);
+        /* -- shadow: the lanes with a light sample (after the emission of this hit, as the
+         * wavefront's shadow stage adds it) ---------------------------------------------------- */
+        if (pany(with_shadow)) {
+            n_shadow += popcount(pbits(with_shadow));
+            const pint occluded = scene_occluded(nodes, tris, spheres, n_spheres, shadow.o, shadow.d, with_shadow,
+                                                 PFLOAT(1.0f));
+            s.L = pv3_sel(s.L, pv3_add(s.L, shadow.contribution), with_shadow & pnot(occluded));
         }
-        float3 L = s.L;
-        if (!(isfinite(L.x) && isfinite(L.y) && isfinite(L.z))) {
-            atomic_inc(&counters[COUNTER_NONFINITE]);
-            L = (float3)(0.0f);
+        /* -- ended paths: their radiance out, the block's next samples in -------------------- */
+        const int ended = live & ~pbits(goes_on);
+        for (int k = 0; k < PACKET_WIDTH; ++k) {
+            if (!((ended >> k) & 1)) continue;
+            float3 L = pv3_lane(s.L, k);
+            if (!(isfinite(L.x) && isfinite(L.y) && isfinite(L.z))) {
+                atomic_inc(&counters[COUNTER_NONFINITE]);
+                L = (float3)(0.0f);
+            }
+            store3(pass_ring, PLANE_I(out, k), L);
         }
-        store3(pass_ring, out, L);
+        live &= ~ended;
+        if (ended && cur.j < last)
+            live |= start_lanes(camera, ended, &cur, last, n_pixels, pixel_list, n_listed, ring_size, seed, &s, &key,
+                                &out);
     }
-    add_group_ray_counts(group_rays, WAVE_LOCAL_SIZE, n_extend, n_shadow, counters);
+    add_group_ray_counts(group_rays, LANE_GROUP, n_extend, n_shadow, counters);
 }

@@ -23,29 +23,6 @@
 
 #include "materials/dispatch.h"
 
-RT_INLINE float3 aov_albedo(__global const Material *m, float3 n, float3 wo)
-{
-    const float cos_o = clamp(dot(n, wo), 0.0f, 1.0f);
-    float3 a = material_albedo(m);
-#ifdef HAS_MATERIAL_CONDUCTOR
-    if (m->type == MATERIAL_CONDUCTOR) {
-        const ConductorParams c = conductor_params(m);
-        a = conductor_fresnel(&c, cos_o);
-    }
-#endif
-#ifdef HAS_MATERIAL_DIELECTRIC
-    if (m->type == MATERIAL_DIELECTRIC) a = vload3(0, m->specular);
-#endif
-#ifdef HAS_MATERIAL_GLTF
-    if (m->type == MATERIAL_GLTF) {
-        const GltfParams g = gltf_params(m);
-        const float3 f0 = mix((float3)(g.f0d), g.base, g.metallic);
-        a = fresnel_schlick(f0, cos_o) + (1.0f - g.metallic) * g.base * (1.0f - fresnel_schlick1(g.f0d, cos_o));
-    }
-#endif
-    return clamp(a, 0.0f, 1.0f);
-}
-
 /* A new camera path: nothing recorded yet. */
 RT_INLINE void aov_start(__global float *aov, int slot)
 {
@@ -54,21 +31,27 @@ RT_INLINE void aov_start(__global float *aov, int slot)
     a[AOV_PENDING] = 1.0f;
 }
 
-/* A hit of the path in `slot` after `depth` segments, at p (camera-relative) at distance t along
- * the ray, with n the normal on the viewer's side and beta the throughput up to it. */
-RT_INLINE void aov_hit(__global float *aov, int slot, int depth, __global const Material *m, float3 n, float3 wo,
-                       float3 p, float t, float3 beta)
+/* The hits of the lanes of `hit` (path in `slot`) after `depth` segments, at p (camera-relative)
+ * at distance t along the ray, with n the normal on the viewer's side and beta the throughput up
+ * to it; lane by lane (each lane writes its own path's record). */
+RT_INLINE void aov_hit(__global float *aov, pint slot, pint hit, pint depth, const MaterialLanes *m, pvec3 n, pvec3 wo,
+                       pvec3 p, pfloat t, pvec3 beta)
 {
-    __global float *a = aov + (size_t)slot * AOV_FLOATS;
-    if (depth == 0) {
-        vstore3(p, 0, a + AOV_POSITION);
-        a[AOV_DEPTH] = t;
-        a[AOV_HIT] = 1.0f;
-    }
-    if (a[AOV_PENDING] != 0.0f && bsdf_has_nondelta_lobes(m)) {
-        vstore3(clamp(beta * aov_albedo(m, n, wo), 0.0f, 1.0f), 0, a + AOV_ALBEDO);
-        vstore3(n, 0, a + AOV_NORMAL);
-        a[AOV_PENDING] = 0.0f;
+    const pint albedo_wanted = hit & bsdf_has_nondelta_lobes(m);
+    const pvec3 albedo = material_albedo_aov(m, n, wo);
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        if (!PLANE_I(hit, k)) continue;
+        __global float *a = aov + (size_t)PLANE_I(slot, k) * AOV_FLOATS;
+        if (PLANE_I(depth, k) == 0) {
+            vstore3(pv3_lane(p, k), 0, a + AOV_POSITION);
+            a[AOV_DEPTH] = PLANE(t, k);
+            a[AOV_HIT] = 1.0f;
+        }
+        if (a[AOV_PENDING] != 0.0f && PLANE_I(albedo_wanted, k)) {
+            vstore3(clamp(pv3_lane(beta, k) * pv3_lane(albedo, k), 0.0f, 1.0f), 0, a + AOV_ALBEDO);
+            vstore3(pv3_lane(n, k), 0, a + AOV_NORMAL);
+            a[AOV_PENDING] = 0.0f;
+        }
     }
 }
 

@@ -25,12 +25,12 @@
 #ifndef PACKET_WIDTH
 #define PACKET_WIDTH 1
 #endif
-#if PACKET_WIDTH > 1
-#ifndef RT_CPU_BUILTINS
+/* mask_bits8 (vmovmskps) and any8, the 8-wide traversal's mask helpers, serve the lanes too (the
+ * host expands each header once, where it first appears, whatever #if surrounds it: no header is
+ * included under a condition) */
+#include "accel/masks.h"
+#if PACKET_WIDTH > 1 && !defined(RT_CPU_BUILTINS)
 #error "lanes wider than 1 are for clang on x86 (cpu_builtins.h)"
-#endif
-/* mask_bits8 (vmovmskps) and any8, the 8-wide traversal's mask helpers, serve the lanes too */
-#include "accel/bvh_wide8.h"
 #endif
 
 #if PACKET_WIDTH == 1
@@ -277,7 +277,7 @@ RT_INLINE pfloat pv3_length(pvec3 v, pint live)
 {
     const pfloat d = pv3_dot(v, v);
     pfloat r = psqrt(d);
-    const pint slow = live & ~LANES_LENGTH_SQ_OK(d);
+    const pint slow = live & pnot(LANES_LENGTH_SQ_OK(d));
     if (pany(slow))
         for (int k = 0; k < PACKET_WIDTH; ++k)
             if (PLANE_I(slow, k)) PLANE(r, k) = length(pv3_lane(v, k));
@@ -288,7 +288,7 @@ RT_INLINE pvec3 pv3_normalize(pvec3 v, pint live)
 {
     const pfloat d = pv3_dot(v, v);
     pvec3 r = pv3_div(v, psqrt(d));
-    const pint slow = live & ~LANES_LENGTH_SQ_OK(d);
+    const pint slow = live & pnot(LANES_LENGTH_SQ_OK(d));
     if (pany(slow))
         for (int k = 0; k < PACKET_WIDTH; ++k)
             if (PLANE_I(slow, k)) pv3_set_lane(&r, k, normalize(pv3_lane(v, k)));

@@ -1,9 +1,11 @@
-/* Emitters for next-event estimation: emissive triangles and spheres, picked by power.
+/* Emitters for next-event estimation: emissive triangles and spheres, picked by power, and (where
+ * compiled in) point, directional and environment lights; over the lanes (cl/render/lanes.h).
  *
- * light_sample() returns a point on one light and the solid-angle density (at the reference
+ * light_sample_all() returns a point on one light and the solid-angle density (at the reference
  * point) of having sampled it, *without* the probability of picking that light; light_pdf()
- * returns the same density for a point that a BSDF-sampled ray happened to hit, so that
- * multiple importance sampling weighs both strategies consistently.
+ * returns the same density for a point on an area light that a BSDF-sampled ray happened to hit,
+ * so that multiple importance sampling weighs both strategies consistently.  light_sample() is
+ * light_sample_all()'s part for the area lights:
  *
  *   triangle: uniform in area, pdf_solid_angle = dist^2 / (area * |cos_light|)
  *   sphere, reference point outside: uniform in the cone of directions that sees it,
@@ -14,11 +16,11 @@
  * Emission is one-sided (the geometric normal's side / a sphere's outside) unless the
  * material has MATERIAL_FLAG_TWO_SIDED.
  *
- * light_sample_all() adds the lights that are not surfaces (conventions of pbrt-v4; the Light
- * record's fields are documented in pyopencl_rt/device/abi.py):
+ * The lights that are not surfaces (conventions of pbrt-v4; the Light record's fields are
+ * documented in pyopencl_rt/device/abi.py):
  *
  *   point        (HAS_DELTA_LIGHTS) intensity I [W/sr] at p: Le = I / dist^2, a delta light:
- *                ls->delta = 1, ls->pdf = 1 and MIS weight 1 (BSDF sampling never hits it)
+ *                ls->delta set, ls->pdf = 1 and MIS weight 1 (BSDF sampling never hits it)
  *   directional  (HAS_DELTA_LIGHTS) irradiance E on a surface perpendicular to the direction of
  *                travel `dir`: Le = E, delta as above, infinitely far
  *   environment  (HAS_ENVIRONMENT) radiance from every direction: constant (uniform sampling of
@@ -29,262 +31,363 @@
  *                filtering) and so is its sampling density in (u, v): a marginal CDF over rows and
  *                a conditional CDF per row of luminance x sin(theta at the row centre) (env_cdf:
  *                H + 1 floats, then H rows of W + 1), pdf_solid_angle = p(u, v) / (2 pi^2 sin t).
+ *                There is one environment light: every lane whose light is LIGHT_ENVIRONMENT
+ *                names the same record (lights + ENV_LIGHT).
  *
  * Infinitely distant lights (directional, environment) set ls->far > 0: ls->n is then the unit
  * direction toward the light and the shadow ray runs far enough along it to leave the scene's
  * bounding sphere (centre p, radius `radius` in the record), ls->far = 1.01 (|ref - p| + radius),
  * so huge and tiny scenes alike are handled without adding a far point to ref.
+ *
+ * Lanes: each lane samples its own light, lights[light_index] (light_index valid in every lane).
+ * light_sample_all() dispatches on Light.kind over the lanes: each kind present among the active
+ * lanes (pany) is computed over all lanes, with the record fields gathered per lane (the
+ * triangle's vertices, the sphere, the material, at index 0 in the lanes of other kinds), and
+ * selected into the lanes of that kind.  Each lane computes exactly what the one-path code
+ * (PACKET_WIDTH 1) computes for it, so every width gives the same bits.  The early returns of
+ * the one-path code are masks: light_sample_all() returns the mask of the lanes that got a
+ * sample (a comparison's mask: 0 / 1 at width 1, 0 / -1 in vectors), and ls->delta is such a
+ * mask.  rsqrt(x) is written 1 / sqrt(x), as cpu_builtins.h defines it.
  */
 #ifndef PYOPENCL_RT_LIGHTS_H
 #define PYOPENCL_RT_LIGHTS_H
 
 #include "scene/scene.h"
+#include "render/sampling.h"
 
 typedef struct {
-    float3 p;   /* point on the light */
-    float3 err; /* bound on the rounding error of p, per coordinate (for the shadow ray's end) */
-    float3 n;   /* unit normal of the light at p, on the emitting side facing the reference */
-    float3 Le;  /* emitted radiance toward the reference point */
-    float pdf;  /* solid-angle density at the reference point (not including the pick pmf) */
-    float far;  /* set by light_sample_all: > 0 for an infinitely distant light (directional,
-                 * environment): n is then the unit direction toward it, far the shadow ray's length */
-    int delta;  /* set by light_sample_all: 1 for a delta light (point, directional): Le is the
-                 * contribution over pdf = 1, no MIS (BSDF sampling cannot hit it) */
+    pvec3 p;     /* point on the light */
+    pvec3 err;   /* bound on the rounding error of p, per coordinate (for the shadow ray's end) */
+    pvec3 n;     /* unit normal of the light at p, on the emitting side facing the reference */
+    pvec3 Le;    /* emitted radiance toward the reference point */
+    pfloat pdf;  /* solid-angle density at the reference point (not including the pick pmf) */
+    pfloat far;  /* > 0 for an infinitely distant light (directional, environment): n is then the
+                  * unit direction toward it, far the shadow ray's length; 0 otherwise */
+    pint delta;  /* mask of the delta lights' lanes (point, directional): Le is the contribution
+                  * over pdf = 1, no MIS (BSDF sampling cannot hit it) */
 } LightSample;
 
 /* Radiance leaving an emitter with material m at a point of geometric normal ng toward w. */
-RT_INLINE float3 emitted(__global const Material *m, float3 ng, float3 w)
+RT_INLINE pvec3 emitted(const MaterialLanes *m, pvec3 ng, pvec3 w)
 {
-    if ((m->flags & MATERIAL_FLAG_TWO_SIDED) == 0 && dot(ng, w) <= 0.0f)
-        return (float3)(0.0f);
-    return material_emission(m);
+    const pint dark = ((m->flags & MATERIAL_FLAG_TWO_SIDED) == 0) & (pv3_dot(ng, w) <= 0.0f);
+    return pv3_sel(m->emission, pv3_zero(), dark);
 }
 
-RT_INLINE float sphere_one_minus_cos_max(float r, float dc2)
+RT_INLINE pfloat sphere_one_minus_cos_max(pfloat r, pfloat dc2)
 {
-    const float sin2 = fmin(r * r / dc2, 1.0f);
-    const float cos_max = sqrt(fmax(0.0f, 1.0f - sin2));
+    const pfloat sin2 = pfmin(r * r / dc2, PFLOAT(1.0f));
+    const pfloat cos_max = psqrt(pfmax(PFLOAT(0.0f), 1.0f - sin2));
     return sin2 / (1.0f + cos_max);
 }
 
-RT_INLINE int light_sample(__global const float4 *tris, __global const Sphere *spheres,
-                        __global const Material *materials, __global const Light *light,
-                        float3 ref, float2 u, LightSample *ls)
+/* -- the fields of the lanes' records ----------------------------------------------------------- */
+
+#define LIGHT_F(lights, row, field) pgather((__global const float *)(lights), (row) + FIELD_INDEX(Light, field))
+#define LIGHT_I(lights, row, field) pgather_int((__global const int *)(lights), (row) + FIELD_INDEX(Light, field))
+#define LIGHT_V3(lights, row, field)                                                                \
+    pv3(LIGHT_F(lights, row, field), LIGHT_F(lights, (row) + 1, field), LIGHT_F(lights, (row) + 2, field))
+
+/* ls's fields in the lanes of `sel` */
+RT_INLINE void light_sample_set(LightSample *ls, pint sel, pvec3 p, pvec3 err, pvec3 n, pvec3 Le, pfloat pdf)
 {
-    __global const Material *m = materials + light->material;
-    if (light->kind == LIGHT_TRIANGLE) {
-        const int i = light->prim;
-        const float3 p0 = tris[3 * i].xyz, p1 = tris[3 * i + 1].xyz, p2 = tris[3 * i + 2].xyz;
-        const float2 b = sample_triangle_barycentrics(u);
-        ls->p = triangle_point(p0, p1, p2, b.x, b.y, &ls->err);
-        const float3 ng = normalize(cross(p1 - p0, p2 - p0));
-        const float3 to_ref = ref - ls->p;
-        const float dist2 = dot(to_ref, to_ref);
-        /* the side of the plane from the plane itself (plane_distance), not from ls->p */
-        const float cos_l = plane_distance(p0, p1, p2, ref) * rsqrt(dist2);
-        if (cos_l == 0.0f || dist2 == 0.0f) return 0;
-        ls->n = cos_l > 0.0f ? ng : -ng;
-        ls->Le = emitted(m, ng, ls->n);
-        ls->pdf = dist2 / (light->area * fabs(cos_l));
-        return 1;
-    }
-    /* sphere */
-    __global const Sphere *s = spheres + light->prim;
-    const float3 c = vload3(0, s->center);
-    const float r = s->radius;
-    const float3 to_c = c - ref;
-    const float dc2 = dot(to_c, to_c);
-    if (dc2 > r * r) {
-        const float dc = sqrt(dc2);
-        const float3 axis = to_c / dc;
-        const float one_minus_cos = sphere_one_minus_cos_max(r, dc2);
-        float3 t, b;
-        make_onb(axis, &t, &b);
-        const float3 w = normalize(to_world(sample_uniform_cone(u, 1.0f - one_minus_cos), t, b, axis));
-        float th;
-        if (!intersect_sphere(ref, w, c, r, 0.0f, INFINITY, &th))
-            th = dot(to_c, w); /* grazing the silhouette: the tangent point */
-        ls->p = c + r * normalize(ref + th * w - c); /* re-projected: error relative to |c| + r */
-        ls->err = HIT_GAMMA5 * (fabs(ls->p) + fabs(c));
-        ls->n = normalize(ls->p - c);
-        ls->Le = emitted(m, ls->n, -w);
-        ls->pdf = 1.0f / (2.0f * PI_F * one_minus_cos);
-        return 1;
-    }
-    /* inside the sphere: uniform in area, seen from inside (its inner side) */
-    const float3 dir = sample_uniform_sphere(u);
-    ls->p = c + r * dir;
-    ls->err = HIT_GAMMA5 * (fabs(ls->p) + fabs(c));
-    const float3 to_ref = ref - ls->p;
-    const float dist2 = dot(to_ref, to_ref);
-    const float cos_l = dot(dir, to_ref) * rsqrt(dist2);
-    if (cos_l == 0.0f) return 0;
-    ls->Le = emitted(m, dir, to_ref);
-    ls->n = cos_l > 0.0f ? dir : -dir;
-    ls->pdf = dist2 / (light->area * fabs(cos_l));
-    return 1;
+    ls->p = pv3_sel(ls->p, p, sel);
+    ls->err = pv3_sel(ls->err, err, sel);
+    ls->n = pv3_sel(ls->n, n, sel);
+    ls->Le = pv3_sel(ls->Le, Le, sel);
+    ls->pdf = sel ? pdf : ls->pdf;
 }
 
-/* Density light_sample() would have had for point p (normal ng) on light `light`. */
-RT_INLINE float light_pdf(__global const Sphere *spheres, __global const Light *light, float3 ref, float3 p, float3 ng)
+/* -- area lights -------------------------------------------------------------------------------- */
+
+/* The triangle lights of the lanes in `sel` (`row`: each lane's light record, in floats) */
+RT_INLINE pint light_sample_triangle(__global const float4 *tris, __global const Material *materials,
+                                     __global const Light *lights, pint row, pint sel, pvec3 ref, pfloat ux,
+                                     pfloat uy, LightSample *ls)
 {
-    if (light->kind == LIGHT_SPHERE) {
-        __global const Sphere *s = spheres + light->prim;
-        const float3 to_c = vload3(0, s->center) - ref;
-        const float dc2 = dot(to_c, to_c);
-        if (dc2 > s->radius * s->radius)
-            return 1.0f / (2.0f * PI_F * sphere_one_minus_cos_max(s->radius, dc2));
+    const pint i = sel ? LIGHT_I(lights, row, prim) : PINT(0);
+    const pvec3 p0 = tri_vertex(tris, i, 0), p1 = tri_vertex(tris, i, 1), p2 = tri_vertex(tris, i, 2);
+    const MaterialLanes m = material_lanes(materials, sel ? LIGHT_I(lights, row, material) : PINT(0));
+    pfloat b1, b2;
+    sample_triangle_barycentrics(ux, uy, &b1, &b2);
+    pvec3 err;
+    const pvec3 p = triangle_point(p0, p1, p2, b1, b2, &err);
+    const pvec3 ng = pv3_normalize(pv3_cross(pv3_sub(p1, p0), pv3_sub(p2, p0)), sel);
+    const pvec3 to_ref = pv3_sub(ref, p);
+    const pfloat dist2 = pv3_dot(to_ref, to_ref);
+    /* the side of the plane from the plane itself (plane_distance), not from p */
+    const pfloat cos_l = plane_distance(p0, p1, p2, ref, sel) * (1.0f / psqrt(dist2));
+    const pvec3 n = pv3_sel(pv3_neg(ng), ng, cos_l > 0.0f);
+    const pvec3 Le = emitted(&m, ng, n);
+    const pfloat pdf = dist2 / (LIGHT_F(lights, row, area) * pabs(cos_l));
+    light_sample_set(ls, sel, p, err, n, Le, pdf);
+    return sel & (cos_l != 0.0f) & (dist2 != 0.0f);
+}
+
+/* The sphere lights of the lanes in `sel` */
+RT_INLINE pint light_sample_sphere(__global const Sphere *spheres, __global const Material *materials,
+                                   __global const Light *lights, pint row, pint sel, pvec3 ref, pfloat ux,
+                                   pfloat uy, LightSample *ls)
+{
+    const pint s = sel ? LIGHT_I(lights, row, prim) : PINT(0);
+    const pvec3 c = sphere_center(spheres, s);
+    const pfloat r = sphere_radius(spheres, s);
+    const MaterialLanes m = material_lanes(materials, sel ? LIGHT_I(lights, row, material) : PINT(0));
+    const pvec3 to_c = pv3_sub(c, ref);
+    const pfloat dc2 = pv3_dot(to_c, to_c);
+    const pint outside = sel & (dc2 > r * r), inside = sel & pnot(dc2 > r * r);
+    pint got = PINT(0);
+    if (pany(outside)) {
+        const pfloat dc = psqrt(dc2);
+        const pvec3 axis = pv3_div(to_c, dc);
+        const pfloat one_minus_cos = sphere_one_minus_cos_max(r, dc2);
+        pvec3 t, b;
+        make_onb(axis, &t, &b);
+        const pvec3 w = pv3_normalize(to_world(sample_uniform_cone(ux, uy, 1.0f - one_minus_cos), t, b, axis), outside);
+        pfloat th = pv3_dot(to_c, w); /* grazing the silhouette (no root): the tangent point */
+        intersect_sphere(ref, w, c, r, PFLOAT(0.0f), PFLOAT(INFINITY), &th, outside);
+        /* re-projected: error relative to |c| + r */
+        const pvec3 p = pv3_add(c, pv3_scale(pv3_normalize(pv3_sub(pv3_add(ref, pv3_scale(w, th)), c), outside), r));
+        const pvec3 err = pv3_scale(pv3_add(pv3_abs(p), pv3_abs(c)), PFLOAT(HIT_GAMMA5));
+        const pvec3 n = pv3_normalize(pv3_sub(p, c), outside);
+        const pvec3 Le = emitted(&m, n, pv3_neg(w));
+        light_sample_set(ls, outside, p, err, n, Le, 1.0f / (2.0f * PI_F * one_minus_cos));
+        got = outside;
     }
-    const float3 to_ref = ref - p;
-    const float dist2 = dot(to_ref, to_ref);
-    const float cos_l = fabs(dot(ng, to_ref)) * rsqrt(dist2);
-    return cos_l > 0.0f ? dist2 / (light->area * cos_l) : 0.0f;
+    if (pany(inside)) {
+        /* inside the sphere: uniform in area, seen from inside (its inner side) */
+        const pvec3 dir = sample_uniform_sphere(ux, uy);
+        const pvec3 p = pv3_add(c, pv3_scale(dir, r));
+        const pvec3 err = pv3_scale(pv3_add(pv3_abs(p), pv3_abs(c)), PFLOAT(HIT_GAMMA5));
+        const pvec3 to_ref = pv3_sub(ref, p);
+        const pfloat dist2 = pv3_dot(to_ref, to_ref);
+        const pfloat cos_l = pv3_dot(dir, to_ref) * (1.0f / psqrt(dist2));
+        const pvec3 Le = emitted(&m, dir, to_ref);
+        const pvec3 n = pv3_sel(pv3_neg(dir), dir, cos_l > 0.0f);
+        light_sample_set(ls, inside, p, err, n, Le, dist2 / (LIGHT_F(lights, row, area) * pabs(cos_l)));
+        got = got | (inside & (cos_l != 0.0f));
+    }
+    return got;
+}
+
+/* A sample of the area light (triangle or sphere) lights[light_index] of each lane in `active`
+ * (light_index valid in every lane): the mask of the lanes that got one, ls filled in there (and
+ * set in every lane: far 0, delta 0, the rest 0 in the lanes of other kinds). */
+RT_INLINE pint light_sample(__global const float4 *tris, __global const Sphere *spheres,
+                            __global const Material *materials, __global const Light *lights, pint light_index,
+                            pint active, pvec3 ref, pfloat ux, pfloat uy, LightSample *ls)
+{
+    const pint row = light_index * STRIDE_INDEX(Light);
+    const pint kind = LIGHT_I(lights, row, kind);
+    ls->p = ls->err = ls->n = ls->Le = pv3_zero();
+    ls->pdf = ls->far = PFLOAT(0.0f);
+    ls->delta = PINT(0);
+    pint got = PINT(0);
+    const pint tri = active & (kind == LIGHT_TRIANGLE);
+    if (pany(tri)) got = got | light_sample_triangle(tris, materials, lights, row, tri, ref, ux, uy, ls);
+    const pint sphere = active & (kind == LIGHT_SPHERE);
+    if (pany(sphere)) got = got | light_sample_sphere(spheres, materials, lights, row, sphere, ref, ux, uy, ls);
+    return got;
+}
+
+/* Density light_sample_all() would have had for point p (geometric normal ng) on the area light
+ * lights[light_index] (triangle or sphere; light_index valid in every lane). */
+RT_INLINE pfloat light_pdf(__global const Sphere *spheres, __global const Light *lights, pint light_index, pvec3 ref,
+                           pvec3 p, pvec3 ng)
+{
+    const pint row = light_index * STRIDE_INDEX(Light);
+    const pvec3 to_ref = pv3_sub(ref, p);
+    const pfloat dist2 = pv3_dot(to_ref, to_ref);
+    const pfloat cos_l = pabs(pv3_dot(ng, to_ref)) * (1.0f / psqrt(dist2));
+    pfloat pdf = cos_l > 0.0f ? dist2 / (LIGHT_F(lights, row, area) * cos_l) : PFLOAT(0.0f);
+    const pint sphere = LIGHT_I(lights, row, kind) == LIGHT_SPHERE;
+    if (pany(sphere)) {
+        const pint s = sphere ? LIGHT_I(lights, row, prim) : PINT(0);
+        const pvec3 to_c = pv3_sub(sphere_center(spheres, s), ref);
+        const pfloat r = sphere_radius(spheres, s);
+        const pfloat dc2 = pv3_dot(to_c, to_c);
+        pdf = (sphere & (dc2 > r * r)) ? 1.0f / (2.0f * PI_F * sphere_one_minus_cos_max(r, dc2)) : pdf;
+    }
+    return pdf;
 }
 
 /* -- lights that are not surfaces -------------------------------------------------------------- */
 
-/* Length of a shadow ray from ref that leaves the scene's bounding sphere (centre lt->p, radius
- * lt->radius) of a directional or environment light. */
-RT_INLINE float light_far(__global const Light *lt, float3 ref)
+/* Length of a shadow ray from ref that leaves the scene's bounding sphere (centre, radius: the
+ * record's p and radius) of a directional or environment light. */
+RT_INLINE pfloat light_far(pvec3 center, pfloat radius, pvec3 ref, pint live)
 {
-    return fmax((length(ref - vload3(0, lt->p)) + lt->radius) * 1.01f, 1e-30f);
+    return pfmax((pv3_length(pv3_sub(ref, center), live) + radius) * 1.01f, PFLOAT(1e-30f));
 }
 
 #ifdef HAS_ENVIRONMENT
 /* Equirectangular (u, v) in [0, 1]^2 of a unit direction (see the top of this file). */
-RT_INLINE float2 env_dir_to_uv(float3 w)
+RT_INLINE void env_dir_to_uv(pvec3 w, pfloat *u, pfloat *v)
 {
-    float phi = atan2(-w.x, w.z);
-    if (phi < 0.0f) phi += 2.0f * PI_F;
-    return (float2)(phi * (0.5f * INV_PI_F), acos(clamp(w.y, -1.0f, 1.0f)) * INV_PI_F);
+    pfloat phi = patan2(-w.x, w.z);
+    phi = phi < 0.0f ? phi + 2.0f * PI_F : phi;
+    *u = phi * (0.5f * INV_PI_F);
+    *v = pacos(pclamp(w.y, -1.0f, 1.0f)) * INV_PI_F;
 }
 
-RT_INLINE float3 env_uv_to_dir(float2 uv)
+RT_INLINE pvec3 env_uv_to_dir(pfloat u, pfloat v)
 {
-    const float theta = PI_F * uv.y, phi = 2.0f * PI_F * uv.x;
-    const float st = sin(theta);
-    return (float3)(-st * sin(phi), cos(theta), st * cos(phi));
+    const pfloat theta = PI_F * v, phi = 2.0f * PI_F * u;
+    const pfloat st = psin(theta);
+    return pv3(-st * psin(phi), pcos(theta), st * pcos(phi));
 }
 
-/* Largest i in [0, n - 1] with cdf[i] <= u (cdf[0] = 0, cdf[n] = 1, u in [0, 1)): then
- * cdf[i] <= u < cdf[i + 1], an interval of positive mass. */
-RT_INLINE int cdf_find(__global const float *cdf, int n, float u)
+/* Largest i in [0, n - 1] with cdf[base + i] <= u (cdf[base] = 0, cdf[base + n] = 1, u in [0, 1)),
+ * per lane: then cdf[base + i] <= u < cdf[base + i + 1], an interval of positive mass.  The
+ * binary search of each lane, the lanes' steps side by side. */
+RT_INLINE pint cdf_find(__global const float *cdf, pint base, int n, pfloat u)
 {
-    int lo = 0, hi = n - 1;
-    while (lo < hi) {
-        const int mid = (lo + hi + 1) >> 1;
-        if (cdf[mid] <= u) lo = mid;
-        else hi = mid - 1;
+    pint lo = PINT(0), hi = PINT(n - 1);
+    for (pint going = lo < hi; pany(going); going = lo < hi) {
+        const pint mid = (lo + hi + 1) >> 1;
+        const pint below = pgather(cdf, base + mid) <= u;
+        lo = (going & below) ? mid : lo;
+        hi = (going & pnot(below)) ? mid - 1 : hi;
     }
     return lo;
 }
 
-/* (column, row) of the texel that direction w falls in, in a W x H map. */
-RT_INLINE int2 env_texel(float3 w, int W, int H)
+/* texel (column, row) that direction w falls in, in a W x H map */
+RT_INLINE void env_texel(pvec3 w, int W, int H, pint *col, pint *row)
 {
-    const float2 uv = env_dir_to_uv(w);
-    return (int2)(clamp((int)(uv.x * (float)W), 0, W - 1), clamp((int)(uv.y * (float)H), 0, H - 1));
+    pfloat u, v;
+    env_dir_to_uv(w, &u, &v);
+    pint x = convert_pint(u * (float)W), y = convert_pint(v * (float)H); /* clamp(x, 0, W - 1): */
+    x = x < 0 ? PINT(0) : x;
+    *col = x > W - 1 ? PINT(W - 1) : x;
+    y = y < 0 ? PINT(0) : y;
+    *row = y > H - 1 ? PINT(H - 1) : y;
 }
 
-/* Radiance of the environment seen along the unit direction w (nearest texel). */
-RT_INLINE float3 env_radiance(__global const Light *lt, __global const float *env_map, float3 w)
+/* texel i of the map (RGB) */
+RT_INLINE pvec3 env_texel_rgb(__global const float *env_map, pint i)
+{
+    const pint k = 3 * i;
+    return pv3(pgather(env_map, k), pgather(env_map, k + 1), pgather(env_map, k + 2));
+}
+
+/* Radiance of the environment lt seen along the unit direction w (nearest texel). */
+RT_INLINE pvec3 env_radiance(__global const Light *lt, __global const float *env_map, pvec3 w)
 {
     const float3 scale = vload3(0, lt->rgb);
     const int W = lt->prim, H = lt->material;
-    if (W <= 0) return scale;
-    const int2 t = env_texel(w, W, H);
-    return scale * vload3(t.y * W + t.x, env_map);
+    if (W <= 0) return pv3_splat(scale);
+    pint col, row;
+    env_texel(w, W, H, &col, &row);
+    return pv3_mul(pv3_splat(scale), env_texel_rgb(env_map, row * W + col));
 }
 
 /* Solid-angle density with which env_sample() draws the unit direction w. */
-RT_INLINE float env_pdf(__global const Light *lt, __global const float *env_cdf, float3 w)
+RT_INLINE pfloat env_pdf(__global const Light *lt, __global const float *env_cdf, pvec3 w)
 {
     const int W = lt->prim, H = lt->material;
-    if (W <= 0) return 0.25f * INV_PI_F;
-    const float sin_theta = sqrt(fmax(0.0f, 1.0f - w.y * w.y));
-    if (!(sin_theta > 0.0f)) return 0.0f;
-    const int2 t = env_texel(w, W, H);
-    __global const float *cond = env_cdf + (H + 1) + t.y * (W + 1);
-    const float p_uv = (env_cdf[t.y + 1] - env_cdf[t.y]) * (float)H * ((cond[t.x + 1] - cond[t.x]) * (float)W);
-    return p_uv / (2.0f * PI_F * PI_F * sin_theta);
+    if (W <= 0) return PFLOAT(0.25f * INV_PI_F);
+    const pfloat sin_theta = psqrt(pfmax(PFLOAT(0.0f), 1.0f - w.y * w.y));
+    pint col, row;
+    env_texel(w, W, H, &col, &row);
+    const pint cond = (H + 1) + row * (W + 1);
+    const pfloat p_uv = (pgather(env_cdf, row + 1) - pgather(env_cdf, row)) * (float)H *
+                        ((pgather(env_cdf, cond + col + 1) - pgather(env_cdf, cond + col)) * (float)W);
+    return sin_theta > 0.0f ? p_uv / (2.0f * PI_F * PI_F * sin_theta) : PFLOAT(0.0f);
 }
 
-/* A direction *wi toward the environment from u in [0, 1)^2, its density *pdf (0: no sample)
- * and the radiance from there. */
-RT_INLINE float3 env_sample(__global const Light *lt, __global const float *env_map, __global const float *env_cdf,
-                            float2 u, float3 *wi, float *pdf)
+/* A direction *wi toward the environment lt from (ux, uy) in [0, 1)^2, its density *pdf (0: no
+ * sample) and the radiance from there. */
+RT_INLINE pvec3 env_sample(__global const Light *lt, __global const float *env_map, __global const float *env_cdf,
+                           pfloat ux, pfloat uy, pvec3 *wi, pfloat *pdf)
 {
     const float3 scale = vload3(0, lt->rgb);
     const int W = lt->prim, H = lt->material;
     if (W <= 0) {
-        *wi = sample_uniform_sphere(u);
-        *pdf = 0.25f * INV_PI_F;
-        return scale;
+        *wi = sample_uniform_sphere(ux, uy);
+        *pdf = PFLOAT(0.25f * INV_PI_F);
+        return pv3_splat(scale);
     }
-    const int row = cdf_find(env_cdf, H, u.y);
-    const float m0 = env_cdf[row], m1 = env_cdf[row + 1];
-    __global const float *cond = env_cdf + (H + 1) + row * (W + 1);
-    const int col = cdf_find(cond, W, u.x);
-    const float c0 = cond[col], c1 = cond[col + 1];
-    const float v = ((float)row + clamp((u.y - m0) / (m1 - m0), 0.0f, 1.0f)) / (float)H;
-    const float uu = ((float)col + clamp((u.x - c0) / (c1 - c0), 0.0f, 1.0f)) / (float)W;
-    const float3 w = env_uv_to_dir((float2)(uu, v));
+    const pint row = cdf_find(env_cdf, PINT(0), H, uy);
+    const pfloat m0 = pgather(env_cdf, row), m1 = pgather(env_cdf, row + 1);
+    const pint cond = (H + 1) + row * (W + 1);
+    const pint col = cdf_find(env_cdf, cond, W, ux);
+    const pfloat c0 = pgather(env_cdf, cond + col), c1 = pgather(env_cdf, cond + col + 1);
+    const pfloat v = (convert_pfloat(row) + pclamp((uy - m0) / (m1 - m0), 0.0f, 1.0f)) / (float)H;
+    const pfloat uu = (convert_pfloat(col) + pclamp((ux - c0) / (c1 - c0), 0.0f, 1.0f)) / (float)W;
+    const pvec3 w = env_uv_to_dir(uu, v);
     *wi = w;
-    const float sin_theta = sqrt(fmax(0.0f, 1.0f - w.y * w.y));
-    if (!(sin_theta > 0.0f)) {
-        *pdf = 0.0f;
-        return (float3)(0.0f);
-    }
-    *pdf = (m1 - m0) * (float)H * ((c1 - c0) * (float)W) / (2.0f * PI_F * PI_F * sin_theta);
-    return scale * vload3(row * W + col, env_map);
+    const pfloat sin_theta = psqrt(pfmax(PFLOAT(0.0f), 1.0f - w.y * w.y));
+    const pint ok = sin_theta > 0.0f;
+    *pdf = ok ? (m1 - m0) * (float)H * ((c1 - c0) * (float)W) / (2.0f * PI_F * PI_F * sin_theta) : PFLOAT(0.0f);
+    return pv3_sel(pv3_zero(), pv3_mul(pv3_splat(scale), env_texel_rgb(env_map, row * W + col)), ok);
 }
 #endif
 
-/* light_sample() for every kind of light: the area lights above, and point, directional and
- * environment lights where compiled in.  Also sets ls->far and ls->delta (0 for area lights). */
-RT_INLINE int light_sample_all(__global const float4 *tris, __global const Sphere *spheres,
-                               __global const Material *materials, __global const float *env_map,
-                               __global const float *env_cdf, __global const Light *light,
-                               float3 ref, float2 u, LightSample *ls)
+/* A sample of the light lights[light_index] of each lane in `active` (light_index valid in every
+ * lane; ref, ux, uy finite in the others): the area lights (light_sample), and point, directional
+ * and environment lights where compiled in.  Returns the mask of the lanes that got a sample, ls
+ * filled in there (ls->far and ls->delta too: 0 for area lights). */
+RT_INLINE pint light_sample_all(__global const float4 *tris, __global const Sphere *spheres,
+                                __global const Material *materials, __global const float *env_map,
+                                __global const float *env_cdf, __global const Light *lights, pint light_index,
+                                pint active, pvec3 ref, pfloat ux, pfloat uy, LightSample *ls)
 {
-    ls->far = 0.0f;
-    ls->delta = 0;
+    pint got = light_sample(tris, spheres, materials, lights, light_index, active, ref, ux, uy, ls);
 #if defined(HAS_DELTA_LIGHTS) || defined(HAS_ENVIRONMENT)
-    ls->err = (float3)(0.0f);
-#endif
+    const pint row = light_index * STRIDE_INDEX(Light);
+    const pint kind = LIGHT_I(lights, row, kind);
 #ifdef HAS_DELTA_LIGHTS
-    if (light->kind == LIGHT_POINT) {
-        ls->p = vload3(0, light->p);
-        const float3 to_ref = ref - ls->p;
-        const float dist2 = dot(to_ref, to_ref);
-        if (!(dist2 > 0.0f)) return 0;
-        ls->n = to_ref * rsqrt(dist2);
-        ls->Le = vload3(0, light->rgb) / dist2;
-        ls->pdf = 1.0f;
-        ls->delta = 1;
-        return 1;
+    const pint point = active & (kind == LIGHT_POINT), directional = active & (kind == LIGHT_DIRECTIONAL);
+    if (pany(point)) {
+        const pvec3 p = LIGHT_V3(lights, row, p);
+        const pvec3 to_ref = pv3_sub(ref, p);
+        const pfloat dist2 = pv3_dot(to_ref, to_ref);
+        light_sample_set(ls, point, p, pv3_zero(), pv3_scale(to_ref, 1.0f / psqrt(dist2)),
+                         pv3_div(LIGHT_V3(lights, row, rgb), dist2), PFLOAT(1.0f));
+        ls->delta = ls->delta | point;
+        got = got | (point & (dist2 > 0.0f));
     }
-    if (light->kind == LIGHT_DIRECTIONAL) {
-        ls->n = -vload3(0, light->dir);
-        ls->far = light_far(light, ref);
-        ls->p = ref + ls->far * ls->n;
-        ls->Le = vload3(0, light->rgb);
-        ls->pdf = 1.0f;
-        ls->delta = 1;
-        return 1;
-    }
+#else
+    const pint directional = PINT(0);
 #endif
 #ifdef HAS_ENVIRONMENT
-    if (light->kind == LIGHT_ENVIRONMENT) {
-        float3 wi;
-        ls->Le = env_sample(light, env_map, env_cdf, u, &wi, &ls->pdf);
-        ls->n = wi;
-        ls->far = light_far(light, ref);
-        ls->p = ref + ls->far * wi;
-        return ls->pdf > 0.0f;
+    const pint env = active & (kind == LIGHT_ENVIRONMENT);
+#else
+    const pint env = PINT(0);
+#endif
+    /* infinitely far: directional and environment lights */
+    const pint far = directional | env;
+    if (pany(far)) {
+        pvec3 n = pv3_neg(LIGHT_V3(lights, row, dir));
+        const pfloat far_t = light_far(LIGHT_V3(lights, row, p), LIGHT_F(lights, row, radius), ref, far);
+        pvec3 Le = LIGHT_V3(lights, row, rgb);
+        pfloat pdf = PFLOAT(1.0f);
+#ifdef HAS_ENVIRONMENT
+        if (pany(env)) {
+            int k = 0; /* the first lane's record: there is one environment light */
+            while (!PLANE_I(env, k)) ++k;
+            __global const Light *lt = lights + PLANE_I(light_index, k);
+            pvec3 wi;
+            pfloat env_pdf_ = PFLOAT(0.0f);
+            const pvec3 env_Le = env_sample(lt, env_map, env_cdf, ux, uy, &wi, &env_pdf_);
+            n = pv3_sel(n, wi, env);
+            Le = pv3_sel(Le, env_Le, env);
+            pdf = env ? env_pdf_ : pdf;
+            got = got | (env & (env_pdf_ > 0.0f));
+        }
+#endif
+        light_sample_set(ls, far, pv3_add(ref, pv3_scale(n, far_t)), pv3_zero(), n, Le, pdf);
+        ls->far = far ? far_t : ls->far;
+        ls->delta = ls->delta | directional;
+        got = got | directional;
     }
 #endif
-    return light_sample(tris, spheres, materials, light, ref, u, ls);
+    return got;
 }
+
+#undef LIGHT_F
+#undef LIGHT_I
+#undef LIGHT_V3
 
 #endif

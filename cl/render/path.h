@@ -1,20 +1,27 @@
-/* One path's integrator, shared by both schedules: the wavefront's generate and shade stages
- * (cl/wavefront/) and the megakernel (cl/megakernel/path.cl) call these same functions, so the
- * two compute the same samples with the same random numbers, and their images are equal bit for
- * bit.  Only where the state lives differs: structure-of-arrays buffers between stages, or
- * registers.
+/* The path integrator, written once over the lanes of cl/render/lanes.h: PACKET_WIDTH paths at a
+ * time, each lane computing exactly what the others compute for their own paths.  Every schedule
+ * compiles it: the wavefront's generate and shade stages (cl/wavefront/, width 1, on every
+ * device), the one-path megakernel (width 1) and the lane megakernel (width 8 or 16 on x86 CPUs,
+ * cl/megakernel/path.cl).  The same samples, the same random numbers and the same arithmetic in
+ * every lane, so every width and schedule renders the same image, bit for bit (but where the
+ * packet traversal reports the other of two triangles at exactly the same distance:
+ * tests/render/test_path_lanes.py).  Divergence is handled with masks: a material is evaluated
+ * over the lanes that hit it (cl/materials/dispatch.h), a light over the lanes that picked it
+ * (cl/render/lights.h); what has no lane form (texture fetches, the environment map's CDF search,
+ * library sin/cos, the double-precision plane test near a light) runs lane by lane.
  *
- *   camera_ray      the camera ray of (pixel, pass): box-filtered pixel jitter, thin lens
- *   path_emission   Le of an emitter hit by the path (or of the environment, HAS_ENVIRONMENT,
- *                   when it left the scene), weighted by MIS against light sampling (power
- *                   heuristic; weight 1 for camera rays), or by 1 (INTEGRATOR 1, BSDF sampling
- *                   only) or 0 after the first segment (INTEGRATOR 2, light sampling only)
- *   path_shade_hit  at a hit: its emission; one light sample (picked by power with the alias
- *                   table) whose contribution, weighted by MIS (weight 1 for delta lights), comes
- *                   back with its shadow ray (not with INTEGRATOR 1; infinitely distant lights get
- *                   a shadow ray of length ls.far along their exact direction); one BSDF sample
- *                   that continues the path, with Russian roulette after rr_depth bounces keeping
- *                   it with probability min(max(throughput) * eta_scale, 0.95) (eta_scale: the
+ *   camera_ray      the camera rays of (pixel, pass): box-filtered pixel jitter, thin lens
+ *   path_escape     (HAS_ENVIRONMENT) the environment seen by the lanes whose rays left the
+ *                   scene, weighted as the emission of a hit
+ *   path_shade      at the lanes' hits: their emission, weighted by MIS against light sampling
+ *                   (power heuristic; weight 1 for camera rays), or by 1 (INTEGRATOR 1, BSDF
+ *                   sampling only) or 0 after the first segment (INTEGRATOR 2, light sampling
+ *                   only); one light sample each (picked by power with the alias table) whose
+ *                   contribution, weighted by MIS (weight 1 for delta lights), comes back with
+ *                   its shadow ray (not with INTEGRATOR 1; infinitely distant lights get a shadow
+ *                   ray of length ls.far along their exact direction); one BSDF sample that
+ *                   continues the path, with Russian roulette after rr_depth bounces keeping it
+ *                   with probability min(max(throughput) * eta_scale, 0.95) (eta_scale: the
  *                   product of eta^2 over the refractions so far, so that radiance compressed by
  *                   refraction is not rouletted away; RR_NO_ETA drops it).  A delta (perfectly
  *                   specular) sample stores pdf = 0, which marks the next segment like a camera
@@ -24,8 +31,8 @@
  * max_depth counts path segments, as in Mitsuba: 1 shows emitters only, 2 adds direct lighting;
  * a negative value means no limit (Russian roulette ends paths).
  *
- * PATH_ARGS passes the scene buffers of WAVE_PARAMS by their names: both schedules' kernels take
- * WAVE_PARAMS, so the names are in scope in either. */
+ * PATH_ARGS passes the scene buffers of WAVE_PARAMS by their names: every schedule's kernels take
+ * WAVE_PARAMS, so the names are in scope in each. */
 #ifndef PYOPENCL_RT_PATH_H
 #define PYOPENCL_RT_PATH_H
 
@@ -41,21 +48,19 @@
 #define INTEGRATOR 0
 #endif
 
-RT_INLINE float max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
-
-/* What a path carries from one vertex to the next. */
+/* What a path carries from one vertex to the next, per lane. */
 typedef struct {
-    float3 o, d;     /* the ray that reaches the next vertex */
-    float3 beta;     /* throughput */
-    float3 L;        /* radiance gathered so far (unoccluded light samples are added by the caller) */
-    float pdf;       /* solid-angle pdf of the BSDF sample that made d; 0 = camera or delta */
-    float eta_scale; /* product of eta^2 over the refractions so far */
-    int depth;       /* segments traced before this ray */
+    pvec3 o, d;      /* the ray that reaches the next vertex */
+    pvec3 beta;      /* throughput */
+    pvec3 L;         /* radiance gathered so far (unoccluded light samples are added by the caller) */
+    pfloat pdf;      /* solid-angle pdf of the BSDF sample that made d; 0 = camera or delta */
+    pfloat eta_scale; /* product of eta^2 over the refractions so far */
+    pint depth;      /* segments traced before this ray */
 } PathState;
 
 /* A light sample's shadow ray, from o to o + d (t in (0, 1)), and what it adds if unoccluded. */
 typedef struct {
-    float3 o, d, contribution;
+    pvec3 o, d, contribution;
 } ShadowRay;
 
 #define PATH_PARAMS                                                                                   \
@@ -64,204 +69,229 @@ typedef struct {
     __global const int *sphere_light, __global const Material *materials,                            \
     __global const Light *lights, const int n_lights, __global const float *env_map,                 \
     __global const float *env_cdf, __global const float2 *tri_uv, __global const Texture *textures,  \
-    __global const float4 *tex_data, __global Material *mat_scratch, __global float *aov_path,      \
-    const int max_depth, const int rr_depth
+    __global const float4 *tex_data, __global float *aov_path, const int max_depth, const int rr_depth
 #define PATH_ARGS                                                                                     \
     tris, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,          \
-    n_lights, env_map, env_cdf, tri_uv, textures, tex_data, mat_scratch, aov_path, max_depth, rr_depth
+    n_lights, env_map, env_cdf, tri_uv, textures, tex_data, aov_path, max_depth, rr_depth
 
-RT_INLINE void camera_ray(__global const Camera *camera, SampleKey sk, int pixel, float3 *origin,
-                          float3 *direction)
+/* The camera rays through pixels (x, y) of the lanes. */
+RT_INLINE void camera_ray(__global const Camera *camera, SampleKey k, pint x, pint y, pint live, pvec3 *origin,
+                          pvec3 *direction)
 {
     const Camera cam = *camera;
-    const int x = pixel % cam.width, y = pixel / cam.width;
-    const float2 jitter = sample_2d(sk, DIM_PIXEL);
-    const float sx = ((float)x + jitter.x) / (float)cam.width * 2.0f - 1.0f;
-    const float sy = 1.0f - ((float)y + jitter.y) / (float)cam.height * 2.0f;
-    const float3 dir = vload3(0, cam.forward) + sx * vload3(0, cam.right) + sy * vload3(0, cam.up);
-    float3 d = normalize(dir), o = vload3(0, cam.origin);
+    pfloat jx, jy;
+    sample_2d(k, PUINT(DIM_PIXEL), &jx, &jy);
+    const pfloat sx = (convert_pfloat(x) + jx) / (float)cam.width * 2.0f - 1.0f;
+    const pfloat sy = 1.0f - (convert_pfloat(y) + jy) / (float)cam.height * 2.0f;
+    const float3 forward = vload3(0, cam.forward), right = vload3(0, cam.right), up = vload3(0, cam.up);
+    const pvec3 dir = pv3_add(pv3_add(pv3_splat(forward), pv3_scale(pv3_splat(right), sx)), pv3_scale(pv3_splat(up), sy));
+    pvec3 d = pv3_normalize(dir, live), o = pv3_splat(vload3(0, cam.origin));
     if (cam.lens_radius > 0.0f) {
         /* thin lens: from a point of the lens disk (concentric map, dims DIM_LENS and + 1)
          * through the point of the pinhole ray at distance focus_distance along forward;
          * lens_radius 0 is the pinhole, bit for bit */
-        const float2 l = cam.lens_radius * sample_concentric_disk(sample_2d(sk, DIM_LENS));
-        const float3 lens = l.x * normalize(vload3(0, cam.right)) + l.y * normalize(vload3(0, cam.up));
-        d = normalize(cam.focus_distance * dir - lens);
-        o += lens;
+        pfloat lx, ly, dx, dy;
+        sample_2d(k, PUINT(DIM_LENS), &lx, &ly);
+        sample_concentric_disk(lx, ly, &dx, &dy);
+        const pvec3 lens = pv3_add(pv3_scale(pv3_splat(normalize(right)), cam.lens_radius * dx),
+                                   pv3_scale(pv3_splat(normalize(up)), cam.lens_radius * dy));
+        d = pv3_normalize(pv3_sub(pv3_scale(dir, PFLOAT(cam.focus_distance)), lens), live);
+        o = pv3_add(o, lens);
     }
     *origin = o;
     *direction = d;
 }
 
-RT_INLINE PathState path_start(float3 o, float3 d)
+/* The lanes of `m` start new paths along (o, d). */
+RT_INLINE void path_start(PathState *s, pint m, pvec3 o, pvec3 d)
 {
-    PathState s;
-    s.o = o;
-    s.d = d;
-    s.beta = (float3)(1.0f);
-    s.L = (float3)(0.0f);
-    s.pdf = 0.0f;
-    s.eta_scale = 1.0f;
-    s.depth = 0;
-    return s;
+    s->o = pv3_sel(s->o, o, m);
+    s->d = pv3_sel(s->d, d, m);
+    s->beta = pv3_sel(s->beta, pv3_splat((float3)(1.0f)), m);
+    s->L = pv3_sel(s->L, pv3_zero(), m);
+    s->pdf = m ? PFLOAT(0.0f) : s->pdf;
+    s->eta_scale = m ? PFLOAT(1.0f) : s->eta_scale;
+    s->depth = m ? PINT(0) : s->depth;
 }
 
 #ifdef HAS_ENVIRONMENT
-/* The environment seen by a path that left the scene, weighted as emission at a hit. */
+/* The environment seen by the lanes of `missed`, whose rays left the scene. */
 RT_INLINE void path_escape(__global const Light *lights, __global const float *env_map,
-                           __global const float *env_cdf, PathState *s)
+                           __global const float *env_cdf, pint missed, PathState *s)
 {
     __global const Light *lt = lights + ENV_LIGHT;
-    const float3 Le = env_radiance(lt, env_map, s->d);
-    if (max3(Le) > 0.0f) {
-        float w = 1.0f;
+    const pvec3 Le = env_radiance(lt, env_map, s->d);
+    const pint seen = missed & (pv3_max3(Le) > 0.0f);
+    if (!pany(seen)) return;
+    pfloat w = PFLOAT(1.0f);
 #if INTEGRATOR == 2
-        if (s->pdf > 0.0f) w = 0.0f;
+    w = s->pdf > 0.0f ? PFLOAT(0.0f) : w;
 #elif INTEGRATOR == 0
-        if (s->pdf > 0.0f) w = power_heuristic(s->pdf, lt->pmf * env_pdf(lt, env_cdf, s->d));
+    const pint mis = seen & (s->pdf > 0.0f);
+    if (pany(mis)) w = mis ? power_heuristic(s->pdf, lt->pmf * env_pdf(lt, env_cdf, s->d)) : w;
 #endif
-        s->L += s->beta * Le * w;
-    }
+    s->L = pv3_sel(s->L, pv3_add(s->L, pv3_scale(pv3_mul(s->beta, Le), w)), seen);
 }
 #endif
 
-/* Shade the hit (prim, t, u, v) of the path's ray.  Returns bit 0 set when the path goes on (s
- * then holds its next ray) and bit 1 set when *shadow holds a light sample to test.  `slot`
- * indexes this path's mat_scratch and AOV entries. */
-RT_INLINE int path_shade_hit(PATH_PARAMS, int slot, SampleKey sk, int prim, float t, float u, float v,
-                             PathState *s, ShadowRay *shadow)
+/* The material and emitter of the lanes' primitives (index valid in every lane). */
+RT_INLINE void hit_records(__global const int *tri_material, __global const int *tri_light,
+                           __global const int *sphere_material, __global const int *sphere_light, pint prim,
+                           pint *mat_index, pint *light_index)
 {
-    int result = 0;
-    const float3 o = s->o, d = s->d;
-    float3 p_err;
-    const float3 p = hit_point(tris, spheres, prim, o, d, t, u, v, &p_err);
-    const float3 ng = hit_normal(tris, spheres, prim, p);
-    const float3 wo = -d;
-    const int front = dot(ng, wo) >= 0.0f; /* the viewer is outside (dielectrics) */
-    const float3 n = front ? ng : -ng;      /* normal on the viewer's side */
-    int mat_index, light_index;
-#ifdef HAS_SPHERES
-    if (IS_SPHERE(prim)) {
-        mat_index = sphere_material[SPHERE_INDEX(prim)];
-        light_index = sphere_light[SPHERE_INDEX(prim)];
-    } else
+#if defined(HAS_SPHERES) && defined(HAS_TRIANGLES)
+    const pint sphere = IS_SPHERE(prim);
+    const pint si = sphere ? SPHERE_INDEX(prim) : PINT(0), ti = sphere ? PINT(0) : prim;
+    *mat_index = sphere ? pgather_int(sphere_material, si) : pgather_int(tri_material, ti);
+    *light_index = sphere ? pgather_int(sphere_light, si) : pgather_int(tri_light, ti);
+#elif defined(HAS_SPHERES)
+    *mat_index = pgather_int(sphere_material, SPHERE_INDEX(prim));
+    *light_index = pgather_int(sphere_light, SPHERE_INDEX(prim));
+#else
+    *mat_index = pgather_int(tri_material, prim);
+    *light_index = pgather_int(tri_light, prim);
 #endif
-    {
-        mat_index = tri_material[prim];
-        light_index = tri_light[prim];
-    }
-    __global const Material *m = materials + mat_index;
+}
+
+/* A primitive every lane may gather from (the lanes that hit nothing shade it and discard it). */
+#ifdef HAS_TRIANGLES
+#define ANY_PRIM 0
+#else
+#define ANY_PRIM SPHERE_PRIM(0)
+#endif
+
+/* Shades the hits (prim, t, u, v) of the lanes of `hit`.  Sets *goes_on to the lanes whose
+ * paths go on (s then holds their next rays) and *with_shadow to those with a light sample to
+ * test (*shadow).  Lanes outside `hit` keep their state.  `slot`: each lane's AOV entry. */
+RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint prim, pfloat t, pfloat u,
+                          pfloat v, PathState *s, pint *goes_on, pint *with_shadow, ShadowRay *shadow)
+{
+    *goes_on = PINT(0);
+    *with_shadow = PINT(0);
+    shadow->o = shadow->d = shadow->contribution = pv3_zero(); /* defined in every lane */
+    prim = hit ? prim : PINT(ANY_PRIM);
+    const pvec3 o = s->o, d = s->d;
+    pvec3 p_err;
+    const pvec3 p = hit_point(tris, spheres, prim, o, d, t, u, v, &p_err);
+    const pvec3 ng = hit_normal(tris, spheres, prim, p, hit);
+    const pvec3 wo = pv3_neg(d);
+    const pint front = pv3_dot(ng, wo) >= 0.0f; /* the viewer is outside (dielectrics) */
+    const pvec3 n = pv3_sel(pv3_neg(ng), ng, front); /* normal on the viewer's side */
+    pint mat_index, light_index;
+    hit_records(tri_material, tri_light, sphere_material, sphere_light, prim, &mat_index, &light_index);
+    MaterialLanes m = material_lanes(materials, mat_index);
 #ifdef HAS_TEXTURES
-    /* textured material: shade with its effective copy in this path's scratch slot */
-    if (!IS_SPHERE(prim) && material_has_textures(m)) {
-        mat_scratch[slot] = texture_material(m, textures, tex_data, triangle_uv(tri_uv, prim, u, v));
-        m = mat_scratch + slot;
-    }
+    texture_material(tri_uv, textures, tex_data, hit, prim, u, v, &m);
 #endif
 #ifdef HAS_AOVS
-    aov_hit(aov_path, slot, s->depth, m, n, wo, p, t, s->beta);
+    aov_hit(aov_path, slot, hit, s->depth, &m, n, wo, p, t, s->beta);
 #endif
-    const uint dim = 2 + DIMS_PER_BOUNCE * (uint)s->depth;
+    const puint dim = convert_puint(2 + DIMS_PER_BOUNCE * s->depth);
 
     /* -- emission seen by the path ---------------------------------------------------------- */
-    const float3 Le = emitted(m, ng, wo);
-    if (max3(Le) > 0.0f) {
-        float w = 1.0f;
+    const pvec3 Le = emitted(&m, ng, wo);
+    const pint glows = hit & (pv3_max3(Le) > 0.0f);
+    if (pany(glows)) {
+        pfloat w = PFLOAT(1.0f);
 #if INTEGRATOR == 2
-        if (s->pdf > 0.0f) w = 0.0f;
+        w = s->pdf > 0.0f ? PFLOAT(0.0f) : w;
 #elif INTEGRATOR == 0 && defined(HAS_LIGHTS)
-        if (s->pdf > 0.0f && light_index >= 0) {
-            __global const Light *lt = lights + light_index;
-            w = power_heuristic(s->pdf, lt->pmf * light_pdf(spheres, lt, o, p, ng));
+        /* MIS against light sampling: light_pdf of the hit light, from the ray's origin */
+        const pint mis = glows & (s->pdf > 0.0f) & (light_index >= 0);
+        if (pany(mis)) {
+            const pint li = mis ? light_index : PINT(0);
+            const pfloat pmf = pgather((__global const float *)lights, li * STRIDE_INDEX(Light) + FIELD_INDEX(Light, pmf));
+            w = mis ? power_heuristic(s->pdf, pmf * light_pdf(spheres, lights, li, o, p, ng)) : w;
         }
 #endif
-        s->L += s->beta * Le * w;
+        s->L = pv3_sel(s->L, pv3_add(s->L, pv3_scale(pv3_mul(s->beta, Le), w)), glows);
     }
 
-    const int segments = s->depth + 1;
-    if (max_depth >= 0 && segments >= max_depth) return 0;
-    /* the bounce's samples, all at once (sample_bounce: lane j is id dim + j) */
-    const float8 su = sample_bounce(sk, dim);
-#if DIM_LIGHT_PICK != 0 || DIM_LIGHT_POINT != 1 || DIM_BSDF != 3 || DIM_RR != 5 || DIM_BSDF_LOBE != 6
-#error "path_shade_hit reads sample_bounce's lanes by the DIM_* layout of cl/render/sampler.h"
-#endif
+    const pint segments = s->depth + 1;
+    const pint going = hit & (max_depth >= 0 ? segments < max_depth : PTRUE);
+    if (!pany(going)) return;
 
     /* The spawn point on the viewer's side: the reference point of light sampling, not p
      * itself (for an emitter whose own surface holds p, the inside of an emissive sphere, p is
      * neither inside nor outside it), and the origin of a BSDF sample that leaves on that side,
-     * so light_pdf() at a BSDF hit sees the same point.  Computed once for both. */
-    const float3 ref = offset_ray_origin_bound(p, p_err, n);
+     * so light_pdf() at a BSDF hit sees the same point; and the one on the other side. */
+    const pvec3 ref = offset_ray_origin_bound(p, p_err, n);
+    const pvec3 below = offset_ray_origin_bound(p, p_err, pv3_neg(n));
 
     /* -- next-event estimation -------------------------------------------------------------- */
 #if defined(HAS_LIGHTS) && INTEGRATOR != 1
-    if (bsdf_has_nondelta_lobes(m)) {
-        float pick_pmf;
-        const int li = sample_alias(lights, n_lights, su.s0, &pick_pmf);
-        const float2 ul = su.s12;
+    const pint nee = going & bsdf_has_nondelta_lobes(&m);
+    if (pany(nee)) {
+        pfloat pick_pmf, ulx, uly;
+        const pint li = sample_alias(lights, n_lights, sample_1d(key, dim + DIM_LIGHT_PICK), &pick_pmf);
+        sample_2d(key, dim + DIM_LIGHT_POINT, &ulx, &uly);
         LightSample ls;
-        const int sampled = pick_pmf > 0.0f &&
-                            light_sample_all(tris, spheres, materials, env_map, env_cdf, lights + li, ref, ul, &ls);
+        pint sampled = nee & (pick_pmf > 0.0f);
+        sampled &= light_sample_all(tris, spheres, materials, env_map, env_cdf, lights, li, sampled, ref, ulx, uly, &ls);
 #ifdef HAS_TEXTURES
-        if (sampled) texture_light_emission(tri_uv, textures, tex_data, materials, lights + li, ul, &ls);
+        texture_light_emission(tri_uv, textures, tex_data, materials, lights, li, sampled, ulx, uly, &ls);
 #endif
-        if (sampled && ls.pdf > 0.0f && max3(ls.Le) > 0.0f) {
-            float3 wi = ls.p - ref;
-            float dist = length(wi);
-            wi /= dist;
+        sampled &= (ls.pdf > 0.0f) & (pv3_max3(ls.Le) > 0.0f);
+        if (pany(sampled)) {
+            pvec3 wi = pv3_sub(ls.p, ref);
+            pfloat dist = pv3_length(wi, sampled);
+            wi = pv3_div(wi, dist);
 #ifdef HAS_INFINITE_LIGHTS
-            if (ls.far > 0.0f) { wi = ls.n; dist = ls.far; } /* exact direction, far end */
+            const pint far = ls.far > 0.0f; /* exact direction, far end */
+            wi = pv3_sel(wi, ls.n, far);
+            dist = far ? ls.far : dist;
 #endif
-            float bpdf;
-            const float3 f = bsdf_eval(m, n, front, wo, wi, &bpdf);
-            if (max3(f) > 0.0f && dist > 0.0f) {
-                const float lpdf = pick_pmf * ls.pdf;
+            pfloat bpdf;
+            const pvec3 f = bsdf_eval(&m, sampled, n, front, wo, wi, &bpdf);
+            const pint lit = sampled & (pv3_max3(f) > 0.0f) & (dist > 0.0f);
+            if (pany(lit)) {
+                const pfloat lpdf = pick_pmf * ls.pdf;
 #if INTEGRATOR == 0
-                const float w = ls.delta ? 1.0f : power_heuristic(lpdf, bpdf);
+                const pfloat w = ls.delta ? PFLOAT(1.0f) : power_heuristic(lpdf, bpdf);
 #else
-                const float w = 1.0f;
+                const pfloat w = PFLOAT(1.0f);
 #endif
-                const float3 so = dot(n, wi) > 0.0f ? ref : offset_ray_origin_bound(p, p_err, -n);
-                const float3 sp = offset_ray_origin_bound(ls.p, ls.err, ls.n);
+                const pvec3 so = pv3_sel(below, ref, pv3_dot(n, wi) > 0.0f);
+                const pvec3 sp = offset_ray_origin_bound(ls.p, ls.err, ls.n);
                 shadow->o = so;
+                shadow->d = pv3_sub(sp, so);
 #ifdef HAS_INFINITE_LIGHTS
-                shadow->d = ls.far > 0.0f ? wi * ls.far : sp - so;
-#else
-                shadow->d = sp - so;
+                shadow->d = pv3_sel(shadow->d, pv3_scale(wi, ls.far), far);
 #endif
-                shadow->contribution = s->beta * f * ls.Le * (w / lpdf);
-                result |= 2;
+                shadow->contribution = pv3_scale(pv3_mul(pv3_mul(s->beta, f), ls.Le), w / lpdf);
+                *with_shadow = lit;
             }
         }
     }
 #endif
     /* -- BSDF sampling continues the path ---------------------------------------------------- */
-    float3 wi;
-    float pdf;
-    int delta;
-    const float3 lobe_u = (float3)(su.s3, su.s4, su.s6);
-    const float3 weight = bsdf_sample(m, n, front, wo, lobe_u, &wi, &pdf, &delta);
-    if (!((pdf > 0.0f || delta) && max3(weight) > 0.0f)) return result;
-    const float3 beta = s->beta * weight;
-    float eta_scale = s->eta_scale;
-    if (dot(wi, n) < 0.0f) { const float eta = dielectric_eta(m, front); eta_scale *= eta * eta; }
-    float q = 1.0f;
-    if (segments >= rr_depth) {
+    pfloat ubx, uby, pdf;
+    sample_2d(key, dim + DIM_BSDF, &ubx, &uby);
+    pvec3 wi;
+    pint delta;
+    const pvec3 weight = bsdf_sample(&m, going, n, front, wo, ubx, uby, sample_1d(key, dim + DIM_BSDF_LOBE),
+                                     &wi, &pdf, &delta);
+    pint on = going & ((pdf > 0.0f) | delta) & (pv3_max3(weight) > 0.0f);
+    if (!pany(on)) return;
+    const pvec3 beta = pv3_mul(s->beta, weight);
+    const pfloat eta = dielectric_eta(&m, front);
+    const pfloat eta_scale = pv3_dot(wi, n) < 0.0f ? s->eta_scale * (eta * eta) : s->eta_scale;
+    const pint roulette = segments >= rr_depth;
 #ifdef RR_NO_ETA
-        q = fmin(max3(beta), 0.95f);
+    const pfloat q = pfmin(pv3_max3(beta), PFLOAT(0.95f));
 #else
-        q = fmin(max3(beta) * eta_scale, 0.95f);
+    const pfloat q = pfmin(pv3_max3(beta) * eta_scale, PFLOAT(0.95f));
 #endif
-        if (su.s5 >= q) return result;
-    }
-    s->beta = segments >= rr_depth ? beta / q : beta;
+    if (pany(roulette & on)) on &= pnot(roulette) | (sample_1d(key, dim + DIM_RR) < q);
+    s->beta = pv3_sel(s->beta, pv3_sel(beta, pv3_div(beta, q), roulette), on);
     /* off the side wi leaves to: ng's if dot(ng, wi) > 0, else -ng's; that is n's (ref) when
      * it agrees with front */
-    s->o = (dot(ng, wi) > 0.0f) == front ? ref : offset_ray_origin_bound(p, p_err, -n);
-    s->d = wi;
-    s->pdf = delta ? 0.0f : pdf;
-    s->eta_scale = eta_scale;
-    s->depth = segments;
-    return result | 1;
+    s->o = pv3_sel(s->o, pv3_sel(below, ref, (pv3_dot(ng, wi) > 0.0f) == front), on);
+    s->d = pv3_sel(s->d, wi, on);
+    s->pdf = on ? (delta ? PFLOAT(0.0f) : pdf) : s->pdf;
+    s->eta_scale = on ? eta_scale : s->eta_scale;
+    s->depth = on ? segments : s->depth;
+    *goes_on = on;
 }
 
 #endif

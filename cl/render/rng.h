@@ -13,46 +13,37 @@
 #ifndef PYOPENCL_RT_RNG_H
 #define PYOPENCL_RT_RNG_H
 
-#include "common.h"
+#include "render/lanes.h"
 
 #define RNG_KEY_OFFSET 0x9E3779B9u
 
-/* Chris Wellons' "lowbias32" integer finaliser (a bijection on 32 bits with low avalanche bias).
- * Defined through a macro for uint and for vectors of uint (the samplers' lane versions,
- * cl/render/sampler.h and sampler_lanes.h), so that every version is the same code. */
-#define RT_DEFINE_HASH_U32(T, name)   \
-    RT_INLINE T name(T x)             \
-    {                                 \
-        x ^= x >> 16;                 \
-        x *= 0x7feb352du;             \
-        x ^= x >> 15;                 \
-        x *= 0x846ca68bu;             \
-        x ^= x >> 16;                 \
-        return x;                     \
-    }
-RT_DEFINE_HASH_U32(uint, hash_u32)
+/* Chris Wellons' "lowbias32" integer finaliser (a bijection on 32 bits with low avalanche bias),
+ * over the lanes (cl/render/lanes.h), like everything below. */
+RT_INLINE puint hash_u32(puint x)
+{
+    x ^= x >> 16;
+    x *= 0x7feb352du;
+    x ^= x >> 15;
+    x *= 0x846ca68bu;
+    x ^= x >> 16;
+    return x;
+}
 
 /* The top 24 bits as a float in [0, 1): exact (24 bits fit the mantissa), at most 1 - 2^-24. */
-RT_INLINE float u32_to_unit_float(uint h) { return (float)(h >> 8) * 0x1.0p-24f; }
+RT_INLINE pfloat u32_to_unit_float(puint h) { return convert_pfloat(h >> 8) * 0x1.0p-24f; }
 
-RT_INLINE uint rng_hash(uint seed, uint pixel, uint sample, uint dim)
+RT_INLINE puint rng_hash(puint seed, puint pixel, puint sample, puint dim)
 {
-    uint h = hash_u32(dim + RNG_KEY_OFFSET);
+    puint h = hash_u32(dim + RNG_KEY_OFFSET);
     h = hash_u32(sample ^ h);
     h = hash_u32(pixel ^ h);
     return hash_u32(seed ^ h);
 }
 
 /* Uniform in [0, 1), strictly below 1. */
-RT_INLINE float rng_uniform(uint seed, uint pixel, uint sample, uint dim)
+RT_INLINE pfloat rng_uniform(puint seed, puint pixel, puint sample, puint dim)
 {
     return u32_to_unit_float(rng_hash(seed, pixel, sample, dim));
-}
-
-/* Dimensions dim and dim + 1. */
-RT_INLINE float2 rng_uniform2(uint seed, uint pixel, uint sample, uint dim)
-{
-    return (float2)(rng_uniform(seed, pixel, sample, dim), rng_uniform(seed, pixel, sample, dim + 1u));
 }
 
 #endif

@@ -15,15 +15,15 @@
  *   tex_base      albedo *= rgb (diffuse, gltf); tint *= rgb (dielectric)
  *   tex_mr        glTF metallicRoughness: metallic *= b, roughness *= g (alpha *= g^2)
  *   tex_emission  emission *= rgb
- * texture_material() returns that effective material; shade.cl stores it in its path slot of a
- * scratch Material buffer and shades with it, so the BSDF and emission code is unchanged.
- * For next-event estimation texture_light_emission() re-derives the sampled point's barycentrics
- * from the same random numbers light_sample() used and applies the emission texture there.
+ * texture_material() applies them to the lanes' gathered materials (MaterialLanes) before
+ * shading, so the BSDF and emission code is unchanged.  For next-event estimation
+ * texture_light_emission() re-derives the sampled point's barycentrics from the same random
+ * numbers light_sample_all() used and applies the emission texture there.
  */
 #ifndef PYOPENCL_RT_TEXTURES_H
 #define PYOPENCL_RT_TEXTURES_H
 
-#include "common.h"
+#include "materials/dispatch.h"
 
 RT_INLINE float4 tex_fetch(__global const float4 *data, __global const Texture *t, int x, int y)
 {
@@ -54,48 +54,53 @@ RT_INLINE float2 triangle_uv(__global const float2 *tri_uv, int prim, float u, f
     return (1.0f - u - v) * tri_uv[3 * prim] + u * tri_uv[3 * prim + 1] + v * tri_uv[3 * prim + 2];
 }
 
-RT_INLINE int material_has_textures(__global const Material *m)
+/* The textures of the lanes' materials applied at their hits (lanes of `hit` on triangles whose
+ * material has textures), lane by lane: a texture lookup is a gather of its own. */
+RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Texture *textures,
+                                __global const float4 *data, pint hit, pint prim, pfloat u, pfloat v,
+                                MaterialLanes *m)
 {
-    return m->tex_base >= 0 || m->tex_mr >= 0 || m->tex_emission >= 0;
-}
-
-/* The material m with its textures applied at uv. */
-RT_INLINE Material texture_material(__global const Material *m, __global const Texture *textures,
-                                    __global const float4 *data, float2 uv)
-{
-    Material e = *m;
-    if (m->tex_base >= 0) {
-        const float3 c = tex_sample(textures, data, m->tex_base, uv).xyz;
-        if (m->type == 2 /* MATERIAL_DIELECTRIC: the tint */) {
-            e.specular[0] *= c.x; e.specular[1] *= c.y; e.specular[2] *= c.z;
-        } else {
-            e.albedo[0] *= c.x; e.albedo[1] *= c.y; e.albedo[2] *= c.z;
+    const pint textured = hit & pnot(IS_SPHERE(prim)) & ((m->tex_base >= 0) | (m->tex_mr >= 0) | (m->tex_emission >= 0));
+    if (!pany(textured)) return;
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        if (!PLANE_I(textured, k)) continue;
+        const float2 uv = triangle_uv(tri_uv, PLANE_I(prim, k), PLANE(u, k), PLANE(v, k));
+        const int base = PLANE_I(m->tex_base, k), mr = PLANE_I(m->tex_mr, k), emission = PLANE_I(m->tex_emission, k);
+        if (base >= 0) {
+            const float3 c = tex_sample(textures, data, base, uv).xyz;
+            pvec3 *tinted = PLANE_I(m->type, k) == MATERIAL_DIELECTRIC ? &m->specular : &m->albedo;
+            pv3_set_lane(tinted, k, pv3_lane(*tinted, k) * c);
+        }
+        if (mr >= 0) {
+            const float4 c = tex_sample(textures, data, mr, uv);
+            PLANE(m->metallic, k) *= c.z;
+            PLANE(m->alpha, k) *= c.y * c.y;
+        }
+        if (emission >= 0) {
+            const float3 c = tex_sample(textures, data, emission, uv).xyz;
+            pv3_set_lane(&m->emission, k, pv3_lane(m->emission, k) * c);
         }
     }
-    if (m->tex_mr >= 0) {
-        const float4 c = tex_sample(textures, data, m->tex_mr, uv);
-        e.metallic *= c.z;
-        e.alpha *= c.y * c.y;
-    }
-    if (m->tex_emission >= 0) {
-        const float3 c = tex_sample(textures, data, m->tex_emission, uv).xyz;
-        e.emission[0] *= c.x; e.emission[1] *= c.y; e.emission[2] *= c.z;
-    }
-    e.tex_base = e.tex_mr = e.tex_emission = -1;
-    return e;
 }
 
-#ifdef PYOPENCL_RT_LIGHTS_H /* included after lights.h (shade.cl): next-event estimation */
-/* After light_sample(..., u, ls) on `light`: the emission texture at the sampled point. */
+#ifdef PYOPENCL_RT_LIGHTS_H /* included after lights.h: next-event estimation */
+/* After light_sample_all(..., light_index, sampled, ref, ux, uy, ls): the emission texture at the
+ * sampled point of the lanes whose light is a textured emissive triangle. */
 RT_INLINE void texture_light_emission(__global const float2 *tri_uv, __global const Texture *textures,
                                       __global const float4 *data, __global const Material *materials,
-                                      __global const Light *light, float2 u, LightSample *ls)
+                                      __global const Light *lights, pint light_index, pint sampled, pfloat ux,
+                                      pfloat uy, LightSample *ls)
 {
-    __global const Material *m = materials + light->material;
-    if (light->kind != LIGHT_TRIANGLE || m->tex_emission < 0) return;
-    const float2 b = sample_triangle_barycentrics(u);
-    const float3 c = tex_sample(textures, data, m->tex_emission, triangle_uv(tri_uv, light->prim, b.x, b.y)).xyz;
-    ls->Le *= c;
+    pfloat b1, b2;
+    sample_triangle_barycentrics(ux, uy, &b1, &b2);
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        if (!PLANE_I(sampled, k)) continue;
+        __global const Light *light = lights + PLANE_I(light_index, k);
+        __global const Material *m = materials + light->material;
+        if (light->kind != LIGHT_TRIANGLE || m->tex_emission < 0) continue;
+        const float2 uv = triangle_uv(tri_uv, light->prim, PLANE(b1, k), PLANE(b2, k));
+        pv3_set_lane(&ls->Le, k, pv3_lane(ls->Le, k) * tex_sample(textures, data, m->tex_emission, uv).xyz);
+    }
 }
 #endif
 

@@ -6,10 +6,12 @@ __kernel void wf_extend(WAVE_PARAMS)
     const int i = get_global_id(0);
     if (i >= n_items) return;
     const int slot = queue_in[i];
-    const Hit h = scene_closest_hit(nodes, tris, spheres, n_spheres, load3(ray_o, slot), load3(ray_d, slot),
-                                    0.0f, INFINITY);
-    hit_t[slot] = h.t;
-    hit_prim[slot] = h.prim;
-    hit_u[slot] = h.u;
-    hit_v[slot] = h.v;
+    float t, u, v;
+    int prim;
+    scene_closest_hit(nodes, tris, spheres, n_spheres, pv3_from(load3(ray_o, slot)), pv3_from(load3(ray_d, slot)),
+                      PTRUE, &t, &prim, &u, &v);
+    hit_t[slot] = t;
+    hit_prim[slot] = prim;
+    hit_u[slot] = u;
+    hit_v[slot] = v;
 }

@@ -17,11 +17,11 @@ __kernel void wf_generate(WAVE_PARAMS)
     const int slot = free_q[free_base - 1 - i];
     queue_in[queue_base + i] = slot;
 
-    const SampleKey sk = sampler_key(seed, (uint)pixel, (uint)camera->width, (uint)pass);
-    float3 o, d;
-    camera_ray(camera, sk, pixel, &o, &d);
-    store3(ray_o, slot, o);
-    store3(ray_d, slot, d);
+    const SampleKey key = sampler_key(seed, (uint)pixel, (uint)camera->width, (uint)pass);
+    pvec3 o, d;
+    camera_ray(camera, key, pixel % camera->width, pixel / camera->width, PTRUE, &o, &d);
+    store3(ray_o, slot, pv3_lane(o, 0));
+    store3(ray_d, slot, pv3_lane(d, 0));
     store3(throughput, slot, (float3)(1.0f));
     store3(radiance, slot, (float3)(0.0f));
     path_pixel[slot] = pixel;

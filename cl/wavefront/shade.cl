@@ -22,30 +22,30 @@ __kernel void wf_shade(WAVE_PARAMS)
     int alive = 0, queued_shadow = 0;
     if (active) {
         const int prim = hit_prim[slot];
-        const SampleKey sk = sampler_key(seed, (uint)path_pixel[slot], (uint)camera->width, (uint)path_pass[slot]);
+        const SampleKey key = sampler_key(seed, (uint)path_pixel[slot], (uint)camera->width, (uint)path_pass[slot]);
         PathState s;
-        s.o = load3(ray_o, slot);
-        s.d = load3(ray_d, slot);
-        s.beta = load3(throughput, slot);
-        s.L = load3(radiance, slot);
+        s.o = pv3_from(load3(ray_o, slot));
+        s.d = pv3_from(load3(ray_d, slot));
+        s.beta = pv3_from(load3(throughput, slot));
+        s.L = pv3_from(load3(radiance, slot));
         s.pdf = path_pdf[slot];
         s.eta_scale = path_eta_scale[slot];
         s.depth = path_depth[slot];
         if (prim != PRIM_MISS) {
             ShadowRay shadow;
-            const int result = path_shade_hit(PATH_ARGS, slot, sk, prim, hit_t[slot], hit_u[slot], hit_v[slot], &s,
-                                              &shadow);
-            alive = result & 1;
-            queued_shadow = (result >> 1) & 1;
+            path_shade(PATH_ARGS, slot, key, PTRUE, prim, hit_t[slot], hit_u[slot], hit_v[slot], &s, &alive,
+                       &queued_shadow, &shadow);
+            alive = alive != 0; /* masks: any non-zero value is true */
+            queued_shadow = queued_shadow != 0;
             if (queued_shadow) {
-                store3(sh_o, slot, shadow.o);
-                store3(sh_d, slot, shadow.d);
-                store3(sh_contrib, slot, shadow.contribution);
+                store3(sh_o, slot, pv3_lane(shadow.o, 0));
+                store3(sh_d, slot, pv3_lane(shadow.d, 0));
+                store3(sh_contrib, slot, pv3_lane(shadow.contribution, 0));
             }
             if (alive) {
-                store3(ray_o, slot, s.o);
-                store3(ray_d, slot, s.d);
-                store3(throughput, slot, s.beta);
+                store3(ray_o, slot, pv3_lane(s.o, 0));
+                store3(ray_d, slot, pv3_lane(s.d, 0));
+                store3(throughput, slot, pv3_lane(s.beta, 0));
                 path_pdf[slot] = s.pdf;
                 path_eta_scale[slot] = s.eta_scale;
                 path_depth[slot] = s.depth;
@@ -53,10 +53,10 @@ __kernel void wf_shade(WAVE_PARAMS)
         }
 #ifdef HAS_ENVIRONMENT
         else {
-            path_escape(lights, env_map, env_cdf, &s);
+            path_escape(lights, env_map, env_cdf, PTRUE, &s);
         }
 #endif
-        store3(radiance, slot, s.L);
+        store3(radiance, slot, pv3_lane(s.L, 0));
     } /* active */
 
     /* flags: bit 0 = active, bit 1 = alive (else terminated), bit 2 = shadow ray queued */

@@ -7,6 +7,7 @@ __kernel void wf_shadow(WAVE_PARAMS)
     const int i = get_global_id(0);
     if (i >= counters[COUNTER_SHADOW]) return;
     const int slot = shadow_q[i];
-    if (!scene_occluded(nodes, tris, spheres, n_spheres, load3(sh_o, slot), load3(sh_d, slot), 0.0f, 1.0f))
+    if (!scene_occluded(nodes, tris, spheres, n_spheres, pv3_from(load3(sh_o, slot)), pv3_from(load3(sh_d, slot)), PTRUE,
+                        1.0f))
         store3(radiance, slot, load3(radiance, slot) + load3(sh_contrib, slot));
 }

@@ -338,7 +338,6 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
     Param("textures", "const", "Texture"),
     Param("tex_data", "const", "float4", "texels of every texture"),
-    Param("mat_scratch", "global", "Material", "effective Material of a textured hit", per_slot=1),
     # queues of slot indices and their counters
     Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True),
     Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True),

@@ -12,12 +12,12 @@ on the others, when the Embree intersector traces on the host (it needs the wave
 queues) and when film AOVs are requested (their per-path state lives in the wavefront's buffers).
 ``$PYOPENCL_RT_KERNEL_MODE`` or the ``kernel_mode`` argument overrides the choice.
 
-Paths in SIMD lanes (:func:`lane_choice`): on PoCL's CPU device, for the scenes
-cl/render/path_lanes.h covers (triangles with the diffuse material lit by emissive triangles, the
-MIS integrator, no textures), each work-item follows 16 or 8 paths at once in the lanes
-of its vectors (cl/megakernel/lanes.cl): their rays are traced as packets and their hits shaded
-together, as Mitsuba's LLVM backend runs its paths.  Same samples, bit for bit, except where two
-triangles give a ray exactly the same distance.  ``$PYOPENCL_RT_LANES`` = 0 turns it off.
+Paths in SIMD lanes (:func:`lane_choice`): on PoCL's CPU device of an x86 host, each work-item
+follows 16 or 8 paths at once in the lanes of its vectors (cl/megakernel/path.cl compiled with
+PACKET_WIDTH; the one integrator, cl/render/path.h, is written over lanes): their rays are traced
+as packets and their hits shaded together, as Mitsuba's LLVM backend runs its paths, for every
+scene (every material, light, texture and integrator).  Same samples, bit for bit, except where
+two triangles give a ray exactly the same distance.  ``$PYOPENCL_RT_LANES`` = 0 turns it off.
 """
 from __future__ import annotations
 
@@ -34,14 +34,8 @@ from .film import Film, RunStats
 KERNEL_MODES = ("wavefront", "megakernel")
 KERNEL_MODE_ENV = "PYOPENCL_RT_KERNEL_MODE"
 SOURCES = ("megakernel/path.cl",)
-LANES_SOURCES = ("megakernel/lanes.cl",)
 LANE_BLOCK = 16           # samples per work-item, in units of the lane width, taken in turn by its lanes
 LANE_GROUP = 8            # work-items per group: a launch of the CPU wave (2^18 samples) makes 128 groups
-# the defines a scene may have for the lane kernel (with INTEGRATOR 0, lights and triangles), and
-# the switches kept for A/B measurements (RR_NO_ETA: tools/variance_audit.py; PACKET_HYBRID, the
-# ray-by-ray threshold of cl/accel/bvh_packet.h, and PACKET_PAIR_PASSES: tools/kernel_ab.py)
-_LANE_DEFINES = {"BVH_WIDE8", "HAS_LIGHTS", "HAS_TRIANGLES", "INTEGRATOR", "MATERIALS_SELECTED", "SAMPLER",
-                 "RR_NO_ETA", "PACKET_HYBRID", "PACKET_PAIR_PASSES"}
 
 
 def kernel_mode(device, intersector: str, film_aovs, requested: str | None = None) -> str:
@@ -65,15 +59,13 @@ def lane_choice(mode: str, device, features: dict, requested=None) -> tuple[int,
     """Paths per work-item of the megakernel, and why: the packet width of the device
     (:func:`~pyopencl_rt.accel.device_bvh.packet_choice`: 16, 8 or 0 from what PoCL compiles for)
     where the lane kernel applies (the megakernel on PoCL's CPU device of an x86 host, a scene
-    whose defines path_lanes.h covers), else 0 (one path per work-item).  ``requested`` or
+    whose triangles are in the 8-wide BVH the packets traverse), else 0 (one path per work-item).  ``requested`` or
     ``$PYOPENCL_RT_LANES`` overrides: 0 (off), 8 or 16 (where it applies and is safe)."""
     lanes_setting(requested)  # checks the setting first, whatever the scene
     if mode != "megakernel":
         return 0, f"one path per work-item: the {mode} schedule"
-    covered = (set(features) <= _LANE_DEFINES and features.get("INTEGRATOR") == 0
-               and {"HAS_LIGHTS", "HAS_TRIANGLES", "BVH_WIDE8", "MATERIALS_SELECTED"} <= set(features))
-    if not covered:
-        return 0, "one path per work-item: the scene uses what the lane kernel does not cover"
+    if "HAS_TRIANGLES" in features and "BVH_WIDE8" not in features:
+        return 0, "one path per work-item: the packets traverse the 8-wide BVH, not this device's layout"
     return packet_choice(device, requested)
 
 
@@ -106,7 +98,7 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
         passes_per_launch = max(1, min(wf.wave_size // n_pixels, wf.ring_size))
     else:  # the ring holds ring_size * wf.n_pixels results in order: every launch's
         passes_per_launch = max(1, min(wf.wave_size, wf.ring_size * wf.n_pixels) // n_pixels)
-    # at most the wave (mat_scratch is indexed by work-item); with pixels, passes_per_launch already
+    # at most the wave; with pixels, passes_per_launch already
     # keeps a launch within the ring's ring_size * wf.n_pixels entries (n_pixels <= wf.n_pixels)
     samples_per_launch = min(passes_per_launch * n_pixels, wf.wave_size)
     # two sets of host buffers: one being filled by the queue while the host sums the other

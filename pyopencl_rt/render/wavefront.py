@@ -115,8 +115,8 @@ class Wavefront:
         if self.lane_width:
             try:
                 lane_features = {**self.features, **megakernel.lane_features(self.lane_width)}
-                self.kernels = {"path": self.rt.new_kernels(megakernel.LANES_SOURCES, ("mk_lanes",),
-                                                            lane_features)["mk_lanes"]}
+                self.kernels = {"path": self.rt.new_kernels(megakernel.SOURCES, ("mk_path",),
+                                                            lane_features)["mk_path"]}
                 self.features = lane_features
             except cl.Error as exc:  # a kernel of ours that fails never ends the render
                 import warnings
@@ -160,7 +160,7 @@ class Wavefront:
             tri_material=const(tri_material), tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
-            **self._texture_buffers(const, scratch, W), **self._aov_buffers(scratch, W, P),
+            **self._texture_buffers(const), **self._aov_buffers(scratch, W, P),
             free_q=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32)),
             counters=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host),
             pass_ring=scratch(3 * 4 * P * self.ring_size), env_map=const(env_map), env_cdf=const(env_cdf),
@@ -210,18 +210,17 @@ class Wavefront:
     def n_pixels(self) -> int:
         return self.settings.n_pixels
 
-    def _texture_buffers(self, const, scratch, W) -> dict:
-        """tri_uv, textures, tex_data and mat_scratch (cl/scene/textures.h); 16-byte dummies when the
-        scene has no textures."""
+    def _texture_buffers(self, const) -> dict:
+        """tri_uv, textures and tex_data (cl/scene/textures.h); 16-byte dummies when the scene has
+        no textures."""
         if not self.scene.has_textures():
             dummy = const(np.zeros(0, np.uint8))
-            return {"tri_uv": dummy, "textures": dummy, "tex_data": dummy, "mat_scratch": scratch(0)}
+            return {"tri_uv": dummy, "textures": dummy, "tex_data": dummy}
         from ..scene.textures import pack_textures
 
         uv = self.scene.face_uvs()[self.bvh.prim_ids].reshape(-1, 2)
         table, texels = pack_textures(self.scene.textures())
-        return {"tri_uv": const(uv), "textures": const(table), "tex_data": const(texels),
-                "mat_scratch": scratch(abi.MATERIAL.itemsize * W)}
+        return {"tri_uv": const(uv), "textures": const(table), "tex_data": const(texels)}
 
     def _aov_buffers(self, scratch, W, P) -> dict:
         """aov_path and aov_ring (cl/render/aov.h) when the settings ask for AOVs, else dummies."""

@@ -34,9 +34,10 @@ __kernel void h_sphere(__global const float *o, __global const float *d, __globa
 {
     const int i = get_global_id(0);
     float t = 0;
-    const int hit = intersect_sphere(load3(o, i), load3(d, i), (float3)(sph[4*i], sph[4*i+1], sph[4*i+2]),
-                                     sph[4 * i + 3], tmin, tmax, &t);
-    out[2 * i] = hit; out[2 * i + 1] = t;
+    const int hit = intersect_sphere(pv3_from(load3(o, i)), pv3_from(load3(d, i)),
+                                     pv3(sph[4 * i], sph[4 * i + 1], sph[4 * i + 2]), sph[4 * i + 3], tmin, tmax, &t,
+                                     PTRUE);
+    out[2 * i] = hit != 0; out[2 * i + 1] = t;
 }
 
 #define OFFSET_OF(field) (int)((__private char *)&probe.field - (__private char *)&probe)

@@ -122,7 +122,7 @@ def kernel_builds(device, width):
     builds = {"one path": (megakernel.SOURCES, base), "trace": (("accel/trace.cl",), {"BVH_WIDE8": True}),
               "trace binary layout": (("accel/trace.cl",), {})}
     if width:
-        builds["lanes"] = (megakernel.LANES_SOURCES, {**base, **megakernel.lane_features(width)})
+        builds["lanes"] = (megakernel.SOURCES, {**base, **megakernel.lane_features(width)})
         builds["trace packets"] = (("accel/trace.cl",), {"BVH_WIDE8": True, "PACKET_WIDTH": width})
     return builds
 
@@ -135,7 +135,7 @@ def test_no_wide_vector_is_passed_to_a_builtin(device, runtime):
     machine = pocl_x86(device)
     width = isa.simd_width(machine)[0]
     builds = kernel_builds(device, width)
-    builds["lanes at 16"] = (megakernel.LANES_SOURCES, {**builds["one path"][1], **megakernel.lane_features(16)})
+    builds["lanes at 16"] = (megakernel.SOURCES, {**builds["one path"][1], **megakernel.lane_features(16)})
     for name, (names, defines) in builds.items():
         assert crossings(runtime, names, defines) == [], name
 

@@ -4,7 +4,10 @@ Closed forms where they exist (a point or directional light over a diffuse plane
 furnace under a constant environment, the blur of an edge seen through a thin lens), the
 environment map's importance sampling against the luminance distribution (chi-square, as in
 tests/render/test_sampling.py: tests/harness.py's chi2_test), and light sampling against BSDF sampling under an environment map
-(tile-wise z-tests).  Robustness: no NaN or Inf for extreme parameters."""
+(tile-wise z-tests).  Robustness: no NaN or Inf for extreme parameters.  The lights' functions
+(cl/render/lights.h) and the hit geometry (cl/scene/scene.h: hit_point, hit_normal) in harness
+kernels: each kind of light sample against its closed form at width 1, and 8 and 16 lanes giving
+width 1's bits lane by lane."""
 import warnings
 
 import numpy as np
@@ -27,12 +30,14 @@ __kernel void h_env_sample(__global const Light *lt, __global const float *env_m
                            __global const float *u, __global float *out)
 {
     const int i = get_global_id(0);
-    float3 wi;
-    float pdf;
-    const float3 Le = env_sample(lt, env_map, env_cdf, vload2(i, u), &wi, &pdf);
+    pvec3 wi;
+    pfloat pdf;
+    const float3 Le = pv3_lane(env_sample(lt, env_map, env_cdf, PFLOAT(u[2 * i]), PFLOAT(u[2 * i + 1]), &wi, &pdf), 0);
+    const float3 w = pv3_lane(wi, 0);
     __global float *o = out + 8 * i;
-    o[0] = wi.x; o[1] = wi.y; o[2] = wi.z; o[3] = pdf;
-    o[4] = env_pdf(lt, env_cdf, wi);
+    o[0] = w.x; o[1] = w.y; o[2] = w.z; o[3] = PLANE(pdf, 0);
+    const pfloat pdf_w = env_pdf(lt, env_cdf, pv3_from(w));
+    o[4] = PLANE(pdf_w, 0);
     o[5] = Le.x; o[6] = Le.y; o[7] = Le.z;
 }
 
@@ -41,11 +46,102 @@ __kernel void h_env_eval(__global const Light *lt, __global const float *env_map
                          __global const float *w, __global float *out)
 {
     const int i = get_global_id(0);
-    const float3 d = load3(w, i);
-    out[2 * i] = env_pdf(lt, env_cdf, d);
-    out[2 * i + 1] = env_radiance(lt, env_map, d).x;
+    const pvec3 d = pv3_from(load3(w, i));
+    const pfloat pdf = env_pdf(lt, env_cdf, d);
+    out[2 * i] = PLANE(pdf, 0);
+    out[2 * i + 1] = pv3_lane(env_radiance(lt, env_map, d), 0).x;
 }
 """, defines={"HAS_ENVIRONMENT": True})
+
+# The lights' and hits' functions over PACKET_WIDTH lanes per work-item (lane k of item i: entry
+# i * PACKET_WIDTH + k of each array), built at every width: each lane must give the bits of width 1.
+LANE_SOURCE = r"""
+#include "render/lights.h"
+
+#define L_IN 14  /* per lane: ref (3), u (2), p (3), ng (3), w (3) */
+#define L_OUT 21 /* per lane: got, ls.p (3), ls.err (3), ls.n (3), ls.Le (3), ls.pdf, ls.far, ls.delta,
+                  * light_pdf(p, ng), env_pdf(w), env_radiance(w).x */
+/* index: (light, active) per lane; env_light: the environment light's index */
+__kernel void h_lights(__global const float4 *tris, __global const Sphere *spheres,
+                       __global const Material *materials, __global const float *env_map,
+                       __global const float *env_cdf, __global const Light *lights, int env_light,
+                       __global const int *index, __global const float *in, __global float *out)
+{
+    const int base = get_global_id(0) * PACKET_WIDTH;
+    pint li, act;
+    pvec3 ref, p, ng, w;
+    pfloat ux, uy;
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        const int j = base + k;
+        __global const float *a = in + L_IN * j;
+        PLANE_I(li, k) = index[2 * j];
+        PLANE_I(act, k) = index[2 * j + 1];
+        pv3_set_lane(&ref, k, vload3(0, a));
+        PLANE(ux, k) = a[3];
+        PLANE(uy, k) = a[4];
+        pv3_set_lane(&p, k, vload3(0, a + 5));
+        pv3_set_lane(&ng, k, vload3(0, a + 8));
+        pv3_set_lane(&w, k, vload3(0, a + 11));
+    }
+    act = act != 0; /* a mask */
+    LightSample ls;
+    const pint got = light_sample_all(tris, spheres, materials, env_map, env_cdf, lights, li, act, ref, ux, uy, &ls);
+    const pfloat lpdf = light_pdf(spheres, lights, li, ref, p, ng);
+    const pfloat epdf = env_pdf(lights + env_light, env_cdf, w);
+    const pvec3 eL = env_radiance(lights + env_light, env_map, w);
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        __global float *o = out + L_OUT * (base + k);
+        o[0] = PLANE_I(got, k) != 0 ? 1.0f : 0.0f;
+        vstore3(pv3_lane(ls.p, k), 0, o + 1);
+        vstore3(pv3_lane(ls.err, k), 0, o + 4);
+        vstore3(pv3_lane(ls.n, k), 0, o + 7);
+        vstore3(pv3_lane(ls.Le, k), 0, o + 10);
+        o[13] = PLANE(ls.pdf, k);
+        o[14] = PLANE(ls.far, k);
+        o[15] = PLANE_I(ls.delta, k) != 0 ? 1.0f : 0.0f;
+        o[16] = PLANE(lpdf, k);
+        o[17] = PLANE(epdf, k);
+        o[18] = pv3_lane(eL, k).x; o[19] = pv3_lane(eL, k).y; o[20] = pv3_lane(eL, k).z;
+    }
+}
+
+#define H_IN 9  /* per lane: o (3), d (3), t, u, v */
+#define H_OUT 9 /* per lane: hit_point (3), its error bound (3), hit_normal (3) */
+__kernel void h_hits(__global const float4 *tris, __global const Sphere *spheres, __global const int *prims,
+                     __global const float *in, __global float *out)
+{
+    const int base = get_global_id(0) * PACKET_WIDTH;
+    pint prim;
+    pvec3 o, d;
+    pfloat t, u, v;
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        const int j = base + k;
+        __global const float *a = in + H_IN * j;
+        PLANE_I(prim, k) = prims[j];
+        pv3_set_lane(&o, k, vload3(0, a));
+        pv3_set_lane(&d, k, vload3(0, a + 3));
+        PLANE(t, k) = a[6];
+        PLANE(u, k) = a[7];
+        PLANE(v, k) = a[8];
+    }
+    pvec3 err;
+    const pvec3 p = hit_point(tris, spheres, prim, o, d, t, u, v, &err);
+    const pvec3 n = hit_normal(tris, spheres, prim, p, prim != PRIM_MISS);
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        __global float *r = out + H_OUT * (base + k);
+        vstore3(pv3_lane(p, k), 0, r);
+        vstore3(pv3_lane(err, k), 0, r + 3);
+        vstore3(pv3_lane(n, k), 0, r + 6);
+    }
+}
+"""
+LANE_DEFINES = {"HAS_ENVIRONMENT": True, "HAS_DELTA_LIGHTS": True, "HAS_SPHERES": True, "HAS_TRIANGLES": True}
+
+
+def lane_kernels(width):
+    """The lane harness at `width` lanes (wider than 1: with the 8-wide BVH the packet traversal
+    needs, as the renderer builds it)."""
+    return harness.Kernels(LANE_SOURCE, defines={**LANE_DEFINES, "PACKET_WIDTH": width, "BVH_WIDE8": width > 1})
 
 
 def empty_mesh():
@@ -145,6 +241,237 @@ def test_env_map_of_zeros_and_constant(runtime):
     const["material"] = 0
     out = HARNESS(runtime, "h_env_sample", 4096, const, tm.reshape(-1), cdf, u, (4096, 8))
     assert np.allclose(out[:, 3], 1 / (4 * np.pi)) and np.allclose(out[:, 4], 1 / (4 * np.pi))
+
+
+# ----------------------------------------------------------------------------------- lanes
+def lights_setup(rng, env_image):
+    """Emissive triangles (one- and two-sided materials), emissive spheres, a point, a directional
+    and an environment light (env_image None: constant), as the kernels read them."""
+    n_tri = 6
+    tri = (rng.normal(size=(n_tri, 1, 3)) * 3 + rng.normal(size=(n_tri, 3, 3))).astype(np.float32)
+    tris = np.zeros((3 * n_tri, 4), np.float32)
+    tris[:, :3] = tri.reshape(-1, 3)
+    spheres = np.zeros(3, abi.SPHERE)
+    spheres["center"] = rng.normal(size=(3, 3)) * 3
+    spheres["radius"] = (0.5, 1.0, 2.0)
+    materials = np.stack([Material("one-sided", emission=(1.0, 2.0, 3.0)).record(),
+                          Material("two-sided", emission=(4.0, 0.5, 1.0), two_sided=True).record()])
+    if env_image is None:
+        env = Environment(radiance=(0.5, 1.0, 2.0))
+        tm, cdf = np.zeros(3, np.float32), np.zeros(1, np.float32)
+    else:
+        env = Environment(radiance=(0.5, 1.0, 2.0), image=env_image)
+        tm, cdf, _ = environment_tables(env_image)
+        tm = tm.reshape(-1)
+    sc = Scene(**empty_mesh(), materials=[Material()], spheres=np.array([[0, 0, 0, 4]], np.float32),
+               sphere_materials=np.array([0], np.int32),
+               lights=[PointLight(position=(0.5, 1.0, -0.3), intensity=(2.0, 3.0, 4.0)),
+                       DirectionalLight(direction=(0.3, -1.0, 0.2), irradiance=(1.0, 2.0, 0.5))],
+               environment=env)
+    others, _ = other_lights(sc)
+    area = np.zeros(n_tri + 3, abi.LIGHT)
+    area["kind"][:n_tri] = abi.LIGHT_TRIANGLE
+    area["prim"][:n_tri] = np.arange(n_tri)
+    area["material"][:n_tri] = np.arange(n_tri) % 2
+    p = tri.astype(np.float64)
+    area["area"][:n_tri] = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    area["kind"][n_tri:] = abi.LIGHT_SPHERE
+    area["prim"][n_tri:] = np.arange(3)
+    area["material"][n_tri:] = np.arange(3) % 2
+    area["area"][n_tri:] = 4 * np.pi * spheres["radius"].astype(np.float64) ** 2
+    lights = np.concatenate([area, others])
+    return dict(tris=tris, spheres=spheres, materials=materials, env_map=tm, env_cdf=cdf, lights=lights,
+                env_light=len(lights) - 1)
+
+
+def lane_inputs(rng, setup, n):
+    """Per lane: a light of every kind (half the lanes in runs of one kind, to have packets of one
+    kind, half at random), 90% active; a reference point (for a sphere, inside it in 30% of the
+    lanes), uniforms, a point on the light with its normal (light_pdf), a unit direction (a few
+    along +-y, the poles of the map)."""
+    lights, tris, spheres = setup["lights"], setup["tris"], setup["spheres"]
+    pick = rng.integers(0, len(lights), n)
+    pick[: n // 2] = np.sort(pick[: n // 2])
+    active = (rng.random(n) < 0.9).astype(np.int32)
+    kind, prim = lights["kind"][pick], lights["prim"][pick]
+    ref = rng.normal(size=(n, 3)) * 4
+    u = harness.uniforms(rng, (n, 2))
+    p, ng = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    t = kind == abi.LIGHT_TRIANGLE
+    v = tris[:, :3].astype(np.float64).reshape(-1, 3, 3)[prim[t]]
+    b = rng.dirichlet((1, 1, 1), t.sum())
+    p[t] = np.einsum("nk,nkc->nc", b, v)
+    ng[t] = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    # 5% of the triangles' reference points in the light's plane (to rounding): its side in doubt
+    plane = rng.random(t.sum()) < 0.05
+    ab = rng.uniform(-3, 3, (t.sum(), 2))
+    inplane = v[:, 0] + ab[:, :1] * (v[:, 1] - v[:, 0]) + ab[:, 1:] * (v[:, 2] - v[:, 0])
+    ref[np.flatnonzero(t)[plane]] = inplane[plane]
+    s = kind == abi.LIGHT_SPHERE
+    c, r = spheres["center"][prim[s]].astype(np.float64), spheres["radius"][prim[s]].astype(np.float64)
+    dirs = rng.normal(size=(s.sum(), 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    p[s] = c + r[:, None] * dirs
+    ng[s] = dirs
+    inside = rng.random(s.sum()) < 0.3
+    ref[np.flatnonzero(s)[inside]] = (c + 0.8 * r[:, None] * rng.uniform(-1, 1, (s.sum(), 3)) / np.sqrt(3))[inside]
+    ng /= np.linalg.norm(ng, axis=1, keepdims=True)
+    w = rng.normal(size=(n, 3))
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    w[:8] = [[0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1], [1, 0, 0], [-1, 0, 0], [0, 1e-8, 1], [1e-20, -1, 0]]
+    ins = np.concatenate([ref, u, p, ng, w], axis=1).astype(np.float32)
+    return np.stack([pick, active], 1).astype(np.int32), ins
+
+
+def run_lights(runtime, width, setup, index, ins):
+    n = len(index)
+    return lane_kernels(width)(runtime, "h_lights", n // width, setup["tris"], setup["spheres"], setup["materials"],
+                               setup["env_map"], setup["env_cdf"], setup["lights"], setup["env_light"], index, ins,
+                               (n, 21))
+
+
+def test_light_sample_all_one_lane(runtime, rng):
+    """Width 1: light_sample_all's sample of each kind against its closed form (point: Le = I /
+    d^2 along the unit direction to ref; directional: far = 1.01 (|ref - centre| + radius), p =
+    ref + far n; both delta with pdf 1), light_pdf() of the sampled point equals the sample's pdf
+    for area lights (the cone's pdf for a sphere seen from outside exactly), env_pdf() of an
+    environment sample's direction its pdf, inactive lanes get no sample."""
+    for image in (env_map_image(), None):
+        setup = lights_setup(rng, image)
+        lights = setup["lights"]
+        n = 4096
+        index, ins = lane_inputs(rng, setup, n)
+        out = run_lights(runtime, 1, setup, index, ins).astype(np.float64)
+        got, lp, n_, le, pdf, far, delta = (out[:, 0] == 1, out[:, 1:4], out[:, 7:10], out[:, 10:13], out[:, 13],
+                                            out[:, 14], out[:, 15] == 1)
+        kind = lights["kind"][index[:, 0]]
+        act = index[:, 1] == 1
+        assert not got[~act].any()
+        rec = lights[index[:, 0]]
+        ref = ins[:, :3].astype(np.float64)
+        pt = act & (kind == abi.LIGHT_POINT)
+        assert got[pt].all() and delta[pt].all() and np.all(pdf[pt] == 1) and np.all(far[pt] == 0)
+        d = ref[pt] - rec["p"][pt]
+        d2 = (d * d).sum(1)
+        assert np.allclose(le[pt], rec["rgb"][pt] / d2[:, None], rtol=1e-5)
+        assert np.allclose(n_[pt], d / np.sqrt(d2)[:, None], atol=1e-5)
+        dl = act & (kind == abi.LIGHT_DIRECTIONAL)
+        assert got[dl].all() and delta[dl].all() and np.all(pdf[dl] == 1)
+        assert np.allclose(n_[dl], -rec["dir"][dl], atol=1e-7) and np.allclose(le[dl], rec["rgb"][dl])
+        fd = 1.01 * (np.linalg.norm(ref[dl] - rec["p"][dl], axis=1) + rec["radius"][dl])
+        assert np.allclose(far[dl], fd, rtol=1e-5)
+        assert np.allclose(lp[dl], ref[dl] + far[dl, None] * n_[dl], rtol=1e-5, atol=1e-5)
+        ev = act & (kind == abi.LIGHT_ENVIRONMENT)
+        assert got[ev].mean() > 0.99 and not delta[ev].any() and np.all(far[ev] > 0)
+        e = ev & got
+        assert np.allclose(np.linalg.norm(n_[e], axis=1), 1, atol=1e-5)
+        ep = HARNESS(runtime, "h_env_eval", int(e.sum()), lights[setup["env_light"]:], setup["env_map"],
+                     setup["env_cdf"], n_[e].astype(np.float32), (int(e.sum()), 2))
+        assert np.mean(np.isclose(ep[:, 0], pdf[e], rtol=2e-3)) > 0.99  # texel borders aside
+        area = act & ((kind == abi.LIGHT_TRIANGLE) | (kind == abi.LIGHT_SPHERE))
+        assert not delta[area].any() and np.all(far[area] == 0)
+        a = area & got
+        assert a.sum() > 0.9 * area.sum() and np.all(pdf[a] > 0)
+        # light_pdf at the sampled point, from the same reference point
+        ins2 = ins.copy()
+        ins2[:, 5:8], ins2[:, 8:11] = out[:, 1:4], out[:, 7:10]
+        out2 = run_lights(runtime, 1, setup, index, ins2).astype(np.float64)
+        to_ref = ref - lp
+        cos = np.abs((to_ref * n_).sum(1)) / np.linalg.norm(to_ref, axis=1)
+        clear = a & (cos > 1e-3)  # not (nearly) in the light's plane: cos_l's rounding, relative, is small
+        assert clear.sum() > 0.9 * a.sum() and np.allclose(out2[clear, 16], pdf[clear], rtol=1e-3)
+        cone = a & (kind == abi.LIGHT_SPHERE)
+        si = np.where(kind == abi.LIGHT_SPHERE, rec["prim"], 0)
+        c = setup["spheres"]["center"][si].astype(np.float64)
+        cone &= ((ref - c) ** 2).sum(1) > setup["spheres"]["radius"][si].astype(np.float64) ** 2
+        assert cone.sum() > 0 and np.array_equal(out2[cone, 16], pdf[cone])
+        # n faces ref; emission: the material's where it faces ref (or two-sided), else 0
+        mat = setup["materials"][np.where(area, rec["material"], 0)]
+        assert np.all(((to_ref * n_).sum(1) >= -1e-5 * np.linalg.norm(to_ref, axis=1))[a])
+        two = (mat["flags"] & abi.MATERIAL_FLAG_TWO_SIDED) != 0
+        tri_a = a & (kind == abi.LIGHT_TRIANGLE)
+        p = setup["tris"][:, :3].astype(np.float64).reshape(-1, 3, 3)[np.where(tri_a, rec["prim"], 0)]
+        ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        front = (ng * n_).sum(1) > 0
+        lit = two | front
+        assert np.all(le[tri_a & lit] == mat["emission"][tri_a & lit]) and np.all(le[tri_a & ~lit] == 0)
+        # a sphere's outside emits toward a reference point outside; seen from inside, only two-sided
+        sph_in = a & (kind == abi.LIGHT_SPHERE) & ~cone
+        assert sph_in.sum() > 0 and np.all(le[sph_in & ~two] == 0)
+        assert np.all(le[sph_in & two] == mat["emission"][sph_in & two])
+        assert np.mean(np.all(le[cone] == mat["emission"][cone], axis=1)) > 0.99
+
+
+@pytest.mark.parametrize("width", [8, 16])
+def test_lights_lanes_equal_one_lane(device, runtime, rng, width):
+    """light_sample_all, light_pdf, env_radiance, env_pdf (an environment map and a constant one)
+    and hit_point / hit_normal (triangles, spheres, misses) give, in every lane of width 8 and 16,
+    the bits width 1 gives: lights of every kind mixed in the packets, references inside and
+    outside spheres."""
+    harness.require_lane_kernels(device, width)
+    n = 16 * 384
+    for image in (env_map_image(), None):
+        setup = lights_setup(rng, image)
+        index, ins = lane_inputs(rng, setup, n)
+        one = run_lights(runtime, 1, setup, index, ins)
+        lanes = run_lights(runtime, width, setup, index, ins)
+        kind = setup["lights"]["kind"][index[:, 0]]
+        got = one[:, 0] == 1
+        assert np.array_equal(one[:, 0], lanes[:, 0]) and got.mean() > 0.5
+        bits1, bitsw = one.view(np.uint32), lanes.view(np.uint32)
+        assert np.array_equal(bits1[got, :16], bitsw[got, :16]), "light_sample_all"
+        area = (kind == abi.LIGHT_TRIANGLE) | (kind == abi.LIGHT_SPHERE)
+        assert np.array_equal(bits1[area, 16], bitsw[area, 16]), "light_pdf"
+        assert np.array_equal(bits1[:, 17:], bitsw[:, 17:]), "env_pdf, env_radiance"
+    # hits: triangles (barycentrics inside and a little outside), spheres from outside and inside, misses
+    tris, spheres = setup["tris"], setup["spheres"]
+    prims = rng.integers(0, len(tris) // 3, n).astype(np.int32)
+    sph = rng.random(n) < 0.4
+    prims[sph] = abi.PRIM_SPHERE_FIRST - rng.integers(0, len(spheres), sph.sum())
+    prims[rng.random(n) < 0.05] = abi.PRIM_MISS
+    o = rng.normal(size=(n, 3)) * 5
+    d = rng.normal(size=(n, 3))
+    t = rng.uniform(0, 3, n)
+    uv = rng.uniform(-0.1, 0.7, (n, 2))
+    hin = np.concatenate([o, d, t[:, None], uv], axis=1).astype(np.float32)
+    one = lane_kernels(1)(runtime, "h_hits", n, tris, spheres, prims, hin, (n, 9))
+    lanes = lane_kernels(width)(runtime, "h_hits", n // width, tris, spheres, prims, hin, (n, 9))
+    hit = prims != abi.PRIM_MISS
+    assert np.array_equal(one[hit].view(np.uint32), lanes[hit].view(np.uint32)), "hit_point, hit_normal"
+
+
+def test_hit_point_and_normal(runtime, rng):
+    """Width 1: a triangle's hit point interpolates its vertices with the barycentrics (error bound
+    >= the actual error), its normal is the unit (v1 - v0) x (v2 - v0); a sphere's point is o + t d
+    projected onto the surface, its normal the outward unit normal."""
+    setup = lights_setup(rng, None)
+    tris, spheres = setup["tris"], setup["spheres"]
+    n = 2048
+    prims = rng.integers(0, len(tris) // 3, n).astype(np.int32)
+    sph = np.arange(n) % 2 == 1
+    prims[sph] = abi.PRIM_SPHERE_FIRST - rng.integers(0, len(spheres), sph.sum())
+    o = rng.normal(size=(n, 3)) * 5
+    d = rng.normal(size=(n, 3))
+    t = rng.uniform(0.1, 3, n)
+    uv = rng.dirichlet((1, 1, 1), n)[:, 1:]
+    hin = np.concatenate([o, d, t[:, None], uv], axis=1).astype(np.float32)
+    out = lane_kernels(1)(runtime, "h_hits", n, tris, spheres, prims, hin, (n, 9)).astype(np.float64)
+    p, err, nrm = out[:, :3], out[:, 3:6], out[:, 6:]
+    v = tris[:, :3].astype(np.float64).reshape(-1, 3, 3)
+    tr = ~sph
+    vt = v[prims[tr]]
+    b = hin[tr, 7:9].astype(np.float64)
+    exact = (1 - b.sum(1))[:, None] * vt[:, 0] + b[:, :1] * vt[:, 1] + b[:, 1:] * vt[:, 2]
+    assert np.all(np.abs(p[tr] - exact) <= err[tr] + 1e-12)
+    ng = np.cross(vt[:, 1] - vt[:, 0], vt[:, 2] - vt[:, 0])
+    assert np.allclose(nrm[tr], ng / np.linalg.norm(ng, axis=1, keepdims=True), atol=1e-5)
+    s = abi.PRIM_SPHERE_FIRST - prims[sph]
+    c, r = spheres["center"][s].astype(np.float64), spheres["radius"][s].astype(np.float64)
+    q = hin[sph, :3].astype(np.float64) + hin[sph, 6:7] * hin[sph, 3:6].astype(np.float64) - c
+    expect = c + r[:, None] * q / np.linalg.norm(q, axis=1, keepdims=True)
+    assert np.all(np.abs(np.linalg.norm(p[sph] - c, axis=1) - r) <= np.linalg.norm(err[sph], axis=1))
+    assert np.allclose((p[sph] - c) / r[:, None], (expect - c) / r[:, None], atol=1e-4)
+    assert np.allclose(nrm[sph], (p[sph] - c) / r[:, None], atol=1e-5)
 
 
 # ----------------------------------------------------------------------------------- renders

@@ -1,9 +1,11 @@
-"""Paths in SIMD lanes (cl/megakernel/lanes.cl, cl/render/path_lanes.h, lanes.h, sampler_lanes.h):
-the lane megakernel renders the same samples as the one-path megakernel, so the same image bit for
-bit and the same rays, for every sampler, depth, camera and schedule option it covers; it is
-chosen exactly where it applies; and its building blocks give the scalar code's bits lane by lane
-(the lane sampler, length/normalize with their rescaling fallbacks, nextafter, sqrt, min/max with
-NaN).  The packet traversal it traces with: tests/accel/test_bvh_packet.py."""
+"""Paths in SIMD lanes: the one integrator (cl/render/path.h, over cl/render/lanes.h) compiled at
+8 or 16 lanes (the CPU megakernel, cl/megakernel/path.cl) renders the same samples as at one lane,
+so the same image bit for bit and the same rays, for every material, light, texture, shape,
+integrator, sampler, depth and camera option (a scene that mixes them all, and the scenes of
+scenes/); it is chosen for every scene where the packets can traverse the device's BVH; and its
+building blocks give the scalar code's bits lane by lane (length/normalize with their rescaling
+fallbacks, nextafter, sqrt, min/max with NaN).  The sampler's lanes: tests/render/test_sampler.py;
+the packet traversal: tests/accel/test_bvh_packet.py."""
 import dataclasses
 import platform
 from pathlib import Path
@@ -45,9 +47,9 @@ def assert_same(results):
 
 # ----------------------------------------------------------------------------- which kernel
 def test_selection(device, monkeypatch):
-    """On PoCL's CPU device (of an x86 host: the lane code is clang-on-x86 C) the megakernel runs the lanes for diffuse scenes lit by emissive
-    triangles (the Cornell boxes), not for spheres, other materials or textures, nor for the
-    wavefront; at the width pyopencl_rt/device/isa.py's rule gives for what PoCL compiles for
+    """On PoCL's CPU device (of an x86 host: the lane code is clang-on-x86 C) the megakernel runs
+    every scene in lanes (spheres, every material, textures, every light), not the wavefront; at
+    the width pyopencl_rt/device/isa.py's rule gives for what PoCL compiles for
     (tests/device/test_isa.py); $PYOPENCL_RT_LANES = 0 turns it off, 8 or 16 sets the width where
     its vectors cross PoCL's library alike, anything else is one clear error.  Other devices
     never get it."""
@@ -57,8 +59,8 @@ def test_selection(device, monkeypatch):
     builds = harness.lane_kernels_build_on(device)
     cpu = isa.probe(device) if builds else None
     expected = isa.simd_width(cpu)[0] if builds else 0
-    for name, lanes in (("mitsuba-cbox", expected), ("cornell-box", expected), ("cornell-spheres", 0),
-                        ("veach-mis", 0), ("textured", 0), ("cornell-jensen", 0)):
+    for name, lanes in (("mitsuba-cbox", expected), ("cornell-box", expected), ("cornell-spheres", expected),
+                        ("veach-mis", expected), ("textured", expected), ("cornell-jensen", expected)):
         wf = Wavefront(rt.load_scene(SCENES / f"{name}.toml"), device, width=8, height=8, kernel_mode="megakernel")
         assert wf.lane_width == lanes, name
         assert ("PACKET_WIDTH" in wf.features) == bool(lanes), name
@@ -78,17 +80,121 @@ def test_selection(device, monkeypatch):
 
 
 # ----------------------------------------------------------------------------- same samples
+MIXED_SCENE = """
+# every material, shape and light type: the lanes of one packet hit different ones
+[camera]
+eye = [0.0, 1.0, 4.0]
+look_at = [0.0, 0.8, 0.0]
+fov = 50
+[materials.white]
+albedo = 0.7
+[materials.gold]
+type = "conductor"
+eta = [0.183, 0.421, 1.373]
+k = [3.424, 2.346, 1.770]
+roughness = 0.3
+[materials.mirror]
+type = "conductor"
+f0 = 1.0
+[materials.glass]
+type = "dielectric"
+ior = 1.5
+[materials.frosted]
+type = "dielectric"
+ior = 1.33
+roughness = 0.2
+[materials.plastic]
+type = "gltf"
+base_color = [0.8, 0.2, 0.1]
+metallic = 0.3
+roughness = 0.4
+[materials.lamp]
+albedo = 0.0
+emission = [4.0, 3.5, 3.0]
+[[shape]]
+type = "quad"
+material = "white"
+points = [[-3, 0, -3], [3, 0, -3], [3, 0, 3], [-3, 0, 3]]
+[[shape]]
+type = "quad"
+material = "mirror"
+points = [[-3, 0, -2], [-3, 3, -2], [3, 3, -2], [3, 0, -2]]
+[[shape]]
+type = "sphere"
+material = "gold"
+center = [-1.2, 0.5, 0.0]
+radius = 0.5
+[[shape]]
+type = "sphere"
+material = "glass"
+center = [0.0, 0.5, 0.5]
+radius = 0.5
+[[shape]]
+type = "sphere"
+material = "frosted"
+center = [1.2, 0.5, 0.0]
+radius = 0.5
+[[shape]]
+type = "quad"
+material = "plastic"
+points = [[-0.5, 1.2, -1], [0.5, 1.2, -1], [0.5, 2.2, -1], [-0.5, 2.2, -1]]
+[[shape]]
+type = "sphere"
+material = "lamp"
+center = [1.5, 2.5, 1.0]
+radius = 0.2
+[[light]]
+type = "point"
+position = [-1.0, 2.5, 1.5]
+intensity = 3.0
+[[light]]
+type = "directional"
+direction = [0.3, -1.0, -0.2]
+irradiance = 0.5
+"""
+
+
+def mixed_scene(tmp_path, environment=True):
+    """MIXED_SCENE with an environment map (a gradient with a bright spot) written beside it."""
+    from pyopencl_rt.imageio import write_exr
+
+    text = MIXED_SCENE
+    if environment:
+        sky = np.zeros((16, 32, 3), np.float32)
+        sky[:, :] = np.linspace(0.05, 0.4, 16, dtype=np.float32)[:, None, None]
+        sky[3, 20] = [40.0, 30.0, 20.0]
+        write_exr(tmp_path / "sky.exr", sky)
+        text += '[environment]\nfile = "sky.exr"\n'
+    (tmp_path / "mixed.toml").write_text(text)
+    return rt.load_scene(tmp_path / "mixed.toml")
+
+
 @pytest.mark.parametrize("sampler", list(abi.SAMPLERS))
-def test_same_image_and_rays(device, monkeypatch, sampler):
-    """Mitsuba's Cornell box and ours (their lights and materials differ), each sampler: the film
-    sums bit for bit and the same numbers of rays, at 16 lanes (and 8, with the default sampler:
-    each width is a kernel build of several seconds; 8 only where 16 is never built)."""
+def test_same_image_and_rays(device, monkeypatch, tmp_path, sampler):
+    """A scene of every material, shape and light type (and an environment map), each sampler:
+    the film sums bit for bit and the same numbers of rays, at 16 lanes (and 8, with the default
+    sampler: each width is a kernel build of several seconds; 8 only where 16 is never built)."""
     wide = harness.forced_lanes(device)
     widths = tuple(dict.fromkeys(("0", wide, "8"))) if sampler == "sobol" else ("0", wide)
-    for name in ("mitsuba-cbox", "cornell-box"):
-        scene = rt.load_scene(SCENES / f"{name}.toml")
-        assert_same(renders(scene, device, monkeypatch, widths=widths, spp=4, seed=3, width=40, height=30,
-                            sampler=sampler))
+    assert_same(renders(mixed_scene(tmp_path), device, monkeypatch, widths=widths, spp=4, seed=3, width=40,
+                        height=30, sampler=sampler))
+
+
+@pytest.mark.parametrize("name", ["mitsuba-cbox", "cornell-spheres", "veach-mis", "textured", "cornell-jensen"])
+def test_same_image_on_the_scenes(device, monkeypatch, name):
+    """Every scene of scenes/ (triangles, spheres, conductors, glass, textures with emission
+    textures, the glTF material)."""
+    wide = harness.forced_lanes(device)
+    scene = rt.load_scene(SCENES / f"{name}.toml")
+    assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=2, seed=1, width=32, height=24))
+
+
+@pytest.mark.parametrize("integrator", ["bsdf", "nee"])
+def test_integrators(device, monkeypatch, tmp_path, integrator):
+    """BSDF sampling only and light sampling only (the MIS integrator: above)."""
+    wide = harness.forced_lanes(device)
+    assert_same(renders(mixed_scene(tmp_path), device, monkeypatch, widths=("0", wide), spp=2, seed=8, width=24,
+                        height=16, integrator=integrator))
 
 
 @pytest.mark.parametrize("options", [{"max_depth": 1}, {"max_depth": 2}, {"max_depth": 3, "rr_depth": 1},
@@ -103,7 +209,7 @@ def test_depths_and_roulette(device, monkeypatch, options):
 
 
 def test_thin_lens_two_sided_light_and_ior(device, monkeypatch):
-    """A thin-lens camera (its rays start per lane in scalar code), a two-sided emitter, a diffuse
+    """A thin-lens camera, a two-sided emitter, a diffuse
     surface with an ior (the eta scale of roulette) and a 1 x 1 image."""
     wide = harness.forced_lanes(device)
     scene = rt.load_scene(SCENES / "cornell-box.toml")
@@ -137,29 +243,7 @@ def test_small_waves_and_adaptive_pixel_lists(device, monkeypatch):
 
 # ----------------------------------------------------------------------------- building blocks
 LANES = harness.Kernels(r"""
-#include "render/sampler_lanes.h"
-/* sample_1d_lanes / sample_2d_lanes against sample_1d / sample_2d: keys (a, b, c, dim) per item */
-__kernel void h_samples(__global const uint *keys, __global float *out)
-{
-    const int base = get_global_id(0) * PACKET_WIDTH;
-    SampleKeyLanes k;
-    puint dim;
-    for (int j = 0; j < PACKET_WIDTH; ++j) {
-        __global const uint *q = keys + 4 * (base + j);
-        PLANE_U(k.a, j) = q[0]; PLANE_U(k.b, j) = q[1]; PLANE_U(k.c, j) = q[2]; PLANE_U(dim, j) = q[3];
-    }
-    pfloat u1 = sample_1d_lanes(k, dim), u, v;
-    sample_2d_lanes(k, dim, &u, &v);
-    for (int j = 0; j < PACKET_WIDTH; ++j) {
-        __global const uint *q = keys + 4 * (base + j);
-        SampleKey sk; sk.a = q[0]; sk.b = q[1]; sk.c = q[2];
-        const float2 s2 = sample_2d(sk, q[3]);
-        __global float *o = out + 6 * (base + j);
-        o[0] = PLANE(u1, j); o[1] = PLANE(u, j); o[2] = PLANE(v, j);
-        o[3] = sample_1d(sk, q[3]); o[4] = s2.x; o[5] = s2.y;
-    }
-}
-
+#include "render/lanes.h"
 /* length, normalize, nextafter toward +-inf, sqrt, fmin/fmax: lanes, then the scalar code */
 __kernel void h_math(__global const float *a, __global const float *b, __global float *out)
 {
@@ -188,18 +272,6 @@ __kernel void h_math(__global const float *a, __global const float *b, __global 
     }
 }
 """, defines={"PACKET_WIDTH": 16})
-
-
-@pytest.mark.parametrize("sampler", list(abi.SAMPLERS))
-def test_lane_sampler_equals_scalar(device, runtime, rng, sampler):
-    harness.require_lane_kernels(device)
-    kernels = harness.Kernels(LANES.source, defines={"PACKET_WIDTH": 16, "SAMPLER": abi.SAMPLERS[sampler]})
-    n = 16 * 512
-    keys = rng.integers(0, 2 ** 32, (n, 4), dtype=np.uint64).astype(np.uint32)
-    keys[: n // 2, 3] %= 64  # the ids the bounces use, and any
-    out = kernels(runtime, "h_samples", n // 16, keys=keys, out=(n, 6))
-    assert np.array_equal(out[:, :3].view(np.uint32), out[:, 3:].view(np.uint32))
-    assert len(np.unique(out[:, 1:3])) > 0.99 * 2 * n  # (sample_1d(id) is sample_2d(id).x by design)
 
 
 def test_lane_math_equals_scalar(device, runtime, rng):

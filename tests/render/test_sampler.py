@@ -32,18 +32,28 @@ Z_MAX = 5.0  # correlation tests: |r| sqrt(n) under this (two-sided p ~ 6e-7 eac
 
 SOURCE = r"""
 #include "render/sampler.h"
-/* keys: (seed, pixel, width, pass, dim) per item; out: sample_2d then sample_1d */
+/* keys: (seed, pixel, width, pass, dim) per item; out: sample_2d then sample_1d.  Work-item i
+ * draws items i * PACKET_WIDTH .. + PACKET_WIDTH in its lanes (seed and width: its first item's). */
 __kernel void h_sampler(__global const uint *keys, __global float *out)
 {
-    const int i = get_global_id(0);
-    __global const uint *k = keys + 5 * i;
-    const SampleKey sk = sampler_key(k[0], k[1], k[2], k[3]);
-    const float2 u = sample_2d(sk, k[4]);
-    out[3 * i] = u.x;
-    out[3 * i + 1] = u.y;
-    out[3 * i + 2] = sample_1d(sk, k[4]);
+    const int base = get_global_id(0) * PACKET_WIDTH;
+    puint pixel, pass, dim;
+    for (int j = 0; j < PACKET_WIDTH; ++j) {
+        __global const uint *k = keys + 5 * (base + j);
+        PLANE_U(pixel, j) = k[1]; PLANE_U(pass, j) = k[3]; PLANE_U(dim, j) = k[4];
+    }
+    const SampleKey sk = sampler_key(keys[5 * base], pixel, keys[5 * base + 2], pass);
+    pfloat u, v;
+    sample_2d(sk, dim, &u, &v);
+    const pfloat w = sample_1d(sk, dim);
+    for (int j = 0; j < PACKET_WIDTH; ++j) {
+        out[3 * (base + j)] = PLANE(u, j);
+        out[3 * (base + j) + 1] = PLANE(v, j);
+        out[3 * (base + j) + 2] = PLANE(w, j);
+    }
 }
 
+#if PACKET_WIDTH == 1
 /* Sobol dimension 1: the closed form (un-reversed) and the generated table */
 __kernel void h_sobol1(__global const uint *index, __global uint *out)
 {
@@ -51,26 +61,7 @@ __kernel void h_sobol1(__global const uint *index, __global uint *out)
     out[2 * i] = reverse_bits32(sobol_dim1_reversed(index[i]));
     out[2 * i + 1] = sobol_dim1_table(index[i]);
 }
-
-/* sample_bounce's eight lanes, then the seven samples of a bounce drawn one call at a time in
- * its layout (lane 7 is sample_1d of id dim + 7) */
-__kernel void h_bounce(__global const uint *keys, __global float *out)
-{
-    const int i = get_global_id(0);
-    __global const uint *k = keys + 5 * i;
-    const SampleKey sk = sampler_key(k[0], k[1], k[2], k[3]);
-    const uint dim = k[4];
-    vstore8(sample_bounce(sk, dim), 2 * i, out);
-    const float2 point = sample_2d(sk, dim + DIM_LIGHT_POINT), bsdf = sample_2d(sk, dim + DIM_BSDF);
-    float one[8];
-    one[DIM_LIGHT_PICK] = sample_1d(sk, dim + DIM_LIGHT_PICK);
-    one[DIM_LIGHT_POINT] = point.x; one[DIM_LIGHT_POINT + 1] = point.y;
-    one[DIM_BSDF] = bsdf.x; one[DIM_BSDF + 1] = bsdf.y;
-    one[DIM_RR] = sample_1d(sk, dim + DIM_RR);
-    one[DIM_BSDF_LOBE] = sample_1d(sk, dim + DIM_BSDF_LOBE);
-    one[7] = sample_1d(sk, dim + 7);
-    for (int j = 0; j < 8; ++j) out[16 * i + 8 + j] = one[j];
-}
+#endif
 
 __kernel void h_layout(__global uint *out)
 {
@@ -237,22 +228,29 @@ def test_device_equals_numpy_copy(runtime, rng, name):
     assert np.mean(other == got) < 0.01  # another seed, other numbers
 
 
+@pytest.mark.parametrize("width", [8, 16])
 @pytest.mark.parametrize("name", list(abi.SAMPLERS))
-def test_bounce_samples_equal_single_draws(runtime, rng, name):
-    """sample_bounce (all of a bounce's samples in one pass over eight lanes, what path_shade_hit
-    uses) gives each sample's sample_1d / sample_2d value bit for bit, at every bounce's ids and
-    at arbitrary ones (the lanes follow whatever the ids are)."""
-    n = 20_000
-    width = rng.integers(1, 9000, n).astype(U)
-    keys = np.stack([rng.integers(0, 2 ** 32, n, dtype=np.uint64).astype(U), (rng.integers(0, 2 ** 26, n) % width).astype(U),
-                     width, np.where(rng.random(n) < 0.5, rng.integers(0, 300, n),
-                                     rng.integers(0, 2 ** 32, n, dtype=np.uint64)).astype(U),
+def test_lanes_draw_the_same_samples(device, runtime, rng, name, width):
+    """The sampler compiled at 8 or 16 lanes (the CPU lane megakernel) draws in each lane what the
+    one-lane build (GPUs, the wavefront) draws for that lane's key, bit for bit, at every
+    bounce's ids and at arbitrary ones."""
+    harness.require_lane_kernels(device, width)
+    n = width * 1024
+    groups = n // width
+    seed = np.repeat(rng.integers(0, 2 ** 32, groups, dtype=np.uint64).astype(U), width)
+    image_width = np.repeat(rng.integers(1, 9000, groups).astype(U), width)
+    keys = np.stack([seed, (rng.integers(0, 2 ** 26, n) % image_width).astype(U), image_width,
+                     np.where(rng.random(n) < 0.5, rng.integers(0, 300, n),
+                              rng.integers(0, 2 ** 32, n, dtype=np.uint64)).astype(U),
                      np.where(rng.random(n) < 0.8, 2 + 8 * rng.integers(0, 64, n),
                               rng.integers(0, 2 ** 32, n, dtype=np.uint64)).astype(U)], -1)
-    out = KERNELS[name](runtime, "h_bounce", n, keys=np.ascontiguousarray(keys), out=(n, 16))
-    assert np.array_equal(out[:, :8].view(np.uint32), out[:, 8:].view(np.uint32))
-    assert out.min() >= 0.0 and out.max() < 1.0
-    assert len(np.unique(out[:, :7])) > 0.99 * 7 * n  # seven different numbers per bounce
+    keys = np.ascontiguousarray(keys)
+    lanes = harness.Kernels(SOURCE, defines={"SAMPLER": abi.SAMPLERS[name], "PACKET_WIDTH": width})
+    one = KERNELS[name](runtime, "h_sampler", n, keys=keys, out=(n, 3))
+    wide = lanes(runtime, "h_sampler", groups, keys=keys, out=(n, 3))
+    assert np.array_equal(one.view(np.uint32), wide.view(np.uint32))
+    assert one.min() >= 0.0 and one.max() < 1.0
+    assert len(np.unique(one[:, :2])) > 0.99 * 2 * n
 
 
 def test_small_round_equals_numpy_copy(runtime, rng):

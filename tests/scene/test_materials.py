@@ -1,7 +1,9 @@
 """The BSDFs of cl/materials/ (through cl/materials/dispatch.h) and their furnace renders, on every device.
 
-Harness kernels call bsdf_sample / bsdf_eval for a buffer of Material records with per-item
-normal, side, wo, wi and random numbers, in a local frame with the normal +z unless stated.
+Harness kernels gather Material records into the lanes (material_lanes) and call bsdf_sample /
+bsdf_eval with per-item normal, side, wo, wi and random numbers, in a local frame with the normal
++z unless stated; at PACKET_WIDTH 1 (one item per work-item), except the test that compiles them
+at 8 and 16 lanes and requires the one-lane bits.
 
 Statistics: every test with randomness uses fixed seeds; chi-square tests use ALPHA = 1e-4 as
 tests/render/test_sampling.py does (Mitsuba 3's method: a theta x phi grid over the whole sphere, the
@@ -29,30 +31,75 @@ FLOAT_TOL = 2e-5
 HARNESS = harness.Kernels(r"""
 #include "materials/dispatch.h"
 
+/* PACKET_WIDTH items per work-item (1 by default): lane k holds item get_global_id(0) * W + k.
+ * Per item: the material index, front (0/1), active (0/1), n, wo, and u or wi. */
+#define ITEM(k) ((int)get_global_id(0) * PACKET_WIDTH + (k))
+#define MASK_TRUE (PACKET_WIDTH == 1 ? 1 : -1) /* what a comparison gives */
+
+RT_INLINE pvec3 lanes3(__global const float *a)
+{
+    pvec3 v;
+    for (int k = 0; k < PACKET_WIDTH; ++k) pv3_set_lane(&v, k, load3(a, ITEM(k)));
+    return v;
+}
+
+RT_INLINE pint lanes_int(__global const int *a)
+{
+    pint v;
+    for (int k = 0; k < PACKET_WIDTH; ++k) PLANE_I(v, k) = a[ITEM(k)];
+    return v;
+}
+
 /* out per item: wi.xyz, weight.xyz, pdf, delta */
 __kernel void h_bsdf_sample(__global const Material *mats, __global const int *mi, __global const int *front,
-                            __global const float *n, __global const float *wo, __global const float *u,
-                            __global float *out)
+                            __global const int *act, __global const float *n, __global const float *wo,
+                            __global const float *u, __global float *out)
 {
-    const int i = get_global_id(0);
-    float3 wi = (float3)(0.0f);
-    float pdf = -1.0f;
-    int delta = -1;
-    const float3 w = bsdf_sample(mats + mi[i], load3(n, i), front[i], load3(wo, i), load3(u, i), &wi, &pdf, &delta);
-    out[8 * i + 0] = wi.x; out[8 * i + 1] = wi.y; out[8 * i + 2] = wi.z;
-    out[8 * i + 3] = w.x; out[8 * i + 4] = w.y; out[8 * i + 5] = w.z;
-    out[8 * i + 6] = pdf; out[8 * i + 7] = (float)delta;
+    const MaterialLanes m = material_lanes(mats, lanes_int(mi));
+    const pvec3 uu = lanes3(u);
+    pvec3 wi = pv3_zero();
+    pfloat pdf = PFLOAT(-1.0f);
+    pint delta = PINT(-1);
+    const pvec3 w = bsdf_sample(&m, lanes_int(act) != 0, lanes3(n), lanes_int(front) != 0, lanes3(wo), uu.x, uu.y,
+                                uu.z, &wi, &pdf, &delta);
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        __global float *o = out + 8 * ITEM(k);
+        store3(o, 0, pv3_lane(wi, k));
+        store3(o + 3, 0, pv3_lane(w, k));
+        o[6] = PLANE(pdf, k);
+        o[7] = PLANE_I(delta, k) == 0 ? 0.0f : PLANE_I(delta, k) == MASK_TRUE ? 1.0f : -1.0f; /* -1: not a mask */
+    }
 }
 
 /* out per item: (f |cos_i|).xyz, pdf */
 __kernel void h_bsdf_eval(__global const Material *mats, __global const int *mi, __global const int *front,
-                          __global const float *n, __global const float *wo, __global const float *wi,
-                          __global float *out)
+                          __global const int *act, __global const float *n, __global const float *wo,
+                          __global const float *wi, __global float *out)
 {
-    const int i = get_global_id(0);
-    float pdf = -1.0f;
-    const float3 f = bsdf_eval(mats + mi[i], load3(n, i), front[i], load3(wo, i), load3(wi, i), &pdf);
-    out[4 * i + 0] = f.x; out[4 * i + 1] = f.y; out[4 * i + 2] = f.z; out[4 * i + 3] = pdf;
+    const MaterialLanes m = material_lanes(mats, lanes_int(mi));
+    pfloat pdf = PFLOAT(-1.0f);
+    const pvec3 f = bsdf_eval(&m, lanes_int(act) != 0, lanes3(n), lanes_int(front) != 0, lanes3(wo), lanes3(wi), &pdf);
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        __global float *o = out + 4 * ITEM(k);
+        store3(o, 0, pv3_lane(f, k));
+        o[3] = PLANE(pdf, k);
+    }
+}
+
+/* out per item: material_albedo_aov.xyz, bsdf_has_nondelta_lobes, dielectric_eta */
+__kernel void h_material(__global const Material *mats, __global const int *mi, __global const int *front,
+                         __global const float *n, __global const float *wo, __global float *out)
+{
+    const MaterialLanes m = material_lanes(mats, lanes_int(mi));
+    const pvec3 a = material_albedo_aov(&m, lanes3(n), lanes3(wo));
+    const pint nondelta = bsdf_has_nondelta_lobes(&m);
+    const pfloat eta = dielectric_eta(&m, lanes_int(front) != 0);
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        __global float *o = out + 5 * ITEM(k);
+        store3(o, 0, pv3_lane(a, k));
+        o[3] = PLANE_I(nondelta, k) == 0 ? 0.0f : PLANE_I(nondelta, k) == MASK_TRUE ? 1.0f : -1.0f;
+        o[4] = PLANE(eta, k);
+    }
 }
 
 __kernel void h_constants(__global int *out)
@@ -77,25 +124,28 @@ def _items(n, x, dtype, width=None):
     return np.ascontiguousarray(np.broadcast_to(a, shape), dtype)
 
 
-def _bsdf(runtime, name, materials, wo, last, mi, front, n, width):
-    """h_bsdf_sample (last = u) or h_bsdf_eval (last = wi) over len(last) items, each of mi,
-    front, n and wo given once or per item -> out (N, width) in float64."""
+def _bsdf(runtime, name, materials, wo, last, mi, front, n, width, active=1, kernels=HARNESS, lanes=1):
+    """h_bsdf_sample (last = u) or h_bsdf_eval (last = wi) over len(last) items (a multiple of
+    `lanes`, the kernels' PACKET_WIDTH), each of mi, front, active, n and wo given once or per
+    item -> out (N, width) in float32."""
     last = np.asarray(last, np.float32)
     N = len(last)
-    return HARNESS(runtime, name, N, _records(materials), _items(N, mi, np.int32), _items(N, front, np.int32),
-                   _items(N, n, np.float32, 3), _items(N, wo, np.float32, 3), last, (N, width)).astype(np.float64)
+    assert N % lanes == 0
+    return kernels(runtime, name, N // lanes, _records(materials), _items(N, mi, np.int32), _items(N, front, np.int32),
+                   _items(N, active, np.int32), _items(N, n, np.float32, 3), _items(N, wo, np.float32, 3), last,
+                   (N, width))
 
 
 def bsdf_sample(runtime, materials, wo, u, mi=0, front=1, n=(0.0, 0.0, 1.0)):
     """-> wi (N,3), weight (N,3), pdf (N,), delta (N,) bool"""
-    out = _bsdf(runtime, "h_bsdf_sample", materials, wo, u, mi, front, n, 8)
+    out = _bsdf(runtime, "h_bsdf_sample", materials, wo, u, mi, front, n, 8).astype(np.float64)
     assert set(np.unique(out[:, 7])) <= {0.0, 1.0}
     return out[:, :3], out[:, 3:6], out[:, 6], out[:, 7] == 1.0
 
 
 def bsdf_eval(runtime, materials, wo, wi, mi=0, front=1, n=(0.0, 0.0, 1.0)):
     """-> f |cos_i| (N,3), pdf (N,)"""
-    out = _bsdf(runtime, "h_bsdf_eval", materials, wo, wi, mi, front, n, 4)
+    out = _bsdf(runtime, "h_bsdf_eval", materials, wo, wi, mi, front, n, 4).astype(np.float64)
     return out[:, :3], out[:, 3]
 
 
@@ -503,6 +553,83 @@ def test_no_nan_or_inf_for_extreme_parameters(runtime, rng):
             mi = np.repeat(np.arange(len(mats)), len(wis))
             f, p = bsdf_eval(runtime, mats, wo32, np.tile(wis, (len(mats), 1)), mi=mi, front=front)
             assert np.isfinite(f).all() and np.isfinite(p).all() and (f >= 0).all() and (p >= 0).all()
+
+
+def _random_lane_inputs(rng, n, n_mats=97):
+    """Random Material records of every type (random parameters, smooth and rough, F0 and eta + ik
+    conductors, ior 1 among others), and per item: material, front, normal, wo (mostly on the
+    normal's side, some below it, some tangent), wi and u (corners included)."""
+    mats = np.zeros(n_mats, abi.MATERIAL)
+    mats["type"] = np.arange(n_mats) % 4
+    mats["albedo"] = rng.random((n_mats, 3))
+    mats["specular"] = rng.random((n_mats, 3))
+    mats["eta"] = rng.uniform(0.05, 3, (n_mats, 3))
+    mats["k"] = rng.uniform(0, 6, (n_mats, 3))
+    alpha = rng.random(n_mats) ** 2
+    alpha[rng.random(n_mats) < 0.25] = 0.0
+    alpha[rng.random(n_mats) < 0.05] = 5e-4
+    mats["alpha"] = alpha
+    mats["metallic"] = np.where(rng.random(n_mats) < 0.3, rng.integers(0, 2, n_mats), rng.random(n_mats))
+    mats["ior"] = np.where(rng.random(n_mats) < 0.1, 1.0, rng.uniform(1.0, 3.0, n_mats))
+    mats["flags"] = rng.integers(0, 4, n_mats)
+    mats["tex_base"] = mats["tex_mr"] = mats["tex_emission"] = -1
+
+    def unit(m):
+        v = rng.normal(size=(m, 3))
+        return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+    nrm = unit(n)
+    wo = unit(n)
+    below = (wo * nrm).sum(1) < 0
+    wo[below & (rng.random(n) < 0.85)] *= -1
+    tangent = rng.random(n) < 0.02
+    wo[tangent] = np.cross(nrm[tangent], unit(int(tangent.sum())))
+    wo[tangent] /= np.linalg.norm(wo[tangent], axis=1, keepdims=True)
+    u = uniforms(rng, (n, 3))
+    u[:n // 64] = 0.0
+    u[n // 64:n // 32] = 1 - 2.0 ** -24
+    return (mats, rng.integers(0, n_mats, n), rng.integers(0, 2, n), nrm.astype(np.float32), wo.astype(np.float32),
+            unit(n).astype(np.float32), u)
+
+
+@pytest.mark.parametrize("width", [8, 16])
+def test_lane_widths_give_the_one_lane_bits(device, runtime, rng, width):
+    """The BSDFs over 8 and 16 lanes (OpenCL vectors: PACKET_WIDTH, as the lane integrator
+    compiles them; each work-item evaluates `width` items, one per lane) give, lane by lane,
+    exactly the bits of the one-lane code (width 1): bsdf_sample's wi, weight, pdf and delta,
+    bsdf_eval's f and pdf, material_albedo_aov, bsdf_has_nondelta_lobes and dielectric_eta, for
+    random materials of every type mixed across the lanes, random normals, directions and random
+    numbers; with every lane active, and with a random `active` mask, whose other lanes give 0
+    (weight, f, pdf, delta) and wi = n.  Masks come back as masks (0 / 1 at width 1, 0 / -1 in
+    vectors)."""
+    harness.require_lane_kernels(device, width)
+    # PoCL keeps a work-group's private memory on one thread's stack: small groups
+    wide = harness.Kernels(HARNESS.source, defines={"PACKET_WIDTH": width}, local_size=16)
+    n = 16 * 1024
+    mats, mi, front, nrm, wo, wi, u = _random_lane_inputs(rng, n)
+    for active in (np.ones(n, np.int32), (rng.random(n) < 0.6).astype(np.int32)):
+        out = {}
+        for lanes, kernels in ((1, HARNESS), (width, wide)):
+            s = _bsdf(runtime, "h_bsdf_sample", mats, wo, u, mi, front, nrm, 8, active, kernels, lanes)
+            e = _bsdf(runtime, "h_bsdf_eval", mats, wo, wi, mi, front, nrm, 4, active, kernels, lanes)
+            a = kernels(runtime, "h_material", n // lanes, mats, mi, front, nrm, wo, (n, 5))
+            for x in (s, e, a):
+                assert not np.isnan(x).any()
+            assert set(np.unique(s[:, 7])) <= {0.0, 1.0} and set(np.unique(a[:, 3])) <= {0.0, 1.0}
+            out[lanes] = s, e, a
+        for what, one, lanes in zip(("sample", "eval", "material"), out[1], out[width]):
+            assert np.array_equal(one, lanes) and np.array_equal(one.view(np.uint32), lanes.view(np.uint32)), (
+                what, np.nonzero((one.view(np.uint32) != lanes.view(np.uint32)).any(1))[0][:10])
+        s, e, _ = out[width]
+        off = active == 0
+        assert np.all(s[off, 3:8] == 0) and np.all(e[off] == 0) and np.array_equal(s[off, :3], nrm[off])
+        on = ~off
+        assert (s[on, 6] > 0).mean() > 0.5 and s[on, 7].mean() > 0.1 and (e[on, 3] > 0).mean() > 0.3
+        if active.all():
+            full = out
+        else:  # the active lanes do not depend on the others
+            for one, part in zip(full[width], out[width]):
+                assert np.array_equal(one[on].view(np.uint32), part[on].view(np.uint32))
 
 
 def test_type_constants_and_layout_agree(runtime):
