@@ -278,6 +278,25 @@ def test_integrators_film_filter_sampler(tmp_path):
     assert w == []
 
 
+def test_moment_and_aov_wrappers_render_their_nested_integrator_silently(tmp_path):
+    def settings(body):
+        return load(write(tmp_path, body + SPHERE))
+
+    nested = ('<integrator type="path"><integer name="max_depth" value="6"/><integer name="rr_depth" value="3"/>'
+              '</integrator>')
+    s, w = settings(f'<integrator type="moment">{nested}</integrator>')
+    assert (s.settings.max_depth, s.settings.rr_depth, w) == (6, 3, [])
+    s, w = settings(f'<integrator type="aov"><string name="aovs" value="dd.y:depth,nn:sh_normal"/>{nested}</integrator>')
+    assert (s.settings.max_depth, s.settings.rr_depth, w) == (6, 3, [])
+    s, w = settings('<integrator type="moment"><integrator type="direct"/></integrator>')
+    assert s.settings.max_depth == 2 and w == []
+    # two nested integrators: Mitsuba renders both; we render the first
+    s, w = settings(f'<integrator type="moment">{nested}<integrator type="direct"/></integrator>')
+    assert s.settings.max_depth == 6 and len(w) == 1
+    assert w[0].endswith('<integrator type="direct"> in <integrator type="moment">: only the first nested '
+                         "integrator is rendered; ignored")
+
+
 def test_shapes_closed_form(tmp_path):
     write_serialized(tmp_path / "tri.serialized", [
         (np.eye(3), [[0, 1, 2]]), (np.eye(3) * 2, [[0, 1, 2]], [[0, 0], [1, 0], [0, 1]])])
@@ -488,9 +507,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
         <unknown/>""")
     scene, warned = load(path)
     assert len(scene.spheres) == 1 and scene.materials[0].albedo == (0.5, 0.5, 0.5)
-    expect = [("aov", 'integrator type="aov">: rendering its nested integrator only'),
-              ("aovs", '<string name="aovs"> of <integrator type="aov">: not supported; ignored'),
-              ("orthographic", '<sensor type="orthographic">: not supported; using a camera that frames the scene'),
+    expect = [("orthographic", '<sensor type="orthographic">: not supported; using a camera that frames the scene'),
               ("fog", '<medium type="homogeneous" id="fog">: not supported; ignored'),
               ("shapegroup", '<shape type="shapegroup" id="g">: shape type not supported; ignored'),
               ("hair", '<bsdf type="hair">: BSDF type not supported; using diffuse 0.5'),

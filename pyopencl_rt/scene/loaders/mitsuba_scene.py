@@ -76,10 +76,15 @@ class _Importer:
                 self.warn(obj.node.pos, f"{obj.label()}: not supported; ignored")
 
     def integrator(self, obj: MiObject, settings: RenderSettings) -> None:
-        if obj.type in ("aov", "moment") and obj.children_of("integrator"):
-            self.warn(obj.node.pos, f"{obj.label()}: rendering its nested integrator only")
-            self.unused(obj)
-            return self.integrator(obj.children_of("integrator")[0], settings)
+        nested = obj.children_of("integrator")
+        if obj.type in ("aov", "moment") and nested:
+            # a wrapper that adds variance or AOV images beside its nested integrator's image:
+            # we render the nested integrator's image, without a word (its own parameters, the
+            # aovs list, describe only the extra images)
+            for extra in nested[1:]:
+                self.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: only the first nested "
+                                          "integrator is rendered; ignored")
+            return self.integrator(nested[0], settings)
         if obj.type == "direct":
             settings.max_depth = 2
         else:
