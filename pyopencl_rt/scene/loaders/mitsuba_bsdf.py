@@ -21,6 +21,7 @@ import numpy as np
 
 from ..model import Material
 from .builder import error_at
+from .mitsuba_spectrum import spectrum_rgb
 
 # Mitsuba's named indices of refraction (include/mitsuba/render/ior.h)
 IOR = {
@@ -31,6 +32,17 @@ IOR = {
     "amber": 1.55, "pet": 1.5750, "diamond": 2.419,
 }
 METAL_NAMES = {"Au": "gold", "Ag": "silver", "Cu": "copper", "Cu_palik": "copper", "Al": "aluminium"}
+# parameters that Mitsuba's plugins read with get_unbounded_texture (not clamped to [0, 1])
+UNBOUNDED = {"eta", "k", "alpha", "alpha_u", "alpha_v"}
+
+
+def spectrum_context(obj, name) -> str:
+    """How Mitsuba's RGB variants make the <spectrum> ``name`` of ``obj`` RGB
+    (mitsuba_spectrum.py): emitters ask for emission, eta/k/alpha for unbounded values, the
+    rest (reflectances, transmittances, texture colours) for reflectances."""
+    if obj.tag == "emitter":
+        return "emission"
+    return "unbounded" if name in UNBOUNDED else "reflectance"
 
 
 def _metals():
@@ -51,6 +63,13 @@ def color_value(imp, obj, name, default, *, texture_ok=False):
     if p.kind in ("rgb", "float", "integer"):
         v = p.value if isinstance(p.value, tuple) else (p.value,) * 3
         return tuple(float(x) for x in v), None
+    if p.kind == "spectrum":
+        rgb, raw = spectrum_rgb(p.value, spectrum_context(obj, name))
+        if raw is not None:
+            imp.warn(p.node.pos, f'{p.node.label()} of {obj.label()}: the spectrum\'s colour '
+                                 f"{tuple(round(x, 4) for x in raw)} is out of gamut; clamped to "
+                                 f"{tuple(round(x, 4) for x in rgb)}, as Mitsuba does")
+        return rgb, None
     if p.kind != "object":
         raise error_at(p.node.pos, f'{obj.label()}: "{name}" must be a colour, got <{p.kind}>')
     tex_obj = p.value
@@ -74,16 +93,18 @@ def _spectrum_object(imp, spec):
         v = spec.float("value", 1.0)
         imp.unused(spec)
         return (v, v, v)
-    if spec.type == "d65":
+    if spec.type == "d65":  # Mitsuba's RGB variants: color x scale (the D65 itself is their white)
         s = spec.float("scale", 1.0)
+        color, _ = color_value(imp, spec, "color", (1.0, 1.0, 1.0))
         imp.unused(spec)
-        return (s, s, s)
+        return tuple(float(c) * s for c in color)
     if spec.type == "blackbody":
         from .builder import blackbody_rgb
 
         t = spec.float("temperature", 6500.0, positive=True)
-        imp.warn(spec.node.pos, f"{spec.label()}: rendered as its RGB colour at luminance 1")
-        imp.unused(spec)
+        imp.warn(spec.node.pos, f"{spec.label()}: Mitsuba's RGB variants cannot render a black body (spectral "
+                                "variants only); rendered as its RGB colour at luminance 1")
+        imp.unused(spec, extra=("wavelength_min", "wavelength_max"))
         return blackbody_rgb(t)
     imp.warn(spec.node.pos, f"{spec.label()}: spectrum type not supported; using 0.5")
     return (0.5, 0.5, 0.5)

@@ -50,7 +50,7 @@ class _Importer:
             self.warn(p.node.pos, f'<{p.kind} name="{pname}"> of {obj.label()}: not supported; ignored')
 
     def resolve(self, fname, obj: MiObject) -> Path:
-        return self.doc.resolve(self.path, fname, obj.node)
+        return self.doc.resolve(fname, obj.node)
 
     # -- the scene -------------------------------------------------------------------------------
 

@@ -8,14 +8,19 @@ of plugin objects; that module maps them onto our scene (docs/SCENE_FORMAT.md, "
   linear ``<rgb>``);
 * ``<default name value>`` defines ``$name`` unless the caller did (``--define name=value``
   wins); every attribute value has its ``$name`` substituted; an undefined ``$name`` is an error;
-* ``<include filename>`` (relative to the including file, then to ``<path value>`` folders)
-  splices the included ``<scene>``'s children in place; ``<alias id as>`` names an object twice;
+* file names are found as Mitsuba 3's FileResolver finds them (:meth:`Document.resolve`): a
+  relative name is tried in each folder of the search path in turn, which starts as the main
+  file's folder and then the current directory, and to whose front each ``<path value>`` adds its
+  folder (the latest first); ``<include filename>`` splices the included ``<scene>``'s children
+  in place;
+* ``<alias id as>`` names an object twice;
 * an object (``bsdf``, ``shape``, ``emitter``, ``texture``, ``sensor``, ``film``, ``rfilter``,
   ``sampler``, ``integrator``, ``medium``, ...) with an ``id`` can be used later by ``<ref id>``
   (with ``name``: as a named property), at the top level or nested;
 * values: ``float``, ``integer``, ``boolean``, ``string``, ``rgb`` (one number or three, comma-
-  or space-separated), ``spectrum`` (a constant; ``wavelength:value`` pairs are averaged, with a
-  warning), ``point`` / ``vector`` (``x``/``y``/``z`` or ``value``) and ``transform`` (``translate``,
+  or space-separated), ``spectrum`` (a constant, ``wavelength:value`` pairs or a ``.spd`` file: a
+  :class:`~.mitsuba_spectrum.Spectrum`, made RGB where it is used, as Mitsuba's RGB variants do),
+  ``point`` / ``vector`` (``x``/``y``/``z`` or ``value``) and ``transform`` (``translate``,
   ``rotate``, ``scale``, ``matrix``, ``lookat``, each applied after the ones before it).
 
 Malformed input (not XML, a missing or non-numeric attribute, an unknown reference, ...) raises a
@@ -33,6 +38,7 @@ from xml.parsers import expat
 import numpy as np
 
 from .builder import error_at, look_at_camera_to_world, rotate, scale, translate
+from .mitsuba_spectrum import Spectrum, parse_pairs, read_spd
 
 OBJECT_TAGS = {"bsdf", "texture", "shape", "emitter", "sensor", "film", "rfilter", "sampler", "integrator",
                "medium", "phase", "volume", "scene"}
@@ -87,6 +93,13 @@ def parse_xml(path: Path, name: str) -> Node:
         raise error_at(f"{name}:{exc.lineno}:{exc.offset + 1}",
                        f"not well-formed XML ({expat.ErrorString(exc.code)})") from None
     return root[0]
+
+
+def _cwd() -> list[Path]:
+    try:
+        return [Path.cwd()]
+    except OSError:  # the current directory was removed
+        return []
 
 
 @dataclass
@@ -166,15 +179,20 @@ class Document:
         self.warn = warn
         self.params = {str(k): str(v) for k, v in (defines or {}).items()}
         self.ids: dict[str, MiObject] = {}
-        self.search_paths: list[Path] = []
+        # Mitsuba's FileResolver: the main file's folder, then the current directory (load_file
+        # prepends the folder to the process's resolver, which starts with the current directory)
+        self.search_path: list[Path] = [path.parent] + _cwd()
         self.objects: list[MiObject] = []
-        self._including: list[Path] = []
+        self._including: list[Path] = [path.resolve()]
         self.version = None
         root = parse_xml(path, name)
         if root.tag != "scene":
             raise error_at(root.pos, f"the root element must be <scene>, not <{root.tag}>")
         self._check_version(root)
         self._scene_children(root, path)
+        # plugins (meshes, bitmaps, envmaps, ...) resolve their files once the whole document is
+        # read, through the main file's search path: an included file's own <path>s have gone
+        self.file_search_path = list(self.search_path)
 
     # -- structure -----------------------------------------------------------------------------
 
@@ -234,7 +252,7 @@ class Document:
             elif tag == "include":
                 self._include(child, path)
             elif tag == "path":
-                self.search_paths.append(path.parent / self._attr(child, "value"))
+                self._add_path(child, path)
             elif tag == "alias":
                 self.ids[self._attr(child, "as")] = self._ref(child, self._attr(child, "id"))
             elif tag in OBJECT_TAGS and tag != "scene":
@@ -246,25 +264,68 @@ class Document:
             else:
                 self.warn(child.pos, f"{child.label()}: unknown element; ignored")
 
-    def resolve(self, path: Path, fname: str, node: Node) -> Path:
-        """A file named in the scene: relative to ``path``'s folder, then the <path> folders."""
-        candidates = [Path(fname).expanduser()] if Path(fname).is_absolute() else \
-            [path.parent / fname] + [p / fname for p in self.search_paths]
-        for c in candidates:
-            if c.is_file():
-                return c
-        raise error_at(node.pos, f"{node.label()}: file '{fname}' not found (looked for {candidates[0]})")
+    # -- files: Mitsuba 3's FileResolver (src/core/fresolver.cpp, src/core/parser.cpp) ---------------
+
+    @staticmethod
+    def _search(fname: str, folders) -> Path | None:
+        """Mitsuba's ``FileResolver::resolve``: an absolute name is itself; a relative one is
+        tried in each folder in order, the first that exists wins; None if none does."""
+        name = Path(fname)
+        if name.is_absolute():
+            return name if name.exists() else None
+        for folder in folders:
+            if (folder / name).exists():
+                return folder / name
+        return None
+
+    def _not_found(self, node: Node, what: str, fname: str, folders) -> Exception:
+        where = "" if Path(fname).is_absolute() else \
+            " (searched " + ", ".join(f"{f}{'' if str(f).endswith('/') else '/'}" for f in folders) + ")"
+        return error_at(node.pos, f"{node.label()}: {what} '{fname}' not found{where}")
+
+    def resolve(self, fname: str, node: Node) -> Path:
+        """A file that a plugin names (a mesh, bitmap, envmap, ...): Mitsuba resolves it when
+        the plugin is made, after the whole document is read, through the main file's search
+        path (its <path> folders, latest first, then its folder, then the current directory),
+        whichever file the plugin is written in."""
+        found = self._search(fname, self.file_search_path)
+        if found is None:
+            raise self._not_found(node, "file", fname, self.file_search_path)
+        return found
+
+    def _add_path(self, node: Node, path: Path) -> None:
+        """``<path value>``: a relative folder is first looked for beside the file that names
+        it, then through the search path; it goes to the front of the search path (of the
+        include it is written in, for an included file)."""
+        value = self._attr(node, "value")
+        folder = Path(value)
+        if not folder.is_absolute():
+            beside = path.parent / folder
+            folder = beside if beside.exists() else (self._search(value, self.search_path) or beside)
+        if not folder.exists():
+            raise error_at(node.pos, f'<path value="{value}">: folder not found (looked for {folder})')
+        self.search_path.insert(0, folder)
 
     def _include(self, node: Node, path: Path) -> None:
-        target = self.resolve(path, self._attr(node, "filename"), node)
-        if target.resolve() in self._including:
-            raise error_at(node.pos, f"<include>: '{node.attrs['filename']}' includes itself")
-        self._including.append(target.resolve())
-        root = parse_xml(target, str(target))
-        if root.tag != "scene":
-            raise error_at(root.pos, f"an included file's root element must be <scene>, not <{root.tag}>")
-        self._scene_children(root, target)
-        self._including.pop()
+        """Mitsuba parses an included file with a copy of the search path that has the
+        including file's folder in front, and drops the copy after it."""
+        fname = self._attr(node, "filename")
+        outer = self.search_path
+        self.search_path = [path.parent] + outer
+        try:
+            target = self._search(fname, self.search_path)
+            if target is None:
+                raise self._not_found(node, "file", fname, self.search_path)
+            if target.resolve() in self._including:
+                raise error_at(node.pos, f"<include>: '{fname}' includes itself")
+            self._including.append(target.resolve())
+            root = parse_xml(target, str(target))
+            if root.tag != "scene":
+                raise error_at(root.pos, f"an included file's root element must be <scene>, not <{root.tag}>")
+            self._scene_children(root, target)
+            self._including.pop()
+        finally:
+            self.search_path = outer
 
     def _ref(self, node: Node, ident: str) -> MiObject:
         if ident not in self.ids:
@@ -345,9 +406,10 @@ class Document:
         if tag in ("point", "vector"):
             return Prop(tag, self._xyz(node, 0.0), node)
         text = node.attrs.get("value")
-        if tag == "spectrum" and text is None and "filename" in node.attrs:
-            self.warn(node.pos, f"{node.label()}: spectra from files are not supported; using 0.5")
-            return Prop("rgb", (0.5, 0.5, 0.5), node)
+        if tag == "spectrum" and "filename" in node.attrs:
+            if text is not None:
+                raise error_at(node.pos, f'{node.label()}: give "value" or "filename", not both')
+            return Prop("spectrum", self._spectrum_file(node), node)
         text = self._attr(node, "value")
         if tag == "float":
             return Prop("float", self._numbers(node, text, (1,), '"value"')[0], node)
@@ -371,20 +433,32 @@ class Document:
 
                 rgb = tuple(float(x) for x in srgb_to_linear(np.clip(rgb, 0, 1)))
             return Prop("rgb", rgb, node)
-        # spectrum: a constant, or wavelength:value pairs
+        # spectrum: wavelength:value pairs, or a constant (three numbers: an RGB, which Mitsuba 3
+        # itself rejects)
         if ":" in text:
-            pairs = [p for p in re.split(r"[,\s]+", text.strip()) if p]
             try:
-                values = [float(p.split(":")[1]) for p in pairs]
-            except (ValueError, IndexError):
-                raise error_at(node.pos, f"{node.label()}: \"value\" must be 'wavelength:value' pairs, "
-                                         f"got '{text}'") from None
-            mean = float(np.mean(values))
-            self.warn(node.pos, f"{node.label()}: a spectrum given by wavelengths is rendered as the "
-                                f"constant {mean:g} (their mean)")
-            return Prop("rgb", (mean,) * 3, node)
+                return Prop("spectrum", parse_pairs(text), node)
+            except ValueError as exc:
+                raise error_at(node.pos, f"{node.label()}: \"value\" must be 'wavelength:value' pairs in "
+                                         f"increasing wavelength: {exc}") from None
         v = self._numbers(node, text, (1, 3), '"value"')
-        return Prop("rgb", tuple(v * 3 if len(v) == 1 else v), node)
+        if len(v) == 3:
+            return Prop("rgb", tuple(v), node)
+        return Prop("spectrum", Spectrum(None, (v[0],)), node)
+
+    def _spectrum_file(self, node: Node) -> Spectrum:
+        """``<spectrum filename>``: Mitsuba reads it while parsing, through the search path of
+        the file it is written in."""
+        fname = node.attrs["filename"]
+        found = self._search(fname, self.search_path)
+        if found is None:
+            raise self._not_found(node, "spectrum file", fname, self.search_path)
+        try:
+            return read_spd(found)
+        except OSError as exc:
+            raise error_at(node.pos, f"{node.label()}: cannot read '{fname}' ({exc.strerror or exc})") from None
+        except ValueError as exc:
+            raise error_at(node.pos, f"{node.label()}: '{fname}': {exc}") from None
 
     def _transform(self, node: Node) -> np.ndarray:
         m = np.eye(4)
