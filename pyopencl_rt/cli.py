@@ -163,7 +163,7 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
     from .imageio import check_output, write_outputs
     from .render.aovs import GUIDES, parse_aovs
     from .render.api import render_full
-    from .render.arguments import check_outputs, check_render_arguments
+    from .render.arguments import check_outputs, check_render_arguments, rescued
     from .render.checkpoint import default_path
     from .render.settings import ImageSettings, check_resolution, check_run
     from .scene.loaders import load_scene
@@ -222,7 +222,7 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
         paths = write_outputs(output, result.image, info, layers=exr_channels(result.layers), exposure=exposure,
                               tonemap=tonemap, exr=not no_exr)
     except UserError as exc:
-        raise _rescued(exc, result, scene, settings, checkpoint_path, output) from None
+        raise rescued(exc, result, scene, settings, checkpoint_path, output) from None
     if profile:
         stages = info["stage_seconds"]
         total_s = sum(stages.values()) or 1.0
@@ -270,22 +270,6 @@ def compare_command(image, reference, heatmap, as_json):
                f"relMSE      {result['relmse']:.6e}\nFLIP        {flip}\nmean ratio  {ratio}")
     if heatmap is not None:
         click.echo(f"heat map    {result['heatmap']}")
-
-
-def _rescued(exc, result, scene, settings, checkpoint_path, output) -> UserError:
-    """The outputs could not be written after the render: its film goes to a checkpoint (the
-    render's own if it can be written), and the error says where and how to write it out."""
-    from .errors import OutputError
-    from .render import checkpoint as checkpoints
-    from .render.arguments import rescue_path
-
-    where = rescue_path(checkpoint_path, output)
-    try:
-        checkpoints.save(where, result.film, scene, settings)
-    except OSError as err:
-        return OutputError(f"{exc}; saving the render to {where} failed too ({err.strerror or err}): it is lost")
-    return OutputError(f"{exc}; the render ({result.film.passes} spp) is saved in {where}: write it out with "
-                       f"--resume --checkpoint {where} -o ANOTHER.exr (same scene and options)")
 
 
 def _preview(png_path, image, exposure, tonemap):
@@ -558,6 +542,22 @@ def bench_samplers(device, sampler, compare, mitsuba_sampler, json_path, no_cach
                  mitsuba_samplers=comma_list(mitsuba_sampler, MITSUBA_SAMPLERS, "Mitsuba sampler"),
                  use_cache=not no_cache, echo=click.echo, **options)
 
+
+
+@bench.command("mitsuba-suite")
+@click.argument("path", type=click.Path(exists=True, file_okay=False))
+@device_option
+@click.option("--only", multiple=True, metavar="PATTERN", help="Scenes whose folder/name has or globs PATTERN.")
+@click.option("--skip", multiple=True, metavar="PATTERN", help="Leave out the scenes PATTERN matches (as --only).")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**32 - 1))
+@click.option("--timeout", type=click.FloatRange(0, min_open=True), metavar="S", help="Render a scene S seconds at most.")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
+def bench_mitsuba_suite(path, device, **options):
+    """Mitsuba 3's render tests (PATH: a mitsuba-data checkout), judged by its z-test; exit code 1 on a fail."""
+    from .bench.mitsuba_suite import run_suite
+
+    if run_suite(path, device=list(device) or None, echo=click.echo, **options):
+        sys.exit(1)
 
 def main(argv=None):
     """Entry point: user errors become one line on stderr and a non-zero exit code (1 for bad

@@ -7,6 +7,8 @@
 * :mod:`.convergence` (numbers in :mod:`.convergence_analysis`): error against render time;
 * :mod:`.mitsuba_host`: Mitsuba 3 as the peer renderer, run in its own interpreter through the
   scripts :mod:`.mitsuba_runner` and :mod:`.mitsuba_cornell_box`, on scenes from :mod:`.mitsuba_export`.
+* :mod:`.mitsuba_suite`: Mitsuba 3's render-regression scenes (a mitsuba-data checkout) judged
+  by Mitsuba's own z-test.
 
 :mod:`.timing` holds the timing rules they share (medians, alternating the variants compared).
 """

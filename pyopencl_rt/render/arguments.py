@@ -208,3 +208,19 @@ def rescue_path(checkpoint, output) -> str:
         except UserError:
             continue
     return str(Path(tempfile.gettempdir()) / f"pyopencl-rt-{os.getpid()}.ckpt.npz")
+
+
+def rescued(exc, result, scene, settings, checkpoint_path, output) -> UserError:
+    """The outputs could not be written after the render (``exc``, the OutputError): its film goes
+    to a checkpoint (the render's own if it can be written, :func:`rescue_path`), and the error
+    says where and how to write it out (``pyopencl-rt render`` raises it)."""
+    from ..errors import OutputError
+    from . import checkpoint as checkpoints
+
+    where = rescue_path(checkpoint_path, output)
+    try:
+        checkpoints.save(where, result.film, scene, settings)
+    except OSError as err:
+        return OutputError(f"{exc}; saving the render to {where} failed too ({err.strerror or err}): it is lost")
+    return OutputError(f"{exc}; the render ({result.film.passes} spp) is saved in {where}: write it out with "
+                       f"--resume --checkpoint {where} -o ANOTHER.exr (same scene and options)")
