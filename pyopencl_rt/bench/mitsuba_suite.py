@@ -231,15 +231,17 @@ def _render_and_judge(scene: SuiteScene, row: dict, device, seed, timeout) -> No
 
 # -- the suite ---------------------------------------------------------------------------------------
 
-HEADER = f"{'scene':<52} {'result':<6} {'accepted':>9} {'mean Y':>7} {'spp':>5} {'seconds':>7}  note"
+def header(width: int) -> str:
+    return f"{'scene':<{width}} {'result':<6} {'accepted':>9} {'mean Y':>7} {'spp':>5} {'seconds':>7}  note"
 
 
-def format_row(row) -> str:
+def format_row(row, width: int) -> str:
+    """The table's line of a row; ``width``: the scene column's."""
     accepted = "" if row["accepted_fraction"] is None else f"{100 * row['accepted_fraction']:8.2f}%"
     ratio = "" if row["mean_ratio"] is None else f"{row['mean_ratio']:7.3f}"
     spp = "" if row["spp_rendered"] is None else str(row["spp_rendered"])
     note = row["reason"] or ""
-    return (f"{row['scene'][:52]:<52} {'pass' if row['passed'] else 'FAIL':<6} {accepted:>9} {ratio:>7} "
+    return (f"{row['scene']:<{width}} {'pass' if row['passed'] else 'FAIL':<6} {accepted:>9} {ratio:>7} "
             f"{spp:>5} {row['seconds']:7.1f}  {note[:160]}").rstrip()
 
 
@@ -262,11 +264,12 @@ def run_suite(path, device=None, only=(), skip=(), seed=0, timeout=None, json_pa
                         f"({len(everything)} scenes, {len(picked)} selected, {len(missing)} without references)")
     echo(f"{len(runnable)} scenes of {scenes_dir(path)} on {'; '.join(device_label(d) for d in chosen)}, seed {seed}"
          + (f"; without {COLOR_MODE} references, skipped: {', '.join(missing)}" if missing else ""))
-    echo(HEADER)
+    width = max(len(s.name) for s in runnable)
+    echo(header(width))
     rows = []
     for scene in runnable:
         rows.append(run_scene(scene, chosen[0] if len(chosen) == 1 else chosen, seed=seed, timeout=timeout))
-        echo(format_row(rows[-1]))
+        echo(format_row(rows[-1], width))
     passed = sum(r["passed"] for r in rows)
     echo(f"{passed} of {len(rows)} pass")
     if json_path:
