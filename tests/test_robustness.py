@@ -284,8 +284,8 @@ __kernel void h_spawn(__global const float *tri, __global const float *bary, __g
     const float cc = dot(c, c);
     const float3 wi = load3(w, i);
     const float b1 = bary[2 * i], b2 = bary[2 * i + 1];
-    float3 err;
-    const float3 target = triangle_point(p0, p1, p2, b1, b2, &err);
+    pvec3 err;
+    const float3 target = pv3_lane(triangle_point(pv3_from(p0), pv3_from(p1), pv3_from(p2), b1, b2, &err), 0);
     const float3 o = load3(oh, i), d = target - o;
     float t, u, v;
     if (!(cc > 0.0f && isfinite(cc)) ||
@@ -294,22 +294,23 @@ __kernel void h_spawn(__global const float *tri, __global const float *bary, __g
         return;
     }
     const float3 ng = normalize(c);
-    float3 p = triangle_point(p0, p1, p2, u, v, &err);
-    if (mode == 1) { p = o + t * d; err = (float3)(0.0f); }
+    float3 p = pv3_lane(triangle_point(pv3_from(p0), pv3_from(p1), pv3_from(p2), u, v, &err), 0);
+    if (mode == 1) { p = o + t * d; err = pv3_zero(); }
     int res = 0;
     const float3 n = dot(ng, wi) > 0.0f ? ng : -ng;
-    const float3 so = offset_ray_origin_bound(p, err, n);
+    const float3 so = pv3_lane(offset_ray_origin_bound(pv3_from(p), err, pv3_from(n)), 0);
     if (hits(so, wi, p0, p1, p2, INFINITY)) res |= 1;
     /* shadow ray toward the light triangle's point */
     const float3 l0 = load3(lt, 3 * i), l1 = load3(lt, 3 * i + 1), l2 = load3(lt, 3 * i + 2);
     const float3 lc = cross(l1 - l0, l2 - l0);
-    const float side = plane_distance(l0, l1, l2, so); /* as light_sample() decides it; 0: no sample */
+    /* as light_sample() decides it; 0: no sample */
+    const float side = plane_distance(pv3_from(l0), pv3_from(l1), pv3_from(l2), pv3_from(so), PTRUE);
     if (dot(lc, lc) > 0.0f && side != 0.0f) {
-        float3 lerr;
-        const float3 lp = triangle_point(l0, l1, l2, b1, b2, &lerr);
+        pvec3 lerr;
+        const pvec3 lp = triangle_point(pv3_from(l0), pv3_from(l1), pv3_from(l2), b1, b2, &lerr);
         float3 ln = normalize(lc);
         if (side < 0.0f) ln = -ln;
-        const float3 sp = offset_ray_origin_bound(lp, lerr, ln);
+        const float3 sp = pv3_lane(offset_ray_origin_bound(lp, lerr, pv3_from(ln)), 0);
         const float3 sd = sp - so;
         if (dot(sd, n) > 0.0f) { /* the light is on the side the ray leaves to */
             if (hits(so, sd, p0, p1, p2, 1.0f)) res |= 2;

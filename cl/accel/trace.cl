@@ -47,7 +47,7 @@ __kernel void trace_any(__global const BVHNode *nodes, __global const float4 *tr
     out_hit[i] = (uchar)bvh_any_hit(nodes, tris, load3(origins, i), load3(directions, i), tmin[i], tmax[i]);
 }
 
-#ifdef PACKET_WIDTH
+#if PACKET_WIDTH > 1
 /* ---------------------------------------------------------------------------------------------
  * Packets: rays PACKET_WIDTH * i .. PACKET_WIDTH * i + PACKET_WIDTH - 1 in the lanes of work-item
  * i, traced with bvh_packet.h (16 rays per node or triangle test where they go the same way, ray

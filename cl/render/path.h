@@ -181,7 +181,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     hit_records(tri_material, tri_light, sphere_material, sphere_light, prim, &mat_index, &light_index);
     MaterialLanes m = material_lanes(materials, mat_index);
 #ifdef HAS_TEXTURES
-    texture_material(tri_uv, textures, tex_data, hit, prim, u, v, &m);
+    texture_material(tri_uv, textures, tex_data, hit & pnot(IS_SPHERE(prim)), prim, u, v, &m);
 #endif
 #ifdef HAS_AOVS
     aov_hit(aov_path, slot, hit, s->depth, &m, n, wo, p, t, s->beta);

@@ -54,13 +54,13 @@ RT_INLINE float2 triangle_uv(__global const float2 *tri_uv, int prim, float u, f
     return (1.0f - u - v) * tri_uv[3 * prim] + u * tri_uv[3 * prim + 1] + v * tri_uv[3 * prim + 2];
 }
 
-/* The textures of the lanes' materials applied at their hits (lanes of `hit` on triangles whose
- * material has textures), lane by lane: a texture lookup is a gather of its own. */
+/* The textures of the lanes' materials applied at their hits (lanes of `tri_hit`: hits on
+ * triangles, prim a triangle there), lane by lane: a texture lookup is a gather of its own. */
 RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Texture *textures,
-                                __global const float4 *data, pint hit, pint prim, pfloat u, pfloat v,
+                                __global const float4 *data, pint tri_hit, pint prim, pfloat u, pfloat v,
                                 MaterialLanes *m)
 {
-    const pint textured = hit & pnot(IS_SPHERE(prim)) & ((m->tex_base >= 0) | (m->tex_mr >= 0) | (m->tex_emission >= 0));
+    const pint textured = tri_hit & ((m->tex_base >= 0) | (m->tex_mr >= 0) | (m->tex_emission >= 0));
     if (!pany(textured)) return;
     for (int k = 0; k < PACKET_WIDTH; ++k) {
         if (!PLANE_I(textured, k)) continue;
