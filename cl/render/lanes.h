@@ -130,18 +130,8 @@ RT_INLINE pfloat pgather(__global const float *base, pint index)
 #endif
 }
 
-RT_INLINE pint pgather_int(__global const int *base, pint index)
-{
-#if PACKET_WIDTH == 1
-    return base[index];
-#elif PACKET_WIDTH == 16 && defined(__AVX512F__)
-    return __builtin_ia32_gathersiv16si(PINT(0), base, index, (ushort)0xffff, 4);
-#else
-    pint r;
-    for (int k = 0; k < PACKET_WIDTH; ++k) PLANE_I(r, k) = base[PLANE_I(index, k)];
-    return r;
-#endif
-}
+/* the same for ints (the loads move bits only) */
+RT_INLINE pint pgather_int(__global const int *base, pint index) { return as_pint(pgather((__global const float *)base, index)); }
 
 #if PACKET_WIDTH > 1 /* the packet traversal's (cl/accel/bvh_packet.h) */
 /* v[index[k]] in lane k (index < PACKET_WIDTH): one vpermps / vpermd where the lanes are one register
@@ -164,18 +154,7 @@ RT_INLINE pfloat ppermute(pfloat v, pint index)
 #endif
 }
 
-RT_INLINE pint ppermute_int(pint v, pint index)
-{
-#if PACKET_WIDTH == 16 && defined(__AVX512F__)
-    return __builtin_ia32_permvarsi512(v, index);
-#elif PACKET_WIDTH == 8 && defined(__AVX2__)
-    return __builtin_ia32_permvarsi256(v, index);
-#else
-    pint r;
-    for (int k = 0; k < PACKET_WIDTH; ++k) PLANE_I(r, k) = PLANE_I(v, PLANE_I(index, k) & (PACKET_WIDTH - 1));
-    return r;
-#endif
-}
+RT_INLINE pint ppermute_int(pint v, pint index) { return as_pint(ppermute(as_pfloat(v), index)); }
 
 /* the indices of the bits set in `bits`, ascending, packed into the first lanes (0 after them):
  * vpcompressd with AVX-512 */
