@@ -104,6 +104,53 @@ TEXTURE = np.dtype([("offset", np.int32), ("width", np.int32), ("height", np.int
                     ("flags", np.int32), ("pad0", np.int32), ("pad1", np.int32), ("pad2", np.int32)])
 assert TEXTURE.itemsize == 32
 
+# Participating media (cl/render/media.h; pyopencl_rt/scene/media.py packs them).  A medium (64 bytes):
+#   type      MEDIUM_TYPE_HOMOGENEOUS (sigma_t everywhere) or MEDIUM_TYPE_GRID (sigma_t times its density grid, inside the
+#             grid's box only: vacuum elsewhere)
+#   sigma_t   extinction per channel [1 / scene unit], any scale folded in; a grid medium's multiplies its density
+#   albedo    single-scattering albedo sigma_s / sigma_t (unless albedo_grid >= 0)
+#   majorant  per channel, >= sigma_t(x) at every x of the medium (homogeneous: sigma_t itself)
+#   phase     PHASE_ISOTROPIC, or PHASE_HG with asymmetry g (g > 0 scatters forward, as in Mitsuba and pbrt)
+#   density_grid, albedo_grid: indices into the MEDIUM_GRID table (-1: none)
+#   flags     MEDIUM_FLAG_SAMPLE_EMITTERS: next-event estimation at its scattering events (Mitsuba's
+#             sample_emitters, on by default)
+MEDIUM_TYPE_HOMOGENEOUS = define("MEDIUM_TYPE_HOMOGENEOUS", 0)
+MEDIUM_TYPE_GRID = define("MEDIUM_TYPE_GRID", 1)
+PHASE_ISOTROPIC = define("PHASE_ISOTROPIC", 0)
+PHASE_HG = define("PHASE_HG", 1)
+MEDIUM_FLAG_SAMPLE_EMITTERS = define("MEDIUM_FLAG_SAMPLE_EMITTERS", 1)
+MEDIUM = np.dtype([("sigma_t", np.float32, 3), ("type", np.int32), ("albedo", np.float32, 3), ("phase", np.int32),
+                   ("majorant", np.float32, 3), ("g", np.float32), ("density_grid", np.int32),
+                   ("albedo_grid", np.int32), ("flags", np.int32), ("pad", np.int32)])
+assert MEDIUM.itemsize == 64
+# A 3-D grid of a medium (80 bytes): values [offset, offset + nx ny nz channels) of the grid_data buffer,
+# texel (x, y, z) channel c at offset + ((z ny + y) nx + x) channels + c (the order of Mitsuba's .vol files).  The
+# grid fills the unit cube of its local space, texel centres at ((x + 0.5) / nx, ...); to_local maps world points
+# to local ones (row-major 3 x 4).  channels: 1 (a value for every channel) or 3 (RGB).
+#   filter    GRID_TRILINEAR (between texel centres) or GRID_NEAREST
+#   outside   GRID_CLAMP: beyond the outer texel centres the edge texels continue (Mitsuba's clamp); GRID_ZERO:
+#             texels beyond the grid are 0 (pbrt-v4's SampledGrid)
+#   max_value the largest value of any channel
+GRID_TRILINEAR = define("GRID_TRILINEAR", 0)
+GRID_NEAREST = define("GRID_NEAREST", 1)
+GRID_CLAMP = define("GRID_CLAMP", 0)
+GRID_ZERO = define("GRID_ZERO", 1)
+MEDIUM_GRID = np.dtype([("offset", np.int32), ("nx", np.int32), ("ny", np.int32), ("nz", np.int32),
+                        ("channels", np.int32), ("filter", np.int32), ("outside", np.int32), ("max_value", np.float32),
+                        ("to_local", np.float32, 12)])
+assert MEDIUM_GRID.itemsize == 80
+# How a surface bounds media (16 bytes; tri_interface / sphere_interface index it, -1: an ordinary surface in
+# whatever medium the ray is in).  interior, exterior: media (MEDIUM_VACUUM: none); flags:
+#   MEDIUM_IF_TRANSITION  crossing the surface enters `exterior` along the front side's normal (dot(d, ng) > 0),
+#                         else `interior` (Mitsuba's target_medium); without it the ray keeps its medium
+#   MEDIUM_IF_NULL        index-matched: no surface scattering, the ray goes straight on (Mitsuba's null BSDF,
+#                         pbrt's "interface" material)
+MEDIUM_VACUUM = define("MEDIUM_VACUUM", -1)
+MEDIUM_IF_TRANSITION = define("MEDIUM_IF_TRANSITION", 1)
+MEDIUM_IF_NULL = define("MEDIUM_IF_NULL", 2)
+MEDIUM_INTERFACE = np.dtype([("interior", np.int32), ("exterior", np.int32), ("flags", np.int32), ("pad", np.int32)])
+assert MEDIUM_INTERFACE.itemsize == 16
+
 # A sphere (16 bytes): centre and radius.
 SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 
@@ -181,6 +228,9 @@ STRUCTS: dict[str, np.dtype] = {
     "Wide8Node": WIDE8_NODE,
     "Tri8": TRI8,
     "Texture": TEXTURE,
+    "Medium": MEDIUM,
+    "MediumGrid": MEDIUM_GRID,
+    "MediumInterface": MEDIUM_INTERFACE,
 }
 
 
@@ -373,6 +423,18 @@ WAVE_PARAMS: tuple[Param, ...] = (
 )
 WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
 assert len(WAVE_PARAM) == len(WAVE_PARAMS)
+
+# What the volumetric integrator will add to WAVE_PARAMS (not yet in it: no kernel takes them; the buffers are
+# pyopencl_rt/scene/media.py:pack_media's, tri_interface reordered as tri_material is).
+MEDIA_PARAMS: tuple[Param, ...] = (
+    Param("media", "const", "Medium", "participating media (cl/render/media.h)"),
+    Param("medium_grids", "const", "MediumGrid", "their density and albedo grids"),
+    Param("grid_data", "const", "float", "the grids' values"),
+    Param("medium_interfaces", "const", "MediumInterface", "how surfaces bound media"),
+    Param("tri_interface", "const", "int", "medium interface per reordered triangle, -1 if none"),
+    Param("sphere_interface", "const", "int", "medium interface per sphere, -1 if none"),
+    Param("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none"),
+)
 
 
 # ---------------------------------------------------------------------------------------------
