@@ -49,6 +49,8 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
     from ..render.settings import ImageSettings  # here, not at the top: see the module docstring
 
     settings = settings or ImageSettings.resolve(scene)
+    if scene.has_media():
+        raise ValueError("participating media are not exported to Mitsuba 3 yet")
     for m in scene.materials:
         if m.is_emissive and m.two_sided:
             raise ValueError(f"material {m.name!r}: Mitsuba 3 has no two-sided area emitter")

@@ -172,6 +172,10 @@ class RenderSettings:
     adaptive: bool = False  # adaptive sampling (render/adaptive.py): spp a pixel's maximum (with a target) or the mean
     target_error: float | None = None  # with adaptive: a pixel stops at this relative error
     aovs: tuple = ()  # AOV layers written beside the beauty (names of AOVS)
+    # participating media (cl/render/media.h): weigh a path's chromatic distance samples by the
+    # balance heuristic over the channels (Mitsuba's volpathmis, pbrt-v4) or by the hero channel's
+    # pdf alone (Mitsuba's volpath)
+    spectral_mis: bool = True
 
 
 @dataclass
@@ -194,6 +198,14 @@ class Scene:
     # every warning its loader gave (one line each), for the JSON sidecar
     format: str | None = None
     warnings: list = field(default_factory=list)
+    # participating media (pyopencl_rt.scene.media): the media, the one the camera is in (an index
+    # into media, -1: vacuum), the medium interfaces, and the interface of each face and sphere
+    # ((F,) and (S,) int32 indices into interfaces, -1: an ordinary surface; None: all -1)
+    media: list = field(default_factory=list)
+    camera_medium: int = -1
+    interfaces: list = field(default_factory=list)
+    face_interfaces: np.ndarray | None = None
+    sphere_interfaces: np.ndarray | None = None
 
     def textures(self) -> list:
         """The distinct textures the materials use, in order of first use."""
@@ -230,6 +242,46 @@ class Scene:
                                        look_at=tuple(np.asarray(self.camera.look_at, np.float64) - eye))
         s.lights = [dataclasses.replace(lt, position=tuple(np.asarray(lt.position, np.float64) - eye))
                     if hasattr(lt, "position") else lt for lt in self.lights]
+        if self.media:
+            shift = np.eye(4)
+            shift[:3, 3] = -eye
+            s.media = [m.transformed(shift) for m in self.media]
+        return s
+
+    def has_media(self) -> bool:
+        """Whether the scene has media or index-matched surfaces (what the volumetric integrator renders)."""
+        return bool(self.media) or any(mi.null for mi in self.interfaces)
+
+    def face_interface_array(self) -> np.ndarray:
+        """(F,) int32 interface index per face (-1: none)."""
+        if self.face_interfaces is None:
+            return np.full(len(self.faces), -1, np.int32)
+        return np.asarray(self.face_interfaces, np.int32).reshape(len(self.faces))
+
+    def sphere_interface_array(self) -> np.ndarray:
+        """(S,) int32 interface index per sphere (-1: none)."""
+        if self.sphere_interfaces is None:
+            return np.full(len(self.spheres), -1, np.int32)
+        return np.asarray(self.sphere_interfaces, np.int32).reshape(len(self.spheres))
+
+    def surfaces_only(self) -> "Scene":
+        """The scene as the surface integrator renders it, until the volumetric one lands: without
+        its media, and without the index-matched (null) surfaces that do not emit (they only bound
+        media).  Returns self when there is nothing to drop."""
+        import copy
+
+        if not self.has_media():
+            return self
+        null = np.array([mi.null for mi in self.interfaces] + [False], bool)  # index -1: the False
+        glows = np.array([m.is_emissive for m in self.materials], bool)
+        f_if, s_if = self.face_interface_array(), self.sphere_interface_array()
+        keep_f = ~null[f_if] | glows[np.asarray(self.face_materials, np.int64)] if len(self.faces) else np.zeros(0, bool)
+        keep_s = ~null[s_if] | glows[np.asarray(self.sphere_materials, np.int64)] if len(self.spheres) else np.zeros(0, bool)
+        s = copy.copy(self)
+        s.faces, s.face_materials = self.faces[keep_f], self.face_materials[keep_f]
+        s.uvs = None if self.uvs is None else self.face_uvs()[keep_f]
+        s.spheres, s.sphere_materials = self.spheres[keep_s], self.sphere_materials[keep_s]
+        s.media, s.camera_medium, s.interfaces, s.face_interfaces, s.sphere_interfaces = [], -1, [], None, None
         return s
 
     def face_uvs(self) -> np.ndarray:

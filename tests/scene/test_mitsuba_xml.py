@@ -383,7 +383,9 @@ def test_integrators_film_filter_sampler(tmp_path):
     s, w = settings("")
     assert (s.settings.max_depth, s.settings.rr_depth, s.settings.width, s.settings.spp) == (-1, 5, 768, 4)
     s, w = settings('<integrator type="volpath"><integer name="max_depth" value="4"/></integrator>')
-    assert s.settings.max_depth == 4 and len(w) == 1 and 'integrator type="volpath"' in w[0]
+    assert s.settings.max_depth == 4 and w == [] and not s.settings.spectral_mis  # media: tests/scene/test_media_scene.py
+    s, w = settings('<integrator type="bdpt"><integer name="max_depth" value="4"/></integrator>')
+    assert s.settings.max_depth == 4 and len(w) == 1 and 'integrator type="bdpt"' in w[0]
     s, w = settings('<sensor type="perspective"><film type="hdrfilm"><rfilter type="gaussian"/></film></sensor>')
     assert len(w) == 1 and re.match(r'.*s\.xml:2: <rfilter type="gaussian">: we filter with a box', w[0]), w
     s, w = settings('<sensor type="perspective"><film type="hdrfilm"><rfilter type="box"/></film></sensor>')
@@ -752,8 +754,8 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
     path = write(tmp_path, """
         <integrator type="aov"><string name="aovs" value="nn:sh_normal"/><integrator type="path"/></integrator>
         <sensor type="orthographic"/>
-        <medium type="homogeneous" id="fog"/>
-        <shape type="shapegroup" id="g"/>
+        <medium type="homogeneous" id="fog"><phase type="rayleigh"/></medium>
+        <shape type="shapegroup" id="g"><ref name="interior" id="fog"/></shape>
         <shape type="sphere"><bsdf type="hair"/><emitter type="point"/></shape>
         <emitter type="projector"/>
         <rgb name="stray" value="1"/>
@@ -761,7 +763,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
     scene, warned = load(path)
     assert len(scene.spheres) == 1 and scene.materials[0].albedo == (0.5, 0.5, 0.5)
     expect = [("orthographic", '<sensor type="orthographic">: not supported; using a camera that frames the scene'),
-              ("fog", '<medium type="homogeneous" id="fog">: not supported; ignored'),
+              ("rayleigh", '<phase type="rayleigh">: phase function not supported; rendered isotropic'),
               ("shapegroup", '<shape type="shapegroup" id="g">: shape type not supported; ignored'),
               ("hair", '<bsdf type="hair">: BSDF type not supported; using diffuse 0.5'),
               ("point", '<emitter type="point"> in <shape type="sphere">: only area emitters attach to shapes; ignored'),

@@ -43,13 +43,17 @@ def checked_triangles(vertices, faces, face_materials, name):
     return v32, f32, np.ascontiguousarray(face_materials)
 
 
-def triangle_scene(vertices, faces, face_materials, materials, name, uvs=None, **scene_fields) -> Scene:
+def triangle_scene(vertices, faces, face_materials, materials, name, uvs=None, face_interfaces=None,
+                   **scene_fields) -> Scene:
     """The Scene of these triangles (checked) with their materials (the default one if there are
-    none) and per-corner UVs; no camera yet."""
+    none), per-corner UVs and medium interfaces (per face, or None); no camera yet."""
     uvs = kept_uvs(vertices, faces, uvs)
+    if face_interfaces is not None:
+        keep = _finite_faces(vertices, np.asarray(faces, np.int64))
+        face_interfaces = np.ascontiguousarray(np.asarray(face_interfaces, np.int32)[keep])
     v32, f32, face_materials = checked_triangles(vertices, faces, face_materials, name)
     return Scene(vertices=v32, faces=f32, face_materials=face_materials, materials=materials or [Material()],
-                 source=name, uvs=uvs, **scene_fields)
+                 source=name, uvs=uvs, face_interfaces=face_interfaces, **scene_fields)
 
 
 def scene_bounds(scene: Scene):

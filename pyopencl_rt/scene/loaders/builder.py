@@ -320,6 +320,15 @@ class SceneBuilder:
         self.camera: Camera | None = None
         self.mirror = None
         self.settings = RenderSettings()
+        # participating media (pyopencl_rt/scene/media.py): the media, interfaces by value, per face and
+        # sphere the interface index (-1: none), and the camera's medium
+        self.media: list = []
+        self._medium_index: dict[int, int] = {}
+        self.interfaces: list = []
+        self._interface_index: dict = {}
+        self.face_interfaces: list = []
+        self.sphere_interfaces: list = []
+        self.camera_medium = -1
 
     def warn(self, position: str, what: str) -> None:
         msg = one_line(f"{position}: {what}")
@@ -342,8 +351,27 @@ class SceneBuilder:
                 two_sided=bool(two_sided), emission_texture=texture)
         return self._emissive[key]
 
-    def add_mesh(self, vertices, faces, material: Material, uvs=None, matrix=None, flip=False) -> None:
-        """Triangles in object space, moved by the 4x4 ``matrix``; ``flip`` swaps their front."""
+    def medium_index(self, medium) -> int:
+        """The index of ``medium`` (a scene.media.Medium) in the scene's media (added on first use)."""
+        key = id(medium)
+        if key not in self._medium_index:
+            self._medium_index[key] = len(self.media)
+            self.media.append(medium)
+        return self._medium_index[key]
+
+    def interface_index(self, interface) -> int:
+        """The index of a scene.media.MediumInterface (one entry per distinct value); None: -1."""
+        if interface is None:
+            return -1
+        if interface not in self._interface_index:
+            self._interface_index[interface] = len(self.interfaces)
+            self.interfaces.append(interface)
+        return self._interface_index[interface]
+
+    def add_mesh(self, vertices, faces, material: Material, uvs=None, matrix=None, flip=False,
+                 interface=None) -> None:
+        """Triangles in object space, moved by the 4x4 ``matrix``; ``flip`` swaps their front (the
+        interface's sides stay with the faces' fronts: flipping them swaps what is inside)."""
         v = np.asarray(vertices, np.float64).reshape(-1, 3)
         f = np.asarray(faces, np.int64).reshape(-1, 3)
         uv = None if uvs is None else np.asarray(uvs, np.float32).reshape(-1, 3, 2)
@@ -360,11 +388,14 @@ class SceneBuilder:
         self.faces.append(f + self.n_vertices)
         self.uvs.append(np.zeros((len(f), 3, 2), np.float32) if uv is None else uv)
         self.face_materials.append(np.full(len(f), self.material_index(material), np.int32))
+        self.face_interfaces.append(np.full(len(f), self.interface_index(interface), np.int32))
         self.n_vertices += len(v)
 
-    def add_sphere(self, centre, radius: float, material: Material) -> None:
+    def add_sphere(self, centre, radius: float, material: Material, interface=None) -> None:
+        """A sphere, its front outside (an interface given for an inward-facing one must be flipped)."""
         self.spheres.append([*map(float, centre), float(radius)])
         self.sphere_materials.append(self.material_index(material))
+        self.sphere_interfaces.append(self.interface_index(interface))
 
     def add_light(self, light) -> None:
         self.lights.append(light)
@@ -386,7 +417,9 @@ class SceneBuilder:
         else:
             vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
             uvs, face_materials = None, np.zeros(0, np.int32)
+        face_interfaces = np.concatenate(self.face_interfaces) if self.faces else np.zeros(0, np.int32)
         spheres = np.asarray(self.spheres, np.float64).reshape(-1, 4)
+        media = list(self.media)
         lights = list(self.lights)
         if mirror is not None:
             vertices = transform_points(mirror, vertices)
@@ -398,12 +431,17 @@ class SceneBuilder:
                       if isinstance(lt, PointLight) else
                       dataclasses.replace(lt, direction=tuple(transform_vector(mirror, lt.direction)))
                       if isinstance(lt, DirectionalLight) else lt for lt in lights]
+            media = [m.transformed(mirror) for m in media]
         if not self.faces and not self.spheres:
             raise SceneFormatError(f"{self.name}: the scene has no shapes that we can render")
         scene = triangle_scene(vertices, faces, face_materials, self.materials, self.name, uvs=uvs,
                                spheres=spheres.astype(np.float32),
                                sphere_materials=np.asarray(self.sphere_materials, np.int32),
-                               settings=self.settings)
+                               settings=self.settings,
+                               face_interfaces=face_interfaces if self.interfaces else None)
+        if self.interfaces or media:
+            scene.media, scene.interfaces, scene.camera_medium = media, list(self.interfaces), int(self.camera_medium)
+            scene.sphere_interfaces = np.asarray(self.sphere_interfaces, np.int32)
         scene.lights = lights
         env = self.environment
         scene.environment = env.resample(mirror) if isinstance(env, EnvMap) else env

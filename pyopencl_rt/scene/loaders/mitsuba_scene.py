@@ -14,7 +14,9 @@ import numpy as np
 from ..model import DirectionalLight, Environment, PointLight, RenderSettings
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cube_mesh, cylinder_mesh, disk_mesh, error_at,
                       rectangle_mesh, transform_points, transform_vector, vertical_fov)
+from ..media import MediumInterface
 from .mitsuba_bsdf import BsdfMapper, color_value
+from .mitsuba_media import MediaMapper
 from .mitsuba_xml import Document, MiObject
 
 # parameters that do not change the image
@@ -38,6 +40,8 @@ class _Importer:
     def __init__(self, doc: Document, builder: SceneBuilder, path: Path):
         self.doc, self.b, self.path = doc, builder, path
         self.bsdfs = BsdfMapper(self)
+        self.media = MediaMapper(self)
+        self._null_material = None
 
     def warn(self, position, what):
         self.b.warn(position, what)
@@ -70,7 +74,9 @@ class _Importer:
                 self.shape(obj)
             elif obj.tag == "emitter":
                 self.emitter(obj)
-            elif obj.tag in ("bsdf", "texture"):
+            elif obj.tag == "medium":
+                self.media.medium(obj)  # made (and checked) as Mitsuba makes it; in the scene where used
+            elif obj.tag in ("bsdf", "texture", "phase", "volume"):
                 continue  # used through references
             elif obj.tag not in ("sensor", "integrator"):
                 self.warn(obj.node.pos, f"{obj.label()}: not supported; ignored")
@@ -88,7 +94,9 @@ class _Importer:
         if obj.type == "direct":
             settings.max_depth = 2
         else:
-            if obj.type != "path":
+            if obj.type in ("volpath", "volpathmis"):  # the weights of chromatic media (scene/media.py)
+                settings.spectral_mis = obj.type == "volpathmis" and bool(obj.boolean("use_spectral_mis", True))
+            elif obj.type != "path":
                 self.warn(obj.node.pos, f"{obj.label()}: rendered with our path tracer (MIS of BSDF and "
                                         "light sampling) with its max_depth and rr_depth")
             depth = obj.integer("max_depth", -1, minimum=-1)
@@ -124,8 +132,13 @@ class _Importer:
             if seed is not None:
                 settings.seed = seed & 0xFFFFFFFF
             self.unused(sampler, extra=("scramble_seed", "strength"))
+        media = obj.children_of("medium") + [p.value for p in obj.props.values()
+                                             if p.kind == "object" and p.value.tag == "medium"]
+        obj.used.update(n for n, p in obj.props.items() if p.kind == "object" and p.value.tag == "medium")
+        if media:  # Mitsuba's sensor takes its one medium whatever its name
+            self.b.camera_medium = self.b.medium_index(self.media.medium(media[0]))
         for extra in obj.children:
-            if extra.tag not in ("film", "sampler"):
+            if extra.tag not in ("film", "sampler", "medium"):
                 self.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported; ignored")
         if obj.type not in ("perspective", "thinlens"):
             self.warn(obj.node.pos, f"{obj.label()}: not supported; using a camera that frames the scene")
@@ -166,9 +179,45 @@ class _Importer:
 
     # -- shapes ----------------------------------------------------------------------------------
 
+    def interface(self, obj: MiObject, bsdfs) -> MediumInterface | None:
+        """The shape's medium interface: its interior and exterior media (a transition when either
+        is given, as Mitsuba's is_medium_transition), index-matched under a null BSDF."""
+        null = bool(bsdfs) and bsdfs[0].type == "null"
+        sides = {}
+        for side in ("interior", "exterior"):
+            p = obj.prop(side) if obj.has(side) else None
+            if p is not None:
+                if p.kind != "object" or p.value.tag != "medium":
+                    raise error_at(p.node.pos, f'{obj.label()}: "{side}" must be a <medium>, got <{p.kind}>')
+                sides[side] = self.b.medium_index(self.media.medium(p.value))
+        for extra in (p for n, p in obj.props.items() if p.kind == "object" and p.value.tag == "medium"
+                      and n not in ("interior", "exterior")):
+            obj.used.add(extra.node.attrs.get("name"))
+            self.warn(extra.node.pos, f'{extra.value.label()} in {obj.label()}: a shape\'s medium is named "interior" '
+                                      'or "exterior"; ignored')
+        for extra in obj.children_of("medium"):
+            self.warn(extra.node.pos, f'{extra.label()} in {obj.label()}: a shape\'s medium needs name="interior" or '
+                                      'name="exterior"; ignored')
+        if not sides and not null:
+            return None
+        return MediumInterface(sides.get("interior", -1), sides.get("exterior", -1), transition=bool(sides), null=null)
+
+    def null_material(self):
+        """The material of index-matched (null BSDF) surfaces: they never scatter (cl/render/media.h)."""
+        if self._null_material is None:
+            from ..model import Material
+
+            self._null_material = Material(name="mitsuba-null", albedo=(0.0, 0.0, 0.0))
+        return self._null_material
+
     def shape(self, obj: MiObject) -> None:
         bsdfs = obj.children_of("bsdf")
-        material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default()
+        interface = self.interface(obj, bsdfs)
+        if interface is not None and interface.null:
+            material = self.null_material()
+            self.unused(bsdfs[0])
+        else:
+            material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default()
         if len(bsdfs) > 1:
             self.warn(bsdfs[1].node.pos, f"{obj.label()}: a second BSDF; ignored")
         emitters = obj.children_of("emitter")
@@ -181,7 +230,7 @@ class _Importer:
             material = self.b.emissive(material, radiance, False, texture)
             self.unused(em)
         for extra in obj.children:
-            if extra.tag not in ("bsdf", "emitter"):
+            if extra.tag not in ("bsdf", "emitter", "medium"):
                 self.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported; ignored")
         flip = bool(obj.boolean("flip_normals", False))
         m = obj.transform("to_world")
@@ -189,7 +238,7 @@ class _Importer:
             raise error_at(obj.props["to_world"].node.pos, f"{obj.label()}: to_world is singular")
         t = obj.type
         if t == "sphere":
-            return self.sphere(obj, material, m, flip, emitters)
+            return self.sphere(obj, material, m, flip, emitters, interface)
         if t in ("obj", "ply", "serialized"):
             mesh = self.mesh_file(obj)
         elif t == "rectangle":
@@ -204,7 +253,7 @@ class _Importer:
             self.warn(obj.node.pos, f"{obj.label()}: shape type not supported; ignored")
             return
         v, f, uv = mesh
-        self.b.add_mesh(v, f, material, uvs=uv, matrix=m, flip=flip)
+        self.b.add_mesh(v, f, material, uvs=uv, matrix=m, flip=flip, interface=interface)
         self.unused(obj)
 
     def cylinder(self, obj: MiObject):
@@ -222,7 +271,7 @@ class _Importer:
         frame = np.stack([x, np.cross(z, x), z], 1)
         return v @ frame.T + p0, f, uv
 
-    def sphere(self, obj, material, m, flip, emitters) -> None:
+    def sphere(self, obj, material, m, flip, emitters, interface=None) -> None:
         centre = obj.point("center", np.zeros(3))
         radius = obj.float("radius", 1.0, positive=True)
         if m is not None:
@@ -234,7 +283,9 @@ class _Importer:
             radius *= float(s.mean())
         if flip and emitters:
             self.warn(obj.node.pos, f"{obj.label()}: flip_normals: our spheres emit outwards only")
-        self.b.add_sphere(centre, radius, material)
+        if flip and interface is not None:  # its normal points inwards: interior and exterior trade places
+            interface = interface.flipped()
+        self.b.add_sphere(centre, radius, material, interface=interface)
         self.unused(obj)
 
     def mesh_file(self, obj: MiObject):

@@ -7,7 +7,7 @@
 | ``dielectric`` (``thindielectric`` with a warning) | ``dielectric``: ``eta`` (default 1.5; the named glasses at their d-line index) |
 | ``coateddiffuse`` | ``gltf`` with metallic 0: base colour ``reflectance``, IOR ``eta``, the coating's roughness (documented approximation) |
 | ``coatedconductor`` | ``conductor`` of its conductor layer, with a warning |
-| ``interface`` | no surface: its shapes are skipped, with a warning |
+| ``interface`` | no surface: its shapes only bound media (index-matched: pbrt_media.py) |
 | others (``diffusetransmission``, ``hair``, ``measured``, ``mix``, ``subsurface``) | ``diffuse`` 0.5, with a warning |
 
 Roughness: ``roughness`` (or the mean of ``uroughness`` and ``vroughness``, with a warning when they

@@ -27,6 +27,9 @@
     emission = [0, 0, 0]          # linear RGB radiance >= 0 (or one number), default 0; any type
     two_sided = false             # emit from both sides, default false
 
+    [media.fog]                   # participating media (toml_media.py), referred to by NAME
+    sigma_t = [0.5, 1.0, 2.0]     #   from shapes' interior / exterior and [camera] medium
+
     [[shape]]                     # one table per shape, numbered #1, #2, ... in messages
     type = "quad"                 # "mesh" | "quad" | "triangle" | "box" | "sphere"
     material = "white"            # default: the built-in "default" material (albedo 0.8)
@@ -70,6 +73,7 @@ from .assembly import DEFAULT_FOV, frame_scene, triangle_scene
 from .gltf import read_gltf
 from .meshfile import trimesh_uvs
 from .obj import obj_with_materials
+from .toml_media import SHAPE_KEYS, camera_medium, read_media, shape_interface
 from .values import (ErrorContext, SceneError, TableReader, check_boolean, check_choice, check_color,
                      check_integer, check_keys, check_number, check_points, check_vector, describe,
                      one_line)
@@ -85,8 +89,8 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 SHAPE_TYPES = ("mesh", "quad", "triangle", "box", "sphere")
 LIGHT_TYPES = ("point", "directional")
 
-_TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environment"}
-_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance"}
+_TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environment", "media"}
+_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance", "medium"}
 _LIGHT_KEYS = {"point": {"type", "position", "intensity"}, "directional": {"type", "direction", "irradiance"}}
 _ENVIRONMENT_KEYS = {"radiance", "file", "scale"}
 _FILM_KEYS = {"width", "height", "aovs"}
@@ -101,6 +105,7 @@ _SHAPE_KEYS = {
     "box": {"type", "material", "size", "center"} | _TRANSFORM_KEYS,
     "sphere": {"type", "material", "center", "radius"},
 }
+_SHAPE_KEYS = {k: v | SHAPE_KEYS for k, v in _SHAPE_KEYS.items()}  # participating media (toml_media.py)
 
 
 def _read_material(ctx, where, name, spec) -> Material:
@@ -149,6 +154,18 @@ def load_toml_scene(path: Path, name: str) -> Scene:
 
     settings = _read_settings(ctx, doc.get("film", {}), doc.get("render", {}))
     materials, material_index = _read_materials(ctx, doc.get("materials", {}))
+    media, media_index = read_media(ctx, path, doc.get("media", {}))
+    interfaces, interface_index = [], {}
+
+    def interface_for(where, table) -> int:
+        """The index of the shape's medium interface (-1: none)."""
+        interface = shape_interface(ctx, where, table, media_index)
+        if interface is None:
+            return -1
+        if interface not in interface_index:
+            interface_index[interface] = len(interfaces)
+            interfaces.append(interface)
+        return interface_index[interface]
 
     shapes = doc.get("shape", [])
     if not isinstance(shapes, list):
@@ -157,7 +174,13 @@ def load_toml_scene(path: Path, name: str) -> Scene:
         raise ctx.error("", "defines no shapes (add [[shape]] tables)")
 
     def material_for(where, table) -> int:
-        """The index of the shape's material; the built-in "default" is added on first use."""
+        """The index of the shape's material; the built-in "default" is added on first use (an
+        index-matched shape's: a black one, never evaluated)."""
+        if table.get("index_matched") is True and "material" not in table:
+            if "index-matched" not in material_index:
+                material_index["index-matched"] = len(materials)
+                materials.append(Material(name="index-matched", albedo=(0.0, 0.0, 0.0)))
+            return material_index["index-matched"]
         mname = table.get("material", "default")
         if not isinstance(mname, str):
             raise ctx.error(where, f"'material' must be a material name, got {describe(mname)}")
@@ -169,9 +192,9 @@ def load_toml_scene(path: Path, name: str) -> Scene:
             materials.append(Material())
         return material_index[mname]
 
-    tri_vertices, tri_faces, tri_mats, tri_uvs = [], [], [], []
+    tri_vertices, tri_faces, tri_mats, tri_uvs, tri_ifaces = [], [], [], [], []
     n_vertices = 0
-    spheres, sphere_mats = [], []
+    spheres, sphere_mats, sphere_ifaces = [], [], []
     for number, table in enumerate(shapes, 1):
         where = f"[[shape]] #{number}"
         if not isinstance(table, dict):
@@ -194,6 +217,7 @@ def load_toml_scene(path: Path, name: str) -> Scene:
                 raise ctx.error(where, f"'radius' {radius:g} is 0 in float32")
             spheres.append([*centre, radius])
             sphere_mats.append(material_for(where, table))
+            sphere_ifaces.append(interface_for(where, table))
             continue
 
         face_mat = None
@@ -245,19 +269,26 @@ def load_toml_scene(path: Path, name: str) -> Scene:
         tri_uvs.append(np.zeros((len(f), 3, 2), np.float32) if uvc is None else np.asarray(uvc, np.float32))
         tri_faces.append(f + n_vertices)
         tri_mats.append(face_mat)
+        tri_ifaces.append(np.full(len(f), interface_for(where, table), np.int32))
         n_vertices += len(v)
 
     if tri_faces:
         vertices, faces = np.concatenate(tri_vertices), np.concatenate(tri_faces)
-        face_mat, uvs = np.concatenate(tri_mats), np.concatenate(tri_uvs)
+        face_mat, uvs, face_ifaces = np.concatenate(tri_mats), np.concatenate(tri_uvs), np.concatenate(tri_ifaces)
     else:
         vertices, faces, face_mat, uvs = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int32), None
+        face_ifaces = np.zeros(0, np.int32)
     scene = triangle_scene(
         vertices, faces, face_mat, materials, name, uvs, settings=settings,
         spheres=np.asarray(spheres, np.float32).reshape(-1, 4), sphere_materials=np.asarray(sphere_mats, np.int32),
+        face_interfaces=face_ifaces if interfaces else None,
     )
+    if media or interfaces:
+        scene.media, scene.interfaces = media, interfaces
+        scene.sphere_interfaces = np.asarray(sphere_ifaces, np.int32)
     if "camera" in doc:
         scene.camera = _read_camera(ctx, doc["camera"])
+        scene.camera_medium = camera_medium(ctx, doc["camera"], media_index)
     else:
         frame_scene(scene)
     scene.lights = _read_lights(ctx, doc.get("light", []))
