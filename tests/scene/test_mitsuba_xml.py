@@ -15,6 +15,7 @@ import pytest
 import pyopencl_rt as rt
 from pyopencl_rt.scene.loaders import SceneError, load_scene
 from pyopencl_rt.scene.loaders.mitsuba_serialized import write_serialized
+from pyopencl_rt.scene.model import PixelFilter
 
 from scene_compare import render_pair_z, triangle_records, triangles_equal, write_exr_image, write_png_image
 
@@ -385,9 +386,65 @@ def test_integrators_film_filter_sampler(tmp_path):
     s, w = settings('<integrator type="volpath"><integer name="max_depth" value="4"/></integrator>')
     assert s.settings.max_depth == 4 and len(w) == 1 and 'integrator type="volpath"' in w[0]
     s, w = settings('<sensor type="perspective"><film type="hdrfilm"><rfilter type="gaussian"/></film></sensor>')
-    assert len(w) == 1 and re.match(r'.*s\.xml:2: <rfilter type="gaussian">: we filter with a box', w[0]), w
+    assert w == [] and s.settings.filter == PixelFilter("gaussian", (2.0, 2.0), sigma=0.5)
     s, w = settings('<sensor type="perspective"><film type="hdrfilm"><rfilter type="box"/></film></sensor>')
-    assert w == []
+    assert w == [] and s.settings.filter == PixelFilter("box")
+
+
+def test_rfilters(tmp_path):
+    """Mitsuba 3's reconstruction filters with their parameters and fixed radii (src/rfilters/),
+    and its default (a gaussian of stddev 0.5, cut at 4 stddev) without an rfilter or a film."""
+    def rfilter(inner):
+        scene, w = load(write(tmp_path, f'<sensor type="perspective"><film type="hdrfilm">{inner}</film></sensor>'
+                                        + SPHERE))
+        return scene.settings.filter, w
+
+    cases = {"": PixelFilter("gaussian", (2.0, 2.0), sigma=0.5),
+             '<rfilter type="gaussian"><float name="stddev" value="0.25"/></rfilter>':
+                 PixelFilter("gaussian", (1.0, 1.0), sigma=0.25),
+             '<rfilter type="tent"/>': PixelFilter("tent", (1.0, 1.0)),
+             '<rfilter type="tent"><float name="radius" value="1.5"/></rfilter>': PixelFilter("tent", (1.5, 1.5)),
+             '<rfilter type="mitchell"/>': PixelFilter("mitchell", (2.0, 2.0)),
+             '<rfilter type="mitchell"><float name="B" value="0.5"/><float name="C" value="0.25"/></rfilter>':
+                 PixelFilter("mitchell", (2.0, 2.0), b=0.5, c=0.25),
+             '<rfilter type="catmullrom"/>': PixelFilter("mitchell", (2.0, 2.0), b=0.0, c=0.5),
+             '<rfilter type="lanczos"/>': PixelFilter("lanczos", (3.0, 3.0), tau=3.0),
+             '<rfilter type="lanczos"><integer name="lobes" value="2"/></rfilter>':
+                 PixelFilter("lanczos", (2.0, 2.0), tau=2.0)}
+    for inner, expected in cases.items():
+        assert rfilter(inner) == (expected, []), inner
+    assert load(write(tmp_path, SPHERE))[0].settings.filter == PixelFilter("gaussian", (2.0, 2.0), sigma=0.5)
+    flt, w = rfilter('<rfilter type="box"><float name="stddev" value="1"/></rfilter>')
+    assert flt == PixelFilter("box") and len(w) == 1 and '"stddev"> of <rfilter type="box">' in w[0], w
+    flt, w = rfilter('<rfilter type="bspline"/>')
+    assert flt.type == "gaussian" and len(w) == 1 and '<rfilter type="bspline">: not supported' in w[0], w
+    with pytest.raises(SceneError, match=r'<rfilter type="tent">: pixel filter radius x must be in'):
+        rfilter('<rfilter type="tent"><float name="radius" value="40"/></rfilter>')
+
+
+def test_orthographic_sensor(tmp_path):
+    """Mitsuba's orthographic sensor: a film 2 wide and 2 / aspect high (local x, y), scaled by
+    to_world, at near_clip along the viewing direction; image right on local -x as for the
+    perspective sensor (a <scale x="-1"/> mirrors the scene); uneven scales warn."""
+    def sensor(transform, film='<integer name="width" value="200"/><integer name="height" value="120"/>',
+               extra=""):
+        body = (f'<sensor type="orthographic">{extra}<transform name="to_world">{transform}</transform>'
+                f'<film type="hdrfilm">{film}</film></sensor>')
+        return load(write(tmp_path, body + SPHERE))
+
+    s, w = sensor('<scale x="1.5" y="1.5"/><lookat origin="-5, 0, 3" target="0, 0, 1" up="0, 0, 1"/>',
+                  extra='<float name="near_clip" value="1"/>')
+    c = s.camera
+    d = np.array([5.0, 0.0, -2.0]) / math.sqrt(29)
+    assert w == [] and c.projection == "orthographic"
+    assert np.isclose(c.extent, 2 * 1.5 * 120 / 200) and np.allclose(c.eye, np.array([-5, 0, 3]) + d)
+    assert np.allclose(np.subtract(c.look_at, c.eye), d)
+    s, w = sensor('<lookat origin="0, 0, 0" target="0, 0, 1" up="0, 1, 0"/>')
+    assert w == [] and np.isclose(s.camera.extent, 2 * 120 / 200) and np.allclose(s.camera.eye, [0, 0, 0.01])
+    s, w = sensor('<scale x="2" y="1"/><lookat origin="0, 0, 0" target="0, 0, 1" up="0, 1, 0"/>')
+    assert len(w) == 1 and "unevenly" in w[0] and np.isclose(s.camera.extent, 2 * 120 / 200)
+    s, w = sensor('<lookat origin="0, 0, 0" target="0, 0, 1" up="0, 1, 0"/>', extra='<float name="fov" value="40"/>')
+    assert len(w) == 1 and '<float name="fov">' in w[0]
 
 
 def test_moment_and_aov_wrappers_render_their_nested_integrator_silently(tmp_path):
