@@ -422,6 +422,27 @@ def test_rfilters(tmp_path):
         rfilter('<rfilter type="tent"><float name="radius" value="40"/></rfilter>')
 
 
+def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
+    """Mitsuba gives a shape with an area emitter and no BSDF a diffuse of reflectance 0 (one
+    without an emitter 0.5); a checkerboard whose to_uv scales by whole numbers is the pattern
+    repeated (other to_uv warn)."""
+    scene, w = load(write(tmp_path, '<shape type="sphere"><emitter type="area"/></shape>'
+                                    '<shape type="sphere"><point name="center" x="3"/></shape>'))
+    assert w == [] and [scene.materials[i].albedo for i in scene.sphere_materials] == [(0, 0, 0), (0.5, 0.5, 0.5)]
+
+    def checker(to_uv):
+        scene, w = load(write(tmp_path, '<shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" '
+                                        f'type="checkerboard"><transform name="to_uv">{to_uv}</transform></texture>'
+                                        '</bsdf></shape>'))
+        return scene.materials[0].base_texture, w
+
+    tex, w = checker('<scale x="5" y="3"/>')
+    assert w == [] and (tex.width, tex.height) == (5 * 64, 3 * 64)
+    assert np.array_equal(tex.texels[:64, :64], tex.texels[128:, 256:])  # one period repeated
+    tex, w = checker('<scale x="2.5" y="2"/>')
+    assert len(w) == 1 and "to_uv is not supported" in w[0] and tex.width == 64
+
+
 def test_orthographic_sensor(tmp_path):
     """Mitsuba's orthographic sensor: a film 2 wide and 2 / aspect high (local x, y), scaled by
     to_world, at near_clip along the viewing direction; image right on local -x as for the
@@ -756,7 +777,8 @@ def test_emitters(tmp_path):
         <emitter type="spot"/>""")
     scene, warned = load(path)
     area = [m for m in scene.materials if m.is_emissive]
-    assert len(area) == 1 and area[0].emission == (1, 2, 3) and area[0].albedo == (0.5, 0.5, 0.5)
+    # an emitter without a BSDF reflects nothing (Mitsuba's shape.cpp)
+    assert len(area) == 1 and area[0].emission == (1, 2, 3) and area[0].albedo == (0, 0, 0)
     point, directional = scene.lights
     assert point.position == (1, 2, 3) and point.intensity == (5, 5, 5)
     assert np.allclose(directional.direction, [0, -1, 0])  # +z rotated 90 degrees about x
@@ -808,7 +830,7 @@ def test_envmap_agrees_with_mitsuba(tmp_path):
 def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
     path = write(tmp_path, """
         <integrator type="aov"><string name="aovs" value="nn:sh_normal"/><integrator type="path"/></integrator>
-        <sensor type="orthographic"/>
+        <sensor type="radiancemeter"/>
         <medium type="homogeneous" id="fog"/>
         <shape type="shapegroup" id="g"/>
         <shape type="sphere"><bsdf type="hair"/><emitter type="point"/></shape>
@@ -817,7 +839,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
         <unknown/>""")
     scene, warned = load(path)
     assert len(scene.spheres) == 1 and scene.materials[0].albedo == (0.5, 0.5, 0.5)
-    expect = [("orthographic", '<sensor type="orthographic">: not supported; using a camera that frames the scene'),
+    expect = [("radiancemeter", '<sensor type="radiancemeter">: not supported; using a camera that frames the scene'),
               ("fog", '<medium type="homogeneous" id="fog">: not supported; ignored'),
               ("shapegroup", '<shape type="shapegroup" id="g">: shape type not supported; ignored'),
               ("hair", '<bsdf type="hair">: BSDF type not supported; using diffuse 0.5'),
@@ -938,6 +960,9 @@ class _FakeMitsuba:
     class ScalarTransform4f:
         look_at = staticmethod(lambda origin, target, up: _LookAt(origin, target, up))
 
+        def __init__(self, matrix):
+            self.matrix = np.asarray(matrix, np.float64)
+
 
 def dict_to_xml(d: dict) -> str:
     """Mitsuba XML for a ``mi.load_dict`` dict (the subset mitsuba_export.py writes)."""
@@ -996,6 +1021,33 @@ def test_exporter_output_reimported_equals_the_original(tmp_path, real_mitsuba):
     for key in ("width", "height", "max_depth", "rr_depth"):
         assert getattr(back.settings, key) == getattr(original.settings, key)
     assert back.settings.spp == 32
+
+
+@pytest.mark.parametrize("real_mitsuba", [False, True], ids=["fake", "mitsuba"])
+def test_exporter_orthographic_camera_and_filters(tmp_path, real_mitsuba):
+    """The export of an orthographic camera and of each filter Mitsuba can express reads back as
+    the original; a filter it cannot express is refused."""
+    import dataclasses
+
+    from pyopencl_rt.bench.mitsuba_export import dict_from_arrays, mitsuba_rfilter, scene_arrays
+
+    mi = mitsuba() if real_mitsuba else _FakeMitsuba
+    original = load_scene(SCENES / "cornell-spheres.toml")
+    original.camera = dataclasses.replace(original.camera, projection="orthographic", extent=450.0)
+    for flt in (PixelFilter("gaussian", (1.2, 1.2), sigma=0.3), PixelFilter("tent", (1.5, 1.5)),
+                PixelFilter("mitchell", (2.0, 2.0), b=0.0, c=0.5), PixelFilter("lanczos", (2.0, 2.0), tau=2.0)):
+        original.settings.filter = flt
+        d = dict_from_arrays(scene_arrays(original, spp=4), mi, tmpdir=str(tmp_path))
+        (tmp_path / "exported.xml").write_text(dict_to_xml(d))
+        back, warned = load(tmp_path / "exported.xml")
+        assert warned == [] and back.settings.filter == flt
+        c, o = back.camera, original.camera
+        assert c.projection == "orthographic" and np.isclose(c.extent, o.extent) and np.allclose(c.eye, o.eye)
+        assert np.allclose(c.up, o.up)
+    for bad in (PixelFilter("box", (1.0, 1.0)), PixelFilter("gaussian", (1.5, 1.5)), PixelFilter("tent", (1.0, 2.0)),
+                PixelFilter("lanczos", (4.0, 4.0))):
+        with pytest.raises(ValueError, match="Mitsuba"):
+            mitsuba_rfilter(bad.as_dict())
 
 
 def test_sidecar_records_format_and_warnings(tmp_path):

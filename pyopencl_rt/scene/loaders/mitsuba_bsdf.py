@@ -135,13 +135,15 @@ class BsdfMapper:
         self.imp = importer
         self._materials: dict[int, Material] = {}
         self._textures: dict[int, object] = {}
-        self._default = None
+        self._default = {}
 
-    def default(self) -> Material:
-        """Mitsuba's BSDF of a shape without one: diffuse, reflectance 0.5."""
-        if self._default is None:
-            self._default = Material(name="mitsuba-default", albedo=(0.5, 0.5, 0.5))
-        return self._default
+    def default(self, black: bool = False) -> Material:
+        """Mitsuba's BSDF of a shape without one: diffuse, reflectance 0.5, or 0 (``black``) for
+        a shape that emits (src/render/shape.cpp)."""
+        if black not in self._default:
+            self._default[black] = Material(name="mitsuba-default-emitter" if black else "mitsuba-default",
+                                            albedo=(0.0,) * 3 if black else (0.5,) * 3)
+        return self._default[black]
 
     # -- textures --------------------------------------------------------------------------------
 

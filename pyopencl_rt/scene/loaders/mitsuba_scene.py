@@ -223,10 +223,12 @@ class _Importer:
 
     def shape(self, obj: MiObject) -> None:
         bsdfs = obj.children_of("bsdf")
-        material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default()
+        emitters = obj.children_of("emitter")
+        # Mitsuba's shape without a BSDF: diffuse, reflectance 0.5, or 0 for an emitter (shape.cpp)
+        emitting = any(em.type == "area" for em in emitters)
+        material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default(black=emitting)
         if len(bsdfs) > 1:
             self.warn(bsdfs[1].node.pos, f"{obj.label()}: a second BSDF; ignored")
-        emitters = obj.children_of("emitter")
         for em in emitters:
             if em.type != "area":
                 self.warn(em.node.pos, f"{em.label()} in {obj.label()}: only area emitters attach to shapes; "

@@ -409,7 +409,7 @@ def _read_camera(ctx, table) -> Camera:
     projection = check_choice(ctx, where, "type", table.get("type", "perspective"), PROJECTIONS)
     if projection == "orthographic" and "fov" in table or projection == "perspective" and "extent" in table:
         key = "fov" if projection == "orthographic" else "extent"
-        raise ctx.error(where, f"'{key}' is not a key of a {projection} camera")
+        raise ctx.error(where, f"'{key}' is not a key of {'an' if key == 'fov' else 'a'} {projection} camera")
     fov = check_number(ctx, where, "fov", table.get("fov", DEFAULT_FOV))
     if not 0 < fov < 180:
         raise ctx.error(where, f"'fov' must be between 0 and 180 degrees, got {fov:g}")
