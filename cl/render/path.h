@@ -10,7 +10,8 @@
  * (cl/render/lights.h); what has no lane form (texture fetches, the environment map's CDF search,
  * library sin/cos, the double-precision plane test near a light) runs lane by lane.
  *
- *   camera_ray      the camera rays of (pixel, pass): box-filtered pixel jitter, thin lens
+ *   camera_ray      the camera rays of (pixel, pass): the pixel filter's offset (filter.h) and
+ *                   the sample's weight, perspective or orthographic, thin lens
  *   path_escape     (HAS_ENVIRONMENT) the environment seen by the lanes whose rays left the
  *                   scene, weighted as the emission of a hit
  *   path_shade      at the lanes' hits: their emission, weighted by MIS against light sampling
@@ -37,6 +38,7 @@
 #define PYOPENCL_RT_PATH_H
 
 #include "render/lights.h"
+#include "render/filter.h"
 #ifdef HAS_TEXTURES
 #include "scene/textures.h"
 #endif
@@ -74,22 +76,36 @@ typedef struct {
     tris, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,          \
     n_lights, env_map, env_cdf, tri_uv, textures, tex_data, aov_path, max_depth, rr_depth
 
-/* The camera rays through pixels (x, y) of the lanes. */
-RT_INLINE void camera_ray(__global const Camera *camera, SampleKey k, pint x, pint y, pint live, pvec3 *origin,
-                          pvec3 *direction)
+/* The camera rays through pixels (x, y) of the lanes, and the weight each sample carries (the
+ * pixel filter's sign and normalisation, cl/render/filter.h; 1 for filters without negative
+ * lobes). */
+RT_INLINE void camera_ray(__global const Camera *camera, __global const float *filter_cdf, SampleKey k, pint x,
+                          pint y, pint live, pvec3 *origin, pvec3 *direction, pfloat *weight)
 {
     const Camera cam = *camera;
-    pfloat jx, jy;
-    sample_2d(k, PUINT(DIM_PIXEL), &jx, &jy);
+    pfloat ux, uy;
+    pint negative_x, negative_y;
+    sample_2d(k, PUINT(DIM_PIXEL), &ux, &uy);
+    const pfloat jx = filter_jitter(&cam, filter_cdf, 0, ux, &negative_x);
+    const pfloat jy = filter_jitter(&cam, filter_cdf, 1, uy, &negative_y);
+    *weight = filter_weight(&cam, negative_x, negative_y);
     const pfloat sx = (convert_pfloat(x) + jx) / (float)cam.width * 2.0f - 1.0f;
     const pfloat sy = 1.0f - (convert_pfloat(y) + jy) / (float)cam.height * 2.0f;
     const float3 forward = vload3(0, cam.forward), right = vload3(0, cam.right), up = vload3(0, cam.up);
-    const pvec3 dir = pv3_add(pv3_add(pv3_splat(forward), pv3_scale(pv3_splat(right), sx)), pv3_scale(pv3_splat(up), sy));
-    pvec3 d = pv3_normalize(dir, live), o = pv3_splat(vload3(0, cam.origin));
+    pvec3 dir, d, o = pv3_splat(vload3(0, cam.origin));
+    if (cam.projection == PROJECTION_ORTHOGRAPHIC) {
+        /* parallel rays from the film's points */
+        dir = pv3_splat(forward);
+        d = pv3_normalize(dir, live);
+        o = pv3_add(pv3_add(o, pv3_scale(pv3_splat(right), sx)), pv3_scale(pv3_splat(up), sy));
+    } else {
+        dir = pv3_add(pv3_add(pv3_splat(forward), pv3_scale(pv3_splat(right), sx)), pv3_scale(pv3_splat(up), sy));
+        d = pv3_normalize(dir, live);
+    }
     if (cam.lens_radius > 0.0f) {
         /* thin lens: from a point of the lens disk (concentric map, dims DIM_LENS and + 1)
-         * through the point of the pinhole ray at distance focus_distance along forward;
-         * lens_radius 0 is the pinhole, bit for bit */
+         * through the point of the pinhole ray at distance focus_distance along forward (dir:
+         * forward at unit distance); lens_radius 0 is the pinhole, bit for bit */
         pfloat lx, ly, dx, dy;
         sample_2d(k, PUINT(DIM_LENS), &lx, &ly);
         sample_concentric_disk(lx, ly, &dx, &dy);

@@ -129,16 +129,36 @@ LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), (
                   ("rgb", np.float32, 3), ("pad2", np.int32)])
 assert LIGHT.itemsize == 80
 
-# The camera (64 bytes): pinhole or thin lens.  A pixel (x, y) with jitter (jx, jy) in [0,1)^2 maps to the
-# direction forward + ((x+jx)/W*2-1) * right + (1-(y+jy)/H*2) * up, where right and up are
-# already scaled by tan(fov/2) (and the aspect ratio, for right).  Thin lens when lens_radius > 0:
-# the ray leaves a point of the lens disk (radius lens_radius, spanned by the unit right and up)
-# toward the pinhole ray's point at distance focus_distance along forward.
+# The camera (96 bytes), perspective (pinhole or thin lens) or orthographic.  A pixel (x, y) with
+# jitter (jx, jy) (from the pixel's top-left corner) maps to the film position sx = (x+jx)/W*2-1,
+# sy = 1-(y+jy)/H*2 in [-1, 1]^2 (outside it for a filter wider than the pixel).
+#   PROJECTION_PERSPECTIVE: the direction forward + sx * right + sy * up from origin, where right
+#     and up are already scaled by tan(fov/2) (and the aspect ratio, for right);
+#   PROJECTION_ORTHOGRAPHIC: the direction forward (unit) from origin + sx * right + sy * up, right
+#     and up being the half width and half height of the region the film sees.
+# Thin lens when lens_radius > 0 (either projection): the ray leaves a point of the lens disk
+# (radius lens_radius, spanned by the unit right and up) toward the pinhole ray's point at distance
+# focus_distance along forward.
+# The jitter is drawn from the pixel reconstruction filter (cl/render/filter.h; filter importance
+# sampling): filter is a FILTER_* method, filter_radius its half widths along x and y in pixels,
+# filter_knots the knots per axis of its tables in filter_cdf (FILTER_TABULATED, else 0), and
+# filter_weight the magnitude of every sample's weight (1 for filters without negative lobes; the
+# sign is that of the filter where the sample fell).
+PROJECTION_PERSPECTIVE = define("PROJECTION_PERSPECTIVE", 0)
+PROJECTION_ORTHOGRAPHIC = define("PROJECTION_ORTHOGRAPHIC", 1)
+PROJECTIONS = {"perspective": PROJECTION_PERSPECTIVE, "orthographic": PROJECTION_ORTHOGRAPHIC}
+# how the jitter is drawn: uniform over [-r, r] (box), by inverting the tent's CDF in closed form,
+# or from a tabulated CDF of |f| (gaussian, mitchell, lanczos: pyopencl_rt/render/filters.py)
+FILTER_BOX = define("FILTER_BOX", 0)
+FILTER_TENT = define("FILTER_TENT", 1)
+FILTER_TABULATED = define("FILTER_TABULATED", 2)
 CAMERA = np.dtype(
     [("origin", np.float32, 3), ("width", np.int32), ("forward", np.float32, 3), ("height", np.int32),
-     ("right", np.float32, 3), ("lens_radius", np.float32), ("up", np.float32, 3), ("focus_distance", np.float32)]
+     ("right", np.float32, 3), ("lens_radius", np.float32), ("up", np.float32, 3), ("focus_distance", np.float32),
+     ("projection", np.int32), ("filter", np.int32), ("filter_knots", np.int32), ("filter_weight", np.float32),
+     ("filter_radius", np.float32, 2), ("filter_pad", np.float32, 2)]
 )
-assert CAMERA.itemsize == 64
+assert CAMERA.itemsize == 96
 
 # A 4-wide BVH node (128 bytes; pyopencl_rt/accel/bvh_wide.py builds it, cl/accel/bvh_wide.h traverses it):
 # the boxes of up to four children in structure-of-arrays form (each field is one float4, so one
@@ -327,6 +347,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _path("path_depth", "int", 1, "segments so far"),
     _path("path_pdf", "float", 1, "BSDF pdf of the last bounce, 0 after a camera or delta bounce"),
     _path("path_eta_scale", "float", 1, "product of eta^2 over the refractions so far (Russian roulette)"),
+    _path("path_weight", "float", 1, "the camera sample's filter weight (+-filter_weight), applied at accumulate"),
     _path("hit_t", "float", 1, "closest hit of ray_o/ray_d (extend)"),
     _path("hit_prim", "int", 1, "its primitive (PRIM_MISS, triangle or SPHERE_PRIM)"),
     _path("hit_u", "float", 1, "its barycentrics"),
@@ -354,6 +375,8 @@ WAVE_PARAMS: tuple[Param, ...] = (
     # the environment map and its sampling CDFs (cl/render/lights.h); dummies without HAS_ENVIRONMENT
     Param("env_map", "const", "float"),
     Param("env_cdf", "const", "float"),
+    # the pixel filter's tables (FILTER_TABULATED, cl/render/filter.h); a dummy otherwise
+    Param("filter_cdf", "const", "float", "per axis: filter_knots knots, the filter there, the CDF of |f|"),
     # fixed scalars
     Param("n_spheres", "scalar", "int"),
     Param("n_lights", "scalar", "int"),

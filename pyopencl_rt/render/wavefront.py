@@ -17,6 +17,7 @@ import numpy as np
 from .. import validate
 from ..device import abi
 from ..accel.bvh import build_bvh
+from . import filters
 from .film import Film, RunStats
 from .lights import build_lights, environment_buffers
 from .settings import ImageSettings, feature_names, kernel_features
@@ -148,6 +149,7 @@ class Wavefront:
         prim = self.bvh.prim_ids
         tri_material = scene.face_materials[prim].astype(np.int32) if len(prim) else np.zeros(0, np.int32)
         cam = scene.camera.record(self.width, self.height)
+        filter_cdf = filters.apply(cam, settings.filter)  # the pixel filter's fields and tables
         W, P = self.wave_size, self.n_pixels
         # enough ring slots for every pass a full wave can span, plus the one draining
         self.ring_size = int(min(max(2, math.ceil(W / P) + 2), 1 << 12))
@@ -164,6 +166,7 @@ class Wavefront:
             free_q=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32)),
             counters=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host),
             pass_ring=scratch(3 * 4 * P * self.ring_size), env_map=const(env_map), env_cdf=const(env_cdf),
+            filter_cdf=const(filter_cdf),
             pixel_list=scratch(4 * P),  # filled by run(pixels=) (adaptive sampling)
             n_spheres=len(scene.spheres), n_lights=self.n_lights, n_pixels=P, ring_size=self.ring_size,
             max_depth=self.settings.max_depth, rr_depth=self.settings.rr_depth, seed=self.settings.seed,

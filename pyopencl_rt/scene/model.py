@@ -6,6 +6,7 @@ of a sphere) unless the material is two-sided, as for Mitsuba's and pbrt's area 
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -97,38 +98,116 @@ class Material:
         return rec
 
 
+PROJECTIONS = ("perspective", "orthographic")
+assert set(PROJECTIONS) == set(abi.PROJECTIONS)
+
+
 @dataclass
 class Camera:
     eye: tuple = (0.0, 0.0, 5.0)
     look_at: tuple = (0.0, 0.0, 0.0)
     up: tuple = (0.0, 1.0, 0.0)
-    fov: float = 40.0  # degrees, along the vertical axis
+    fov: float = 40.0  # degrees, along the vertical axis (perspective)
     # thin lens (depth of field) when aperture_radius > 0: the lens radius, and the distance
     # along the viewing direction of the plane in focus (None: |look_at - eye|)
     aperture_radius: float = 0.0
     focus_distance: float | None = None
+    # "perspective", or "orthographic": rays parallel to look_at - eye from the points of a
+    # rectangle centred on eye, `extent` high (scene units) and extent * width / height wide
+    projection: str = "perspective"
+    extent: float = 2.0
 
     def record(self, width: int, height: int) -> np.ndarray:
-        """The CAMERA struct for an image of width x height."""
+        """The CAMERA struct for an image of width x height (its filter fields a box of radius 0.5:
+        pyopencl_rt/render/filters.py sets those)."""
         eye = np.asarray(self.eye, np.float64)
         forward = np.asarray(self.look_at, np.float64) - eye
         forward /= np.linalg.norm(forward)
         right = np.cross(forward, np.asarray(self.up, np.float64))
         right /= np.linalg.norm(right)
         up = np.cross(right, forward)
-        tan_half = np.tan(np.radians(self.fov) / 2)
         rec = np.zeros((), abi.CAMERA)
+        if self.projection == "orthographic":
+            half = float(self.extent) / 2
+            rec["projection"] = abi.PROJECTION_ORTHOGRAPHIC
+        elif self.projection == "perspective":
+            half = np.tan(np.radians(self.fov) / 2)
+        else:
+            raise ValueError(f"unknown projection {self.projection!r}: use one of {', '.join(PROJECTIONS)}")
         rec["origin"] = eye
         rec["forward"] = forward
-        rec["right"] = right * tan_half * width / height
-        rec["up"] = up * tan_half
+        rec["right"] = right * half * width / height
+        rec["up"] = up * half
         rec["width"] = width
         rec["height"] = height
         rec["lens_radius"] = max(float(self.aperture_radius), 0.0)
         focus = self.focus_distance if self.focus_distance is not None else np.linalg.norm(
             np.asarray(self.look_at, np.float64) - eye)
         rec["focus_distance"] = focus
+        rec["filter"] = abi.FILTER_BOX
+        rec["filter_radius"] = 0.5
+        rec["filter_weight"] = 1.0
         return rec
+
+
+# The pixel reconstruction filters (docs/SCENE_FORMAT.md, "Pixel filters"; pyopencl_rt/render/filters.py
+# samples them), each separable: f(x, y) = f(x) f(y), with half widths radius (x, y) in pixels
+FILTERS = ("box", "tent", "gaussian", "mitchell", "lanczos")
+MAX_FILTER_RADIUS = 16.0  # pixels
+
+
+@dataclass(frozen=True)
+class PixelFilter:
+    """A reconstruction filter: its type (one of FILTERS), its half widths along x and y (pixels)
+    and its parameters: gaussian ``sigma`` (exp(-x^2 / 2 sigma^2) minus its value at the radius,
+    as Mitsuba 3 and pbrt-v4 have it), mitchell ``b``, ``c`` (Mitchell-Netravali over [-radius,
+    radius]), lanczos ``tau`` (sinc(x) sinc(x / tau), cut at the radius).  Those of other types
+    are ignored (and left at their defaults)."""
+
+    type: str = "box"
+    radius: tuple = (0.5, 0.5)
+    sigma: float = 0.5
+    b: float = 1.0 / 3.0
+    c: float = 1.0 / 3.0
+    tau: float = 3.0
+
+    @classmethod
+    def from_value(cls, value) -> "PixelFilter":
+        """A PixelFilter from itself or from its dict (as_dict, JSON); TypeError/ValueError if it is none."""
+        if isinstance(value, cls):
+            return value.checked()
+        if not isinstance(value, dict):
+            raise TypeError(f"a pixel filter must be a table, got {type(value).__name__}")
+        unknown = set(value) - {f.name for f in dataclasses.fields(cls)}
+        if unknown:
+            raise ValueError(f"unknown pixel filter keys {sorted(unknown)}")
+        radius = value.get("radius", (0.5, 0.5))
+        if not isinstance(radius, (list, tuple)) or len(radius) != 2:
+            raise ValueError(f"a pixel filter's radius must be two numbers, got {radius!r}")
+        return cls(**{**value, "radius": tuple(radius)}).checked()
+
+    def checked(self) -> "PixelFilter":
+        """Itself, with its numbers as floats, after checking them (ValueError, one line)."""
+        if self.type not in FILTERS:
+            raise ValueError(f"unknown pixel filter {self.type!r}: use one of {', '.join(FILTERS)}")
+        numbers = {"radius x": self.radius[0], "radius y": self.radius[1], "sigma": self.sigma, "b": self.b,
+                   "c": self.c, "tau": self.tau}
+        for name, v in numbers.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
+                raise ValueError(f"pixel filter {name} must be a finite number, got {v!r}")
+        for name in ("radius x", "radius y"):
+            if not 0 < numbers[name] <= MAX_FILTER_RADIUS:
+                raise ValueError(f"pixel filter {name} must be in (0, {MAX_FILTER_RADIUS:g}] pixels, "
+                                 f"got {numbers[name]!r}")
+        if not self.sigma > 0 or not self.tau > 0:
+            raise ValueError(f"pixel filter sigma and tau must be > 0, got {self.sigma!r}, {self.tau!r}")
+        return dataclasses.replace(self, radius=(float(self.radius[0]), float(self.radius[1])),
+                                   sigma=float(self.sigma), b=float(self.b), c=float(self.c), tau=float(self.tau))
+
+    def as_dict(self) -> dict:
+        """JSON values (the radius as a list)."""
+        return {"type": self.type, "radius": list(self.radius), "sigma": self.sigma, "b": self.b, "c": self.c,
+                "tau": self.tau}
 
 
 @dataclass
@@ -172,6 +251,7 @@ class RenderSettings:
     adaptive: bool = False  # adaptive sampling (render/adaptive.py): spp a pixel's maximum (with a target) or the mean
     target_error: float | None = None  # with adaptive: a pixel stops at this relative error
     aovs: tuple = ()  # AOV layers written beside the beauty (names of AOVS)
+    filter: PixelFilter = PixelFilter()  # the pixel reconstruction filter
 
 
 @dataclass

@@ -214,11 +214,12 @@ def vertical_fov(fov_degrees: float, axis: str, width: int, height: int) -> floa
 
 
 def camera_from_matrix(camera_to_world, vfov: float, image_right_sign: float, *, aperture=0.0,
-                       focus=None) -> tuple:
+                       focus=None, projection="perspective", extent=2.0) -> tuple:
     """(Camera, mirror) of a camera that looks along its local +z with local +y up and puts
     ``image_right_sign`` * local +x on the image's right (Mitsuba: -1, pbrt: +1).  ``mirror`` is
     None, or the 4x4 reflection to apply to the whole scene so that our camera sees the image
-    the file's camera sees (see the module docstring)."""
+    the file's camera sees (see the module docstring).  An orthographic camera's film is centred
+    on the matrix's origin, ``extent`` high (``vfov`` is then unused)."""
     m = np.asarray(camera_to_world, np.float64)
     eye = m[:3, 3]
     forward = m[:3, :3] @ np.array([0.0, 0.0, 1.0])
@@ -230,7 +231,7 @@ def camera_from_matrix(camera_to_world, vfov: float, image_right_sign: float, *,
     ours_right = np.cross(forward, up)
     cam = Camera(eye=tuple(map(float, eye)), look_at=tuple(map(float, eye + forward)), up=tuple(map(float, up)),
                  fov=float(vfov), aperture_radius=float(aperture),
-                 focus_distance=None if focus is None else float(focus))
+                 focus_distance=None if focus is None else float(focus), projection=projection, extent=float(extent))
     if aperture > 0 and focus is None:
         cam.focus_distance = 1.0
     mirror = None

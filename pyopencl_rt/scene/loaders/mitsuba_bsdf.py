@@ -117,18 +117,33 @@ def _checker(c0, c1, n=64) -> np.ndarray:
     return np.where(mask[..., None], np.asarray(c1, np.float64), np.asarray(c0, np.float64))
 
 
+def _uv_tiles(m, most=64) -> tuple | None:
+    """(nu, nv) when the to_uv matrix m scales u and v by whole numbers 1..most and translates them
+    by whole numbers (a texture that repeats: the same as the texture tiled nu x nv times), else None."""
+    m = np.asarray(m, np.float64)
+    scale = np.array([m[0, 0], m[1, 1]])
+    whole = np.round(scale)
+    if abs(m[0, 1]) > 1e-9 or abs(m[1, 0]) > 1e-9 or not np.allclose(scale, whole, atol=1e-9) or \
+            not (1 <= whole).all() or not (whole <= most).all() or \
+            not np.allclose(m[:2, -1], np.round(m[:2, -1]), atol=1e-9):
+        return None
+    return int(whole[0]), int(whole[1])
+
+
 class BsdfMapper:
     def __init__(self, importer):
         self.imp = importer
         self._materials: dict[int, Material] = {}
         self._textures: dict[int, object] = {}
-        self._default = None
+        self._default = {}
 
-    def default(self) -> Material:
-        """Mitsuba's BSDF of a shape without one: diffuse, reflectance 0.5."""
-        if self._default is None:
-            self._default = Material(name="mitsuba-default", albedo=(0.5, 0.5, 0.5))
-        return self._default
+    def default(self, black: bool = False) -> Material:
+        """Mitsuba's BSDF of a shape without one: diffuse, reflectance 0.5, or 0 (``black``) for
+        a shape that emits (src/render/shape.cpp)."""
+        if black not in self._default:
+            self._default[black] = Material(name="mitsuba-default-emitter" if black else "mitsuba-default",
+                                            albedo=(0.0,) * 3 if black else (0.5,) * 3)
+        return self._default[black]
 
     # -- textures --------------------------------------------------------------------------------
 
@@ -142,13 +157,19 @@ class BsdfMapper:
         from ..textures import texture_from_array, texture_from_image
 
         imp = self.imp
-        if obj.transform("to_uv") is not None:
-            imp.warn(obj.props["to_uv"].node.pos, f"{obj.label()}: to_uv is not supported; ignored")
+        to_uv = obj.transform("to_uv")
+        tiles = _uv_tiles(to_uv) if to_uv is not None and obj.type == "checkerboard" else None
+        if to_uv is not None and tiles is None:
+            imp.warn(obj.props["to_uv"].node.pos, f"{obj.label()}: to_uv is not supported (but for a checkerboard's "
+                                                  "scale by whole numbers); ignored")
         if obj.type == "checkerboard":
             c0, _ = color_value(imp, obj, "color0", (0.4, 0.4, 0.4))
             c1, _ = color_value(imp, obj, "color1", (0.2, 0.2, 0.2))
             imp.unused(obj)
-            return texture_from_array(_checker(c0, c1).astype(np.float32), name=obj.label())
+            checker = _checker(c0, c1)
+            if tiles is not None:  # uv scaled by whole numbers: the pattern repeated as often
+                checker = np.tile(checker, (tiles[1], tiles[0], 1))
+            return texture_from_array(checker.astype(np.float32), name=obj.label())
         if obj.type != "bitmap":
             imp.warn(obj.node.pos, f"{obj.label()}: texture type not supported; ignored")
             return None

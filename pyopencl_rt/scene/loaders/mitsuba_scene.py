@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model import DirectionalLight, Environment, PointLight, RenderSettings
+from ..model import DirectionalLight, Environment, PixelFilter, PointLight, RenderSettings
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cube_mesh, cylinder_mesh, disk_mesh, error_at,
                       rectangle_mesh, transform_points, transform_vector, vertical_fov)
 from .mitsuba_bsdf import BsdfMapper, color_value
@@ -21,6 +21,9 @@ from .mitsuba_xml import Document, MiObject
 SILENT = {"pixel_format", "component_format", "near_clip", "far_clip", "sample_border", "banner", "file_format",
           "compensate", "shutter_open", "shutter_close", "srf", "face_normals", "sample_visible", "emitter_samples",
           "bsdf_samples", "jitter", "mis_compensation", "silhouette_sampling_weight", "mip_filter_type"}
+
+# hdrfilm's filter when it names none (and the film's when there is no film)
+MITSUBA_DEFAULT_FILTER = PixelFilter("gaussian", (2.0, 2.0), sigma=0.5)
 
 
 def load_mitsuba_xml(path, name: str | None = None, defines: dict | None = None):
@@ -57,7 +60,8 @@ class _Importer:
     def run(self) -> None:
         sensors = [o for o in self.doc.objects if o.tag == "sensor"]
         integrators = [o for o in self.doc.objects if o.tag == "integrator"]
-        settings = RenderSettings(width=768, height=576, spp=4, max_depth=-1, rr_depth=5)
+        settings = RenderSettings(width=768, height=576, spp=4, max_depth=-1, rr_depth=5,
+                                  filter=MITSUBA_DEFAULT_FILTER)
         self.b.settings = settings
         for extra in sensors[1:] + integrators[1:]:
             self.warn(extra.node.pos, f"{extra.label()}: only the first {extra.tag} is used; ignored")
@@ -109,11 +113,7 @@ class _Importer:
                 self.warn(film.node.pos, f"{film.label()}: not supported; read as an hdrfilm")
             settings.width = film.integer("width", 768, minimum=1)
             settings.height = film.integer("height", 576, minimum=1)
-            for rf in film.children_of("rfilter"):
-                if rf.type != "box":
-                    self.warn(rf.node.pos, f"{rf.label()}: we filter with a box (uniform over the pixel); "
-                                           "the image is a little sharper than Mitsuba's")
-                self.unused(rf, extra=("stddev", "radius", "b", "c", "lobes"))
+            settings.filter = self.rfilter(film)
             for extra in film.children:
                 if extra.tag != "rfilter":
                     self.warn(extra.node.pos, f"{extra.label()} in {film.label()}: not supported; ignored")
@@ -127,6 +127,8 @@ class _Importer:
         for extra in obj.children:
             if extra.tag not in ("film", "sampler"):
                 self.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported; ignored")
+        if obj.type == "orthographic":
+            return self.orthographic(obj, settings)
         if obj.type not in ("perspective", "thinlens"):
             self.warn(obj.node.pos, f"{obj.label()}: not supported; using a camera that frames the scene")
             return
@@ -164,14 +166,69 @@ class _Importer:
                                                           focus=focus if aperture > 0 else None)
         self.unused(obj)
 
+    def orthographic(self, obj: MiObject, settings: RenderSettings) -> None:
+        """Mitsuba's film spans local x in [-1, 1] and y in [-1, 1] / aspect (aspect = width /
+        height), at local z = near_clip, seen along local +z, with image right on local -x; to_world
+        scales it (a <scale x="s" y="s"/> before the lookat: a film 2 s wide)."""
+        m = obj.transform("to_world")
+        m = np.eye(4) if m is None else m
+        if abs(np.linalg.det(m[:3, :3])) < 1e-300:
+            raise error_at(obj.props["to_world"].node.pos, f"{obj.label()}: to_world is singular")
+        near = obj.float("near_clip", 1e-2, minimum=0.0)
+        half_width = float(np.linalg.norm(m[:3, 0]))
+        half_height = float(np.linalg.norm(m[:3, 1])) * settings.height / settings.width
+        frame = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
+        if not np.isclose(half_width / settings.width, half_height / settings.height, rtol=1e-5) or \
+                not np.allclose(frame.T @ frame, np.eye(3), atol=1e-6):
+            self.warn(obj.node.pos, f"{obj.label()}: to_world scales x and y unevenly or shears: our pixels are "
+                                    "square, the film's height is kept")
+        at_near = m.copy()
+        at_near[:3, 3] = m[:3, 3] + near * m[:3, 2]  # the rays start on the near plane
+        self.b.camera, self.b.mirror = camera_from_matrix(at_near, 40.0, -1.0, projection="orthographic",
+                                                          extent=2.0 * half_height)
+        self.unused(obj)
+
+    def rfilter(self, film: MiObject) -> PixelFilter:
+        """The film's <rfilter> (Mitsuba's default when it has none: gaussian, stddev 0.5)."""
+        filters = film.children_of("rfilter")
+        for extra in filters[1:]:
+            self.warn(extra.node.pos, f"{extra.label()} in {film.label()}: only the first rfilter is used; ignored")
+        if not filters:
+            return MITSUBA_DEFAULT_FILTER
+        rf, t = filters[0], filters[0].type
+        if t == "box":
+            flt = PixelFilter("box", (0.5, 0.5))
+        elif t == "tent":
+            r = rf.float("radius", 1.0, positive=True)
+            flt = PixelFilter("tent", (r, r))
+        elif t == "gaussian":
+            sigma = rf.float("stddev", 0.5, positive=True)
+            flt = PixelFilter("gaussian", (4 * sigma, 4 * sigma), sigma=sigma)
+        elif t in ("mitchell", "catmullrom"):
+            b, c = (rf.float("B", 1 / 3), rf.float("C", 1 / 3)) if t == "mitchell" else (0.0, 0.5)
+            flt = PixelFilter("mitchell", (2.0, 2.0), b=b, c=c)
+        elif t == "lanczos":
+            lobes = rf.integer("lobes", 3, minimum=1)
+            flt = PixelFilter("lanczos", (float(lobes), float(lobes)), tau=float(lobes))
+        else:
+            self.warn(rf.node.pos, f"{rf.label()}: not supported; using Mitsuba's default, a gaussian of stddev 0.5")
+            flt = MITSUBA_DEFAULT_FILTER
+        self.unused(rf)
+        try:
+            return flt.checked()
+        except ValueError as exc:
+            raise error_at(rf.node.pos, f"{rf.label()}: {exc}") from None
+
     # -- shapes ----------------------------------------------------------------------------------
 
     def shape(self, obj: MiObject) -> None:
         bsdfs = obj.children_of("bsdf")
-        material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default()
+        emitters = obj.children_of("emitter")
+        # Mitsuba's shape without a BSDF: diffuse, reflectance 0.5, or 0 for an emitter (shape.cpp)
+        emitting = any(em.type == "area" for em in emitters)
+        material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default(black=emitting)
         if len(bsdfs) > 1:
             self.warn(bsdfs[1].node.pos, f"{obj.label()}: a second BSDF; ignored")
-        emitters = obj.children_of("emitter")
         for em in emitters:
             if em.type != "area":
                 self.warn(em.node.pos, f"{em.label()} in {obj.label()}: only area emitters attach to shapes; "

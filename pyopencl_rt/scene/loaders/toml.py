@@ -5,11 +5,13 @@
     look_at = [278, 273, 0]       # required in [camera]
     up = [0, 1, 0]                # default [0, 1, 0]
     fov = 39.3077                 # vertical field of view in degrees, default 40
+    type = "perspective"          # or "orthographic", with extent = the view's height (default 2)
 
     [film]
     width = 512                   # pixels, default 512
     height = 512                  # pixels, default 512
     aovs = ["albedo", "normal"]   # AOV layers of the EXR (pyopencl_rt/render/aovs.py), default none
+    filter = {type = "gaussian", sigma = 0.5}  # pixel filter, default {type = "box"} (radius 0.5)
 
     [render]
     spp = 64                      # samples per pixel, default 64
@@ -64,8 +66,8 @@ from ...errors import UserError
 from ...imageio import read_exr
 from ..materials import REGISTRY
 from ..mesh import MeshError, flatten, load_trimesh
-from ..model import (AOVS, INTEGRATORS, SAMPLERS, Camera, DirectionalLight, Environment, Material, PointLight,
-                     RenderSettings, Scene)
+from ..model import (AOVS, FILTERS, INTEGRATORS, SAMPLERS, Camera, DirectionalLight, Environment, Material,
+                     PixelFilter, PointLight, PROJECTIONS, RenderSettings, Scene)
 from .assembly import DEFAULT_FOV, frame_scene, triangle_scene
 from .gltf import read_gltf
 from .meshfile import trimesh_uvs
@@ -86,10 +88,13 @@ SHAPE_TYPES = ("mesh", "quad", "triangle", "box", "sphere")
 LIGHT_TYPES = ("point", "directional")
 
 _TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environment"}
-_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance"}
+_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance", "type", "extent"}
 _LIGHT_KEYS = {"point": {"type", "position", "intensity"}, "directional": {"type", "direction", "irradiance"}}
 _ENVIRONMENT_KEYS = {"radiance", "file", "scale"}
-_FILM_KEYS = {"width", "height", "aovs"}
+_FILM_KEYS = {"width", "height", "aovs", "filter"}
+# each pixel filter's keys, and its radius when none is given (Mitsuba 3's: gaussian 4 sigma, lanczos tau)
+_FILTER_KEYS = {"box": {"type", "radius"}, "tent": {"type", "radius"}, "gaussian": {"type", "radius", "sigma"},
+                "mitchell": {"type", "radius", "b", "c"}, "lanczos": {"type", "radius", "tau"}}
 _RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth", "sampler", "adaptive", "target_error"}
 # the keys of every [materials.NAME]; each type adds its own (MaterialType.toml_keys)
 MATERIAL_COMMON_KEYS = frozenset({"type", "emission", "two_sided", "emission_texture"})
@@ -349,6 +354,8 @@ def _read_settings(ctx, film, render) -> RenderSettings:
         if not isinstance(aovs, list):
             raise ctx.error("[film]", f"'aovs' must be a list of names ({', '.join(AOVS)}), got {describe(aovs)}")
         s.aovs = tuple(check_choice(ctx, "[film]", "AOV", a, AOVS) for a in aovs)
+    if "filter" in film:
+        s.filter = _read_filter(ctx, film["filter"])
     if "spp" in render:
         s.spp = check_integer(ctx, "[render]", "spp", render["spp"], minimum=1)
     if "max_depth" in render:
@@ -368,6 +375,28 @@ def _read_settings(ctx, film, render) -> RenderSettings:
     return s
 
 
+def _read_filter(ctx, value) -> PixelFilter:
+    """[film] filter: a filter's name, or a table of its type and parameters."""
+    where = "[film] filter"
+    if isinstance(value, str):
+        value = {"type": value}
+    if not isinstance(value, dict):
+        raise ctx.error(where, f"must be a filter's name or a table such as {{type = \"gaussian\", sigma = 0.5}}, "
+                               f"got {describe(value)}")
+    ftype = check_choice(ctx, where, "type", value.get("type", "box"), FILTERS)
+    check_keys(ctx, where, value, _FILTER_KEYS[ftype])
+    sigma = check_number(ctx, where, "sigma", value.get("sigma", 0.5), positive=True)
+    tau = check_number(ctx, where, "tau", value.get("tau", 3.0), positive=True)
+    b = check_number(ctx, where, "b", value.get("b", 1.0 / 3.0))
+    c = check_number(ctx, where, "c", value.get("c", 1.0 / 3.0))
+    default_radius = {"box": 0.5, "tent": 1.0, "gaussian": 4.0 * sigma, "mitchell": 2.0, "lanczos": tau}[ftype]
+    radius = check_vector(ctx, where, "radius", value.get("radius", default_radius), n=2, allow_scalar=True)
+    try:
+        return PixelFilter(ftype, tuple(float(r) for r in radius), sigma, b, c, tau).checked()
+    except ValueError as exc:
+        raise ctx.error(where, str(exc)) from None
+
+
 def _read_camera(ctx, table) -> Camera:
     where = "[camera]"
     check_keys(ctx, where, table, _CAMERA_KEYS)
@@ -377,9 +406,14 @@ def _read_camera(ctx, table) -> Camera:
     eye = check_vector(ctx, where, "eye", table["eye"])
     look_at = check_vector(ctx, where, "look_at", table["look_at"])
     up = check_vector(ctx, where, "up", table.get("up", [0.0, 1.0, 0.0]))
+    projection = check_choice(ctx, where, "type", table.get("type", "perspective"), PROJECTIONS)
+    if projection == "orthographic" and "fov" in table or projection == "perspective" and "extent" in table:
+        key = "fov" if projection == "orthographic" else "extent"
+        raise ctx.error(where, f"'{key}' is not a key of {'an' if key == 'fov' else 'a'} {projection} camera")
     fov = check_number(ctx, where, "fov", table.get("fov", DEFAULT_FOV))
     if not 0 < fov < 180:
         raise ctx.error(where, f"'fov' must be between 0 and 180 degrees, got {fov:g}")
+    extent = check_number(ctx, where, "extent", table.get("extent", 2.0), positive=True)
     forward = look_at - eye
     if not np.linalg.norm(forward) > 0:
         raise ctx.error(where, "'eye' and 'look_at' are the same point")
@@ -392,6 +426,7 @@ def _read_camera(ctx, table) -> Camera:
     return Camera(
         eye=tuple(float(x) for x in eye), look_at=tuple(float(x) for x in look_at),
         up=tuple(float(x) for x in up), fov=float(fov), aperture_radius=float(aperture), focus_distance=focus,
+        projection=projection, extent=float(extent),
     )
 
 
