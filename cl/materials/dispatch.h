@@ -36,11 +36,17 @@
  *   bsdf_has_nondelta_lobes(m)  mask: 0 where every lobe is a delta lobe (light sampling is
  *            useless)
  *   dielectric_eta(m, front)   the relative index eta = eta_t / eta_i seen by wo (ior or
- *            1 / ior; 1 for ior <= 0): a refracted sample scales radiance by 1 / eta^2
+ *            1 / ior; 1 for ior <= 0 and for principledthin, whose sheet does not bend light): a
+ *            refracted sample scales radiance by 1 / eta^2
  *   material_albedo_aov(m, n, wo)   the albedo guide of cl/render/aov.h: the surface's
  *            reflectance seen from wo, clamped to [0, 1] (diffuse: its albedo; conductor: its
  *            Fresnel reflectance at the viewing angle; dielectric: its tint; glTF: the specular
- *            Fresnel term plus the diffuse base's share)
+ *            Fresnel term plus the diffuse base's share; the Mitsuba types: their diffuse
+ *            reflectance or base colour, as Mitsuba's eval_diffuse_reflectance)
+ *
+ * The Mitsuba 3 types (plastic, roughplastic, principled, principledthin) read the Material
+ * fields after the texture indices; material_lanes() gathers those only when some lane has such
+ * a type.  roughplastic reads its table from the records themselves (MaterialLanes.records/rec).
  */
 #ifndef PYOPENCL_RT_BSDF_H
 #define PYOPENCL_RT_BSDF_H
@@ -233,7 +239,9 @@ RT_INLINE pint bsdf_has_nondelta_lobes(const MaterialLanes *m)
 
 /* The active lanes of each type compiled in, and the others (diffuse, and any type not compiled
  * in, which shades as diffuse). */
-typedef struct { pint conductor, dielectric, gltf, plastic, roughplastic, principled, principledthin, diffuse; } MaterialMasks;
+typedef struct {
+    pint conductor, dielectric, gltf, plastic, roughplastic, principled, principledthin, diffuse;
+} MaterialMasks;
 
 RT_INLINE MaterialMasks material_masks(const MaterialLanes *m, pint active)
 {
@@ -278,7 +286,9 @@ RT_INLINE pvec3 bsdf_eval(const MaterialLanes *m, pint active, pvec3 n, pint fro
     pvec3 f = pv3_zero();
     pfloat p = PFLOAT(0.0f);
     if (pany(k.diffuse)) f = diffuse_eval(m->albedo, k.diffuse, n, wi, &p);
-    if (pany(k.conductor | k.dielectric | k.gltf | k.plastic | k.roughplastic | k.principled | k.principledthin)) {
+    const pint framed =
+        k.conductor | k.dielectric | k.gltf | k.plastic | k.roughplastic | k.principled | k.principledthin;
+    if (pany(framed)) {
         pvec3 t, b;
         make_onb(n, &t, &b);
         const pvec3 lo = to_local(wo, t, b, n), li = to_local(wi, t, b, n);
@@ -353,7 +363,8 @@ RT_INLINE pvec3 bsdf_sample(const MaterialLanes *m, pint active, pvec3 n, pint f
     pint dl = PINT(0);
     *wi = n;
     if (pany(k.diffuse)) w = diffuse_sample(m->albedo, k.diffuse, n, u0, u1, wi, &p);
-    const pint framed = k.conductor | k.dielectric | k.gltf | k.plastic | k.roughplastic | k.principled | k.principledthin;
+    const pint framed =
+        k.conductor | k.dielectric | k.gltf | k.plastic | k.roughplastic | k.principled | k.principledthin;
     if (pany(framed)) {
         pvec3 t, b;
         make_onb(n, &t, &b);

@@ -231,7 +231,8 @@ RT_INLINE pvec3 principled_eval_mi(const PrincipledParams *P, pint active, pvec3
     if (pany(diffuse)) {
         const pfloat k = principled_diffuse_factor(P->roughness, P->flatness, cos_i, cos_o, cos_d);
         const pfloat bc = brdf * pabs(cos_o);
-        const pvec3 d = pv3(bc * P->base.x * INV_PI_F * k, bc * P->base.y * INV_PI_F * k, bc * P->base.z * INV_PI_F * k);
+        const pvec3 d =
+            pv3(bc * P->base.x * INV_PI_F * k, bc * P->base.y * INV_PI_F * k, bc * P->base.z * INV_PI_F * k);
         value = pv3_sel(value, pv3_add(value, d), diffuse);
     }
     if (pany(sheen)) {
@@ -254,7 +255,7 @@ RT_INLINE pvec3 principled_eval_mi(const PrincipledParams *P, pint active, pvec3
     p_diff *= rcp;
     const pfloat den = wih + eta_path * woh;
     const pfloat jac = pabs(reflect ? 1.0f / (4.0f * woh) : (eta_path * eta_path * woh) / (den * den));
-    const pvec3 v = pv3(wi.x, wi.y, pabs(wi.z));
+    const pvec3 v = pv3_sel(pv3_neg(wi), wi, front); /* Mitsuba's mulsign(wi, cos_i): wi turned outward */
     const pfloat vndf = mf_vndf_pdf(v, wh, ax, ay, PINT(0));
     const pint refl_mm = refl_ok & reflect;
     pfloat p = PFLOAT(0.0f);
@@ -305,7 +306,10 @@ RT_INLINE pvec3 principled_sample(const PrincipledParams *P, pint active, pint f
     const pfloat brdf = (1.0f - metallic) * (1.0f - P->spec_trans), bsdf = (1.0f - metallic) * P->spec_trans;
     pfloat ax, ay;
     principled_alphas(P->anisotropic, P->roughness, &ax, &ay);
-    const pvec3 m = mf_sample_vndf(wo, ax, ay, PINT(0), u0, u1, up); /* of mwi flipped up, which is wo */
+    /* visible normals of Mitsuba's mulsign(wi, cos_i): mwi turned outward (wo, or wo rotated by pi
+     * about the normal from inside) */
+    const pvec3 v = pv3_sel(pv3(-wo.x, -wo.y, wo.z), wo, mfront);
+    const pvec3 m = mf_sample_vndf(v, ax, ay, PINT(0), u0, u1, up);
     pfloat cos_t, eta_ti;
     const pfloat F_d = mi_fresnel(pv3_dot(mwi, m), P->eta, &cos_t, &eta_ti);
     pfloat p_refl = mfront ? P->rate0 * (1.0f - bsdf * (1.0f - F_d)) : F_d;

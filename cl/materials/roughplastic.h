@@ -99,7 +99,10 @@ RT_INLINE pvec3 roughplastic_sample(const RoughPlasticParams *p, pint active, pv
     const pint spec = up & (u2 < ps);
     const pint diffuse = up & pnot(spec);
     pvec3 li = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f));
-    if (pany(spec)) li = pv3_sel(li, reflect_about(wo, mf_sample_vndf(wo, p->alpha, p->alpha, p->beckmann, u0, u1, spec)), spec);
+    if (pany(spec)) {
+        const pvec3 m = mf_sample_vndf(wo, p->alpha, p->alpha, p->beckmann, u0, u1, spec);
+        li = pv3_sel(li, reflect_about(wo, m), spec);
+    }
     if (pany(diffuse)) li = pv3_sel(li, sample_cosine_hemisphere(u0, u1), diffuse);
     const pint drawn = up & (li.z > 0.0f);
     *wi = li;

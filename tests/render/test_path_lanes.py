@@ -111,6 +111,26 @@ roughness = 0.4
 [materials.lamp]
 albedo = 0.0
 emission = [4.0, 3.5, 3.0]
+[materials.coat]
+type = "plastic"
+diffuse_reflectance = [0.2, 0.6, 0.3]
+nonlinear = true
+[materials.roughcoat]
+type = "roughplastic"
+alpha = 0.2
+diffuse_reflectance = [0.7, 0.3, 0.2]
+[materials.disney]
+type = "principled"
+base_color = [0.3, 0.6, 0.8]
+spec_trans = 0.6
+clearcoat = 0.5
+sheen = 0.5
+roughness_texture = "rough.png"
+[materials.sheet]
+type = "principledthin"
+base_color = [0.7, 0.2, 0.1]
+spec_trans = 0.5
+diff_trans = 1.0
 [[shape]]
 type = "quad"
 material = "white"
@@ -143,6 +163,28 @@ type = "sphere"
 material = "lamp"
 center = [1.5, 2.5, 1.0]
 radius = 0.2
+[[shape]]
+type = "sphere"
+material = "coat"
+center = [-2.2, 0.4, 0.8]
+radius = 0.4
+[[shape]]
+type = "quad"
+material = "roughcoat"
+points = [[-2.5, 0.01, 1.5], [-1.5, 0.01, 1.5], [-1.5, 0.01, 0.5], [-2.5, 0.01, 0.5]]
+[[shape]]
+type = "quad"
+material = "disney"
+points = [[0.8, 1.2, -1], [1.8, 1.2, -1], [1.8, 2.2, -1], [0.8, 2.2, -1]]
+[[shape]]
+type = "sphere"
+material = "disney"
+center = [2.2, 0.4, 0.8]
+radius = 0.4
+[[shape]]
+type = "quad"
+material = "sheet"
+points = [[-1.8, 1.2, -0.5], [-0.8, 1.2, -0.5], [-0.8, 2.2, -0.5], [-1.8, 2.2, -0.5]]
 [[light]]
 type = "point"
 position = [-1.0, 2.5, 1.5]
@@ -158,7 +200,10 @@ def mixed_scene(tmp_path, environment=True):
     """MIXED_SCENE with an environment map (a gradient with a bright spot) written beside it."""
     from pyopencl_rt.imageio import write_exr
 
+    from PIL import Image
+
     text = MIXED_SCENE
+    Image.fromarray((np.indices((8, 8)).sum(0) % 2 * 200 + 30).astype(np.uint8)).save(tmp_path / "rough.png")
     if environment:
         sky = np.zeros((16, 32, 3), np.float32)
         sky[:, :] = np.linspace(0.05, 0.4, 16, dtype=np.float32)[:, None, None]

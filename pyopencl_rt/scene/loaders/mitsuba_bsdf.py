@@ -143,13 +143,15 @@ class BsdfMapper:
 
     # -- textures --------------------------------------------------------------------------------
 
-    def texture(self, obj):
-        key = id(obj)
+    def texture(self, obj, scalar=False):
+        """The Texture of a <texture>; ``scalar``: as a scalar parameter reads it (Mitsuba's eval_1,
+        which for a checkerboard swaps color0 and color1: src/textures/checkerboard.cpp)."""
+        key = (id(obj), scalar and obj.type == "checkerboard")
         if key not in self._textures:
-            self._textures[key] = self._make_texture(obj)
+            self._textures[key] = self._make_texture(obj, swap=key[1])
         return self._textures[key]
 
-    def _make_texture(self, obj):
+    def _make_texture(self, obj, swap=False):
         from ..textures import texture_from_array, texture_from_image
 
         imp = self.imp
@@ -158,6 +160,8 @@ class BsdfMapper:
             c0, _ = color_value(imp, obj, "color0", (0.4, 0.4, 0.4))
             c1, _ = color_value(imp, obj, "color1", (0.2, 0.2, 0.2))
             imp.unused(obj)
+            if swap:
+                c0, c1 = c1, c0
             texture = texture_from_array(_checker(c0, c1, to_uv=to_uv).astype(np.float32), name=obj.label())
             texture.mitsuba_mean = 0.5 * (float(np.mean(c0)) + float(np.mean(c1)))  # Mitsuba's mean()
             return texture
@@ -362,7 +366,7 @@ class BsdfMapper:
         if p.kind in ("float", "integer"):
             return float(p.value)
         if p.kind == "object" and p.value.tag == "texture":
-            texture = self.texture(p.value)
+            texture = self.texture(p.value, scalar=True)
             if texture is None:
                 return default
             if len(mat.scalar_textures) == abi.TEX_SLOTS:
