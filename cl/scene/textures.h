@@ -15,6 +15,9 @@
  *   tex_base      albedo *= rgb (diffuse, gltf); tint *= rgb (dielectric)
  *   tex_mr        glTF metallicRoughness: metallic *= b, roughness *= g (alpha *= g^2)
  *   tex_emission  emission *= rgb
+ *   tex_scalar    slot k (used slots first, -1 after them): the parameter TEXP_* named by bits
+ *                 4k..4k+3 of tex_params *= r (alpha, roughness, metallic, anisotropic, ...: the
+ *                 Mitsuba types' textured parameters; the host stores the value in R)
  * texture_material() applies them to the lanes' gathered materials (MaterialLanes) before
  * shading, so the BSDF and emission code is unchanged.  For next-event estimation
  * texture_light_emission() re-derives the sampled point's barycentrics from the same random
@@ -60,7 +63,9 @@ RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Te
                                 __global const float4 *data, pint tri_hit, pint prim, pfloat u, pfloat v,
                                 MaterialLanes *m)
 {
-    const pint textured = tri_hit & ((m->tex_base >= 0) | (m->tex_mr >= 0) | (m->tex_emission >= 0));
+    __global const int *recs = (__global const int *)m->records;
+    const pint scalar = pgather_int(recs, m->rec + FIELD_INDEX(Material, tex_scalar)) >= 0;
+    const pint textured = tri_hit & ((m->tex_base >= 0) | (m->tex_mr >= 0) | (m->tex_emission >= 0) | scalar);
     if (!pany(textured)) return;
     for (int k = 0; k < PACKET_WIDTH; ++k) {
         if (!PLANE_I(textured, k)) continue;
@@ -79,6 +84,29 @@ RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Te
         if (emission >= 0) {
             const float3 c = tex_sample(textures, data, emission, uv).xyz;
             pv3_set_lane(&m->emission, k, pv3_lane(m->emission, k) * c);
+        }
+        __global const int *rec = recs + PLANE_I(m->rec, k);
+        const int params = rec[FIELD_INDEX(Material, tex_params)];
+        for (int slot = 0; slot < TEX_SLOTS; ++slot) {
+            const int t = rec[FIELD_INDEX(Material, tex_scalar) + slot];
+            if (t < 0) break;
+            const float c = tex_sample(textures, data, t, uv).x;
+            switch ((params >> (4 * slot)) & 15) {
+            case TEXP_ALPHA: PLANE(m->alpha, k) *= c; break;
+            case TEXP_ROUGHNESS: PLANE(m->roughness, k) *= c; break;
+            case TEXP_METALLIC: PLANE(m->metallic, k) *= c; break;
+            case TEXP_ANISOTROPIC: PLANE(m->anisotropic, k) *= c; break;
+            case TEXP_SPEC_TRANS: PLANE(m->spec_trans, k) *= c; break;
+            case TEXP_SPEC_TINT: PLANE(m->spec_tint, k) *= c; break;
+            case TEXP_SHEEN: PLANE(m->sheen, k) *= c; break;
+            case TEXP_SHEEN_TINT: PLANE(m->sheen_tint, k) *= c; break;
+            case TEXP_CLEARCOAT: PLANE(m->clearcoat, k) *= c; break;
+            case TEXP_CLEARCOAT_GLOSS: PLANE(m->clearcoat_gloss, k) *= c; break;
+            case TEXP_FLATNESS: PLANE(m->flatness, k) *= c; break;
+            case TEXP_DIFF_TRANS: PLANE(m->diff_trans, k) *= c; break;
+            case TEXP_ETA: PLANE(m->ior, k) *= c; break;
+            default: break;
+            }
         }
     }
 }

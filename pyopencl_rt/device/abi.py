@@ -62,38 +62,96 @@ assert BVH_NODE.itemsize == 64
 TRIANGLE = np.dtype([("v0", np.float32, 4), ("v1", np.float32, 4), ("v2", np.float32, 4)])
 assert TRIANGLE.itemsize == 48
 
-# A material (96 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
+# A material (448 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
 # documented at the top of cl/materials/<name>.h); every type may also emit.
-#   albedo    diffuse: reflectance; gltf: baseColor
+#   albedo    diffuse: reflectance; gltf, principled, principledthin: base colour; plastic,
+#             roughplastic: diffuse_reflectance
 #   emission  emitted radiance (any type)
 #   flags     bit 0: emission on both sides (default: only on the side the geometric normal
-#             faces); bit 1: conductor Fresnel from `specular` as F0 (Schlick) instead of eta, k
-#   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes
-#   alpha     GGX roughness alpha (conductor, dielectric, gltf); < 1e-3 is perfectly smooth
+#             faces); bit 1: conductor Fresnel from `specular` as F0 (Schlick) instead of eta, k;
+#             bit 2 (MATERIAL_FLAG_NONLINEAR): plastic, roughplastic: Mitsuba's `nonlinear`;
+#             bit 3 (MATERIAL_FLAG_BECKMANN): roughplastic: the Beckmann distribution (else GGX)
+#   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes;
+#             plastic, roughplastic: specular_reflectance
+#   alpha     GGX roughness alpha (conductor, dielectric, gltf; < 1e-3 is perfectly smooth);
+#             roughplastic: the distribution's alpha (clamped to >= 1e-4, as Mitsuba's)
 #   eta, k    conductor: complex index of refraction eta + i k per channel
-#   metallic  gltf
+#   metallic  gltf, principled
 #   ior       dielectric: index of the inside relative to the outside; gltf: the dielectric's
-#             index (F0 = ((ior - 1) / (ior + 1))^2)
+#             index (F0 = ((ior - 1) / (ior + 1))^2); plastic, roughplastic, principled: the
+#             relative index eta = int_ior / ext_ior; principledthin: the sheet's eta
+# The fields after the texture indices serve the types of Mitsuba 3 (issue 24):
+#   alpha_v      (reserved: 0)
+#   fdr          plastic: the internal diffuse Fresnel reflectance fdr_int (Egan & Hilgeman's fit
+#                at 1 / eta); roughplastic: the rough interface's internal reflectance
+#   spec_weight  plastic, roughplastic: the specular sampling weight s / (d + s) of the means of
+#                specular_reflectance and diffuse_reflectance
+#   roughness, anisotropic, spec_trans, spec_tint, sheen, sheen_tint, clearcoat,
+#   clearcoat_gloss, flatness, diff_trans   principled, principledthin: Mitsuba's parameters
+#   rates        principled: the sampling rates of the main specular lobe, the clearcoat and
+#                the diffuse reflection (4th unused); principledthin: of the specular
+#                reflection, specular transmission, diffuse transmission and diffuse reflection
+#   table        roughplastic: the rough interface's external transmittance at cos(theta) =
+#                k / 63, k = 0..63 (Mitsuba's table, interpolated linearly)
 MATERIAL_DIFFUSE = define("MATERIAL_DIFFUSE", 0)
 MATERIAL_CONDUCTOR = define("MATERIAL_CONDUCTOR", 1)
 MATERIAL_DIELECTRIC = define("MATERIAL_DIELECTRIC", 2)
 MATERIAL_GLTF = define("MATERIAL_GLTF", 3)
+MATERIAL_PLASTIC = define("MATERIAL_PLASTIC", 4)
+MATERIAL_ROUGHPLASTIC = define("MATERIAL_ROUGHPLASTIC", 5)
+MATERIAL_PRINCIPLED = define("MATERIAL_PRINCIPLED", 6)
+MATERIAL_PRINCIPLEDTHIN = define("MATERIAL_PRINCIPLEDTHIN", 7)
 MATERIAL_TYPES = {"diffuse": MATERIAL_DIFFUSE, "conductor": MATERIAL_CONDUCTOR,
-                  "dielectric": MATERIAL_DIELECTRIC, "gltf": MATERIAL_GLTF}
+                  "dielectric": MATERIAL_DIELECTRIC, "gltf": MATERIAL_GLTF,
+                  "plastic": MATERIAL_PLASTIC, "roughplastic": MATERIAL_ROUGHPLASTIC,
+                  "principled": MATERIAL_PRINCIPLED, "principledthin": MATERIAL_PRINCIPLEDTHIN}
 MATERIAL_FLAG_TWO_SIDED = define("MATERIAL_FLAG_TWO_SIDED", 1)
 MATERIAL_FLAG_CONDUCTOR_F0 = define("MATERIAL_FLAG_CONDUCTOR_F0", 2)
+MATERIAL_FLAG_NONLINEAR = define("MATERIAL_FLAG_NONLINEAR", 4)
+MATERIAL_FLAG_BECKMANN = define("MATERIAL_FLAG_BECKMANN", 8)
+ROUGH_TRANSMITTANCE_RES = define("ROUGH_TRANSMITTANCE_RES", 64)  # entries of Material.table
+TEX_SLOTS = define("TEX_SLOTS", 6)  # Material.tex_scalar
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
      ("k", np.float32, 3), ("ior", np.float32),
-     ("tex_base", np.int32), ("tex_mr", np.int32), ("tex_emission", np.int32), ("tex_pad", np.int32)]
+     ("tex_base", np.int32), ("tex_mr", np.int32), ("tex_emission", np.int32), ("tex_pad", np.int32),
+     ("alpha_v", np.float32), ("fdr", np.float32), ("spec_weight", np.float32), ("roughness", np.float32),
+     ("anisotropic", np.float32), ("spec_trans", np.float32), ("spec_tint", np.float32), ("sheen", np.float32),
+     ("sheen_tint", np.float32), ("clearcoat", np.float32), ("clearcoat_gloss", np.float32),
+     ("flatness", np.float32), ("diff_trans", np.float32), ("rates", np.float32, 4),
+     ("tex_scalar", np.int32, TEX_SLOTS), ("tex_params", np.int32),
+     ("table", np.float32, ROUGH_TRANSMITTANCE_RES)]
 )
-assert MATERIAL.itemsize == 96
+assert MATERIAL.itemsize == 448
 # Texture indices (into the TEXTURE table; -1 = none), used only when the program is built with
 # HAS_TEXTURES (cl/scene/textures.h):
-#   tex_base      RGB multiplies albedo (diffuse, gltf baseColor) or tint (dielectric)
+#   tex_base      RGB multiplies albedo (diffuse, gltf baseColor, plastic diffuse_reflectance,
+#                 principled base_color) or tint (dielectric)
 #   tex_mr        glTF metallicRoughness: G multiplies roughness (alpha *= G^2), B multiplies metallic
 #   tex_emission  RGB multiplies emission
+#   tex_scalar    up to TEX_SLOTS textures of scalar parameters, the used slots first (-1 after
+#                 them): slot k's R channel multiplies the parameter TEXP_* that bits 4k..4k+3 of
+#                 tex_params name (the host stores such a texture's luminance in R, Mitsuba's eval_1)
+TEXP_ALPHA = define("TEXP_ALPHA", 0)
+TEXP_ROUGHNESS = define("TEXP_ROUGHNESS", 1)
+TEXP_METALLIC = define("TEXP_METALLIC", 2)
+TEXP_ANISOTROPIC = define("TEXP_ANISOTROPIC", 3)
+TEXP_SPEC_TRANS = define("TEXP_SPEC_TRANS", 4)
+TEXP_SPEC_TINT = define("TEXP_SPEC_TINT", 5)
+TEXP_SHEEN = define("TEXP_SHEEN", 6)
+TEXP_SHEEN_TINT = define("TEXP_SHEEN_TINT", 7)
+TEXP_CLEARCOAT = define("TEXP_CLEARCOAT", 8)
+TEXP_CLEARCOAT_GLOSS = define("TEXP_CLEARCOAT_GLOSS", 9)
+TEXP_FLATNESS = define("TEXP_FLATNESS", 10)
+TEXP_DIFF_TRANS = define("TEXP_DIFF_TRANS", 11)
+TEXP_ETA = define("TEXP_ETA", 12)
+# the Material field each TEXP_* multiplies
+TEXTURE_PARAMS = {TEXP_ALPHA: "alpha", TEXP_ROUGHNESS: "roughness", TEXP_METALLIC: "metallic",
+                  TEXP_ANISOTROPIC: "anisotropic", TEXP_SPEC_TRANS: "spec_trans", TEXP_SPEC_TINT: "spec_tint",
+                  TEXP_SHEEN: "sheen", TEXP_SHEEN_TINT: "sheen_tint", TEXP_CLEARCOAT: "clearcoat",
+                  TEXP_CLEARCOAT_GLOSS: "clearcoat_gloss", TEXP_FLATNESS: "flatness",
+                  TEXP_DIFF_TRANS: "diff_trans", TEXP_ETA: "ior"}
 
 # A texture (32 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row
 # by row from the top of the image (v = 0 is the top row, as in glTF; OBJ's v is flipped at load),

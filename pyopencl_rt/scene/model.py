@@ -47,9 +47,21 @@ class Material:
     base_texture: object = None
     mr_texture: object = None
     emission_texture: object = None
+    # The Mitsuba 3 types (plastic, roughplastic, principled, principledthin): the coat's
+    # specular_reflectance, `nonlinear`, the microfacet distribution ("ggx" or "beckmann"), the
+    # parameters of the MATERIAL fields they alone use (by field name: "roughness", "sheen",
+    # "rates", ...), and textures of scalar parameters by the MATERIAL field they multiply
+    # (abi.TEXTURE_PARAMS: "alpha", "roughness", "metallic", ...; at most abi.TEX_SLOTS), whose
+    # R channel holds the value (the luminance of a colour image, as Mitsuba's eval_1).
+    specular_reflectance: tuple = (1.0, 1.0, 1.0)
+    nonlinear: bool = False
+    distribution: str = "ggx"
+    params: dict = field(default_factory=dict)
+    scalar_textures: dict = field(default_factory=dict)
 
     def textures(self) -> list:
-        return [t for t in (self.base_texture, self.mr_texture, self.emission_texture) if t is not None]
+        return [t for t in (self.base_texture, self.mr_texture, self.emission_texture,
+                            *self.scalar_textures.values()) if t is not None]
 
     def mean_emission(self) -> np.ndarray:
         """Emission averaged over the emission texture (the light sampler's power estimate)."""
@@ -95,6 +107,19 @@ class Material:
                          ("tex_emission", self.emission_texture)):
             rec[fld] = ti.get(id(tex), -1) if tex is not None else -1
         rec["tex_pad"] = -1
+        rec["tex_scalar"] = -1
+        param_ids = {name: k for k, name in abi.TEXTURE_PARAMS.items()}
+        slot = 0
+        for name, tex in self.scalar_textures.items():
+            if name not in param_ids:
+                raise ValueError(f"material {self.name!r}: no texture slot for parameter {name!r}")
+            if tex is None or id(tex) not in ti:
+                continue
+            if slot == abi.TEX_SLOTS:
+                raise ValueError(f"material {self.name!r}: more than {abi.TEX_SLOTS} textured parameters")
+            rec["tex_scalar"][slot] = ti[id(tex)]
+            rec["tex_params"] |= param_ids[name] << (4 * slot)
+            slot += 1
         return rec
 
 
@@ -321,7 +346,7 @@ class Scene:
 
     def material_records(self) -> np.ndarray:
         recs = np.zeros(max(1, len(self.materials)), abi.MATERIAL)
-        for f in ("tex_base", "tex_mr", "tex_emission", "tex_pad"):
+        for f in ("tex_base", "tex_mr", "tex_emission", "tex_pad", "tex_scalar"):
             recs[f] = -1
         index = {id(t): i for i, t in enumerate(self.textures())}
         for i, m in enumerate(self.materials):

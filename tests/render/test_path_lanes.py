@@ -88,7 +88,10 @@ def mixed_scene(tmp_path, environment=True):
     """MIXED_SCENE with an environment map (a gradient with a bright spot) written beside it."""
     from pyopencl_rt.imageio import write_exr
 
+    from PIL import Image
+
     text = MIXED_SCENE.read_text()
+    Image.fromarray((np.indices((8, 8)).sum(0) % 2 * 200 + 30).astype(np.uint8)).save(tmp_path / "rough.png")
     if environment:
         sky = np.zeros((16, 32, 3), np.float32)
         sky[:, :] = np.linspace(0.05, 0.4, 16, dtype=np.float32)[:, None, None]

@@ -579,9 +579,12 @@ def test_bsdfs(tmp_path):
         dict(type="conductor", eta=METALS["gold"][0], k=METALS["gold"][1]),
         dict(type="conductor", eta=(0.2, 0.9, 1.1), k=(3, 2.5, 2), alpha=0.2),
         dict(type="conductor", eta=METALS["copper"][0], alpha=0.1),
-        dict(type="gltf", metallic=0.0, albedo=(0.1, 0.2, 0.3), alpha=0.0, ior=pytest.approx(1.49 / 1.000277)),
-        dict(type="gltf", metallic=0.0, albedo=(0.5, 0.5, 0.5), alpha=0.25, ior=1.5),
-        dict(type="gltf", metallic=0.7, albedo=(0.8, 0.5, 0.2), alpha=pytest.approx(0.16),
+        dict(type="plastic", albedo=(0.1, 0.2, 0.3), ior=pytest.approx(1.49 / 1.000277), nonlinear=False,
+             specular_reflectance=(1.0, 1.0, 1.0)),
+        dict(type="roughplastic", albedo=(0.5, 0.5, 0.5), alpha=0.25, ior=1.5, distribution="ggx"),
+        dict(type="principled", metallic=0.7, albedo=(0.8, 0.5, 0.2), params=
+             {"roughness": 0.4, "anisotropic": 0.0, "spec_trans": 0.0, "spec_tint": 0.0, "sheen": 0.0,
+              "sheen_tint": 0.0, "clearcoat": 0.0, "clearcoat_gloss": 0.0, "flatness": 0.0, "rates": (1, 1, 1, 0)},
              ior=pytest.approx(2 / (1 - math.sqrt(0.04)) - 1)),  # Mitsuba's eta from specular 0.5
         dict(type="conductor", eta=None, f0=(0.5, 0.5, 0.5)),
         dict(type="diffuse", albedo=(0.2, 0.2, 0.2)),
@@ -606,18 +609,30 @@ def test_textures(tmp_path):
 <bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="tex.png"/><string name="filter_type" value="bilinear"/><string name="wrap_mode" value="repeat"/></texture></bsdf>
 <bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="tex.png"/><boolean name="raw" value="true"/><string name="filter_type" value="nearest"/><string name="wrap_mode" value="clamp"/></texture></bsdf>
 <bsdf type="diffuse"><texture type="checkerboard" name="reflectance"><rgb name="color0" value="0.1"/><rgb name="color1" value="0.9"/></texture></bsdf>
-<bsdf type="roughconductor"><string name="distribution" value="ggx"/><texture type="checkerboard" name="alpha"/></bsdf>""")
+<bsdf type="roughconductor"><string name="distribution" value="ggx"/><texture type="checkerboard" name="alpha"/></bsdf>
+<bsdf type="roughconductor"><string name="distribution" value="ggx"/><texture type="checkerboard" name="eta"/></bsdf>
+<bsdf type="principled"><texture type="checkerboard" name="metallic"><transform name="to_uv"><scale x="4" y="2"/></transform><float name="color0" value="0.9"/><float name="color1" value="0.1"/></texture><texture type="bitmap" name="roughness"><string name="filename" value="tex.png"/></texture></bsdf>""")
     assert mats[0].albedo == (1, 1, 1) and mats[0].base_texture.srgb and mats[0].base_texture.texels.shape == (4, 8, 4)
     assert np.allclose(mats[0].base_texture.texels[..., :3], [1, 0, 0])
     assert not mats[1].base_texture.srgb
     t = mats[2].base_texture.texels[..., 0]
     n = t.shape[0]  # Mitsuba's checkerboard: color0 where u and v are on the same side of 1/2
     assert np.allclose([t[0, 0], t[n - 1, n - 1], t[0, n - 1], t[n - 1, 0]], [0.1, 0.1, 0.9, 0.9])
-    assert mats[3].alpha == pytest.approx(0.3)  # the checkerboard's mean of Mitsuba's default 0.4 and 0.2
+    # a texture of a scalar parameter: factor 1 and the texture in its slot, as Mitsuba's eval_1 reads
+    # it: a colour image's luminance, a checkerboard with color0 and color1 swapped (checkerboard.cpp)
+    alpha = mats[3].scalar_textures["alpha"].texels
+    assert mats[3].alpha == 1.0 and np.allclose([alpha[0, 0, 0], alpha[0, -1, 0]], [0.2, 0.4])
+    assert mats[4].eta == pytest.approx((0.3, 0.3, 0.3))  # only the alpha of rough conductors is textured
+    metallic, roughness = (mats[5].scalar_textures[k].texels for k in ("metallic", "roughness"))
+    assert mats[5].metallic == 1.0 and mats[5].params["roughness"] == 1.0
+    v, u = (np.arange(metallic.shape[0]) + 0.5) / metallic.shape[0], (np.arange(metallic.shape[1]) + 0.5) / metallic.shape[1]
+    same = ((4 * u[None, :] % 1) > 0.5) == ((2 * v[:, None] % 1) > 0.5)  # to_uv: u * 4, v * 2
+    assert np.allclose(metallic[..., 0], np.where(same, 0.1, 0.9)) and np.allclose(metallic[..., :3], metallic[..., :1])
+    assert np.allclose(roughness[..., :3], 0.212671)  # luminance of the red image
     assert [w.split(": ", 1)[1] for w in warned] == [
         '<texture type="bitmap">: filter_type \'nearest\': we filter bilinearly',
         '<texture type="bitmap">: wrap_mode \'clamp\': we repeat',
-        '<texture type="checkerboard"> as "alpha" of <bsdf type="roughconductor">: textures are not supported here; '
+        '<texture type="checkerboard"> as "eta" of <bsdf type="roughconductor">: textures are not supported here; '
         'using its mean (0.3, 0.3, 0.3)']
 
 
