@@ -62,12 +62,17 @@ assert BVH_NODE.itemsize == 64
 TRIANGLE = np.dtype([("v0", np.float32, 4), ("v1", np.float32, 4), ("v2", np.float32, 4)])
 assert TRIANGLE.itemsize == 48
 
-# A material (96 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
+# A material (112 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
 # documented at the top of cl/materials/<name>.h); every type may also emit.
 #   albedo    diffuse: reflectance; gltf: baseColor
 #   emission  emitted radiance (any type)
 #   flags     bit 0: emission on both sides (default: only on the side the geometric normal
-#             faces); bit 1: conductor Fresnel from `specular` as F0 (Schlick) instead of eta, k
+#             faces); bit 1: conductor Fresnel from `specular` as F0 (Schlick) instead of eta, k;
+#             bit 2: tex_normal is a height (bump) map, not a tangent-space normal map; bit 3:
+#             the reflectance (albedo, dielectric tint) is multiplied by the triangle's vertex
+#             colours (tri_color); bits 4-6: the normal/bump map's Mitsuba conventions
+#             (cl/scene/shading.h): flip normals that face away from the viewer, the shadowing
+#             term of Estevez et al. 2019, directions on opposite sides of the two frames masked
 #   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes
 #   alpha     GGX roughness alpha (conductor, dielectric, gltf); < 1e-3 is perfectly smooth
 #   eta, k    conductor: complex index of refraction eta + i k per channel
@@ -82,18 +87,28 @@ MATERIAL_TYPES = {"diffuse": MATERIAL_DIFFUSE, "conductor": MATERIAL_CONDUCTOR,
                   "dielectric": MATERIAL_DIELECTRIC, "gltf": MATERIAL_GLTF}
 MATERIAL_FLAG_TWO_SIDED = define("MATERIAL_FLAG_TWO_SIDED", 1)
 MATERIAL_FLAG_CONDUCTOR_F0 = define("MATERIAL_FLAG_CONDUCTOR_F0", 2)
+MATERIAL_FLAG_BUMP_MAP = define("MATERIAL_FLAG_BUMP_MAP", 4)
+MATERIAL_FLAG_VERTEX_COLOR = define("MATERIAL_FLAG_VERTEX_COLOR", 8)
+MATERIAL_FLAG_MAP_FLIP = define("MATERIAL_FLAG_MAP_FLIP", 16)
+MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 32)
+MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 64)
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
      ("k", np.float32, 3), ("ior", np.float32),
-     ("tex_base", np.int32), ("tex_mr", np.int32), ("tex_emission", np.int32), ("tex_pad", np.int32)]
+     ("tex_base", np.int32), ("tex_mr", np.int32), ("tex_emission", np.int32), ("tex_normal", np.int32),
+     ("normal_scale", np.float32), ("pad0", np.int32), ("pad1", np.int32), ("pad2", np.int32)]
 )
-assert MATERIAL.itemsize == 96
+assert MATERIAL.itemsize == 112
 # Texture indices (into the TEXTURE table; -1 = none), used only when the program is built with
 # HAS_TEXTURES (cl/scene/textures.h):
 #   tex_base      RGB multiplies albedo (diffuse, gltf baseColor) or tint (dielectric)
 #   tex_mr        glTF metallicRoughness: G multiplies roughness (alpha *= G^2), B multiplies metallic
 #   tex_emission  RGB multiplies emission
+#   tex_normal    a tangent-space normal map (RGB = (n + 1) / 2, relative to the shading frame), or
+#                 with MATERIAL_FLAG_BUMP_MAP a height map (its luminance), perturbing the
+#                 shading normal (HAS_NORMAL_MAPS, cl/scene/shading.h); normal_scale scales the
+#                 normal map's x and y (glTF's normalTexture.scale) or the bump map's gradient
 
 # A texture (32 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row
 # by row from the top of the image (v = 0 is the top row, as in glTF; OBJ's v is flipped at load),
@@ -338,6 +353,10 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
     Param("textures", "const", "Texture"),
     Param("tex_data", "const", "float4", "texels of every texture"),
+    # shading normals and vertex colours (cl/scene/shading.h); 16-byte dummies without
+    # HAS_SHADING_NORMALS / HAS_VERTEX_COLORS
+    Param("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)"),
+    Param("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours"),
     # queues of slot indices and their counters
     Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True),
     Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True),
