@@ -15,6 +15,8 @@
  *   tex_base      albedo *= rgb (diffuse, gltf); tint *= rgb (dielectric)
  *   tex_mr        glTF metallicRoughness: metallic *= b, roughness *= g (alpha *= g^2)
  *   tex_emission  emission *= rgb
+ *   tex_normal    a normal map (tex_sample) or bump map (tex_gradient: the derivative of the
+ *                 bilinear lookup, as Mitsuba's bump maps take it), read by cl/scene/shading.h
  * texture_material() applies them to the lanes' gathered materials (MaterialLanes) before
  * shading, so the BSDF and emission code is unchanged.  For next-event estimation
  * texture_light_emission() re-derives the sampled point's barycentrics from the same random
