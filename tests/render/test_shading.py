@@ -232,7 +232,9 @@ def _quiet_load(path):
 
 def test_obj_vertex_normals_per_corner(tmp_path):
     """vn by index (also relative), made unit length; a triangle of a polygon that names no vn at
-    one corner is shaded flat (0); an OBJ without vn has no normals (flat, not computed)."""
+    one corner is shaded flat (0); an OBJ without vn has no normals (flat, not computed), nor has
+    one whose vn are its faces' geometric normals (they would shade the same: nothing is compiled
+    in for them)."""
     (tmp_path / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\n"
                                     "vn 0 0 2\nvn 0 0.6 0.8\n"
                                     "f 1//1 2//2 3//-1\nf 1//1 3//1 4\nf 2 5 3\n")
@@ -243,6 +245,9 @@ def test_obj_vertex_normals_per_corner(tmp_path):
     assert scene.has_shading_normals()
     (tmp_path / "flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n")
     assert not _quiet_load(tmp_path / "flat.obj")[0].has_shading_normals()
+    (tmp_path / "planar.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n")
+    planar = _quiet_load(tmp_path / "planar.obj")[0]
+    assert planar.normals is None and "HAS_SHADING_NORMALS" not in planar.material_defines()
 
 
 def test_angle_weighted_normals_are_mitsubas():
@@ -355,13 +360,13 @@ def test_pbrt_normals(tmp_path):
         'AttributeBegin\nScale 2 1 1\nShape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0] "integer indices" [0 1 2]'
         ' "normal N" [1 0 1  1 0 1  1 0 1]\nAttributeEnd\n'
         'AttributeBegin\nReverseOrientation\nShape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0] '
-        '"integer indices" [0 1 2] "normal N" [0 0 1  0 0 1  0 0 1]\nAttributeEnd\n'
+        '"integer indices" [0 1 2] "normal N" [0 0.6 0.8  0 0.6 0.8  0 0 1]\nAttributeEnd\n'
         'Shape "sphere" "float radius" 2 "float zmax" 1\n')
     scene, warned = _quiet_load(tmp_path / "s.pbrt")
     assert warned == []
     n = scene.face_normals()
     assert np.allclose(n[0], np.array([0.5, 0, 1]) / math.hypot(0.5, 1), atol=1e-6)
-    assert np.allclose(n[1], [0, 0, -1])
+    assert np.allclose(n[1], [[0, 0, -1], [0, -0.6, -0.8], [0, -0.6, -0.8]])  # corners reversed with the face
     centres = scene.vertices[scene.faces[2:]].astype(np.float64)
     assert np.allclose(n[2:], centres / np.linalg.norm(centres, axis=-1, keepdims=True), atol=1e-6)
 
@@ -404,3 +409,25 @@ def test_gltf_normals_colors_and_normal_texture(tmp_path):
     m = scene.materials[0]
     assert m.vertex_colors and m.normal_scale == 0.5 and not m.bump_map and m.map_conventions == ()
     assert np.allclose(m.normal_texture.texels[0, 0, :3], [128 / 255, 128 / 255, 1.0])  # linear, not sRGB-decoded
+
+
+def test_bad_normals_and_colors_are_one_line_errors():
+    """A Scene made in code: per-corner normals or colours of the wrong size, or colours that are
+    negative or not finite, are refused by the scene check with one line (non-finite or zero
+    normals are not an error: those faces are shaded flat)."""
+    from pyopencl_rt.scene.validate import SceneValueError, check_scene
+
+    v, f, _ = sphere_mesh(1.0, n_theta=4)
+    scene = SceneBuilder("s", "test")
+    scene.add_mesh(v, f, Material())
+    scene.camera = Camera()
+    scene = scene.build()
+    for field, value, what in (("normals", np.zeros((len(scene.faces), 3)), "normals must be"),
+                               ("colors", np.full((len(scene.faces), 3, 3), -1.0), "colors must be finite"),
+                               ("colors", np.full((len(scene.faces), 3, 3), np.nan), "colors must be finite")):
+        bad = scene.__class__(**{**scene.__dict__, field: value})
+        with pytest.raises(SceneValueError, match=what):
+            check_scene(bad)
+    nan = scene.__class__(**{**scene.__dict__, "normals": np.full((len(scene.faces), 3, 3), np.nan)})
+    check_scene(nan)
+    assert not nan.has_shading_normals()

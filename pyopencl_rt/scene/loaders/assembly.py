@@ -54,7 +54,24 @@ def triangle_scene(vertices, faces, face_materials, materials, name, uvs=None, n
     colors = kept_uvs(vertices, faces, colors, 3)
     v32, f32, face_materials = checked_triangles(vertices, faces, face_materials, name)
     return Scene(vertices=v32, faces=f32, face_materials=face_materials, materials=materials or [Material()],
-                 source=name, uvs=uvs, normals=normals, colors=colors, **scene_fields)
+                 source=name, uvs=uvs, normals=flat_where_planar(v32, f32, normals), colors=colors, **scene_fields)
+
+
+def flat_where_planar(vertices, faces, normals, tolerance: float = 1e-5):
+    """``normals`` with the faces whose three corner normals are their geometric normal (within
+    ``tolerance``) set to 0, flat: they shade the same, and a scene of such faces only (a box of
+    planar quads, whose vertex normals Mitsuba computes) compiles no shading normals.  None when
+    no face is left with normals."""
+    if normals is None or len(faces) == 0:
+        return None
+    n = np.asarray(normals, np.float32).reshape(-1, 3, 3).copy()
+    p = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
+    g = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g /= np.linalg.norm(g, axis=1, keepdims=True)
+    flat = (np.abs(n - g[:, None, :]) <= tolerance).all(axis=(1, 2))
+    n[flat] = 0.0
+    return n if n.any() else None
 
 
 def transform_normals(matrix, normals):
