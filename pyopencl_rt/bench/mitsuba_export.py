@@ -55,6 +55,10 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
     for m in scene.materials:
         if m.is_emissive and m.two_sided:
             raise ValueError(f"material {m.name!r}: Mitsuba 3 has no two-sided area emitter")
+    for has, what in (("has_shading_normals", "shading normals"), ("has_normal_maps", "normal and bump maps"),
+                      ("has_vertex_colors", "vertex colours")):
+        if getattr(scene, has, lambda: False)():
+            raise ValueError(f"{what} are not exported to Mitsuba yet (the meshes are written flat, face_normals)")
     cam = scene.camera
     record = {
         "width": settings.width, "height": settings.height,

@@ -62,7 +62,7 @@ assert BVH_NODE.itemsize == 64
 TRIANGLE = np.dtype([("v0", np.float32, 4), ("v1", np.float32, 4), ("v2", np.float32, 4)])
 assert TRIANGLE.itemsize == 48
 
-# A material (448 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
+# A material (464 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
 # documented at the top of cl/materials/<name>.h); every type may also emit.
 #   albedo    diffuse: reflectance; gltf, principled, principledthin: base colour; plastic,
 #             roughplastic: diffuse_reflectance
@@ -71,6 +71,11 @@ assert TRIANGLE.itemsize == 48
 #             faces); bit 1: conductor Fresnel from `specular` as F0 (Schlick) instead of eta, k;
 #             bit 2 (MATERIAL_FLAG_NONLINEAR): plastic, roughplastic: Mitsuba's `nonlinear`;
 #             bit 3 (MATERIAL_FLAG_BECKMANN): roughplastic: the Beckmann distribution (else GGX)
+#             bit 4: tex_normal is a height (bump) map, not a tangent-space normal map; bit 5:
+#             the reflectance (albedo, dielectric tint) is multiplied by the triangle's vertex
+#             colours (tri_color); bits 6-8: the normal/bump map's Mitsuba conventions
+#             (cl/scene/shading.h): flip normals that face away from the viewer, the shadowing
+#             term of Estevez et al. 2019, directions on opposite sides of the two frames masked
 #   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes;
 #             plastic, roughplastic: specular_reflectance
 #   alpha     GGX roughness alpha (conductor, dielectric, gltf; < 1e-3 is perfectly smooth);
@@ -111,19 +116,25 @@ MATERIAL_FLAG_NONLINEAR = define("MATERIAL_FLAG_NONLINEAR", 4)
 MATERIAL_FLAG_BECKMANN = define("MATERIAL_FLAG_BECKMANN", 8)
 ROUGH_TRANSMITTANCE_RES = define("ROUGH_TRANSMITTANCE_RES", 64)  # entries of Material.table
 TEX_SLOTS = define("TEX_SLOTS", 6)  # Material.tex_scalar
+MATERIAL_FLAG_BUMP_MAP = define("MATERIAL_FLAG_BUMP_MAP", 16)
+MATERIAL_FLAG_VERTEX_COLOR = define("MATERIAL_FLAG_VERTEX_COLOR", 32)
+MATERIAL_FLAG_MAP_FLIP = define("MATERIAL_FLAG_MAP_FLIP", 64)
+MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
+MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
      ("k", np.float32, 3), ("ior", np.float32),
-     ("tex_base", np.int32), ("tex_mr", np.int32), ("tex_emission", np.int32), ("tex_pad", np.int32),
+     ("tex_base", np.int32), ("tex_mr", np.int32), ("tex_emission", np.int32), ("tex_normal", np.int32),
      ("alpha_v", np.float32), ("fdr", np.float32), ("spec_weight", np.float32), ("roughness", np.float32),
      ("anisotropic", np.float32), ("spec_trans", np.float32), ("spec_tint", np.float32), ("sheen", np.float32),
      ("sheen_tint", np.float32), ("clearcoat", np.float32), ("clearcoat_gloss", np.float32),
      ("flatness", np.float32), ("diff_trans", np.float32), ("rates", np.float32, 4),
      ("tex_scalar", np.int32, TEX_SLOTS), ("tex_params", np.int32),
-     ("table", np.float32, ROUGH_TRANSMITTANCE_RES)]
+     ("table", np.float32, ROUGH_TRANSMITTANCE_RES),
+     ("normal_scale", np.float32), ("pad0", np.int32), ("pad1", np.int32), ("pad2", np.int32)]
 )
-assert MATERIAL.itemsize == 448
+assert MATERIAL.itemsize == 464
 # Texture indices (into the TEXTURE table; -1 = none), used only when the program is built with
 # HAS_TEXTURES (cl/scene/textures.h):
 #   tex_base      RGB multiplies albedo (diffuse, gltf baseColor, plastic diffuse_reflectance,
@@ -152,6 +163,10 @@ TEXTURE_PARAMS = {TEXP_ALPHA: "alpha", TEXP_ROUGHNESS: "roughness", TEXP_METALLI
                   TEXP_SHEEN: "sheen", TEXP_SHEEN_TINT: "sheen_tint", TEXP_CLEARCOAT: "clearcoat",
                   TEXP_CLEARCOAT_GLOSS: "clearcoat_gloss", TEXP_FLATNESS: "flatness",
                   TEXP_DIFF_TRANS: "diff_trans", TEXP_ETA: "ior"}
+#   tex_normal    a tangent-space normal map (RGB = (n + 1) / 2, relative to the shading frame), or
+#                 with MATERIAL_FLAG_BUMP_MAP a height map (its luminance), perturbing the
+#                 shading normal (HAS_NORMAL_MAPS, cl/scene/shading.h); normal_scale scales the
+#                 normal map's x and y (glTF's normalTexture.scale) or the bump map's gradient
 
 # A texture (32 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row
 # by row from the top of the image (v = 0 is the top row, as in glTF; OBJ's v is flipped at load),
@@ -417,6 +432,10 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
     Param("textures", "const", "Texture"),
     Param("tex_data", "const", "float4", "texels of every texture"),
+    # shading normals and vertex colours (cl/scene/shading.h); 16-byte dummies without
+    # HAS_SHADING_NORMALS / HAS_VERTEX_COLORS
+    Param("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)"),
+    Param("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours"),
     # queues of slot indices and their counters
     Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True),
     Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True),

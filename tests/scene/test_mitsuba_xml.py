@@ -569,7 +569,7 @@ def test_bsdfs(tmp_path):
 <bsdf type="principled"><rgb name="base_color" value="0.8 0.5 0.2"/><float name="metallic" value="0.7"/><float name="roughness" value="0.4"/><float name="sheen" value="0"/></bsdf>
 <bsdf type="twosided"><bsdf type="conductor"><rgb name="specular_reflectance" value="0.5"/></bsdf></bsdf>
 <bsdf type="mask"><float name="opacity" value="0.5"/><bsdf type="diffuse"><rgb name="reflectance" value="0.2"/></bsdf></bsdf>
-<bsdf type="bumpmap"><bsdf type="roughconductor"/></bsdf>""")
+<bsdf type="bumpmap"><texture type="rawconstant" name="h"><float name="value" value="0.5"/></texture><float name="scale" value="2"/><bsdf type="roughconductor"/></bsdf>""")
     expect = [
         dict(type="diffuse", albedo=(0.5, 0.5, 0.5)),
         dict(type="dielectric", ior=pytest.approx(1.6 / 1.333), alpha=0.0),
@@ -588,7 +588,7 @@ def test_bsdfs(tmp_path):
              ior=pytest.approx(2 / (1 - math.sqrt(0.04)) - 1)),  # Mitsuba's eta from specular 0.5
         dict(type="conductor", eta=None, f0=(0.5, 0.5, 0.5)),
         dict(type="diffuse", albedo=(0.2, 0.2, 0.2)),
-        dict(type="conductor", alpha=0.1),
+        dict(type="conductor", alpha=0.1, bump_map=True, normal_scale=2.0, map_conventions=("side", "flip", "terminator")),
     ]
     for i, (mat, want) in enumerate(zip(mats, expect)):
         for key, value in want.items():
@@ -596,7 +596,6 @@ def test_bsdfs(tmp_path):
     expected_warnings = ['<bsdf type="thindielectric">: approximated by a dielectric interface',
                          '<bsdf type="roughconductor">: the Beckmann distribution (Mitsuba\'s default) is rendered as GGX',
                          '<bsdf type="mask">: opacity masks are not supported; rendering its nested BSDF',
-                         '<bsdf type="bumpmap">: bump and normal maps are not supported; rendering its nested BSDF',
                          '<bsdf type="roughconductor">: the Beckmann distribution']
     assert len(warned) == len(expected_warnings)
     for w, needle in zip(warned, expected_warnings):

@@ -19,7 +19,7 @@ from .mitsuba_xml import Document, MiObject
 
 # parameters that do not change the image
 SILENT = {"pixel_format", "component_format", "near_clip", "far_clip", "sample_border", "banner", "file_format",
-          "compensate", "shutter_open", "shutter_close", "srf", "face_normals", "sample_visible", "emitter_samples",
+          "compensate", "shutter_open", "shutter_close", "srf", "sample_visible", "emitter_samples",
           "bsdf_samples", "jitter", "mis_compensation", "silhouette_sampling_weight", "mip_filter_type"}
 
 # hdrfilm's filter when it names none (and the film's when there is no film)
@@ -227,6 +227,7 @@ class _Importer:
         # Mitsuba's shape without a BSDF: diffuse, reflectance 0.5, or 0 for an emitter (shape.cpp)
         emitting = any(em.type == "area" for em in emitters)
         material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default(black=emitting)
+        attribute = self.bsdfs.attribute(material)  # a mesh_attribute as its reflectance
         if len(bsdfs) > 1:
             self.warn(bsdfs[1].node.pos, f"{obj.label()}: a second BSDF; ignored")
         for em in emitters:
@@ -247,21 +248,32 @@ class _Importer:
         t = obj.type
         if t == "sphere":
             return self.sphere(obj, material, m, flip, emitters)
+        normals = compute = extras = None
         if t in ("obj", "ply", "serialized"):
-            mesh = self.mesh_file(obj)
+            v, f, uv, normals, keys, extras = self.mesh_file(obj)
+            if obj.boolean("face_normals", False):  # Mitsuba: flat, whatever the file holds
+                normals = None
+            elif normals is None:  # Mitsuba computes them
+                compute = keys
         elif t == "rectangle":
-            mesh = rectangle_mesh()
+            v, f, uv = rectangle_mesh()
         elif t == "cube":
-            mesh = cube_mesh()
+            v, f, uv = cube_mesh()
         elif t == "disk":
-            mesh = disk_mesh()
+            v, f, uv = disk_mesh()
         elif t == "cylinder":
-            mesh = self.cylinder(obj)
+            v, f, uv, normals = self.cylinder(obj)
         else:
             self.warn(obj.node.pos, f"{obj.label()}: shape type not supported; ignored")
             return
-        v, f, uv = mesh
-        self.b.add_mesh(v, f, material, uvs=uv, matrix=m, flip=flip)
+        colors = None
+        if attribute is not None:
+            colors = extras.colors(attribute) if extras is not None else None
+            if colors is None:
+                self.warn(obj.node.pos, f'{obj.label()}: its BSDF reads the mesh attribute "{attribute}", which '
+                                        "the shape does not have; using 1")
+        self.b.add_mesh(v, f, material, uvs=uv, matrix=m, flip=flip, normals=normals, colors=colors,
+                        compute_normals=compute)
         self.unused(obj)
 
     def cylinder(self, obj: MiObject):
@@ -277,7 +289,9 @@ class _Importer:
         x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
         x /= np.linalg.norm(x)
         frame = np.stack([x, np.cross(z, x), z], 1)
-        return v @ frame.T + p0, f, uv
+        radial = v * [1.0, 1.0, 0.0]  # Mitsuba's cylinder shades with its exact (radial) normal
+        radial /= np.linalg.norm(radial, axis=1, keepdims=True)
+        return v @ frame.T + p0, f, uv, (radial @ frame.T)[f]
 
     def sphere(self, obj, material, m, flip, emitters) -> None:
         centre = obj.point("center", np.zeros(3))
@@ -295,6 +309,10 @@ class _Importer:
         self.unused(obj)
 
     def mesh_file(self, obj: MiObject):
+        """(vertices, faces, per-corner uvs, normals (or None) and the keys of the corners that
+        are one vertex (Mitsuba's OBJ reader: one per position and texture coordinate), and the
+        file's attributes (MeshExtras))."""
+        from .meshfile import MeshExtras
         from .obj import parse_obj
 
         fname = obj.string("filename")
@@ -302,19 +320,26 @@ class _Importer:
             raise error_at(obj.node.pos, f'{obj.label()} needs <string name="filename">')
         path = self.resolve(fname, obj)
         where = f"{obj.node.pos}: {obj.label()}: {fname}"
+        extras = MeshExtras()
         if obj.type == "obj":
-            v, f, _names, _libs, uv = parse_obj(path, where, with_uvs=True)
-            if uv is not None and not obj.boolean("flip_tex_coords", True):
-                uv[..., 1] = 1.0 - uv[..., 1]
+            v, f, _names, _libs, uv, normals = parse_obj(path, where, with_uvs=True, with_normals=True)
+            keys = f
+            if uv is not None:
+                corners = np.concatenate([f.reshape(-1, 1).astype(np.float64), uv.reshape(-1, 2)], 1)
+                keys = np.unique(corners, axis=0, return_inverse=True)[1].reshape(-1, 3)
+                if not obj.boolean("flip_tex_coords", True):
+                    uv[..., 1] = 1.0 - uv[..., 1]
         elif obj.type == "ply":
-            v, f, uv = _read_ply(path, where)
+            v, f, uv, extras = _read_ply(path, where)
+            normals, keys = extras.normals, f
         else:
             from .mitsuba_serialized import read_serialized
 
-            v, f, uv = read_serialized(path, obj.integer("shape_index", 0, minimum=0), where)
+            v, f, uv, normals = read_serialized(path, obj.integer("shape_index", 0, minimum=0), where)
+            keys = f
         if len(f) == 0:
             raise error_at(obj.node.pos, f"{obj.label()}: '{fname}' contains no triangles")
-        return v, f, uv
+        return v, f, uv, normals, keys, extras
 
     # -- emitters --------------------------------------------------------------------------------
 
@@ -376,9 +401,11 @@ def _read_ply(path, where):
         v, f = flatten(loaded, name=where)
     except MeshError as exc:
         raise error_at(where.split(": ")[0], str(exc)) from None
+    from .meshfile import ply_extras
+
     uv = getattr(getattr(loaded, "visual", None), "uv", None)
     uvc = None
     if uv is not None and len(uv) == len(v) and len(loaded.faces) == len(f):
         uvc = np.asarray(uv, np.float32)[np.asarray(f)][..., :2]  # Mitsuba reads PLY uvs as they are
-    return v, f, uvc
+    return v, f, uvc, ply_extras(loaded, f)
 

@@ -16,13 +16,14 @@ from pathlib import Path
 import numpy as np
 
 from ..model import DirectionalLight, Environment, Material, PixelFilter, PointLight, RenderSettings
+from .assembly import transform_normals
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh,
                       transform_points, transform_vector, translate)
 from .pbrt import Directive, Parser
 from .pbrt_materials import MaterialMapper, spectrum_rgb
 
 SILENT = {("Film", "filename"), ("Integrator", "lightsampler"), ("Sampler", "seed"), ("Film", "diagonal"),
-          ("Film", "savefp16"), ("Integrator", "regularize"), ("Shape", "N"), ("Shape", "S"),
+          ("Film", "savefp16"), ("Integrator", "regularize"), ("Shape", "S"),
           ("Shape", "faceIndices"), ("Shape", "emissionfilename")}
 
 
@@ -196,8 +197,8 @@ class _Importer:
         m = self.state.ctm
         for kind, *data in self.instances[d.args[0]]:
             if kind == "mesh":
-                v, f, uv, mat = data
-                self.b.add_mesh(v, f, mat, uvs=uv, matrix=m)
+                v, f, uv, mat, normals = data
+                self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, normals=normals)
             else:
                 centre, radius, mat, pos = data
                 self._sphere(transform_points(m, centre)[0], radius, m, mat, pos, False)
@@ -477,22 +478,27 @@ class _Importer:
                 return
             self._sphere(transform_points(m, [0, 0, 0])[0], radius, m, mat, d.pos, flip)
             return
-        v, f, uv = geometry
+        v, f, uv, *rest = geometry
+        normals = rest[0] if rest else None
         if self.recording is not None:
+            def reverse(a):
+                return a[:, ::-1] if a is not None else None
+
             if flip:
-                f, uv = f[:, ::-1], (uv[:, ::-1] if uv is not None else None)
+                f, uv, normals = f[:, ::-1], reverse(uv), None if normals is None else -reverse(normals)
             v = transform_points(m, v)
+            normals = transform_normals(m, normals)
             if np.linalg.det(m[:3, :3]) < 0:
-                f, uv = f[:, ::-1], (uv[:, ::-1] if uv is not None else None)
-            self.recording.append(("mesh", v, f, uv, mat))
+                f, uv, normals = f[:, ::-1], reverse(uv), reverse(normals)
+            self.recording.append(("mesh", v, f, uv, mat, normals))
             return
-        self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip)
+        self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=normals)
 
     def _sphere(self, centre, radius, m, mat, pos, flip) -> None:
         s = np.linalg.svd(m[:3, :3], compute_uv=False)
-        if s.max() - s.min() > 1e-6 * s.max():  # scaled unevenly: an ellipsoid, as triangles
+        if s.max() - s.min() > 1e-6 * s.max():  # scaled unevenly: an ellipsoid, as triangles (its exact normals)
             v, f, uv = sphere_mesh(radius)
-            self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip)
+            self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=(v / radius)[f])
             return
         if flip and mat.is_emissive:
             self.warn(pos, 'Shape "sphere": ReverseOrientation: our spheres emit outwards only')

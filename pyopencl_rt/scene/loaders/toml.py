@@ -68,9 +68,9 @@ from ..materials import REGISTRY
 from ..mesh import MeshError, flatten, load_trimesh
 from ..model import (AOVS, FILTERS, INTEGRATORS, SAMPLERS, Camera, DirectionalLight, Environment, Material,
                      PixelFilter, PointLight, PROJECTIONS, RenderSettings, Scene)
-from .assembly import DEFAULT_FOV, frame_scene, triangle_scene
+from .assembly import DEFAULT_FOV, frame_scene, transform_normals, triangle_scene
 from .gltf import read_gltf
-from .meshfile import trimesh_uvs
+from .meshfile import ply_extras, trimesh_uvs
 from .obj import obj_with_materials
 from .values import (ErrorContext, SceneError, TableReader, check_boolean, check_choice, check_color,
                      check_integer, check_keys, check_number, check_points, check_vector, describe,
@@ -174,7 +174,7 @@ def load_toml_scene(path: Path, name: str) -> Scene:
             materials.append(Material())
         return material_index[mname]
 
-    tri_vertices, tri_faces, tri_mats, tri_uvs = [], [], [], []
+    tri_vertices, tri_faces, tri_mats, tri_uvs, tri_normals, tri_colors = [], [], [], [], [], []
     n_vertices = 0
     spheres, sphere_mats = [], []
     for number, table in enumerate(shapes, 1):
@@ -203,8 +203,10 @@ def load_toml_scene(path: Path, name: str) -> Scene:
 
         face_mat = None
         uvc = None  # per-corner texture coordinates (F, 3, 2), None = zeros
+        nrm = col = None  # per-corner shading normals and colours of a mesh file, or None
         if stype == "mesh":
-            v, f, face_mat, uvc = _read_mesh_shape(ctx, where, path, table, materials, material_index, material_for)
+            v, f, face_mat, uvc, nrm, col = _read_mesh_shape(ctx, where, path, table, materials, material_index,
+                                                             material_for)
         elif stype == "quad":
             if "points" not in table:
                 raise ctx.error(where, "missing 'points' (four corners [[x,y,z], ...])")
@@ -233,32 +235,45 @@ def load_toml_scene(path: Path, name: str) -> Scene:
             if not (areas > 0).all():
                 raise ctx.error(where, "degenerate: its corners do not span an area (repeated or collinear points)")
 
+        def reverse(a):
+            return a[:, ::-1] if a is not None else None
+
         matrix = _shape_transform(ctx, where, table)
         if matrix is not None:
             v = v @ matrix[:3, :3].T + matrix[:3, 3]
+            nrm = transform_normals(matrix, nrm)
             if np.linalg.det(matrix[:3, :3]) < 0:
-                f = f[:, ::-1]
-                uvc = uvc[:, ::-1] if uvc is not None else None
+                f, uvc, nrm, col = f[:, ::-1], reverse(uvc), reverse(nrm), reverse(col)
         finite = v[np.isfinite(v).all(axis=1)]  # a mesh file's NaN vertices are dropped, with a warning
         _check_reach(ctx, where, np.abs(finite).max() if len(finite) else 0.0, "its vertices reach")
         if check_boolean(ctx, where, "flip_normals", table.get("flip_normals", False)):
-            f = f[:, ::-1]
-            uvc = uvc[:, ::-1] if uvc is not None else None
+            f, uvc, col = f[:, ::-1], reverse(uvc), reverse(col)
+            nrm = -reverse(nrm) if nrm is not None else None
         if face_mat is None:
             face_mat = np.full(len(f), material_for(where, table), np.int32)
         tri_vertices.append(v)
         tri_uvs.append(np.zeros((len(f), 3, 2), np.float32) if uvc is None else np.asarray(uvc, np.float32))
+        tri_normals.append(nrm)
+        tri_colors.append(col)
         tri_faces.append(f + n_vertices)
         tri_mats.append(face_mat)
         n_vertices += len(v)
 
+    def corners(parts, fill):  # per-corner arrays of the shapes that have them, `fill` elsewhere
+        if all(a is None for a in parts):
+            return None
+        return np.concatenate([np.full((len(f), 3, 3), fill, np.float32) if a is None else np.asarray(a, np.float32)
+                               for a, f in zip(parts, tri_faces)])
+
+    normals = colors = None
     if tri_faces:
+        normals, colors = corners(tri_normals, 0.0), corners(tri_colors, 1.0)
         vertices, faces = np.concatenate(tri_vertices), np.concatenate(tri_faces)
         face_mat, uvs = np.concatenate(tri_mats), np.concatenate(tri_uvs)
     else:
         vertices, faces, face_mat, uvs = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int32), None
     scene = triangle_scene(
-        vertices, faces, face_mat, materials, name, uvs, settings=settings,
+        vertices, faces, face_mat, materials, name, uvs, normals=normals, colors=colors, settings=settings,
         spheres=np.asarray(spheres, np.float32).reshape(-1, 4), sphere_materials=np.asarray(sphere_mats, np.int32),
     )
     if "camera" in doc:
@@ -503,13 +518,13 @@ def _read_mesh_shape(ctx, where, scene_path: Path, table, materials, material_in
         raise ctx.error(where, f"mesh file '{fname}' is a folder ({mesh_path})")
     use_file = check_boolean(ctx, where, "use_file_materials", table.get("use_file_materials", False))
     suffix = mesh_path.suffix.lower()
-    uvs = None
+    uvs = normals = colors = None
     if suffix in (".gltf", ".glb"):
         try:
             g = read_gltf(mesh_path, f"{ctx.name}: {where}: {fname}")
         except UserError as exc:
             raise SceneError(one_line(str(exc))) from None
-        v, f, uvs = g.vertices, g.faces, g.uvs
+        v, f, uvs, normals, colors = g.vertices, g.faces, g.uvs, g.normals, g.colors
     if use_file:
         if suffix not in (".obj", ".gltf", ".glb"):
             raise ctx.error(where, f"use_file_materials is only supported for OBJ and glTF files, not '{fname}'")
@@ -517,7 +532,7 @@ def _read_mesh_shape(ctx, where, scene_path: Path, table, materials, material_in
         overrides = {n: materials[i] for n, i in material_index.items()}
         if suffix == ".obj":
             try:
-                v, f, local_mat, local_materials, uvs = obj_with_materials(
+                v, f, local_mat, local_materials, uvs, normals = obj_with_materials(
                     mesh_path, f"{ctx.name}: {where}: {fname}", overrides, fallback=materials[fallback_index])
             except SceneError as exc:
                 raise SceneError(one_line(str(exc))) from None
@@ -542,11 +557,12 @@ def _read_mesh_shape(ctx, where, scene_path: Path, table, materials, material_in
         except MeshError as exc:
             raise ctx.error(where, str(exc)) from None
         uvs = trimesh_uvs(loaded, v, f)
+        normals = ply_extras(loaded, f).normals
         face_mat = None
     else:
         face_mat = None
     if len(f) == 0:
         raise ctx.error(where, f"mesh file '{fname}' contains no triangles")
-    return np.asarray(v, np.float64), np.asarray(f, np.int64), face_mat, uvs
+    return np.asarray(v, np.float64), np.asarray(f, np.int64), face_mat, uvs, normals, colors
 
 
