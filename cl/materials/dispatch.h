@@ -36,11 +36,17 @@
  *   bsdf_has_nondelta_lobes(m)  mask: 0 where every lobe is a delta lobe (light sampling is
  *            useless)
  *   dielectric_eta(m, front)   the relative index eta = eta_t / eta_i seen by wo (ior or
- *            1 / ior; 1 for ior <= 0): a refracted sample scales radiance by 1 / eta^2
+ *            1 / ior; 1 for ior <= 0 and for principledthin, whose sheet does not bend light): a
+ *            refracted sample scales radiance by 1 / eta^2
  *   material_albedo_aov(m, n, wo)   the albedo guide of cl/render/aov.h: the surface's
  *            reflectance seen from wo, clamped to [0, 1] (diffuse: its albedo; conductor: its
  *            Fresnel reflectance at the viewing angle; dielectric: its tint; glTF: the specular
- *            Fresnel term plus the diffuse base's share)
+ *            Fresnel term plus the diffuse base's share; the Mitsuba types: their diffuse
+ *            reflectance or base colour, as Mitsuba's eval_diffuse_reflectance)
+ *
+ * The Mitsuba 3 types (plastic, roughplastic, principled, principledthin) read the Material
+ * fields after the texture indices; material_lanes() gathers those only when some lane has such
+ * a type.  roughplastic reads its table from the records themselves (MaterialLanes.records/rec).
  */
 #ifndef PYOPENCL_RT_BSDF_H
 #define PYOPENCL_RT_BSDF_H
@@ -49,6 +55,10 @@
 #include "materials/conductor.h"
 #include "materials/dielectric.h"
 #include "materials/gltf.h"
+#include "materials/plastic.h"
+#include "materials/roughplastic.h"
+#include "materials/principled.h"
+#include "materials/principledthin.h"
 
 /* MATERIAL_<TYPE> and MATERIAL_FLAG_* come from the generated header (pyopencl_rt/device/abi.py). */
 
@@ -56,14 +66,27 @@
 #define HAS_MATERIAL_CONDUCTOR
 #define HAS_MATERIAL_DIELECTRIC
 #define HAS_MATERIAL_GLTF
+#define HAS_MATERIAL_PLASTIC
+#define HAS_MATERIAL_ROUGHPLASTIC
+#define HAS_MATERIAL_PRINCIPLED
+#define HAS_MATERIAL_PRINCIPLEDTHIN
+#endif
+#if defined(HAS_MATERIAL_PLASTIC) || defined(HAS_MATERIAL_ROUGHPLASTIC) || defined(HAS_MATERIAL_PRINCIPLED) || \
+    defined(HAS_MATERIAL_PRINCIPLEDTHIN)
+#define HAS_MITSUBA_MATERIALS /* the Material fields after the texture indices are used */
 #endif
 
-/* The Material records' fields, per lane. */
+/* The Material records' fields, per lane.  The fields of the Mitsuba types (fdr to rates) are
+ * gathered only when some lane has such a type (else 0). */
 typedef struct {
     pint type, flags;
     pvec3 albedo, emission, specular, eta, k;
     pfloat alpha, metallic, ior;
     pint tex_base, tex_mr, tex_emission; /* texture indices, -1 none */
+    pfloat fdr, spec_weight, roughness, anisotropic, spec_trans, spec_tint, sheen, sheen_tint, clearcoat,
+        clearcoat_gloss, flatness, diff_trans, rate0, rate1, rate2, rate3;
+    __global const float *records; /* the Material array as floats, and each lane's record in it */
+    pint rec;
 } MaterialLanes;
 
 RT_INLINE pvec3 material_gather3(__global const float *f, pint i)
@@ -91,6 +114,31 @@ RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint 
     m.tex_base = pgather_int(n, i + FIELD_INDEX(Material, tex_base));
     m.tex_mr = pgather_int(n, i + FIELD_INDEX(Material, tex_mr));
     m.tex_emission = pgather_int(n, i + FIELD_INDEX(Material, tex_emission));
+    m.records = f;
+    m.rec = i;
+    m.fdr = m.spec_weight = m.roughness = m.anisotropic = m.spec_trans = m.spec_tint = m.sheen = m.sheen_tint =
+        m.clearcoat = m.clearcoat_gloss = m.flatness = m.diff_trans = m.rate0 = m.rate1 = m.rate2 = m.rate3 =
+            PFLOAT(0.0f);
+#ifdef HAS_MITSUBA_MATERIALS
+    if (pany(m.type >= MATERIAL_PLASTIC)) {
+        m.fdr = pgather(f, i + FIELD_INDEX(Material, fdr));
+        m.spec_weight = pgather(f, i + FIELD_INDEX(Material, spec_weight));
+        m.roughness = pgather(f, i + FIELD_INDEX(Material, roughness));
+        m.anisotropic = pgather(f, i + FIELD_INDEX(Material, anisotropic));
+        m.spec_trans = pgather(f, i + FIELD_INDEX(Material, spec_trans));
+        m.spec_tint = pgather(f, i + FIELD_INDEX(Material, spec_tint));
+        m.sheen = pgather(f, i + FIELD_INDEX(Material, sheen));
+        m.sheen_tint = pgather(f, i + FIELD_INDEX(Material, sheen_tint));
+        m.clearcoat = pgather(f, i + FIELD_INDEX(Material, clearcoat));
+        m.clearcoat_gloss = pgather(f, i + FIELD_INDEX(Material, clearcoat_gloss));
+        m.flatness = pgather(f, i + FIELD_INDEX(Material, flatness));
+        m.diff_trans = pgather(f, i + FIELD_INDEX(Material, diff_trans));
+        m.rate0 = pgather(f, i + FIELD_INDEX(Material, rates));
+        m.rate1 = pgather(f, i + FIELD_INDEX(Material, rates) + 1);
+        m.rate2 = pgather(f, i + FIELD_INDEX(Material, rates) + 2);
+        m.rate3 = pgather(f, i + FIELD_INDEX(Material, rates) + 3);
+    }
+#endif
     return m;
 }
 
@@ -116,9 +164,61 @@ RT_INLINE GltfParams gltf_params(const MaterialLanes *m)
     return g;
 }
 
+RT_INLINE PlasticParams plastic_params(const MaterialLanes *m)
+{
+    PlasticParams p;
+    p.diffuse = m->albedo;
+    p.specular = m->specular;
+    p.eta = m->ior;
+    p.fdr = m->fdr;
+    p.spec_weight = m->spec_weight;
+    p.nonlinear = (m->flags & MATERIAL_FLAG_NONLINEAR) != 0;
+    return p;
+}
+
+RT_INLINE RoughPlasticParams roughplastic_params(const MaterialLanes *m)
+{
+    RoughPlasticParams p;
+    p.diffuse = m->albedo;
+    p.specular = m->specular;
+    p.eta = m->ior;
+    p.alpha = pfmax(m->alpha, PFLOAT(1e-4f));
+    p.fdr = m->fdr;
+    p.spec_weight = m->spec_weight;
+    p.nonlinear = (m->flags & MATERIAL_FLAG_NONLINEAR) != 0;
+    p.beckmann = (m->flags & MATERIAL_FLAG_BECKMANN) != 0;
+    p.records = m->records;
+    p.table = m->rec + FIELD_INDEX(Material, table);
+    return p;
+}
+
+RT_INLINE PrincipledParams principled_params(const MaterialLanes *m)
+{
+    PrincipledParams p;
+    p.base = m->albedo;
+    p.roughness = m->roughness;
+    p.anisotropic = m->anisotropic;
+    p.metallic = m->metallic;
+    p.spec_trans = m->spec_trans;
+    p.spec_tint = m->spec_tint;
+    p.sheen = m->sheen;
+    p.sheen_tint = m->sheen_tint;
+    p.clearcoat = m->clearcoat;
+    p.clearcoat_gloss = m->clearcoat_gloss;
+    p.flatness = m->flatness;
+    p.diff_trans = m->diff_trans;
+    p.eta = m->ior;
+    p.rate0 = m->rate0;
+    p.rate1 = m->rate1;
+    p.rate2 = m->rate2;
+    p.rate3 = m->rate3;
+    return p;
+}
+
+/* a thin sheet (principledthin) does not bend light: 1 */
 RT_INLINE pfloat dielectric_eta(const MaterialLanes *m, pint front)
 {
-    const pfloat ior = m->ior > 0.0f ? m->ior : PFLOAT(1.0f);
+    const pfloat ior = ((m->ior > 0.0f) & (m->type != MATERIAL_PRINCIPLEDTHIN)) ? m->ior : PFLOAT(1.0f);
     return front ? ior : 1.0f / ior;
 }
 
@@ -139,12 +239,14 @@ RT_INLINE pint bsdf_has_nondelta_lobes(const MaterialLanes *m)
 
 /* The active lanes of each type compiled in, and the others (diffuse, and any type not compiled
  * in, which shades as diffuse). */
-typedef struct { pint conductor, dielectric, gltf, diffuse; } MaterialMasks;
+typedef struct {
+    pint conductor, dielectric, gltf, plastic, roughplastic, principled, principledthin, diffuse;
+} MaterialMasks;
 
 RT_INLINE MaterialMasks material_masks(const MaterialLanes *m, pint active)
 {
     MaterialMasks k;
-    k.conductor = k.dielectric = k.gltf = PINT(0);
+    k.conductor = k.dielectric = k.gltf = k.plastic = k.roughplastic = k.principled = k.principledthin = PINT(0);
     pint other = PINT(0);
 #ifdef HAS_MATERIAL_CONDUCTOR
     k.conductor = active & (m->type == MATERIAL_CONDUCTOR);
@@ -158,6 +260,22 @@ RT_INLINE MaterialMasks material_masks(const MaterialLanes *m, pint active)
     k.gltf = active & (m->type == MATERIAL_GLTF);
     other |= k.gltf;
 #endif
+#ifdef HAS_MATERIAL_PLASTIC
+    k.plastic = active & (m->type == MATERIAL_PLASTIC);
+    other |= k.plastic;
+#endif
+#ifdef HAS_MATERIAL_ROUGHPLASTIC
+    k.roughplastic = active & (m->type == MATERIAL_ROUGHPLASTIC);
+    other |= k.roughplastic;
+#endif
+#ifdef HAS_MATERIAL_PRINCIPLED
+    k.principled = active & (m->type == MATERIAL_PRINCIPLED);
+    other |= k.principled;
+#endif
+#ifdef HAS_MATERIAL_PRINCIPLEDTHIN
+    k.principledthin = active & (m->type == MATERIAL_PRINCIPLEDTHIN);
+    other |= k.principledthin;
+#endif
     k.diffuse = active & pnot(other);
     return k;
 }
@@ -168,7 +286,9 @@ RT_INLINE pvec3 bsdf_eval(const MaterialLanes *m, pint active, pvec3 n, pint fro
     pvec3 f = pv3_zero();
     pfloat p = PFLOAT(0.0f);
     if (pany(k.diffuse)) f = diffuse_eval(m->albedo, k.diffuse, n, wi, &p);
-    if (pany(k.conductor | k.dielectric | k.gltf)) {
+    const pint framed =
+        k.conductor | k.dielectric | k.gltf | k.plastic | k.roughplastic | k.principled | k.principledthin;
+    if (pany(framed)) {
         pvec3 t, b;
         make_onb(n, &t, &b);
         const pvec3 lo = to_local(wo, t, b, n), li = to_local(wi, t, b, n);
@@ -197,6 +317,38 @@ RT_INLINE pvec3 bsdf_eval(const MaterialLanes *m, pint active, pvec3 n, pint fro
             p = k.gltf ? q : p;
         }
 #endif
+#ifdef HAS_MATERIAL_PLASTIC
+        if (pany(k.plastic)) {
+            const PlasticParams pp = plastic_params(m);
+            g = plastic_eval(&pp, k.plastic, lo, li, &q);
+            f = pv3_sel(f, g, k.plastic);
+            p = k.plastic ? q : p;
+        }
+#endif
+#ifdef HAS_MATERIAL_ROUGHPLASTIC
+        if (pany(k.roughplastic)) {
+            const RoughPlasticParams rp = roughplastic_params(m);
+            g = roughplastic_eval(&rp, k.roughplastic, lo, li, &q);
+            f = pv3_sel(f, g, k.roughplastic);
+            p = k.roughplastic ? q : p;
+        }
+#endif
+#ifdef HAS_MATERIAL_PRINCIPLED
+        if (pany(k.principled)) {
+            const PrincipledParams pr = principled_params(m);
+            g = principled_eval(&pr, k.principled, front, lo, li, &q);
+            f = pv3_sel(f, g, k.principled);
+            p = k.principled ? q : p;
+        }
+#endif
+#ifdef HAS_MATERIAL_PRINCIPLEDTHIN
+        if (pany(k.principledthin)) {
+            const PrincipledParams pr = principled_params(m);
+            g = principledthin_eval(&pr, k.principledthin, lo, li, &q);
+            f = pv3_sel(f, g, k.principledthin);
+            p = k.principledthin ? q : p;
+        }
+#endif
     }
     *pdf = p;
     return f;
@@ -211,7 +363,8 @@ RT_INLINE pvec3 bsdf_sample(const MaterialLanes *m, pint active, pvec3 n, pint f
     pint dl = PINT(0);
     *wi = n;
     if (pany(k.diffuse)) w = diffuse_sample(m->albedo, k.diffuse, n, u0, u1, wi, &p);
-    const pint framed = k.conductor | k.dielectric | k.gltf;
+    const pint framed =
+        k.conductor | k.dielectric | k.gltf | k.plastic | k.roughplastic | k.principled | k.principledthin;
     if (pany(framed)) {
         pvec3 t, b;
         make_onb(n, &t, &b);
@@ -245,6 +398,42 @@ RT_INLINE pvec3 bsdf_sample(const MaterialLanes *m, pint active, pvec3 n, pint f
             li = pv3_sel(li, wl, k.gltf);
             ql = k.gltf ? q : ql;
             dd = k.gltf ? d : dd;
+        }
+#endif
+#ifdef HAS_MATERIAL_PLASTIC
+        if (pany(k.plastic)) {
+            const PlasticParams pp = plastic_params(m);
+            g = pv3_sel(g, plastic_sample(&pp, k.plastic, lo, u0, u1, u2, &wl, &q, &d), k.plastic);
+            li = pv3_sel(li, wl, k.plastic);
+            ql = k.plastic ? q : ql;
+            dd = k.plastic ? d : dd;
+        }
+#endif
+#ifdef HAS_MATERIAL_ROUGHPLASTIC
+        if (pany(k.roughplastic)) {
+            const RoughPlasticParams rp = roughplastic_params(m);
+            g = pv3_sel(g, roughplastic_sample(&rp, k.roughplastic, lo, u0, u1, u2, &wl, &q, &d), k.roughplastic);
+            li = pv3_sel(li, wl, k.roughplastic);
+            ql = k.roughplastic ? q : ql;
+            dd = k.roughplastic ? d : dd;
+        }
+#endif
+#ifdef HAS_MATERIAL_PRINCIPLED
+        if (pany(k.principled)) {
+            const PrincipledParams pr = principled_params(m);
+            g = pv3_sel(g, principled_sample(&pr, k.principled, front, lo, u0, u1, u2, &wl, &q, &d), k.principled);
+            li = pv3_sel(li, wl, k.principled);
+            ql = k.principled ? q : ql;
+            dd = k.principled ? d : dd;
+        }
+#endif
+#ifdef HAS_MATERIAL_PRINCIPLEDTHIN
+        if (pany(k.principledthin)) {
+            const PrincipledParams pr = principled_params(m);
+            g = pv3_sel(g, principledthin_sample(&pr, k.principledthin, lo, u0, u1, u2, &wl, &q, &d), k.principledthin);
+            li = pv3_sel(li, wl, k.principledthin);
+            ql = k.principledthin ? q : ql;
+            dd = k.principledthin ? d : dd;
         }
 #endif
         const pvec3 ww = pv3_normalize(to_world(li, t, b, n), framed);

@@ -180,4 +180,125 @@ RT_INLINE pvec3 fresnel_schlick(pvec3 f0, pfloat cos_i)
     return pv3(f0.x + (1.0f - f0.x) * m5, f0.y + (1.0f - f0.y) * m5, f0.z + (1.0f - f0.z) * m5);
 }
 
+
+/* -- Mitsuba 3's microfacet distribution (include/mitsuba/render/microfacet.h), as the Mitsuba
+ * types (roughplastic.h, principled.h, principledthin.h) use it: anisotropic GGX (alpha_x along
+ * the tangent, alpha_y along the bitangent) or isotropic Beckmann, with Smith's *separable*
+ * shadowing-masking G = G1(wo, m) G1(wi, m) (not the height-correlated G2 above).
+ *
+ *   GGX       D(m) = 1 / (pi ax ay ((m.x / ax)^2 + (m.y / ay)^2 + m.z^2)^2),
+ *             G1(v, m) = 2 / (1 + sqrt(1 + (ax^2 v.x^2 + ay^2 v.y^2) / v.z^2))
+ *   Beckmann  D(m) = exp(-((m.x / ax)^2 + (m.y / ay)^2) / m.z^2) / (pi ax ay m.z^4),
+ *             G1 by Mitsuba's rational fit in a = 1 / (alpha tan(theta_v)):
+ *             (3.535 a + 2.181 a^2) / (1 + 2.276 a + 2.577 a^2) for a < 1.6, else 1
+ * D is 0 where D cos(theta_m) <= 1e-20; G1 is 1 at normal incidence and 0 where v sees the back
+ * of m (v.m v.z <= 0).  Visible normals (D_v(m) = G1(v, m) |v.m| D(m) / v.z) are sampled with
+ * Heitz 2018 stretched to ax, ay for GGX and with Mitsuba's numerical inversion of the Beckmann
+ * slope distribution (Jakob 2014, "An Improved Visible Normal Sampling Routine for the Beckmann
+ * Distribution"; three Newton steps, Giles' erfinv) for Beckmann. */
+
+/* Giles 2010, "Approximating the erfinv function" (single precision) */
+RT_INLINE pfloat perfinv(pfloat x)
+{
+    const pfloat w0 = -plog((1.0f - x) * (1.0f + x));
+    const pint low = w0 < 5.0f;
+    const pfloat w = low ? w0 - 2.5f : psqrt(w0) - 3.0f;
+    pfloat p = low ? PFLOAT(2.81022636e-08f) : PFLOAT(-0.000200214257f);
+    p = (low ? PFLOAT(3.43273939e-07f) : PFLOAT(0.000100950558f)) + p * w;
+    p = (low ? PFLOAT(-3.5233877e-06f) : PFLOAT(0.00134934322f)) + p * w;
+    p = (low ? PFLOAT(-4.39150654e-06f) : PFLOAT(-0.00367342844f)) + p * w;
+    p = (low ? PFLOAT(0.00021858087f) : PFLOAT(0.00573950773f)) + p * w;
+    p = (low ? PFLOAT(-0.00125372503f) : PFLOAT(-0.0076224613f)) + p * w;
+    p = (low ? PFLOAT(-0.00417768164f) : PFLOAT(0.00943887047f)) + p * w;
+    p = (low ? PFLOAT(0.246640727f) : PFLOAT(1.00167406f)) + p * w;
+    p = (low ? PFLOAT(1.50140941f) : PFLOAT(2.83297682f)) + p * w;
+    return p * x;
+}
+
+RT_INLINE pfloat mf_d(pvec3 m, pfloat ax, pfloat ay, pint beckmann)
+{
+    const pfloat c2 = m.z * m.z;
+    const pfloat x = m.x / ax, y = m.y / ay;
+    const pfloat s = x * x + y * y + c2;
+    pfloat r = 1.0f / (PI_F * ax * ay * (s * s));
+    if (pany(beckmann)) r = beckmann ? pexp(-(x * x + y * y) / c2) / (PI_F * ax * ay * (c2 * c2)) : r;
+    return r * m.z > 1e-20f ? r : PFLOAT(0.0f);
+}
+
+RT_INLINE pfloat mf_g1(pvec3 v, pvec3 m, pfloat ax, pfloat ay, pint beckmann)
+{
+    const pfloat xy = (ax * v.x) * (ax * v.x) + (ay * v.y) * (ay * v.y);
+    const pfloat t2 = xy / (v.z * v.z);
+    pfloat r = 2.0f / (1.0f + psqrt(1.0f + t2));
+    if (pany(beckmann)) {
+        const pfloat a = 1.0f / psqrt(t2), a2 = a * a;
+        r = beckmann ? (a >= 1.6f ? PFLOAT(1.0f) : (3.535f * a + 2.181f * a2) / (1.0f + 2.276f * a + 2.577f * a2)) : r;
+    }
+    r = xy == 0.0f ? PFLOAT(1.0f) : r;
+    return pv3_dot(v, m) * v.z <= 0.0f ? PFLOAT(0.0f) : r;
+}
+
+/* The density of visible normals of v (v.z > 0), Mitsuba's pdf(): D(m) G1(v, m) |v.m| / v.z */
+RT_INLINE pfloat mf_vndf_pdf(pvec3 v, pvec3 m, pfloat ax, pfloat ay, pint beckmann)
+{
+    return mf_d(m, ax, ay, beckmann) * mf_g1(v, m, ax, ay, beckmann) * pabs(pv3_dot(v, m)) / v.z;
+}
+
+/* The Beckmann slopes of visible normals for alpha = 1 at cos_theta (Mitsuba's sample_visible_11) */
+RT_INLINE void mf_beckmann_slopes(pfloat cos_theta, pfloat u0, pfloat u1, pfloat *sx, pfloat *sy)
+{
+    const pfloat tan_theta = psqrt(pfmax(PFLOAT(0.0f), 1.0f - cos_theta * cos_theta)) / cos_theta;
+    const pfloat cot_theta = 1.0f / tan_theta;
+    const pfloat maxval = perf(cot_theta);
+    u0 = pclamp(u0, 1e-6f, 1.0f - 1e-6f);
+    u1 = pclamp(u1, 1e-6f, 1.0f - 1e-6f);
+    pfloat x = maxval - (maxval + 1.0f) * perf(psqrt(-plog(u0)));
+    u0 = u0 * (1.0f + maxval + 0.564189583547756f * tan_theta * pexp(-cot_theta * cot_theta));
+    for (int i = 0; i < 3; ++i) {
+        const pfloat slope = perfinv(x);
+        const pfloat value = 1.0f + x + 0.564189583547756f * tan_theta * pexp(-slope * slope) - u0;
+        const pfloat derivative = 1.0f - slope * tan_theta;
+        x = x - value / derivative;
+    }
+    *sx = perfinv(x);
+    *sy = perfinv(2.0f * u1 - 1.0f);
+}
+
+/* A visible normal of v (v.z > 0) from (u0, u1) in [0, 1)^2 */
+RT_INLINE pvec3 mf_sample_vndf(pvec3 v, pfloat ax, pfloat ay, pint beckmann, pfloat u0, pfloat u1, pint live)
+{
+    const pint ggx = live & pnot(beckmann), bk = live & beckmann;
+    pvec3 m = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f));
+    if (pany(ggx)) { /* Heitz 2018, stretched by ax, ay */
+        const pvec3 vh = pv3_normalize(pv3(ax * v.x, ay * v.y, v.z), ggx);
+        const pfloat lensq = vh.x * vh.x + vh.y * vh.y;
+        const pfloat rl = microfacet_rsqrt(lensq);
+        const pvec3 t1 = pv3_sel(pv3(PFLOAT(1.0f), PFLOAT(0.0f), PFLOAT(0.0f)), pv3(-vh.y * rl, vh.x * rl, 0.0f * rl),
+                                 lensq > 0.0f);
+        const pvec3 t2 = pv3_cross(vh, t1);
+        const pfloat r = psqrt(u0);
+        const pfloat phi = 2.0f * PI_F * u1;
+        const pfloat p1 = r * pcos(phi);
+        pfloat p2 = r * psin(phi);
+        const pfloat s = 0.5f * (1.0f + vh.z);
+        p2 = (1.0f - s) * psqrt(pfmax(PFLOAT(0.0f), 1.0f - p1 * p1)) + s * p2;
+        const pvec3 nh = pv3_add(pv3_add(pv3_scale(t1, p1), pv3_scale(t2, p2)),
+                                 pv3_scale(vh, psqrt(pfmax(PFLOAT(0.0f), 1.0f - p1 * p1 - p2 * p2))));
+        m = pv3_sel(m, pv3_normalize(pv3(ax * nh.x, ay * nh.y, pfmax(PFLOAT(1e-7f), nh.z)), ggx), ggx);
+    }
+    if (pany(bk)) { /* Mitsuba: stretch, slopes for alpha 1, rotate, unstretch */
+        const pvec3 vp = pv3_normalize(pv3(ax * v.x, ay * v.y, v.z), bk);
+        const pfloat s2 = vp.x * vp.x + vp.y * vp.y;
+        const pfloat inv = 1.0f / psqrt(s2);
+        const pint flat = s2 <= 4.0f * 5.9604645e-8f;
+        const pfloat cos_phi = flat ? PFLOAT(1.0f) : pclamp(vp.x * inv, -1.0f, 1.0f);
+        const pfloat sin_phi = flat ? PFLOAT(0.0f) : pclamp(vp.y * inv, -1.0f, 1.0f);
+        pfloat sx, sy;
+        mf_beckmann_slopes(vp.z, u0, u1, &sx, &sy);
+        const pfloat tx = (cos_phi * sx - sin_phi * sy) * ax, ty = (sin_phi * sx + cos_phi * sy) * ay;
+        m = pv3_sel(m, pv3_normalize(pv3(-tx, -ty, PFLOAT(1.0f)), bk), bk);
+    }
+    return m;
+}
+
 #endif

@@ -11,8 +11,9 @@
  * Work-item i renders the samples i * PACKET_BLOCK .. + PACKET_BLOCK of the launch (sample
  * first_pixel + j of pass first_pass, wrapping into the next passes, as wf_generate numbers
  * them; with n_listed > 0, entries of pixel_list), PACKET_WIDTH at a time: when a lane's path
- * ends, its radiance is written to its pass_ring entry (entry j of the launch with n_listed > 0)
- * and the lane starts the block's next sample, so the lanes stay full until the block runs out.
+ * ends, its radiance (times its camera sample's filter weight) is written to its pass_ring entry
+ * (entry j of the launch with n_listed > 0) and the lane starts the block's next sample, so the
+ * lanes stay full until the block runs out.
  * PACKET_BLOCK and LANE_GROUP come from the host (pyopencl_rt/render/megakernel.py; one sample
  * per work-item and the wave's group size at width 1).  The rays it traces are counted in
  * counters[COUNTER_RAYS_EXTEND] and [COUNTER_RAYS_SHADOW]. */
@@ -63,9 +64,9 @@ RT_INLINE void cursor_step(SampleCursor *c, int n_take, int ring_size, int width
  * each sample's pixel and ring entry as the wavefront numbers them, then on the lanes its
  * SampleKey (sampler_key) and its camera ray (camera_ray).  Returns the lanes started (all of
  * `starting`, or fewer when the block runs out). */
-RT_INLINE int start_lanes(__global const Camera *camera, int starting, SampleCursor *cur, int last, int n_pixels,
-                          __global const int *pixel_list, int n_listed, int ring_size, uint seed, PathState *s,
-                          SampleKey *key, pint *out)
+RT_INLINE int start_lanes(__global const Camera *camera, __global const float *filter_cdf, int starting,
+                          SampleCursor *cur, int last, int n_pixels, __global const int *pixel_list, int n_listed,
+                          int ring_size, uint seed, PathState *s, SampleKey *key, pint *out, pfloat *weight)
 {
     const int width = camera->width;
     const int n_take = n_listed > 0 ? n_listed : n_pixels;
@@ -94,8 +95,10 @@ RT_INLINE int start_lanes(__global const Camera *camera, int starting, SampleCur
     key->b = on ? fresh.b : key->b;
     key->c = on ? fresh.c : key->c;
     pvec3 o, d;
-    camera_ray(camera, *key, px, py, on, &o, &d);
+    pfloat w;
+    camera_ray(camera, filter_cdf, *key, px, py, on, &o, &d, &w);
     path_start(s, on, o, d);
+    *weight = on ? w : *weight;
     return started;
 }
 
@@ -114,8 +117,9 @@ __kernel void mk_path(WAVE_PARAMS)
     SampleKey key;
     key.a = key.b = key.c = PUINT(0);
     pint out = PINT(0);
-    int live = start_lanes(camera, (1 << PACKET_WIDTH) - 1, &cur, last, n_pixels, pixel_list, n_listed, ring_size,
-                           seed, &s, &key, &out); /* bit k: lane k holds a path */
+    pfloat weight = PFLOAT(1.0f); /* the camera samples' filter weights */
+    int live = start_lanes(camera, filter_cdf, (1 << PACKET_WIDTH) - 1, &cur, last, n_pixels, pixel_list, n_listed,
+                           ring_size, seed, &s, &key, &out, &weight); /* bit k: lane k holds a path */
     while (live) {
         const pint live_lanes = pmask(live);
         /* -- extend: the live lanes' rays ------------------------------------------------------ */
@@ -142,7 +146,7 @@ __kernel void mk_path(WAVE_PARAMS)
         const int ended = live & ~pbits(goes_on);
         for (int k = 0; k < PACKET_WIDTH; ++k) {
             if (!((ended >> k) & 1)) continue;
-            float3 L = pv3_lane(s.L, k);
+            float3 L = pv3_lane(s.L, k) * PLANE(weight, k);
             if (!(isfinite(L.x) && isfinite(L.y) && isfinite(L.z))) {
                 atomic_inc(&counters[COUNTER_NONFINITE]);
                 L = (float3)(0.0f);
@@ -151,8 +155,8 @@ __kernel void mk_path(WAVE_PARAMS)
         }
         live &= ~ended;
         if (ended && cur.j < last)
-            live |= start_lanes(camera, ended, &cur, last, n_pixels, pixel_list, n_listed, ring_size, seed, &s, &key,
-                                &out);
+            live |= start_lanes(camera, filter_cdf, ended, &cur, last, n_pixels, pixel_list, n_listed, ring_size,
+                                seed, &s, &key, &out, &weight);
     }
     add_group_ray_counts(group_rays, LANE_GROUP, n_extend, n_shadow, counters);
 }

@@ -221,6 +221,8 @@ RT_INLINE pfloat patan2(pfloat y, pfloat x) { return PLIB2(atan2, y, x); }
 RT_INLINE pfloat pfloor(pfloat x) { return PLIB1(floor, x); }
 RT_INLINE pfloat pexp(pfloat x) { return PLIB1(exp, x); }
 RT_INLINE pfloat plog(pfloat x) { return PLIB1(log, x); }
+RT_INLINE pfloat perf(pfloat x) { return PLIB1(erf, x); }
+RT_INLINE pfloat ppow(pfloat x, pfloat y) { return PLIB2(pow, x, y); }
 RT_INLINE pint pisfinite(pfloat x) { return (as_puint(x) & PUINT(0x7f800000u)) != PUINT(0x7f800000u); }
 
 /* A 3-vector per lane. */

@@ -10,7 +10,8 @@
  * (cl/render/lights.h); what has no lane form (texture fetches, the environment map's CDF search,
  * library sin/cos, the double-precision plane test near a light) runs lane by lane.
  *
- *   camera_ray      the camera rays of (pixel, pass): box-filtered pixel jitter, thin lens
+ *   camera_ray      the camera rays of (pixel, pass): the pixel filter's offset (filter.h) and
+ *                   the sample's weight, perspective or orthographic, thin lens
  *   path_escape     (HAS_ENVIRONMENT) the environment seen by the lanes whose rays left the
  *                   scene, weighted as the emission of a hit
  *   path_shade      at the lanes' hits: their emission, weighted by MIS against light sampling
@@ -37,9 +38,11 @@
 #define PYOPENCL_RT_PATH_H
 
 #include "render/lights.h"
+#include "render/filter.h"
 #ifdef HAS_TEXTURES
 #include "scene/textures.h"
 #endif
+#include "scene/shading.h"
 #ifdef HAS_AOVS
 #include "render/aov.h"
 #endif
@@ -69,27 +72,43 @@ typedef struct {
     __global const int *sphere_light, __global const Material *materials,                            \
     __global const Light *lights, const int n_lights, __global const float *env_map,                 \
     __global const float *env_cdf, __global const float2 *tri_uv, __global const Texture *textures,  \
-    __global const float4 *tex_data, __global float *aov_path, const int max_depth, const int rr_depth
+    __global const float4 *tex_data, __global const float *tri_normal, __global const float *tri_color, \
+    __global float *aov_path, const int max_depth, const int rr_depth
 #define PATH_ARGS                                                                                     \
     tris, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,          \
-    n_lights, env_map, env_cdf, tri_uv, textures, tex_data, aov_path, max_depth, rr_depth
+    n_lights, env_map, env_cdf, tri_uv, textures, tex_data, tri_normal, tri_color, aov_path, max_depth, \
+    rr_depth
 
-/* The camera rays through pixels (x, y) of the lanes. */
-RT_INLINE void camera_ray(__global const Camera *camera, SampleKey k, pint x, pint y, pint live, pvec3 *origin,
-                          pvec3 *direction)
+/* The camera rays through pixels (x, y) of the lanes, and the weight each sample carries (the
+ * pixel filter's sign and normalisation, cl/render/filter.h; 1 for filters without negative
+ * lobes). */
+RT_INLINE void camera_ray(__global const Camera *camera, __global const float *filter_cdf, SampleKey k, pint x,
+                          pint y, pint live, pvec3 *origin, pvec3 *direction, pfloat *weight)
 {
     const Camera cam = *camera;
-    pfloat jx, jy;
-    sample_2d(k, PUINT(DIM_PIXEL), &jx, &jy);
+    pfloat ux, uy;
+    pint negative_x, negative_y;
+    sample_2d(k, PUINT(DIM_PIXEL), &ux, &uy);
+    const pfloat jx = filter_jitter(&cam, filter_cdf, 0, ux, &negative_x);
+    const pfloat jy = filter_jitter(&cam, filter_cdf, 1, uy, &negative_y);
+    *weight = filter_weight(&cam, negative_x, negative_y);
     const pfloat sx = (convert_pfloat(x) + jx) / (float)cam.width * 2.0f - 1.0f;
     const pfloat sy = 1.0f - (convert_pfloat(y) + jy) / (float)cam.height * 2.0f;
     const float3 forward = vload3(0, cam.forward), right = vload3(0, cam.right), up = vload3(0, cam.up);
-    const pvec3 dir = pv3_add(pv3_add(pv3_splat(forward), pv3_scale(pv3_splat(right), sx)), pv3_scale(pv3_splat(up), sy));
-    pvec3 d = pv3_normalize(dir, live), o = pv3_splat(vload3(0, cam.origin));
+    pvec3 dir, d, o = pv3_splat(vload3(0, cam.origin));
+    if (cam.projection == PROJECTION_ORTHOGRAPHIC) {
+        /* parallel rays from the film's points */
+        dir = pv3_splat(forward);
+        d = pv3_normalize(dir, live);
+        o = pv3_add(pv3_add(o, pv3_scale(pv3_splat(right), sx)), pv3_scale(pv3_splat(up), sy));
+    } else {
+        dir = pv3_add(pv3_add(pv3_splat(forward), pv3_scale(pv3_splat(right), sx)), pv3_scale(pv3_splat(up), sy));
+        d = pv3_normalize(dir, live);
+    }
     if (cam.lens_radius > 0.0f) {
         /* thin lens: from a point of the lens disk (concentric map, dims DIM_LENS and + 1)
-         * through the point of the pinhole ray at distance focus_distance along forward;
-         * lens_radius 0 is the pinhole, bit for bit */
+         * through the point of the pinhole ray at distance focus_distance along forward (dir:
+         * forward at unit distance); lens_radius 0 is the pinhole, bit for bit */
         pfloat lx, ly, dx, dy;
         sample_2d(k, PUINT(DIM_LENS), &lx, &ly);
         sample_concentric_disk(lx, ly, &dx, &dy);
@@ -183,8 +202,15 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
 #ifdef HAS_TEXTURES
     texture_material(tri_uv, textures, tex_data, hit & pnot(IS_SPHERE(prim)), prim, u, v, &m);
 #endif
+#ifdef HAS_VERTEX_COLORS
+    vertex_color_material(tri_color, hit, prim, u, v, &m);
+#endif
+    /* the BSDF's frame: the shading normal (interpolated, normal- or bump-mapped) on wo's side,
+     * or n (cl/scene/shading.h) */
+    const ShadingLanes sh = shading_lanes(tris, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit,
+                                          prim, u, v, ng, n, front, wo);
 #ifdef HAS_AOVS
-    aov_hit(aov_path, slot, hit, s->depth, &m, n, wo, p, t, s->beta);
+    aov_hit(aov_path, slot, hit, s->depth, &m, sh.n, wo, p, t, s->beta);
 #endif
     const puint dim = convert_puint(2 + DIMS_PER_BOUNCE * s->depth);
 
@@ -242,7 +268,8 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
             dist = far ? ls.far : dist;
 #endif
             pfloat bpdf;
-            const pvec3 f = bsdf_eval(&m, sampled, n, front, wo, wi, &bpdf);
+            pvec3 f = bsdf_eval(&m, sampled, sh.n, sh.front, wo, wi, &bpdf);
+            f = shading_eval(&sh, wi, f, &bpdf);
             const pint lit = sampled & (pv3_max3(f) > 0.0f) & (dist > 0.0f);
             if (pany(lit)) {
                 const pfloat lpdf = pick_pmf * ls.pdf;
@@ -269,13 +296,14 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     sample_2d(key, dim + DIM_BSDF, &ubx, &uby);
     pvec3 wi;
     pint delta;
-    const pvec3 weight = bsdf_sample(&m, going, n, front, wo, ubx, uby, sample_1d(key, dim + DIM_BSDF_LOBE),
-                                     &wi, &pdf, &delta);
+    pvec3 weight = bsdf_sample(&m, going, sh.n, sh.front, wo, ubx, uby, sample_1d(key, dim + DIM_BSDF_LOBE), &wi,
+                               &pdf, &delta);
+    weight = shading_sample(&sh, wi, weight, &pdf);
     pint on = going & ((pdf > 0.0f) | delta) & (pv3_max3(weight) > 0.0f);
     if (!pany(on)) return;
     const pvec3 beta = pv3_mul(s->beta, weight);
-    const pfloat eta = dielectric_eta(&m, front);
-    const pfloat eta_scale = pv3_dot(wi, n) < 0.0f ? s->eta_scale * (eta * eta) : s->eta_scale;
+    const pfloat eta = dielectric_eta(&m, sh.front);
+    const pfloat eta_scale = pv3_dot(wi, sh.n) < 0.0f ? s->eta_scale * (eta * eta) : s->eta_scale;
     const pint roulette = segments >= rr_depth;
 #ifdef RR_NO_ETA
     const pfloat q = pfmin(pv3_max3(beta), PFLOAT(0.95f));

@@ -15,6 +15,11 @@
  *   tex_base      albedo *= rgb (diffuse, gltf); tint *= rgb (dielectric)
  *   tex_mr        glTF metallicRoughness: metallic *= b, roughness *= g (alpha *= g^2)
  *   tex_emission  emission *= rgb
+ *   tex_scalar    slot k (used slots first, -1 after them): the parameter TEXP_* named by bits
+ *                 4k..4k+3 of tex_params *= r (alpha, roughness, metallic, anisotropic, ...: the
+ *                 Mitsuba types' textured parameters; the host stores the value in R)
+ *   tex_normal    a normal map (tex_sample) or bump map (tex_gradient: the derivative of the
+ *                 bilinear lookup, as Mitsuba's bump maps take it), read by cl/scene/shading.h
  * texture_material() applies them to the lanes' gathered materials (MaterialLanes) before
  * shading, so the BSDF and emission code is unchanged.  For next-event estimation
  * texture_light_emission() re-derives the sampled point's barycentrics from the same random
@@ -30,23 +35,51 @@ RT_INLINE float4 tex_fetch(__global const float4 *data, __global const Texture *
     return data[t->offset + y * t->width + x];
 }
 
-/* Bilinear, wrap-addressed lookup of texture `index` at uv. */
-RT_INLINE float4 tex_sample(__global const Texture *textures, __global const float4 *data, int index, float2 uv)
+/* The four texels around uv (wrap addressing) and the bilinear weights ax, ay of the right and
+ * bottom ones. */
+typedef struct { int x0, y0, x1, y1; float ax, ay; } TexelQuad;
+
+RT_INLINE TexelQuad tex_quad(__global const Texture *t, float2 uv)
 {
-    __global const Texture *t = textures + index;
     const int w = t->width, h = t->height;
     float2 c = (float2)(isfinite(uv.x) ? uv.x : 0.0f, isfinite(uv.y) ? uv.y : 0.0f);
     c -= floor(c);
     const float fx = c.x * (float)w - 0.5f, fy = c.y * (float)h - 0.5f;
     const float x0f = floor(fx), y0f = floor(fy);
-    const float ax = fx - x0f, ay = fy - y0f;
+    TexelQuad q;
+    q.ax = fx - x0f;
+    q.ay = fy - y0f;
     int x0 = (int)x0f, y0 = (int)y0f;
-    x0 = x0 < 0 ? x0 + w : (x0 >= w ? x0 - w : x0);
-    y0 = y0 < 0 ? y0 + h : (y0 >= h ? y0 - h : y0);
-    const int x1 = x0 + 1 >= w ? 0 : x0 + 1, y1 = y0 + 1 >= h ? 0 : y0 + 1;
-    const float4 top = mix(tex_fetch(data, t, x0, y0), tex_fetch(data, t, x1, y0), ax);
-    const float4 bot = mix(tex_fetch(data, t, x0, y1), tex_fetch(data, t, x1, y1), ax);
-    return mix(top, bot, ay);
+    q.x0 = x0 < 0 ? x0 + w : (x0 >= w ? x0 - w : x0);
+    q.y0 = y0 < 0 ? y0 + h : (y0 >= h ? y0 - h : y0);
+    q.x1 = q.x0 + 1 >= w ? 0 : q.x0 + 1;
+    q.y1 = q.y0 + 1 >= h ? 0 : q.y0 + 1;
+    return q;
+}
+
+/* Bilinear, wrap-addressed lookup of texture `index` at uv. */
+RT_INLINE float4 tex_sample(__global const Texture *textures, __global const float4 *data, int index, float2 uv)
+{
+    __global const Texture *t = textures + index;
+    const TexelQuad q = tex_quad(t, uv);
+    const float4 top = mix(tex_fetch(data, t, q.x0, q.y0), tex_fetch(data, t, q.x1, q.y0), q.ax);
+    const float4 bot = mix(tex_fetch(data, t, q.x0, q.y1), tex_fetch(data, t, q.x1, q.y1), q.ax);
+    return mix(top, bot, q.ay);
+}
+
+/* The gradient (d/du, d/dv) of the bilinear lookup's luminance (Rec. 709 weights) at uv, as
+ * Mitsuba 3's bitmap texture computes it for bump maps (eval_1_grad): the derivative of the
+ * bilinear interpolation within the four texels around uv, times the resolution. */
+RT_INLINE float2 tex_gradient(__global const Texture *textures, __global const float4 *data, int index, float2 uv)
+{
+    __global const Texture *t = textures + index;
+    const TexelQuad q = tex_quad(t, uv);
+    const float3 lum = (float3)(0.212671f, 0.715160f, 0.072169f);
+    const float f00 = dot(tex_fetch(data, t, q.x0, q.y0).xyz, lum), f10 = dot(tex_fetch(data, t, q.x1, q.y0).xyz, lum);
+    const float f01 = dot(tex_fetch(data, t, q.x0, q.y1).xyz, lum), f11 = dot(tex_fetch(data, t, q.x1, q.y1).xyz, lum);
+    const float dx = (1.0f - q.ay) * (f10 - f00) + q.ay * (f11 - f01);
+    const float dy = (1.0f - q.ax) * (f01 - f00) + q.ax * (f11 - f10);
+    return (float2)((float)t->width * dx, (float)t->height * dy);
 }
 
 RT_INLINE float2 triangle_uv(__global const float2 *tri_uv, int prim, float u, float v)
@@ -60,7 +93,9 @@ RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Te
                                 __global const float4 *data, pint tri_hit, pint prim, pfloat u, pfloat v,
                                 MaterialLanes *m)
 {
-    const pint textured = tri_hit & ((m->tex_base >= 0) | (m->tex_mr >= 0) | (m->tex_emission >= 0));
+    __global const int *recs = (__global const int *)m->records;
+    const pint scalar = pgather_int(recs, m->rec + FIELD_INDEX(Material, tex_scalar)) >= 0;
+    const pint textured = tri_hit & ((m->tex_base >= 0) | (m->tex_mr >= 0) | (m->tex_emission >= 0) | scalar);
     if (!pany(textured)) return;
     for (int k = 0; k < PACKET_WIDTH; ++k) {
         if (!PLANE_I(textured, k)) continue;
@@ -79,6 +114,29 @@ RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Te
         if (emission >= 0) {
             const float3 c = tex_sample(textures, data, emission, uv).xyz;
             pv3_set_lane(&m->emission, k, pv3_lane(m->emission, k) * c);
+        }
+        __global const int *rec = recs + PLANE_I(m->rec, k);
+        const int params = rec[FIELD_INDEX(Material, tex_params)];
+        for (int slot = 0; slot < TEX_SLOTS; ++slot) {
+            const int t = rec[FIELD_INDEX(Material, tex_scalar) + slot];
+            if (t < 0) break;
+            const float c = tex_sample(textures, data, t, uv).x;
+            switch ((params >> (4 * slot)) & 15) {
+            case TEXP_ALPHA: PLANE(m->alpha, k) *= c; break;
+            case TEXP_ROUGHNESS: PLANE(m->roughness, k) *= c; break;
+            case TEXP_METALLIC: PLANE(m->metallic, k) *= c; break;
+            case TEXP_ANISOTROPIC: PLANE(m->anisotropic, k) *= c; break;
+            case TEXP_SPEC_TRANS: PLANE(m->spec_trans, k) *= c; break;
+            case TEXP_SPEC_TINT: PLANE(m->spec_tint, k) *= c; break;
+            case TEXP_SHEEN: PLANE(m->sheen, k) *= c; break;
+            case TEXP_SHEEN_TINT: PLANE(m->sheen_tint, k) *= c; break;
+            case TEXP_CLEARCOAT: PLANE(m->clearcoat, k) *= c; break;
+            case TEXP_CLEARCOAT_GLOSS: PLANE(m->clearcoat_gloss, k) *= c; break;
+            case TEXP_FLATNESS: PLANE(m->flatness, k) *= c; break;
+            case TEXP_DIFF_TRANS: PLANE(m->diff_trans, k) *= c; break;
+            case TEXP_ETA: PLANE(m->ior, k) *= c; break;
+            default: break;
+            }
         }
     }
 }

@@ -1,5 +1,5 @@
-/* Stage 5: finished paths.  The radiance goes to its pass's buffer in the ring (one write per
- * pixel and pass, so no float atomics and no order dependence), non-finite values are counted
+/* Stage 5: finished paths.  The radiance, times the camera sample's filter weight, goes to its
+ * pass's buffer in the ring (one write per pixel and pass, so no float atomics and no order dependence), non-finite values are counted
  * and dropped, and the slot returns to the free stack (of free_base entries before). */
 #include "render/lights.h"
 #ifdef HAS_AOVS
@@ -11,7 +11,7 @@ __kernel void wf_accumulate(WAVE_PARAMS)
     const int i = get_global_id(0);
     if (i >= counters[COUNTER_TERM]) return;
     const int slot = term_q[i];
-    float3 L = load3(radiance, slot);
+    float3 L = load3(radiance, slot) * path_weight[slot]; /* the camera sample's filter weight */
     if (!(isfinite(L.x) && isfinite(L.y) && isfinite(L.z))) {
         atomic_inc(&counters[COUNTER_NONFINITE]);
         L = (float3)(0.0f);

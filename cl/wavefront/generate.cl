@@ -3,7 +3,7 @@
  * (first_pass, first_pixel); later ones take the following pixels, wrapping into the next pass.
  * With n_listed > 0 (adaptive sampling) a pass covers only the pixels pixel_list[0..n_listed),
  * and first_pixel counts entries of that list.
- * The camera ray: camera_ray() of cl/render/path.h. */
+ * The camera ray: camera_ray() of cl/render/path.h; its filter weight waits in path_weight. */
 #include "render/path.h"
 
 __kernel void wf_generate(WAVE_PARAMS)
@@ -19,7 +19,9 @@ __kernel void wf_generate(WAVE_PARAMS)
 
     const SampleKey key = sampler_key(seed, (uint)pixel, (uint)camera->width, (uint)pass);
     pvec3 o, d;
-    camera_ray(camera, key, pixel % camera->width, pixel / camera->width, PTRUE, &o, &d);
+    pfloat weight;
+    camera_ray(camera, filter_cdf, key, pixel % camera->width, pixel / camera->width, PTRUE, &o, &d, &weight);
+    path_weight[slot] = weight;
     store3(ray_o, slot, pv3_lane(o, 0));
     store3(ray_d, slot, pv3_lane(d, 0));
     store3(throughput, slot, (float3)(1.0f));

@@ -22,8 +22,11 @@ Correspondence (checked by tests/bench/test_convergence.py against our renderer)
   scene.  Mitsuba has no two-sided area emitter: a two-sided emissive material is refused;
 * spheres: ``sphere`` shapes (emitting outwards, as ours);
 * camera: ``perspective``, ``to_world = look_at(eye, look_at, up)``, ``fov_axis = 'y'`` (our
-  fov is vertical), ``hdrfilm`` with a ``box`` filter (our pixel jitter is uniform over the pixel)
-  and ``pixel_format = 'rgb'``;
+  fov is vertical), or ``orthographic`` with ``to_world = look_at(...) @ scale(s, s, 1)``, s our
+  film's half width (Mitsuba's film is 2 wide and 2 / aspect high before the scale), the origin
+  moved back by near_clip so that the rays start at our eye; ``hdrfilm`` with our pixel filter
+  (:func:`mitsuba_rfilter`; a filter Mitsuba cannot express is refused) and
+  ``pixel_format = 'rgb'``;
 * integrator: ``path`` with our ``max_depth`` (both count path segments: 1 = emitters only) and
   ``rr_depth`` = our ``rr_depth`` (default 5, as Mitsuba's): both apply Russian roulette from
   the ``rr_depth``-th surface interaction on, keeping a path with probability
@@ -54,6 +57,10 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
     for m in scene.materials:
         if m.is_emissive and m.two_sided:
             raise ValueError(f"material {m.name!r}: Mitsuba 3 has no two-sided area emitter")
+    for has, what in (("has_shading_normals", "shading normals"), ("has_normal_maps", "normal and bump maps"),
+                      ("has_vertex_colors", "vertex colours")):
+        if getattr(scene, has, lambda: False)():
+            raise ValueError(f"{what} are not exported to Mitsuba yet (the meshes are written flat, face_normals)")
     cam = scene.camera
     record = {
         "width": settings.width, "height": settings.height,
@@ -62,6 +69,8 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
         "rr_depth": settings.rr_depth,
         "eye": [float(x) for x in cam.eye], "look_at": [float(x) for x in cam.look_at],
         "up": [float(x) for x in cam.up], "fov": float(cam.fov),
+        "projection": getattr(cam, "projection", "perspective"), "extent": float(getattr(cam, "extent", 2.0)),
+        "filter": settings.filter.as_dict(),
         "materials": [{"name": m.name, "bsdf": m.mitsuba_bsdf(),
                        "emission": [float(x) for x in m.emission]} for m in scene.materials],
     }
@@ -107,16 +116,20 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
     s = json.loads(arrays["settings"]) if isinstance(arrays["settings"], str) else arrays["settings"]
     tmpdir = tmpdir or tempfile.mkdtemp(prefix="pyopencl_rt_mi_")
     T = mi.ScalarTransform4f
-    look_at = T.look_at(origin=s["eye"], target=s["look_at"], up=s["up"])
+    near = 1e-3 * _scene_scale(arrays)
+    if s.get("projection", "perspective") == "orthographic":
+        sensor = {"type": "orthographic", "to_world": T(_orthographic_to_world(s, near).tolist())}
+    else:
+        sensor = {"type": "perspective", "fov": float(s["fov"]), "fov_axis": "y",
+                  "to_world": T.look_at(origin=s["eye"], target=s["look_at"], up=s["up"])}
     d = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": int(s["max_depth"]), "rr_depth": int(s["rr_depth"])},
         "sensor": {
-            "type": "perspective", "fov": float(s["fov"]), "fov_axis": "y", "to_world": look_at,
-            "near_clip": 1e-3 * _scene_scale(arrays), "far_clip": 1e3 * _scene_scale(arrays),
+            **sensor, "near_clip": near, "far_clip": 1e3 * _scene_scale(arrays),
             "sampler": {"type": "independent", "sample_count": int(s["spp"])},
             "film": {"type": "hdrfilm", "width": int(s["width"]), "height": int(s["height"]),
-                     "rfilter": {"type": "box"}, "pixel_format": "rgb"},
+                     "rfilter": mitsuba_rfilter(s.get("filter", {"type": "box"})), "pixel_format": "rgb"},
         },
     }
     mats = s["materials"]
@@ -142,6 +155,45 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
             shape["emitter"] = emitter(m)
         d[f"sphere_{i}"] = shape
     return d
+
+
+def mitsuba_rfilter(flt: dict) -> dict:
+    """Mitsuba 3's rfilter for our pixel filter (PixelFilter.as_dict()); ValueError for one it has
+    no equivalent of (its box is 1 pixel wide, its gaussian cut at 4 stddev, its mitchell 4 pixels
+    wide, its lanczos as wide as its whole number of lobes; all the same along x and y)."""
+    t = flt.get("type", "box")
+    rx, ry = flt.get("radius", (0.5, 0.5))
+
+    def close(a, b):
+        return abs(a - b) <= 1e-6 * max(abs(a), abs(b), 1.0)
+
+    if not close(rx, ry):
+        raise ValueError(f"Mitsuba's filters have one radius: {t} of radii {rx:g}, {ry:g}")
+    if t == "box" and close(rx, 0.5):
+        return {"type": "box"}
+    if t == "tent":
+        return {"type": "tent", "radius": float(rx)}
+    if t == "gaussian" and close(rx, 4 * flt["sigma"]):
+        return {"type": "gaussian", "stddev": float(flt["sigma"])}
+    if t == "mitchell" and close(rx, 2.0):
+        return {"type": "mitchell", "B": float(flt["b"]), "C": float(flt["c"])}
+    if t == "lanczos" and close(rx, flt["tau"]) and close(rx, round(rx)):
+        return {"type": "lanczos", "lobes": int(round(rx))}
+    raise ValueError(f"Mitsuba 3 has no {t} filter of radius {rx:g} (and these parameters): {flt}")
+
+
+def _orthographic_to_world(s: dict, near: float) -> np.ndarray:
+    """Mitsuba's look_at(origin, target, up) @ scale(h, h, 1) for our orthographic camera, h its half
+    width, the origin near behind our eye (Mitsuba's rays start at near_clip along local z)."""
+    eye, target, up = (np.asarray(s[k], np.float64) for k in ("eye", "look_at", "up"))
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    left = np.cross(up, forward)
+    left /= np.linalg.norm(left)
+    half_width = s["extent"] / 2 * s["width"] / s["height"]
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = left * half_width, np.cross(forward, left) * half_width, forward
+    m[:3, 3] = eye - near * forward
+    return m
 
 
 def _scene_scale(arrays) -> float:

@@ -202,10 +202,13 @@ class MitsubaCornellBoxServer:
     """Mitsuba rendering its Cornell box on request, for timings interleaved with ours
     (``bench render --mitsuba``): :mod:`.mitsuba_cornell_box` ``--serve`` in Mitsuba's interpreter,
     warmed up (JIT) with one ``warmup_spp`` render when entered; :meth:`render` times one more.
+    ``rfilter``: the film's filter (:func:`.mitsuba_export.mitsuba_rfilter` of ours).
     ``info``: Mitsuba's version, variant and image size; ``renders``: every timed render."""
 
-    def __init__(self, *, mitsuba_python=None, llvm_path=None, variant=DEFAULT_VARIANT, warmup_spp=16, echo=print):
+    def __init__(self, *, mitsuba_python=None, llvm_path=None, variant=DEFAULT_VARIANT, warmup_spp=16, echo=print,
+                 rfilter=None):
         self.mitsuba_python, self.llvm_path, self.variant = mitsuba_python, llvm_path, variant
+        self.rfilter = rfilter  # the film's rfilter dict (None: cornell_box()'s gaussian)
         self.warmup_spp, self.echo = warmup_spp, echo
         self.process = self.info = None
         self.renders: list[dict] = []
@@ -217,7 +220,7 @@ class MitsubaCornellBoxServer:
         self._stderr = tempfile.TemporaryFile(mode="w+")  # a file, not a pipe nobody drains
         self.process = subprocess.Popen(
             [python, str(HERE / "mitsuba_cornell_box.py"), "--serve", "--variant", self.variant,
-             "--spp", str(self.warmup_spp)],
+             "--spp", str(self.warmup_spp)] + (["--rfilter", json.dumps(self.rfilter)] if self.rfilter else []),
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr, text=True,
             env=mitsuba_env(self.llvm_path))
         self.info = self._reply()

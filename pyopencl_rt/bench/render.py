@@ -1,7 +1,8 @@
 """``pyopencl-rt bench render``: samples/s of the path tracer on each device, and optionally with
 the extend and shadow stages on Embree (``--intersector opencl,embree``) beside our traversal, with
 each path schedule (``--kernel-mode wavefront,megakernel``), and Mitsuba 3 on its own Cornell box
-in the same run (``--mitsuba``; compare with ``scenes/mitsuba-cbox.toml``, its transcription).
+in the same run (``--mitsuba``; compare with ``scenes/mitsuba-cbox.toml``, its transcription; Mitsuba's
+film is given the scene's pixel filter, so that both filter alike).
 
 Kernel build and BVH upload are not timed (see :func:`.timing.interleaved_render_rates`); every
 device x intersector is timed in each repetition and the median is reported.  Mitsuba renders its
@@ -23,6 +24,20 @@ MITSUBA = "mitsuba"  # its rates' key beside our variants' labels
 # renderer's worker threads still running after its render slowed the other's next one (7 rounds
 # on 2 cores: Mitsuba 2.30 Msamples/s without the pause, 2.45 with it; ours 2.72 and 2.86)
 MITSUBA_PAUSE = 1.0
+
+
+def mitsuba_filter(scene) -> dict:
+    """Mitsuba's rfilter for the scene's pixel filter, so that both renderers filter alike (a
+    UserError for one Mitsuba has no equivalent of)."""
+    from ..errors import UserError
+    from ..render.settings import ImageSettings
+    from .mitsuba_export import mitsuba_rfilter
+
+    flt = ImageSettings.resolve(scene).filter
+    try:
+        return mitsuba_rfilter(flt.as_dict())
+    except ValueError as exc:
+        raise UserError(f"--mitsuba: the scene's pixel filter cannot be given to Mitsuba ({exc})") from None
 
 
 def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, max_depth=8, repeat=3,
@@ -63,7 +78,8 @@ def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, ma
         if mitsuba is not None:  # warmed up (JIT) with one render of spp, then timed in our rounds
             from .mitsuba_host import MitsubaCornellBoxServer
 
-            server = stack.enter_context(MitsubaCornellBoxServer(warmup_spp=spp, echo=echo, **mitsuba))
+            server = stack.enter_context(MitsubaCornellBoxServer(warmup_spp=spp, echo=echo,
+                                                                 rfilter=mitsuba_filter(scene), **mitsuba))
             others[MITSUBA] = server.render
         rates, last_info = interleaved_render_rates(variants, spp, repeat, profile=True, others=others,
                                                     pause=MITSUBA_PAUSE if others else 0.0)
@@ -93,7 +109,7 @@ def run_render_bench(scene_path, devices=None, width=512, height=512, spp=16, ma
         theirs = {**server.info, "renders": server.renders, "samples_per_second_all": theirs_rates,
                   "samples_per_second_median": statistics.median(theirs_rates)}
         results["mitsuba"] = theirs
-        echo(f"{'Mitsuba ' + theirs['version'] + ' ' + theirs['variant'] + ' (mi.cornell_box())':<60} "
+        echo(f"{'Mitsuba ' + theirs['version'] + ' ' + theirs['variant'] + ' (mi.cornell_box(), our filter)':<60} "
              f"{theirs['samples_per_second_median'] / 1e6:10.3f}")
         for label, row in results["devices"].items():
             row["ratio_to_mitsuba"] = row["samples_per_second_median"] / theirs["samples_per_second_median"]

@@ -62,38 +62,111 @@ assert BVH_NODE.itemsize == 64
 TRIANGLE = np.dtype([("v0", np.float32, 4), ("v1", np.float32, 4), ("v2", np.float32, 4)])
 assert TRIANGLE.itemsize == 48
 
-# A material (96 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
+# A material (464 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
 # documented at the top of cl/materials/<name>.h); every type may also emit.
-#   albedo    diffuse: reflectance; gltf: baseColor
+#   albedo    diffuse: reflectance; gltf, principled, principledthin: base colour; plastic,
+#             roughplastic: diffuse_reflectance
 #   emission  emitted radiance (any type)
 #   flags     bit 0: emission on both sides (default: only on the side the geometric normal
-#             faces); bit 1: conductor Fresnel from `specular` as F0 (Schlick) instead of eta, k
-#   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes
-#   alpha     GGX roughness alpha (conductor, dielectric, gltf); < 1e-3 is perfectly smooth
+#             faces); bit 1: conductor Fresnel from `specular` as F0 (Schlick) instead of eta, k;
+#             bit 2 (MATERIAL_FLAG_NONLINEAR): plastic, roughplastic: Mitsuba's `nonlinear`;
+#             bit 3 (MATERIAL_FLAG_BECKMANN): roughplastic: the Beckmann distribution (else GGX)
+#             bit 4: tex_normal is a height (bump) map, not a tangent-space normal map; bit 5:
+#             the reflectance (albedo, dielectric tint) is multiplied by the triangle's vertex
+#             colours (tri_color); bits 6-8: the normal/bump map's Mitsuba conventions
+#             (cl/scene/shading.h): flip normals that face away from the viewer, the shadowing
+#             term of Estevez et al. 2019, directions on opposite sides of the two frames masked
+#   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes;
+#             plastic, roughplastic: specular_reflectance
+#   alpha     GGX roughness alpha (conductor, dielectric, gltf; < 1e-3 is perfectly smooth);
+#             roughplastic: the distribution's alpha (clamped to >= 1e-4, as Mitsuba's)
 #   eta, k    conductor: complex index of refraction eta + i k per channel
-#   metallic  gltf
+#   metallic  gltf, principled
 #   ior       dielectric: index of the inside relative to the outside; gltf: the dielectric's
-#             index (F0 = ((ior - 1) / (ior + 1))^2)
+#             index (F0 = ((ior - 1) / (ior + 1))^2); plastic, roughplastic, principled: the
+#             relative index eta = int_ior / ext_ior; principledthin: the sheet's eta
+# The fields after the texture indices serve the types of Mitsuba 3 (issue 24):
+#   alpha_v      (reserved: 0)
+#   fdr          plastic: the internal diffuse Fresnel reflectance fdr_int (Egan & Hilgeman's fit
+#                at 1 / eta); roughplastic: the rough interface's internal reflectance
+#   spec_weight  plastic, roughplastic: the specular sampling weight s / (d + s) of the means of
+#                specular_reflectance and diffuse_reflectance
+#   roughness, anisotropic, spec_trans, spec_tint, sheen, sheen_tint, clearcoat,
+#   clearcoat_gloss, flatness, diff_trans   principled, principledthin: Mitsuba's parameters
+#   rates        principled: the sampling rates of the main specular lobe, the clearcoat and
+#                the diffuse reflection (4th unused); principledthin: of the specular
+#                reflection, specular transmission, diffuse transmission and diffuse reflection
+#   table        roughplastic: the rough interface's external transmittance at cos(theta) =
+#                k / 63, k = 0..63 (Mitsuba's table, interpolated linearly)
 MATERIAL_DIFFUSE = define("MATERIAL_DIFFUSE", 0)
 MATERIAL_CONDUCTOR = define("MATERIAL_CONDUCTOR", 1)
 MATERIAL_DIELECTRIC = define("MATERIAL_DIELECTRIC", 2)
 MATERIAL_GLTF = define("MATERIAL_GLTF", 3)
+MATERIAL_PLASTIC = define("MATERIAL_PLASTIC", 4)
+MATERIAL_ROUGHPLASTIC = define("MATERIAL_ROUGHPLASTIC", 5)
+MATERIAL_PRINCIPLED = define("MATERIAL_PRINCIPLED", 6)
+MATERIAL_PRINCIPLEDTHIN = define("MATERIAL_PRINCIPLEDTHIN", 7)
 MATERIAL_TYPES = {"diffuse": MATERIAL_DIFFUSE, "conductor": MATERIAL_CONDUCTOR,
-                  "dielectric": MATERIAL_DIELECTRIC, "gltf": MATERIAL_GLTF}
+                  "dielectric": MATERIAL_DIELECTRIC, "gltf": MATERIAL_GLTF,
+                  "plastic": MATERIAL_PLASTIC, "roughplastic": MATERIAL_ROUGHPLASTIC,
+                  "principled": MATERIAL_PRINCIPLED, "principledthin": MATERIAL_PRINCIPLEDTHIN}
 MATERIAL_FLAG_TWO_SIDED = define("MATERIAL_FLAG_TWO_SIDED", 1)
 MATERIAL_FLAG_CONDUCTOR_F0 = define("MATERIAL_FLAG_CONDUCTOR_F0", 2)
+MATERIAL_FLAG_NONLINEAR = define("MATERIAL_FLAG_NONLINEAR", 4)
+MATERIAL_FLAG_BECKMANN = define("MATERIAL_FLAG_BECKMANN", 8)
+ROUGH_TRANSMITTANCE_RES = define("ROUGH_TRANSMITTANCE_RES", 64)  # entries of Material.table
+TEX_SLOTS = define("TEX_SLOTS", 6)  # Material.tex_scalar
+MATERIAL_FLAG_BUMP_MAP = define("MATERIAL_FLAG_BUMP_MAP", 16)
+MATERIAL_FLAG_VERTEX_COLOR = define("MATERIAL_FLAG_VERTEX_COLOR", 32)
+MATERIAL_FLAG_MAP_FLIP = define("MATERIAL_FLAG_MAP_FLIP", 64)
+MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
+MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
      ("k", np.float32, 3), ("ior", np.float32),
-     ("tex_base", np.int32), ("tex_mr", np.int32), ("tex_emission", np.int32), ("tex_pad", np.int32)]
+     ("tex_base", np.int32), ("tex_mr", np.int32), ("tex_emission", np.int32), ("tex_normal", np.int32),
+     ("alpha_v", np.float32), ("fdr", np.float32), ("spec_weight", np.float32), ("roughness", np.float32),
+     ("anisotropic", np.float32), ("spec_trans", np.float32), ("spec_tint", np.float32), ("sheen", np.float32),
+     ("sheen_tint", np.float32), ("clearcoat", np.float32), ("clearcoat_gloss", np.float32),
+     ("flatness", np.float32), ("diff_trans", np.float32), ("rates", np.float32, 4),
+     ("tex_scalar", np.int32, TEX_SLOTS), ("tex_params", np.int32),
+     ("table", np.float32, ROUGH_TRANSMITTANCE_RES),
+     ("normal_scale", np.float32), ("pad0", np.int32), ("pad1", np.int32), ("pad2", np.int32)]
 )
-assert MATERIAL.itemsize == 96
+assert MATERIAL.itemsize == 464
 # Texture indices (into the TEXTURE table; -1 = none), used only when the program is built with
 # HAS_TEXTURES (cl/scene/textures.h):
-#   tex_base      RGB multiplies albedo (diffuse, gltf baseColor) or tint (dielectric)
+#   tex_base      RGB multiplies albedo (diffuse, gltf baseColor, plastic diffuse_reflectance,
+#                 principled base_color) or tint (dielectric)
 #   tex_mr        glTF metallicRoughness: G multiplies roughness (alpha *= G^2), B multiplies metallic
 #   tex_emission  RGB multiplies emission
+#   tex_scalar    up to TEX_SLOTS textures of scalar parameters, the used slots first (-1 after
+#                 them): slot k's R channel multiplies the parameter TEXP_* that bits 4k..4k+3 of
+#                 tex_params name (the host stores such a texture's luminance in R, Mitsuba's eval_1)
+TEXP_ALPHA = define("TEXP_ALPHA", 0)
+TEXP_ROUGHNESS = define("TEXP_ROUGHNESS", 1)
+TEXP_METALLIC = define("TEXP_METALLIC", 2)
+TEXP_ANISOTROPIC = define("TEXP_ANISOTROPIC", 3)
+TEXP_SPEC_TRANS = define("TEXP_SPEC_TRANS", 4)
+TEXP_SPEC_TINT = define("TEXP_SPEC_TINT", 5)
+TEXP_SHEEN = define("TEXP_SHEEN", 6)
+TEXP_SHEEN_TINT = define("TEXP_SHEEN_TINT", 7)
+TEXP_CLEARCOAT = define("TEXP_CLEARCOAT", 8)
+TEXP_CLEARCOAT_GLOSS = define("TEXP_CLEARCOAT_GLOSS", 9)
+TEXP_FLATNESS = define("TEXP_FLATNESS", 10)
+TEXP_DIFF_TRANS = define("TEXP_DIFF_TRANS", 11)
+TEXP_ETA = define("TEXP_ETA", 12)
+# the Material field each TEXP_* multiplies
+TEXTURE_PARAMS = {TEXP_ALPHA: "alpha", TEXP_ROUGHNESS: "roughness", TEXP_METALLIC: "metallic",
+                  TEXP_ANISOTROPIC: "anisotropic", TEXP_SPEC_TRANS: "spec_trans", TEXP_SPEC_TINT: "spec_tint",
+                  TEXP_SHEEN: "sheen", TEXP_SHEEN_TINT: "sheen_tint", TEXP_CLEARCOAT: "clearcoat",
+                  TEXP_CLEARCOAT_GLOSS: "clearcoat_gloss", TEXP_FLATNESS: "flatness",
+                  TEXP_DIFF_TRANS: "diff_trans", TEXP_ETA: "ior"}
+#   tex_normal    a tangent-space normal map (RGB = (n + 1) / 2, relative to the shading frame), or
+#                 with MATERIAL_FLAG_BUMP_MAP a height map (its luminance), perturbing the
+#                 shading normal (HAS_NORMAL_MAPS, cl/scene/shading.h); normal_scale scales the
+#                 normal map's x and y (glTF's normalTexture.scale) or the bump map's gradient
 
 # A texture (32 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row
 # by row from the top of the image (v = 0 is the top row, as in glTF; OBJ's v is flipped at load),
@@ -176,16 +249,36 @@ LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), (
                   ("rgb", np.float32, 3), ("pad2", np.int32)])
 assert LIGHT.itemsize == 80
 
-# The camera (64 bytes): pinhole or thin lens.  A pixel (x, y) with jitter (jx, jy) in [0,1)^2 maps to the
-# direction forward + ((x+jx)/W*2-1) * right + (1-(y+jy)/H*2) * up, where right and up are
-# already scaled by tan(fov/2) (and the aspect ratio, for right).  Thin lens when lens_radius > 0:
-# the ray leaves a point of the lens disk (radius lens_radius, spanned by the unit right and up)
-# toward the pinhole ray's point at distance focus_distance along forward.
+# The camera (96 bytes), perspective (pinhole or thin lens) or orthographic.  A pixel (x, y) with
+# jitter (jx, jy) (from the pixel's top-left corner) maps to the film position sx = (x+jx)/W*2-1,
+# sy = 1-(y+jy)/H*2 in [-1, 1]^2 (outside it for a filter wider than the pixel).
+#   PROJECTION_PERSPECTIVE: the direction forward + sx * right + sy * up from origin, where right
+#     and up are already scaled by tan(fov/2) (and the aspect ratio, for right);
+#   PROJECTION_ORTHOGRAPHIC: the direction forward (unit) from origin + sx * right + sy * up, right
+#     and up being the half width and half height of the region the film sees.
+# Thin lens when lens_radius > 0 (either projection): the ray leaves a point of the lens disk
+# (radius lens_radius, spanned by the unit right and up) toward the pinhole ray's point at distance
+# focus_distance along forward.
+# The jitter is drawn from the pixel reconstruction filter (cl/render/filter.h; filter importance
+# sampling): filter is a FILTER_* method, filter_radius its half widths along x and y in pixels,
+# filter_knots the knots per axis of its tables in filter_cdf (FILTER_TABULATED, else 0), and
+# filter_weight the magnitude of every sample's weight (1 for filters without negative lobes; the
+# sign is that of the filter where the sample fell).
+PROJECTION_PERSPECTIVE = define("PROJECTION_PERSPECTIVE", 0)
+PROJECTION_ORTHOGRAPHIC = define("PROJECTION_ORTHOGRAPHIC", 1)
+PROJECTIONS = {"perspective": PROJECTION_PERSPECTIVE, "orthographic": PROJECTION_ORTHOGRAPHIC}
+# how the jitter is drawn: uniform over [-r, r] (box), by inverting the tent's CDF in closed form,
+# or from a tabulated CDF of |f| (gaussian, mitchell, lanczos: pyopencl_rt/render/filters.py)
+FILTER_BOX = define("FILTER_BOX", 0)
+FILTER_TENT = define("FILTER_TENT", 1)
+FILTER_TABULATED = define("FILTER_TABULATED", 2)
 CAMERA = np.dtype(
     [("origin", np.float32, 3), ("width", np.int32), ("forward", np.float32, 3), ("height", np.int32),
-     ("right", np.float32, 3), ("lens_radius", np.float32), ("up", np.float32, 3), ("focus_distance", np.float32)]
+     ("right", np.float32, 3), ("lens_radius", np.float32), ("up", np.float32, 3), ("focus_distance", np.float32),
+     ("projection", np.int32), ("filter", np.int32), ("filter_knots", np.int32), ("filter_weight", np.float32),
+     ("filter_radius", np.float32, 2), ("filter_pad", np.float32, 2)]
 )
-assert CAMERA.itemsize == 64
+assert CAMERA.itemsize == 96
 
 # A 4-wide BVH node (128 bytes; pyopencl_rt/accel/bvh_wide.py builds it, cl/accel/bvh_wide.h traverses it):
 # the boxes of up to four children in structure-of-arrays form (each field is one float4, so one
@@ -377,6 +470,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _path("path_depth", "int", 1, "segments so far"),
     _path("path_pdf", "float", 1, "BSDF pdf of the last bounce, 0 after a camera or delta bounce"),
     _path("path_eta_scale", "float", 1, "product of eta^2 over the refractions so far (Russian roulette)"),
+    _path("path_weight", "float", 1, "the camera sample's filter weight (+-filter_weight), applied at accumulate"),
     _path("hit_t", "float", 1, "closest hit of ray_o/ray_d (extend)"),
     _path("hit_prim", "int", 1, "its primitive (PRIM_MISS, triangle or SPHERE_PRIM)"),
     _path("hit_u", "float", 1, "its barycentrics"),
@@ -388,6 +482,10 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
     Param("textures", "const", "Texture"),
     Param("tex_data", "const", "float4", "texels of every texture"),
+    # shading normals and vertex colours (cl/scene/shading.h); 16-byte dummies without
+    # HAS_SHADING_NORMALS / HAS_VERTEX_COLORS
+    Param("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)"),
+    Param("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours"),
     # queues of slot indices and their counters
     Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True),
     Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True),
@@ -404,6 +502,8 @@ WAVE_PARAMS: tuple[Param, ...] = (
     # the environment map and its sampling CDFs (cl/render/lights.h); dummies without HAS_ENVIRONMENT
     Param("env_map", "const", "float"),
     Param("env_cdf", "const", "float"),
+    # the pixel filter's tables (FILTER_TABULATED, cl/render/filter.h); a dummy otherwise
+    Param("filter_cdf", "const", "float", "per axis: filter_knots knots, the filter there, the CDF of |f|"),
     # fixed scalars
     Param("n_spheres", "scalar", "int"),
     Param("n_lights", "scalar", "int"),

@@ -20,6 +20,7 @@ from ..device import abi
 from .. import validate
 from ..errors import UsageError, UserError
 from ..scene.model import INTEGRATORS, SAMPLERS  # MIS path, BSDF only, light only; cl/render/sampler.h
+from ..scene.model import PixelFilter
 
 MAX_PIXELS = 1 << 26  # 8192 x 8192
 
@@ -40,10 +41,13 @@ class ImageSettings:
     # most target_error, the spp then being each pixel's maximum (None: no target, the spp a mean)
     adaptive: bool = False
     target_error: float | None = None
+    # the pixel reconstruction filter (render/filters.py): the camera samples' pixel offsets
+    filter: PixelFilter = PixelFilter()
 
     @classmethod
     def resolve(cls, scene, *, width=None, height=None, max_depth=None, rr_depth=None, integrator=None,
-                seed=None, aovs=None, sampler=None, adaptive=None, target_error=None) -> "ImageSettings":
+                seed=None, aovs=None, sampler=None, adaptive=None, target_error=None,
+                filter=None) -> "ImageSettings":
         """The scene's settings with every argument that is not None taking precedence; a
         UserError (one line) for values no render can use.  ``aovs``: the AOV layers wanted
         (names of render/aovs.py; default the scene's ``[film] aovs``)."""
@@ -66,6 +70,7 @@ class ImageSettings:
                                     SAMPLERS),
             adaptive=adaptive,
             target_error=check_target_error(target_error),
+            filter=check_filter(getattr(st, "filter", PixelFilter()) if filter is None else filter),
         )
         settings.check()
         return settings
@@ -78,6 +83,7 @@ class ImageSettings:
             raise UsageError(f"unknown integrator {self.integrator!r}: use one of {', '.join(INTEGRATORS)}")
         if self.sampler not in SAMPLERS:
             raise UsageError(f"unknown sampler {self.sampler!r}: use one of {', '.join(SAMPLERS)}")
+        check_filter(self.filter)
         if self.target_error is not None and not self.adaptive:
             raise UsageError("--target-error needs --adaptive (or adaptive = true in the scene's [render])")
 
@@ -86,12 +92,16 @@ class ImageSettings:
         return self.width * self.height
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        """JSON values (the filter as its dict)."""
+        return {**asdict(self), "filter": self.filter.as_dict()}
 
     @classmethod
     def from_dict(cls, values: dict) -> "ImageSettings":
-        return cls(**{f.name: values[f.name] if f.name in values or f.default is MISSING else f.default
-                      for f in fields(cls)})
+        """Settings from :meth:`as_dict`'s values (TypeError/ValueError for a filter that is none)."""
+        settings = {f.name: values[f.name] if f.name in values or f.default is MISSING else f.default
+                    for f in fields(cls)}
+        settings["filter"] = PixelFilter.from_value(settings["filter"])
+        return cls(**settings)
 
     def differences(self, values: dict) -> str:
         """'name theirs -> mine' for each setting that ``values`` (e.g. a checkpoint's record) has otherwise."""
@@ -107,6 +117,18 @@ def check_resolution(width, height) -> None:
     if width < 1 or height < 1 or width * height > MAX_PIXELS:
         raise UsageError(f"impossible resolution {width}x{height}: each side must be >= 1 and at most "
                         f"{MAX_PIXELS} pixels in all")
+
+
+def check_filter(value) -> PixelFilter:
+    """A pixel filter (a PixelFilter or its dict), checked: UsageError (one line) if it is none."""
+    from . import filters
+
+    try:
+        flt = PixelFilter.from_value(value)
+    except (TypeError, ValueError) as exc:
+        raise UsageError(str(exc)) from None
+    filters.check(flt)
+    return flt
 
 
 def check_target_error(value) -> float | None:

@@ -6,6 +6,7 @@ of a sphere) unless the material is two-sided, as for Mitsuba's and pbrt's area 
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,6 +20,10 @@ SAMPLERS = ("sobol", "stratified", "independent")
 assert set(SAMPLERS) == set(abi.SAMPLERS)
 # AOV layers a render can write beside the beauty (pyopencl_rt/render/aovs.py documents them)
 AOVS = ("albedo", "normal", "depth", "position", "variance", "spp")
+# the rules of Mitsuba's normalmap and bumpmap wrappers a material's map may follow (Material)
+MAP_CONVENTIONS = {"flip": abi.MATERIAL_FLAG_MAP_FLIP, "terminator": abi.MATERIAL_FLAG_MAP_TERMINATOR,
+                   "side": abi.MATERIAL_FLAG_MAP_SIDE}
+MITSUBA_MAP = ("flip", "terminator", "side")  # Mitsuba's defaults
 
 
 @dataclass
@@ -46,9 +51,37 @@ class Material:
     base_texture: object = None
     mr_texture: object = None
     emission_texture: object = None
+    # The Mitsuba 3 types (plastic, roughplastic, principled, principledthin): the coat's
+    # specular_reflectance, `nonlinear`, the microfacet distribution ("ggx" or "beckmann"), the
+    # parameters of the MATERIAL fields they alone use (by field name: "roughness", "sheen",
+    # "rates", ...), and textures of scalar parameters by the MATERIAL field they multiply
+    # (abi.TEXTURE_PARAMS: "alpha", "roughness", "metallic", ...; at most abi.TEX_SLOTS), whose
+    # R channel holds the value (the luminance of a colour image, as Mitsuba's eval_1).
+    specular_reflectance: tuple = (1.0, 1.0, 1.0)
+    nonlinear: bool = False
+    distribution: str = "ggx"
+    params: dict = field(default_factory=dict)
+    scalar_textures: dict = field(default_factory=dict)
+
+    # A normal map (a tangent-space normal per texel, RGB = (n + 1) / 2, in the shading frame
+    # whose tangent is dp/du: Mitsuba's normalmap, pbrt-v4's normalmap, glTF's normalTexture) or,
+    # with bump_map, a height map (Mitsuba's bumpmap: its luminance's gradient tilts the
+    # normal); normal_scale multiplies the normal map's x and y, or the height map's gradient.
+    # map_conventions: which of Mitsuba's wrappers' rules apply (cl/scene/shading.h): "flip"
+    # (flip_invalid_normals), "terminator" (use_shadowing_function) and "side" (directions on
+    # opposite sides of the shading and perturbed frames give 0), a subset of MAP_CONVENTIONS.
+    normal_texture: object = None
+    bump_map: bool = False
+    normal_scale: float = 1.0
+    map_conventions: tuple = ()
+    # the reflectance (albedo; a dielectric's tint) is multiplied by the triangles' interpolated
+    # vertex colours (Scene.colors): Mitsuba's mesh_attribute texture, glTF's COLOR_0, PLY colours
+    vertex_colors: bool = False
+
 
     def textures(self) -> list:
-        return [t for t in (self.base_texture, self.mr_texture, self.emission_texture) if t is not None]
+        return [t for t in (self.base_texture, self.mr_texture, self.emission_texture, self.normal_texture,
+                            *self.scalar_textures.values()) if t is not None]
 
     def mean_emission(self) -> np.ndarray:
         """Emission averaged over the emission texture (the light sampler's power estimate)."""
@@ -91,10 +124,33 @@ class Material:
         material_type.pack(self, rec)
         ti = texture_index or {}
         for fld, tex in (("tex_base", self.base_texture), ("tex_mr", self.mr_texture),
-                         ("tex_emission", self.emission_texture)):
+                         ("tex_emission", self.emission_texture), ("tex_normal", self.normal_texture)):
             rec[fld] = ti.get(id(tex), -1) if tex is not None else -1
-        rec["tex_pad"] = -1
+        rec["tex_scalar"] = -1
+        param_ids = {name: k for k, name in abi.TEXTURE_PARAMS.items()}
+        slot = 0
+        for name, tex in self.scalar_textures.items():
+            if name not in param_ids:
+                raise ValueError(f"material {self.name!r}: no texture slot for parameter {name!r}")
+            if tex is None or id(tex) not in ti:
+                continue
+            if slot == abi.TEX_SLOTS:
+                raise ValueError(f"material {self.name!r}: more than {abi.TEX_SLOTS} textured parameters")
+            rec["tex_scalar"][slot] = ti[id(tex)]
+            rec["tex_params"] |= param_ids[name] << (4 * slot)
+            slot += 1
+        rec["normal_scale"] = self.normal_scale
+        flags = int(rec["flags"]) | (abi.MATERIAL_FLAG_VERTEX_COLOR if self.vertex_colors else 0)
+        if self.normal_texture is not None:
+            flags |= abi.MATERIAL_FLAG_BUMP_MAP if self.bump_map else 0
+            for name in self.map_conventions:
+                flags |= MAP_CONVENTIONS[name]
+        rec["flags"] = flags
         return rec
+
+
+PROJECTIONS = ("perspective", "orthographic")
+assert set(PROJECTIONS) == set(abi.PROJECTIONS)
 
 
 @dataclass
@@ -102,33 +158,107 @@ class Camera:
     eye: tuple = (0.0, 0.0, 5.0)
     look_at: tuple = (0.0, 0.0, 0.0)
     up: tuple = (0.0, 1.0, 0.0)
-    fov: float = 40.0  # degrees, along the vertical axis
+    fov: float = 40.0  # degrees, along the vertical axis (perspective)
     # thin lens (depth of field) when aperture_radius > 0: the lens radius, and the distance
     # along the viewing direction of the plane in focus (None: |look_at - eye|)
     aperture_radius: float = 0.0
     focus_distance: float | None = None
+    # "perspective", or "orthographic": rays parallel to look_at - eye from the points of a
+    # rectangle centred on eye, `extent` high (scene units) and extent * width / height wide
+    projection: str = "perspective"
+    extent: float = 2.0
 
     def record(self, width: int, height: int) -> np.ndarray:
-        """The CAMERA struct for an image of width x height."""
+        """The CAMERA struct for an image of width x height (its filter fields a box of radius 0.5:
+        pyopencl_rt/render/filters.py sets those)."""
         eye = np.asarray(self.eye, np.float64)
         forward = np.asarray(self.look_at, np.float64) - eye
         forward /= np.linalg.norm(forward)
         right = np.cross(forward, np.asarray(self.up, np.float64))
         right /= np.linalg.norm(right)
         up = np.cross(right, forward)
-        tan_half = np.tan(np.radians(self.fov) / 2)
         rec = np.zeros((), abi.CAMERA)
+        if self.projection == "orthographic":
+            half = float(self.extent) / 2
+            rec["projection"] = abi.PROJECTION_ORTHOGRAPHIC
+        elif self.projection == "perspective":
+            half = np.tan(np.radians(self.fov) / 2)
+        else:
+            raise ValueError(f"unknown projection {self.projection!r}: use one of {', '.join(PROJECTIONS)}")
         rec["origin"] = eye
         rec["forward"] = forward
-        rec["right"] = right * tan_half * width / height
-        rec["up"] = up * tan_half
+        rec["right"] = right * half * width / height
+        rec["up"] = up * half
         rec["width"] = width
         rec["height"] = height
         rec["lens_radius"] = max(float(self.aperture_radius), 0.0)
         focus = self.focus_distance if self.focus_distance is not None else np.linalg.norm(
             np.asarray(self.look_at, np.float64) - eye)
         rec["focus_distance"] = focus
+        rec["filter"] = abi.FILTER_BOX
+        rec["filter_radius"] = 0.5
+        rec["filter_weight"] = 1.0
         return rec
+
+
+# The pixel reconstruction filters (docs/SCENE_FORMAT.md, "Pixel filters"; pyopencl_rt/render/filters.py
+# samples them), each separable: f(x, y) = f(x) f(y), with half widths radius (x, y) in pixels
+FILTERS = ("box", "tent", "gaussian", "mitchell", "lanczos")
+MAX_FILTER_RADIUS = 16.0  # pixels
+
+
+@dataclass(frozen=True)
+class PixelFilter:
+    """A reconstruction filter: its type (one of FILTERS), its half widths along x and y (pixels)
+    and its parameters: gaussian ``sigma`` (exp(-x^2 / 2 sigma^2) minus its value at the radius,
+    as Mitsuba 3 and pbrt-v4 have it), mitchell ``b``, ``c`` (Mitchell-Netravali over [-radius,
+    radius]), lanczos ``tau`` (sinc(x) sinc(x / tau), cut at the radius).  Those of other types
+    are ignored (and left at their defaults)."""
+
+    type: str = "box"
+    radius: tuple = (0.5, 0.5)
+    sigma: float = 0.5
+    b: float = 1.0 / 3.0
+    c: float = 1.0 / 3.0
+    tau: float = 3.0
+
+    @classmethod
+    def from_value(cls, value) -> "PixelFilter":
+        """A PixelFilter from itself or from its dict (as_dict, JSON); TypeError/ValueError if it is none."""
+        if isinstance(value, cls):
+            return value.checked()
+        if not isinstance(value, dict):
+            raise TypeError(f"a pixel filter must be a table, got {type(value).__name__}")
+        unknown = set(value) - {f.name for f in dataclasses.fields(cls)}
+        if unknown:
+            raise ValueError(f"unknown pixel filter keys {sorted(unknown)}")
+        radius = value.get("radius", (0.5, 0.5))
+        if not isinstance(radius, (list, tuple)) or len(radius) != 2:
+            raise ValueError(f"a pixel filter's radius must be two numbers, got {radius!r}")
+        return cls(**{**value, "radius": tuple(radius)}).checked()
+
+    def checked(self) -> "PixelFilter":
+        """Itself, with its numbers as floats, after checking them (ValueError, one line)."""
+        if self.type not in FILTERS:
+            raise ValueError(f"unknown pixel filter {self.type!r}: use one of {', '.join(FILTERS)}")
+        numbers = {"radius x": self.radius[0], "radius y": self.radius[1], "sigma": self.sigma, "b": self.b,
+                   "c": self.c, "tau": self.tau}
+        for name, v in numbers.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
+                raise ValueError(f"pixel filter {name} must be a finite number, got {v!r}")
+        for name in ("radius x", "radius y"):
+            if not 0 < numbers[name] <= MAX_FILTER_RADIUS:
+                raise ValueError(f"pixel filter {name} must be in (0, {MAX_FILTER_RADIUS:g}] pixels, "
+                                 f"got {numbers[name]!r}")
+        if not self.sigma > 0 or not self.tau > 0:
+            raise ValueError(f"pixel filter sigma and tau must be > 0, got {self.sigma!r}, {self.tau!r}")
+        return dataclasses.replace(self, radius=(float(self.radius[0]), float(self.radius[1])),
+                                   sigma=float(self.sigma), b=float(self.b), c=float(self.c), tau=float(self.tau))
+
+    def as_dict(self) -> dict:
+        """JSON values (the radius as a list)."""
+        return {"type": self.type, "radius": list(self.radius), "sigma": self.sigma, "b": self.b, "c": self.c,
+                "tau": self.tau}
 
 
 @dataclass
@@ -172,6 +302,7 @@ class RenderSettings:
     adaptive: bool = False  # adaptive sampling (render/adaptive.py): spp a pixel's maximum (with a target) or the mean
     target_error: float | None = None  # with adaptive: a pixel stops at this relative error
     aovs: tuple = ()  # AOV layers written beside the beauty (names of AOVS)
+    filter: PixelFilter = PixelFilter()  # the pixel reconstruction filter
     # participating media (cl/render/media.h): weigh a path's chromatic distance samples by the
     # balance heuristic over the channels (Mitsuba's volpathmis, pbrt-v4) or by the hero channel's
     # pdf alone (Mitsuba's volpath)
@@ -194,6 +325,11 @@ class Scene:
     environment: Environment | None = None
     # per-face texture coordinates (F, 3, 2) float32 (corner k of face f), or None (all 0)
     uvs: np.ndarray | None = None
+    # per-corner shading normals (F, 3, 3) float32 in world space, or None: the triangles'
+    # normals are interpolated across them (a face whose three are 0 is shaded flat); and
+    # per-corner linear RGB colours (F, 3, 3), or None, for materials with vertex_colors
+    normals: np.ndarray | None = None
+    colors: np.ndarray | None = None
     # the file format it was read from ("mitsuba-xml", "pbrt-v4", ...; None: not recorded) and
     # every warning its loader gave (one line each), for the JSON sidecar
     format: str | None = None
@@ -217,6 +353,16 @@ class Scene:
 
     def has_textures(self) -> bool:
         return len(self.faces) > 0 and any(m.textures() for m in self.materials)
+
+    def has_shading_normals(self) -> bool:
+        """Some face has a (non-zero) vertex normal: the kernels interpolate them."""
+        return self.normals is not None and len(self.faces) > 0 and bool(np.any(self.face_normals()))
+
+    def has_normal_maps(self) -> bool:
+        return len(self.faces) > 0 and any(m.normal_texture is not None for m in self.materials)
+
+    def has_vertex_colors(self) -> bool:
+        return len(self.faces) > 0 and any(m.vertex_colors for m in self.materials)
 
     def camera_relative(self) -> "Scene":
         """The scene translated (in float64) so that the camera sits at the origin.
@@ -280,6 +426,8 @@ class Scene:
         s = copy.copy(self)
         s.faces, s.face_materials = self.faces[keep_f], self.face_materials[keep_f]
         s.uvs = None if self.uvs is None else self.face_uvs()[keep_f]
+        s.normals = None if self.normals is None else np.asarray(self.normals, np.float32).reshape(-1, 3, 3)[keep_f]
+        s.colors = None if self.colors is None else np.asarray(self.colors, np.float32).reshape(-1, 3, 3)[keep_f]
         s.spheres, s.sphere_materials = self.spheres[keep_s], self.sphere_materials[keep_s]
         s.media, s.camera_medium, s.interfaces, s.face_interfaces, s.sphere_interfaces = [], -1, [], None, None
         return s
@@ -291,9 +439,31 @@ class Scene:
         uv = np.asarray(self.uvs, np.float32).reshape(len(self.faces), 3, 2)
         return np.where(np.isfinite(uv), uv, np.float32(0))
 
+    def face_normals(self) -> np.ndarray:
+        """(F, 3, 3) float32 unit shading normals per corner (zeros where the scene has none;
+        a non-finite or zero normal becomes 0: that face is shaded flat)."""
+        if self.normals is None:
+            return np.zeros((len(self.faces), 3, 3), np.float32)
+        n = np.asarray(self.normals, np.float64).reshape(len(self.faces), 3, 3)
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            length = np.linalg.norm(n, axis=2, keepdims=True)
+            unit = n / length
+        good = np.isfinite(unit).all(axis=2, keepdims=True) & (length > 0)
+        unit = np.where(good, unit, 0.0)
+        flat = ~good.all(axis=(1, 2))  # a face with a missing corner normal is shaded flat
+        unit[flat] = 0.0
+        return unit.astype(np.float32)
+
+    def face_colors(self) -> np.ndarray:
+        """(F, 3, 3) float32 linear RGB per corner (1 where the scene has none; NaN as 0)."""
+        if self.colors is None:
+            return np.ones((len(self.faces), 3, 3), np.float32)
+        c = np.asarray(self.colors, np.float32).reshape(len(self.faces), 3, 3)
+        return np.where(np.isfinite(c), c, np.float32(0))
+
     def material_records(self) -> np.ndarray:
         recs = np.zeros(max(1, len(self.materials)), abi.MATERIAL)
-        for f in ("tex_base", "tex_mr", "tex_emission", "tex_pad"):
+        for f in ("tex_base", "tex_mr", "tex_emission", "tex_normal", "tex_scalar"):
             recs[f] = -1
         index = {id(t): i for i, t in enumerate(self.textures())}
         for i, m in enumerate(self.materials):
@@ -309,6 +479,12 @@ class Scene:
                 defines[m.material_type.kernel_define] = True
         if self.has_textures():
             defines["HAS_TEXTURES"] = True  # cl/scene/textures.h
+        if self.has_shading_normals():
+            defines["HAS_SHADING_NORMALS"] = True  # cl/scene/shading.h
+        if self.has_normal_maps():
+            defines["HAS_NORMAL_MAPS"] = True
+        if self.has_vertex_colors():
+            defines["HAS_VERTEX_COLORS"] = True
         return defines
 
     def sphere_records(self) -> np.ndarray:

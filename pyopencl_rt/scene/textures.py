@@ -14,6 +14,7 @@ hold the kernel to).
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,6 +48,27 @@ class Texture:
     def mean_rgb(self) -> np.ndarray:
         """Mean linear RGB over the image (the average a uniformly sampled uv sees)."""
         return self.texels[..., :3].astype(np.float64).mean(axis=(0, 1))
+
+
+# Mitsuba's luminance of linear sRGB (include/mitsuba/core/spectrum.h)
+LUMINANCE = (0.212671, 0.715160, 0.072169)
+
+
+_SCALAR_TEXTURES: "weakref.WeakKeyDictionary[Texture, Texture]" = weakref.WeakKeyDictionary()
+
+
+def scalar_texture(texture: Texture) -> Texture:
+    """The texture of a scalar parameter: its luminance in R, G and B (Mitsuba's eval_1 of a
+    colour texture; a grey one keeps its value); one per source texture."""
+    cached = _SCALAR_TEXTURES.get(texture)
+    if cached is None:
+        t = texture.texels.astype(np.float64)
+        lum = t[..., :3] @ np.array(LUMINANCE) if texture.channels >= 3 else t[..., 0]
+        out = np.ones_like(t)
+        out[..., :3] = lum[..., None]
+        cached = Texture(np.ascontiguousarray(out, np.float32), srgb=texture.srgb, channels=1, name=texture.name)
+        _SCALAR_TEXTURES[texture] = cached
+    return cached
 
 
 def texture_from_array(values, *, srgb: bool = False, name: str = "texture") -> Texture:

@@ -5,7 +5,8 @@ Scene files are checked key by key by their loaders; this is the last check, on 
 scene, that :func:`~pyopencl_rt.scene.loaders.load_scene` and ``render_full`` both run before
 anything is built.  It refuses, with one line naming the scene:
 
-* arrays of the wrong shape or kind, face and material indices out of range;
+* arrays of the wrong shape or kind (per-corner UVs, normals and colours too; colours negative or
+  not finite), face and material indices out of range;
 * geometry that is not finite, or beyond ``GEOMETRY_LIMIT`` from the origin: values finite in
   float64 can overflow in float32 (1e39), and the triangle test forms products of three
   coordinates (``n . a``, with n a cross product), which overflow float32 beyond ~7e12;
@@ -94,6 +95,16 @@ def check_geometry(scene) -> None:
         if reach > GEOMETRY_LIMIT:
             _fail(scene, f"triangle vertices reach {reach:.3g} from the origin, beyond {GEOMETRY_LIMIT:.3g}: the float32 "
                          "kernels cannot intersect them (scale the scene down)")
+    for name in ("normals", "colors", "uvs"):
+        a = getattr(scene, name, None)
+        if a is None:
+            continue
+        a = np.asarray(a)
+        width = 2 if name == "uvs" else 3
+        if a.dtype.kind not in "fiu" or a.size != len(f) * 3 * width:
+            _fail(scene, f"{name} must be {len(f)} faces x 3 corners x {width} numbers, got shape {tuple(a.shape)}")
+        if name == "colors" and not (np.isfinite(a).all() and (a >= 0).all()):
+            _fail(scene, "colors must be finite and >= 0")
     s = _array(scene, scene.spheres, "spheres", 4, "fiu")
     sm = _array(scene, scene.sphere_materials, "sphere_materials", 0, "iu")
     if len(sm) != len(s):

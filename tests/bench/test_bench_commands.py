@@ -193,8 +193,9 @@ def test_interleaved_rates_call_other_renderers_in_every_round(monkeypatch):
 
 
 def test_bench_render_with_mitsuba_takes_turns(tmp_path, monkeypatch):
-    """--mitsuba: Mitsuba's box is rendered once per repetition (its warm-up apart), its rates are
-    what its timings say, and each row's per-round ratio is ours over Mitsuba's of that round."""
+    """--mitsuba: Mitsuba's box is rendered once per repetition (its warm-up apart), with our
+    scene's pixel filter, its rates are what its timings say, and each row's per-round ratio is ours
+    over Mitsuba's of that round."""
     pytest.importorskip("mitsuba")
     from pyopencl_rt.bench import render
 
@@ -205,6 +206,7 @@ def test_bench_render_with_mitsuba_takes_turns(tmp_path, monkeypatch):
     data = json.loads(out.read_text())
     theirs = data["mitsuba"]
     assert theirs["variant"] == "scalar_rgb" and len(theirs["renders"]) == 3
+    assert theirs["rfilter"] == {"type": "box"}  # the scene's pixel filter, not cornell_box()'s gaussian
     pixels = theirs["width"] * theirs["height"]
     for render, rate in zip(theirs["renders"], theirs["samples_per_second_all"]):
         assert render["spp"] == 1 and rate == pytest.approx(pixels / render["seconds"])

@@ -80,85 +80,18 @@ def test_selection(device, monkeypatch):
 
 
 # ----------------------------------------------------------------------------- same samples
-MIXED_SCENE = """
 # every material, shape and light type: the lanes of one packet hit different ones
-[camera]
-eye = [0.0, 1.0, 4.0]
-look_at = [0.0, 0.8, 0.0]
-fov = 50
-[materials.white]
-albedo = 0.7
-[materials.gold]
-type = "conductor"
-eta = [0.183, 0.421, 1.373]
-k = [3.424, 2.346, 1.770]
-roughness = 0.3
-[materials.mirror]
-type = "conductor"
-f0 = 1.0
-[materials.glass]
-type = "dielectric"
-ior = 1.5
-[materials.frosted]
-type = "dielectric"
-ior = 1.33
-roughness = 0.2
-[materials.plastic]
-type = "gltf"
-base_color = [0.8, 0.2, 0.1]
-metallic = 0.3
-roughness = 0.4
-[materials.lamp]
-albedo = 0.0
-emission = [4.0, 3.5, 3.0]
-[[shape]]
-type = "quad"
-material = "white"
-points = [[-3, 0, -3], [3, 0, -3], [3, 0, 3], [-3, 0, 3]]
-[[shape]]
-type = "quad"
-material = "mirror"
-points = [[-3, 0, -2], [-3, 3, -2], [3, 3, -2], [3, 0, -2]]
-[[shape]]
-type = "sphere"
-material = "gold"
-center = [-1.2, 0.5, 0.0]
-radius = 0.5
-[[shape]]
-type = "sphere"
-material = "glass"
-center = [0.0, 0.5, 0.5]
-radius = 0.5
-[[shape]]
-type = "sphere"
-material = "frosted"
-center = [1.2, 0.5, 0.0]
-radius = 0.5
-[[shape]]
-type = "quad"
-material = "plastic"
-points = [[-0.5, 1.2, -1], [0.5, 1.2, -1], [0.5, 2.2, -1], [-0.5, 2.2, -1]]
-[[shape]]
-type = "sphere"
-material = "lamp"
-center = [1.5, 2.5, 1.0]
-radius = 0.2
-[[light]]
-type = "point"
-position = [-1.0, 2.5, 1.5]
-intensity = 3.0
-[[light]]
-type = "directional"
-direction = [0.3, -1.0, -0.2]
-irradiance = 0.5
-"""
+MIXED_SCENE = Path(__file__).with_name("mixed_scene.toml")
 
 
 def mixed_scene(tmp_path, environment=True):
     """MIXED_SCENE with an environment map (a gradient with a bright spot) written beside it."""
     from pyopencl_rt.imageio import write_exr
 
-    text = MIXED_SCENE
+    from PIL import Image
+
+    text = MIXED_SCENE.read_text()
+    Image.fromarray((np.indices((8, 8)).sum(0) % 2 * 200 + 30).astype(np.uint8)).save(tmp_path / "rough.png")
     if environment:
         sky = np.zeros((16, 32, 3), np.float32)
         sky[:, :] = np.linspace(0.05, 0.4, 16, dtype=np.float32)[:, None, None]
@@ -187,6 +120,18 @@ def test_same_image_on_the_scenes(device, monkeypatch, name):
     wide = harness.forced_lanes(device)
     scene = rt.load_scene(SCENES / f"{name}.toml")
     assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=2, seed=1, width=32, height=24))
+
+
+def test_shading_normals_maps_and_vertex_colors(device, monkeypatch):
+    """Interpolated vertex normals (and flat faces beside them), a normal map and a bump map
+    (lane by lane, under Mitsuba's rules and under none) and vertex colours, on every material
+    type (cl/scene/shading.h): the same bits at every width."""
+    from scenes_small import shading_scene
+
+    wide = harness.forced_lanes(device)
+    scene = shading_scene()
+    assert {"HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS"} <= set(scene.material_defines())
+    assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=4, seed=2, width=32, height=24))
 
 
 @pytest.mark.parametrize("integrator", ["bsdf", "nee"])

@@ -14,6 +14,9 @@ from pyopencl_rt.device import abi
 from pyopencl_rt.scene import materials
 from pyopencl_rt.scene.loaders.toml import MATERIAL_COMMON_KEYS
 from pyopencl_rt.scene.materials import REGISTRY
+from pyopencl_rt.scene.materials.plastic import fresnel_diffuse_reflectance
+from pyopencl_rt.scene.materials.principled import eta_from_specular
+from pyopencl_rt.scene.materials.roughplastic import rough_tables
 from pyopencl_rt.scene.model import Material
 
 REPO = Path(__file__).resolve().parents[2]
@@ -70,6 +73,24 @@ GOLD_ETA = (0.183, 0.421, 1.373)  # cl/materials/conductor.h's example, 3 decima
 GOLD_K = (3.424, 2.346, 1.770)
 F0_FLAG = abi.MATERIAL_FLAG_CONDUCTOR_F0
 
+NONLINEAR, BECKMANN = abi.MATERIAL_FLAG_NONLINEAR, abi.MATERIAL_FLAG_BECKMANN
+PP_ETA = 1.49 / 1.000277  # Mitsuba's polypropylene in air
+T_LUM = 0.212671 + 0.715160 * ((128 / 255 + 0.055) / 1.055) ** 2.4  # the luminance of t.png, (255, 128, 0)
+fdr = fresnel_diffuse_reflectance
+
+
+def rough(distribution, alpha, eta):
+    """roughplastic's table and internal reflectance (fdr) for these parameters"""
+    table, internal = rough_tables(distribution, alpha, eta)
+    return {"table": table, "fdr": internal}
+
+
+def texp(*names):
+    """tex_params naming these fields in slots 0, 1, ..."""
+    ids = {name: k for k, name in abi.TEXTURE_PARAMS.items()}
+    return sum(ids[name] << (4 * slot) for slot, name in enumerate(names))
+
+
 CASES = [  # (type, TOML keys, expected record fields)
     ("diffuse", {}, {"albedo": (0.8, 0.8, 0.8)}),
     ("diffuse", {"albedo": [0.25, 0.5, 0.75], "albedo_texture": "t.png"},
@@ -88,6 +109,50 @@ CASES = [  # (type, TOML keys, expected record fields)
               "base_color_texture": "t.png", "metallic_roughness_texture": "t.png"},
      {"albedo": (0.5, 0.25, 0.125), "metallic": 0.5, "alpha": 0.25, "ior": 1.25, "tex_base": 0, "tex_mr": 1}),
     ("gltf", {"alpha": 0.5}, {"albedo": (1, 1, 1), "metallic": 1, "alpha": 0.5, "ior": 1.5}),
+    ("plastic", {}, {"albedo": (0.5, 0.5, 0.5), "specular": (1, 1, 1), "ior": PP_ETA, "fdr": fdr(1 / PP_ETA),
+                     "spec_weight": 1 / 1.5}),
+    ("plastic", {"diffuse_reflectance": [0.25, 0.5, 0.75], "diffuse_reflectance_texture": "t.png",
+                 "specular_reflectance": 0.5, "int_ior": 1.5, "ext_ior": 1.25, "nonlinear": True},
+     {"albedo": (0.25, 0.5, 0.75), "tex_base": 0, "specular": (0.5, 0.5, 0.5), "ior": 1.2, "fdr": fdr(1 / 1.2),
+      "spec_weight": 0.5 / (0.5 * T_LUM + 0.5), "flags": NONLINEAR}),
+    ("roughplastic", {}, {"albedo": (0.5, 0.5, 0.5), "specular": (1, 1, 1), "ior": PP_ETA, "alpha": 0.1,
+                          "flags": BECKMANN, "spec_weight": 1 / 1.5, **rough("beckmann", 0.1, PP_ETA)}),
+    ("roughplastic", {"distribution": "ggx", "alpha": 0.25, "diffuse_reflectance": 0.2, "specular_reflectance": 0.8,
+                      "diffuse_reflectance_texture": "t.png", "int_ior": 1.5, "ext_ior": 1.0, "nonlinear": True},
+     {"albedo": (0.2, 0.2, 0.2), "tex_base": 0, "specular": (0.8, 0.8, 0.8), "ior": 1.5, "alpha": 0.25,
+      "flags": NONLINEAR, "spec_weight": 0.8 / (0.2 * T_LUM + 0.8), **rough("ggx", 0.25, 1.5)}),
+    ("principled", {}, {"albedo": (0.5, 0.5, 0.5), "roughness": 0.5, "ior": 1.5, "rates": (1, 1, 1, 0)}),
+    ("principled", {"base_color": [0.25, 0.5, 0.75], "roughness": 0.25, "metallic": 0.5, "anisotropic": 0.125,
+                    "spec_trans": 0.25, "spec_tint": 0.375, "sheen": 0.5, "sheen_tint": 0.625, "clearcoat": 0.75,
+                    "clearcoat_gloss": 0.875, "flatness": 1.0, "eta": 1.25, "main_specular_sampling_rate": 2.0,
+                    "clearcoat_sampling_rate": 3.0, "diffuse_reflectance_sampling_rate": 4.0,
+                    "base_color_texture": "t.png", "roughness_texture": "t.png", "metallic_texture": "t.png",
+                    "anisotropic_texture": "t.png", "spec_trans_texture": "t.png", "spec_tint_texture": "t.png"},
+     {"albedo": (0.25, 0.5, 0.75), "roughness": 0.25, "metallic": 0.5, "anisotropic": 0.125, "spec_trans": 0.25,
+      "spec_tint": 0.375, "sheen": 0.5, "sheen_tint": 0.625, "clearcoat": 0.75, "clearcoat_gloss": 0.875,
+      "flatness": 1.0, "ior": 1.25, "rates": (2, 3, 4, 0), "tex_base": 0, "tex_scalar": (1, 2, 3, 4, 5, -1),
+      "tex_params": texp("roughness", "metallic", "anisotropic", "spec_trans", "spec_tint")}),
+    ("principled", {"specular": 0.25, "sheen_texture": "t.png", "sheen_tint_texture": "t.png",
+                    "clearcoat_texture": "t.png", "clearcoat_gloss_texture": "t.png", "flatness_texture": "t.png"},
+     {"albedo": (0.5, 0.5, 0.5), "roughness": 0.5, "ior": eta_from_specular(0.25), "rates": (1, 1, 1, 0),
+      "tex_scalar": (0, 1, 2, 3, 4, -1), "tex_params": texp("sheen", "sheen_tint", "clearcoat", "clearcoat_gloss",
+                                                           "flatness")}),
+    ("principledthin", {}, {"albedo": (0.5, 0.5, 0.5), "roughness": 0.5, "ior": 1.5, "rates": (1, 1, 1, 1)}),
+    ("principledthin", {"base_color": 0.25, "roughness": 0.25, "anisotropic": 0.125, "spec_trans": 0.25,
+                        "spec_tint": 0.375, "sheen": 0.5, "sheen_tint": 0.625, "flatness": 0.75, "diff_trans": 1.5,
+                        "eta": 1.25, "specular_reflectance_sampling_rate": 2.0,
+                        "specular_transmittance_sampling_rate": 3.0, "diffuse_transmittance_sampling_rate": 4.0,
+                        "diffuse_reflectance_sampling_rate": 5.0, "base_color_texture": "t.png",
+                        "roughness_texture": "t.png", "anisotropic_texture": "t.png", "spec_trans_texture": "t.png",
+                        "diff_trans_texture": "t.png", "eta_texture": "t.png"},
+     {"albedo": (0.25, 0.25, 0.25), "roughness": 0.25, "anisotropic": 0.125, "spec_trans": 0.25, "spec_tint": 0.375,
+      "sheen": 0.5, "sheen_tint": 0.625, "flatness": 0.75, "diff_trans": 1.5, "ior": 1.25, "rates": (2, 3, 4, 5),
+      "tex_base": 0, "tex_scalar": (1, 2, 3, 4, 5, -1),
+      "tex_params": texp("roughness", "anisotropic", "spec_trans", "diff_trans", "ior")}),
+    ("principledthin", {"spec_tint_texture": "t.png", "sheen_texture": "t.png", "sheen_tint_texture": "t.png",
+                        "flatness_texture": "t.png"},
+     {"albedo": (0.5, 0.5, 0.5), "roughness": 0.5, "ior": 1.5, "rates": (1, 1, 1, 1), "tex_scalar": (0, 1, 2, 3, -1, -1),
+      "tex_params": texp("spec_tint", "sheen", "sheen_tint", "flatness")}),
 ]
 # the keys every type takes, and what they do to the record
 COMMON = ({"emission": [1.0, 2.0, 4.0], "two_sided": True, "emission_texture": "t.png"},
@@ -117,9 +182,11 @@ def _check_record(rec, mtype, expected):
     for field in abi.MATERIAL.names:
         if field == "type":
             continue
-        default = -1 if field.startswith("tex_") else 0
+        default = -1 if field.startswith("tex_") and field != "tex_params" else 1 if field == "normal_scale" else 0
         want = np.broadcast_to(np.asarray(expected.get(field, default), rec[field].dtype), np.shape(rec[field]))
         tol = 1e-3 if field in ("eta", "k") else 0  # the documented gold values have 3 decimals
+        if field == "spec_weight":
+            tol = 1e-6  # the texture's mean luminance in float32 texels
         assert np.allclose(rec[field], want, rtol=0, atol=tol), (field, rec[field], want)
 
 

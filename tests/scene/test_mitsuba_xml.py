@@ -15,6 +15,7 @@ import pytest
 import pyopencl_rt as rt
 from pyopencl_rt.scene.loaders import SceneError, load_scene
 from pyopencl_rt.scene.loaders.mitsuba_serialized import write_serialized
+from pyopencl_rt.scene.model import PixelFilter
 
 from scene_compare import render_pair_z, triangle_records, triangles_equal, write_exr_image, write_png_image
 
@@ -387,9 +388,86 @@ def test_integrators_film_filter_sampler(tmp_path):
     s, w = settings('<integrator type="bdpt"><integer name="max_depth" value="4"/></integrator>')
     assert s.settings.max_depth == 4 and len(w) == 1 and 'integrator type="bdpt"' in w[0]
     s, w = settings('<sensor type="perspective"><film type="hdrfilm"><rfilter type="gaussian"/></film></sensor>')
-    assert len(w) == 1 and re.match(r'.*s\.xml:2: <rfilter type="gaussian">: we filter with a box', w[0]), w
+    assert w == [] and s.settings.filter == PixelFilter("gaussian", (2.0, 2.0), sigma=0.5)
     s, w = settings('<sensor type="perspective"><film type="hdrfilm"><rfilter type="box"/></film></sensor>')
-    assert w == []
+    assert w == [] and s.settings.filter == PixelFilter("box")
+
+
+def test_rfilters(tmp_path):
+    """Mitsuba 3's reconstruction filters with their parameters and fixed radii (src/rfilters/),
+    and its default (a gaussian of stddev 0.5, cut at 4 stddev) without an rfilter or a film."""
+    def rfilter(inner):
+        scene, w = load(write(tmp_path, f'<sensor type="perspective"><film type="hdrfilm">{inner}</film></sensor>'
+                                        + SPHERE))
+        return scene.settings.filter, w
+
+    cases = {"": PixelFilter("gaussian", (2.0, 2.0), sigma=0.5),
+             '<rfilter type="gaussian"><float name="stddev" value="0.25"/></rfilter>':
+                 PixelFilter("gaussian", (1.0, 1.0), sigma=0.25),
+             '<rfilter type="tent"/>': PixelFilter("tent", (1.0, 1.0)),
+             '<rfilter type="tent"><float name="radius" value="1.5"/></rfilter>': PixelFilter("tent", (1.5, 1.5)),
+             '<rfilter type="mitchell"/>': PixelFilter("mitchell", (2.0, 2.0)),
+             '<rfilter type="mitchell"><float name="B" value="0.5"/><float name="C" value="0.25"/></rfilter>':
+                 PixelFilter("mitchell", (2.0, 2.0), b=0.5, c=0.25),
+             '<rfilter type="catmullrom"/>': PixelFilter("mitchell", (2.0, 2.0), b=0.0, c=0.5),
+             '<rfilter type="lanczos"/>': PixelFilter("lanczos", (3.0, 3.0), tau=3.0),
+             '<rfilter type="lanczos"><integer name="lobes" value="2"/></rfilter>':
+                 PixelFilter("lanczos", (2.0, 2.0), tau=2.0)}
+    for inner, expected in cases.items():
+        assert rfilter(inner) == (expected, []), inner
+    assert load(write(tmp_path, SPHERE))[0].settings.filter == PixelFilter("gaussian", (2.0, 2.0), sigma=0.5)
+    flt, w = rfilter('<rfilter type="box"><float name="stddev" value="1"/></rfilter>')
+    assert flt == PixelFilter("box") and len(w) == 1 and '"stddev"> of <rfilter type="box">' in w[0], w
+    flt, w = rfilter('<rfilter type="bspline"/>')
+    assert flt.type == "gaussian" and len(w) == 1 and '<rfilter type="bspline">: not supported' in w[0], w
+    with pytest.raises(SceneError, match=r'<rfilter type="tent">: pixel filter radius x must be in'):
+        rfilter('<rfilter type="tent"><float name="radius" value="40"/></rfilter>')
+
+
+def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
+    """Mitsuba gives a shape with an area emitter and no BSDF a diffuse of reflectance 0 (one
+    without an emitter 0.5); a checkerboard whose to_uv scales by whole numbers is the pattern
+    repeated (other to_uv warn)."""
+    scene, w = load(write(tmp_path, '<shape type="sphere"><emitter type="area"/></shape>'
+                                    '<shape type="sphere"><point name="center" x="3"/></shape>'))
+    assert w == [] and [scene.materials[i].albedo for i in scene.sphere_materials] == [(0, 0, 0), (0.5, 0.5, 0.5)]
+
+    def checker(to_uv):
+        scene, w = load(write(tmp_path, '<shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" '
+                                        f'type="checkerboard"><transform name="to_uv">{to_uv}</transform></texture>'
+                                        '</bsdf></shape>'))
+        return scene.materials[0].base_texture, w
+
+    tex, w = checker('<scale x="5" y="3"/>')
+    assert w == [] and (tex.width, tex.height) == (5 * 64, 3 * 64)
+    assert np.array_equal(tex.texels[:64, :64], tex.texels[128:, 256:])  # one period repeated
+    tex, w = checker('<scale x="2.5" y="2"/>')
+    assert len(w) == 1 and "to_uv is not supported" in w[0] and tex.width == 64
+
+
+def test_orthographic_sensor(tmp_path):
+    """Mitsuba's orthographic sensor: a film 2 wide and 2 / aspect high (local x, y), scaled by
+    to_world, at near_clip along the viewing direction; image right on local -x as for the
+    perspective sensor (a <scale x="-1"/> mirrors the scene); uneven scales warn."""
+    def sensor(transform, film='<integer name="width" value="200"/><integer name="height" value="120"/>',
+               extra=""):
+        body = (f'<sensor type="orthographic">{extra}<transform name="to_world">{transform}</transform>'
+                f'<film type="hdrfilm">{film}</film></sensor>')
+        return load(write(tmp_path, body + SPHERE))
+
+    s, w = sensor('<scale x="1.5" y="1.5"/><lookat origin="-5, 0, 3" target="0, 0, 1" up="0, 0, 1"/>',
+                  extra='<float name="near_clip" value="1"/>')
+    c = s.camera
+    d = np.array([5.0, 0.0, -2.0]) / math.sqrt(29)
+    assert w == [] and c.projection == "orthographic"
+    assert np.isclose(c.extent, 2 * 1.5 * 120 / 200) and np.allclose(c.eye, np.array([-5, 0, 3]) + d)
+    assert np.allclose(np.subtract(c.look_at, c.eye), d)
+    s, w = sensor('<lookat origin="0, 0, 0" target="0, 0, 1" up="0, 1, 0"/>')
+    assert w == [] and np.isclose(s.camera.extent, 2 * 120 / 200) and np.allclose(s.camera.eye, [0, 0, 0.01])
+    s, w = sensor('<scale x="2" y="1"/><lookat origin="0, 0, 0" target="0, 0, 1" up="0, 1, 0"/>')
+    assert len(w) == 1 and "unevenly" in w[0] and np.isclose(s.camera.extent, 2 * 120 / 200)
+    s, w = sensor('<lookat origin="0, 0, 0" target="0, 0, 1" up="0, 1, 0"/>', extra='<float name="fov" value="40"/>')
+    assert len(w) == 1 and '<float name="fov">' in w[0]
 
 
 def test_moment_and_aov_wrappers_render_their_nested_integrator_silently(tmp_path):
@@ -493,7 +571,7 @@ def test_bsdfs(tmp_path):
 <bsdf type="principled"><rgb name="base_color" value="0.8 0.5 0.2"/><float name="metallic" value="0.7"/><float name="roughness" value="0.4"/><float name="sheen" value="0"/></bsdf>
 <bsdf type="twosided"><bsdf type="conductor"><rgb name="specular_reflectance" value="0.5"/></bsdf></bsdf>
 <bsdf type="mask"><float name="opacity" value="0.5"/><bsdf type="diffuse"><rgb name="reflectance" value="0.2"/></bsdf></bsdf>
-<bsdf type="bumpmap"><bsdf type="roughconductor"/></bsdf>""")
+<bsdf type="bumpmap"><texture type="rawconstant" name="h"><float name="value" value="0.5"/></texture><float name="scale" value="2"/><bsdf type="roughconductor"/></bsdf>""")
     expect = [
         dict(type="diffuse", albedo=(0.5, 0.5, 0.5)),
         dict(type="dielectric", ior=pytest.approx(1.6 / 1.333), alpha=0.0),
@@ -503,13 +581,16 @@ def test_bsdfs(tmp_path):
         dict(type="conductor", eta=METALS["gold"][0], k=METALS["gold"][1]),
         dict(type="conductor", eta=(0.2, 0.9, 1.1), k=(3, 2.5, 2), alpha=0.2),
         dict(type="conductor", eta=METALS["copper"][0], alpha=0.1),
-        dict(type="gltf", metallic=0.0, albedo=(0.1, 0.2, 0.3), alpha=0.0, ior=pytest.approx(1.49 / 1.000277)),
-        dict(type="gltf", metallic=0.0, albedo=(0.5, 0.5, 0.5), alpha=0.25, ior=1.5),
-        dict(type="gltf", metallic=0.7, albedo=(0.8, 0.5, 0.2), alpha=pytest.approx(0.16),
+        dict(type="plastic", albedo=(0.1, 0.2, 0.3), ior=pytest.approx(1.49 / 1.000277), nonlinear=False,
+             specular_reflectance=(1.0, 1.0, 1.0)),
+        dict(type="roughplastic", albedo=(0.5, 0.5, 0.5), alpha=0.25, ior=1.5, distribution="ggx"),
+        dict(type="principled", metallic=0.7, albedo=(0.8, 0.5, 0.2), params=
+             {"roughness": 0.4, "anisotropic": 0.0, "spec_trans": 0.0, "spec_tint": 0.0, "sheen": 0.0,
+              "sheen_tint": 0.0, "clearcoat": 0.0, "clearcoat_gloss": 0.0, "flatness": 0.0, "rates": (1, 1, 1, 0)},
              ior=pytest.approx(2 / (1 - math.sqrt(0.04)) - 1)),  # Mitsuba's eta from specular 0.5
         dict(type="conductor", eta=None, f0=(0.5, 0.5, 0.5)),
         dict(type="diffuse", albedo=(0.2, 0.2, 0.2)),
-        dict(type="conductor", alpha=0.1),
+        dict(type="conductor", alpha=0.1, bump_map=True, normal_scale=2.0, map_conventions=("side", "flip", "terminator")),
     ]
     for i, (mat, want) in enumerate(zip(mats, expect)):
         for key, value in want.items():
@@ -517,7 +598,6 @@ def test_bsdfs(tmp_path):
     expected_warnings = ['<bsdf type="thindielectric">: approximated by a dielectric interface',
                          '<bsdf type="roughconductor">: the Beckmann distribution (Mitsuba\'s default) is rendered as GGX',
                          '<bsdf type="mask">: opacity masks are not supported; rendering its nested BSDF',
-                         '<bsdf type="bumpmap">: bump and normal maps are not supported; rendering its nested BSDF',
                          '<bsdf type="roughconductor">: the Beckmann distribution']
     assert len(warned) == len(expected_warnings)
     for w, needle in zip(warned, expected_warnings):
@@ -530,18 +610,30 @@ def test_textures(tmp_path):
 <bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="tex.png"/><string name="filter_type" value="bilinear"/><string name="wrap_mode" value="repeat"/></texture></bsdf>
 <bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="tex.png"/><boolean name="raw" value="true"/><string name="filter_type" value="nearest"/><string name="wrap_mode" value="clamp"/></texture></bsdf>
 <bsdf type="diffuse"><texture type="checkerboard" name="reflectance"><rgb name="color0" value="0.1"/><rgb name="color1" value="0.9"/></texture></bsdf>
-<bsdf type="roughconductor"><string name="distribution" value="ggx"/><texture type="checkerboard" name="alpha"/></bsdf>""")
+<bsdf type="roughconductor"><string name="distribution" value="ggx"/><texture type="checkerboard" name="alpha"/></bsdf>
+<bsdf type="roughconductor"><string name="distribution" value="ggx"/><texture type="checkerboard" name="eta"/></bsdf>
+<bsdf type="principled"><texture type="checkerboard" name="metallic"><transform name="to_uv"><scale x="4" y="2"/></transform><float name="color0" value="0.9"/><float name="color1" value="0.1"/></texture><texture type="bitmap" name="roughness"><string name="filename" value="tex.png"/></texture></bsdf>""")
     assert mats[0].albedo == (1, 1, 1) and mats[0].base_texture.srgb and mats[0].base_texture.texels.shape == (4, 8, 4)
     assert np.allclose(mats[0].base_texture.texels[..., :3], [1, 0, 0])
     assert not mats[1].base_texture.srgb
     t = mats[2].base_texture.texels[..., 0]
     n = t.shape[0]  # Mitsuba's checkerboard: color0 where u and v are on the same side of 1/2
     assert np.allclose([t[0, 0], t[n - 1, n - 1], t[0, n - 1], t[n - 1, 0]], [0.1, 0.1, 0.9, 0.9])
-    assert mats[3].alpha == pytest.approx(0.3)  # the checkerboard's mean of Mitsuba's default 0.4 and 0.2
+    # a texture of a scalar parameter: factor 1 and the texture in its slot, as Mitsuba's eval_1 reads
+    # it: a colour image's luminance, a checkerboard with color0 and color1 swapped (checkerboard.cpp)
+    alpha = mats[3].scalar_textures["alpha"].texels
+    assert mats[3].alpha == 1.0 and np.allclose([alpha[0, 0, 0], alpha[0, -1, 0]], [0.2, 0.4])
+    assert mats[4].eta == pytest.approx((0.3, 0.3, 0.3))  # only the alpha of rough conductors is textured
+    metallic, roughness = (mats[5].scalar_textures[k].texels for k in ("metallic", "roughness"))
+    assert mats[5].metallic == 1.0 and mats[5].params["roughness"] == 1.0
+    v, u = (np.arange(metallic.shape[0]) + 0.5) / metallic.shape[0], (np.arange(metallic.shape[1]) + 0.5) / metallic.shape[1]
+    same = ((4 * u[None, :] % 1) > 0.5) == ((2 * v[:, None] % 1) > 0.5)  # to_uv: u * 4, v * 2
+    assert np.allclose(metallic[..., 0], np.where(same, 0.1, 0.9)) and np.allclose(metallic[..., :3], metallic[..., :1])
+    assert np.allclose(roughness[..., :3], 0.212671)  # luminance of the red image
     assert [w.split(": ", 1)[1] for w in warned] == [
         '<texture type="bitmap">: filter_type \'nearest\': we filter bilinearly',
         '<texture type="bitmap">: wrap_mode \'clamp\': we repeat',
-        '<texture type="checkerboard"> as "alpha" of <bsdf type="roughconductor">: textures are not supported here; '
+        '<texture type="checkerboard"> as "eta" of <bsdf type="roughconductor">: textures are not supported here; '
         'using its mean (0.3, 0.3, 0.3)']
 
 
@@ -701,7 +793,8 @@ def test_emitters(tmp_path):
         <emitter type="spot"/>""")
     scene, warned = load(path)
     area = [m for m in scene.materials if m.is_emissive]
-    assert len(area) == 1 and area[0].emission == (1, 2, 3) and area[0].albedo == (0.5, 0.5, 0.5)
+    # an emitter without a BSDF reflects nothing (Mitsuba's shape.cpp)
+    assert len(area) == 1 and area[0].emission == (1, 2, 3) and area[0].albedo == (0, 0, 0)
     point, directional = scene.lights
     assert point.position == (1, 2, 3) and point.intensity == (5, 5, 5)
     assert np.allclose(directional.direction, [0, -1, 0])  # +z rotated 90 degrees about x
@@ -753,7 +846,7 @@ def test_envmap_agrees_with_mitsuba(tmp_path):
 def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
     path = write(tmp_path, """
         <integrator type="aov"><string name="aovs" value="nn:sh_normal"/><integrator type="path"/></integrator>
-        <sensor type="orthographic"/>
+        <sensor type="radiancemeter"/>
         <medium type="homogeneous" id="fog"><phase type="rayleigh"/></medium>
         <shape type="shapegroup" id="g"><ref name="interior" id="fog"/></shape>
         <shape type="sphere"><bsdf type="hair"/><emitter type="point"/></shape>
@@ -762,7 +855,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
         <unknown/>""")
     scene, warned = load(path)
     assert len(scene.spheres) == 1 and scene.materials[0].albedo == (0.5, 0.5, 0.5)
-    expect = [("orthographic", '<sensor type="orthographic">: not supported; using a camera that frames the scene'),
+    expect = [("radiancemeter", '<sensor type="radiancemeter">: not supported; using a camera that frames the scene'),
               ("rayleigh", '<phase type="rayleigh">: phase function not supported; rendered isotropic'),
               ("shapegroup", '<shape type="shapegroup" id="g">: shape type not supported; ignored'),
               ("hair", '<bsdf type="hair">: BSDF type not supported; using diffuse 0.5'),
@@ -883,6 +976,9 @@ class _FakeMitsuba:
     class ScalarTransform4f:
         look_at = staticmethod(lambda origin, target, up: _LookAt(origin, target, up))
 
+        def __init__(self, matrix):
+            self.matrix = np.asarray(matrix, np.float64)
+
 
 def dict_to_xml(d: dict) -> str:
     """Mitsuba XML for a ``mi.load_dict`` dict (the subset mitsuba_export.py writes)."""
@@ -941,6 +1037,33 @@ def test_exporter_output_reimported_equals_the_original(tmp_path, real_mitsuba):
     for key in ("width", "height", "max_depth", "rr_depth"):
         assert getattr(back.settings, key) == getattr(original.settings, key)
     assert back.settings.spp == 32
+
+
+@pytest.mark.parametrize("real_mitsuba", [False, True], ids=["fake", "mitsuba"])
+def test_exporter_orthographic_camera_and_filters(tmp_path, real_mitsuba):
+    """The export of an orthographic camera and of each filter Mitsuba can express reads back as
+    the original; a filter it cannot express is refused."""
+    import dataclasses
+
+    from pyopencl_rt.bench.mitsuba_export import dict_from_arrays, mitsuba_rfilter, scene_arrays
+
+    mi = mitsuba() if real_mitsuba else _FakeMitsuba
+    original = load_scene(SCENES / "cornell-spheres.toml")
+    original.camera = dataclasses.replace(original.camera, projection="orthographic", extent=450.0)
+    for flt in (PixelFilter("gaussian", (1.2, 1.2), sigma=0.3), PixelFilter("tent", (1.5, 1.5)),
+                PixelFilter("mitchell", (2.0, 2.0), b=0.0, c=0.5), PixelFilter("lanczos", (2.0, 2.0), tau=2.0)):
+        original.settings.filter = flt
+        d = dict_from_arrays(scene_arrays(original, spp=4), mi, tmpdir=str(tmp_path))
+        (tmp_path / "exported.xml").write_text(dict_to_xml(d))
+        back, warned = load(tmp_path / "exported.xml")
+        assert warned == [] and back.settings.filter == flt
+        c, o = back.camera, original.camera
+        assert c.projection == "orthographic" and np.isclose(c.extent, o.extent) and np.allclose(c.eye, o.eye)
+        assert np.allclose(c.up, o.up)
+    for bad in (PixelFilter("box", (1.0, 1.0)), PixelFilter("gaussian", (1.5, 1.5)), PixelFilter("tent", (1.0, 2.0)),
+                PixelFilter("lanczos", (4.0, 4.0))):
+        with pytest.raises(ValueError, match="Mitsuba"):
+            mitsuba_rfilter(bad.as_dict())
 
 
 def test_sidecar_records_format_and_warnings(tmp_path):

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from pyopencl_rt.scene.loaders import SceneError, load_scene
+from pyopencl_rt.scene.model import PixelFilter
 from pyopencl_rt.scene.loaders.pbrt import tokenize
 from pyopencl_rt.scene.loaders.pbrt_materials import equal_area_sphere_to_square, equal_area_square_to_sphere
 
@@ -159,8 +160,55 @@ def test_camera_film_sampler_integrator(tmp_path):
     assert (s.settings.width, s.settings.height, s.settings.spp, s.settings.max_depth) == (1280, 720, 16, 6)
     s, w = options('PixelFilter "gaussian" Integrator "bdpt" Film "gbuffer"')
     assert [x.split(": ", 1)[1] for x in w] == ['Film "gbuffer": read as an "rgb" film',
-                                                 'Integrator "bdpt": rendered with our path tracer (MIS)',
-                                                 'PixelFilter "gaussian": we filter with a box (uniform over the pixel)']
+                                                 'Integrator "bdpt": rendered with our path tracer (MIS)']
+    assert s.settings.filter == PixelFilter("gaussian", (1.5, 1.5), sigma=0.5)
+
+
+def test_pixel_filters(tmp_path):
+    """pbrt-v4's PixelFilter types with their parameters and defaults (filters.cpp), the gaussian
+    without a PixelFilter; a parameter of another type warns, a bad one is an error."""
+    cases = {"": PixelFilter("gaussian", (1.5, 1.5), sigma=0.5),
+             'PixelFilter "box"': PixelFilter("box", (0.5, 0.5)),
+             'PixelFilter "box" "float xradius" 1 "float yradius" 2': PixelFilter("box", (1.0, 2.0)),
+             'PixelFilter "gaussian" "float sigma" 0.3 "float xradius" 1': PixelFilter("gaussian", (1.0, 1.5),
+                                                                                       sigma=0.3),
+             'PixelFilter "mitchell" "float B" 0 "float C" 0.5': PixelFilter("mitchell", (2.0, 2.0), b=0.0, c=0.5),
+             'PixelFilter "sinc"': PixelFilter("lanczos", (4.0, 4.0), tau=3.0),
+             'PixelFilter "sinc" "float tau" 2 "float xradius" 2': PixelFilter("lanczos", (2.0, 4.0), tau=2.0),
+             'PixelFilter "triangle"': PixelFilter("tent", (2.0, 2.0))}
+    for text, expected in cases.items():
+        s, w = world(tmp_path, TRIANGLE, text)
+        assert w == [] and s.settings.filter == expected, text
+    s, w = world(tmp_path, TRIANGLE, 'PixelFilter "box" "float sigma" 2')
+    assert s.settings.filter == PixelFilter("box") and len(w) == 1 and '"float sigma" of PixelFilter' in w[0]
+    s, w = world(tmp_path, TRIANGLE, 'PixelFilter "bspline"')
+    assert s.settings.filter.type == "gaussian" and len(w) == 1 and 'PixelFilter "bspline": not supported' in w[0]
+    with pytest.raises(SceneError, match=r's\.pbrt:\d+: PixelFilter "box": pixel filter radius x must be in'):
+        world(tmp_path, TRIANGLE, 'PixelFilter "box" "float xradius" -1')
+
+
+def test_orthographic_camera(tmp_path):
+    """pbrt-v4's orthographic camera: its screen window (default [-a, a] x [-1, 1] for a frame
+    a = width / height > 1) in camera space, scaled by the camera transform, centred on the eye;
+    lens radius and focal distance as for the perspective camera; non-square pixels warn."""
+    film = 'Film "rgb" "integer xresolution" 200 "integer yresolution" 100 '
+    s, w = world(tmp_path, TRIANGLE, 'Scale -1 1 1 LookAt 0 0 -5  0 0 0  0 1 0 Camera "orthographic" ' + film)
+    c = s.camera
+    assert w == [] and c.projection == "orthographic" and np.isclose(c.extent, 2.0)
+    assert np.allclose(c.eye, [0, 0, -5]) and np.allclose(np.subtract(c.look_at, c.eye), [0, 0, 1])
+    # a window off centre: 4 wide along camera +x (the image's right: world -x here), 2 high
+    s, w = world(tmp_path, TRIANGLE, 'Scale -1 1 1 LookAt 0 0 -5  0 0 0  0 1 0 Camera "orthographic" '
+                                     '"float screenwindow" [-1 3 0 2] "float lensradius" 0.5 ' + film)
+    c = s.camera
+    assert w == [] and np.isclose(c.extent, 2.0) and np.allclose(c.eye, [-1, 1, -5])
+    assert (c.aperture_radius, c.focus_distance) == (0.5, 1e6)
+    # a scale before the camera scales camera space (camera-from-world): the window, [-1, 1] x [-2, 2]
+    # for a frame taller than wide, is a third as large in the world
+    s, w = world(tmp_path, TRIANGLE, 'Scale -3 3 1 LookAt 0 0 -5  0 0 0  0 1 0 Camera "orthographic" '
+                                     'Film "rgb" "integer xresolution" 100 "integer yresolution" 200')
+    assert w == [] and np.isclose(s.camera.extent, 4 / 3)
+    s, w = world(tmp_path, TRIANGLE, 'Camera "orthographic" "float screenwindow" [-1 1 -1 1] ' + film)
+    assert len(w) == 1 and "not square" in w[0] and np.isclose(s.camera.extent, 2.0)
 
 
 # -- shapes ------------------------------------------------------------------------------------------

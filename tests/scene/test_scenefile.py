@@ -5,8 +5,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pyopencl_rt.device import abi
 from pyopencl_rt.errors import UserError
 from pyopencl_rt.scene.loaders import load_scene
+from pyopencl_rt.scene.model import PixelFilter
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 BOX_CENTRE = np.array([278.0, 274.4, 279.6])
@@ -354,6 +356,35 @@ def assert_camera_frames_spheres(scene):
     np.testing.assert_allclose(scene.camera.look_at, (lo + hi) / 2, atol=1e-5)
 
 
+def test_orthographic_camera_and_pixel_filters(tmp_path):
+    """[camera] type = "orthographic" with its extent (default 2), and [film] filter by name or
+    table with each type's defaults (box 0.5, tent 1, gaussian sigma 0.5 cut at 4 sigma, mitchell
+    1/3, 1/3 over radius 2, lanczos tau 3 over radius tau); the box without one."""
+    sphere = '[[shape]]\ntype = "sphere"\ncenter = [0,0,0]\nradius = 1\n'
+
+    def scene(text):
+        (tmp_path / "s.toml").write_text(text + sphere)
+        return load_scene(tmp_path / "s.toml")
+
+    s = scene('[camera]\neye = [0,0,5]\nlook_at = [0,0,0]\ntype = "orthographic"\nextent = 3.5\n')
+    assert (s.camera.projection, s.camera.extent) == ("orthographic", 3.5) and s.settings.filter == PixelFilter()
+    rec = s.camera.record(40, 20)
+    assert rec["projection"] == abi.PROJECTION_ORTHOGRAPHIC
+    assert np.allclose(rec["up"], [0, 1.75, 0]) and np.allclose(rec["right"], [3.5, 0, 0])
+    assert scene('[camera]\neye = [0,0,5]\nlook_at = [0,0,0]\ntype = "orthographic"\n').camera.extent == 2.0
+    assert scene('[camera]\neye = [0,0,5]\nlook_at = [0,0,0]\n').camera.projection == "perspective"
+    cases = {'"gaussian"': PixelFilter("gaussian", (2.0, 2.0), sigma=0.5),
+             '{type = "gaussian", sigma = 0.3}': PixelFilter("gaussian", (1.2, 1.2), sigma=0.3),
+             '{type = "gaussian", sigma = 0.5, radius = 1.5}': PixelFilter("gaussian", (1.5, 1.5), sigma=0.5),
+             '{type = "tent"}': PixelFilter("tent", (1.0, 1.0)),
+             '{type = "box", radius = [1, 0.5]}': PixelFilter("box", (1.0, 0.5)),
+             '"mitchell"': PixelFilter("mitchell", (2.0, 2.0)),
+             '{type = "mitchell", b = 0, c = 0.5}': PixelFilter("mitchell", (2.0, 2.0), b=0.0, c=0.5),
+             '{type = "lanczos", tau = 2}': PixelFilter("lanczos", (2.0, 2.0), tau=2.0)}
+    for text, expected in cases.items():
+        assert scene(f"[film]\nfilter = {text}\n").settings.filter == expected, text
+
+
 # ---------------------------------------------------------------------------------------------
 # errors: one line, naming the file
 
@@ -419,6 +450,17 @@ def test_error_bad_vector_length(tmp_path):
     ('[materials.m]\nemission = [-1, 0, 0]\n', "'emission'"),
     ('[materials.m]\ntype = "glass"\n', "unknown type 'glass'"),
     ('[materials.m]\ntwo_sided = 1\n', "'two_sided'"),
+    ('[camera]\neye = [0,0,1]\nlook_at = [0,0,0]\ntype = "fisheye"\n', "unknown type 'fisheye'"),
+    ('[camera]\neye = [0,0,1]\nlook_at = [0,0,0]\ntype = "orthographic"\nfov = 30\n',
+     "'fov' is not a key of an orthographic camera"),
+    ('[camera]\neye = [0,0,1]\nlook_at = [0,0,0]\nextent = 3\n', "'extent' is not a key of a perspective camera"),
+    ('[camera]\neye = [0,0,1]\nlook_at = [0,0,0]\ntype = "orthographic"\nextent = 0\n', "'extent' must be > 0"),
+    ('[film]\nfilter = "cubic"\n', "unknown type 'cubic'"),
+    ('[film]\nfilter = 3\n', "[film] filter: must be a filter's name or a table"),
+    ('[film]\nfilter = {type = "box", sigma = 1}\n', "unknown key 'sigma'"),
+    ('[film]\nfilter = {type = "tent", radius = [1, 2, 3]}\n', "'radius' must be a list of 2 numbers or one number"),
+    ('[film]\nfilter = {type = "gaussian", sigma = 0}\n', "'sigma' must be > 0"),
+    ('[film]\nfilter = {type = "lanczos", radius = 17}\n', "radius x must be in (0, 16] pixels"),
 ])
 def test_error_bad_values(tmp_path, text, needle):
     sphere = '[[shape]]\ntype = "sphere"\ncenter = [0,0,0]\nradius = 1\n'

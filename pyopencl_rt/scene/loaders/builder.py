@@ -27,7 +27,7 @@ from typing import Callable
 import numpy as np
 
 from ..model import Camera, DirectionalLight, Environment, Material, PointLight, RenderSettings, Scene
-from .assembly import frame_scene, triangle_scene
+from .assembly import angle_weighted_normals, frame_scene, transform_normals, triangle_scene
 from .values import SceneError, one_line
 
 
@@ -214,11 +214,12 @@ def vertical_fov(fov_degrees: float, axis: str, width: int, height: int) -> floa
 
 
 def camera_from_matrix(camera_to_world, vfov: float, image_right_sign: float, *, aperture=0.0,
-                       focus=None) -> tuple:
+                       focus=None, projection="perspective", extent=2.0) -> tuple:
     """(Camera, mirror) of a camera that looks along its local +z with local +y up and puts
     ``image_right_sign`` * local +x on the image's right (Mitsuba: -1, pbrt: +1).  ``mirror`` is
     None, or the 4x4 reflection to apply to the whole scene so that our camera sees the image
-    the file's camera sees (see the module docstring)."""
+    the file's camera sees (see the module docstring).  An orthographic camera's film is centred
+    on the matrix's origin, ``extent`` high (``vfov`` is then unused)."""
     m = np.asarray(camera_to_world, np.float64)
     eye = m[:3, 3]
     forward = m[:3, :3] @ np.array([0.0, 0.0, 1.0])
@@ -230,7 +231,7 @@ def camera_from_matrix(camera_to_world, vfov: float, image_right_sign: float, *,
     ours_right = np.cross(forward, up)
     cam = Camera(eye=tuple(map(float, eye)), look_at=tuple(map(float, eye + forward)), up=tuple(map(float, up)),
                  fov=float(vfov), aperture_radius=float(aperture),
-                 focus_distance=None if focus is None else float(focus))
+                 focus_distance=None if focus is None else float(focus), projection=projection, extent=float(extent))
     if aperture > 0 and focus is None:
         cam.focus_distance = 1.0
     mirror = None
@@ -313,6 +314,8 @@ class SceneBuilder:
         self._material_index: dict[int, int] = {}
         self._emissive: dict[tuple, Material] = {}
         self.vertices, self.faces, self.face_materials, self.uvs = [], [], [], []
+        self.normals, self.colors = [], []  # per mesh: (F, 3, 3), zeros (flat) / ones where it has none
+        self.any_normals = self.any_colors = False
         self.n_vertices = 0
         self.spheres, self.sphere_materials = [], []
         self.lights: list = []
@@ -368,28 +371,50 @@ class SceneBuilder:
             self.interfaces.append(interface)
         return self._interface_index[interface]
 
-    def add_mesh(self, vertices, faces, material: Material, uvs=None, matrix=None, flip=False,
-                 interface=None) -> None:
-        """Triangles in object space, moved by the 4x4 ``matrix``; ``flip`` swaps their front (the
-        interface's sides stay with the faces' fronts: flipping them swaps what is inside)."""
+    def add_mesh(self, vertices, faces, material: Material, uvs=None, matrix=None, flip=False, normals=None,
+                 colors=None, compute_normals=None, interface=None) -> None:
+        """Triangles in object space, moved by the 4x4 ``matrix``; ``flip`` swaps their front (and
+        turns their shading normals around, as Mitsuba's flip_normals and pbrt's
+        ReverseOrientation do).  ``normals`` and ``colors``: per corner, (F, 3, 3) or None.
+        ``compute_normals`` (without ``normals``): True or (F, 3) keys of the corners that are one
+        vertex: the angle-weighted vertex normals Mitsuba computes for a mesh file without normals,
+        in world space, on the front side.  ``interface``: the medium interface of every face (its
+        sides stay with the faces' fronts: flipping them swaps what is inside)."""
         v = np.asarray(vertices, np.float64).reshape(-1, 3)
         f = np.asarray(faces, np.int64).reshape(-1, 3)
         uv = None if uvs is None else np.asarray(uvs, np.float32).reshape(-1, 3, 2)
+        nrm = None if normals is None else np.asarray(normals, np.float32).reshape(-1, 3, 3)
+        col = None if colors is None else np.asarray(colors, np.float32).reshape(-1, 3, 3)
+        if nrm is not None and flip:
+            nrm = -nrm
         if matrix is not None:
             v = transform_points(matrix, v)
+            nrm = transform_normals(matrix, nrm)
             if np.linalg.det(matrix[:3, :3]) < 0:
                 flip = not flip
+        keys = None
+        if compute_normals is not None and compute_normals is not False and nrm is None:
+            keys = f if compute_normals is True else np.asarray(compute_normals, np.int64).reshape(-1, 3)
         if flip:
             f = f[:, ::-1]
             uv = uv[:, ::-1] if uv is not None else None
+            nrm = nrm[:, ::-1] if nrm is not None else None
+            col = col[:, ::-1] if col is not None else None
+            keys = keys[:, ::-1] if keys is not None else None
         if len(f) == 0:
             return
+        if keys is not None:
+            nrm = angle_weighted_normals(v, f, keys)
         self.vertices.append(v)
         self.faces.append(f + self.n_vertices)
         self.uvs.append(np.zeros((len(f), 3, 2), np.float32) if uv is None else uv)
+        self.normals.append(nrm if nrm is not None else np.zeros((len(f), 3, 3), np.float32))
+        self.colors.append(col if col is not None else np.ones((len(f), 3, 3), np.float32))
         self.face_materials.append(np.full(len(f), self.material_index(material), np.int32))
         self.face_interfaces.append(np.full(len(f), self.interface_index(interface), np.int32))
         self.n_vertices += len(v)
+        self.any_normals |= nrm is not None
+        self.any_colors |= col is not None
 
     def add_sphere(self, centre, radius: float, material: Material, interface=None) -> None:
         """A sphere, its front outside (an interface given for an inward-facing one must be flipped)."""
@@ -409,11 +434,16 @@ class SceneBuilder:
     def build(self) -> Scene:
         """The Scene (the framing camera when the file had none)."""
         mirror = self.mirror
+        normals = colors = None
         if self.faces:
             vertices = np.concatenate(self.vertices)
             faces = np.concatenate(self.faces)
             uvs = np.concatenate(self.uvs)
             face_materials = np.concatenate(self.face_materials)
+            if self.any_normals:
+                normals = np.concatenate(self.normals)
+            if self.any_colors:
+                colors = np.concatenate(self.colors)
         else:
             vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
             uvs, face_materials = None, np.zeros(0, np.int32)
@@ -425,6 +455,8 @@ class SceneBuilder:
             vertices = transform_points(mirror, vertices)
             faces = faces[:, ::-1]
             uvs = uvs[:, ::-1] if uvs is not None else None
+            normals = transform_normals(mirror, normals)[:, ::-1] if normals is not None else None
+            colors = colors[:, ::-1] if colors is not None else None
             if len(spheres):
                 spheres[:, :3] = transform_points(mirror, spheres[:, :3])
             lights = [dataclasses.replace(lt, position=tuple(transform_points(mirror, lt.position)[0]))
@@ -434,7 +466,8 @@ class SceneBuilder:
             media = [m.transformed(mirror) for m in media]
         if not self.faces and not self.spheres:
             raise SceneFormatError(f"{self.name}: the scene has no shapes that we can render")
-        scene = triangle_scene(vertices, faces, face_materials, self.materials, self.name, uvs=uvs,
+        scene = triangle_scene(vertices, faces, face_materials, self.materials, self.name, uvs=uvs, normals=normals,
+                               colors=colors,
                                spheres=spheres.astype(np.float32),
                                sphere_materials=np.asarray(self.sphere_materials, np.int32),
                                settings=self.settings,

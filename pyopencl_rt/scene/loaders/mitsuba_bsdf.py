@@ -5,20 +5,31 @@
 | ``diffuse`` | ``diffuse`` (reflectance, a bitmap as its texture) |
 | ``conductor``, ``roughconductor`` | ``conductor``: ``material`` Au/Ag/Cu/Al as our named metals, ``none`` (the default) as a perfect mirror times ``specular_reflectance``, or ``eta``/``k`` |
 | ``dielectric``, ``roughdielectric`` (``thindielectric`` with a warning) | ``dielectric`` of IOR ``int_ior / ext_ior``, tint ``specular_transmittance`` |
-| ``plastic``, ``roughplastic`` | ``gltf`` with metallic 0: base colour ``diffuse_reflectance``, IOR ``int_ior / ext_ior`` |
-| ``principled`` | ``gltf``: ``base_color``, ``metallic``, alpha = ``roughness``², IOR from ``specular`` (or ``eta``) |
+| ``plastic``, ``roughplastic`` | ``plastic``, ``roughplastic`` (Mitsuba's parameters; a texture of ``diffuse_reflectance``) |
+| ``principled``, ``principledthin`` | ``principled``, ``principledthin`` (Mitsuba's parameters; textures of ``base_color`` and of up to 6 scalar parameters) |
 | ``twosided`` | its nested BSDF (ours reflect on both sides) |
-| ``mask``, ``bumpmap``, ``normalmap``, ``blendbsdf`` | their (first) nested BSDF, with a warning |
+| ``normalmap``, ``bumpmap`` | its nested BSDF with the map (``normal_texture``; ``scale``, ``flip_invalid_normals``, ``use_shadowing_function`` as Mitsuba reads them: cl/scene/shading.h) |
+| ``mask``, ``blendbsdf`` | their (first) nested BSDF, with a warning |
 
-Rough BSDFs keep ``alpha`` (``alpha_u``/``alpha_v``: their mean, with a warning); a Beckmann
-``distribution`` (Mitsuba's default) is rendered as GGX of the same alpha, with a warning.
+Textures: ``bitmap``, ``checkerboard``, ``rawconstant`` (a 1 x 1 texture of its value, unconverted)
+and, as a BSDF's reflectance (diffuse ``reflectance``, plastic ``diffuse_reflectance``, principled
+``base_color``, dielectric ``specular_transmittance``), ``mesh_attribute``: the shape's vertex or face
+colours (``vertex_color``, ``face_color``, ...: Material.vertex_colors) times its ``scale``.
+
+Rough conductors and dielectrics keep ``alpha`` (a texture of it too; ``alpha_u``/``alpha_v``: their
+mean, with a warning); a Beckmann ``distribution`` (Mitsuba's default) is rendered as GGX of the
+same alpha, with a warning (``roughplastic`` renders Beckmann).  A checkerboard's ``to_uv`` is
+baked into its image.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
+from ...device import abi
 from ..model import Material
 from .builder import error_at
 from .mitsuba_spectrum import spectrum_rgb
@@ -53,10 +64,19 @@ def _metals():
     return METALS
 
 
-def color_value(imp, obj, name, default, *, texture_ok=False):
+@dataclass(frozen=True)
+class MeshAttribute:
+    """A ``mesh_attribute`` texture: the shape's attribute ``name`` (per vertex or per face)."""
+
+    name: str
+    scale: float = 1.0
+
+
+def color_value(imp, obj, name, default, *, texture_ok=False, attribute_ok=False):
     """(linear RGB tuple, Texture or None) of the property ``name`` of ``obj``: an rgb, a
     spectrum or a float; a bitmap or checkerboard texture where ``texture_ok`` (the RGB is then
-    1), else its mean with a warning."""
+    1), else its mean with a warning; a mesh_attribute where ``attribute_ok`` (a MeshAttribute in
+    place of the texture, the RGB its scale)."""
     p = obj.prop(name)
     if p is None:
         return tuple(float(x) for x in default), None
@@ -79,6 +99,12 @@ def color_value(imp, obj, name, default, *, texture_ok=False):
         raise error_at(p.node.pos, f'{obj.label()}: "{name}" must be a colour or a texture, got {tex_obj.label()}')
     texture = imp.bsdfs.texture(tex_obj)
     if texture is None:
+        return tuple(float(x) for x in default), None
+    if isinstance(texture, MeshAttribute):
+        if attribute_ok:
+            return (texture.scale,) * 3, texture
+        imp.warn(p.node.pos, f'{tex_obj.label()} as "{name}" of {obj.label()}: mesh attributes are not supported '
+                             f"here; using {tuple(default)}")
         return tuple(float(x) for x in default), None
     if texture_ok:
         return (1.0, 1.0, 1.0), texture
@@ -110,10 +136,20 @@ def _spectrum_object(imp, spec):
     return (0.5, 0.5, 0.5)
 
 
-def _checker(c0, c1, n=64) -> np.ndarray:
-    """Mitsuba's checkerboard: color0 where u and v are on the same side of 1/2, color1 elsewhere."""
-    idx = (np.arange(n) + 0.5) / n > 0.5
-    mask = idx[:, None] ^ idx[None, :]
+def _checker(c0, c1, n=64, to_uv=None) -> np.ndarray:
+    """Mitsuba's checkerboard: color0 where the fractional parts of u and v (after ``to_uv``, a
+    4 x 4 transform of which the 2D affine part acts on (u, v)) are on the same side of 1/2, color1
+    elsewhere, sampled at the texel centres of uv in [0, 1)^2; with ``to_uv``, 16 texels per
+    checker period along its densest axis (at least 64, at most 2048)."""
+    m = np.eye(4) if to_uv is None else np.asarray(to_uv, np.float64)
+    scale = max(np.abs(m[:2, :2]).sum(axis=1).max(), 1e-9)
+    if to_uv is not None:
+        n = int(min(max(64, np.ceil(16 * scale)), 2048))
+    t = (np.arange(n) + 0.5) / n
+    u, v = np.meshgrid(t, t)  # [row = v, column = u]
+    uu = m[0, 0] * u + m[0, 1] * v + m[0, 3]
+    vv = m[1, 0] * u + m[1, 1] * v + m[1, 3]
+    mask = ((uu - np.floor(uu)) > 0.5) ^ ((vv - np.floor(vv)) > 0.5)
     return np.where(mask[..., None], np.asarray(c1, np.float64), np.asarray(c0, np.float64))
 
 
@@ -122,33 +158,59 @@ class BsdfMapper:
         self.imp = importer
         self._materials: dict[int, Material] = {}
         self._textures: dict[int, object] = {}
-        self._default = None
+        self.attributes: dict[int, str] = {}  # id(material) -> its mesh_attribute's name
+        self._default = {}
 
-    def default(self) -> Material:
-        """Mitsuba's BSDF of a shape without one: diffuse, reflectance 0.5."""
-        if self._default is None:
-            self._default = Material(name="mitsuba-default", albedo=(0.5, 0.5, 0.5))
-        return self._default
+    def default(self, black: bool = False) -> Material:
+        """Mitsuba's BSDF of a shape without one: diffuse, reflectance 0.5, or 0 (``black``) for
+        a shape that emits (src/render/shape.cpp)."""
+        if black not in self._default:
+            self._default[black] = Material(name="mitsuba-default-emitter" if black else "mitsuba-default",
+                                            albedo=(0.0,) * 3 if black else (0.5,) * 3)
+        return self._default[black]
 
     # -- textures --------------------------------------------------------------------------------
 
-    def texture(self, obj):
-        key = id(obj)
+    def texture(self, obj, scalar=False):
+        """The Texture of a <texture>; ``scalar``: as a scalar parameter reads it (Mitsuba's eval_1,
+        which for a checkerboard swaps color0 and color1: src/textures/checkerboard.cpp)."""
+        key = (id(obj), scalar and obj.type == "checkerboard")
         if key not in self._textures:
-            self._textures[key] = self._make_texture(obj)
+            self._textures[key] = self._make_texture(obj, swap=key[1])
         return self._textures[key]
 
-    def _make_texture(self, obj):
+    def _make_texture(self, obj, swap=False):
         from ..textures import texture_from_array, texture_from_image
 
         imp = self.imp
-        if obj.transform("to_uv") is not None:
-            imp.warn(obj.props["to_uv"].node.pos, f"{obj.label()}: to_uv is not supported; ignored")
+        to_uv = obj.transform("to_uv")
+        if obj.type == "rawconstant":
+            p = obj.prop("value")
+            if p is None or p.kind not in ("float", "integer", "rgb", "vector", "point"):
+                raise error_at(obj.node.pos, f'{obj.label()} needs <float>, <rgb> or <vector name="value">')
+            value = np.asarray(p.value, np.float32).reshape(-1)
+            if len(value) not in (1, 3):
+                raise error_at(p.node.pos, f"{obj.label()}: value must be 1 or 3 numbers")
+            imp.unused(obj)
+            return texture_from_array(np.broadcast_to(value, (3,)).reshape(1, 1, 3).copy(), name=obj.label())
+        if obj.type == "mesh_attribute":
+            attr = obj.string("name")
+            if attr is None:
+                raise error_at(obj.node.pos, f'{obj.label()} needs <string name="name">')
+            scale = obj.float("scale", 1.0)
+            imp.unused(obj)
+            return MeshAttribute(attr, scale)
         if obj.type == "checkerboard":
             c0, _ = color_value(imp, obj, "color0", (0.4, 0.4, 0.4))
             c1, _ = color_value(imp, obj, "color1", (0.2, 0.2, 0.2))
             imp.unused(obj)
-            return texture_from_array(_checker(c0, c1).astype(np.float32), name=obj.label())
+            if swap:
+                c0, c1 = c1, c0
+            texture = texture_from_array(_checker(c0, c1, to_uv=to_uv).astype(np.float32), name=obj.label())
+            texture.mitsuba_mean = 0.5 * (float(np.mean(c0)) + float(np.mean(c1)))  # Mitsuba's mean()
+            return texture
+        if to_uv is not None:
+            imp.warn(obj.props["to_uv"].node.pos, f"{obj.label()}: to_uv is not supported; ignored")
         if obj.type != "bitmap":
             imp.warn(obj.node.pos, f"{obj.label()}: texture type not supported; ignored")
             return None
@@ -179,8 +241,16 @@ class BsdfMapper:
     def material(self, obj) -> Material:
         key = id(obj)
         if key not in self._materials:
-            self._materials[key] = self._make(obj)
+            mat = self._make(obj)
+            if isinstance(mat.base_texture, MeshAttribute):  # the shape's colours (mitsuba_scene.py)
+                self.attributes[id(mat)] = mat.base_texture.name
+                mat.base_texture, mat.vertex_colors = None, True
+            self._materials[key] = mat
         return self._materials[key]
+
+    def attribute(self, material: Material) -> str | None:
+        """The mesh attribute whose colours ``material`` (one of ours) multiplies its reflectance by."""
+        return self.attributes.get(id(material))
 
     def _nested(self, obj, what: str) -> Material:
         nested = obj.children_of("bsdf")
@@ -203,9 +273,14 @@ class BsdfMapper:
         value = obj.float(name, positive=True)
         return value
 
-    def _alpha(self, obj, default) -> float:
+    def _alpha(self, obj, default, mat=None) -> float:
+        """The alpha of a rough conductor or dielectric; a texture of it goes to mat's texture
+        slot (the factor is then 1)."""
         imp = self.imp
-        if obj.has("alpha_u") or obj.has("alpha_v"):
+        p = obj.props.get("alpha")
+        if mat is not None and p is not None and p.kind == "object" and p.value.tag == "texture":
+            alpha = self._scalar(obj, mat, "alpha", default)
+        elif obj.has("alpha_u") or obj.has("alpha_v"):
             au, _ = color_value(imp, obj, "alpha_u", (default,) * 3)
             av, _ = color_value(imp, obj, "alpha_v", (default,) * 3)
             alpha = 0.5 * (au[0] + av[0])
@@ -237,29 +312,22 @@ class BsdfMapper:
                 mat.name = obj.id
             imp.unused(obj)
             return mat
-        if t in ("mask", "bumpmap", "normalmap", "blendbsdf"):
-            what = {"mask": "opacity masks are not supported", "blendbsdf": "blends are not supported",
-                    }.get(t, "bump and normal maps are not supported")
+        if t in ("normalmap", "bumpmap"):
+            return self._mapped(obj, name)
+        if t in ("mask", "blendbsdf"):
+            what = {"mask": "opacity masks are not supported", "blendbsdf": "blends are not supported"}[t]
             return self._nested(obj, what)
         mat = Material(name=name)
         if t == "diffuse":
-            mat.albedo, mat.base_texture = color_value(imp, obj, "reflectance", (0.5,) * 3, texture_ok=True)
+            mat.albedo, mat.base_texture = color_value(imp, obj, "reflectance", (0.5,) * 3, texture_ok=True,
+                                                       attribute_ok=True)
         elif t in ("dielectric", "roughdielectric", "thindielectric"):
             self._dielectric(obj, mat)
         elif t in ("conductor", "roughconductor"):
             self._conductor(obj, mat)
         elif t in ("plastic", "roughplastic"):
-            mat.type, mat.metallic = "gltf", 0.0
-            mat.albedo, mat.base_texture = color_value(imp, obj, "diffuse_reflectance", (0.5,) * 3, texture_ok=True)
-            mat.ior = self._ior(obj, "int_ior", "polypropylene") / self._ior(obj, "ext_ior", "air")
-            mat.alpha = self._alpha(obj, 0.1) if t == "roughplastic" else 0.0
-            spec, _ = color_value(imp, obj, "specular_reflectance", (1.0,) * 3)
-            if spec != (1.0, 1.0, 1.0):
-                imp.warn(obj.props["specular_reflectance"].node.pos,
-                         f"{obj.label()}: specular_reflectance other than 1 is not supported; ignored")
-            if obj.boolean("nonlinear", False):
-                imp.warn(obj.props["nonlinear"].node.pos, f"{obj.label()}: nonlinear is not supported; ignored")
-        elif t == "principled":
+            self._plastic(obj, mat)
+        elif t in ("principled", "principledthin"):
             self._principled(obj, mat)
         elif t == "null":
             imp.warn(obj.node.pos, f"{obj.label()}: invisible surfaces are not supported; rendered black")
@@ -272,6 +340,41 @@ class BsdfMapper:
         imp.unused(obj)
         return mat
 
+    def _mapped(self, obj, name) -> Material:
+        """normalmap / bumpmap: the nested BSDF's material with the map (Mitsuba 3's
+        src/bsdfs/normalmap.cpp, bumpmap.cpp; cl/scene/shading.h)."""
+        imp = self.imp
+        nested = self._nested(obj, "")
+        if obj.type == "normalmap":
+            p = obj.prop("normalmap")
+            tex_obj = p.value if p is not None and p.kind == "object" and p.value.tag == "texture" else None
+            scale = 1.0
+        else:
+            named = [q.value for q in obj.props.values() if q.kind == "object" and q.value.tag == "texture"]
+            for q in obj.props:
+                if obj.props[q].kind == "object":
+                    obj.used.add(q)
+            tex_obj = (named + obj.children_of("texture") or [None])[0]
+            scale = obj.float("scale", 1.0)
+        if tex_obj is None:
+            raise error_at(obj.node.pos, f"{obj.label()} needs a nested <texture>"
+                                         + (' named "normalmap"' if obj.type == "normalmap" else ""))
+        texture = self.texture(tex_obj)
+        conventions = ("side",) + (("flip",) if obj.boolean("flip_invalid_normals", True) else ()) \
+            + (("terminator",) if obj.boolean("use_shadowing_function", True) else ())
+        imp.unused(obj)
+        if texture is None or isinstance(texture, MeshAttribute):
+            imp.warn(tex_obj.node.pos, f"{tex_obj.label()} in {obj.label()}: not a texture we can map; "
+                                       "rendering the nested BSDF")
+            return nested
+        if nested.normal_texture is not None:
+            imp.warn(obj.node.pos, f"{obj.label()}: a map over a mapped BSDF: only the outer map is applied")
+        mat = dataclasses.replace(nested, name=obj.id or nested.name, normal_texture=texture,
+                                  bump_map=obj.type == "bumpmap", normal_scale=float(scale), map_conventions=conventions)
+        if id(nested) in self.attributes:
+            self.attributes[id(mat)] = self.attributes[id(nested)]
+        return mat
+
     def _dielectric(self, obj, mat) -> None:
         imp = self.imp
         mat.type = "dielectric"
@@ -279,9 +382,9 @@ class BsdfMapper:
             imp.warn(obj.node.pos, f"{obj.label()}: approximated by a dielectric interface (a thin sheet refracts "
                                    "instead of passing light straight through)")
         mat.ior = self._ior(obj, "int_ior", "bk7") / self._ior(obj, "ext_ior", "air")
-        mat.alpha = self._alpha(obj, 0.1) if obj.type == "roughdielectric" else 0.0
+        mat.alpha = self._alpha(obj, 0.1, mat) if obj.type == "roughdielectric" else 0.0
         refl, _ = color_value(imp, obj, "specular_reflectance", (1.0,) * 3)
-        trans, tex = color_value(imp, obj, "specular_transmittance", (1.0,) * 3, texture_ok=True)
+        trans, tex = color_value(imp, obj, "specular_transmittance", (1.0,) * 3, texture_ok=True, attribute_ok=True)
         mat.tint, mat.base_texture = _clamp01(imp, obj, trans, "specular_transmittance"), tex
         if refl != (1.0, 1.0, 1.0) and refl != trans:
             imp.warn(obj.props["specular_reflectance"].node.pos,
@@ -290,7 +393,7 @@ class BsdfMapper:
     def _conductor(self, obj, mat) -> None:
         imp = self.imp
         mat.type = "conductor"
-        mat.alpha = self._alpha(obj, 0.1) if obj.type == "roughconductor" else 0.0
+        mat.alpha = self._alpha(obj, 0.1, mat) if obj.type == "roughconductor" else 0.0
         spec, _ = color_value(imp, obj, "specular_reflectance", (1.0,) * 3)
         if obj.has("eta") or obj.has("k"):
             mat.eta, _ = color_value(imp, obj, "eta", (0.0,) * 3)
@@ -314,25 +417,88 @@ class BsdfMapper:
             imp.warn(obj.props["specular_reflectance"].node.pos,
                      f"{obj.label()}: specular_reflectance with eta/k is not supported; ignored")
 
-    def _principled(self, obj, mat) -> None:
+    def _plastic(self, obj, mat) -> None:
+        """Mitsuba's plastic / roughplastic: the same parameters (src/bsdfs/plastic.cpp, roughplastic.cpp)."""
         imp = self.imp
-        mat.type = "gltf"
-        mat.albedo, mat.base_texture = color_value(imp, obj, "base_color", (0.5,) * 3, texture_ok=True)
-        mat.metallic = min(max(color_value(imp, obj, "metallic", (0.0,) * 3)[0][0], 0.0), 1.0)
-        roughness = min(max(color_value(imp, obj, "roughness", (0.5,) * 3)[0][0], 0.0), 1.0)
-        mat.alpha = roughness ** 2
-        if obj.has("eta"):
-            mat.ior = obj.float("eta", positive=True)
+        mat.type = obj.type
+        mat.albedo, mat.base_texture = color_value(imp, obj, "diffuse_reflectance", (0.5,) * 3, texture_ok=True,
+                                                   attribute_ok=True)
+        if mat.base_texture is not None and getattr(mat.base_texture, "mitsuba_mean", None) is not None:
+            mat.params["diffuse_mean"] = mat.base_texture.mitsuba_mean
+        mat.ior = self._ior(obj, "int_ior", "polypropylene") / self._ior(obj, "ext_ior", "air")
+        spec, _ = color_value(imp, obj, "specular_reflectance", (1.0,) * 3)
+        mat.specular_reflectance = _clamp01(imp, obj, spec, "specular_reflectance")
+        mat.nonlinear = bool(obj.boolean("nonlinear", False))
+        if obj.type == "roughplastic":
+            if mat.ior == 1.0:
+                raise error_at(obj.node.pos, f"{obj.label()}: int_ior and ext_ior must differ (Mitsuba refuses them)")
+            if obj.has("alpha_u") or obj.has("alpha_v"):
+                raise error_at(obj.node.pos, f"{obj.label()}: anisotropic roughness (alpha_u, alpha_v) is not "
+                                             "supported by roughplastic (Mitsuba refuses it too)")
+            mat.alpha = obj.float("alpha", 0.1, minimum=0.0)
+            mat.distribution = self._distribution(obj)
+        obj.used.add("sample_visible")
+
+    def _distribution(self, obj) -> str:
+        dist = obj.string("distribution", "beckmann").lower()
+        if dist not in ("beckmann", "ggx"):
+            raise error_at(obj.props["distribution"].node.pos, f"{obj.label()}: unknown distribution '{dist}'")
+        return dist
+
+    def _scalar(self, obj, mat, name, default, *, field=None):
+        """A scalar parameter of a principled BSDF: its value, or 1 with its texture (luminance)
+        in mat.scalar_textures[field or name]."""
+        from ..textures import scalar_texture
+
+        p = obj.prop(name)
+        if p is None:
+            return default
+        if p.kind in ("float", "integer"):
+            return float(p.value)
+        if p.kind == "object" and p.value.tag == "texture":
+            texture = self.texture(p.value, scalar=True)
+            if texture is None:
+                return default
+            if len(mat.scalar_textures) == abi.TEX_SLOTS:
+                mean = float(scalar_texture(texture).texels[..., 0].mean())
+                self.imp.warn(p.node.pos, f'{p.value.label()} as "{name}" of {obj.label()}: more than '
+                                          f"{abi.TEX_SLOTS} textured parameters; using its mean {mean:.4g}")
+                return mean
+            mat.scalar_textures[field or name] = scalar_texture(texture)
+            return 1.0
+        rgb, _ = color_value(self.imp, obj, name, (default,) * 3)
+        return float(np.dot(rgb, (0.212671, 0.715160, 0.072169)))
+
+    def _principled(self, obj, mat) -> None:
+        """Mitsuba's principled / principledthin: the same parameters (src/bsdfs/principled.cpp,
+        principledthin.cpp); scalar textures through the material's texture slots."""
+        from ..materials import principled, principledthin
+
+        imp = self.imp
+        thin = obj.type == "principledthin"
+        module = principledthin if thin else principled
+        mat.type = obj.type
+        mat.albedo, mat.base_texture = color_value(imp, obj, "base_color", (0.5,) * 3, texture_ok=True,
+                                                   attribute_ok=True)
+        mat.params["roughness"] = self._scalar(obj, mat, "roughness", 0.5)
+        for name in module.SCALARS:
+            value = self._scalar(obj, mat, name, 0.0)
+            if name == "metallic":
+                mat.metallic = value
+            else:
+                mat.params[name] = value
+        transmits = obj.has("spec_trans") and not (obj.props["spec_trans"].kind == "float"
+                                                    and obj.props["spec_trans"].value == 0)
+        if thin:
+            mat.ior = self._scalar(obj, mat, "eta", 1.5, field="ior")
         else:
-            specular = min(max(obj.float("specular", 0.5), 0.0), 1.0)
-            mat.ior = 2.0 / (1.0 - math.sqrt(0.08 * specular)) - 1.0 if specular > 0 else 1.0
-        for extra in ("spec_tint", "anisotropic", "sheen", "sheen_tint", "clearcoat", "spec_trans", "flatness"):
-            p = obj.prop(extra)
-            if p is not None and (p.kind != "float" or p.value != 0):
-                imp.warn(p.node.pos, f'<{p.kind} name="{extra}"> of {obj.label()}: not supported by our glTF '
-                                     "mapping; ignored")
-        obj.used.update({"clearcoat_gloss", "main_specular_sampling_rate", "clearcoat_sampling_rate",
-                         "diffuse_reflectance_sampling_rate"})
+            if obj.has("eta") and obj.has("specular"):
+                raise error_at(obj.node.pos, f'{obj.label()}: give "eta" or "specular", not both (as Mitsuba)')
+            eta = obj.float("eta", positive=True) if obj.has("eta") else None
+            specular = obj.float("specular", 0.5) if eta is None else None
+            mat.ior = principled.principled_eta(eta, specular, transmits)
+        rates = tuple(obj.float(r, 1.0, minimum=0.0) for r in module.RATES)
+        mat.params["rates"] = rates + (0.0,) * (4 - len(rates))
 
 
 def _clamp01(imp, obj, rgb, what) -> tuple:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model import DirectionalLight, Environment, PointLight, RenderSettings
+from ..model import DirectionalLight, Environment, PixelFilter, PointLight, RenderSettings
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cube_mesh, cylinder_mesh, disk_mesh, error_at,
                       rectangle_mesh, transform_points, transform_vector, vertical_fov)
 from ..media import MediumInterface
@@ -21,8 +21,11 @@ from .mitsuba_xml import Document, MiObject
 
 # parameters that do not change the image
 SILENT = {"pixel_format", "component_format", "near_clip", "far_clip", "sample_border", "banner", "file_format",
-          "compensate", "shutter_open", "shutter_close", "srf", "face_normals", "sample_visible", "emitter_samples",
+          "compensate", "shutter_open", "shutter_close", "srf", "sample_visible", "emitter_samples",
           "bsdf_samples", "jitter", "mis_compensation", "silhouette_sampling_weight", "mip_filter_type"}
+
+# hdrfilm's filter when it names none (and the film's when there is no film)
+MITSUBA_DEFAULT_FILTER = PixelFilter("gaussian", (2.0, 2.0), sigma=0.5)
 
 
 def load_mitsuba_xml(path, name: str | None = None, defines: dict | None = None):
@@ -61,7 +64,8 @@ class _Importer:
     def run(self) -> None:
         sensors = [o for o in self.doc.objects if o.tag == "sensor"]
         integrators = [o for o in self.doc.objects if o.tag == "integrator"]
-        settings = RenderSettings(width=768, height=576, spp=4, max_depth=-1, rr_depth=5)
+        settings = RenderSettings(width=768, height=576, spp=4, max_depth=-1, rr_depth=5,
+                                  filter=MITSUBA_DEFAULT_FILTER)
         self.b.settings = settings
         for extra in sensors[1:] + integrators[1:]:
             self.warn(extra.node.pos, f"{extra.label()}: only the first {extra.tag} is used; ignored")
@@ -117,11 +121,7 @@ class _Importer:
                 self.warn(film.node.pos, f"{film.label()}: not supported; read as an hdrfilm")
             settings.width = film.integer("width", 768, minimum=1)
             settings.height = film.integer("height", 576, minimum=1)
-            for rf in film.children_of("rfilter"):
-                if rf.type != "box":
-                    self.warn(rf.node.pos, f"{rf.label()}: we filter with a box (uniform over the pixel); "
-                                           "the image is a little sharper than Mitsuba's")
-                self.unused(rf, extra=("stddev", "radius", "b", "c", "lobes"))
+            settings.filter = self.rfilter(film)
             for extra in film.children:
                 if extra.tag != "rfilter":
                     self.warn(extra.node.pos, f"{extra.label()} in {film.label()}: not supported; ignored")
@@ -140,6 +140,8 @@ class _Importer:
         for extra in obj.children:
             if extra.tag not in ("film", "sampler", "medium"):
                 self.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported; ignored")
+        if obj.type == "orthographic":
+            return self.orthographic(obj, settings)
         if obj.type not in ("perspective", "thinlens"):
             self.warn(obj.node.pos, f"{obj.label()}: not supported; using a camera that frames the scene")
             return
@@ -177,6 +179,59 @@ class _Importer:
                                                           focus=focus if aperture > 0 else None)
         self.unused(obj)
 
+    def orthographic(self, obj: MiObject, settings: RenderSettings) -> None:
+        """Mitsuba's film spans local x in [-1, 1] and y in [-1, 1] / aspect (aspect = width /
+        height), at local z = near_clip, seen along local +z, with image right on local -x; to_world
+        scales it (a <scale x="s" y="s"/> before the lookat: a film 2 s wide)."""
+        m = obj.transform("to_world")
+        m = np.eye(4) if m is None else m
+        if abs(np.linalg.det(m[:3, :3])) < 1e-300:
+            raise error_at(obj.props["to_world"].node.pos, f"{obj.label()}: to_world is singular")
+        near = obj.float("near_clip", 1e-2, minimum=0.0)
+        half_width = float(np.linalg.norm(m[:3, 0]))
+        half_height = float(np.linalg.norm(m[:3, 1])) * settings.height / settings.width
+        frame = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
+        if not np.isclose(half_width / settings.width, half_height / settings.height, rtol=1e-5) or \
+                not np.allclose(frame.T @ frame, np.eye(3), atol=1e-6):
+            self.warn(obj.node.pos, f"{obj.label()}: to_world scales x and y unevenly or shears: our pixels are "
+                                    "square, the film's height is kept")
+        at_near = m.copy()
+        at_near[:3, 3] = m[:3, 3] + near * m[:3, 2]  # the rays start on the near plane
+        self.b.camera, self.b.mirror = camera_from_matrix(at_near, 40.0, -1.0, projection="orthographic",
+                                                          extent=2.0 * half_height)
+        self.unused(obj)
+
+    def rfilter(self, film: MiObject) -> PixelFilter:
+        """The film's <rfilter> (Mitsuba's default when it has none: gaussian, stddev 0.5)."""
+        filters = film.children_of("rfilter")
+        for extra in filters[1:]:
+            self.warn(extra.node.pos, f"{extra.label()} in {film.label()}: only the first rfilter is used; ignored")
+        if not filters:
+            return MITSUBA_DEFAULT_FILTER
+        rf, t = filters[0], filters[0].type
+        if t == "box":
+            flt = PixelFilter("box", (0.5, 0.5))
+        elif t == "tent":
+            r = rf.float("radius", 1.0, positive=True)
+            flt = PixelFilter("tent", (r, r))
+        elif t == "gaussian":
+            sigma = rf.float("stddev", 0.5, positive=True)
+            flt = PixelFilter("gaussian", (4 * sigma, 4 * sigma), sigma=sigma)
+        elif t in ("mitchell", "catmullrom"):
+            b, c = (rf.float("B", 1 / 3), rf.float("C", 1 / 3)) if t == "mitchell" else (0.0, 0.5)
+            flt = PixelFilter("mitchell", (2.0, 2.0), b=b, c=c)
+        elif t == "lanczos":
+            lobes = rf.integer("lobes", 3, minimum=1)
+            flt = PixelFilter("lanczos", (float(lobes), float(lobes)), tau=float(lobes))
+        else:
+            self.warn(rf.node.pos, f"{rf.label()}: not supported; using Mitsuba's default, a gaussian of stddev 0.5")
+            flt = MITSUBA_DEFAULT_FILTER
+        self.unused(rf)
+        try:
+            return flt.checked()
+        except ValueError as exc:
+            raise error_at(rf.node.pos, f"{rf.label()}: {exc}") from None
+
     # -- shapes ----------------------------------------------------------------------------------
 
     def interface(self, obj: MiObject, bsdfs) -> MediumInterface | None:
@@ -213,14 +268,18 @@ class _Importer:
     def shape(self, obj: MiObject) -> None:
         bsdfs = obj.children_of("bsdf")
         interface = self.interface(obj, bsdfs)
-        if interface is not None and interface.null:
+        emitters = obj.children_of("emitter")
+        # Mitsuba's shape without a BSDF: diffuse, reflectance 0.5, or 0 for an emitter (shape.cpp)
+        emitting = any(em.type == "area" for em in emitters)
+        attribute = None
+        if interface is not None and interface.null:  # index-matched: no scattering (scene/media.py)
             material = self.null_material()
             self.unused(bsdfs[0])
         else:
-            material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default()
+            material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default(black=emitting)
+            attribute = self.bsdfs.attribute(material)  # a mesh_attribute as its reflectance
         if len(bsdfs) > 1:
             self.warn(bsdfs[1].node.pos, f"{obj.label()}: a second BSDF; ignored")
-        emitters = obj.children_of("emitter")
         for em in emitters:
             if em.type != "area":
                 self.warn(em.node.pos, f"{em.label()} in {obj.label()}: only area emitters attach to shapes; "
@@ -239,21 +298,32 @@ class _Importer:
         t = obj.type
         if t == "sphere":
             return self.sphere(obj, material, m, flip, emitters, interface)
+        normals = compute = extras = None
         if t in ("obj", "ply", "serialized"):
-            mesh = self.mesh_file(obj)
+            v, f, uv, normals, keys, extras = self.mesh_file(obj)
+            if obj.boolean("face_normals", False):  # Mitsuba: flat, whatever the file holds
+                normals = None
+            elif normals is None:  # Mitsuba computes them
+                compute = keys
         elif t == "rectangle":
-            mesh = rectangle_mesh()
+            v, f, uv = rectangle_mesh()
         elif t == "cube":
-            mesh = cube_mesh()
+            v, f, uv = cube_mesh()
         elif t == "disk":
-            mesh = disk_mesh()
+            v, f, uv = disk_mesh()
         elif t == "cylinder":
-            mesh = self.cylinder(obj)
+            v, f, uv, normals = self.cylinder(obj)
         else:
             self.warn(obj.node.pos, f"{obj.label()}: shape type not supported; ignored")
             return
-        v, f, uv = mesh
-        self.b.add_mesh(v, f, material, uvs=uv, matrix=m, flip=flip, interface=interface)
+        colors = None
+        if attribute is not None:
+            colors = extras.colors(attribute) if extras is not None else None
+            if colors is None:
+                self.warn(obj.node.pos, f'{obj.label()}: its BSDF reads the mesh attribute "{attribute}", which '
+                                        "the shape does not have; using 1")
+        self.b.add_mesh(v, f, material, uvs=uv, matrix=m, flip=flip, normals=normals, colors=colors,
+                        compute_normals=compute, interface=interface)
         self.unused(obj)
 
     def cylinder(self, obj: MiObject):
@@ -269,7 +339,9 @@ class _Importer:
         x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
         x /= np.linalg.norm(x)
         frame = np.stack([x, np.cross(z, x), z], 1)
-        return v @ frame.T + p0, f, uv
+        radial = v * [1.0, 1.0, 0.0]  # Mitsuba's cylinder shades with its exact (radial) normal
+        radial /= np.linalg.norm(radial, axis=1, keepdims=True)
+        return v @ frame.T + p0, f, uv, (radial @ frame.T)[f]
 
     def sphere(self, obj, material, m, flip, emitters, interface=None) -> None:
         centre = obj.point("center", np.zeros(3))
@@ -289,6 +361,10 @@ class _Importer:
         self.unused(obj)
 
     def mesh_file(self, obj: MiObject):
+        """(vertices, faces, per-corner uvs, normals (or None) and the keys of the corners that
+        are one vertex (Mitsuba's OBJ reader: one per position and texture coordinate), and the
+        file's attributes (MeshExtras))."""
+        from .meshfile import MeshExtras
         from .obj import parse_obj
 
         fname = obj.string("filename")
@@ -296,19 +372,26 @@ class _Importer:
             raise error_at(obj.node.pos, f'{obj.label()} needs <string name="filename">')
         path = self.resolve(fname, obj)
         where = f"{obj.node.pos}: {obj.label()}: {fname}"
+        extras = MeshExtras()
         if obj.type == "obj":
-            v, f, _names, _libs, uv = parse_obj(path, where, with_uvs=True)
-            if uv is not None and not obj.boolean("flip_tex_coords", True):
-                uv[..., 1] = 1.0 - uv[..., 1]
+            v, f, _names, _libs, uv, normals = parse_obj(path, where, with_uvs=True, with_normals=True)
+            keys = f
+            if uv is not None:
+                corners = np.concatenate([f.reshape(-1, 1).astype(np.float64), uv.reshape(-1, 2)], 1)
+                keys = np.unique(corners, axis=0, return_inverse=True)[1].reshape(-1, 3)
+                if not obj.boolean("flip_tex_coords", True):
+                    uv[..., 1] = 1.0 - uv[..., 1]
         elif obj.type == "ply":
-            v, f, uv = _read_ply(path, where)
+            v, f, uv, extras = _read_ply(path, where)
+            normals, keys = extras.normals, f
         else:
             from .mitsuba_serialized import read_serialized
 
-            v, f, uv = read_serialized(path, obj.integer("shape_index", 0, minimum=0), where)
+            v, f, uv, normals = read_serialized(path, obj.integer("shape_index", 0, minimum=0), where)
+            keys = f
         if len(f) == 0:
             raise error_at(obj.node.pos, f"{obj.label()}: '{fname}' contains no triangles")
-        return v, f, uv
+        return v, f, uv, normals, keys, extras
 
     # -- emitters --------------------------------------------------------------------------------
 
@@ -370,9 +453,11 @@ def _read_ply(path, where):
         v, f = flatten(loaded, name=where)
     except MeshError as exc:
         raise error_at(where.split(": ")[0], str(exc)) from None
+    from .meshfile import ply_extras
+
     uv = getattr(getattr(loaded, "visual", None), "uv", None)
     uvc = None
     if uv is not None and len(uv) == len(v) and len(loaded.faces) == len(f):
         uvc = np.asarray(uv, np.float32)[np.asarray(f)][..., :2]  # Mitsuba reads PLY uvs as they are
-    return v, f, uvc
+    return v, f, uvc, ply_extras(loaded, f)
 

@@ -16,14 +16,15 @@ from pathlib import Path
 import numpy as np
 
 from ..media import MediumInterface
-from ..model import DirectionalLight, Environment, Material, PointLight, RenderSettings
+from ..model import DirectionalLight, Environment, Material, PixelFilter, PointLight, RenderSettings
+from .assembly import transform_normals
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh,
                       transform_points, transform_vector, translate)
 from .pbrt import Directive, Parser
 from .pbrt_materials import MaterialMapper, spectrum_rgb
 
 SILENT = {("Film", "filename"), ("Integrator", "lightsampler"), ("Sampler", "seed"), ("Film", "diagonal"),
-          ("Film", "savefp16"), ("Integrator", "regularize"), ("Shape", "N"), ("Shape", "S"),
+          ("Film", "savefp16"), ("Integrator", "regularize"), ("Shape", "S"),
           ("Shape", "faceIndices"), ("Shape", "emissionfilename")}
 
 
@@ -201,8 +202,8 @@ class _Importer:
         m = self.state.ctm
         for kind, *data in self.instances[d.args[0]]:
             if kind == "mesh":
-                v, f, uv, mat, interface = data
-                self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, interface=interface)
+                v, f, uv, mat, normals, interface = data
+                self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, normals=normals, interface=interface)
             else:
                 centre, radius, mat, pos, interface = data
                 self._sphere(transform_points(m, centre)[0], radius, m, mat, pos, False, interface)
@@ -268,18 +269,39 @@ class _Importer:
             if integ.params.boolean("regularize", False):
                 self.warn(integ.params.items["regularize"].pos, "Integrator: regularize is not supported; ignored")
             self.unused(integ)
-        pf = self.options.get("PixelFilter")
-        if pf is not None:
-            if pf.args[0] != "box":
-                self.warn(pf.pos, f'PixelFilter "{pf.args[0]}": we filter with a box (uniform over the pixel)')
-            for p in pf.params.items.values():
-                p.used = True
+        st.filter = self.pixel_filter(self.options.get("PixelFilter"))
         if self.camera is not None:
             self.finish_camera(*self.camera)
+
+    def pixel_filter(self, pf: Directive | None) -> PixelFilter:
+        """pbrt-v4's filters and defaults (a gaussian of radius 1.5 and sigma 0.5 without PixelFilter)."""
+        if pf is None:
+            return PixelFilter("gaussian", (1.5, 1.5), sigma=0.5)
+        t, p = pf.args[0], pf.params
+        default_radius = {"box": 0.5, "gaussian": 1.5, "mitchell": 2.0, "sinc": 4.0, "triangle": 2.0}.get(t)
+        if default_radius is None:
+            self.warn(pf.pos, f'PixelFilter "{t}": not supported; using pbrt\'s default, a gaussian (radius 1.5, sigma 0.5)')
+            default_radius, t = 1.5, "gaussian"
+        radius = (p.float("xradius", default_radius), p.float("yradius", default_radius))
+        kind = {"sinc": "lanczos", "triangle": "tent"}.get(t, t)
+        flt = PixelFilter(kind, radius)
+        if kind == "gaussian":
+            flt = dataclasses.replace(flt, sigma=p.float("sigma", 0.5))
+        elif kind == "mitchell":
+            flt = dataclasses.replace(flt, b=p.float("B", 1 / 3), c=p.float("C", 1 / 3))
+        elif kind == "lanczos":
+            flt = dataclasses.replace(flt, tau=p.float("tau", 3.0))
+        self.unused(pf)
+        try:
+            return flt.checked()
+        except ValueError as exc:
+            raise error_at(pf.pos, f'PixelFilter "{pf.args[0]}": {exc}') from None
 
     def finish_camera(self, d: Directive, camera_from_world, medium: str = "") -> None:
         st, p = self.b.settings, d.params
         self.b.camera_medium = self.medium_index(medium, d.pos)
+        if d.args[0] == "orthographic":
+            return self.orthographic(d, camera_from_world)
         if d.args[0] != "perspective":
             self.warn(d.pos, f'Camera "{d.args[0]}": not supported; using a camera that frames the scene')
             return
@@ -297,6 +319,34 @@ class _Importer:
                 p.items[key].used = True
         self.b.camera, self.b.mirror = camera_from_matrix(np.linalg.inv(camera_from_world), vfov, 1.0,
                                                           aperture=max(lens, 0.0), focus=focus if lens > 0 else None)
+        self.unused(d)
+
+    def orthographic(self, d: Directive, camera_from_world) -> None:
+        """pbrt-v4's orthographic camera: the screen window (default [-a, a] x [-1, 1] for a frame
+        aspect ratio a > 1, else [-1, 1] x [-1 / a, 1 / a]) in camera space at z = 0, seen along +z."""
+        st, p = self.b.settings, d.params
+        frame = p.float("frameaspectratio", st.width / st.height)
+        if not frame > 0:
+            raise error_at(d.pos, f"Camera: frameaspectratio must be > 0, got {frame:g}")
+        window = (-frame, frame, -1.0, 1.0) if frame > 1 else (-1.0, 1.0, -1.0 / frame, 1.0 / frame)
+        window = p.numbers("screenwindow", n=4, default=window)
+        x0, x1, y0, y1 = map(float, window)
+        if not (x1 > x0 and y1 > y0):
+            raise error_at(d.pos, f"Camera: the screen window {list(window)} is empty or flipped")
+        m = np.linalg.inv(camera_from_world)
+        half_width, half_height = np.linalg.norm(m[:3, 0]) * (x1 - x0) / 2, np.linalg.norm(m[:3, 1]) * (y1 - y0) / 2
+        axes = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
+        if not np.isclose(half_width / st.width, half_height / st.height, rtol=1e-5) or \
+                not np.allclose(axes.T @ axes, np.eye(3), atol=1e-6):
+            self.warn(d.pos, 'Camera "orthographic": the screen window or the transform make pixels that are not '
+                             "square: the window's height is kept")
+        centred = m.copy()
+        centred[:3, 3] = m[:3, 3] + m[:3, 0] * (x0 + x1) / 2 + m[:3, 1] * (y0 + y1) / 2
+        lens = p.float("lensradius", 0.0)
+        focus = p.float("focaldistance", 1e6)
+        self.b.camera, self.b.mirror = camera_from_matrix(centred, 40.0, 1.0, aperture=max(lens, 0.0),
+                                                          focus=focus if lens > 0 else None,
+                                                          projection="orthographic", extent=2 * half_height)
         self.unused(d)
 
     # -- materials, textures, lights ---------------------------------------------------------------
@@ -457,22 +507,27 @@ class _Importer:
                 return
             self._sphere(transform_points(m, [0, 0, 0])[0], radius, m, mat, d.pos, flip, interface)
             return
-        v, f, uv = geometry
+        v, f, uv, *rest = geometry
+        normals = rest[0] if rest else None
         if self.recording is not None:
+            def reverse(a):
+                return a[:, ::-1] if a is not None else None
+
             if flip:
-                f, uv = f[:, ::-1], (uv[:, ::-1] if uv is not None else None)
+                f, uv, normals = f[:, ::-1], reverse(uv), None if normals is None else -reverse(normals)
             v = transform_points(m, v)
+            normals = transform_normals(m, normals)
             if np.linalg.det(m[:3, :3]) < 0:
-                f, uv = f[:, ::-1], (uv[:, ::-1] if uv is not None else None)
-            self.recording.append(("mesh", v, f, uv, mat, interface))
+                f, uv, normals = f[:, ::-1], reverse(uv), reverse(normals)
+            self.recording.append(("mesh", v, f, uv, mat, normals, interface))
             return
-        self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, interface=interface)
+        self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=normals, interface=interface)
 
     def _sphere(self, centre, radius, m, mat, pos, flip, interface=None) -> None:
         s = np.linalg.svd(m[:3, :3], compute_uv=False)
-        if s.max() - s.min() > 1e-6 * s.max():  # scaled unevenly: an ellipsoid, as triangles
+        if s.max() - s.min() > 1e-6 * s.max():  # scaled unevenly: an ellipsoid, as triangles (its exact normals)
             v, f, uv = sphere_mesh(radius)
-            self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, interface=interface)
+            self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=(v / radius)[f], interface=interface)
             return
         if flip and mat.is_emissive:
             self.warn(pos, 'Shape "sphere": ReverseOrientation: our spheres emit outwards only')

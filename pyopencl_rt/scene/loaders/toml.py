@@ -5,11 +5,13 @@
     look_at = [278, 273, 0]       # required in [camera]
     up = [0, 1, 0]                # default [0, 1, 0]
     fov = 39.3077                 # vertical field of view in degrees, default 40
+    type = "perspective"          # or "orthographic", with extent = the view's height (default 2)
 
     [film]
     width = 512                   # pixels, default 512
     height = 512                  # pixels, default 512
     aovs = ["albedo", "normal"]   # AOV layers of the EXR (pyopencl_rt/render/aovs.py), default none
+    filter = {type = "gaussian", sigma = 0.5}  # pixel filter, default {type = "box"} (radius 0.5)
 
     [render]
     spp = 64                      # samples per pixel, default 64
@@ -67,11 +69,11 @@ from ...errors import UserError
 from ...imageio import read_exr
 from ..materials import REGISTRY
 from ..mesh import MeshError, flatten, load_trimesh
-from ..model import (AOVS, INTEGRATORS, SAMPLERS, Camera, DirectionalLight, Environment, Material, PointLight,
-                     RenderSettings, Scene)
-from .assembly import DEFAULT_FOV, frame_scene, triangle_scene
+from ..model import (AOVS, FILTERS, INTEGRATORS, SAMPLERS, Camera, DirectionalLight, Environment, Material,
+                     PixelFilter, PointLight, PROJECTIONS, RenderSettings, Scene)
+from .assembly import DEFAULT_FOV, frame_scene, transform_normals, triangle_scene
 from .gltf import read_gltf
-from .meshfile import trimesh_uvs
+from .meshfile import ply_extras, trimesh_uvs
 from .obj import obj_with_materials
 from .toml_media import SHAPE_KEYS, camera_medium, read_media, shape_interface
 from .values import (ErrorContext, SceneError, TableReader, check_boolean, check_choice, check_color,
@@ -90,10 +92,13 @@ SHAPE_TYPES = ("mesh", "quad", "triangle", "box", "sphere")
 LIGHT_TYPES = ("point", "directional")
 
 _TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environment", "media"}
-_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance", "medium"}
+_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance", "type", "extent", "medium"}
 _LIGHT_KEYS = {"point": {"type", "position", "intensity"}, "directional": {"type", "direction", "irradiance"}}
 _ENVIRONMENT_KEYS = {"radiance", "file", "scale"}
-_FILM_KEYS = {"width", "height", "aovs"}
+_FILM_KEYS = {"width", "height", "aovs", "filter"}
+# each pixel filter's keys, and its radius when none is given (Mitsuba 3's: gaussian 4 sigma, lanczos tau)
+_FILTER_KEYS = {"box": {"type", "radius"}, "tent": {"type", "radius"}, "gaussian": {"type", "radius", "sigma"},
+                "mitchell": {"type", "radius", "b", "c"}, "lanczos": {"type", "radius", "tau"}}
 _RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth", "sampler", "adaptive", "target_error"}
 # the keys of every [materials.NAME]; each type adds its own (MaterialType.toml_keys)
 MATERIAL_COMMON_KEYS = frozenset({"type", "emission", "two_sided", "emission_texture"})
@@ -192,7 +197,7 @@ def load_toml_scene(path: Path, name: str) -> Scene:
             materials.append(Material())
         return material_index[mname]
 
-    tri_vertices, tri_faces, tri_mats, tri_uvs, tri_ifaces = [], [], [], [], []
+    tri_vertices, tri_faces, tri_mats, tri_uvs, tri_normals, tri_colors, tri_ifaces = [], [], [], [], [], [], []
     n_vertices = 0
     spheres, sphere_mats, sphere_ifaces = [], [], []
     for number, table in enumerate(shapes, 1):
@@ -222,8 +227,10 @@ def load_toml_scene(path: Path, name: str) -> Scene:
 
         face_mat = None
         uvc = None  # per-corner texture coordinates (F, 3, 2), None = zeros
+        nrm = col = None  # per-corner shading normals and colours of a mesh file, or None
         if stype == "mesh":
-            v, f, face_mat, uvc = _read_mesh_shape(ctx, where, path, table, materials, material_index, material_for)
+            v, f, face_mat, uvc, nrm, col = _read_mesh_shape(ctx, where, path, table, materials, material_index,
+                                                             material_for)
         elif stype == "quad":
             if "points" not in table:
                 raise ctx.error(where, "missing 'points' (four corners [[x,y,z], ...])")
@@ -252,34 +259,47 @@ def load_toml_scene(path: Path, name: str) -> Scene:
             if not (areas > 0).all():
                 raise ctx.error(where, "degenerate: its corners do not span an area (repeated or collinear points)")
 
+        def reverse(a):
+            return a[:, ::-1] if a is not None else None
+
         matrix = _shape_transform(ctx, where, table)
         if matrix is not None:
             v = v @ matrix[:3, :3].T + matrix[:3, 3]
+            nrm = transform_normals(matrix, nrm)
             if np.linalg.det(matrix[:3, :3]) < 0:
-                f = f[:, ::-1]
-                uvc = uvc[:, ::-1] if uvc is not None else None
+                f, uvc, nrm, col = f[:, ::-1], reverse(uvc), reverse(nrm), reverse(col)
         finite = v[np.isfinite(v).all(axis=1)]  # a mesh file's NaN vertices are dropped, with a warning
         _check_reach(ctx, where, np.abs(finite).max() if len(finite) else 0.0, "its vertices reach")
         if check_boolean(ctx, where, "flip_normals", table.get("flip_normals", False)):
-            f = f[:, ::-1]
-            uvc = uvc[:, ::-1] if uvc is not None else None
+            f, uvc, col = f[:, ::-1], reverse(uvc), reverse(col)
+            nrm = -reverse(nrm) if nrm is not None else None
         if face_mat is None:
             face_mat = np.full(len(f), material_for(where, table), np.int32)
         tri_vertices.append(v)
         tri_uvs.append(np.zeros((len(f), 3, 2), np.float32) if uvc is None else np.asarray(uvc, np.float32))
+        tri_normals.append(nrm)
+        tri_colors.append(col)
         tri_faces.append(f + n_vertices)
         tri_mats.append(face_mat)
         tri_ifaces.append(np.full(len(f), interface_for(where, table), np.int32))
         n_vertices += len(v)
 
+    def corners(parts, fill):  # per-corner arrays of the shapes that have them, `fill` elsewhere
+        if all(a is None for a in parts):
+            return None
+        return np.concatenate([np.full((len(f), 3, 3), fill, np.float32) if a is None else np.asarray(a, np.float32)
+                               for a, f in zip(parts, tri_faces)])
+
+    normals = colors = None
     if tri_faces:
+        normals, colors = corners(tri_normals, 0.0), corners(tri_colors, 1.0)
         vertices, faces = np.concatenate(tri_vertices), np.concatenate(tri_faces)
         face_mat, uvs, face_ifaces = np.concatenate(tri_mats), np.concatenate(tri_uvs), np.concatenate(tri_ifaces)
     else:
         vertices, faces, face_mat, uvs = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int32), None
         face_ifaces = np.zeros(0, np.int32)
     scene = triangle_scene(
-        vertices, faces, face_mat, materials, name, uvs, settings=settings,
+        vertices, faces, face_mat, materials, name, uvs, normals=normals, colors=colors, settings=settings,
         spheres=np.asarray(spheres, np.float32).reshape(-1, 4), sphere_materials=np.asarray(sphere_mats, np.int32),
         face_interfaces=face_ifaces if interfaces else None,
     )
@@ -380,6 +400,8 @@ def _read_settings(ctx, film, render) -> RenderSettings:
         if not isinstance(aovs, list):
             raise ctx.error("[film]", f"'aovs' must be a list of names ({', '.join(AOVS)}), got {describe(aovs)}")
         s.aovs = tuple(check_choice(ctx, "[film]", "AOV", a, AOVS) for a in aovs)
+    if "filter" in film:
+        s.filter = _read_filter(ctx, film["filter"])
     if "spp" in render:
         s.spp = check_integer(ctx, "[render]", "spp", render["spp"], minimum=1)
     if "max_depth" in render:
@@ -399,6 +421,28 @@ def _read_settings(ctx, film, render) -> RenderSettings:
     return s
 
 
+def _read_filter(ctx, value) -> PixelFilter:
+    """[film] filter: a filter's name, or a table of its type and parameters."""
+    where = "[film] filter"
+    if isinstance(value, str):
+        value = {"type": value}
+    if not isinstance(value, dict):
+        raise ctx.error(where, f"must be a filter's name or a table such as {{type = \"gaussian\", sigma = 0.5}}, "
+                               f"got {describe(value)}")
+    ftype = check_choice(ctx, where, "type", value.get("type", "box"), FILTERS)
+    check_keys(ctx, where, value, _FILTER_KEYS[ftype])
+    sigma = check_number(ctx, where, "sigma", value.get("sigma", 0.5), positive=True)
+    tau = check_number(ctx, where, "tau", value.get("tau", 3.0), positive=True)
+    b = check_number(ctx, where, "b", value.get("b", 1.0 / 3.0))
+    c = check_number(ctx, where, "c", value.get("c", 1.0 / 3.0))
+    default_radius = {"box": 0.5, "tent": 1.0, "gaussian": 4.0 * sigma, "mitchell": 2.0, "lanczos": tau}[ftype]
+    radius = check_vector(ctx, where, "radius", value.get("radius", default_radius), n=2, allow_scalar=True)
+    try:
+        return PixelFilter(ftype, tuple(float(r) for r in radius), sigma, b, c, tau).checked()
+    except ValueError as exc:
+        raise ctx.error(where, str(exc)) from None
+
+
 def _read_camera(ctx, table) -> Camera:
     where = "[camera]"
     check_keys(ctx, where, table, _CAMERA_KEYS)
@@ -408,9 +452,14 @@ def _read_camera(ctx, table) -> Camera:
     eye = check_vector(ctx, where, "eye", table["eye"])
     look_at = check_vector(ctx, where, "look_at", table["look_at"])
     up = check_vector(ctx, where, "up", table.get("up", [0.0, 1.0, 0.0]))
+    projection = check_choice(ctx, where, "type", table.get("type", "perspective"), PROJECTIONS)
+    if projection == "orthographic" and "fov" in table or projection == "perspective" and "extent" in table:
+        key = "fov" if projection == "orthographic" else "extent"
+        raise ctx.error(where, f"'{key}' is not a key of {'an' if key == 'fov' else 'a'} {projection} camera")
     fov = check_number(ctx, where, "fov", table.get("fov", DEFAULT_FOV))
     if not 0 < fov < 180:
         raise ctx.error(where, f"'fov' must be between 0 and 180 degrees, got {fov:g}")
+    extent = check_number(ctx, where, "extent", table.get("extent", 2.0), positive=True)
     forward = look_at - eye
     if not np.linalg.norm(forward) > 0:
         raise ctx.error(where, "'eye' and 'look_at' are the same point")
@@ -423,6 +472,7 @@ def _read_camera(ctx, table) -> Camera:
     return Camera(
         eye=tuple(float(x) for x in eye), look_at=tuple(float(x) for x in look_at),
         up=tuple(float(x) for x in up), fov=float(fov), aperture_radius=float(aperture), focus_distance=focus,
+        projection=projection, extent=float(extent),
     )
 
 
@@ -499,13 +549,13 @@ def _read_mesh_shape(ctx, where, scene_path: Path, table, materials, material_in
         raise ctx.error(where, f"mesh file '{fname}' is a folder ({mesh_path})")
     use_file = check_boolean(ctx, where, "use_file_materials", table.get("use_file_materials", False))
     suffix = mesh_path.suffix.lower()
-    uvs = None
+    uvs = normals = colors = None
     if suffix in (".gltf", ".glb"):
         try:
             g = read_gltf(mesh_path, f"{ctx.name}: {where}: {fname}")
         except UserError as exc:
             raise SceneError(one_line(str(exc))) from None
-        v, f, uvs = g.vertices, g.faces, g.uvs
+        v, f, uvs, normals, colors = g.vertices, g.faces, g.uvs, g.normals, g.colors
     if use_file:
         if suffix not in (".obj", ".gltf", ".glb"):
             raise ctx.error(where, f"use_file_materials is only supported for OBJ and glTF files, not '{fname}'")
@@ -513,7 +563,7 @@ def _read_mesh_shape(ctx, where, scene_path: Path, table, materials, material_in
         overrides = {n: materials[i] for n, i in material_index.items()}
         if suffix == ".obj":
             try:
-                v, f, local_mat, local_materials, uvs = obj_with_materials(
+                v, f, local_mat, local_materials, uvs, normals = obj_with_materials(
                     mesh_path, f"{ctx.name}: {where}: {fname}", overrides, fallback=materials[fallback_index])
             except SceneError as exc:
                 raise SceneError(one_line(str(exc))) from None
@@ -538,11 +588,12 @@ def _read_mesh_shape(ctx, where, scene_path: Path, table, materials, material_in
         except MeshError as exc:
             raise ctx.error(where, str(exc)) from None
         uvs = trimesh_uvs(loaded, v, f)
+        normals = ply_extras(loaded, f).normals
         face_mat = None
     else:
         face_mat = None
     if len(f) == 0:
         raise ctx.error(where, f"mesh file '{fname}' contains no triangles")
-    return np.asarray(v, np.float64), np.asarray(f, np.int64), face_mat, uvs
+    return np.asarray(v, np.float64), np.asarray(f, np.int64), face_mat, uvs, normals, colors
 
 

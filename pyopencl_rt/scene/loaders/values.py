@@ -160,6 +160,9 @@ class TableReader:
     def vector(self, key, n=3, *, allow_scalar=False) -> np.ndarray:
         return check_vector(self.ctx, self.where, key, self.table[key], n, allow_scalar=allow_scalar)
 
+    def boolean(self, key, default) -> bool:
+        return check_boolean(self.ctx, self.where, key, self.table.get(key, default))
+
     def rgb01(self, key, default) -> tuple:
         return check_rgb01(self.ctx, self.where, key, self.table.get(key, default))
 
