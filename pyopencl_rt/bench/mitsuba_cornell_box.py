@@ -25,10 +25,7 @@ def main(argv=None):
     import mitsuba as mi
 
     mi.set_variant(args.variant)
-    spec = mi.cornell_box()
-    if args.rfilter:
-        spec["sensor"]["film"]["rfilter"] = json.loads(args.rfilter)
-    scene = mi.load_dict(spec)
+    scene = mi.load_dict(mi.cornell_box())
     width, height = scene.sensors()[0].film().crop_size()
 
     def timed(spp):

@@ -225,7 +225,6 @@ class MitsubaServer:
                  warmup_spp=16, python=None, echo=print):
         self.scene, self.settings, self.python = scene, settings, python
         self.mitsuba_python, self.llvm_path, self.variant = mitsuba_python, llvm_path, variant
-        self.rfilter = rfilter  # the film's rfilter dict (None: cornell_box()'s gaussian)
         self.warmup_spp, self.echo = warmup_spp, echo
         self.process = self.info = None
         self.renders: list[dict] = []
