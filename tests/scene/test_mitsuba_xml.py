@@ -426,8 +426,9 @@ def test_rfilters(tmp_path):
 
 def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
     """Mitsuba gives a shape with an area emitter and no BSDF a diffuse of reflectance 0 (one
-    without an emitter 0.5); a checkerboard whose to_uv scales by whole numbers is the pattern
-    repeated (other to_uv warn)."""
+    without an emitter 0.5); a checkerboard's to_uv is baked into its image: texel (x, y) of an
+    n x n image is color0 where the fractional parts of the transformed (u, v) at its centre lie
+    on the same side of 1/2 (Mitsuba's checkerboard), 16 texels per period along the densest axis."""
     scene, w = load(write(tmp_path, '<shape type="sphere"><emitter type="area"/></shape>'
                                     '<shape type="sphere"><point name="center" x="3"/></shape>'))
     assert w == [] and [scene.materials[i].albedo for i in scene.sphere_materials] == [(0, 0, 0), (0.5, 0.5, 0.5)]
@@ -438,11 +439,13 @@ def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
                                         '</bsdf></shape>'))
         return scene.materials[0].base_texture, w
 
-    tex, w = checker('<scale x="5" y="3"/>')
-    assert w == [] and (tex.width, tex.height) == (5 * 64, 3 * 64)
-    assert np.array_equal(tex.texels[:64, :64], tex.texels[128:, 256:])  # one period repeated
-    tex, w = checker('<scale x="2.5" y="2"/>')
-    assert len(w) == 1 and "to_uv is not supported" in w[0] and tex.width == 64
+    for to_uv, (su, sv), n in (('<scale x="5" y="3"/>', (5, 3), 80), ('<scale x="2.5" y="2"/>', (2.5, 2), 64)):
+        tex, w = checker(to_uv)
+        assert w == [] and (tex.width, tex.height) == (n, n)
+        t = (np.arange(n) + 0.5) / n
+        odd = ((su * t[None, :]) % 1 > 0.5) ^ ((sv * t[:, None]) % 1 > 0.5)  # [row v, column u]
+        # color0 0.4, color1 0.2 (Mitsuba's defaults), linear
+        assert np.allclose(tex.texels[..., 0], np.where(odd, 0.2, 0.4), atol=1e-6)
 
 
 def test_orthographic_sensor(tmp_path):
