@@ -75,7 +75,7 @@ from .assembly import DEFAULT_FOV, frame_scene, transform_normals, triangle_scen
 from .gltf import read_gltf
 from .meshfile import ply_extras, trimesh_uvs
 from .obj import obj_with_materials
-from .toml_media import SHAPE_KEYS, camera_medium, read_media, shape_interface
+from .toml_media import SHAPE_KEYS, Interfaces, camera_medium, read_media
 from .values import (ErrorContext, SceneError, TableReader, check_boolean, check_choice, check_color,
                      check_integer, check_keys, check_number, check_points, check_vector, describe,
                      one_line)
@@ -160,17 +160,8 @@ def load_toml_scene(path: Path, name: str) -> Scene:
     settings = _read_settings(ctx, doc.get("film", {}), doc.get("render", {}))
     materials, material_index = _read_materials(ctx, doc.get("materials", {}))
     media, media_index = read_media(ctx, path, doc.get("media", {}))
-    interfaces, interface_index = [], {}
-
-    def interface_for(where, table) -> int:
-        """The index of the shape's medium interface (-1: none)."""
-        interface = shape_interface(ctx, where, table, media_index)
-        if interface is None:
-            return -1
-        if interface not in interface_index:
-            interface_index[interface] = len(interfaces)
-            interfaces.append(interface)
-        return interface_index[interface]
+    interfaces = Interfaces(ctx, media_index)
+    interface_for = interfaces.index
 
     shapes = doc.get("shape", [])
     if not isinstance(shapes, list):
@@ -301,10 +292,10 @@ def load_toml_scene(path: Path, name: str) -> Scene:
     scene = triangle_scene(
         vertices, faces, face_mat, materials, name, uvs, normals=normals, colors=colors, settings=settings,
         spheres=np.asarray(spheres, np.float32).reshape(-1, 4), sphere_materials=np.asarray(sphere_mats, np.int32),
-        face_interfaces=face_ifaces if interfaces else None,
+        face_interfaces=face_ifaces if interfaces.list else None,
     )
-    if media or interfaces:
-        scene.media, scene.interfaces = media, interfaces
+    if media or interfaces.list:
+        scene.media, scene.interfaces = media, interfaces.list
         scene.sphere_interfaces = np.asarray(sphere_ifaces, np.int32)
     if "camera" in doc:
         scene.camera = _read_camera(ctx, doc["camera"])

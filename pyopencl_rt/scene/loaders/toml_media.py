@@ -148,6 +148,25 @@ def shape_interface(ctx, where, table, media_index: dict) -> MediumInterface | N
     return MediumInterface(sides.get("interior", -1), sides.get("exterior", -1), transition=bool(sides), null=null)
 
 
+class Interfaces:
+    """The distinct medium interfaces of the shapes, in order of first use (``list``)."""
+
+    def __init__(self, ctx, media_index: dict):
+        self.ctx, self.media_index = ctx, media_index
+        self.list: list = []
+        self._index: dict = {}
+
+    def index(self, where, table) -> int:
+        """The index of the shape's medium interface (-1: none)."""
+        interface = shape_interface(self.ctx, where, table, self.media_index)
+        if interface is None:
+            return -1
+        if interface not in self._index:
+            self._index[interface] = len(self.list)
+            self.list.append(interface)
+        return self._index[interface]
+
+
 def camera_medium(ctx, table, media_index: dict) -> int:
     """[camera] medium: the medium the camera is in (-1: none)."""
     if "medium" not in table:
