@@ -399,7 +399,7 @@ def test_include_and_import(tmp_path):
 def test_unsupported_directives_and_parameters_warn(tmp_path):
     path = write(tmp_path, """Option "bool disablepixeljitter" true
 ColorSpace "aces2065-1"
-Camera "orthographic"
+Camera "realistic"
 WorldBegin
 MakeNamedMedium "fog" "string type" "homogeneous"
 MediumInterface "fog" ""
@@ -420,7 +420,7 @@ TransformTimes 0 1
               ("alpha", 'Shape "trianglemesh": "alpha" cut-outs are not supported'),
               ("goniometric", 'LightSource "goniometric": not supported; ignored'),
               ("TransformTimes", "TransformTimes: motion blur is not supported; ignored"),
-              ("orthographic", 'Camera "orthographic": not supported; using a camera that frames the scene')]
+              ("realistic", 'Camera "realistic": not supported; using a camera that frames the scene')]
     assert len(w) == len(expect), w
     for message, (needle, what) in zip(w, expect):
         assert message == f"{path}:{line_of(path, needle)}: {what}"
