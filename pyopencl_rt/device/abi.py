@@ -261,9 +261,11 @@ assert LIGHT.itemsize == 80
 # focus_distance along forward.
 # The jitter is drawn from the pixel reconstruction filter (cl/render/filter.h; filter importance
 # sampling): filter is a FILTER_* method, filter_radius its half widths along x and y in pixels,
-# filter_knots the knots per axis of its tables in filter_cdf (FILTER_TABULATED, else 0), and
 # filter_weight the magnitude of every sample's weight (1 for filters without negative lobes; the
-# sign is that of the filter where the sample fell).
+# sign is that of the filter where the sample fell); FILTER_TABULATED: filter_knots knots per axis
+# in filter_cdf and filter_segments segments along each axis (else 0; pyopencl_rt/render/filters.py
+# lays the tables out: per axis FILTER_MAX_SEGMENTS records of FILTER_SEGMENT_FLOATS, then the
+# knots as (x, f) pairs).
 PROJECTION_PERSPECTIVE = define("PROJECTION_PERSPECTIVE", 0)
 PROJECTION_ORTHOGRAPHIC = define("PROJECTION_ORTHOGRAPHIC", 1)
 PROJECTIONS = {"perspective": PROJECTION_PERSPECTIVE, "orthographic": PROJECTION_ORTHOGRAPHIC}
@@ -272,11 +274,13 @@ PROJECTIONS = {"perspective": PROJECTION_PERSPECTIVE, "orthographic": PROJECTION
 FILTER_BOX = define("FILTER_BOX", 0)
 FILTER_TENT = define("FILTER_TENT", 1)
 FILTER_TABULATED = define("FILTER_TABULATED", 2)
+FILTER_MAX_SEGMENTS = define("FILTER_MAX_SEGMENTS", 64)  # stretches of one sign along an axis
+FILTER_SEGMENT_FLOATS = define("FILTER_SEGMENT_FLOATS", 5)  # u at its start, cells per unit u, first, last, negative
 CAMERA = np.dtype(
     [("origin", np.float32, 3), ("width", np.int32), ("forward", np.float32, 3), ("height", np.int32),
      ("right", np.float32, 3), ("lens_radius", np.float32), ("up", np.float32, 3), ("focus_distance", np.float32),
      ("projection", np.int32), ("filter", np.int32), ("filter_knots", np.int32), ("filter_weight", np.float32),
-     ("filter_radius", np.float32, 2), ("filter_pad", np.float32, 2)]
+     ("filter_radius", np.float32, 2), ("filter_segments", np.int32, 2)]
 )
 assert CAMERA.itemsize == 96
 
@@ -503,7 +507,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("env_map", "const", "float"),
     Param("env_cdf", "const", "float"),
     # the pixel filter's tables (FILTER_TABULATED, cl/render/filter.h); a dummy otherwise
-    Param("filter_cdf", "const", "float", "per axis: filter_knots knots, the filter there, the CDF of |f|"),
+    Param("filter_cdf", "const", "float", "per axis: the segments, then filter_knots (x, f) pairs"),
     # fixed scalars
     Param("n_spheres", "scalar", "int"),
     Param("n_lights", "scalar", "int"),
