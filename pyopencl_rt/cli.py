@@ -523,9 +523,9 @@ def bench_samplers(device, sampler, compare, mitsuba_sampler, json_path, no_cach
 @click.option("--size", default=256, show_default=True, type=click.IntRange(min=1), help="Width = height, samples/s.")
 @click.option("--spp", default=64, show_default=True, type=click.IntRange(min=1), help="Samples per pixel a render.")
 @click.option("--repeat", default=5, show_default=True, type=click.IntRange(min=1), help="Rounds of timed renders.")
-@click.option("--error-size", default=128, show_default=True, type=click.IntRange(min=1), help="Width = height, error.")
+@click.option("--error-size", default=64, show_default=True, type=click.IntRange(min=1), help="Width = height, error.")
 @click.option("--budget", default=150.0, show_default=True, type=click.FloatRange(min=1), help="Seconds of curves a scene.")
-@click.option("--reference-spp", default=8192, show_default=True, type=click.IntRange(min=2))
+@click.option("--reference-spp", default=16384, show_default=True, type=click.IntRange(min=2))
 @click.option("--mitsuba-sampler", "mitsuba_samplers", default="independent,stratified,multijitter,ldsampler,orthogonal",
               show_default=True, help="Mitsuba's samplers, a curve each: the best counts.")
 @mitsuba_options

@@ -15,7 +15,10 @@ material type Mitsuba renders the same), Mitsuba renders the very same scene, ex
   whose time to the target is shortest, measured (interpolated between a curve's points), or when
   no curve of Mitsuba's got there within its share of the budget, extrapolated along its fitted
   line (marked so).  A target within 4x of the reference's own noise is marked too: the time
-  measured is then longer than the renderer's true time.
+  measured is then longer than the renderer's true time.  The curves run one after the other, so
+  a change of the machine's load between two of them moves the ratio of their times; the ratio
+  "in turns" beside it does not: each curve's spp to the target (its time to it times its
+  samples/s) and the ratio of samples/s measured in turns above.
 
 The references are rendered first, each once (they are cached, see :mod:`.convergence`), so that
 every scene's ``budget`` goes to its curves.  The JSON holds the table's rows, the render bench's
@@ -37,8 +40,8 @@ DEFAULT_SCENES = ("scenes/mitsuba-cbox.toml", "scenes/mitsuba-cbox-spheres.toml"
 TARGET = 1e-3
 
 
-def run_bench_set(scene_paths=DEFAULT_SCENES, *, devices=None, size=256, spp=64, repeat=5, error_size=128,
-                  budget=150.0, reference_spp=8192, mitsuba_samplers=None, mitsuba_python=None, llvm_path=None,
+def run_bench_set(scene_paths=DEFAULT_SCENES, *, devices=None, size=256, spp=64, repeat=5, error_size=64,
+                  budget=150.0, reference_spp=16384, mitsuba_samplers=None, mitsuba_python=None, llvm_path=None,
                   mitsuba_variant=DEFAULT_VARIANT, json_path=None, echo=print) -> dict:
     """The set (see the module docstring) on one device; returns what the JSON holds."""
     from ..device.devices import device_label, resolve
@@ -102,43 +105,53 @@ def sampler_names(names, allowed) -> tuple:
     return tuple(names)
 
 
-def _reached(curve) -> dict:
-    reached = curve["time_to_relmse"][f"{TARGET:g}"]
-    return {"seconds": reached["seconds"], "extrapolated": reached["extrapolated"],
-            "below_reference_floor": bool(reached.get("below_reference_floor"))}
-
-
 def convergence_summary(result: dict, json_path) -> dict:
-    """Per scene: each curve's samples/s and time to :data:`TARGET`, ours (the first of our
+    """Per scene: each curve's samples/s, time and spp to :data:`TARGET`, ours (the first of our
     curves) and Mitsuba's best (the shortest time among its samplers' curves that reached the
-    target, else among their extrapolations)."""
+    target, else among their extrapolations).  A curve's spp to the target is its time to it times
+    the curve's samples/s: it does not depend on how busy the machine was while the curve ran."""
+    pixels = result["width"] * result["height"]
     curves = []
     for curve in result["curves"]:
         last = curve["points"][-1] if curve["points"] else {}
+        reached = curve["time_to_relmse"][f"{TARGET:g}"]
+        rate, seconds = last.get("samples_per_second"), reached["seconds"]
         curves.append({"label": curve["label"], "renderer": curve["renderer"], "sampler": curve.get("sampler"),
-                       "samples_per_second": last.get("samples_per_second"), "spp": last.get("spp"),
-                       "seconds": last.get("seconds"), **_reached(curve)})
+                       "samples_per_second": rate, "spp": last.get("spp"), "elapsed": last.get("seconds"),
+                       "time_to_target": seconds, "extrapolated": reached["extrapolated"],
+                       "below_reference_floor": bool(reached.get("below_reference_floor")),
+                       "spp_to_target": seconds * rate / pixels if seconds and rate else None})
     ours = next((c for c in curves if c["renderer"] == "pyopencl_rt"), None)
     # measured times first: a curve's line extrapolated beyond its last point is a guess
-    best = min((c for c in curves if c["renderer"] == "mitsuba" and c["seconds"]),
-               key=lambda c: (c["extrapolated"], c["seconds"]), default=None)
+    best = min((c for c in curves if c["renderer"] == "mitsuba" and c["time_to_target"]),
+               key=lambda c: (c["extrapolated"], c["time_to_target"]), default=None)
     return {"scene": result["scene"], "json": str(json_path), "plot": result.get("plot"),
+            "width": result["width"], "height": result["height"],
             "reference": {k: result["reference"].get(k) for k in ("spp", "seconds", "source", "floor")},
             "curves": curves, "ours": ours, "mitsuba_best": best}
 
 
 def set_rows(render_summary, convergence) -> list[dict]:
-    """The table: a row per scene (and variant) of the render bench, with its scene's times."""
+    """The table: a row per scene (and variant) of the render bench, with its scene's times to the
+    target and their ratio, measured (``mitsuba_time_over_ours``: the curves ran one after the
+    other, so a change of load between them moves it) and from the interleaved samples/s
+    (``mitsuba_time_over_ours_interleaved``: Mitsuba's spp to the target over ours, times our
+    samples/s over Mitsuba's as the render bench measured them in turns)."""
     by_scene = {c["scene"]: c for c in convergence}
     rows = []
     for row in render_summary:
         conv = by_scene.get(row["scene"], {})
         ours, best = conv.get("ours") or {}, conv.get("mitsuba_best") or {}
-        speedup = (best["seconds"] / ours["seconds"]) if best.get("seconds") and ours.get("seconds") else None
-        rows.append({**row, "time_to_target": ours.get("seconds"),
-                     "time_to_target_extrapolated": ours.get("extrapolated"), "ours_sampler": ours.get("sampler"), "mitsuba_time_to_target": best.get("seconds"),
+        t_ours, t_theirs = ours.get("time_to_target"), best.get("time_to_target")
+        spp_ours, spp_theirs, ratio = ours.get("spp_to_target"), best.get("spp_to_target"), row["ratio_to_mitsuba"]
+        rows.append({**row, "ours_sampler": ours.get("sampler"), "time_to_target": t_ours,
+                     "time_to_target_extrapolated": ours.get("extrapolated"), "spp_to_target": spp_ours,
+                     "mitsuba_best_sampler": best.get("sampler"), "mitsuba_time_to_target": t_theirs,
                      "mitsuba_time_to_target_extrapolated": best.get("extrapolated"),
-                     "mitsuba_best_sampler": best.get("sampler"), "mitsuba_time_over_ours": speedup,
+                     "mitsuba_spp_to_target": spp_theirs,
+                     "mitsuba_time_over_ours": t_theirs / t_ours if t_theirs and t_ours else None,
+                     "mitsuba_time_over_ours_interleaved": (spp_theirs / spp_ours * ratio
+                                                            if spp_theirs and spp_ours and ratio else None),
                      "near_floor": bool(ours.get("below_reference_floor"))})
     return rows
 
@@ -147,20 +160,21 @@ def print_set_table(rows, echo=print) -> None:
     def seconds(value, extrapolated, floor):
         return "-" if value is None else f"{value:.3g}" + ("*" if extrapolated else "") + ("!" if floor else "")
 
-    def cell(value, fmt, width):
-        return f"{value:{fmt}}" if value else f"{'-':>{width}}"
+    def times(value):
+        return f"{value:.2f}x" if value else "-"
 
     width = max([len("scene")] + [len(r["scene"]) for r in rows])
     echo(f"{'scene':<{width}} {'ours Ms/s':>9} {'Mitsuba':>8} {'ratio':>6} {'lanes':>5} {'t ours s':>9} "
-         f"{'t Mitsuba s':>11} {'(sampler)':<13} {'Mi t/ours t':>11}")
+         f"{'t Mitsuba s':>11} {'(sampler)':<13} {'Mi/ours t':>9} {'(turns)':>8}")
     for r in rows:
         ours_t = seconds(r["time_to_target"], r["time_to_target_extrapolated"], r["near_floor"])
         theirs_t = seconds(r["mitsuba_time_to_target"], r["mitsuba_time_to_target_extrapolated"], r["near_floor"])
-        theirs, ratio = r["mitsuba_samples_per_second"], r["ratio_to_mitsuba"]
-        echo(f"{r['scene']:<{width}} {r['samples_per_second'] / 1e6:9.3f} {cell(theirs and theirs / 1e6, '8.3f', 8)} "
-             f"{cell(ratio, '5.2f', 5)}{'x' if ratio else ''} {r['lanes']:5d} {ours_t:>9} {theirs_t:>11} "
-             f"{'(' + (r['mitsuba_best_sampler'] or '-') + ')':<13} {cell(r['mitsuba_time_over_ours'], '10.2f', 10)}"
-             f"{'x' if r['mitsuba_time_over_ours'] else ''}")
+        theirs = r["mitsuba_samples_per_second"]
+        echo(f"{r['scene']:<{width}} {r['samples_per_second'] / 1e6:9.3f} "
+             f"{f'{theirs / 1e6:.3f}' if theirs else '-':>8} {times(r['ratio_to_mitsuba']):>6} {r['lanes']:5d} "
+             f"{ours_t:>9} {theirs_t:>11} {'(' + (r['mitsuba_best_sampler'] or '-') + ')':<13} "
+             f"{times(r['mitsuba_time_over_ours']):>9} {times(r['mitsuba_time_over_ours_interleaved']):>8}")
     echo(f"Ms/s: Msamples/s; ratio: ours / Mitsuba's, the median of the rounds' ratios; t: time to relMSE {TARGET:g} "
          "(ours: the scene's sampler; Mitsuba: its best sampler); * extrapolated along the fitted line; "
-         "! the target is within 4x of the reference's own noise; Mi t/ours t > 1: we reach it sooner")
+         "! the target is within 4x of the reference's own noise; Mi/ours t > 1: we reach it sooner, as measured "
+         "and (turns) from each curve's spp to the target and the ratio of samples/s measured in turns")

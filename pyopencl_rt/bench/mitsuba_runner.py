@@ -13,8 +13,10 @@ samples in memory).  With ``--sampler`` other than ``independent`` (``stratified
 ``multijitter``, ``ldsampler``: Mitsuba's sampler plugins, which stratify the samples of one
 render), each checkpoint is a render of its own at that spp, timed alone: batches of such
 samplers would not be stratified together; as those samplers round a sample count up (to a square,
-a power of two, a prime's square), a checkpoint records the count rendered, and one that rounds to
-the count of the checkpoint before it is skipped.  The result is ``OUTDIR/mitsuba.json``.
+a power of two, a prime's square), a checkpoint records the count rendered.  Such a curve renders
+only the checkpoints of at least twice the samples of the one before (so that its renders add up
+to twice its last at most), and ``--budget`` bounds all of its renders together, as it bounds an
+independent curve's batches.  The result is ``OUTDIR/mitsuba.json``.
 
     python pyopencl_rt/bench/mitsuba_runner.py SCENE.npz OUTDIR --serve --warmup-spp 64 [--variant ...]
 
@@ -98,20 +100,22 @@ def main(argv=None):
     seed = args.seed_offset * 1000003
     results = []
     sampler = scene.sensors()[0].sampler()
+    spent = 0.0  # every render of a stratifying sampler so far: the budget bounds them together
     for target in checkpoints:
         stop = False
         if args.sampler != "independent":  # one stratified render per checkpoint
             sampler.set_sample_count(target)
             target = int(sampler.sample_count())  # what the sampler renders: it may round up
-            if target <= done:
+            if target < 2 * done:  # twice the samples of the render before, at least
                 continue
-            if args.budget is not None and seconds * target / max(done, 1) > args.budget and done:
+            if args.budget is not None and done and spent + seconds * target / done > args.budget:
                 break
             if target * pixels > STRATIFIED_CALL_FACTOR * args.max_samples_per_call:
                 break  # one call holds every sample of the render in memory
             start = time.perf_counter()
             accumulated = np.asarray(mi.render(scene, spp=target, seed=seed), np.float64)[..., :3] * target
             seconds = time.perf_counter() - start
+            spent += seconds
             done, seed = target, seed + 1
         while done < target:
             if args.budget is not None and seconds >= args.budget:

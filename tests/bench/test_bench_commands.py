@@ -275,20 +275,22 @@ def test_bench_render_mitsuba_that_fails_is_one_line(tmp_path, capsys):
 
 def test_bench_set_best_mitsuba_sampler_and_rows():
     """Mitsuba's best sampler is the one that reached the target soonest (a measured time before
-    any extrapolated one); each row joins the render bench's summary with its scene's times."""
+    any extrapolated one); each row joins the render bench's summary with its scene's times, and
+    the time ratio from each curve's spp to the target and the ratio of samples/s in turns."""
     from pyopencl_rt.bench.bench_set import convergence_summary, set_rows
 
-    def curve(renderer, sampler, seconds, extrapolated=False):
+    def curve(renderer, sampler, seconds, extrapolated=False, rate=100.0):
         return {"label": f"{renderer} {sampler}", "renderer": renderer, "sampler": sampler,
-                "points": [{"spp": 4, "seconds": 1.0, "samples_per_second": 5.0}],
+                "points": [{"spp": 4, "seconds": 1.0, "samples_per_second": rate}],
                 "time_to_relmse": {"0.001": {"seconds": seconds, "extrapolated": extrapolated}}}
 
-    result = {"scene": "s.toml", "reference": {"spp": 64, "floor": {"relmse": 1e-5}},
+    result = {"scene": "s.toml", "width": 2, "height": 5, "reference": {"spp": 64, "floor": {"relmse": 1e-5}},
               "curves": [curve("pyopencl_rt", "sobol", 3.0), curve("mitsuba", "independent", 5.0),
-                         curve("mitsuba", "multijitter", 4.0), curve("mitsuba", "ldsampler", 2.0, True),
+                         curve("mitsuba", "multijitter", 4.0, rate=50.0), curve("mitsuba", "ldsampler", 2.0, True),
                          curve("mitsuba", "orthogonal", None)]}
     summary = convergence_summary(result, "s.json")
     assert summary["ours"]["sampler"] == "sobol" and summary["mitsuba_best"]["sampler"] == "multijitter"
+    assert summary["ours"]["spp_to_target"] == 30.0 and summary["mitsuba_best"]["spp_to_target"] == 20.0
     summary_only_guesses = convergence_summary({**result, "curves": result["curves"][:1] + [
         curve("mitsuba", "independent", 9.0, True), curve("mitsuba", "stratified", 7.0, True)]}, "s.json")
     assert summary_only_guesses["mitsuba_best"]["sampler"] == "stratified"
@@ -298,6 +300,7 @@ def test_bench_set_best_mitsuba_sampler_and_rows():
     assert row["ratio_to_mitsuba"] == 2.1 and row["lanes"] == 8
     assert (row["time_to_target"], row["mitsuba_time_to_target"]) == (3.0, 4.0)
     assert row["mitsuba_best_sampler"] == "multijitter" and row["mitsuba_time_over_ours"] == pytest.approx(4 / 3)
+    assert row["mitsuba_time_over_ours_interleaved"] == pytest.approx(20 / 30 * 2.1)
 
 
 def test_bench_set_end_to_end(tmp_path, monkeypatch, capsys):

@@ -12,6 +12,7 @@ and the renderers' random numbers.  A wrong orientation (the map turned by half 
 mirrored, a texture flipped in v) moves the regions by 30% and more here.  Skipped without
 Mitsuba.
 """
+import json
 import subprocess
 
 import numpy as np
@@ -188,3 +189,17 @@ def test_export_refuses_what_mitsuba_cannot_render_the_same():
     scene = load_scene("scenes/textured.toml")  # its glTF model's materials are the gltf type
     with pytest.raises(ValueError, match="gltf"):
         scene_arrays(scene)
+
+
+def test_runner_records_the_counts_a_stratifying_sampler_renders(tmp_path):
+    """Mitsuba's stratified sampler rounds 2 and 3 spp up to 4, 6 and 8 to 9: each point is the
+    count rendered, and a checkpoint of less than twice the samples of the render before is skipped."""
+    python = mitsuba_python()
+    scene = load_scene("scenes/mitsuba-cbox.toml")
+    save_scene_npz(tmp_path / "scene.npz", scene_arrays(scene, ImageSettings.resolve(scene, width=8, height=8)))
+    subprocess.run([python, str(mitsuba_host.HERE / "mitsuba_runner.py"), str(tmp_path / "scene.npz"), str(tmp_path),
+                    "--checkpoints", "1,2,3,4,6,8,12,16", "--variant", "scalar_rgb", "--sampler", "stratified"],
+                   check=True, capture_output=True, env=mitsuba_host.mitsuba_env(), timeout=300)
+    info = json.loads((tmp_path / "mitsuba.json").read_text())
+    assert [point["spp"] for point in info["points"]] == [1, 4, 9]
+    assert all(np.load(point["image"]).shape == (8, 8, 3) for point in info["points"])
