@@ -424,8 +424,9 @@ def test_rfilters(tmp_path):
 
 def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
     """Mitsuba gives a shape with an area emitter and no BSDF a diffuse of reflectance 0 (one
-    without an emitter 0.5); a checkerboard whose to_uv scales by whole numbers is the pattern
-    repeated (other to_uv warn)."""
+    without an emitter 0.5); a checkerboard's to_uv is baked: whole-number scales are the pattern
+    repeated (a whole number of texels per period, 64 texels at least), other scales sampled at 16
+    texels per period (at least 64), a rotation too."""
     scene, w = load(write(tmp_path, '<shape type="sphere"><emitter type="area"/></shape>'
                                     '<shape type="sphere"><point name="center" x="3"/></shape>'))
     assert w == [] and [scene.materials[i].albedo for i in scene.sphere_materials] == [(0, 0, 0), (0.5, 0.5, 0.5)]
@@ -437,10 +438,14 @@ def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
         return scene.materials[0].base_texture, w
 
     tex, w = checker('<scale x="5" y="3"/>')
-    assert w == [] and (tex.width, tex.height) == (5 * 64, 3 * 64)
-    assert np.array_equal(tex.texels[:64, :64], tex.texels[128:, 256:])  # one period repeated
-    tex, w = checker('<scale x="2.5" y="2"/>')
-    assert len(w) == 1 and "to_uv is not supported" in w[0] and tex.width == 64
+    assert w == [] and (tex.width, tex.height) == (5 * 16, 3 * 22)
+    assert np.array_equal(tex.texels[:22, :16], tex.texels[44:, 64:])  # one period repeated
+    tex, w = checker('<scale x="12.5" y="2.5"/>')
+    assert w == [] and (tex.width, tex.height) == (200, 64)
+    u = (np.arange(200) + 0.5) / 200
+    assert np.allclose(tex.texels[0, :, 0], np.where((12.5 * u) % 1 > 0.5, 0.2, 0.4))  # row 0: v's half is low
+    tex, w = checker('<rotate z="1" angle="30"/><scale x="4" y="4"/>')
+    assert w == [] and tex.width == tex.height == 96
 
 
 def test_orthographic_sensor(tmp_path):
