@@ -163,7 +163,7 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
     from .imageio import check_output, write_outputs
     from .render.aovs import GUIDES, parse_aovs
     from .render.api import render_full
-    from .render.arguments import check_outputs, check_render_arguments, rescued
+    from .render.arguments import check_outputs, check_render_arguments, parse_defines, rescued
     from .render.checkpoint import default_path
     from .render.settings import ImageSettings, check_resolution, check_run
     from .scene.loaders import load_scene
@@ -194,7 +194,7 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
 
         need_dask()
     checkpoint_path = checkpoint_path or str(default_path(output))
-    scene = load_scene(scene_path, defines=_defines(defines))
+    scene = load_scene(scene_path, defines=parse_defines(defines))
     aov_names = parse_aovs(scene.settings.aovs if aovs is None else aovs)
     settings = ImageSettings.resolve(scene, width=width, height=height, max_depth=max_depth, integrator=integrator,
                                      seed=seed, aovs=aov_names + (GUIDES if denoise else ()), sampler=sampler,
@@ -279,17 +279,6 @@ def _preview(png_path, image, exposure, tonemap):
     write_png(png_path, image, exposure, tonemap)
 
 
-def _defines(pairs) -> dict | None:
-    """{name: value} of --define NAME=VALUE options (None without any)."""
-    out = {}
-    for pair in pairs:
-        name, sep, value = pair.partition("=")
-        if not sep or not name.strip():
-            raise UserError(f"--define {pair}: expected NAME=VALUE")
-        out[name.strip()] = value
-    return out or None
-
-
 @cli.group()
 def bench():
     """Benchmarks (results as a table and as JSON)."""
@@ -326,7 +315,8 @@ def bench_rays(device, sizes, n_rays, repeat, no_embree, json_path, layout, embr
 
 
 def mitsuba_options(f):
-    """Where Mitsuba 3 and the libLLVM of its llvm_* variants are (nothing is guessed)."""
+    """Where Mitsuba 3 and the libLLVM of its llvm_* variants are (nothing is guessed), and the variant."""
+    f = click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)(f)
     f = click.option("--llvm-path", type=click.Path(dir_okay=False),
                      help="libLLVM shared library for the llvm_* variants [default: $DRJIT_LIBLLVM_PATH, "
                      "else Dr.Jit's own search].")(f)
@@ -336,7 +326,7 @@ def mitsuba_options(f):
 
 
 @bench.command("render")
-@click.argument("scene_path", metavar="SCENE", default="scenes/cornell-box.toml", type=click.Path(dir_okay=False))
+@click.argument("scene_paths", metavar="[SCENE]...", nargs=-1, type=click.Path(dir_okay=False))
 @device_option
 @click.option("--width", default=512, show_default=True, type=click.IntRange(min=1))
 @click.option("--height", default=512, show_default=True, type=click.IntRange(min=1))
@@ -350,24 +340,23 @@ def mitsuba_options(f):
 @click.option("--kernel-mode", default="auto", show_default=True,
               help="Comma-separated: auto,wavefront,megakernel (path schedules), each timed on each device.")
 @click.option("--sampler", help="Comma-separated: sobol,stratified,independent, each timed [default: the scene's].")
-@click.option("--mitsuba", is_flag=True, help="Also time Mitsuba 3 on its own Cornell box (mi.cornell_box()), a render after ours in each repetition.")
-@click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
+@click.option("--mitsuba", is_flag=True, help="Also time Mitsuba 3 on the same scene (our export), a render after ours in each repetition.")
 @mitsuba_options
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
-def bench_render(scene_path, device, width, height, spp, max_depth, repeat, wave_size, intersector, kernel_mode, sampler,
+def bench_render(scene_paths, device, width, height, spp, max_depth, repeat, wave_size, intersector, kernel_mode, sampler,
                  mitsuba, mitsuba_variant, mitsuba_python, llvm_path, json_path):
-    """Samples/s of the path tracer on each device (kernel build and BVH not timed)."""
+    """Samples/s of the path tracer on each device, for each SCENE in turn [default:
+    scenes/cornell-box.toml] (kernel build and BVH not timed)."""
     from .bench.render import run_render_bench
+    from .scene.model import SAMPLERS
 
     intersectors = parse_intersectors(intersector)
     kernel_modes = comma_list(kernel_mode, ("auto", "wavefront", "megakernel"), "kernel mode")
-    from .scene.model import SAMPLERS
-
     samplers = comma_list(sampler, SAMPLERS, "sampler") if sampler is not None else [None]
     _check_json(json_path)
     options = dict(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=mitsuba_variant) if mitsuba else None
-    run_render_bench(scene_path, devices=list(device) or None, width=width, height=height, spp=spp,
-                     max_depth=max_depth, repeat=repeat, wave_size=wave_size, intersectors=intersectors,
+    run_render_bench(list(scene_paths) or ["scenes/cornell-box.toml"], devices=list(device) or None, width=width,
+                     height=height, spp=spp, max_depth=max_depth, repeat=repeat, wave_size=wave_size, intersectors=intersectors,
                      kernel_modes=kernel_modes, mitsuba=options, json_path=json_path, samplers=samplers,
                      echo=click.echo)
 
@@ -439,22 +428,15 @@ def bench_materials(device, scenes_dir, pairs, width, height, spp, repeat, json_
 
 @bench.command("mitsuba-cornell-box")
 @mitsuba_options
-@click.option("--variant", default="llvm_ad_rgb", show_default=True, help="Mitsuba variant.")
 @click.option("--spp", default="16,64,256", show_default=True, help="One render per value; the first includes the JIT.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
-def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path):
+def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, mitsuba_variant, spp, json_path):
     """Samples/s of Mitsuba 3 on its own Cornell box (mi.cornell_box()), for scale beside ours."""
-    from .bench.mitsuba_host import run_mitsuba_cornell_box
+    from .bench.mitsuba_host import parse_spps, run_mitsuba_cornell_box
 
-    try:
-        spps = [int(value) for value in spp.split(",") if value.strip()]
-    except ValueError:
-        raise UserError(f"--spp {spp}: expected comma-separated integers") from None
-    if not spps or min(spps) < 1:
-        raise UsageError(f"--spp {spp}: expected comma-separated positive integers")
     _check_json(json_path)
-    run_mitsuba_cornell_box(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=variant, spps=spps,
-                            json_path=json_path, echo=click.echo)
+    run_mitsuba_cornell_box(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=mitsuba_variant,
+                            spps=parse_spps(spp), json_path=json_path, echo=click.echo)
 
 
 @bench.command("convergence")
@@ -469,14 +451,13 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, variant, spp, json_path
 @click.option("--no-cache", is_flag=True, help="Neither read nor write the cached reference.")
 @click.option("--budget", type=float, default=60.0, show_default=True, metavar="SECONDS",
               help="Wall-time budget of the whole run, its own reference included.")
-@click.option("--width", type=int)
-@click.option("--height", type=int)
+@click.option("--width", type=click.IntRange(min=1))
+@click.option("--height", type=click.IntRange(min=1))
 @click.option("--max-depth", type=int)
 @click.option("--compare", default="", help="Peer renderers beside ours: 'mitsuba' (needs Mitsuba 3; skipped if absent).")
 @mitsuba_options
-@click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
 @click.option("--mitsuba-sampler", default="independent,multijitter", show_default=True,
-              help="With --compare mitsuba: Mitsuba's samplers (independent,stratified,multijitter,ldsampler).")
+              help="With --compare mitsuba: Mitsuba's samplers (independent,stratified,multijitter,ldsampler,orthogonal).")
 @click.option("--json", "json_path", default="out/convergence.json", show_default=True, type=click.Path(dir_okay=False))
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="PNG plot (default: the JSON path with .png).")
 @click.option("--denoise", is_flag=True, help="Beside each of our curves, its Open Image Denoise curve (needs the "
@@ -486,22 +467,16 @@ def bench_convergence(scene_path, device, integrator, intersector, sampler, adap
                       json_path, plot_path, denoise):
     """Error (RMSE, relMSE, MAE) against a reference as a function of render time, per device x
     integrator x intersector, optionally beside Mitsuba 3: JSON, a log-log plot and a table."""
-    from .bench.convergence import run_convergence
+    from .bench.convergence import MITSUBA_SAMPLERS, run_convergence
     from .scene.model import INTEGRATORS, SAMPLERS
 
     integrators = comma_list(integrator, INTEGRATORS, "integrator")
     samplers = comma_list(sampler, SAMPLERS, "sampler") if sampler is not None else [None]
-    mitsuba_samplers = comma_list(mitsuba_sampler, ("independent", "stratified", "multijitter", "ldsampler"),
-                                  "Mitsuba sampler")
+    mitsuba_samplers = comma_list(mitsuba_sampler, MITSUBA_SAMPLERS, "Mitsuba sampler")
     intersectors = parse_intersectors(intersector)
-    if budget is not None and not budget > 0:
-        raise UserError(f"--budget must be positive (got {budget})")
     from . import validate
 
     validate.number(budget, "--budget", positive=True)
-    for value, name in ((width, "--width"), (height, "--height")):
-        if value is not None:
-            validate.integer(value, name, minimum=1)
     _check_json(json_path)
     if plot_path is not None:
         validate.writable_file(plot_path, "plot")
@@ -525,7 +500,6 @@ def bench_convergence(scene_path, device, integrator, intersector, sampler, adap
 @click.option("--no-cache", is_flag=True, help="Neither read nor write our cached reference.")
 @click.option("--compare", default="", help="'mitsuba': Mitsuba's reference, and a row per --mitsuba-sampler.")
 @mitsuba_options
-@click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)
 @click.option("--mitsuba-sampler", default="independent,stratified,multijitter,ldsampler", show_default=True)
 @click.option("--json", "json_path", type=click.Path(dir_okay=False))
 @click.option("--save-reference", type=click.Path(dir_okay=False), help="Write the reference as this OpenEXR.")
@@ -542,6 +516,28 @@ def bench_samplers(device, sampler, compare, mitsuba_sampler, json_path, no_cach
                  mitsuba_samplers=comma_list(mitsuba_sampler, MITSUBA_SAMPLERS, "Mitsuba sampler"),
                  use_cache=not no_cache, echo=click.echo, **options)
 
+
+@bench.command("set")
+@click.argument("scene_paths", metavar="[SCENE]...", nargs=-1, type=click.Path(dir_okay=False))
+@device_option
+@click.option("--size", default=256, show_default=True, type=click.IntRange(min=1), help="Width = height, samples/s.")
+@click.option("--spp", default=64, show_default=True, type=click.IntRange(min=1), help="Samples per pixel a render.")
+@click.option("--repeat", default=5, show_default=True, type=click.IntRange(min=1), help="Rounds of timed renders.")
+@click.option("--error-size", default=128, show_default=True, type=click.IntRange(min=1), help="Width = height, error.")
+@click.option("--budget", default=150.0, show_default=True, type=click.FloatRange(min=1), help="Seconds of curves a scene.")
+@click.option("--reference-spp", default=8192, show_default=True, type=click.IntRange(min=2))
+@click.option("--mitsuba-sampler", "mitsuba_samplers", default="independent,stratified,multijitter,ldsampler,orthogonal",
+              show_default=True, help="Mitsuba's samplers, a curve each: the best counts.")
+@mitsuba_options
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
+def bench_set(scene_paths, device, json_path, **options):
+    """The benchmark set against Mitsuba 3, rendering the same SCENEs [default: the four of docs/BENCHMARKS.md]:
+    samples/s in turns, time to relMSE 1e-3 against Mitsuba's best sampler, and our lane width."""
+    from .bench.bench_set import DEFAULT_SCENES, run_bench_set
+
+    _check_json(json_path)
+    run_bench_set(list(scene_paths) or DEFAULT_SCENES, devices=list(device) or None, json_path=json_path,
+                  echo=click.echo, **options)
 
 
 @bench.command("mitsuba-suite")

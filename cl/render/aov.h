@@ -8,7 +8,8 @@
  *                   albedo and normal of what is seen through it, the albedo multiplied by the
  *                   throughput of the delta bounces (their Fresnel weight and tint; sampling
  *                   reflection or refraction by Fresnel gives the Fresnel blend on average).
- *                   The normal is the geometric normal on the viewer's side, in world space.
+ *                   The normal is the BSDF's (the geometric normal, or the shading normal of
+ *                   cl/scene/shading.h) on the viewer's side, in world space.
  *                   A path that never reaches such a hit leaves both 0.
  *   position, depth the first hit (camera-relative; the host adds the camera's position) and its
  *                   distance from the ray's origin on the camera; hit = 1 when there is one.

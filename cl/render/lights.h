@@ -237,6 +237,21 @@ RT_INLINE pvec3 env_uv_to_dir(pfloat u, pfloat v)
     return pv3(-st * psin(phi), pcos(theta), st * pcos(phi));
 }
 
+/* Largest i in [0, n - 1] with cdf[base + i] <= u (cdf[base] = 0, cdf[base + n] = 1, u in [0, 1)),
+ * per lane: then cdf[base + i] <= u < cdf[base + i + 1], an interval of positive mass.  The
+ * binary search of each lane, the lanes' steps side by side. */
+RT_INLINE pint cdf_find(__global const float *cdf, pint base, int n, pfloat u)
+{
+    pint lo = PINT(0), hi = PINT(n - 1);
+    for (pint going = lo < hi; pany(going); going = lo < hi) {
+        const pint mid = (lo + hi + 1) >> 1;
+        const pint below = pgather(cdf, base + mid) <= u;
+        lo = (going & below) ? mid : lo;
+        hi = (going & pnot(below)) ? mid - 1 : hi;
+    }
+    return lo;
+}
+
 /* texel (column, row) that direction w falls in, in a W x H map */
 RT_INLINE void env_texel(pvec3 w, int W, int H, pint *col, pint *row)
 {

@@ -42,6 +42,7 @@
 #ifdef HAS_TEXTURES
 #include "scene/textures.h"
 #endif
+#include "scene/shading.h"
 #ifdef HAS_AOVS
 #include "render/aov.h"
 #endif
@@ -71,10 +72,12 @@ typedef struct {
     __global const int *sphere_light, __global const Material *materials,                            \
     __global const Light *lights, const int n_lights, __global const float *env_map,                 \
     __global const float *env_cdf, __global const float2 *tri_uv, __global const Texture *textures,  \
-    __global const float4 *tex_data, __global float *aov_path, const int max_depth, const int rr_depth
+    __global const float4 *tex_data, __global const float *tri_normal, __global const float *tri_color, \
+    __global float *aov_path, const int max_depth, const int rr_depth
 #define PATH_ARGS                                                                                     \
     tris, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,          \
-    n_lights, env_map, env_cdf, tri_uv, textures, tex_data, aov_path, max_depth, rr_depth
+    n_lights, env_map, env_cdf, tri_uv, textures, tex_data, tri_normal, tri_color, aov_path, max_depth, \
+    rr_depth
 
 /* The camera rays through pixels (x, y) of the lanes, and the weight each sample carries (the
  * pixel filter's sign and normalisation, cl/render/filter.h; 1 for filters without negative
@@ -199,8 +202,15 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
 #ifdef HAS_TEXTURES
     texture_material(tri_uv, textures, tex_data, hit & pnot(IS_SPHERE(prim)), prim, u, v, &m);
 #endif
+#ifdef HAS_VERTEX_COLORS
+    vertex_color_material(tri_color, hit, prim, u, v, &m);
+#endif
+    /* the BSDF's frame: the shading normal (interpolated, normal- or bump-mapped) on wo's side,
+     * or n (cl/scene/shading.h) */
+    const ShadingLanes sh = shading_lanes(tris, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit,
+                                          prim, u, v, ng, n, front, wo);
 #ifdef HAS_AOVS
-    aov_hit(aov_path, slot, hit, s->depth, &m, n, wo, p, t, s->beta);
+    aov_hit(aov_path, slot, hit, s->depth, &m, sh.n, wo, p, t, s->beta);
 #endif
     const puint dim = convert_puint(2 + DIMS_PER_BOUNCE * s->depth);
 
@@ -258,7 +268,8 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
             dist = far ? ls.far : dist;
 #endif
             pfloat bpdf;
-            const pvec3 f = bsdf_eval(&m, sampled, n, front, wo, wi, &bpdf);
+            pvec3 f = bsdf_eval(&m, sampled, sh.n, sh.front, wo, wi, &bpdf);
+            f = shading_eval(&sh, wi, f, &bpdf);
             const pint lit = sampled & (pv3_max3(f) > 0.0f) & (dist > 0.0f);
             if (pany(lit)) {
                 const pfloat lpdf = pick_pmf * ls.pdf;
@@ -285,13 +296,14 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     sample_2d(key, dim + DIM_BSDF, &ubx, &uby);
     pvec3 wi;
     pint delta;
-    const pvec3 weight = bsdf_sample(&m, going, n, front, wo, ubx, uby, sample_1d(key, dim + DIM_BSDF_LOBE),
-                                     &wi, &pdf, &delta);
+    pvec3 weight = bsdf_sample(&m, going, sh.n, sh.front, wo, ubx, uby, sample_1d(key, dim + DIM_BSDF_LOBE), &wi,
+                               &pdf, &delta);
+    weight = shading_sample(&sh, wi, weight, &pdf);
     pint on = going & ((pdf > 0.0f) | delta) & (pv3_max3(weight) > 0.0f);
     if (!pany(on)) return;
     const pvec3 beta = pv3_mul(s->beta, weight);
-    const pfloat eta = dielectric_eta(&m, front);
-    const pfloat eta_scale = pv3_dot(wi, n) < 0.0f ? s->eta_scale * (eta * eta) : s->eta_scale;
+    const pfloat eta = dielectric_eta(&m, sh.front);
+    const pfloat eta_scale = pv3_dot(wi, sh.n) < 0.0f ? s->eta_scale * (eta * eta) : s->eta_scale;
     const pint roulette = segments >= rr_depth;
 #ifdef RR_NO_ETA
     const pfloat q = pfmin(pv3_max3(beta), PFLOAT(0.95f));

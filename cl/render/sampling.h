@@ -127,20 +127,4 @@ RT_INLINE pfloat power_heuristic(pfloat pdf_a, pfloat pdf_b)
     return pdf_b == 0.0f ? PFLOAT(1.0f) : w;
 }
 
-/* Largest i in [0, n - 1] with cdf[base + i] <= u, in a tabulated CDF (cdf[base] = 0,
- * cdf[base + n] = 1, u in [0, 1)), per lane: then cdf[base + i] <= u < cdf[base + i + 1], an
- * interval of positive mass.  The binary search of each lane, the lanes' steps side by side
- * (the environment map's rows and columns, cl/render/lights.h; the pixel filter's tables). */
-RT_INLINE pint cdf_find(__global const float *cdf, pint base, int n, pfloat u)
-{
-    pint lo = PINT(0), hi = PINT(n - 1);
-    for (pint going = lo < hi; pany(going); going = lo < hi) {
-        const pint mid = (lo + hi + 1) >> 1;
-        const pint below = pgather(cdf, base + mid) <= u;
-        lo = (going & below) ? mid : lo;
-        hi = (going & pnot(below)) ? mid - 1 : hi;
-    }
-    return lo;
-}
-
 #endif

@@ -18,6 +18,8 @@
  *   tex_scalar    slot k (used slots first, -1 after them): the parameter TEXP_* named by bits
  *                 4k..4k+3 of tex_params *= r (alpha, roughness, metallic, anisotropic, ...: the
  *                 Mitsuba types' textured parameters; the host stores the value in R)
+ *   tex_normal    a normal map (tex_sample) or bump map (tex_gradient: the derivative of the
+ *                 bilinear lookup, as Mitsuba's bump maps take it), read by cl/scene/shading.h
  * texture_material() applies them to the lanes' gathered materials (MaterialLanes) before
  * shading, so the BSDF and emission code is unchanged.  For next-event estimation
  * texture_light_emission() re-derives the sampled point's barycentrics from the same random
@@ -33,23 +35,51 @@ RT_INLINE float4 tex_fetch(__global const float4 *data, __global const Texture *
     return data[t->offset + y * t->width + x];
 }
 
-/* Bilinear, wrap-addressed lookup of texture `index` at uv. */
-RT_INLINE float4 tex_sample(__global const Texture *textures, __global const float4 *data, int index, float2 uv)
+/* The four texels around uv (wrap addressing) and the bilinear weights ax, ay of the right and
+ * bottom ones. */
+typedef struct { int x0, y0, x1, y1; float ax, ay; } TexelQuad;
+
+RT_INLINE TexelQuad tex_quad(__global const Texture *t, float2 uv)
 {
-    __global const Texture *t = textures + index;
     const int w = t->width, h = t->height;
     float2 c = (float2)(isfinite(uv.x) ? uv.x : 0.0f, isfinite(uv.y) ? uv.y : 0.0f);
     c -= floor(c);
     const float fx = c.x * (float)w - 0.5f, fy = c.y * (float)h - 0.5f;
     const float x0f = floor(fx), y0f = floor(fy);
-    const float ax = fx - x0f, ay = fy - y0f;
+    TexelQuad q;
+    q.ax = fx - x0f;
+    q.ay = fy - y0f;
     int x0 = (int)x0f, y0 = (int)y0f;
-    x0 = x0 < 0 ? x0 + w : (x0 >= w ? x0 - w : x0);
-    y0 = y0 < 0 ? y0 + h : (y0 >= h ? y0 - h : y0);
-    const int x1 = x0 + 1 >= w ? 0 : x0 + 1, y1 = y0 + 1 >= h ? 0 : y0 + 1;
-    const float4 top = mix(tex_fetch(data, t, x0, y0), tex_fetch(data, t, x1, y0), ax);
-    const float4 bot = mix(tex_fetch(data, t, x0, y1), tex_fetch(data, t, x1, y1), ax);
-    return mix(top, bot, ay);
+    q.x0 = x0 < 0 ? x0 + w : (x0 >= w ? x0 - w : x0);
+    q.y0 = y0 < 0 ? y0 + h : (y0 >= h ? y0 - h : y0);
+    q.x1 = q.x0 + 1 >= w ? 0 : q.x0 + 1;
+    q.y1 = q.y0 + 1 >= h ? 0 : q.y0 + 1;
+    return q;
+}
+
+/* Bilinear, wrap-addressed lookup of texture `index` at uv. */
+RT_INLINE float4 tex_sample(__global const Texture *textures, __global const float4 *data, int index, float2 uv)
+{
+    __global const Texture *t = textures + index;
+    const TexelQuad q = tex_quad(t, uv);
+    const float4 top = mix(tex_fetch(data, t, q.x0, q.y0), tex_fetch(data, t, q.x1, q.y0), q.ax);
+    const float4 bot = mix(tex_fetch(data, t, q.x0, q.y1), tex_fetch(data, t, q.x1, q.y1), q.ax);
+    return mix(top, bot, q.ay);
+}
+
+/* The gradient (d/du, d/dv) of the bilinear lookup's luminance (Rec. 709 weights) at uv, as
+ * Mitsuba 3's bitmap texture computes it for bump maps (eval_1_grad): the derivative of the
+ * bilinear interpolation within the four texels around uv, times the resolution. */
+RT_INLINE float2 tex_gradient(__global const Texture *textures, __global const float4 *data, int index, float2 uv)
+{
+    __global const Texture *t = textures + index;
+    const TexelQuad q = tex_quad(t, uv);
+    const float3 lum = (float3)(0.212671f, 0.715160f, 0.072169f);
+    const float f00 = dot(tex_fetch(data, t, q.x0, q.y0).xyz, lum), f10 = dot(tex_fetch(data, t, q.x1, q.y0).xyz, lum);
+    const float f01 = dot(tex_fetch(data, t, q.x0, q.y1).xyz, lum), f11 = dot(tex_fetch(data, t, q.x1, q.y1).xyz, lum);
+    const float dx = (1.0f - q.ay) * (f10 - f00) + q.ay * (f11 - f01);
+    const float dy = (1.0f - q.ax) * (f01 - f00) + q.ax * (f11 - f10);
+    return (float2)((float)t->width * dx, (float)t->height * dy);
 }
 
 RT_INLINE float2 triangle_uv(__global const float2 *tri_uv, int prim, float u, float v)

@@ -28,10 +28,13 @@ from .convergence_analysis import (EPS, FLOOR_FACTOR, SCHEMA, TARGETS, analyse, 
 from .mitsuba_host import DEFAULT_VARIANT, find_mitsuba_python, mitsuba_env, run_mitsuba_curve
 
 # the names the tests and other callers reach through this module, the benchmark's public face
-__all__ = ["EPS", "FLOOR_FACTOR", "SCHEMA", "TARGETS", "analyse", "fit_slope", "find_mitsuba_python", "metrics",
-           "mitsuba_env", "print_table", "reference_floor", "run_convergence", "spp_schedule", "time_to_reach",
-           "validate", "write_plot"]
+__all__ = ["EPS", "FLOOR_FACTOR", "MITSUBA_SAMPLERS", "SCHEMA", "TARGETS", "analyse", "fit_slope",
+           "find_mitsuba_python", "metrics", "mitsuba_env", "print_table", "reference_floor", "run_convergence",
+           "spp_schedule", "time_to_reach", "validate", "write_plot"]
 
+# Mitsuba's sampler plugins a curve can use (those other than independent round a sample count up:
+# each point then records the count rendered, see mitsuba_runner.py)
+MITSUBA_SAMPLERS = ("independent", "stratified", "multijitter", "ldsampler", "orthogonal")
 REFERENCE_SHARE = 0.3  # of the budget, when the reference must be rendered
 REFERENCE_SEED = 0x5EED5EED
 SECONDS_PER_CURVE_WITHOUT_BUDGET = 10.0
@@ -199,7 +202,7 @@ def run_convergence(scene_path, *, devices=None, integrators=("path",), intersec
     """The benchmark.  ``samplers``: one curve of ours per sampler (None: the scene's), and with
     ``adaptive`` an adaptive one beside each (docs/SAMPLING.md, "Adaptive sampling"); with
     ``compare=("mitsuba",)``, one Mitsuba curve per entry of ``mitsuba_samplers`` (its sampler
-    plugins: independent, stratified, multijitter, ldsampler)."""
+    plugins, :data:`MITSUBA_SAMPLERS`)."""
     from ..device.devices import resolve
     from ..imageio import read_exr, write_json
     from ..scene.loaders import load_scene

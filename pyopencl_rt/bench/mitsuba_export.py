@@ -1,4 +1,5 @@
-"""The same scene for Mitsuba 3: the peer renderer of ``pyopencl-rt bench convergence --compare mitsuba``.
+"""The same scene for Mitsuba 3: the peer renderer of ``pyopencl-rt bench convergence --compare mitsuba``,
+``bench render --mitsuba`` and ``bench set``.
 
 Mitsuba usually lives in its own virtual environment, so the export has two halves:
 
@@ -11,7 +12,8 @@ This module imports nothing but numpy at module level and nothing from the packa
 ``pyopencl_rt/bench/mitsuba_runner.py`` can load it by file path in an interpreter that has Mitsuba
 and numpy but not pyopencl.
 
-Correspondence (checked by tests/bench/test_convergence.py against our renderer):
+Correspondence (checked against our renderer by tests/bench/test_convergence.py and, for textures,
+environments and the scenes of ``bench set``, tests/bench/test_mitsuba_export.py):
 
 * triangles: one PLY mesh per material (``face_normals = true``: flat shading on the geometric
   normal, as ours), BSDF from the material type's ``to_mitsuba`` (pyopencl_rt/scene/materials/;
@@ -21,6 +23,23 @@ Correspondence (checked by tests/bench/test_convergence.py against our renderer)
   a PLY without normals is the same cross product (same winding): verified with a one-quad
   scene.  Mitsuba has no two-sided area emitter: a two-sided emissive material is refused;
 * spheres: ``sphere`` shapes (emitting outwards, as ours);
+* image textures (a diffuse albedo, a dielectric tint, an emission texture): ``bitmap`` textures of
+  the texels times their factor, written as float OpenEXR and read ``raw`` (our texels are
+  already linear), bilinear and repeating as ours; both renderers put texture coordinate (0, 0) at
+  the top-left texel, and the PLY carries our per-corner (u, v) as they are (Mitsuba reads PLY
+  coordinates without flipping them).  Spheres have no texture coordinates here and use the
+  factors alone, so their BSDF and emitter are the untextured ones.  A type whose texture has no
+  Mitsuba place (``gltf``, which has no ``to_mitsuba`` at all) is refused;
+* environment: a constant one is Mitsuba's ``constant``; a map is ``envmap`` (identity
+  ``to_world``), resampled to Mitsuba's layout: Mitsuba's u = atan2(x, -z) / 2 pi looks along -z
+  at u = 0, ours (cl/render/lights.h) along +z, so its u is ours + 1/2; its column i is centred at
+  u = (i + 1/2) / W, its row j at v = j / (H - 1) (poles on the first and last rows: Mitsuba 3.9's
+  envmap.cpp), and it filters bilinearly where we take the nearest texel, so each of its texels is
+  our nearest texel at its centre, on a grid finer than ours (:data:`ENV_WIDTH`: 4 times for a
+  map 256 texels wide), so that the bilinear blur spans an eighth of our texel on either side of
+  its edges.  Our RGB scale is multiplied in;
+* point and directional lights: Mitsuba's ``point`` (``intensity``) and ``directional``
+  (``irradiance``), the same quantities as ours;
 * camera: ``perspective``, ``to_world = look_at(eye, look_at, up)``, ``fov_axis = 'y'`` (our
   fov is vertical), or ``orthographic`` with ``to_world = look_at(...) @ scale(s, s, 1)``, s our
   film's half width (Mitsuba's film is 2 wide and 2 / aspect high before the scale), the origin
@@ -52,10 +71,19 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
     from ..render.settings import ImageSettings  # here, not at the top: see the module docstring
 
     settings = settings or ImageSettings.resolve(scene)
+    if scene.has_media():
+        raise ValueError("participating media are not exported to Mitsuba 3 yet")
     for m in scene.materials:
         if m.is_emissive and m.two_sided:
             raise ValueError(f"material {m.name!r}: Mitsuba 3 has no two-sided area emitter")
+    for has, what in (("has_shading_normals", "shading normals"), ("has_normal_maps", "normal and bump maps"),
+                      ("has_vertex_colors", "vertex colours")):
+        if getattr(scene, has, lambda: False)():
+            raise ValueError(f"{what} are not exported to Mitsuba yet (the meshes are written flat, face_normals)")
     cam = scene.camera
+    arrays, materials = {}, []
+    for index, m in enumerate(scene.materials):
+        materials.append(_material_record(m, index, arrays))
     record = {
         "width": settings.width, "height": settings.height,
         "spp": int(spp or scene.settings.spp),
@@ -65,9 +93,12 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
         "up": [float(x) for x in cam.up], "fov": float(cam.fov),
         "projection": getattr(cam, "projection", "perspective"), "extent": float(getattr(cam, "extent", 2.0)),
         "filter": settings.filter.as_dict(),
-        "materials": [{"name": m.name, "bsdf": m.mitsuba_bsdf(),
-                       "emission": [float(x) for x in m.emission]} for m in scene.materials],
+        "materials": materials, "lights": [_light_record(light) for light in scene.lights],
+        "environment": _environment_record(scene.environment, arrays),
     }
+    if any(m.get("textured") for m in materials):  # per-corner (u, v); none given: all 0, as ours
+        arrays["uvs"] = (np.zeros((len(scene.faces), 3, 2), np.float32) if scene.uvs is None
+                         else np.asarray(scene.uvs, np.float32).reshape(-1, 3, 2))
     return {
         "vertices": np.asarray(scene.vertices, np.float32),
         "faces": np.asarray(scene.faces, np.int32),
@@ -75,7 +106,87 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
         "spheres": np.asarray(scene.spheres, np.float32).reshape(-1, 4),
         "sphere_materials": np.asarray(scene.sphere_materials, np.int32),
         "settings": json.dumps(record),
+        **arrays,
     }
+
+
+# the exported environment map's grid is finer than ours (see the module docstring) by the factor
+# that gives it ENV_WIDTH columns or more, at most ENV_MAX_UPSAMPLE (4 for a 256-column map)
+ENV_WIDTH = 1024
+ENV_MAX_UPSAMPLE = 16
+
+
+def _texture_ref(key: str) -> dict:
+    """A Mitsuba bitmap texture of the array ``key`` (a file once :func:`dict_from_arrays` writes it)."""
+    return {"type": "bitmap", "texture": key, "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
+
+
+def _baked(texture, factor) -> np.ndarray:
+    """Texels (RGB, linear) times the RGB factor they multiply in our kernels."""
+    return np.ascontiguousarray(np.asarray(texture.texels, np.float32)[..., :3] * np.asarray(factor, np.float32))
+
+
+def _material_record(m, index: int, arrays: dict) -> dict:
+    """A material's export: its BSDF (``bsdf``; with ``bsdf_plain`` beside it when a texture is
+    put in, for spheres), its emission and, where textured, the emission texture; texel arrays go
+    into ``arrays``."""
+    bsdf = m.mitsuba_bsdf()
+    record = {"name": m.name, "bsdf": bsdf, "emission": [float(x) for x in m.emission]}
+    if m.base_texture is not None and m.type != "conductor":  # a conductor's is inert in our kernels
+        key = f"texture_base_{index}"
+        if m.type == "diffuse":
+            arrays[key] = _baked(m.base_texture, m.albedo)
+            textured = {**bsdf, "material": {**bsdf["material"], "reflectance": _texture_ref(key)}}
+        elif m.type == "dielectric":
+            arrays[key] = _baked(m.base_texture, m.tint)
+            textured = {**bsdf, "specular_reflectance": _texture_ref(key), "specular_transmittance": _texture_ref(key)}
+        else:
+            raise ValueError(f"material {m.name!r}: a {m.type} with a base texture is not exported to Mitsuba")
+        record.update(bsdf=textured, bsdf_plain=bsdf, textured=True)
+    if m.mr_texture is not None:
+        raise ValueError(f"material {m.name!r}: a metallic-roughness texture is not exported to Mitsuba")
+    if m.emission_texture is not None and m.is_emissive:
+        key = f"texture_emission_{index}"
+        arrays[key] = _baked(m.emission_texture, m.emission)
+        record.update(emission_texture=key, textured=True)
+    return record
+
+
+def _light_record(light) -> dict:
+    name = type(light).__name__
+    if name == "PointLight":
+        return {"type": "point", "position": [float(x) for x in light.position],
+                "intensity": [float(x) for x in light.intensity]}
+    if name == "DirectionalLight":
+        return {"type": "directional", "direction": [float(x) for x in light.direction],
+                "irradiance": [float(x) for x in light.irradiance]}
+    raise ValueError(f"a {name} is not exported to Mitsuba")
+
+
+def _environment_record(environment, arrays: dict) -> dict | None:
+    if environment is None:
+        return None
+    if environment.image is None:
+        return {"type": "constant", "radiance": [float(x) for x in environment.radiance]}
+    arrays["envmap"] = mitsuba_envmap(environment.image, environment.radiance)
+    return {"type": "envmap"}
+
+
+def mitsuba_envmap(image, scale=(1.0, 1.0, 1.0), upsample=None) -> np.ndarray:
+    """Our equirectangular map (times ``scale``) as Mitsuba's ``envmap`` reads it with an identity
+    ``to_world``: each of its texels is our nearest texel in the direction of that texel's centre
+    (the module docstring has both layouts); (H', W', 3) float32."""
+    ours = np.nan_to_num(np.asarray(image, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+    ours = np.maximum(ours, 0.0) * np.asarray(scale, np.float32)  # as our loader treats such texels
+    h, w = ours.shape[:2]
+    k = upsample or min(ENV_MAX_UPSAMPLE, max(1, -(-ENV_WIDTH // w)))
+    out_w, out_h = k * w, max(3, k * h)
+    u_mitsuba = (np.arange(out_w) + 0.5) / out_w
+    v = np.arange(out_h) / (out_h - 1)
+    u_ours = np.mod(u_mitsuba + 0.5, 1.0)
+    col = np.minimum((u_ours * w).astype(np.int64), w - 1)
+    row = np.minimum((v * h).astype(np.int64), h - 1)
+    return np.ascontiguousarray(ours[row[:, None], col[None, :]], np.float32)
 
 
 def save_scene_npz(path, arrays: dict) -> None:
@@ -89,13 +200,17 @@ def load_scene_npz(path) -> dict:
     return out
 
 
-def write_ply(path, vertices: np.ndarray, faces: np.ndarray) -> None:
-    """A binary little-endian PLY with float vertices and int triangle indices."""
-    v = np.ascontiguousarray(vertices, "<f4")
+def write_ply(path, vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None = None) -> None:
+    """A binary little-endian PLY with float vertices (and texture coordinates ``uvs``, one per
+    vertex, when given) and int triangle indices."""
+    v = np.ascontiguousarray(vertices, "<f4").reshape(-1, 3)
+    if uvs is not None:
+        v = np.ascontiguousarray(np.concatenate([v, np.asarray(uvs, "<f4").reshape(-1, 2)], 1))
     f = np.ascontiguousarray(faces, "<i4")
     header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(v)}\n"
               "property float x\nproperty float y\nproperty float z\n"
-              f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n").encode("ascii")
+              + ("property float u\nproperty float v\n" if uvs is not None else "")
+              + f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n").encode("ascii")
     rec = np.zeros(len(f), dtype=[("n", "u1"), ("i", "<i4", (3,))])
     rec["n"] = 3
     rec["i"] = f
@@ -127,27 +242,64 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
         },
     }
     mats = s["materials"]
+    files = {}
 
-    def emitter(m):
-        return {"type": "area", "radiance": {"type": "rgb", "value": m["emission"]}}
+    def bitmap_file(key):
+        """The array ``key`` written once as a float OpenEXR in tmpdir."""
+        if key not in files:
+            files[key] = os.path.join(tmpdir, f"{key}.exr")
+            mi.Bitmap(np.ascontiguousarray(arrays[key], np.float32)).write(files[key])
+        return files[key]
+
+    def resolved(value):
+        """``value`` with every texture reference of :func:`_texture_ref` made a file name."""
+        if isinstance(value, dict):
+            out = {k: resolved(v) for k, v in value.items() if k != "texture"}
+            if "texture" in value:
+                out["filename"] = bitmap_file(value["texture"])
+            return out
+        return value
+
+    def emitter(m, textured=True):
+        key = m.get("emission_texture") if textured else None
+        radiance = resolved(_texture_ref(key)) if key else {"type": "rgb", "value": m["emission"]}
+        return {"type": "area", "radiance": radiance}
 
     verts, faces, fmat = arrays["vertices"], arrays["faces"], arrays["face_materials"]
+    uvs = arrays.get("uvs")
     for mi_index in np.unique(fmat):
-        sel = faces[fmat == mi_index]
-        used, local = np.unique(sel.ravel(), return_inverse=True)
-        path = os.path.join(tmpdir, f"mesh_{int(mi_index)}.ply")
-        write_ply(path, verts[used], local.reshape(-1, 3))
         m = mats[int(mi_index)]
-        shape = {"type": "ply", "filename": path, "face_normals": True, "bsdf": m["bsdf"]}
+        in_material = fmat == mi_index
+        sel = faces[in_material]
+        path = os.path.join(tmpdir, f"mesh_{int(mi_index)}.ply")
+        if m.get("textured") and uvs is not None:  # a vertex per corner, with the corner's (u, v)
+            write_ply(path, verts[sel.ravel()], np.arange(3 * len(sel)).reshape(-1, 3), uvs[in_material].reshape(-1, 2))
+        else:
+            used, local = np.unique(sel.ravel(), return_inverse=True)
+            write_ply(path, verts[used], local.reshape(-1, 3))
+        shape = {"type": "ply", "filename": path, "face_normals": True, "bsdf": resolved(m["bsdf"])}
         if max(m["emission"]) > 0:
             shape["emitter"] = emitter(m)
         d[f"mesh_{int(mi_index)}"] = shape
     for i, (sp, mi_index) in enumerate(zip(arrays["spheres"], arrays["sphere_materials"])):
-        m = mats[int(mi_index)]
-        shape = {"type": "sphere", "center": [float(x) for x in sp[:3]], "radius": float(sp[3]), "bsdf": m["bsdf"]}
+        m = mats[int(mi_index)]  # no texture coordinates on our spheres: the factors alone
+        shape = {"type": "sphere", "center": [float(x) for x in sp[:3]], "radius": float(sp[3]),
+                 "bsdf": m.get("bsdf_plain", m["bsdf"])}
         if max(m["emission"]) > 0:
-            shape["emitter"] = emitter(m)
+            shape["emitter"] = emitter(m, textured=False)
         d[f"sphere_{i}"] = shape
+    for i, light in enumerate(s.get("lights", [])):
+        if light["type"] == "point":
+            d[f"light_{i}"] = {"type": "point", "position": light["position"],
+                               "intensity": {"type": "rgb", "value": light["intensity"]}}
+        else:
+            d[f"light_{i}"] = {"type": "directional", "direction": light["direction"],
+                               "irradiance": {"type": "rgb", "value": light["irradiance"]}}
+    environment = s.get("environment")
+    if environment and environment["type"] == "constant":
+        d["environment"] = {"type": "constant", "radiance": {"type": "rgb", "value": environment["radiance"]}}
+    elif environment:
+        d["environment"] = {"type": "envmap", "filename": bitmap_file("envmap")}
     return d
 
 

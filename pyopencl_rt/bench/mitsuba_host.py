@@ -4,7 +4,9 @@ then import it instead of the real ``mitsuba``).
 
 Mitsuba often lives in a virtual environment of its own, so it runs as a subprocess: scripts in
 this folder that need only numpy and mitsuba (:mod:`.mitsuba_runner`, :mod:`.mitsuba_cornell_box`)
-are started with that interpreter.  Nothing here guesses system paths; what it needs comes from
+are started with that interpreter: for convergence curves (:func:`run_mitsuba_curve`), for renders
+timed in turns with ours (:class:`MitsubaServer`), and on Mitsuba's own Cornell box
+(:func:`run_mitsuba_cornell_box`).  Nothing here guesses system paths; what it needs comes from
 options or the environment, in this order:
 
 * the interpreter: ``--mitsuba-python``, else ``$PYOPENCL_RT_MITSUBA_PYTHON``, else this one.  The
@@ -175,6 +177,19 @@ def run_mitsuba_curve(scene, python, *, width, height, max_depth, rr_depth, refe
             "process_seconds": wall, "version": info["version"], "points": points}
 
 
+def parse_spps(text: str) -> list[int]:
+    """'16,64,256' -> [16, 64, 256]: one line of error for anything but positive integers."""
+    from ..errors import UsageError
+
+    try:
+        spps = [int(value) for value in text.split(",") if value.strip()]
+    except ValueError:
+        raise UserError(f"--spp {text}: expected comma-separated integers") from None
+    if not spps or min(spps) < 1:
+        raise UsageError(f"--spp {text}: expected comma-separated positive integers")
+    return spps
+
+
 def run_mitsuba_cornell_box(*, mitsuba_python=None, llvm_path=None, variant=DEFAULT_VARIANT, spps=(16, 64, 256),
                             json_path=None, echo=print) -> dict:
     """Samples/s of Mitsuba on its own Cornell box (``mi.cornell_box()``), for scale beside ours:
@@ -198,17 +213,18 @@ def run_mitsuba_cornell_box(*, mitsuba_python=None, llvm_path=None, variant=DEFA
     return results
 
 
-class MitsubaCornellBoxServer:
-    """Mitsuba rendering its Cornell box on request, for timings interleaved with ours
-    (``bench render --mitsuba``): :mod:`.mitsuba_cornell_box` ``--serve`` in Mitsuba's interpreter,
-    warmed up (JIT) with one ``warmup_spp`` render when entered; :meth:`render` times one more.
-    ``rfilter``: the film's filter (:func:`.mitsuba_export.mitsuba_rfilter` of ours).
-    ``info``: Mitsuba's version, variant and image size; ``renders``: every timed render."""
+class MitsubaServer:
+    """Mitsuba rendering our ``scene`` (exported by :mod:`.mitsuba_export` with ``settings``) on
+    request, for timings interleaved with ours (``bench render --mitsuba``): :mod:`.mitsuba_runner`
+    ``--serve`` in Mitsuba's interpreter, one persistent process, warmed up (JIT) with one
+    ``warmup_spp`` render when entered; :meth:`render` times one more.  ``info``: Mitsuba's
+    version, variant, sampler and image size; ``renders``: every timed render.  ``python``: the
+    interpreter :func:`require_mitsuba_python` found already (else it is looked for here)."""
 
-    def __init__(self, *, mitsuba_python=None, llvm_path=None, variant=DEFAULT_VARIANT, warmup_spp=16, echo=print,
-                 rfilter=None):
+    def __init__(self, scene, settings, *, mitsuba_python=None, llvm_path=None, variant=DEFAULT_VARIANT,
+                 warmup_spp=16, python=None, echo=print):
+        self.scene, self.settings, self.python = scene, settings, python
         self.mitsuba_python, self.llvm_path, self.variant = mitsuba_python, llvm_path, variant
-        self.rfilter = rfilter  # the film's rfilter dict (None: cornell_box()'s gaussian)
         self.warmup_spp, self.echo = warmup_spp, echo
         self.process = self.info = None
         self.renders: list[dict] = []
@@ -216,14 +232,23 @@ class MitsubaCornellBoxServer:
     def __enter__(self):
         import tempfile
 
-        python = require_mitsuba_python(self.mitsuba_python, self.variant, self.llvm_path, self.echo)
+        from .mitsuba_export import save_scene_npz, scene_arrays
+
+        python = self.python or require_mitsuba_python(self.mitsuba_python, self.variant, self.llvm_path, self.echo)
+        self._workdir = tempfile.TemporaryDirectory(prefix="pyopencl_rt_mitsuba_")
+        scene_file = Path(self._workdir.name) / "scene.npz"
+        save_scene_npz(scene_file, scene_arrays(self.scene, self.settings, spp=self.warmup_spp))
         self._stderr = tempfile.TemporaryFile(mode="w+")  # a file, not a pipe nobody drains
         self.process = subprocess.Popen(
-            [python, str(HERE / "mitsuba_cornell_box.py"), "--serve", "--variant", self.variant,
-             "--spp", str(self.warmup_spp)] + (["--rfilter", json.dumps(self.rfilter)] if self.rfilter else []),
+            [python, str(HERE / "mitsuba_runner.py"), str(scene_file), self._workdir.name, "--serve",
+             "--variant", self.variant, "--warmup-spp", str(self.warmup_spp)],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr, text=True,
             env=mitsuba_env(self.llvm_path))
-        self.info = self._reply()
+        try:
+            self.info = self._reply()
+        except UserError:
+            self.__exit__()  # a failed __enter__ gets no __exit__ from the with statement
+            raise
         return self
 
     def _reply(self) -> dict:
@@ -252,5 +277,8 @@ class MitsubaCornellBoxServer:
                 self.process.wait(timeout=30)
             except subprocess.TimeoutExpired:
                 self.process.kill()
-        self._stderr.close()
+                self.process.wait()
+        if hasattr(self, "_stderr"):
+            self._stderr.close()
+            self._workdir.cleanup()
         return False

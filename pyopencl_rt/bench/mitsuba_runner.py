@@ -12,7 +12,17 @@ batch is at most ``--max-samples-per-call`` samples (the JIT variants hold a who
 samples in memory).  With ``--sampler`` other than ``independent`` (``stratified``,
 ``multijitter``, ``ldsampler``: Mitsuba's sampler plugins, which stratify the samples of one
 render), each checkpoint is a render of its own at that spp, timed alone: batches of such
-samplers would not be stratified together.  The result is ``OUTDIR/mitsuba.json``.  Only numpy and mitsuba are needed:
+samplers would not be stratified together; as those samplers round a sample count up (to a square,
+a power of two, a prime's square), a checkpoint records the count rendered, and one that rounds to
+the count of the checkpoint before it is skipped.  The result is ``OUTDIR/mitsuba.json``.
+
+    python pyopencl_rt/bench/mitsuba_runner.py SCENE.npz OUTDIR --serve --warmup-spp 64 [--variant ...]
+
+serves timed renders for ``bench render --mitsuba`` (:class:`.mitsuba_host.MitsubaServer`): the scene
+is loaded and rendered once at ``--warmup-spp`` (the JIT compilation), one JSON line describes it,
+then every stdin line ``SPP`` is one more render of the whole image, timed until its pixels are on
+the host and answered with one JSON line ``{"spp": SPP, "seconds": ...}``, so that the renders take
+turns with ours and load on a shared machine falls on both alike.  Only numpy and mitsuba are needed:
 ``mitsuba_export.py`` is loaded from beside this file, not through the package.
 """
 from __future__ import annotations
@@ -47,6 +57,8 @@ def main(argv=None):
     parser.add_argument("--max-samples-per-call", type=int, default=1 << 22)
     parser.add_argument("--seed-offset", type=int, default=0)
     parser.add_argument("--sampler", default="independent", help="Mitsuba's sampler plugin")
+    parser.add_argument("--serve", action="store_true", help="time a render of each stdin line's spp")
+    parser.add_argument("--warmup-spp", type=int, default=1, help="with --serve: the untimed first render's spp")
     args = parser.parse_args(argv)
 
     import numpy as np
@@ -67,6 +79,11 @@ def main(argv=None):
     load_seconds = time.perf_counter() - start
     settings = json.loads(arrays["settings"])
     pixels = int(settings["width"]) * int(settings["height"])
+    if args.serve:
+        return serve(scene, args, {"renderer": "mitsuba", "version": mi.__version__, "drjit_version": dr.__version__,
+                                   "variant": args.variant, "sampler": args.sampler, "width": int(settings["width"]),
+                                   "height": int(settings["height"]), "max_depth": settings["max_depth"],
+                                   "load_seconds": load_seconds, "import_seconds": t_loaded - t_import})
 
     start = time.perf_counter()
     image = mi.render(scene, spp=1, seed=0xFFFF0000 + args.seed_offset)
@@ -80,9 +97,14 @@ def main(argv=None):
     seconds = 0.0
     seed = args.seed_offset * 1000003
     results = []
+    sampler = scene.sensors()[0].sampler()
     for target in checkpoints:
         stop = False
         if args.sampler != "independent":  # one stratified render per checkpoint
+            sampler.set_sample_count(target)
+            target = int(sampler.sample_count())  # what the sampler renders: it may round up
+            if target <= done:
+                continue
             if args.budget is not None and seconds * target / max(done, 1) > args.budget and done:
                 break
             if target * pixels > STRATIFIED_CALL_FACTOR * args.max_samples_per_call:
@@ -119,6 +141,26 @@ def main(argv=None):
     with open(os.path.join(args.outdir, "mitsuba.json"), "w") as fh:
         json.dump(info, fh, indent=2)
     print(json.dumps({"ok": True, "points": len(results)}))
+    return 0
+
+
+def serve(scene, args, info) -> int:
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
+
+    def timed(spp):
+        start = time.perf_counter()
+        image = mi.render(scene, spp=spp)
+        dr.eval(image)
+        np.asarray(image)
+        return {"spp": spp, "seconds": time.perf_counter() - start}
+
+    warmup = timed(args.warmup_spp)
+    print(json.dumps({**info, "warmup": warmup}), flush=True)
+    for line in sys.stdin:
+        if line.strip():
+            print(json.dumps(timed(int(line))), flush=True)
     return 0
 
 

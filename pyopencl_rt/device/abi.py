@@ -62,7 +62,7 @@ assert BVH_NODE.itemsize == 64
 TRIANGLE = np.dtype([("v0", np.float32, 4), ("v1", np.float32, 4), ("v2", np.float32, 4)])
 assert TRIANGLE.itemsize == 48
 
-# A material (448 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
+# A material (464 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
 # documented at the top of cl/materials/<name>.h); every type may also emit.
 #   albedo    diffuse: reflectance; gltf, principled, principledthin: base colour; plastic,
 #             roughplastic: diffuse_reflectance
@@ -71,6 +71,11 @@ assert TRIANGLE.itemsize == 48
 #             faces); bit 1: conductor Fresnel from `specular` as F0 (Schlick) instead of eta, k;
 #             bit 2 (MATERIAL_FLAG_NONLINEAR): plastic, roughplastic: Mitsuba's `nonlinear`;
 #             bit 3 (MATERIAL_FLAG_BECKMANN): roughplastic: the Beckmann distribution (else GGX)
+#             bit 4: tex_normal is a height (bump) map, not a tangent-space normal map; bit 5:
+#             the reflectance (albedo, dielectric tint) is multiplied by the triangle's vertex
+#             colours (tri_color); bits 6-8: the normal/bump map's Mitsuba conventions
+#             (cl/scene/shading.h): flip normals that face away from the viewer, the shadowing
+#             term of Estevez et al. 2019, directions on opposite sides of the two frames masked
 #   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes;
 #             plastic, roughplastic: specular_reflectance
 #   alpha     GGX roughness alpha (conductor, dielectric, gltf; < 1e-3 is perfectly smooth);
@@ -111,19 +116,25 @@ MATERIAL_FLAG_NONLINEAR = define("MATERIAL_FLAG_NONLINEAR", 4)
 MATERIAL_FLAG_BECKMANN = define("MATERIAL_FLAG_BECKMANN", 8)
 ROUGH_TRANSMITTANCE_RES = define("ROUGH_TRANSMITTANCE_RES", 64)  # entries of Material.table
 TEX_SLOTS = define("TEX_SLOTS", 6)  # Material.tex_scalar
+MATERIAL_FLAG_BUMP_MAP = define("MATERIAL_FLAG_BUMP_MAP", 16)
+MATERIAL_FLAG_VERTEX_COLOR = define("MATERIAL_FLAG_VERTEX_COLOR", 32)
+MATERIAL_FLAG_MAP_FLIP = define("MATERIAL_FLAG_MAP_FLIP", 64)
+MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
+MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
      ("k", np.float32, 3), ("ior", np.float32),
-     ("tex_base", np.int32), ("tex_mr", np.int32), ("tex_emission", np.int32), ("tex_pad", np.int32),
+     ("tex_base", np.int32), ("tex_mr", np.int32), ("tex_emission", np.int32), ("tex_normal", np.int32),
      ("alpha_v", np.float32), ("fdr", np.float32), ("spec_weight", np.float32), ("roughness", np.float32),
      ("anisotropic", np.float32), ("spec_trans", np.float32), ("spec_tint", np.float32), ("sheen", np.float32),
      ("sheen_tint", np.float32), ("clearcoat", np.float32), ("clearcoat_gloss", np.float32),
      ("flatness", np.float32), ("diff_trans", np.float32), ("rates", np.float32, 4),
      ("tex_scalar", np.int32, TEX_SLOTS), ("tex_params", np.int32),
-     ("table", np.float32, ROUGH_TRANSMITTANCE_RES)]
+     ("table", np.float32, ROUGH_TRANSMITTANCE_RES),
+     ("normal_scale", np.float32), ("pad0", np.int32), ("pad1", np.int32), ("pad2", np.int32)]
 )
-assert MATERIAL.itemsize == 448
+assert MATERIAL.itemsize == 464
 # Texture indices (into the TEXTURE table; -1 = none), used only when the program is built with
 # HAS_TEXTURES (cl/scene/textures.h):
 #   tex_base      RGB multiplies albedo (diffuse, gltf baseColor, plastic diffuse_reflectance,
@@ -152,6 +163,10 @@ TEXTURE_PARAMS = {TEXP_ALPHA: "alpha", TEXP_ROUGHNESS: "roughness", TEXP_METALLI
                   TEXP_SHEEN: "sheen", TEXP_SHEEN_TINT: "sheen_tint", TEXP_CLEARCOAT: "clearcoat",
                   TEXP_CLEARCOAT_GLOSS: "clearcoat_gloss", TEXP_FLATNESS: "flatness",
                   TEXP_DIFF_TRANS: "diff_trans", TEXP_ETA: "ior"}
+#   tex_normal    a tangent-space normal map (RGB = (n + 1) / 2, relative to the shading frame), or
+#                 with MATERIAL_FLAG_BUMP_MAP a height map (its luminance), perturbing the
+#                 shading normal (HAS_NORMAL_MAPS, cl/scene/shading.h); normal_scale scales the
+#                 normal map's x and y (glTF's normalTexture.scale) or the bump map's gradient
 
 # A texture (32 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row
 # by row from the top of the image (v = 0 is the top row, as in glTF; OBJ's v is flipped at load),
@@ -161,6 +176,53 @@ TEXTURE_FLAG_SRGB = define("TEXTURE_FLAG_SRGB", 1)
 TEXTURE = np.dtype([("offset", np.int32), ("width", np.int32), ("height", np.int32), ("channels", np.int32),
                     ("flags", np.int32), ("pad0", np.int32), ("pad1", np.int32), ("pad2", np.int32)])
 assert TEXTURE.itemsize == 32
+
+# Participating media (cl/render/media.h; pyopencl_rt/scene/media.py packs them).  A medium (64 bytes):
+#   type      MEDIUM_TYPE_HOMOGENEOUS (sigma_t everywhere) or MEDIUM_TYPE_GRID (sigma_t times its density grid, inside the
+#             grid's box only: vacuum elsewhere)
+#   sigma_t   extinction per channel [1 / scene unit], any scale folded in; a grid medium's multiplies its density
+#   albedo    single-scattering albedo sigma_s / sigma_t (unless albedo_grid >= 0)
+#   majorant  per channel, >= sigma_t(x) at every x of the medium (homogeneous: sigma_t itself)
+#   phase     PHASE_ISOTROPIC, or PHASE_HG with asymmetry g (g > 0 scatters forward, as in Mitsuba and pbrt)
+#   density_grid, albedo_grid: indices into the MEDIUM_GRID table (-1: none)
+#   flags     MEDIUM_FLAG_SAMPLE_EMITTERS: next-event estimation at its scattering events (Mitsuba's
+#             sample_emitters, on by default)
+MEDIUM_TYPE_HOMOGENEOUS = define("MEDIUM_TYPE_HOMOGENEOUS", 0)
+MEDIUM_TYPE_GRID = define("MEDIUM_TYPE_GRID", 1)
+PHASE_ISOTROPIC = define("PHASE_ISOTROPIC", 0)
+PHASE_HG = define("PHASE_HG", 1)
+MEDIUM_FLAG_SAMPLE_EMITTERS = define("MEDIUM_FLAG_SAMPLE_EMITTERS", 1)
+MEDIUM = np.dtype([("sigma_t", np.float32, 3), ("type", np.int32), ("albedo", np.float32, 3), ("phase", np.int32),
+                   ("majorant", np.float32, 3), ("g", np.float32), ("density_grid", np.int32),
+                   ("albedo_grid", np.int32), ("flags", np.int32), ("pad", np.int32)])
+assert MEDIUM.itemsize == 64
+# A 3-D grid of a medium (80 bytes): values [offset, offset + nx ny nz channels) of the grid_data buffer,
+# texel (x, y, z) channel c at offset + ((z ny + y) nx + x) channels + c (the order of Mitsuba's .vol files).  The
+# grid fills the unit cube of its local space, texel centres at ((x + 0.5) / nx, ...); to_local maps world points
+# to local ones (row-major 3 x 4).  channels: 1 (a value for every channel) or 3 (RGB).
+#   filter    GRID_TRILINEAR (between texel centres) or GRID_NEAREST
+#   outside   GRID_CLAMP: beyond the outer texel centres the edge texels continue (Mitsuba's clamp); GRID_ZERO:
+#             texels beyond the grid are 0 (pbrt-v4's SampledGrid)
+#   max_value the largest value of any channel
+GRID_TRILINEAR = define("GRID_TRILINEAR", 0)
+GRID_NEAREST = define("GRID_NEAREST", 1)
+GRID_CLAMP = define("GRID_CLAMP", 0)
+GRID_ZERO = define("GRID_ZERO", 1)
+MEDIUM_GRID = np.dtype([("offset", np.int32), ("nx", np.int32), ("ny", np.int32), ("nz", np.int32),
+                        ("channels", np.int32), ("filter", np.int32), ("outside", np.int32), ("max_value", np.float32),
+                        ("to_local", np.float32, 12)])
+assert MEDIUM_GRID.itemsize == 80
+# How a surface bounds media (16 bytes; tri_interface / sphere_interface index it, -1: an ordinary surface in
+# whatever medium the ray is in).  interior, exterior: media (MEDIUM_VACUUM: none); flags:
+#   MEDIUM_IF_TRANSITION  crossing the surface enters `exterior` along the front side's normal (dot(d, ng) > 0),
+#                         else `interior` (Mitsuba's target_medium); without it the ray keeps its medium
+#   MEDIUM_IF_NULL        index-matched: no surface scattering, the ray goes straight on (Mitsuba's null BSDF,
+#                         pbrt's "interface" material)
+MEDIUM_VACUUM = define("MEDIUM_VACUUM", -1)
+MEDIUM_IF_TRANSITION = define("MEDIUM_IF_TRANSITION", 1)
+MEDIUM_IF_NULL = define("MEDIUM_IF_NULL", 2)
+MEDIUM_INTERFACE = np.dtype([("interior", np.int32), ("exterior", np.int32), ("flags", np.int32), ("pad", np.int32)])
+assert MEDIUM_INTERFACE.itemsize == 16
 
 # A sphere (16 bytes): centre and radius.
 SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
@@ -199,9 +261,11 @@ assert LIGHT.itemsize == 80
 # focus_distance along forward.
 # The jitter is drawn from the pixel reconstruction filter (cl/render/filter.h; filter importance
 # sampling): filter is a FILTER_* method, filter_radius its half widths along x and y in pixels,
-# filter_knots the knots per axis of its tables in filter_cdf (FILTER_TABULATED, else 0), and
 # filter_weight the magnitude of every sample's weight (1 for filters without negative lobes; the
-# sign is that of the filter where the sample fell).
+# sign is that of the filter where the sample fell); FILTER_TABULATED: filter_knots knots per axis
+# in filter_cdf and filter_segments segments along each axis (else 0; pyopencl_rt/render/filters.py
+# lays the tables out: per axis FILTER_MAX_SEGMENTS records of FILTER_SEGMENT_FLOATS, then the
+# knots as (x, f) pairs).
 PROJECTION_PERSPECTIVE = define("PROJECTION_PERSPECTIVE", 0)
 PROJECTION_ORTHOGRAPHIC = define("PROJECTION_ORTHOGRAPHIC", 1)
 PROJECTIONS = {"perspective": PROJECTION_PERSPECTIVE, "orthographic": PROJECTION_ORTHOGRAPHIC}
@@ -210,11 +274,13 @@ PROJECTIONS = {"perspective": PROJECTION_PERSPECTIVE, "orthographic": PROJECTION
 FILTER_BOX = define("FILTER_BOX", 0)
 FILTER_TENT = define("FILTER_TENT", 1)
 FILTER_TABULATED = define("FILTER_TABULATED", 2)
+FILTER_MAX_SEGMENTS = define("FILTER_MAX_SEGMENTS", 64)  # stretches of one sign along an axis
+FILTER_SEGMENT_FLOATS = define("FILTER_SEGMENT_FLOATS", 5)  # u at its start, cells per unit u, first, last, negative
 CAMERA = np.dtype(
     [("origin", np.float32, 3), ("width", np.int32), ("forward", np.float32, 3), ("height", np.int32),
      ("right", np.float32, 3), ("lens_radius", np.float32), ("up", np.float32, 3), ("focus_distance", np.float32),
      ("projection", np.int32), ("filter", np.int32), ("filter_knots", np.int32), ("filter_weight", np.float32),
-     ("filter_radius", np.float32, 2), ("filter_pad", np.float32, 2)]
+     ("filter_radius", np.float32, 2), ("filter_segments", np.int32, 2)]
 )
 assert CAMERA.itemsize == 96
 
@@ -259,6 +325,9 @@ STRUCTS: dict[str, np.dtype] = {
     "Wide8Node": WIDE8_NODE,
     "Tri8": TRI8,
     "Texture": TEXTURE,
+    "Medium": MEDIUM,
+    "MediumGrid": MEDIUM_GRID,
+    "MediumInterface": MEDIUM_INTERFACE,
 }
 
 
@@ -417,6 +486,10 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
     Param("textures", "const", "Texture"),
     Param("tex_data", "const", "float4", "texels of every texture"),
+    # shading normals and vertex colours (cl/scene/shading.h); 16-byte dummies without
+    # HAS_SHADING_NORMALS / HAS_VERTEX_COLORS
+    Param("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)"),
+    Param("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours"),
     # queues of slot indices and their counters
     Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True),
     Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True),
@@ -434,7 +507,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("env_map", "const", "float"),
     Param("env_cdf", "const", "float"),
     # the pixel filter's tables (FILTER_TABULATED, cl/render/filter.h); a dummy otherwise
-    Param("filter_cdf", "const", "float", "per axis: filter_knots knots, the filter there, the CDF of |f|"),
+    Param("filter_cdf", "const", "float", "per axis: the segments, then filter_knots (x, f) pairs"),
     # fixed scalars
     Param("n_spheres", "scalar", "int"),
     Param("n_lights", "scalar", "int"),
@@ -454,6 +527,18 @@ WAVE_PARAMS: tuple[Param, ...] = (
 )
 WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
 assert len(WAVE_PARAM) == len(WAVE_PARAMS)
+
+# What the volumetric integrator will add to WAVE_PARAMS (not yet in it: no kernel takes them; the buffers are
+# pyopencl_rt/scene/media.py:pack_media's, tri_interface reordered as tri_material is).
+MEDIA_PARAMS: tuple[Param, ...] = (
+    Param("media", "const", "Medium", "participating media (cl/render/media.h)"),
+    Param("medium_grids", "const", "MediumGrid", "their density and albedo grids"),
+    Param("grid_data", "const", "float", "the grids' values"),
+    Param("medium_interfaces", "const", "MediumInterface", "how surfaces bound media"),
+    Param("tri_interface", "const", "int", "medium interface per reordered triangle, -1 if none"),
+    Param("sphere_interface", "const", "int", "medium interface per sphere, -1 if none"),
+    Param("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none"),
+)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -224,3 +224,14 @@ def rescued(exc, result, scene, settings, checkpoint_path, output) -> UserError:
         return OutputError(f"{exc}; saving the render to {where} failed too ({err.strerror or err}): it is lost")
     return OutputError(f"{exc}; the render ({result.film.passes} spp) is saved in {where}: write it out with "
                        f"--resume --checkpoint {where} -o ANOTHER.exr (same scene and options)")
+
+
+def parse_defines(pairs) -> dict | None:
+    """{name: value} of ``pyopencl-rt render``'s --define NAME=VALUE options (None without any)."""
+    out = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep or not name.strip():
+            raise UserError(f"--define {pair}: expected NAME=VALUE")
+        out[name.strip()] = value
+    return out or None

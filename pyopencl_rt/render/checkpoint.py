@@ -52,6 +52,10 @@ def scene_hash(scene) -> str:
     add("spheres", scene.spheres)
     add("sphere_materials", scene.sphere_materials)
     add("camera", scene.camera.record(1, 1))  # the aspect ratio is a setting (width, height)
+    if getattr(scene, "normals", None) is not None:  # (absent: the hash of a scene without them is unchanged)
+        add("normals", scene.face_normals())
+    if getattr(scene, "colors", None) is not None:
+        add("colors", scene.face_colors())
     if getattr(scene, "lights", None) or getattr(scene, "environment", None) is not None:
         from .lights import environment_buffers, other_lights
 

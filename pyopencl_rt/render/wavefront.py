@@ -162,7 +162,7 @@ class Wavefront:
             tri_material=const(tri_material), tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
-            **self._texture_buffers(const), **self._aov_buffers(scratch, W, P),
+            **self._texture_buffers(const), **self._shading_buffers(const), **self._aov_buffers(scratch, W, P),
             free_q=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32)),
             counters=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host),
             pass_ring=scratch(3 * 4 * P * self.ring_size), env_map=const(env_map), env_cdf=const(env_cdf),
@@ -224,6 +224,15 @@ class Wavefront:
         uv = self.scene.face_uvs()[self.bvh.prim_ids].reshape(-1, 2)
         table, texels = pack_textures(self.scene.textures())
         return {"tri_uv": const(uv), "textures": const(table), "tex_data": const(texels)}
+
+    def _shading_buffers(self, const) -> dict:
+        """tri_normal and tri_color (cl/scene/shading.h): each reordered triangle's three corner
+        normals and colours, 9 floats; 16-byte dummies when no kernel reads them."""
+        dummy = const(np.zeros(0, np.uint8))
+        prim = self.bvh.prim_ids
+        normals = const(self.scene.face_normals()[prim]) if "HAS_SHADING_NORMALS" in self.features else dummy
+        colors = const(self.scene.face_colors()[prim]) if "HAS_VERTEX_COLORS" in self.features else dummy
+        return {"tri_normal": normals, "tri_color": colors}
 
     def _aov_buffers(self, scratch, W, P) -> dict:
         """aov_path and aov_ring (cl/render/aov.h) when the settings ask for AOVs, else dummies."""

@@ -20,6 +20,10 @@ SAMPLERS = ("sobol", "stratified", "independent")
 assert set(SAMPLERS) == set(abi.SAMPLERS)
 # AOV layers a render can write beside the beauty (pyopencl_rt/render/aovs.py documents them)
 AOVS = ("albedo", "normal", "depth", "position", "variance", "spp")
+# the rules of Mitsuba's normalmap and bumpmap wrappers a material's map may follow (Material)
+MAP_CONVENTIONS = {"flip": abi.MATERIAL_FLAG_MAP_FLIP, "terminator": abi.MATERIAL_FLAG_MAP_TERMINATOR,
+                   "side": abi.MATERIAL_FLAG_MAP_SIDE}
+MITSUBA_MAP = ("flip", "terminator", "side")  # Mitsuba's defaults
 
 
 @dataclass
@@ -59,8 +63,24 @@ class Material:
     params: dict = field(default_factory=dict)
     scalar_textures: dict = field(default_factory=dict)
 
+    # A normal map (a tangent-space normal per texel, RGB = (n + 1) / 2, in the shading frame
+    # whose tangent is dp/du: Mitsuba's normalmap, pbrt-v4's normalmap, glTF's normalTexture) or,
+    # with bump_map, a height map (Mitsuba's bumpmap: its luminance's gradient tilts the
+    # normal); normal_scale multiplies the normal map's x and y, or the height map's gradient.
+    # map_conventions: which of Mitsuba's wrappers' rules apply (cl/scene/shading.h): "flip"
+    # (flip_invalid_normals), "terminator" (use_shadowing_function) and "side" (directions on
+    # opposite sides of the shading and perturbed frames give 0), a subset of MAP_CONVENTIONS.
+    normal_texture: object = None
+    bump_map: bool = False
+    normal_scale: float = 1.0
+    map_conventions: tuple = ()
+    # the reflectance (albedo; a dielectric's tint) is multiplied by the triangles' interpolated
+    # vertex colours (Scene.colors): Mitsuba's mesh_attribute texture, glTF's COLOR_0, PLY colours
+    vertex_colors: bool = False
+
+
     def textures(self) -> list:
-        return [t for t in (self.base_texture, self.mr_texture, self.emission_texture,
+        return [t for t in (self.base_texture, self.mr_texture, self.emission_texture, self.normal_texture,
                             *self.scalar_textures.values()) if t is not None]
 
     def mean_emission(self) -> np.ndarray:
@@ -104,9 +124,8 @@ class Material:
         material_type.pack(self, rec)
         ti = texture_index or {}
         for fld, tex in (("tex_base", self.base_texture), ("tex_mr", self.mr_texture),
-                         ("tex_emission", self.emission_texture)):
+                         ("tex_emission", self.emission_texture), ("tex_normal", self.normal_texture)):
             rec[fld] = ti.get(id(tex), -1) if tex is not None else -1
-        rec["tex_pad"] = -1
         rec["tex_scalar"] = -1
         param_ids = {name: k for k, name in abi.TEXTURE_PARAMS.items()}
         slot = 0
@@ -120,6 +139,13 @@ class Material:
             rec["tex_scalar"][slot] = ti[id(tex)]
             rec["tex_params"] |= param_ids[name] << (4 * slot)
             slot += 1
+        rec["normal_scale"] = self.normal_scale
+        flags = int(rec["flags"]) | (abi.MATERIAL_FLAG_VERTEX_COLOR if self.vertex_colors else 0)
+        if self.normal_texture is not None:
+            flags |= abi.MATERIAL_FLAG_BUMP_MAP if self.bump_map else 0
+            for name in self.map_conventions:
+                flags |= MAP_CONVENTIONS[name]
+        rec["flags"] = flags
         return rec
 
 
@@ -277,6 +303,10 @@ class RenderSettings:
     target_error: float | None = None  # with adaptive: a pixel stops at this relative error
     aovs: tuple = ()  # AOV layers written beside the beauty (names of AOVS)
     filter: PixelFilter = PixelFilter()  # the pixel reconstruction filter
+    # participating media (cl/render/media.h): weigh a path's chromatic distance samples by the
+    # balance heuristic over the channels (Mitsuba's volpathmis, pbrt-v4) or by the hero channel's
+    # pdf alone (Mitsuba's volpath)
+    spectral_mis: bool = True
 
 
 @dataclass
@@ -295,10 +325,23 @@ class Scene:
     environment: Environment | None = None
     # per-face texture coordinates (F, 3, 2) float32 (corner k of face f), or None (all 0)
     uvs: np.ndarray | None = None
+    # per-corner shading normals (F, 3, 3) float32 in world space, or None: the triangles'
+    # normals are interpolated across them (a face whose three are 0 is shaded flat); and
+    # per-corner linear RGB colours (F, 3, 3), or None, for materials with vertex_colors
+    normals: np.ndarray | None = None
+    colors: np.ndarray | None = None
     # the file format it was read from ("mitsuba-xml", "pbrt-v4", ...; None: not recorded) and
     # every warning its loader gave (one line each), for the JSON sidecar
     format: str | None = None
     warnings: list = field(default_factory=list)
+    # participating media (pyopencl_rt.scene.media): the media, the one the camera is in (an index
+    # into media, -1: vacuum), the medium interfaces, and the interface of each face and sphere
+    # ((F,) and (S,) int32 indices into interfaces, -1: an ordinary surface; None: all -1)
+    media: list = field(default_factory=list)
+    camera_medium: int = -1
+    interfaces: list = field(default_factory=list)
+    face_interfaces: np.ndarray | None = None
+    sphere_interfaces: np.ndarray | None = None
 
     def textures(self) -> list:
         """The distinct textures the materials use, in order of first use."""
@@ -310,6 +353,16 @@ class Scene:
 
     def has_textures(self) -> bool:
         return len(self.faces) > 0 and any(m.textures() for m in self.materials)
+
+    def has_shading_normals(self) -> bool:
+        """Some face has a (non-zero) vertex normal: the kernels interpolate them."""
+        return self.normals is not None and len(self.faces) > 0 and bool(np.any(self.face_normals()))
+
+    def has_normal_maps(self) -> bool:
+        return len(self.faces) > 0 and any(m.normal_texture is not None for m in self.materials)
+
+    def has_vertex_colors(self) -> bool:
+        return len(self.faces) > 0 and any(m.vertex_colors for m in self.materials)
 
     def camera_relative(self) -> "Scene":
         """The scene translated (in float64) so that the camera sits at the origin.
@@ -335,6 +388,48 @@ class Scene:
                                        look_at=tuple(np.asarray(self.camera.look_at, np.float64) - eye))
         s.lights = [dataclasses.replace(lt, position=tuple(np.asarray(lt.position, np.float64) - eye))
                     if hasattr(lt, "position") else lt for lt in self.lights]
+        if self.media:
+            shift = np.eye(4)
+            shift[:3, 3] = -eye
+            s.media = [m.transformed(shift) for m in self.media]
+        return s
+
+    def has_media(self) -> bool:
+        """Whether the scene has media or index-matched surfaces (what the volumetric integrator renders)."""
+        return bool(self.media) or any(mi.null for mi in self.interfaces)
+
+    def face_interface_array(self) -> np.ndarray:
+        """(F,) int32 interface index per face (-1: none)."""
+        if self.face_interfaces is None:
+            return np.full(len(self.faces), -1, np.int32)
+        return np.asarray(self.face_interfaces, np.int32).reshape(len(self.faces))
+
+    def sphere_interface_array(self) -> np.ndarray:
+        """(S,) int32 interface index per sphere (-1: none)."""
+        if self.sphere_interfaces is None:
+            return np.full(len(self.spheres), -1, np.int32)
+        return np.asarray(self.sphere_interfaces, np.int32).reshape(len(self.spheres))
+
+    def surfaces_only(self) -> "Scene":
+        """The scene as the surface integrator renders it, until the volumetric one lands: without
+        its media, and without the index-matched (null) surfaces that do not emit (they only bound
+        media).  Returns self when there is nothing to drop."""
+        import copy
+
+        if not self.has_media():
+            return self
+        null = np.array([mi.null for mi in self.interfaces] + [False], bool)  # index -1: the False
+        glows = np.array([m.is_emissive for m in self.materials], bool)
+        f_if, s_if = self.face_interface_array(), self.sphere_interface_array()
+        keep_f = ~null[f_if] | glows[np.asarray(self.face_materials, np.int64)] if len(self.faces) else np.zeros(0, bool)
+        keep_s = ~null[s_if] | glows[np.asarray(self.sphere_materials, np.int64)] if len(self.spheres) else np.zeros(0, bool)
+        s = copy.copy(self)
+        s.faces, s.face_materials = self.faces[keep_f], self.face_materials[keep_f]
+        s.uvs = None if self.uvs is None else self.face_uvs()[keep_f]
+        s.normals = None if self.normals is None else np.asarray(self.normals, np.float32).reshape(-1, 3, 3)[keep_f]
+        s.colors = None if self.colors is None else np.asarray(self.colors, np.float32).reshape(-1, 3, 3)[keep_f]
+        s.spheres, s.sphere_materials = self.spheres[keep_s], self.sphere_materials[keep_s]
+        s.media, s.camera_medium, s.interfaces, s.face_interfaces, s.sphere_interfaces = [], -1, [], None, None
         return s
 
     def face_uvs(self) -> np.ndarray:
@@ -344,9 +439,31 @@ class Scene:
         uv = np.asarray(self.uvs, np.float32).reshape(len(self.faces), 3, 2)
         return np.where(np.isfinite(uv), uv, np.float32(0))
 
+    def face_normals(self) -> np.ndarray:
+        """(F, 3, 3) float32 unit shading normals per corner (zeros where the scene has none;
+        a non-finite or zero normal becomes 0: that face is shaded flat)."""
+        if self.normals is None:
+            return np.zeros((len(self.faces), 3, 3), np.float32)
+        n = np.asarray(self.normals, np.float64).reshape(len(self.faces), 3, 3)
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            length = np.linalg.norm(n, axis=2, keepdims=True)
+            unit = n / length
+        good = np.isfinite(unit).all(axis=2, keepdims=True) & (length > 0)
+        unit = np.where(good, unit, 0.0)
+        flat = ~good.all(axis=(1, 2))  # a face with a missing corner normal is shaded flat
+        unit[flat] = 0.0
+        return unit.astype(np.float32)
+
+    def face_colors(self) -> np.ndarray:
+        """(F, 3, 3) float32 linear RGB per corner (1 where the scene has none; NaN as 0)."""
+        if self.colors is None:
+            return np.ones((len(self.faces), 3, 3), np.float32)
+        c = np.asarray(self.colors, np.float32).reshape(len(self.faces), 3, 3)
+        return np.where(np.isfinite(c), c, np.float32(0))
+
     def material_records(self) -> np.ndarray:
         recs = np.zeros(max(1, len(self.materials)), abi.MATERIAL)
-        for f in ("tex_base", "tex_mr", "tex_emission", "tex_pad", "tex_scalar"):
+        for f in ("tex_base", "tex_mr", "tex_emission", "tex_normal", "tex_scalar"):
             recs[f] = -1
         index = {id(t): i for i, t in enumerate(self.textures())}
         for i, m in enumerate(self.materials):
@@ -362,6 +479,12 @@ class Scene:
                 defines[m.material_type.kernel_define] = True
         if self.has_textures():
             defines["HAS_TEXTURES"] = True  # cl/scene/textures.h
+        if self.has_shading_normals():
+            defines["HAS_SHADING_NORMALS"] = True  # cl/scene/shading.h
+        if self.has_normal_maps():
+            defines["HAS_NORMAL_MAPS"] = True
+        if self.has_vertex_colors():
+            defines["HAS_VERTEX_COLORS"] = True
         return defines
 
     def sphere_records(self) -> np.ndarray:

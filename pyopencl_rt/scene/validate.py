@@ -5,7 +5,8 @@ Scene files are checked key by key by their loaders; this is the last check, on 
 scene, that :func:`~pyopencl_rt.scene.loaders.load_scene` and ``render_full`` both run before
 anything is built.  It refuses, with one line naming the scene:
 
-* arrays of the wrong shape or kind, face and material indices out of range;
+* arrays of the wrong shape or kind (per-corner UVs, normals and colours too; colours negative or
+  not finite), face and material indices out of range;
 * geometry that is not finite, or beyond ``GEOMETRY_LIMIT`` from the origin: values finite in
   float64 can overflow in float32 (1e39), and the triangle test forms products of three
   coordinates (``n . a``, with n a cross product), which overflow float32 beyond ~7e12;
@@ -94,6 +95,16 @@ def check_geometry(scene) -> None:
         if reach > GEOMETRY_LIMIT:
             _fail(scene, f"triangle vertices reach {reach:.3g} from the origin, beyond {GEOMETRY_LIMIT:.3g}: the float32 "
                          "kernels cannot intersect them (scale the scene down)")
+    for name in ("normals", "colors", "uvs"):
+        a = getattr(scene, name, None)
+        if a is None:
+            continue
+        a = np.asarray(a)
+        width = 2 if name == "uvs" else 3
+        if a.dtype.kind not in "fiu" or a.size != len(f) * 3 * width:
+            _fail(scene, f"{name} must be {len(f)} faces x 3 corners x {width} numbers, got shape {tuple(a.shape)}")
+        if name == "colors" and not (np.isfinite(a).all() and (a >= 0).all()):
+            _fail(scene, "colors must be finite and >= 0")
     s = _array(scene, scene.spheres, "spheres", 4, "fiu")
     sm = _array(scene, scene.sphere_materials, "sphere_materials", 0, "iu")
     if len(sm) != len(s):
@@ -172,6 +183,54 @@ def check_settings(scene) -> None:
             _fail(scene, f"settings: {exc}")
 
 
+def check_media(scene) -> None:
+    """Media (pyopencl_rt/scene/media.py): finite, non-negative extinction and grids, albedo in
+    [0, 1], |g| < 1, invertible grid transforms; interface and medium indices in range."""
+    media = list(getattr(scene, "media", None) or [])
+    interfaces = list(getattr(scene, "interfaces", None) or [])
+    for m in media:
+        what = f"medium {m.name!r}"
+        e = np.asarray(m.extinction(), np.float64)
+        if e.shape != (3,) or not np.isfinite(e).all() or (e < 0).any() or e.max() > RADIANCE_LIMIT:
+            _fail(scene, f"{what}: sigma_t * scale must be 3 finite numbers >= 0, got {np.ravel(e).tolist()}")
+        a = np.asarray(m.albedo, np.float64)
+        if a.shape != (3,) or not np.isfinite(a).all() or (a < 0).any() or (a > 1).any():
+            _fail(scene, f"{what}: albedo must be 3 numbers in [0, 1], got {np.ravel(a).tolist()}")
+        if m.phase.type not in ("isotropic", "hg") or not (-1 < float(m.phase.g) < 1):
+            _fail(scene, f"{what}: the phase function must be isotropic or hg with -1 < g < 1, got "
+                         f"{m.phase.type} g={m.phase.g}")
+        maj = np.asarray(m.majorant_rgb(), np.float64)
+        if not np.isfinite(maj).all() or (maj < 0).any() or maj.max() > RADIANCE_LIMIT:
+            _fail(scene, f"{what}: its majorant {maj.tolist()} must be finite and >= 0")
+        for name, grid in (("density", m.density), ("albedo grid", m.albedo_grid)):
+            if grid is None:
+                continue
+            d = np.asarray(grid.data)
+            if not np.isfinite(d).all() or (d < 0).any():
+                _fail(scene, f"{what}: its {name} must be finite and >= 0")
+            if name == "albedo grid" and d.max() > 1:
+                _fail(scene, f"{what}: its albedo grid must lie in [0, 1], got values up to {d.max():g}")
+            t = np.asarray(grid.to_world, np.float64)
+            if t.shape != (4, 4) or not np.isfinite(t).all() or abs(np.linalg.det(t[:3, :3])) < 1e-300:
+                _fail(scene, f"{what}: its {name}'s transform must be a finite, invertible 4x4 matrix")
+    for i, mi in enumerate(interfaces):
+        for side in ("interior", "exterior"):
+            k = getattr(mi, side)
+            if not -1 <= k < len(media):
+                _fail(scene, f"medium interface #{i}: {side} {k} is not a medium index (-1 .. {len(media) - 1})")
+    if not -1 <= int(getattr(scene, "camera_medium", -1)) < len(media):
+        _fail(scene, f"camera_medium {scene.camera_medium} is not a medium index (-1 .. {len(media) - 1})")
+    for what, arr, count in (("face_interfaces", getattr(scene, "face_interfaces", None), len(scene.faces)),
+                             ("sphere_interfaces", getattr(scene, "sphere_interfaces", None), len(scene.spheres))):
+        if arr is None:
+            continue
+        a = _array(scene, arr, what, 0, "iu")
+        if len(a) != count:
+            _fail(scene, f"{what} has {len(a)} entries for {count} shapes")
+        if a.size and (a.min() < -1 or a.max() >= len(interfaces)):
+            _fail(scene, f"{what} must lie in -1 .. {len(interfaces) - 1}, got {a.min()} .. {a.max()}")
+
+
 def check_scene(scene) -> None:
     """Every check above; a SceneValueError (one line naming the scene) at the first problem."""
     from .model import Scene
@@ -184,4 +243,5 @@ def check_scene(scene) -> None:
         check_geometry(scene)
         check_camera(scene)
         check_lights(scene)
+        check_media(scene)
     check_settings(scene)

@@ -193,9 +193,9 @@ def test_interleaved_rates_call_other_renderers_in_every_round(monkeypatch):
 
 
 def test_bench_render_with_mitsuba_takes_turns(tmp_path, monkeypatch):
-    """--mitsuba: Mitsuba's box is rendered once per repetition (its warm-up apart), with our
-    scene's pixel filter, its rates are what its timings say, and each row's per-round ratio is ours
-    over Mitsuba's of that round."""
+    """--mitsuba: Mitsuba renders the same scene (our export, at our size) once per repetition (its
+    warm-up apart), its rates are what its timings say, and each row's per-round ratio is ours over
+    Mitsuba's of that round."""
     pytest.importorskip("mitsuba")
     from pyopencl_rt.bench import render
 
@@ -206,7 +206,7 @@ def test_bench_render_with_mitsuba_takes_turns(tmp_path, monkeypatch):
     data = json.loads(out.read_text())
     theirs = data["mitsuba"]
     assert theirs["variant"] == "scalar_rgb" and len(theirs["renders"]) == 3
-    assert theirs["rfilter"] == {"type": "box"}  # the scene's pixel filter, not cornell_box()'s gaussian
+    assert (theirs["width"], theirs["height"], theirs["max_depth"]) == (16, 16, 8)
     pixels = theirs["width"] * theirs["height"]
     for render, rate in zip(theirs["renders"], theirs["samples_per_second_all"]):
         assert render["spp"] == 1 and rate == pytest.approx(pixels / render["seconds"])
@@ -214,12 +214,53 @@ def test_bench_render_with_mitsuba_takes_turns(tmp_path, monkeypatch):
     ours = row["samples_per_second_all"]
     assert row["ratio_to_mitsuba_per_round"] == pytest.approx([a / b for a, b in zip(ours, theirs["samples_per_second_all"])])
     assert row["ratio_to_mitsuba"] == pytest.approx(row["samples_per_second_median"] / theirs["samples_per_second_median"])
+    (summary,) = data["summary"]
+    assert summary["ratio_to_mitsuba"] == pytest.approx(row["ratio_to_mitsuba_per_round_median"])
+
+
+def test_bench_render_several_scenes_with_mitsuba(tmp_path, monkeypatch, capsys):
+    """Two scenes in one run, each with its own Mitsuba process rendering that scene: a result per
+    scene with its rows' ratios, and the summary table, a row per scene."""
+    pytest.importorskip("mitsuba")
+    from pyopencl_rt.bench import render
+
+    monkeypatch.setattr(render, "MITSUBA_PAUSE", 0.0)
+    out = tmp_path / "render.json"
+    scenes = ["scenes/mitsuba-cbox.toml", "scenes/textured-sky.toml"]
+    main(["bench", "render", *scenes, "--device", "cpu", "--width", "8", "--height", "8", "--spp", "1",
+          "--repeat", "2", "--mitsuba", "--mitsuba-variant", "scalar_rgb", "--json", str(out)])
+    data = json.loads(out.read_text())
+    assert [result["scene"] for result in data["scenes"]] == scenes
+    for result in data["scenes"]:
+        assert len(result["mitsuba"]["renders"]) == 2 and result["mitsuba"]["width"] == 8
+        (row,) = result["devices"].values()
+        assert len(row["ratio_to_mitsuba_per_round"]) == 2 and finite_positive(row["ratio_to_mitsuba"])
+        assert row["lanes"] >= 1 and row["lanes_reason"]
+    assert [row["scene"] for row in data["summary"]] == scenes
+    for row, result in zip(data["summary"], data["scenes"]):
+        (ours,) = result["devices"].values()
+        assert row["samples_per_second"] == ours["samples_per_second_median"]
+        assert row["mitsuba_samples_per_second"] == result["mitsuba"]["samples_per_second_median"]
+        assert row["ratio_to_mitsuba"] == ours["ratio_to_mitsuba_per_round_median"]
+        assert row["lanes"] == (ours["lanes"] or 1)
+    table = capsys.readouterr().out.splitlines()
+    header = next(i for i, line in enumerate(table) if line.startswith("scene "))
+    assert [line.split()[0] for line in table[header + 1:header + 3]] == scenes
+
+
+def test_bench_render_refuses_a_scene_mitsuba_cannot_render(capsys):
+    """--mitsuba with a scene the export refuses (glTF materials): one line before any timing."""
+    with pytest.raises(SystemExit) as exc:
+        main(["bench", "render", "scenes/mitsuba-cbox.toml", "scenes/textured.toml", "--mitsuba"])
+    assert exc.value.code == 1
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("pyopencl-rt: error: scenes/textured.toml: Mitsuba cannot render the same scene")
 
 
 def test_bench_render_mitsuba_that_fails_is_one_line(tmp_path, capsys):
-    """A Mitsuba interpreter that passes the probe but whose box server dies: one line, exit 1."""
+    """A Mitsuba interpreter that passes the probe but whose render server dies: one line, exit 1."""
     script = tmp_path / "python"
-    script.write_text("#!/bin/sh\ncase \"$1\" in\n  *cornell_box.py) echo 'RuntimeError: out of luck' >&2; exit 5;;\n"
+    script.write_text("#!/bin/sh\ncase \"$1\" in\n  *mitsuba_runner.py) echo 'RuntimeError: out of luck' >&2; exit 5;;\n"
                       "esac\necho 3.9.1\nexit 0\n")
     script.chmod(script.stat().st_mode | stat.S_IXUSR)
     with pytest.raises(SystemExit) as exc:
@@ -228,3 +269,66 @@ def test_bench_render_mitsuba_that_fails_is_one_line(tmp_path, capsys):
     assert exc.value.code == 1
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert line.startswith("pyopencl-rt: error: Mitsuba (scalar_rgb) failed") and "out of luck" in line
+
+
+# -- bench set: the scenes against Mitsuba, samples/s and time to relMSE 1e-3 -------------------------
+
+def test_bench_set_best_mitsuba_sampler_and_rows():
+    """Mitsuba's best sampler is the one that reached the target soonest (a measured time before
+    any extrapolated one); each row joins the render bench's summary with its scene's times."""
+    from pyopencl_rt.bench.bench_set import convergence_summary, set_rows
+
+    def curve(renderer, sampler, seconds, extrapolated=False):
+        return {"label": f"{renderer} {sampler}", "renderer": renderer, "sampler": sampler,
+                "points": [{"spp": 4, "seconds": 1.0, "samples_per_second": 5.0}],
+                "time_to_relmse": {"0.001": {"seconds": seconds, "extrapolated": extrapolated}}}
+
+    result = {"scene": "s.toml", "reference": {"spp": 64, "floor": {"relmse": 1e-5}},
+              "curves": [curve("pyopencl_rt", "sobol", 3.0), curve("mitsuba", "independent", 5.0),
+                         curve("mitsuba", "multijitter", 4.0), curve("mitsuba", "ldsampler", 2.0, True),
+                         curve("mitsuba", "orthogonal", None)]}
+    summary = convergence_summary(result, "s.json")
+    assert summary["ours"]["sampler"] == "sobol" and summary["mitsuba_best"]["sampler"] == "multijitter"
+    summary_only_guesses = convergence_summary({**result, "curves": result["curves"][:1] + [
+        curve("mitsuba", "independent", 9.0, True), curve("mitsuba", "stratified", 7.0, True)]}, "s.json")
+    assert summary_only_guesses["mitsuba_best"]["sampler"] == "stratified"
+    render_row = {"scene": "s.toml", "variant": "cpu", "samples_per_second": 2e6, "mitsuba_samples_per_second": 1e6,
+                  "ratio_to_mitsuba": 2.1, "lanes": 8, "lanes_reason": "8 lanes"}
+    (row,) = set_rows([render_row], [summary])
+    assert row["ratio_to_mitsuba"] == 2.1 and row["lanes"] == 8
+    assert (row["time_to_target"], row["mitsuba_time_to_target"]) == (3.0, 4.0)
+    assert row["mitsuba_best_sampler"] == "multijitter" and row["mitsuba_time_over_ours"] == pytest.approx(4 / 3)
+
+
+def test_bench_set_end_to_end(tmp_path, monkeypatch, capsys):
+    """One tiny scene through the whole set (Mitsuba's scalar variant, two of its samplers): the
+    row has our and Mitsuba's samples/s, the ratio, the lanes and the times, and the scene's
+    convergence JSON is written beside the set's."""
+    pytest.importorskip("mitsuba")
+    from pyopencl_rt.bench import render
+
+    monkeypatch.setattr(render, "MITSUBA_PAUSE", 0.0)
+    monkeypatch.setenv("PYOPENCL_RT_CACHE", str(tmp_path / "cache"))
+    out = tmp_path / "set.json"
+    main(["bench", "set", "scenes/mitsuba-cbox.toml", "--device", "cpu", "--size", "8", "--spp", "1", "--repeat", "2",
+          "--error-size", "8", "--budget", "4", "--reference-spp", "64", "--mitsuba-sampler", "independent,stratified",
+          "--mitsuba-variant", "scalar_rgb", "--json", str(out)])
+    data = json.loads(out.read_text())
+    assert data["schema"] == "pyopencl_rt.bench_set/1" and data["target_relmse"] == 1e-3
+    (row,) = data["rows"]
+    assert row["scene"] == "scenes/mitsuba-cbox.toml" and row["lanes"] >= 1
+    assert finite_positive(row["samples_per_second"]) and finite_positive(row["mitsuba_samples_per_second"])
+    assert finite_positive(row["ratio_to_mitsuba"])
+    (conv,) = data["convergence"]
+    assert {c["sampler"] for c in conv["curves"] if c["renderer"] == "mitsuba"} == {"independent", "stratified"}
+    assert json.loads((tmp_path / "set-mitsuba-cbox.json").read_text())["scene"] == "scenes/mitsuba-cbox.toml"
+    lines = capsys.readouterr().out.splitlines()
+    header = max(i for i, line in enumerate(lines) if line.startswith("scene ") and "t Mitsuba s" in line)
+    assert lines[header + 1].split()[0] == "scenes/mitsuba-cbox.toml"
+
+
+def test_bench_set_refuses_an_unknown_mitsuba_sampler(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["bench", "set", "--mitsuba-sampler", "independent,sobol"])
+    assert exc.value.code == 2
+    assert "unknown Mitsuba sampler 'sobol'" in capsys.readouterr().err

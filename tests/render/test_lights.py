@@ -663,7 +663,7 @@ def test_light_records():
     sc, rec = _env_light(env_map_image())
     assert rec["kind"][0] == abi.LIGHT_ENVIRONMENT and rec["prim"][0] == 16 and rec["material"][0] == 8
     assert np.isclose(rec["radius"][0], np.sqrt(3))
-    assert abi.LIGHT.itemsize % 16 == 0 and abi.CAMERA.itemsize == 64
+    assert abi.LIGHT.itemsize % 16 == 0 and abi.CAMERA.itemsize == 96
 
 
 # ----------------------------------------------------------------------------------- scene format

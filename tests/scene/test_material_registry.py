@@ -182,7 +182,7 @@ def _check_record(rec, mtype, expected):
     for field in abi.MATERIAL.names:
         if field == "type":
             continue
-        default = -1 if field.startswith("tex_") and field != "tex_params" else 0
+        default = -1 if field.startswith("tex_") and field != "tex_params" else 1 if field == "normal_scale" else 0
         want = np.broadcast_to(np.asarray(expected.get(field, default), rec[field].dtype), np.shape(rec[field]))
         tol = 1e-3 if field in ("eta", "k") else 0  # the documented gold values have 3 decimals
         if field == "spec_weight":

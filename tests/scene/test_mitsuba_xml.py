@@ -384,7 +384,9 @@ def test_integrators_film_filter_sampler(tmp_path):
     s, w = settings("")
     assert (s.settings.max_depth, s.settings.rr_depth, s.settings.width, s.settings.spp) == (-1, 5, 768, 4)
     s, w = settings('<integrator type="volpath"><integer name="max_depth" value="4"/></integrator>')
-    assert s.settings.max_depth == 4 and len(w) == 1 and 'integrator type="volpath"' in w[0]
+    assert s.settings.max_depth == 4 and w == [] and not s.settings.spectral_mis  # media: tests/scene/test_media_scene.py
+    s, w = settings('<integrator type="bdpt"><integer name="max_depth" value="4"/></integrator>')
+    assert s.settings.max_depth == 4 and len(w) == 1 and 'integrator type="bdpt"' in w[0]
     s, w = settings('<sensor type="perspective"><film type="hdrfilm"><rfilter type="gaussian"/></film></sensor>')
     assert w == [] and s.settings.filter == PixelFilter("gaussian", (2.0, 2.0), sigma=0.5)
     s, w = settings('<sensor type="perspective"><film type="hdrfilm"><rfilter type="box"/></film></sensor>')
@@ -424,9 +426,11 @@ def test_rfilters(tmp_path):
 
 def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
     """Mitsuba gives a shape with an area emitter and no BSDF a diffuse of reflectance 0 (one
-    without an emitter 0.5); a checkerboard's to_uv is baked: whole-number scales are the pattern
-    repeated (a whole number of texels per period, 64 texels at least), other scales sampled at 16
-    texels per period (at least 64), a rotation too."""
+    without an emitter 0.5); a checkerboard's to_uv is baked into its image: texel (x, y) is color0
+    where the fractional parts of the transformed (u, v) at its centre lie on the same side of 1/2
+    (Mitsuba's checkerboard); per axis, whole-number scales give whole periods of a whole number of
+    texels (at least 16 a period, 64 in all), other scales 16 texels a period (at least 64); a
+    rotation a square image, 16 texels a period along the densest direction."""
     scene, w = load(write(tmp_path, '<shape type="sphere"><emitter type="area"/></shape>'
                                     '<shape type="sphere"><point name="center" x="3"/></shape>'))
     assert w == [] and [scene.materials[i].albedo for i in scene.sphere_materials] == [(0, 0, 0), (0.5, 0.5, 0.5)]
@@ -437,13 +441,17 @@ def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
                                         '</bsdf></shape>'))
         return scene.materials[0].base_texture, w
 
-    tex, w = checker('<scale x="5" y="3"/>')
-    assert w == [] and (tex.width, tex.height) == (5 * 16, 3 * 22)
+    for to_uv, (su, sv), (nu, nv) in (('<scale x="5" y="3"/>', (5, 3), (5 * 16, 3 * 22)),
+                                      ('<scale x="2.5" y="2"/>', (2.5, 2), (64, 64)),
+                                      ('<scale x="12.5" y="2.5"/>', (12.5, 2.5), (200, 64))):
+        tex, w = checker(to_uv)
+        assert w == [] and (tex.width, tex.height) == (nu, nv)
+        u, v = (np.arange(nu) + 0.5) / nu, (np.arange(nv) + 0.5) / nv
+        odd = ((su * u[None, :]) % 1 > 0.5) ^ ((sv * v[:, None]) % 1 > 0.5)  # [row v, column u]
+        # color0 0.4, color1 0.2 (Mitsuba's defaults), linear
+        assert np.allclose(tex.texels[..., 0], np.where(odd, 0.2, 0.4), atol=1e-6)
+    tex, _ = checker('<scale x="5" y="3"/>')
     assert np.array_equal(tex.texels[:22, :16], tex.texels[44:, 64:])  # one period repeated
-    tex, w = checker('<scale x="12.5" y="2.5"/>')
-    assert w == [] and (tex.width, tex.height) == (200, 64)
-    u = (np.arange(200) + 0.5) / 200
-    assert np.allclose(tex.texels[0, :, 0], np.where((12.5 * u) % 1 > 0.5, 0.2, 0.4))  # row 0: v's half is low
     tex, w = checker('<rotate z="1" angle="30"/><scale x="4" y="4"/>')
     assert w == [] and tex.width == tex.height == 96
 
@@ -574,7 +582,7 @@ def test_bsdfs(tmp_path):
 <bsdf type="principled"><rgb name="base_color" value="0.8 0.5 0.2"/><float name="metallic" value="0.7"/><float name="roughness" value="0.4"/><float name="sheen" value="0"/></bsdf>
 <bsdf type="twosided"><bsdf type="conductor"><rgb name="specular_reflectance" value="0.5"/></bsdf></bsdf>
 <bsdf type="mask"><float name="opacity" value="0.5"/><bsdf type="diffuse"><rgb name="reflectance" value="0.2"/></bsdf></bsdf>
-<bsdf type="bumpmap"><bsdf type="roughconductor"/></bsdf>""")
+<bsdf type="bumpmap"><texture type="rawconstant" name="h"><float name="value" value="0.5"/></texture><float name="scale" value="2"/><bsdf type="roughconductor"/></bsdf>""")
     expect = [
         dict(type="diffuse", albedo=(0.5, 0.5, 0.5)),
         dict(type="dielectric", ior=pytest.approx(1.6 / 1.333), alpha=0.0),
@@ -593,7 +601,7 @@ def test_bsdfs(tmp_path):
              ior=pytest.approx(2 / (1 - math.sqrt(0.04)) - 1)),  # Mitsuba's eta from specular 0.5
         dict(type="conductor", eta=None, f0=(0.5, 0.5, 0.5)),
         dict(type="diffuse", albedo=(0.2, 0.2, 0.2)),
-        dict(type="conductor", alpha=0.1),
+        dict(type="conductor", alpha=0.1, bump_map=True, normal_scale=2.0, map_conventions=("side", "flip", "terminator")),
     ]
     for i, (mat, want) in enumerate(zip(mats, expect)):
         for key, value in want.items():
@@ -601,7 +609,6 @@ def test_bsdfs(tmp_path):
     expected_warnings = ['<bsdf type="thindielectric">: approximated by a dielectric interface',
                          '<bsdf type="roughconductor">: the Beckmann distribution (Mitsuba\'s default) is rendered as GGX',
                          '<bsdf type="mask">: opacity masks are not supported; rendering its nested BSDF',
-                         '<bsdf type="bumpmap">: bump and normal maps are not supported; rendering its nested BSDF',
                          '<bsdf type="roughconductor">: the Beckmann distribution']
     assert len(warned) == len(expected_warnings)
     for w, needle in zip(warned, expected_warnings):
@@ -851,8 +858,8 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
     path = write(tmp_path, """
         <integrator type="aov"><string name="aovs" value="nn:sh_normal"/><integrator type="path"/></integrator>
         <sensor type="radiancemeter"/>
-        <medium type="homogeneous" id="fog"/>
-        <shape type="shapegroup" id="g"/>
+        <medium type="homogeneous" id="fog"><phase type="rayleigh"/></medium>
+        <shape type="shapegroup" id="g"><ref name="interior" id="fog"/></shape>
         <shape type="sphere"><bsdf type="hair"/><emitter type="point"/></shape>
         <emitter type="projector"/>
         <rgb name="stray" value="1"/>
@@ -860,7 +867,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
     scene, warned = load(path)
     assert len(scene.spheres) == 1 and scene.materials[0].albedo == (0.5, 0.5, 0.5)
     expect = [("radiancemeter", '<sensor type="radiancemeter">: not supported; using a camera that frames the scene'),
-              ("fog", '<medium type="homogeneous" id="fog">: not supported; ignored'),
+              ("rayleigh", '<phase type="rayleigh">: phase function not supported; rendered isotropic'),
               ("shapegroup", '<shape type="shapegroup" id="g">: shape type not supported; ignored'),
               ("hair", '<bsdf type="hair">: BSDF type not supported; using diffuse 0.5'),
               ("point", '<emitter type="point"> in <shape type="sphere">: only area emitters attach to shapes; ignored'),

@@ -277,7 +277,8 @@ def test_materials(tmp_path):
         f"{line} Translate 2 0 0 {TRIANGLE}" for line in lines)
     s, w = world(tmp_path, body)
     mats = [s.materials[i] for i in s.face_materials]
-    assert len(mats) == len(lines) - 1  # the interface's triangle is skipped
+    assert len(mats) == len(lines)  # the interface's triangle bounds media only (index-matched)
+    assert [mi.null for mi in s.interfaces] == [True] and s.face_interfaces.tolist() == [-1] * (len(lines) - 1) + [0]
     expect = [
         dict(type="diffuse", albedo=(0.1, 0.2, 0.3)),
         dict(type="diffuse", albedo=(1, 1, 1)),
@@ -290,6 +291,7 @@ def test_materials(tmp_path):
         dict(type="gltf", metallic=0.0, albedo=(0.6, 0.5, 0.4), ior=1.5, alpha=pytest.approx(0.3)),
         dict(type="dielectric", ior=1.5, name="thin"),
         dict(type="diffuse", albedo=(0.5, 0.5, 0.5)),
+        dict(type="diffuse", albedo=(0.0, 0.0, 0.0), emission=(0.0, 0.0, 0.0)),  # never scatters
     ]
     for i, (mat, want) in enumerate(zip(mats, expect)):
         for key, value in want.items():
@@ -299,8 +301,7 @@ def test_materials(tmp_path):
         'Material "dielectric": glass-BK7 rendered without dispersion, at its d-line index 1.5168',
         'material "thin": approximated by a dielectric interface (a thin sheet refracts instead of passing light '
         'straight through)',
-        'Material "hair": material type not supported; using diffuse 0.5',
-        'Shape "trianglemesh" with an "interface" material: invisible; skipped']
+        'Material "hair": material type not supported; using diffuse 0.5']
 
 
 def test_textures(tmp_path):
@@ -399,10 +400,9 @@ def test_include_and_import(tmp_path):
 def test_unsupported_directives_and_parameters_warn(tmp_path):
     path = write(tmp_path, """Option "bool disablepixeljitter" true
 ColorSpace "aces2065-1"
-Camera "orthographic"
+Camera "realistic"
 WorldBegin
-MakeNamedMedium "fog" "string type" "homogeneous"
-MediumInterface "fog" ""
+MakeNamedMedium "fog" "string type" "nanovdb"
 Attribute "shape" "float radius" 2
 Material "diffuse" "float sigma" 20
 Shape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0] "float alpha" 0.5
@@ -413,14 +413,13 @@ TransformTimes 0 1
     assert len(s.faces) == 1
     expect = [("Option", 'Option "bool disablepixeljitter": not supported; ignored'),
               ("ColorSpace", "ColorSpace 'aces2065-1': colours are read as linear sRGB"),
-              ("MakeNamedMedium", "MakeNamedMedium: participating media are not supported; ignored"),
-              ("MediumInterface", "MediumInterface: participating media are not supported; ignored"),
+              ("MakeNamedMedium", 'MakeNamedMedium "fog": medium type "nanovdb" is not supported; rendered as vacuum'),
               ("Attribute", 'Attribute "shape": default parameters are not supported; ignored'),
               ("sigma", '"float sigma" of Material "diffuse": not supported; ignored'),
               ("alpha", 'Shape "trianglemesh": "alpha" cut-outs are not supported'),
               ("goniometric", 'LightSource "goniometric": not supported; ignored'),
               ("TransformTimes", "TransformTimes: motion blur is not supported; ignored"),
-              ("orthographic", 'Camera "orthographic": not supported; using a camera that frames the scene')]
+              ("realistic", 'Camera "realistic": not supported; using a camera that frames the scene')]
     assert len(w) == len(expect), w
     for message, (needle, what) in zip(w, expect):
         assert message == f"{path}:{line_of(path, needle)}: {what}"

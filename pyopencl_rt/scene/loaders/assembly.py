@@ -1,6 +1,7 @@
 """What every loader does with the triangles it read: drop the faces that touch non-finite
-vertices (keeping their materials and UVs aligned), build the Scene, and frame it with a camera
-when the file has none."""
+vertices (keeping their materials, UVs, normals and colours aligned), build the Scene, and frame
+it with a camera when the file has none; and the vertex normals Mitsuba computes for a mesh
+file without them (:func:`angle_weighted_normals`)."""
 from __future__ import annotations
 
 import math
@@ -21,12 +22,13 @@ def _finite_faces(vertices, faces) -> np.ndarray:
     return finite[faces].all(axis=1) if len(faces) else np.zeros(0, bool)
 
 
-def kept_uvs(vertices, faces, uvs):
-    """uvs (F, 3, 2) of the faces that checked_triangles keeps, or None."""
+def kept_uvs(vertices, faces, uvs, width: int = 2):
+    """uvs (F, 3, width) (or normals, colours: width 3) of the faces that checked_triangles
+    keeps, or None."""
     if uvs is None:
         return None
     keep = _finite_faces(vertices, np.asarray(faces, np.int64))
-    return np.ascontiguousarray(np.asarray(uvs, np.float32)[keep])
+    return np.ascontiguousarray(np.asarray(uvs, np.float32).reshape(-1, 3, width)[keep])
 
 
 def checked_triangles(vertices, faces, face_materials, name):
@@ -43,13 +45,81 @@ def checked_triangles(vertices, faces, face_materials, name):
     return v32, f32, np.ascontiguousarray(face_materials)
 
 
-def triangle_scene(vertices, faces, face_materials, materials, name, uvs=None, **scene_fields) -> Scene:
+def triangle_scene(vertices, faces, face_materials, materials, name, uvs=None, normals=None, colors=None,
+                   face_interfaces=None, **scene_fields) -> Scene:
     """The Scene of these triangles (checked) with their materials (the default one if there are
-    none) and per-corner UVs; no camera yet."""
+    none), per-corner UVs, shading normals and colours, and medium interfaces (per face, or None);
+    no camera yet."""
     uvs = kept_uvs(vertices, faces, uvs)
+    normals = kept_uvs(vertices, faces, normals, 3)
+    colors = kept_uvs(vertices, faces, colors, 3)
+    if face_interfaces is not None:
+        keep = _finite_faces(vertices, np.asarray(faces, np.int64))
+        face_interfaces = np.ascontiguousarray(np.asarray(face_interfaces, np.int32)[keep])
     v32, f32, face_materials = checked_triangles(vertices, faces, face_materials, name)
     return Scene(vertices=v32, faces=f32, face_materials=face_materials, materials=materials or [Material()],
-                 source=name, uvs=uvs, **scene_fields)
+                 source=name, uvs=uvs, normals=flat_where_planar(v32, f32, normals), colors=colors,
+                 face_interfaces=face_interfaces, **scene_fields)
+
+
+def flat_where_planar(vertices, faces, normals, tolerance: float = 1e-5):
+    """``normals`` with the faces whose three corner normals are their geometric normal (within
+    ``tolerance``) set to 0, flat: they shade the same, and a scene of such faces only (a box of
+    planar quads, whose vertex normals Mitsuba computes) compiles no shading normals.  None when
+    no face is left with normals."""
+    if normals is None or len(faces) == 0:
+        return None
+    n = np.asarray(normals, np.float32).reshape(-1, 3, 3).copy()
+    p = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
+    g = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g /= np.linalg.norm(g, axis=1, keepdims=True)
+    flat = (np.abs(n - g[:, None, :]) <= tolerance).all(axis=(1, 2))
+    n[flat] = 0.0
+    return n if n.any() else None
+
+
+def transform_normals(matrix, normals):
+    """Per-corner normals (F, 3, 3) moved by the 4x4 ``matrix`` (its inverse transpose) and made
+    unit length; zero (absent) normals stay 0."""
+    if normals is None:
+        return None
+    n = np.asarray(normals, np.float64).reshape(-1, 3)
+    m = np.asarray(matrix, np.float64)[:3, :3]
+    n = n @ np.linalg.inv(m)  # (M^-T n)^T = n^T M^-1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    return np.nan_to_num(n, nan=0.0, posinf=0.0, neginf=0.0).reshape(-1, 3, 3).astype(np.float32)
+
+
+def angle_weighted_normals(vertices, faces, keys=None) -> np.ndarray:
+    """Per-corner (F, 3, 3) vertex normals as Mitsuba 3 computes them for a mesh without any
+    (``Mesh::recompute_vertex_normals``: Thuermer and Wuethrich 1998): each face's unit normal
+    weighted by its angle at the vertex, summed over the faces that share the vertex, normalised.
+    ``keys`` (F, 3) int: which corners are one vertex (default: the face indices; Mitsuba's OBJ
+    reader makes one vertex per distinct position and texture coordinate)."""
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces, np.int64).reshape(-1, 3)
+    keys = f if keys is None else np.asarray(keys, np.int64).reshape(-1, 3)
+    if len(f) == 0:
+        return np.zeros((0, 3, 3), np.float32)
+    p = v[f]
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    ok = length[:, 0] > 0
+    n = np.where(ok[:, None], n / np.where(length > 0, length, 1.0), 0.0)
+    sums = np.zeros((int(keys.max()) + 1, 3))
+    for k in range(3):
+        d0 = p[:, (k + 1) % 3] - p[:, k]
+        d1 = p[:, (k + 2) % 3] - p[:, k]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d0 /= np.linalg.norm(d0, axis=1, keepdims=True)
+            d1 /= np.linalg.norm(d1, axis=1, keepdims=True)
+        angle = np.nan_to_num(np.arccos(np.clip(np.sum(d0 * d1, axis=1), -1.0, 1.0)))
+        np.add.at(sums, keys[:, k], n * angle[:, None])
+    length = np.linalg.norm(sums, axis=1, keepdims=True)
+    unit = np.where(length > 0, sums / np.where(length > 0, length, 1.0), [1.0, 0.0, 0.0])  # Mitsuba's (1, 0, 0)
+    return unit[keys].astype(np.float32)
 
 
 def scene_bounds(scene: Scene):

@@ -27,7 +27,7 @@ from typing import Callable
 import numpy as np
 
 from ..model import Camera, DirectionalLight, Environment, Material, PointLight, RenderSettings, Scene
-from .assembly import frame_scene, triangle_scene
+from .assembly import angle_weighted_normals, frame_scene, transform_normals, triangle_scene
 from .values import SceneError, one_line
 
 
@@ -314,6 +314,8 @@ class SceneBuilder:
         self._material_index: dict[int, int] = {}
         self._emissive: dict[tuple, Material] = {}
         self.vertices, self.faces, self.face_materials, self.uvs = [], [], [], []
+        self.normals, self.colors = [], []  # per mesh: (F, 3, 3), zeros (flat) / ones where it has none
+        self.any_normals = self.any_colors = False
         self.n_vertices = 0
         self.spheres, self.sphere_materials = [], []
         self.lights: list = []
@@ -321,6 +323,15 @@ class SceneBuilder:
         self.camera: Camera | None = None
         self.mirror = None
         self.settings = RenderSettings()
+        # participating media (pyopencl_rt/scene/media.py): the media, interfaces by value, per face and
+        # sphere the interface index (-1: none), and the camera's medium
+        self.media: list = []
+        self._medium_index: dict[int, int] = {}
+        self.interfaces: list = []
+        self._interface_index: dict = {}
+        self.face_interfaces: list = []
+        self.sphere_interfaces: list = []
+        self.camera_medium = -1
 
     def warn(self, position: str, what: str) -> None:
         msg = one_line(f"{position}: {what}")
@@ -343,29 +354,73 @@ class SceneBuilder:
                 two_sided=bool(two_sided), emission_texture=texture)
         return self._emissive[key]
 
-    def add_mesh(self, vertices, faces, material: Material, uvs=None, matrix=None, flip=False) -> None:
-        """Triangles in object space, moved by the 4x4 ``matrix``; ``flip`` swaps their front."""
+    def medium_index(self, medium) -> int:
+        """The index of ``medium`` (a scene.media.Medium) in the scene's media (added on first use)."""
+        key = id(medium)
+        if key not in self._medium_index:
+            self._medium_index[key] = len(self.media)
+            self.media.append(medium)
+        return self._medium_index[key]
+
+    def interface_index(self, interface) -> int:
+        """The index of a scene.media.MediumInterface (one entry per distinct value); None: -1."""
+        if interface is None:
+            return -1
+        if interface not in self._interface_index:
+            self._interface_index[interface] = len(self.interfaces)
+            self.interfaces.append(interface)
+        return self._interface_index[interface]
+
+    def add_mesh(self, vertices, faces, material: Material, uvs=None, matrix=None, flip=False, normals=None,
+                 colors=None, compute_normals=None, interface=None) -> None:
+        """Triangles in object space, moved by the 4x4 ``matrix``; ``flip`` swaps their front (and
+        turns their shading normals around, as Mitsuba's flip_normals and pbrt's
+        ReverseOrientation do).  ``normals`` and ``colors``: per corner, (F, 3, 3) or None.
+        ``compute_normals`` (without ``normals``): True or (F, 3) keys of the corners that are one
+        vertex: the angle-weighted vertex normals Mitsuba computes for a mesh file without normals,
+        in world space, on the front side.  ``interface``: the medium interface of every face (its
+        sides stay with the faces' fronts: flipping them swaps what is inside)."""
         v = np.asarray(vertices, np.float64).reshape(-1, 3)
         f = np.asarray(faces, np.int64).reshape(-1, 3)
         uv = None if uvs is None else np.asarray(uvs, np.float32).reshape(-1, 3, 2)
+        nrm = None if normals is None else np.asarray(normals, np.float32).reshape(-1, 3, 3)
+        col = None if colors is None else np.asarray(colors, np.float32).reshape(-1, 3, 3)
+        if nrm is not None and flip:
+            nrm = -nrm
         if matrix is not None:
             v = transform_points(matrix, v)
+            nrm = transform_normals(matrix, nrm)
             if np.linalg.det(matrix[:3, :3]) < 0:
                 flip = not flip
+        keys = None
+        if compute_normals is not None and compute_normals is not False and nrm is None:
+            keys = f if compute_normals is True else np.asarray(compute_normals, np.int64).reshape(-1, 3)
         if flip:
             f = f[:, ::-1]
             uv = uv[:, ::-1] if uv is not None else None
+            nrm = nrm[:, ::-1] if nrm is not None else None
+            col = col[:, ::-1] if col is not None else None
+            keys = keys[:, ::-1] if keys is not None else None
         if len(f) == 0:
             return
+        if keys is not None:
+            nrm = angle_weighted_normals(v, f, keys)
         self.vertices.append(v)
         self.faces.append(f + self.n_vertices)
         self.uvs.append(np.zeros((len(f), 3, 2), np.float32) if uv is None else uv)
+        self.normals.append(nrm if nrm is not None else np.zeros((len(f), 3, 3), np.float32))
+        self.colors.append(col if col is not None else np.ones((len(f), 3, 3), np.float32))
         self.face_materials.append(np.full(len(f), self.material_index(material), np.int32))
+        self.face_interfaces.append(np.full(len(f), self.interface_index(interface), np.int32))
         self.n_vertices += len(v)
+        self.any_normals |= nrm is not None
+        self.any_colors |= col is not None
 
-    def add_sphere(self, centre, radius: float, material: Material) -> None:
+    def add_sphere(self, centre, radius: float, material: Material, interface=None) -> None:
+        """A sphere, its front outside (an interface given for an inward-facing one must be flipped)."""
         self.spheres.append([*map(float, centre), float(radius)])
         self.sphere_materials.append(self.material_index(material))
+        self.sphere_interfaces.append(self.interface_index(interface))
 
     def add_light(self, light) -> None:
         self.lights.append(light)
@@ -379,32 +434,47 @@ class SceneBuilder:
     def build(self) -> Scene:
         """The Scene (the framing camera when the file had none)."""
         mirror = self.mirror
+        normals = colors = None
         if self.faces:
             vertices = np.concatenate(self.vertices)
             faces = np.concatenate(self.faces)
             uvs = np.concatenate(self.uvs)
             face_materials = np.concatenate(self.face_materials)
+            if self.any_normals:
+                normals = np.concatenate(self.normals)
+            if self.any_colors:
+                colors = np.concatenate(self.colors)
         else:
             vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
             uvs, face_materials = None, np.zeros(0, np.int32)
+        face_interfaces = np.concatenate(self.face_interfaces) if self.faces else np.zeros(0, np.int32)
         spheres = np.asarray(self.spheres, np.float64).reshape(-1, 4)
+        media = list(self.media)
         lights = list(self.lights)
         if mirror is not None:
             vertices = transform_points(mirror, vertices)
             faces = faces[:, ::-1]
             uvs = uvs[:, ::-1] if uvs is not None else None
+            normals = transform_normals(mirror, normals)[:, ::-1] if normals is not None else None
+            colors = colors[:, ::-1] if colors is not None else None
             if len(spheres):
                 spheres[:, :3] = transform_points(mirror, spheres[:, :3])
             lights = [dataclasses.replace(lt, position=tuple(transform_points(mirror, lt.position)[0]))
                       if isinstance(lt, PointLight) else
                       dataclasses.replace(lt, direction=tuple(transform_vector(mirror, lt.direction)))
                       if isinstance(lt, DirectionalLight) else lt for lt in lights]
+            media = [m.transformed(mirror) for m in media]
         if not self.faces and not self.spheres:
             raise SceneFormatError(f"{self.name}: the scene has no shapes that we can render")
-        scene = triangle_scene(vertices, faces, face_materials, self.materials, self.name, uvs=uvs,
+        scene = triangle_scene(vertices, faces, face_materials, self.materials, self.name, uvs=uvs, normals=normals,
+                               colors=colors,
                                spheres=spheres.astype(np.float32),
                                sphere_materials=np.asarray(self.sphere_materials, np.int32),
-                               settings=self.settings)
+                               settings=self.settings,
+                               face_interfaces=face_interfaces if self.interfaces else None)
+        if self.interfaces or media:
+            scene.media, scene.interfaces, scene.camera_medium = media, list(self.interfaces), int(self.camera_medium)
+            scene.sphere_interfaces = np.asarray(self.sphere_interfaces, np.int32)
         scene.lights = lights
         env = self.environment
         scene.environment = env.resample(mirror) if isinstance(env, EnvMap) else env

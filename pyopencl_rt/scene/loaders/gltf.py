@@ -11,16 +11,20 @@ What is read:
 * the default scene's node tree with every node's ``matrix`` or translation/rotation/scale;
   mesh primitives of mode TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN (points and lines are
   skipped), indexed or not; a node whose world matrix mirrors keeps its faces' front side;
-* ``TEXCOORD_n`` (the set the material's base colour texture names; 0 by default);
+* ``TEXCOORD_n`` (the set the material's base colour texture names; 0 by default); ``NORMAL``
+  (shading normals; a primitive without them is shaded flat, as glTF asks); ``COLOR_0`` (linear
+  RGB, multiplying baseColor: Material.vertex_colors);
 * materials, metallic-roughness: ``baseColorFactor`` (rgb) x ``baseColorTexture`` (sRGB),
   ``metallicFactor`` / ``roughnessFactor`` x ``metallicRoughnessTexture`` (B = metallic,
   G = roughness; linear), ``emissiveFactor`` x ``emissiveTexture`` (sRGB) x
   ``KHR_materials_emissive_strength.emissiveStrength``; ``doubleSided`` makes emission two-sided;
   ``KHR_materials_ior`` (default 1.5); ``KHR_materials_transmission`` with
   ``transmissionFactor`` > 0 makes a ``dielectric`` (that IOR, alpha = roughness^2, tint =
-  baseColor and its texture).  A primitive without a material gets glTF's default (white,
-  metallic 1, roughness 1).  Alpha (``alphaMode``), normal/occlusion maps, samplers (always
-  bilinear + repeat) and KHR_texture_transform are ignored;
+  baseColor and its texture); ``normalTexture`` (linear, x and y times its ``scale``) as a normal
+  map in the frame of the triangle's dp/du (cl/scene/shading.h; ``TANGENT`` and MikkTSpace are
+  not used: the per-triangle tangent approximates them).  A primitive without a material gets
+  glTF's default (white, metallic 1, roughness 1).  Alpha (``alphaMode``), occlusion maps,
+  samplers (always bilinear + repeat) and KHR_texture_transform are ignored;
 * images embedded in the GLB / a buffer view, as data: URIs or as files next to the .gltf;
 * the first perspective camera in the node tree (``yfov``; the node's world transform, looking
   down its local -z with +y up).  Orthographic cameras are ignored.
@@ -41,7 +45,7 @@ import numpy as np
 from ...errors import UserError
 from ..model import Camera, Material, Scene
 from ..textures import Texture, texture_from_image
-from .assembly import frame_scene, triangle_scene
+from .assembly import frame_scene, transform_normals, triangle_scene
 from .values import SceneError
 
 GLB_MAGIC = 0x46546C67  # b"glTF"
@@ -65,6 +69,8 @@ class GltfScene:
     materials: list  # list[Material]
     camera: Camera | None
     aspect_ratio: float | None = None
+    normals: np.ndarray | None = None  # (F, 3, 3) float32 per corner (0: flat), or None
+    colors: np.ndarray | None = None  # (F, 3, 3) float32 linear RGB per corner, or None
 
 
 def read_gltf_json(path) -> tuple[dict, bytes | None]:
@@ -223,7 +229,8 @@ class _Reader:
         emission = np.asarray(m.get("emissiveFactor", (0, 0, 0)), np.float64) * strength
         ior = float(ext.get("KHR_materials_ior", {}).get("ior", 1.5))
         transmission = float(ext.get("KHR_materials_transmission", {}).get("transmissionFactor", 0.0))
-        infos = [pbr.get("baseColorTexture"), pbr.get("metallicRoughnessTexture"), m.get("emissiveTexture")]
+        infos = [pbr.get("baseColorTexture"), pbr.get("metallicRoughnessTexture"), m.get("emissiveTexture"),
+                 m.get("normalTexture")]
         sets = {inf.get("texCoord", 0) for inf in infos if inf}
         if len(sets) > 1:
             warnings.warn(f"{self.name}: material {i}: textures use different UV sets; using set {min(sets)}", stacklevel=3)
@@ -238,6 +245,8 @@ class _Reader:
         )
         mat.base_texture = self.texture(infos[0], srgb=True)
         mat.emission_texture = self.texture(infos[2], srgb=True) if mat.is_emissive else None
+        mat.normal_texture = self.texture(infos[3], srgb=False)
+        mat.normal_scale = float(infos[3].get("scale", 1.0)) if infos[3] else 1.0
         if transmission > 0:
             mat.type, mat.tint, mat.albedo = "dielectric", mat.albedo, (0.8, 0.8, 0.8)
             mat.ior = ior if ior > 1.0 else 1.5  # KHR_materials_ior's 0 (= 1) would be invisible
@@ -292,7 +301,7 @@ def _load(r: _Reader, tree: dict) -> GltfScene:
         roots = [i for i in range(len(nodes)) if i not in children]
     mat_cache: dict = {}
     materials: list[Material] = []
-    verts, faces, uvs, fmats = [], [], [], []
+    verts, faces, uvs, fmats, normals, colors = [], [], [], [], [], []
     nv = 0
     camera = None
     aspect = None
@@ -348,6 +357,10 @@ def _load(r: _Reader, tree: dict) -> GltfScene:
                 verts.append(world_pos)
                 faces.append(tri + nv)
                 uvs.append(uv[tri].astype(np.float32))
+                normals.append(None if "NORMAL" not in attrs else
+                               transform_normals(world, r.accessor(attrs["NORMAL"])[:, :3][tri]))
+                colors.append(None if "COLOR_0" not in attrs else
+                              np.clip(r.accessor(attrs["COLOR_0"])[:, :3], 0.0, None)[tri].astype(np.float32))
                 fmats.append(np.full(len(tri), m_index, np.int32))
                 nv += len(pos)
         for c in reversed(node.get("children", [])):
@@ -355,8 +368,17 @@ def _load(r: _Reader, tree: dict) -> GltfScene:
     if not faces:
         return GltfScene(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3, 2), np.float32),
                          np.zeros(0, np.int32), materials, camera, aspect)
+    def corners(parts, fill):
+        if all(p is None for p in parts):
+            return None
+        return np.concatenate([np.full((len(f), 3, 3), fill, np.float32) if p is None else p
+                               for p, f in zip(parts, faces)])
+
+    if any(c is not None for c in colors):  # COLOR_0 multiplies the base colour of its primitives
+        for m in materials:
+            m.vertex_colors = True
     return GltfScene(np.concatenate(verts), np.concatenate(faces), np.concatenate(uvs), np.concatenate(fmats),
-                     materials, camera, aspect)
+                     materials, camera, aspect, corners(normals, 0.0), corners(colors, 1.0))
 
 
 def read_gltf(path: Path, name: str) -> GltfScene:
@@ -373,7 +395,8 @@ def load_gltf_scene(path: Path, name: str) -> Scene:
     g = read_gltf(path, name)
     if len(g.faces) == 0:
         raise SceneError(f"{name}: contains no triangles")
-    scene = triangle_scene(g.vertices, g.faces, g.face_materials, g.materials, name, g.uvs)
+    scene = triangle_scene(g.vertices, g.faces, g.face_materials, g.materials, name, g.uvs, normals=g.normals,
+                           colors=g.colors)
     if g.aspect_ratio and g.aspect_ratio > 0:
         scene.settings.width = max(1, int(round(scene.settings.height * float(g.aspect_ratio))))
     if g.camera is None:

@@ -8,7 +8,13 @@
 | ``plastic``, ``roughplastic`` | ``plastic``, ``roughplastic`` (Mitsuba's parameters; a texture of ``diffuse_reflectance``) |
 | ``principled``, ``principledthin`` | ``principled``, ``principledthin`` (Mitsuba's parameters; textures of ``base_color`` and of up to 6 scalar parameters) |
 | ``twosided`` | its nested BSDF (ours reflect on both sides) |
-| ``mask``, ``bumpmap``, ``normalmap``, ``blendbsdf`` | their (first) nested BSDF, with a warning |
+| ``normalmap``, ``bumpmap`` | its nested BSDF with the map (``normal_texture``; ``scale``, ``flip_invalid_normals``, ``use_shadowing_function`` as Mitsuba reads them: cl/scene/shading.h) |
+| ``mask``, ``blendbsdf`` | their (first) nested BSDF, with a warning |
+
+Textures: ``bitmap``, ``checkerboard``, ``rawconstant`` (a 1 x 1 texture of its value, unconverted)
+and, as a BSDF's reflectance (diffuse ``reflectance``, plastic ``diffuse_reflectance``, principled
+``base_color``, dielectric ``specular_transmittance``), ``mesh_attribute``: the shape's vertex or face
+colours (``vertex_color``, ``face_color``, ...: Material.vertex_colors) times its ``scale``.
 
 Rough conductors and dielectrics keep ``alpha`` (a texture of it too; ``alpha_u``/``alpha_v``: their
 mean, with a warning); a Beckmann ``distribution`` (Mitsuba's default) is rendered as GGX of the
@@ -16,6 +22,10 @@ same alpha, with a warning (``roughplastic`` renders Beckmann).  A checkerboard'
 baked into its image.
 """
 from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -54,10 +64,19 @@ def _metals():
     return METALS
 
 
-def color_value(imp, obj, name, default, *, texture_ok=False):
+@dataclass(frozen=True)
+class MeshAttribute:
+    """A ``mesh_attribute`` texture: the shape's attribute ``name`` (per vertex or per face)."""
+
+    name: str
+    scale: float = 1.0
+
+
+def color_value(imp, obj, name, default, *, texture_ok=False, attribute_ok=False):
     """(linear RGB tuple, Texture or None) of the property ``name`` of ``obj``: an rgb, a
     spectrum or a float; a bitmap or checkerboard texture where ``texture_ok`` (the RGB is then
-    1), else its mean with a warning."""
+    1), else its mean with a warning; a mesh_attribute where ``attribute_ok`` (a MeshAttribute in
+    place of the texture, the RGB its scale)."""
     p = obj.prop(name)
     if p is None:
         return tuple(float(x) for x in default), None
@@ -80,6 +99,12 @@ def color_value(imp, obj, name, default, *, texture_ok=False):
         raise error_at(p.node.pos, f'{obj.label()}: "{name}" must be a colour or a texture, got {tex_obj.label()}')
     texture = imp.bsdfs.texture(tex_obj)
     if texture is None:
+        return tuple(float(x) for x in default), None
+    if isinstance(texture, MeshAttribute):
+        if attribute_ok:
+            return (texture.scale,) * 3, texture
+        imp.warn(p.node.pos, f'{tex_obj.label()} as "{name}" of {obj.label()}: mesh attributes are not supported '
+                             f"here; using {tuple(default)}")
         return tuple(float(x) for x in default), None
     if texture_ok:
         return (1.0, 1.0, 1.0), texture
@@ -146,6 +171,7 @@ class BsdfMapper:
         self.imp = importer
         self._materials: dict[int, Material] = {}
         self._textures: dict[int, object] = {}
+        self.attributes: dict[int, str] = {}  # id(material) -> its mesh_attribute's name
         self._default = {}
 
     def default(self, black: bool = False) -> Material:
@@ -171,6 +197,22 @@ class BsdfMapper:
 
         imp = self.imp
         to_uv = obj.transform("to_uv")
+        if obj.type == "rawconstant":
+            p = obj.prop("value")
+            if p is None or p.kind not in ("float", "integer", "rgb", "vector", "point"):
+                raise error_at(obj.node.pos, f'{obj.label()} needs <float>, <rgb> or <vector name="value">')
+            value = np.asarray(p.value, np.float32).reshape(-1)
+            if len(value) not in (1, 3):
+                raise error_at(p.node.pos, f"{obj.label()}: value must be 1 or 3 numbers")
+            imp.unused(obj)
+            return texture_from_array(np.broadcast_to(value, (3,)).reshape(1, 1, 3).copy(), name=obj.label())
+        if obj.type == "mesh_attribute":
+            attr = obj.string("name")
+            if attr is None:
+                raise error_at(obj.node.pos, f'{obj.label()} needs <string name="name">')
+            scale = obj.float("scale", 1.0)
+            imp.unused(obj)
+            return MeshAttribute(attr, scale)
         if obj.type == "checkerboard":
             c0, _ = color_value(imp, obj, "color0", (0.4, 0.4, 0.4))
             c1, _ = color_value(imp, obj, "color1", (0.2, 0.2, 0.2))
@@ -212,8 +254,16 @@ class BsdfMapper:
     def material(self, obj) -> Material:
         key = id(obj)
         if key not in self._materials:
-            self._materials[key] = self._make(obj)
+            mat = self._make(obj)
+            if isinstance(mat.base_texture, MeshAttribute):  # the shape's colours (mitsuba_scene.py)
+                self.attributes[id(mat)] = mat.base_texture.name
+                mat.base_texture, mat.vertex_colors = None, True
+            self._materials[key] = mat
         return self._materials[key]
+
+    def attribute(self, material: Material) -> str | None:
+        """The mesh attribute whose colours ``material`` (one of ours) multiplies its reflectance by."""
+        return self.attributes.get(id(material))
 
     def _nested(self, obj, what: str) -> Material:
         nested = obj.children_of("bsdf")
@@ -275,13 +325,15 @@ class BsdfMapper:
                 mat.name = obj.id
             imp.unused(obj)
             return mat
-        if t in ("mask", "bumpmap", "normalmap", "blendbsdf"):
-            what = {"mask": "opacity masks are not supported", "blendbsdf": "blends are not supported",
-                    }.get(t, "bump and normal maps are not supported")
+        if t in ("normalmap", "bumpmap"):
+            return self._mapped(obj, name)
+        if t in ("mask", "blendbsdf"):
+            what = {"mask": "opacity masks are not supported", "blendbsdf": "blends are not supported"}[t]
             return self._nested(obj, what)
         mat = Material(name=name)
         if t == "diffuse":
-            mat.albedo, mat.base_texture = color_value(imp, obj, "reflectance", (0.5,) * 3, texture_ok=True)
+            mat.albedo, mat.base_texture = color_value(imp, obj, "reflectance", (0.5,) * 3, texture_ok=True,
+                                                       attribute_ok=True)
         elif t in ("dielectric", "roughdielectric", "thindielectric"):
             self._dielectric(obj, mat)
         elif t in ("conductor", "roughconductor"):
@@ -301,6 +353,41 @@ class BsdfMapper:
         imp.unused(obj)
         return mat
 
+    def _mapped(self, obj, name) -> Material:
+        """normalmap / bumpmap: the nested BSDF's material with the map (Mitsuba 3's
+        src/bsdfs/normalmap.cpp, bumpmap.cpp; cl/scene/shading.h)."""
+        imp = self.imp
+        nested = self._nested(obj, "")
+        if obj.type == "normalmap":
+            p = obj.prop("normalmap")
+            tex_obj = p.value if p is not None and p.kind == "object" and p.value.tag == "texture" else None
+            scale = 1.0
+        else:
+            named = [q.value for q in obj.props.values() if q.kind == "object" and q.value.tag == "texture"]
+            for q in obj.props:
+                if obj.props[q].kind == "object":
+                    obj.used.add(q)
+            tex_obj = (named + obj.children_of("texture") or [None])[0]
+            scale = obj.float("scale", 1.0)
+        if tex_obj is None:
+            raise error_at(obj.node.pos, f"{obj.label()} needs a nested <texture>"
+                                         + (' named "normalmap"' if obj.type == "normalmap" else ""))
+        texture = self.texture(tex_obj)
+        conventions = ("side",) + (("flip",) if obj.boolean("flip_invalid_normals", True) else ()) \
+            + (("terminator",) if obj.boolean("use_shadowing_function", True) else ())
+        imp.unused(obj)
+        if texture is None or isinstance(texture, MeshAttribute):
+            imp.warn(tex_obj.node.pos, f"{tex_obj.label()} in {obj.label()}: not a texture we can map; "
+                                       "rendering the nested BSDF")
+            return nested
+        if nested.normal_texture is not None:
+            imp.warn(obj.node.pos, f"{obj.label()}: a map over a mapped BSDF: only the outer map is applied")
+        mat = dataclasses.replace(nested, name=obj.id or nested.name, normal_texture=texture,
+                                  bump_map=obj.type == "bumpmap", normal_scale=float(scale), map_conventions=conventions)
+        if id(nested) in self.attributes:
+            self.attributes[id(mat)] = self.attributes[id(nested)]
+        return mat
+
     def _dielectric(self, obj, mat) -> None:
         imp = self.imp
         mat.type = "dielectric"
@@ -310,7 +397,7 @@ class BsdfMapper:
         mat.ior = self._ior(obj, "int_ior", "bk7") / self._ior(obj, "ext_ior", "air")
         mat.alpha = self._alpha(obj, 0.1, mat) if obj.type == "roughdielectric" else 0.0
         refl, _ = color_value(imp, obj, "specular_reflectance", (1.0,) * 3)
-        trans, tex = color_value(imp, obj, "specular_transmittance", (1.0,) * 3, texture_ok=True)
+        trans, tex = color_value(imp, obj, "specular_transmittance", (1.0,) * 3, texture_ok=True, attribute_ok=True)
         mat.tint, mat.base_texture = _clamp01(imp, obj, trans, "specular_transmittance"), tex
         if refl != (1.0, 1.0, 1.0) and refl != trans:
             imp.warn(obj.props["specular_reflectance"].node.pos,
@@ -347,7 +434,8 @@ class BsdfMapper:
         """Mitsuba's plastic / roughplastic: the same parameters (src/bsdfs/plastic.cpp, roughplastic.cpp)."""
         imp = self.imp
         mat.type = obj.type
-        mat.albedo, mat.base_texture = color_value(imp, obj, "diffuse_reflectance", (0.5,) * 3, texture_ok=True)
+        mat.albedo, mat.base_texture = color_value(imp, obj, "diffuse_reflectance", (0.5,) * 3, texture_ok=True,
+                                                   attribute_ok=True)
         if mat.base_texture is not None and getattr(mat.base_texture, "mitsuba_mean", None) is not None:
             mat.params["diffuse_mean"] = mat.base_texture.mitsuba_mean
         mat.ior = self._ior(obj, "int_ior", "polypropylene") / self._ior(obj, "ext_ior", "air")
@@ -403,7 +491,8 @@ class BsdfMapper:
         thin = obj.type == "principledthin"
         module = principledthin if thin else principled
         mat.type = obj.type
-        mat.albedo, mat.base_texture = color_value(imp, obj, "base_color", (0.5,) * 3, texture_ok=True)
+        mat.albedo, mat.base_texture = color_value(imp, obj, "base_color", (0.5,) * 3, texture_ok=True,
+                                                   attribute_ok=True)
         mat.params["roughness"] = self._scalar(obj, mat, "roughness", 0.5)
         for name in module.SCALARS:
             value = self._scalar(obj, mat, name, 0.0)

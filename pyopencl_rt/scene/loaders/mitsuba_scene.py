@@ -14,12 +14,14 @@ import numpy as np
 from ..model import DirectionalLight, Environment, PixelFilter, PointLight, RenderSettings
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cube_mesh, cylinder_mesh, disk_mesh, error_at,
                       rectangle_mesh, transform_points, transform_vector, vertical_fov)
+from ..media import MediumInterface
 from .mitsuba_bsdf import BsdfMapper, color_value
+from .mitsuba_media import MediaMapper
 from .mitsuba_xml import Document, MiObject
 
 # parameters that do not change the image
 SILENT = {"pixel_format", "component_format", "near_clip", "far_clip", "sample_border", "banner", "file_format",
-          "compensate", "shutter_open", "shutter_close", "srf", "face_normals", "sample_visible", "emitter_samples",
+          "compensate", "shutter_open", "shutter_close", "srf", "sample_visible", "emitter_samples",
           "bsdf_samples", "jitter", "mis_compensation", "silhouette_sampling_weight", "mip_filter_type"}
 
 # hdrfilm's filter when it names none (and the film's when there is no film)
@@ -41,6 +43,8 @@ class _Importer:
     def __init__(self, doc: Document, builder: SceneBuilder, path: Path):
         self.doc, self.b, self.path = doc, builder, path
         self.bsdfs = BsdfMapper(self)
+        self.media = MediaMapper(self)
+        self._null_material = None
 
     def warn(self, position, what):
         self.b.warn(position, what)
@@ -74,7 +78,9 @@ class _Importer:
                 self.shape(obj)
             elif obj.tag == "emitter":
                 self.emitter(obj)
-            elif obj.tag in ("bsdf", "texture"):
+            elif obj.tag == "medium":
+                self.media.medium(obj)  # made (and checked) as Mitsuba makes it; in the scene where used
+            elif obj.tag in ("bsdf", "texture", "phase", "volume"):
                 continue  # used through references
             elif obj.tag not in ("sensor", "integrator"):
                 self.warn(obj.node.pos, f"{obj.label()}: not supported; ignored")
@@ -92,7 +98,9 @@ class _Importer:
         if obj.type == "direct":
             settings.max_depth = 2
         else:
-            if obj.type != "path":
+            if obj.type in ("volpath", "volpathmis"):  # the weights of chromatic media (scene/media.py)
+                settings.spectral_mis = obj.type == "volpathmis" and bool(obj.boolean("use_spectral_mis", True))
+            elif obj.type != "path":
                 self.warn(obj.node.pos, f"{obj.label()}: rendered with our path tracer (MIS of BSDF and "
                                         "light sampling) with its max_depth and rr_depth")
             depth = obj.integer("max_depth", -1, minimum=-1)
@@ -124,8 +132,13 @@ class _Importer:
             if seed is not None:
                 settings.seed = seed & 0xFFFFFFFF
             self.unused(sampler, extra=("scramble_seed", "strength"))
+        media = obj.children_of("medium") + [p.value for p in obj.props.values()
+                                             if p.kind == "object" and p.value.tag == "medium"]
+        obj.used.update(n for n, p in obj.props.items() if p.kind == "object" and p.value.tag == "medium")
+        if media:  # Mitsuba's sensor takes its one medium whatever its name
+            self.b.camera_medium = self.b.medium_index(self.media.medium(media[0]))
         for extra in obj.children:
-            if extra.tag not in ("film", "sampler"):
+            if extra.tag not in ("film", "sampler", "medium"):
                 self.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported; ignored")
         if obj.type == "orthographic":
             return self.orthographic(obj, settings)
@@ -221,12 +234,50 @@ class _Importer:
 
     # -- shapes ----------------------------------------------------------------------------------
 
+    def interface(self, obj: MiObject, bsdfs) -> MediumInterface | None:
+        """The shape's medium interface: its interior and exterior media (a transition when either
+        is given, as Mitsuba's is_medium_transition), index-matched under a null BSDF."""
+        null = bool(bsdfs) and bsdfs[0].type == "null"
+        sides = {}
+        for side in ("interior", "exterior"):
+            p = obj.prop(side) if obj.has(side) else None
+            if p is not None:
+                if p.kind != "object" or p.value.tag != "medium":
+                    raise error_at(p.node.pos, f'{obj.label()}: "{side}" must be a <medium>, got <{p.kind}>')
+                sides[side] = self.b.medium_index(self.media.medium(p.value))
+        for extra in (p for n, p in obj.props.items() if p.kind == "object" and p.value.tag == "medium"
+                      and n not in ("interior", "exterior")):
+            obj.used.add(extra.node.attrs.get("name"))
+            self.warn(extra.node.pos, f'{extra.value.label()} in {obj.label()}: a shape\'s medium is named "interior" '
+                                      'or "exterior"; ignored')
+        for extra in obj.children_of("medium"):
+            self.warn(extra.node.pos, f'{extra.label()} in {obj.label()}: a shape\'s medium needs name="interior" or '
+                                      'name="exterior"; ignored')
+        if not sides and not null:
+            return None
+        return MediumInterface(sides.get("interior", -1), sides.get("exterior", -1), transition=bool(sides), null=null)
+
+    def null_material(self):
+        """The material of index-matched (null BSDF) surfaces: they never scatter (cl/render/media.h)."""
+        if self._null_material is None:
+            from ..model import Material
+
+            self._null_material = Material(name="mitsuba-null", albedo=(0.0, 0.0, 0.0))
+        return self._null_material
+
     def shape(self, obj: MiObject) -> None:
         bsdfs = obj.children_of("bsdf")
+        interface = self.interface(obj, bsdfs)
         emitters = obj.children_of("emitter")
         # Mitsuba's shape without a BSDF: diffuse, reflectance 0.5, or 0 for an emitter (shape.cpp)
         emitting = any(em.type == "area" for em in emitters)
-        material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default(black=emitting)
+        attribute = None
+        if interface is not None and interface.null:  # index-matched: no scattering (scene/media.py)
+            material = self.null_material()
+            self.unused(bsdfs[0])
+        else:
+            material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default(black=emitting)
+            attribute = self.bsdfs.attribute(material)  # a mesh_attribute as its reflectance
         if len(bsdfs) > 1:
             self.warn(bsdfs[1].node.pos, f"{obj.label()}: a second BSDF; ignored")
         for em in emitters:
@@ -238,7 +289,7 @@ class _Importer:
             material = self.b.emissive(material, radiance, False, texture)
             self.unused(em)
         for extra in obj.children:
-            if extra.tag not in ("bsdf", "emitter"):
+            if extra.tag not in ("bsdf", "emitter", "medium"):
                 self.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported; ignored")
         flip = bool(obj.boolean("flip_normals", False))
         m = obj.transform("to_world")
@@ -246,22 +297,33 @@ class _Importer:
             raise error_at(obj.props["to_world"].node.pos, f"{obj.label()}: to_world is singular")
         t = obj.type
         if t == "sphere":
-            return self.sphere(obj, material, m, flip, emitters)
+            return self.sphere(obj, material, m, flip, emitters, interface)
+        normals = compute = extras = None
         if t in ("obj", "ply", "serialized"):
-            mesh = self.mesh_file(obj)
+            v, f, uv, normals, keys, extras = self.mesh_file(obj)
+            if obj.boolean("face_normals", False):  # Mitsuba: flat, whatever the file holds
+                normals = None
+            elif normals is None:  # Mitsuba computes them
+                compute = keys
         elif t == "rectangle":
-            mesh = rectangle_mesh()
+            v, f, uv = rectangle_mesh()
         elif t == "cube":
-            mesh = cube_mesh()
+            v, f, uv = cube_mesh()
         elif t == "disk":
-            mesh = disk_mesh()
+            v, f, uv = disk_mesh()
         elif t == "cylinder":
-            mesh = self.cylinder(obj)
+            v, f, uv, normals = self.cylinder(obj)
         else:
             self.warn(obj.node.pos, f"{obj.label()}: shape type not supported; ignored")
             return
-        v, f, uv = mesh
-        self.b.add_mesh(v, f, material, uvs=uv, matrix=m, flip=flip)
+        colors = None
+        if attribute is not None:
+            colors = extras.colors(attribute) if extras is not None else None
+            if colors is None:
+                self.warn(obj.node.pos, f'{obj.label()}: its BSDF reads the mesh attribute "{attribute}", which '
+                                        "the shape does not have; using 1")
+        self.b.add_mesh(v, f, material, uvs=uv, matrix=m, flip=flip, normals=normals, colors=colors,
+                        compute_normals=compute, interface=interface)
         self.unused(obj)
 
     def cylinder(self, obj: MiObject):
@@ -277,9 +339,11 @@ class _Importer:
         x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
         x /= np.linalg.norm(x)
         frame = np.stack([x, np.cross(z, x), z], 1)
-        return v @ frame.T + p0, f, uv
+        radial = v * [1.0, 1.0, 0.0]  # Mitsuba's cylinder shades with its exact (radial) normal
+        radial /= np.linalg.norm(radial, axis=1, keepdims=True)
+        return v @ frame.T + p0, f, uv, (radial @ frame.T)[f]
 
-    def sphere(self, obj, material, m, flip, emitters) -> None:
+    def sphere(self, obj, material, m, flip, emitters, interface=None) -> None:
         centre = obj.point("center", np.zeros(3))
         radius = obj.float("radius", 1.0, positive=True)
         if m is not None:
@@ -291,10 +355,16 @@ class _Importer:
             radius *= float(s.mean())
         if flip and emitters:
             self.warn(obj.node.pos, f"{obj.label()}: flip_normals: our spheres emit outwards only")
-        self.b.add_sphere(centre, radius, material)
+        if flip and interface is not None:  # its normal points inwards: interior and exterior trade places
+            interface = interface.flipped()
+        self.b.add_sphere(centre, radius, material, interface=interface)
         self.unused(obj)
 
     def mesh_file(self, obj: MiObject):
+        """(vertices, faces, per-corner uvs, normals (or None) and the keys of the corners that
+        are one vertex (Mitsuba's OBJ reader: one per position and texture coordinate), and the
+        file's attributes (MeshExtras))."""
+        from .meshfile import MeshExtras
         from .obj import parse_obj
 
         fname = obj.string("filename")
@@ -302,19 +372,26 @@ class _Importer:
             raise error_at(obj.node.pos, f'{obj.label()} needs <string name="filename">')
         path = self.resolve(fname, obj)
         where = f"{obj.node.pos}: {obj.label()}: {fname}"
+        extras = MeshExtras()
         if obj.type == "obj":
-            v, f, _names, _libs, uv = parse_obj(path, where, with_uvs=True)
-            if uv is not None and not obj.boolean("flip_tex_coords", True):
-                uv[..., 1] = 1.0 - uv[..., 1]
+            v, f, _names, _libs, uv, normals = parse_obj(path, where, with_uvs=True, with_normals=True)
+            keys = f
+            if uv is not None:
+                corners = np.concatenate([f.reshape(-1, 1).astype(np.float64), uv.reshape(-1, 2)], 1)
+                keys = np.unique(corners, axis=0, return_inverse=True)[1].reshape(-1, 3)
+                if not obj.boolean("flip_tex_coords", True):
+                    uv[..., 1] = 1.0 - uv[..., 1]
         elif obj.type == "ply":
-            v, f, uv = _read_ply(path, where)
+            v, f, uv, extras = _read_ply(path, where)
+            normals, keys = extras.normals, f
         else:
             from .mitsuba_serialized import read_serialized
 
-            v, f, uv = read_serialized(path, obj.integer("shape_index", 0, minimum=0), where)
+            v, f, uv, normals = read_serialized(path, obj.integer("shape_index", 0, minimum=0), where)
+            keys = f
         if len(f) == 0:
             raise error_at(obj.node.pos, f"{obj.label()}: '{fname}' contains no triangles")
-        return v, f, uv
+        return v, f, uv, normals, keys, extras
 
     # -- emitters --------------------------------------------------------------------------------
 
@@ -376,9 +453,11 @@ def _read_ply(path, where):
         v, f = flatten(loaded, name=where)
     except MeshError as exc:
         raise error_at(where.split(": ")[0], str(exc)) from None
+    from .meshfile import ply_extras
+
     uv = getattr(getattr(loaded, "visual", None), "uv", None)
     uvc = None
     if uv is not None and len(uv) == len(v) and len(loaded.faces) == len(f):
         uvc = np.asarray(uv, np.float32)[np.asarray(f)][..., :2]  # Mitsuba reads PLY uvs as they are
-    return v, f, uvc
+    return v, f, uvc, ply_extras(loaded, f)
 

@@ -23,8 +23,9 @@ HAS_NORMALS, HAS_UVS, HAS_COLORS, SINGLE, DOUBLE = 0x1, 0x2, 0x8, 0x1000, 0x2000
 
 
 def read_serialized(path, index: int, where: str):
-    """(vertices (V, 3) float64, faces (F, 3) int64, per-corner uvs (F, 3, 2) or None) of mesh
-    ``index`` of the file."""
+    """(vertices (V, 3) float64, faces (F, 3) int64, per-corner uvs (F, 3, 2) or None, per-corner
+    unit normals (F, 3, 3) or None) of mesh ``index`` of the file.  Vertex colours are skipped,
+    as Mitsuba 3 skips them."""
     try:
         data = Path(path).read_bytes()
     except OSError as exc:
@@ -70,26 +71,33 @@ def _read(data: bytes, index: int):
         return a
 
     vertices = take(3 * nv, real).reshape(-1, 3).astype(np.float64)
-    if flags & HAS_NORMALS:
-        take(3 * nv, real)
+    normals = take(3 * nv, real).reshape(-1, 3).astype(np.float64) if flags & HAS_NORMALS else None
     uv = take(2 * nv, real).reshape(-1, 2).astype(np.float32) if flags & HAS_UVS else None
     if flags & HAS_COLORS:
         take(3 * nv, real)
     faces = take(3 * nf, "<u8" if nv > 0xFFFFFFFF else "<u4").reshape(-1, 3).astype(np.int64)
     if len(faces) and faces.max() >= nv:
         raise ValueError(f"a face index {int(faces.max())} >= the {nv} vertices")
-    return vertices, faces, (uv[faces] if uv is not None else None)
+    if normals is not None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            normals = np.nan_to_num(normals / np.linalg.norm(normals, axis=1, keepdims=True), nan=0.0, posinf=0.0,
+                                    neginf=0.0)[faces].astype(np.float32)
+    return vertices, faces, (uv[faces] if uv is not None else None), normals
 
 
 def write_serialized(path, meshes) -> None:
-    """Write (vertices, faces[, uvs per vertex]) meshes as a version-4 serialized file (single
-    precision): what the tests use, and a way to make such files without Mitsuba."""
+    """Write (vertices, faces[, uvs per vertex[, normals per vertex]]) meshes as a version-4
+    serialized file (single precision): what the tests use, and a way to make such files without
+    Mitsuba."""
     out, offsets = bytearray(), []
     for mesh in meshes:
         v, f = np.asarray(mesh[0], "<f4"), np.asarray(mesh[1], "<u4")
         uv = np.asarray(mesh[2], "<f4") if len(mesh) > 2 and mesh[2] is not None else None
-        flags = SINGLE | (HAS_UVS if uv is not None else 0)
+        n = np.asarray(mesh[3], "<f4") if len(mesh) > 3 and mesh[3] is not None else None
+        flags = SINGLE | (HAS_UVS if uv is not None else 0) | (HAS_NORMALS if n is not None else 0)
         body = struct.pack("<I", flags) + b"mesh\0" + struct.pack("<QQ", len(v), len(f)) + v.tobytes()
+        if n is not None:
+            body += n.tobytes()
         if uv is not None:
             body += uv.tobytes()
         body += f.tobytes()

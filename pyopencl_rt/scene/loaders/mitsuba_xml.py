@@ -360,8 +360,9 @@ class Document:
                 self.warn(child.pos, f"{child.label()} in {obj.label()}: unknown element; ignored")
                 continue
             pname = child.attrs.get("name")
-            if value.kind == "object" and value.value.tag not in ("texture", "spectrum", "volume"):
+            if value.kind == "object" and value.value.tag not in ("texture", "spectrum", "volume", "medium"):
                 pname = None  # Mitsuba finds a shape's bsdf, a sensor's film ... by class, whatever their name
+            # (a shape's media by name: interior, exterior)
             if pname is None:
                 if value.kind != "object":
                     raise error_at(child.pos, f'{child.label()} in {obj.label()} needs a "name" attribute')

@@ -137,14 +137,17 @@ def parse_mtl(path, name: str | None = None) -> dict:
 
 
 
-def parse_obj(path, name: str | None = None, *, with_uvs: bool = False):
+def parse_obj(path, name: str | None = None, *, with_uvs: bool = False, with_normals: bool = False):
     """(vertices (V,3) float64, faces (F,3) int64, face material names list[str|None], mtllib paths),
     and with ``with_uvs`` a fifth item: per-corner texture coordinates (F, 3, 2) float32 from
     ``vt`` (v flipped to the top-down image convention of pyopencl_rt.scene.textures), or None when
-    the file has none (corners without a ``vt`` index get (0, 0)).
+    the file has none (corners without a ``vt`` index get (0, 0)); with ``with_normals`` (and
+    ``with_uvs``) a sixth: per-corner normals (F, 3, 3) float32 from ``vn`` (unit length), or None
+    when no face names one (a face with a corner that names none gets 0: shaded flat).
 
     Polygons are fan-triangulated (as trimesh does); negative (relative) indices and
-    ``v/vt/vn`` forms are accepted; only ``v``, ``vt``, ``f``, ``usemtl`` and ``mtllib`` matter.
+    ``v/vt/vn`` forms are accepted; only ``v``, ``vt``, ``vn``, ``f``, ``usemtl`` and ``mtllib``
+    matter.
     """
     name = name or str(path)
     try:
@@ -157,6 +160,8 @@ def parse_obj(path, name: str | None = None, *, with_uvs: bool = False):
     corners: list[int] = []  # 3 raw OBJ indices per triangle
     uv_text: list[str] = []
     uv_corners: list[int] = []  # 3 resolved vt indices per triangle (-1: none)
+    normal_text: list[str] = []
+    normal_corners: list[int] = []  # 3 resolved vn indices per triangle (-1: none)
     tri_nv: list[int] = []  # vertices defined when the face was read (for relative indices)
     tri_line: list[int] = []
     tri_mtl: list[int] = []
@@ -177,24 +182,31 @@ def parse_obj(path, name: str | None = None, *, with_uvs: bool = False):
         elif key == "vt":
             fields = rest.split()
             uv_text.append(" ".join((fields + ["0", "0"])[:2]))
+        elif key == "vn" and with_normals:
+            fields = rest.split()
+            normal_text.append(" ".join((fields + ["0", "0", "0"])[:3]))
         elif key == "f":
             toks = rest.split()
             if "/" in rest:
                 if with_uvs:
-                    tidx = []
-                    for t in toks:
-                        parts = t.split("/")
-                        try:
-                            k = int(parts[1]) if len(parts) > 1 and parts[1] else 0
-                        except ValueError:
-                            raise SceneError(f"{name}:{lineno}: bad face '{raw.strip()}'") from None
-                        k = len(uv_text) + k if k < 0 else k - 1
-                        tidx.append(k if 0 <= k < len(uv_text) else -1)
-                    for k in range(1, len(tidx) - 1):
-                        uv_corners.extend((tidx[0], tidx[k], tidx[k + 1]))
+                    for slot, table, out in ((1, uv_text, uv_corners), (2, normal_text, normal_corners)):
+                        if slot == 2 and not with_normals:
+                            continue
+                        tidx = []
+                        for t in toks:
+                            parts = t.split("/")
+                            try:
+                                k = int(parts[slot]) if len(parts) > slot and parts[slot] else 0
+                            except ValueError:
+                                raise SceneError(f"{name}:{lineno}: bad face '{raw.strip()}'") from None
+                            k = len(table) + k if k < 0 else k - 1
+                            tidx.append(k if 0 <= k < len(table) else -1)
+                        for k in range(1, len(tidx) - 1):
+                            out.extend((tidx[0], tidx[k], tidx[k + 1]))
                 toks = [t.split("/", 1)[0] for t in toks]
             elif with_uvs:
                 uv_corners.extend([-1] * (3 * max(len(toks) - 2, 0)))
+                normal_corners.extend([-1] * (3 * max(len(toks) - 2, 0)))
             try:
                 idx = list(map(int, toks))
             except ValueError:
@@ -255,13 +267,27 @@ def parse_obj(path, name: str | None = None, *, with_uvs: bool = False):
         uvs = table[np.asarray(uv_corners, np.int64).reshape(-1, 3)]
         uvs[..., 1] = 1.0 - uvs[..., 1]
         uvs = uvs.astype(np.float32)
-    return v, f, names, mtllibs, uvs
+    if not with_normals:
+        return v, f, names, mtllibs, uvs
+    normals = None
+    corners = np.asarray(normal_corners, np.int64).reshape(-1, 3)
+    if normal_text and len(corners) == len(f) and (corners >= 0).any():
+        try:
+            table = np.array(" ".join(normal_text).split(), dtype=np.float64).reshape(-1, 3)
+        except ValueError:
+            raise SceneError(f"{name}: bad vertex normal (vn)") from None
+        with np.errstate(invalid="ignore", divide="ignore"):
+            table = table / np.linalg.norm(table, axis=1, keepdims=True)
+        table = np.vstack([np.nan_to_num(table, nan=0.0, posinf=0.0, neginf=0.0), [[0.0, 0.0, 0.0]]])
+        normals = table[corners].astype(np.float32)  # index -1: 0
+        normals[(corners < 0).any(axis=1)] = 0.0
+    return v, f, names, mtllibs, uvs, normals
 
 
 def obj_with_materials(path: Path, name: str, overrides: dict | None = None, fallback: Material | None = None):
     """vertices, faces, face material indices (into the returned list), materials list, uvs
-    ((F, 3, 2) or None)."""
-    vertices, faces, face_names, mtllibs, uvs = parse_obj(path, name, with_uvs=True)
+    ((F, 3, 2) or None), normals ((F, 3, 3) or None)."""
+    vertices, faces, face_names, mtllibs, uvs, normals = parse_obj(path, name, with_uvs=True, with_normals=True)
     library: dict[str, Material] = {}
     libraries_missing = False
     for lib in mtllibs:
@@ -290,11 +316,11 @@ def obj_with_materials(path: Path, name: str, overrides: dict | None = None, fal
     if missing and not libraries_missing:
         warnings.warn(f"{name}: materials {', '.join(map(repr, missing))} not defined in any MTL; using albedo 0.8", stacklevel=3)
     face_mat = np.fromiter((index[n] for n in face_names), np.int32, count=len(face_names))
-    return vertices, faces, face_mat, materials, uvs
+    return vertices, faces, face_mat, materials, uvs, normals
 
 
 def load_obj_scene(path: Path, name: str) -> Scene:
-    vertices, faces, face_mat, materials, uvs = obj_with_materials(path, name)
+    vertices, faces, face_mat, materials, uvs, normals = obj_with_materials(path, name)
     if len(faces) == 0:
         raise SceneError(f"{name}: contains no faces")
-    return frame_scene(triangle_scene(vertices, faces, face_mat, materials, name, uvs))
+    return frame_scene(triangle_scene(vertices, faces, face_mat, materials, name, uvs, normals=normals))

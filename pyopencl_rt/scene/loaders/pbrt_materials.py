@@ -7,7 +7,7 @@
 | ``dielectric`` (``thindielectric`` with a warning) | ``dielectric``: ``eta`` (default 1.5; the named glasses at their d-line index) |
 | ``coateddiffuse`` | ``gltf`` with metallic 0: base colour ``reflectance``, IOR ``eta``, the coating's roughness (documented approximation) |
 | ``coatedconductor`` | ``conductor`` of its conductor layer, with a warning |
-| ``interface`` | no surface: its shapes are skipped, with a warning |
+| ``interface`` | no surface: its shapes only bound media (index-matched: pbrt_media.py) |
 | others (``diffusetransmission``, ``hair``, ``measured``, ``mix``, ``subsurface``) | ``diffuse`` 0.5, with a warning |
 
 Roughness: ``roughness`` (or the mean of ``uroughness`` and ``vroughness``, with a warning when they
@@ -266,10 +266,19 @@ class MaterialMapper:
         if clipped != tuple(mat.albedo):
             imp.warn(pos, f"{what}: reflectance {tuple(mat.albedo)} clamped to [0, 1]")
             mat.albedo = clipped
-        for key in ("displacement", "normalmap"):
-            if key in p:
-                imp.warn(p.items[key].pos, f"{what}: {key} is not supported; ignored")
-                p.items[key].used = True
+        if "displacement" in p:
+            imp.warn(p.items["displacement"].pos, f"{what}: displacement is not supported; ignored")
+            p.items["displacement"].used = True
+        fname = p.string("normalmap") if "normalmap" in p else None
+        if fname:  # pbrt-v4's NormalMap(): linear RGB, the shading frame of dp/du, no other rule
+            from ..textures import texture_from_image
+
+            path = imp.path.parent / fname
+            try:
+                mat.normal_texture = texture_from_image(path, srgb=False)
+            except Exception as exc:
+                raise error_at(p.items["normalmap"].pos, f"{what}: cannot read normal map '{fname}' "
+                                                         f"({type(exc).__name__}: {exc})") from None
         return mat
 
     def _eta(self, p, what) -> float:

@@ -15,14 +15,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..media import MediumInterface
 from ..model import DirectionalLight, Environment, Material, PixelFilter, PointLight, RenderSettings
+from .assembly import transform_normals
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh,
                       transform_points, transform_vector, translate)
 from .pbrt import Directive, Parser
 from .pbrt_materials import MaterialMapper, spectrum_rgb
 
 SILENT = {("Film", "filename"), ("Integrator", "lightsampler"), ("Sampler", "seed"), ("Film", "diagonal"),
-          ("Film", "savefp16"), ("Integrator", "regularize"), ("Shape", "N"), ("Shape", "S"),
+          ("Film", "savefp16"), ("Integrator", "regularize"), ("Shape", "S"),
           ("Shape", "faceIndices"), ("Shape", "emissionfilename")}
 
 
@@ -45,6 +47,8 @@ class _State:
     reverse: bool = False
     material: object = None  # a Material, or ("named", name, pos)
     area: object = None  # (radiance, two_sided) of the AreaLightSource in effect
+    inside: str = ""  # MediumInterface: the media inside and outside shapes ("": vacuum)
+    outside: str = ""
 
 
 class _Importer:
@@ -54,7 +58,9 @@ class _Importer:
         self.state = _State(np.eye(4), material=self.materials.default())
         self.stack: list[_State] = []
         self.coords: dict[str, np.ndarray] = {}
-        self.camera = None  # (directive, camera-from-world)
+        self.camera = None  # (directive, camera-from-world, the medium outside: the camera's)
+        self.named_media: dict = {}  # MakeNamedMedium: name -> Medium, or None (a type we do not render)
+        self.null_material = None  # the "interface" shapes' (they never scatter: cl/render/media.h)
         self.options: dict[str, Directive] = {}
         self.instances: dict[str, list] = {}
         self.recording: list | None = None
@@ -196,16 +202,16 @@ class _Importer:
         m = self.state.ctm
         for kind, *data in self.instances[d.args[0]]:
             if kind == "mesh":
-                v, f, uv, mat = data
-                self.b.add_mesh(v, f, mat, uvs=uv, matrix=m)
+                v, f, uv, mat, normals, interface = data
+                self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, normals=normals, interface=interface)
             else:
-                centre, radius, mat, pos = data
-                self._sphere(transform_points(m, centre)[0], radius, m, mat, pos, False)
+                centre, radius, mat, pos, interface = data
+                self._sphere(transform_points(m, centre)[0], radius, m, mat, pos, False, interface)
 
     # -- options ---------------------------------------------------------------------------------
 
     def d_Camera(self, d):
-        self.camera = (d, self.state.ctm.copy())
+        self.camera = (d, self.state.ctm.copy(), self.state.outside)
         self.coords["camera"] = np.linalg.inv(self.state.ctm)
 
     def _option(self, d):
@@ -255,6 +261,7 @@ class _Importer:
         if integ is not None:
             if integ.args[0] not in ("volpath", "path", "simplepath", "simplevolpath"):
                 self.warn(integ.pos, f'Integrator "{integ.args[0]}": rendered with our path tracer (MIS)')
+            st.spectral_mis = integ.args[0] != "simplevolpath"  # its media: the hero wavelength alone
             depth = integ.params.integer("maxdepth", 5)
             if depth < 0:
                 raise error_at(integ.pos, f"Integrator: maxdepth must be >= 0, got {depth}")
@@ -290,8 +297,9 @@ class _Importer:
         except ValueError as exc:
             raise error_at(pf.pos, f'PixelFilter "{pf.args[0]}": {exc}') from None
 
-    def finish_camera(self, d: Directive, camera_from_world) -> None:
+    def finish_camera(self, d: Directive, camera_from_world, medium: str = "") -> None:
         st, p = self.b.settings, d.params
+        self.b.camera_medium = self.medium_index(medium, d.pos)
         if d.args[0] == "orthographic":
             return self.orthographic(d, camera_from_world)
         if d.args[0] != "perspective":
@@ -425,13 +433,35 @@ class _Importer:
                                       out_shape=out, wrap_u=wrap), d.pos)
 
     def d_MakeNamedMedium(self, d):
-        self.warn(d.pos, "MakeNamedMedium: participating media are not supported; ignored")
-        for p in d.params.items.values():
-            p.used = True
+        from .pbrt_media import make_medium
+
+        if d.args[0] in self.named_media:
+            raise error_at(d.pos, f'MakeNamedMedium: medium "{d.args[0]}" redefined')
+        self.named_media[d.args[0]] = make_medium(self, d, self.state.ctm.copy())
 
     def d_MediumInterface(self, d):
-        if any(a for a in d.args):
-            self.warn(d.pos, "MediumInterface: participating media are not supported; ignored")
+        inside = d.args[0]
+        outside = d.args[1] if len(d.args) > 1 and d.args[1] is not None else inside
+        self.state.inside, self.state.outside = inside, outside
+
+    def medium_index(self, name: str, pos) -> int:
+        """The scene's index of the named medium ("": vacuum, -1)."""
+        if not name:
+            return -1
+        if name not in self.named_media:
+            raise error_at(pos, f'medium "{name}" is not defined (MakeNamedMedium before its use)')
+        medium = self.named_media[name]
+        return -1 if medium is None else self.b.medium_index(medium)
+
+    def _interface(self, null: bool, pos):
+        """The shapes' medium interface: a transition where the inside and outside media differ (as
+        pbrt's IsMediumTransition), index-matched under an "interface" material."""
+        inside, outside = self.state.inside, self.state.outside
+        transition = inside != outside
+        if not transition and not null:
+            return None
+        interior, exterior = (self.medium_index(inside, pos), self.medium_index(outside, pos)) if transition else (-1, -1)
+        return MediumInterface(interior, exterior, transition=transition, null=null)
 
     def d_Attribute(self, d):
         self.warn(d.pos, f'Attribute "{d.args[0]}": default parameters are not supported; ignored')
@@ -458,11 +488,11 @@ class _Importer:
         from .pbrt_shapes import shape_geometry
 
         mat = self._material(d.pos)
-        if mat is None:
-            self.warn(d.pos, f'Shape "{d.args[0]}" with an "interface" material: invisible; skipped')
-            for p in d.params.items.values():
-                p.used = True
-            return
+        interface = self._interface(mat is None, d.pos)
+        if mat is None:  # "interface": a boundary of media only, which does not scatter
+            if self.null_material is None:
+                self.null_material = Material(name="pbrt-interface", albedo=(0.0, 0.0, 0.0))
+            mat = self.null_material
         if "alpha" in d.params:
             self.warn(d.params.items["alpha"].pos, f'Shape "{d.args[0]}": "alpha" cut-outs are not supported')
             d.params.items["alpha"].used = True
@@ -473,30 +503,37 @@ class _Importer:
         if isinstance(geometry[0], str):  # ("sphere", radius)
             _, radius = geometry
             if self.recording is not None:
-                self.recording.append(("sphere", transform_points(m, [0, 0, 0])[0], radius, mat, d.pos))
+                self.recording.append(("sphere", transform_points(m, [0, 0, 0])[0], radius, mat, d.pos, interface))
                 return
-            self._sphere(transform_points(m, [0, 0, 0])[0], radius, m, mat, d.pos, flip)
+            self._sphere(transform_points(m, [0, 0, 0])[0], radius, m, mat, d.pos, flip, interface)
             return
-        v, f, uv = geometry
+        v, f, uv, *rest = geometry
+        normals = rest[0] if rest else None
         if self.recording is not None:
-            if flip:
-                f, uv = f[:, ::-1], (uv[:, ::-1] if uv is not None else None)
-            v = transform_points(m, v)
-            if np.linalg.det(m[:3, :3]) < 0:
-                f, uv = f[:, ::-1], (uv[:, ::-1] if uv is not None else None)
-            self.recording.append(("mesh", v, f, uv, mat))
-            return
-        self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip)
+            def reverse(a):
+                return a[:, ::-1] if a is not None else None
 
-    def _sphere(self, centre, radius, m, mat, pos, flip) -> None:
+            if flip:
+                f, uv, normals = f[:, ::-1], reverse(uv), None if normals is None else -reverse(normals)
+            v = transform_points(m, v)
+            normals = transform_normals(m, normals)
+            if np.linalg.det(m[:3, :3]) < 0:
+                f, uv, normals = f[:, ::-1], reverse(uv), reverse(normals)
+            self.recording.append(("mesh", v, f, uv, mat, normals, interface))
+            return
+        self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=normals, interface=interface)
+
+    def _sphere(self, centre, radius, m, mat, pos, flip, interface=None) -> None:
         s = np.linalg.svd(m[:3, :3], compute_uv=False)
-        if s.max() - s.min() > 1e-6 * s.max():  # scaled unevenly: an ellipsoid, as triangles
+        if s.max() - s.min() > 1e-6 * s.max():  # scaled unevenly: an ellipsoid, as triangles (its exact normals)
             v, f, uv = sphere_mesh(radius)
-            self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip)
+            self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=(v / radius)[f], interface=interface)
             return
         if flip and mat.is_emissive:
             self.warn(pos, 'Shape "sphere": ReverseOrientation: our spheres emit outwards only')
-        self.b.add_sphere(centre, radius * float(s.mean()), mat)
+        if flip and interface is not None:  # its normal points inwards: inside and outside trade places
+            interface = interface.flipped()
+        self.b.add_sphere(centre, radius * float(s.mean()), mat, interface=interface)
 
 
 def _latlong_uv(d):

@@ -4,6 +4,11 @@ else triangles), ``disk`` and ``cylinder`` (triangles).
 
 Texture coordinates become ours as (u, 1 - v): pbrt-v4's image textures look up (s, 1 - t) with
 row 0 at the top of the image, ours (u, v) with row 0 at the top.
+
+Shading normals: ``trianglemesh``'s ``normal N`` and a ``plymesh``'s vertex normals are
+interpolated (cl/scene/shading.h); the triangles of a partial ``sphere`` and of a ``cylinder``
+carry their surface's exact normal, as pbrt's analytic shapes shade; a ``disk`` is flat.
+Geometry is (vertices, faces, per-corner uvs[, per-corner normals]).
 """
 from __future__ import annotations
 
@@ -68,7 +73,13 @@ def shape_geometry(imp, d):
         v = _points(d)
         f = _indices(d, len(v), 3, 3)
         uv = _uvs(d, len(v))
-        return v, f, _flip_v(uv[f]) if uv is not None else None
+        n = p.numbers("N", ("normal", "normal3"))
+        normals = None
+        if n is not None:
+            if len(n) != 3 * len(v):
+                raise error_at(p.items["N"].pos, f'"normal N": {len(n) // 3} normals for {len(v)} points')
+            normals = _unit(np.asarray(n, np.float64).reshape(-1, 3))[f]
+        return v, f, _flip_v(uv[f]) if uv is not None else None, normals
     if t == "bilinearmesh":
         return _bilinear(d)
     if t == "loopsubdiv":
@@ -84,19 +95,28 @@ def shape_geometry(imp, d):
             raise error_at(d.pos, f'Shape "sphere": radius must be > 0, got {radius:g}')
         zmin, zmax, phimax = p.float("zmin", -radius), p.float("zmax", radius), p.float("phimax", 360.0)
         if zmin > -radius or zmax < radius or phimax < 360:
-            return sphere_mesh(radius, zmin, zmax, min(phimax, 360.0))
+            v, f, uv = sphere_mesh(radius, zmin, zmax, min(phimax, 360.0))
+            return v, f, uv, _unit(np.asarray(v, np.float64))[f]
         return ("sphere", radius)
     if t == "disk":
         radius = p.float("radius", 1.0)
         return disk_mesh(radius, p.float("innerradius", 0.0), p.float("height", 0.0),
                          min(p.float("phimax", 360.0), 360.0))
     if t == "cylinder":
-        return cylinder_mesh(p.float("radius", 1.0), p.float("zmin", -1.0), p.float("zmax", 1.0),
-                             min(p.float("phimax", 360.0), 360.0))
+        v, f, uv = cylinder_mesh(p.float("radius", 1.0), p.float("zmin", -1.0), p.float("zmax", 1.0),
+                                 min(p.float("phimax", 360.0), 360.0))
+        return v, f, uv, _unit(np.asarray(v, np.float64) * [1.0, 1.0, 0.0])[f]
     imp.warn(d.pos, f'Shape "{t}": not supported; ignored')
     for q in p.items.values():
         q.used = True
     return None
+
+
+def _unit(n) -> np.ndarray:
+    """Rows made unit length (0 where they have none)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.nan_to_num(u, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
 
 
 def _bilinear(d):
@@ -131,7 +151,7 @@ def _bilinear(d):
 
 def _plymesh(imp, d):
     from ..mesh import MeshError, flatten, load_trimesh
-    from .meshfile import trimesh_uvs
+    from .meshfile import ply_extras, trimesh_uvs
 
     p = d.params
     fname = p.string("filename")
@@ -153,4 +173,4 @@ def _plymesh(imp, d):
         raise error_at(d.pos, f'Shape "plymesh": {exc}') from None
     if len(f) == 0:
         raise error_at(d.pos, f"Shape \"plymesh\": '{fname}' contains no triangles")
-    return np.asarray(v, np.float64), np.asarray(f, np.int64), trimesh_uvs(loaded, v, f)
+    return np.asarray(v, np.float64), np.asarray(f, np.int64), trimesh_uvs(loaded, v, f), ply_extras(loaded, f).normals

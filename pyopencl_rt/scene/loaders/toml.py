@@ -29,6 +29,9 @@
     emission = [0, 0, 0]          # linear RGB radiance >= 0 (or one number), default 0; any type
     two_sided = false             # emit from both sides, default false
 
+    [media.fog]                   # participating media (toml_media.py), referred to by NAME
+    sigma_t = [0.5, 1.0, 2.0]     #   from shapes' interior / exterior and [camera] medium
+
     [[shape]]                     # one table per shape, numbered #1, #2, ... in messages
     type = "quad"                 # "mesh" | "quad" | "triangle" | "box" | "sphere"
     material = "white"            # default: the built-in "default" material (albedo 0.8)
@@ -68,10 +71,11 @@ from ..materials import REGISTRY
 from ..mesh import MeshError, flatten, load_trimesh
 from ..model import (AOVS, FILTERS, INTEGRATORS, SAMPLERS, Camera, DirectionalLight, Environment, Material,
                      PixelFilter, PointLight, PROJECTIONS, RenderSettings, Scene)
-from .assembly import DEFAULT_FOV, frame_scene, triangle_scene
+from .assembly import DEFAULT_FOV, frame_scene, transform_normals, triangle_scene
 from .gltf import read_gltf
-from .meshfile import trimesh_uvs
+from .meshfile import ply_extras, trimesh_uvs
 from .obj import obj_with_materials
+from .toml_media import SHAPE_KEYS, Interfaces, camera_medium, read_media
 from .values import (ErrorContext, SceneError, TableReader, check_boolean, check_choice, check_color,
                      check_integer, check_keys, check_number, check_points, check_vector, describe,
                      one_line)
@@ -87,8 +91,8 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 SHAPE_TYPES = ("mesh", "quad", "triangle", "box", "sphere")
 LIGHT_TYPES = ("point", "directional")
 
-_TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environment"}
-_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance", "type", "extent"}
+_TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environment", "media"}
+_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance", "type", "extent", "medium"}
 _LIGHT_KEYS = {"point": {"type", "position", "intensity"}, "directional": {"type", "direction", "irradiance"}}
 _ENVIRONMENT_KEYS = {"radiance", "file", "scale"}
 _FILM_KEYS = {"width", "height", "aovs", "filter"}
@@ -106,6 +110,7 @@ _SHAPE_KEYS = {
     "box": {"type", "material", "size", "center"} | _TRANSFORM_KEYS,
     "sphere": {"type", "material", "center", "radius"},
 }
+_SHAPE_KEYS = {k: v | SHAPE_KEYS for k, v in _SHAPE_KEYS.items()}  # participating media (toml_media.py)
 
 
 def _read_material(ctx, where, name, spec) -> Material:
@@ -154,6 +159,9 @@ def load_toml_scene(path: Path, name: str) -> Scene:
 
     settings = _read_settings(ctx, doc.get("film", {}), doc.get("render", {}))
     materials, material_index = _read_materials(ctx, doc.get("materials", {}))
+    media, media_index = read_media(ctx, path, doc.get("media", {}))
+    interfaces = Interfaces(ctx, media_index)
+    interface_for = interfaces.index
 
     shapes = doc.get("shape", [])
     if not isinstance(shapes, list):
@@ -162,7 +170,13 @@ def load_toml_scene(path: Path, name: str) -> Scene:
         raise ctx.error("", "defines no shapes (add [[shape]] tables)")
 
     def material_for(where, table) -> int:
-        """The index of the shape's material; the built-in "default" is added on first use."""
+        """The index of the shape's material; the built-in "default" is added on first use (an
+        index-matched shape's: a black one, never evaluated)."""
+        if table.get("index_matched") is True and "material" not in table:
+            if "index-matched" not in material_index:
+                material_index["index-matched"] = len(materials)
+                materials.append(Material(name="index-matched", albedo=(0.0, 0.0, 0.0)))
+            return material_index["index-matched"]
         mname = table.get("material", "default")
         if not isinstance(mname, str):
             raise ctx.error(where, f"'material' must be a material name, got {describe(mname)}")
@@ -174,9 +188,9 @@ def load_toml_scene(path: Path, name: str) -> Scene:
             materials.append(Material())
         return material_index[mname]
 
-    tri_vertices, tri_faces, tri_mats, tri_uvs = [], [], [], []
+    tri_vertices, tri_faces, tri_mats, tri_uvs, tri_normals, tri_colors, tri_ifaces = [], [], [], [], [], [], []
     n_vertices = 0
-    spheres, sphere_mats = [], []
+    spheres, sphere_mats, sphere_ifaces = [], [], []
     for number, table in enumerate(shapes, 1):
         where = f"[[shape]] #{number}"
         if not isinstance(table, dict):
@@ -199,12 +213,15 @@ def load_toml_scene(path: Path, name: str) -> Scene:
                 raise ctx.error(where, f"'radius' {radius:g} is 0 in float32")
             spheres.append([*centre, radius])
             sphere_mats.append(material_for(where, table))
+            sphere_ifaces.append(interface_for(where, table))
             continue
 
         face_mat = None
         uvc = None  # per-corner texture coordinates (F, 3, 2), None = zeros
+        nrm = col = None  # per-corner shading normals and colours of a mesh file, or None
         if stype == "mesh":
-            v, f, face_mat, uvc = _read_mesh_shape(ctx, where, path, table, materials, material_index, material_for)
+            v, f, face_mat, uvc, nrm, col = _read_mesh_shape(ctx, where, path, table, materials, material_index,
+                                                             material_for)
         elif stype == "quad":
             if "points" not in table:
                 raise ctx.error(where, "missing 'points' (four corners [[x,y,z], ...])")
@@ -233,36 +250,56 @@ def load_toml_scene(path: Path, name: str) -> Scene:
             if not (areas > 0).all():
                 raise ctx.error(where, "degenerate: its corners do not span an area (repeated or collinear points)")
 
+        def reverse(a):
+            return a[:, ::-1] if a is not None else None
+
         matrix = _shape_transform(ctx, where, table)
         if matrix is not None:
             v = v @ matrix[:3, :3].T + matrix[:3, 3]
+            nrm = transform_normals(matrix, nrm)
             if np.linalg.det(matrix[:3, :3]) < 0:
-                f = f[:, ::-1]
-                uvc = uvc[:, ::-1] if uvc is not None else None
+                f, uvc, nrm, col = f[:, ::-1], reverse(uvc), reverse(nrm), reverse(col)
         finite = v[np.isfinite(v).all(axis=1)]  # a mesh file's NaN vertices are dropped, with a warning
         _check_reach(ctx, where, np.abs(finite).max() if len(finite) else 0.0, "its vertices reach")
         if check_boolean(ctx, where, "flip_normals", table.get("flip_normals", False)):
-            f = f[:, ::-1]
-            uvc = uvc[:, ::-1] if uvc is not None else None
+            f, uvc, col = f[:, ::-1], reverse(uvc), reverse(col)
+            nrm = -reverse(nrm) if nrm is not None else None
         if face_mat is None:
             face_mat = np.full(len(f), material_for(where, table), np.int32)
         tri_vertices.append(v)
         tri_uvs.append(np.zeros((len(f), 3, 2), np.float32) if uvc is None else np.asarray(uvc, np.float32))
+        tri_normals.append(nrm)
+        tri_colors.append(col)
         tri_faces.append(f + n_vertices)
         tri_mats.append(face_mat)
+        tri_ifaces.append(np.full(len(f), interface_for(where, table), np.int32))
         n_vertices += len(v)
 
+    def corners(parts, fill):  # per-corner arrays of the shapes that have them, `fill` elsewhere
+        if all(a is None for a in parts):
+            return None
+        return np.concatenate([np.full((len(f), 3, 3), fill, np.float32) if a is None else np.asarray(a, np.float32)
+                               for a, f in zip(parts, tri_faces)])
+
+    normals = colors = None
     if tri_faces:
+        normals, colors = corners(tri_normals, 0.0), corners(tri_colors, 1.0)
         vertices, faces = np.concatenate(tri_vertices), np.concatenate(tri_faces)
-        face_mat, uvs = np.concatenate(tri_mats), np.concatenate(tri_uvs)
+        face_mat, uvs, face_ifaces = np.concatenate(tri_mats), np.concatenate(tri_uvs), np.concatenate(tri_ifaces)
     else:
         vertices, faces, face_mat, uvs = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int32), None
+        face_ifaces = np.zeros(0, np.int32)
     scene = triangle_scene(
-        vertices, faces, face_mat, materials, name, uvs, settings=settings,
+        vertices, faces, face_mat, materials, name, uvs, normals=normals, colors=colors, settings=settings,
         spheres=np.asarray(spheres, np.float32).reshape(-1, 4), sphere_materials=np.asarray(sphere_mats, np.int32),
+        face_interfaces=face_ifaces if interfaces.list else None,
     )
+    if media or interfaces.list:
+        scene.media, scene.interfaces = media, interfaces.list
+        scene.sphere_interfaces = np.asarray(sphere_ifaces, np.int32)
     if "camera" in doc:
         scene.camera = _read_camera(ctx, doc["camera"])
+        scene.camera_medium = camera_medium(ctx, doc["camera"], media_index)
     else:
         frame_scene(scene)
     scene.lights = _read_lights(ctx, doc.get("light", []))
@@ -503,13 +540,13 @@ def _read_mesh_shape(ctx, where, scene_path: Path, table, materials, material_in
         raise ctx.error(where, f"mesh file '{fname}' is a folder ({mesh_path})")
     use_file = check_boolean(ctx, where, "use_file_materials", table.get("use_file_materials", False))
     suffix = mesh_path.suffix.lower()
-    uvs = None
+    uvs = normals = colors = None
     if suffix in (".gltf", ".glb"):
         try:
             g = read_gltf(mesh_path, f"{ctx.name}: {where}: {fname}")
         except UserError as exc:
             raise SceneError(one_line(str(exc))) from None
-        v, f, uvs = g.vertices, g.faces, g.uvs
+        v, f, uvs, normals, colors = g.vertices, g.faces, g.uvs, g.normals, g.colors
     if use_file:
         if suffix not in (".obj", ".gltf", ".glb"):
             raise ctx.error(where, f"use_file_materials is only supported for OBJ and glTF files, not '{fname}'")
@@ -517,7 +554,7 @@ def _read_mesh_shape(ctx, where, scene_path: Path, table, materials, material_in
         overrides = {n: materials[i] for n, i in material_index.items()}
         if suffix == ".obj":
             try:
-                v, f, local_mat, local_materials, uvs = obj_with_materials(
+                v, f, local_mat, local_materials, uvs, normals = obj_with_materials(
                     mesh_path, f"{ctx.name}: {where}: {fname}", overrides, fallback=materials[fallback_index])
             except SceneError as exc:
                 raise SceneError(one_line(str(exc))) from None
@@ -542,11 +579,12 @@ def _read_mesh_shape(ctx, where, scene_path: Path, table, materials, material_in
         except MeshError as exc:
             raise ctx.error(where, str(exc)) from None
         uvs = trimesh_uvs(loaded, v, f)
+        normals = ply_extras(loaded, f).normals
         face_mat = None
     else:
         face_mat = None
     if len(f) == 0:
         raise ctx.error(where, f"mesh file '{fname}' contains no triangles")
-    return np.asarray(v, np.float64), np.asarray(f, np.int64), face_mat, uvs
+    return np.asarray(v, np.float64), np.asarray(f, np.int64), face_mat, uvs, normals, colors
 
 

@@ -1,0 +1,290 @@
+/* The frame the BSDF is evaluated in: shading normals interpolated from the vertex normals
+ * (HAS_SHADING_NORMALS), normal and bump maps (HAS_NORMAL_MAPS), and vertex colours
+ * (HAS_VERTEX_COLORS).  Without these defines shading_lanes() gives the geometric normal and
+ * the geometric `front`, so a scene without them compiles to what it compiled to before.
+ *
+ * Conventions (those of Mitsuba 3, whose scenes we render as it renders them; pbrt-v4 agrees
+ * where noted):
+ *
+ *   shading normal  the unit barycentric interpolation of the triangle's three vertex normals,
+ *                   tri_normal: 9 floats per BVH-reordered triangle, its corners' normals in
+ *                   world space (Mesh::compute_surface_interaction); a face whose corners hold
+ *                   0 is shaded flat (the geometric normal).  Spheres keep their exact normal.
+ *                   The interpolated normal is not turned to the geometric normal's side
+ *                   (Mitsuba turns neither; pbrt-v4 turns the geometric normal to the shading
+ *                   normal's side): its orientation decides the BSDF's sides, so a dielectric's
+ *                   inside is where the vertex normals point away from (`front` below).
+ *   BSDF frame      the BSDF (eval, sample, pdf) sees only the shading frame: as Mitsuba's and
+ *                   pbrt-v4's BSDFs it is evaluated with wo and wi relative to the shading
+ *                   normal, flipped to wo's side (our materials are two-sided: Mitsuba's
+ *                   twosided mirrors the frame the same way), and `front` = wo on the side the
+ *                   shading normal points to.  No sample is rejected for lying on the other
+ *                   side of the geometric surface than the shading normal says ("light leaks"):
+ *                   Mitsuba 3's path integrator and BSDFs do not look at the geometric normal,
+ *                   nor does pbrt-v4 (pbrt-v3's BSDF::f did, with the geometric normal); rays
+ *                   that cross the surface leave from its other side (path.h picks the offset
+ *                   side from the geometric normal).
+ *   geometric       the geometric normal stays for ray offsets, emission's sidedness, light
+ *                   sampling (the reference point) and the geometric `front` of path.h.
+ *   normal map      (Material.tex_normal, cl/scene/textures.h) Mitsuba's normalmap: the
+ *                   texel's RGB as n = 2 rgb - 1 (x and y times normal_scale: glTF's
+ *                   normalTexture.scale) in the shading frame (S, T, N): N the shading normal,
+ *                   S = dp/du made orthogonal to N, T = N x S (dp/du, dp/dv from the triangle's
+ *                   vertices and UVs; a degenerate parameterisation gets an arbitrary pair
+ *                   around the geometric normal, as Mitsuba does).  T points along -dp/dv with
+ *                   our top-down v, which is +y of Mitsuba's, pbrt-v4's and glTF's maps.
+ *   bump map        (MATERIAL_FLAG_BUMP_MAP) Mitsuba's bumpmap: g = normal_scale times the
+ *                   gradient of the height's luminance in uv (tex_gradient: the bilinear
+ *                   lookup's derivative); dp/du' = dp/du + N (g.u - N.dp/du), likewise dp/dv';
+ *                   the normal is dp/du' x dp/dv' turned to the geometric normal's side.
+ *                   A constant height map gives N.
+ *   Mitsuba's rules (flags, model.py MITSUBA_MAP: Mitsuba's defaults for its wrappers; pbrt-v4's
+ *                   normalmap and glTF's normalTexture use none):
+ *                   MAP_FLIP        flip_invalid_normals: a perturbed normal n with wo below
+ *                                   it gets (-n.x, -n.y, n.z)
+ *                   MAP_SIDE        f = 0 where wi lies on opposite sides of the shading normal
+ *                                   and the perturbed one
+ *                   MAP_TERMINATOR  f and the sample weight times the shadowing term of Estevez
+ *                                   et al. 2019: 2 / (1 + sqrt(1 + a2 tan^2 theta_i)), a2 =
+ *                                   min(tan^2 theta_n / 8, 1), angles to the shading normal
+ *                   A viewer on the shading normal's back side sees the map mirrored through the
+ *                   tangent plane (Mitsuba's twosided around the wrapper).
+ *   vertex colours  (MATERIAL_FLAG_VERTEX_COLOR) tri_color: 9 floats per reordered triangle,
+ *                   linear RGB per corner, interpolated as the UVs; they multiply the albedo (a
+ *                   dielectric's tint), as the base texture does (Mitsuba's mesh_attribute
+ *                   texture as a reflectance, glTF's COLOR_0 times baseColor).
+ *
+ * Over the lanes: the vertex normals and colours are gathered per lane; a normal or bump map is
+ * computed lane by lane (a texture lookup is a gather of its own) by the same scalar code at
+ * every width.
+ */
+#ifndef PYOPENCL_RT_SHADING_H
+#define PYOPENCL_RT_SHADING_H
+
+#include "materials/dispatch.h"
+#include "scene/scene.h"
+
+#if defined(HAS_NORMAL_MAPS) && !defined(HAS_TEXTURES)
+#error "normal and bump maps are textures: HAS_NORMAL_MAPS needs HAS_TEXTURES (cl/scene/textures.h)"
+#endif
+
+/* The BSDF's frame at the lanes' hits. */
+typedef struct {
+    pvec3 n;      /* the BSDF's normal, on wo's side */
+    pint front;   /* wo on the side the shading normal points to (dielectrics: the outside) */
+#ifdef HAS_NORMAL_MAPS
+    pint mapped;  /* lanes whose normal a map tilted, with Mitsuba's side test or shadowing term */
+    pint side;    /* MAP_SIDE lanes */
+    pvec3 tilt;   /* the tilted normal (not flipped to wo's side) */
+    pvec3 base;   /* the shading normal before the map, on wo's side */
+    pfloat a2;    /* the shadowing term's alpha^2 (0: no shadowing term) */
+#endif
+} ShadingLanes;
+
+RT_INLINE pvec3 gather9_corner(__global const float *f, pint i, int corner)
+{
+    return pv3(pgather(f, i + 3 * corner), pgather(f, i + 3 * corner + 1), pgather(f, i + 3 * corner + 2));
+}
+
+/* (1 - u - v) a + u b + v c per lane, as triangle_uv interpolates */
+RT_INLINE pvec3 barycentric3(pvec3 a, pvec3 b, pvec3 c, pfloat u, pfloat v)
+{
+    const pfloat w = 1.0f - u - v;
+    return pv3_add(pv3_add(pv3_scale(a, w), pv3_scale(b, u)), pv3_scale(c, v));
+}
+
+#ifdef HAS_VERTEX_COLORS
+/* The vertex colours of the lanes' triangles multiply the reflectance of the materials that
+ * ask for them. */
+RT_INLINE void vertex_color_material(__global const float *tri_color, pint hit, pint prim, pfloat u, pfloat v,
+                                     MaterialLanes *m)
+{
+    const pint colored = hit & (prim >= 0) & ((m->flags & MATERIAL_FLAG_VERTEX_COLOR) != 0);
+    if (!pany(colored)) return;
+    const pint i = colored ? prim * 9 : PINT(0);
+    const pvec3 c = barycentric3(gather9_corner(tri_color, i, 0), gather9_corner(tri_color, i, 1),
+                                 gather9_corner(tri_color, i, 2), u, v);
+    const pint tint = colored & (m->type == MATERIAL_DIELECTRIC);
+    m->specular = pv3_sel(m->specular, pv3_mul(m->specular, c), tint);
+    m->albedo = pv3_sel(m->albedo, pv3_mul(m->albedo, c), colored & pnot(tint));
+}
+#endif
+
+#ifdef HAS_NORMAL_MAPS
+/* Duff et al.'s basis around the unit n, as make_onb (Mitsuba's coordinate_system), one lane */
+RT_INLINE void onb1(float3 n, float3 *t, float3 *b)
+{
+    const float sign = copysign(1.0f, n.z);
+    const float a = -1.0f / (sign + n.z);
+    const float c = n.x * n.y * a;
+    *t = (float3)(1.0f + sign * n.x * n.x * a, sign * c, -sign * n.x);
+    *b = (float3)(c, sign + n.y * n.y * a, -n.y);
+}
+
+RT_INLINE int finite3(float3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
+
+/* dp/du and dp/dv of triangle `prim` from its vertices and UVs (Mitsuba's
+ * Mesh::compute_surface_interaction); a degenerate parameterisation: the basis around ng. */
+RT_INLINE void triangle_dpduv(__global const float4 *tris, __global const float2 *tri_uv, int prim, float3 ng,
+                              float3 *dpdu, float3 *dpdv)
+{
+    const float3 p0 = tris[3 * prim].xyz, dp0 = tris[3 * prim + 1].xyz - p0, dp1 = tris[3 * prim + 2].xyz - p0;
+    const float2 uv0 = tri_uv[3 * prim], duv0 = tri_uv[3 * prim + 1] - uv0, duv1 = tri_uv[3 * prim + 2] - uv0;
+    const float det = duv0.x * duv1.y - duv0.y * duv1.x;
+    const float inv = 1.0f / det;
+    onb1(ng, dpdu, dpdv);
+    if (det != 0.0f && isfinite(inv)) {
+        const float3 du = (duv1.y * dp0 - duv0.y * dp1) * inv, dv = (duv0.x * dp1 - duv1.x * dp0) * inv;
+        if (finite3(du) && finite3(dv)) {
+            *dpdu = du;
+            *dpdv = dv;
+        }
+    }
+}
+
+/* One lane: the normal a map tilts N (the shading normal, its own orientation) to, for the
+ * viewer at wo; *a2: the shadowing term's alpha^2 (0 without it).  Returns 0 where the map gives
+ * no direction (a zero texel): the lane keeps N. */
+RT_INLINE int map_normal1(__global const float4 *tris, __global const float2 *tri_uv,
+                          __global const Texture *textures, __global const float4 *tex_data,
+                          __global const Material *mat, int prim, float u, float v, float3 N, float3 ng, float3 wo,
+                          float3 *tilt, float *a2)
+{
+    const int flags = mat->flags;
+    float3 dpdu, dpdv, S;
+    triangle_dpduv(tris, tri_uv, prim, ng, &dpdu, &dpdv);
+    S = normalize(dpdu - N * dot(N, dpdu));
+    if (!finite3(S)) {
+        float3 b;
+        onb1(N, &S, &b);
+    }
+    const float3 T = cross(N, S);
+    const float2 uv = triangle_uv(tri_uv, prim, u, v);
+    float3 tn;
+    if (flags & MATERIAL_FLAG_BUMP_MAP) {
+        const float2 g = mat->normal_scale * tex_gradient(textures, tex_data, mat->tex_normal, uv);
+        const float3 du = dpdu + N * (g.x - dot(N, dpdu)), dv = dpdv + N * (g.y - dot(N, dpdv));
+        float3 nb = normalize(cross(du, dv));
+        nb = dot(ng, nb) < 0.0f ? -nb : nb;
+        tn = (float3)(dot(nb, S), dot(nb, T), dot(nb, N));
+    } else {
+        tn = 2.0f * tex_sample(textures, tex_data, mat->tex_normal, uv).xyz - 1.0f;
+        tn.x *= mat->normal_scale;
+        tn.y *= mat->normal_scale;
+    }
+    /* a viewer behind N sees the map mirrored through the tangent plane (Mitsuba's twosided) */
+    const float cos_o = dot(wo, N);
+    const float3 Nv = cos_o >= 0.0f ? N : -N;
+    float3 n = S * tn.x + T * tn.y + Nv * tn.z;
+    if ((flags & MATERIAL_FLAG_MAP_FLIP) && fabs(cos_o) * dot(wo, n) <= 0.0f)
+        n = Nv * tn.z - S * tn.x - T * tn.y;
+    n = normalize(n);
+    if (!finite3(n)) return 0;
+    *a2 = 0.0f;
+    if (flags & MATERIAL_FLAG_MAP_TERMINATOR) {
+        const float c = dot(n, Nv), c2 = c * c;
+        *a2 = fmin(0.125f * (fmax(1.0f - c2, 0.0f) / c2), 1.0f);
+    }
+    *tilt = n;
+    return 1;
+}
+#endif
+
+/* The BSDF's frame at the lanes' hits: ng the unit geometric normal, n it on wo's side, front
+ * the geometric side of wo; mat_index the lanes' materials. */
+RT_INLINE ShadingLanes shading_lanes(__global const float4 *tris, __global const float *tri_normal,
+                                     __global const float2 *tri_uv, __global const Texture *textures,
+                                     __global const float4 *tex_data, __global const Material *materials,
+                                     pint mat_index, pint hit, pint prim, pfloat u, pfloat v, pvec3 ng, pvec3 n,
+                                     pint front, pvec3 wo)
+{
+    ShadingLanes sh;
+    sh.n = n;
+    sh.front = front;
+#if defined(HAS_SHADING_NORMALS) || defined(HAS_NORMAL_MAPS)
+    pvec3 ns = ng; /* the shading normal, in its own orientation */
+#endif
+#ifdef HAS_SHADING_NORMALS
+    const pint tri = hit & (prim >= 0);
+    if (pany(tri)) {
+        const pint i = tri ? prim * 9 : PINT(0);
+        const pvec3 s = barycentric3(gather9_corner(tri_normal, i, 0), gather9_corner(tri_normal, i, 1),
+                                     gather9_corner(tri_normal, i, 2), u, v);
+        const pfloat d = pv3_dot(s, s);
+        const pint has = tri & (d > 0.0f) & pisfinite(d);
+        ns = pv3_sel(ns, pv3_normalize(s, has), has);
+        const pint sfront = pv3_dot(ns, wo) >= 0.0f;
+        sh.front = has ? sfront : front;
+        sh.n = pv3_sel(n, pv3_sel(pv3_neg(ns), ns, sfront), has);
+    }
+#endif
+#ifdef HAS_NORMAL_MAPS
+    sh.mapped = sh.side = PINT(0);
+    sh.base = sh.n; /* the shading normal on wo's side */
+    sh.tilt = sh.n;
+    sh.a2 = PFLOAT(0.0f);
+    const pint tex_normal = pgather_int((__global const int *)materials,
+                                        mat_index * STRIDE_INDEX(Material) + FIELD_INDEX(Material, tex_normal));
+    const pint mapped = hit & (prim >= 0) & (tex_normal >= 0);
+    if (pany(mapped)) {
+        int mapped_bits = 0, side_bits = 0;
+        for (int k = 0; k < PACKET_WIDTH; ++k) {
+            if (!PLANE_I(mapped, k)) continue;
+            __global const Material *mat = materials + PLANE_I(mat_index, k);
+            const float3 wo1 = pv3_lane(wo, k);
+            float3 tilt;
+            float a2;
+            if (!map_normal1(tris, tri_uv, textures, tex_data, mat, PLANE_I(prim, k), PLANE(u, k), PLANE(v, k),
+                             pv3_lane(ns, k), pv3_lane(ng, k), wo1, &tilt, &a2))
+                continue;
+            pv3_set_lane(&sh.tilt, k, tilt);
+            pv3_set_lane(&sh.n, k, dot(wo1, tilt) >= 0.0f ? tilt : -tilt);
+            PLANE(sh.a2, k) = a2;
+            mapped_bits |= 1 << k;
+            side_bits |= (mat->flags & MATERIAL_FLAG_MAP_SIDE) ? 1 << k : 0;
+        }
+        sh.mapped = pmask(mapped_bits);
+        sh.side = pmask(side_bits);
+    }
+#endif
+    return sh;
+}
+
+#ifdef HAS_NORMAL_MAPS
+/* The shadowing term of the lanes' maps for direction wi (1 without one). */
+RT_INLINE pfloat map_shadowing(const ShadingLanes *sh, pvec3 wi)
+{
+    const pfloat c = pv3_dot(wi, sh->base), c2 = c * c;
+    const pfloat t2 = pfmax(1.0f - c2, PFLOAT(0.0f)) / c2;
+    const pfloat g = 2.0f / (1.0f + psqrt(1.0f + sh->a2 * t2));
+    return sh->a2 > 0.0f ? g : PFLOAT(1.0f);
+}
+
+/* The lanes of `m` where Mitsuba's side test rejects wi. */
+RT_INLINE pint map_wrong_side(const ShadingLanes *sh, pvec3 wi)
+{
+    return sh->side & ((pv3_dot(wi, sh->base) * pv3_dot(wi, sh->tilt)) <= 0.0f);
+}
+#endif
+
+/* bsdf_eval's f and *pdf with the lanes' map rules applied (nothing without maps). */
+RT_INLINE pvec3 shading_eval(const ShadingLanes *sh, pvec3 wi, pvec3 f, pfloat *pdf)
+{
+#ifdef HAS_NORMAL_MAPS
+    if (pany(sh->mapped)) {
+        const pint wrong = sh->mapped & map_wrong_side(sh, wi);
+        f = pv3_sel(f, pv3_scale(f, map_shadowing(sh, wi)), sh->mapped);
+        f = pv3_sel(f, pv3_zero(), wrong);
+        *pdf = wrong ? PFLOAT(0.0f) : *pdf;
+    }
+#endif
+    return f;
+}
+
+/* bsdf_sample's weight with the lanes' map rules applied (nothing without maps). */
+RT_INLINE pvec3 shading_sample(const ShadingLanes *sh, pvec3 wi, pvec3 weight, pfloat *pdf)
+{
+    return shading_eval(sh, wi, weight, pdf);
+}
+
+#endif

@@ -1,0 +1,166 @@
+"""``pyopencl-rt bench set``: the benchmark set against Mitsuba 3 (issue 23), in one run.
+
+For each scene of the set (by default :data:`DEFAULT_SCENES`: Mitsuba's Cornell box, the box with a
+glass and a rough gold sphere, a textured scene under an environment map, and a scene of every
+material type Mitsuba renders the same), Mitsuba renders the very same scene, exported by
+:mod:`.mitsuba_export`, and the set reports:
+
+* **samples/s**, ours and Mitsuba's, timed in turns (:mod:`.render`: one persistent Mitsuba process
+  per scene, warmed up, a render of each after the other in every round) at ``size`` x ``size``,
+  and their ratio: the median of the rounds' ratios; with the lane width our kernels ran and why;
+* **time to relMSE 1e-3** (:data:`TARGET`), ours (the scene's sampler, Sobol by default) against
+  Mitsuba's best sampler: the curves of ``bench convergence --compare mitsuba`` (:mod:`.convergence`)
+  at ``error_size`` x ``error_size`` against one reference of ours (independent samples,
+  ``reference_spp``), with a curve for each of Mitsuba's ``mitsuba_samplers``; the best is the one
+  whose time to the target is shortest, measured (interpolated between a curve's points), or when
+  no curve of Mitsuba's got there within its share of the budget, extrapolated along its fitted
+  line (marked so).  A target within 4x of the reference's own noise is marked too: the time
+  measured is then longer than the renderer's true time.
+
+The references are rendered first, each once (they are cached, see :mod:`.convergence`), so that
+every scene's ``budget`` goes to its curves.  The JSON holds the table's rows, the render bench's
+results and, per scene, the convergence JSON written beside it (``<json stem>-<scene>.json``, with
+its plot).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from ..errors import UsageError
+from .mitsuba_host import DEFAULT_VARIANT, require_mitsuba_python
+from .timing import machine_info, write_results
+
+SCHEMA = "pyopencl_rt.bench_set/1"
+DEFAULT_SCENES = ("scenes/mitsuba-cbox.toml", "scenes/mitsuba-cbox-spheres.toml", "scenes/textured-sky.toml",
+                  "scenes/materials.toml")
+TARGET = 1e-3
+
+
+def run_bench_set(scene_paths=DEFAULT_SCENES, *, devices=None, size=256, spp=64, repeat=5, error_size=128,
+                  budget=150.0, reference_spp=8192, mitsuba_samplers=None, mitsuba_python=None, llvm_path=None,
+                  mitsuba_variant=DEFAULT_VARIANT, json_path=None, echo=print) -> dict:
+    """The set (see the module docstring) on one device; returns what the JSON holds."""
+    from ..device.devices import device_label, resolve
+    from ..render.settings import ImageSettings
+    from ..scene.loaders import load_scene
+    from .convergence import MITSUBA_SAMPLERS, load_or_render_reference, run_convergence
+    from .render import check_exportable, run_render_bench
+
+    start = time.perf_counter()
+    paths = [str(p) for p in scene_paths]
+    chosen = resolve(devices)
+    if len(chosen) > 1:
+        raise UsageError("bench set runs on one device")
+    mitsuba_samplers = sampler_names(mitsuba_samplers or MITSUBA_SAMPLERS, MITSUBA_SAMPLERS)
+    require_mitsuba_python(mitsuba_python, mitsuba_variant, llvm_path, echo)
+    scenes = {path: load_scene(path) for path in paths}
+    for path, scene in scenes.items():  # before minutes of timing: every scene must export
+        check_exportable(path, scene, ImageSettings.resolve(scene, width=error_size, height=error_size))
+    mitsuba = dict(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=mitsuba_variant)
+
+    echo(f"== samples/s at {size}x{size}, {spp} spp, {repeat} rounds, Mitsuba taking turns")
+    render = run_render_bench(paths, devices=chosen, width=size, height=size, spp=spp, max_depth=None,
+                              repeat=repeat, mitsuba=mitsuba, echo=echo)
+
+    echo(f"== references at {error_size}x{error_size}, {reference_spp} spp (cached once rendered)")
+    for path, scene in scenes.items():
+        st = scene.settings
+        load_or_render_reference(scene, path, width=error_size, height=error_size, max_depth=st.max_depth,
+                                 rr_depth=st.rr_depth, device=chosen[0], spp=reference_spp, echo=echo)
+
+    base = Path(json_path) if json_path else Path("out/bench-set.json")
+    convergence = []
+    for path in paths:
+        echo(f"== time to relMSE {TARGET:g}: {path}, {budget:g} s of curves at {error_size}x{error_size}")
+        out = base.with_name(f"{base.stem}-{Path(path).stem}.json")
+        result = run_convergence(path, devices=chosen, reference_spp=reference_spp, budget=budget,
+                                 width=error_size, height=error_size, compare=("mitsuba",),
+                                 mitsuba_python=mitsuba_python, mitsuba_variant=mitsuba_variant, llvm_path=llvm_path,
+                                 mitsuba_samplers=mitsuba_samplers, json_path=out, echo=echo)
+        convergence.append(convergence_summary(result, out))
+    rows = set_rows(render["summary"], convergence)
+    results = {"schema": SCHEMA, "target_relmse": TARGET, "device": device_label(chosen[0]),
+               "settings": {"size": size, "spp": spp, "repeat": repeat, "error_size": error_size, "budget": budget,
+                            "reference_spp": reference_spp, "mitsuba_samplers": list(mitsuba_samplers),
+                            "mitsuba_variant": mitsuba_variant},
+               "machine": machine_info(), "rows": rows, "render": render, "convergence": convergence,
+               "total_seconds": time.perf_counter() - start}
+    echo("")
+    print_set_table(rows, echo)
+    if json_path:
+        write_results(json_path, results, echo)
+    return results
+
+
+def sampler_names(names, allowed) -> tuple:
+    """Mitsuba's samplers from a comma-separated string or a sequence; one line for an unknown one."""
+    names = [n.strip() for n in (names.split(",") if isinstance(names, str) else names) if n.strip()]
+    for name in names:
+        if name not in allowed:
+            raise UsageError(f"unknown Mitsuba sampler {name!r}: use one or more of {', '.join(allowed)}")
+    return tuple(names)
+
+
+def _reached(curve) -> dict:
+    reached = curve["time_to_relmse"][f"{TARGET:g}"]
+    return {"seconds": reached["seconds"], "extrapolated": reached["extrapolated"],
+            "below_reference_floor": bool(reached.get("below_reference_floor"))}
+
+
+def convergence_summary(result: dict, json_path) -> dict:
+    """Per scene: each curve's samples/s and time to :data:`TARGET`, ours (the first of our
+    curves) and Mitsuba's best (the shortest time among its samplers' curves that reached the
+    target, else among their extrapolations)."""
+    curves = []
+    for curve in result["curves"]:
+        last = curve["points"][-1] if curve["points"] else {}
+        curves.append({"label": curve["label"], "renderer": curve["renderer"], "sampler": curve.get("sampler"),
+                       "samples_per_second": last.get("samples_per_second"), "spp": last.get("spp"),
+                       "seconds": last.get("seconds"), **_reached(curve)})
+    ours = next((c for c in curves if c["renderer"] == "pyopencl_rt"), None)
+    # measured times first: a curve's line extrapolated beyond its last point is a guess
+    best = min((c for c in curves if c["renderer"] == "mitsuba" and c["seconds"]),
+               key=lambda c: (c["extrapolated"], c["seconds"]), default=None)
+    return {"scene": result["scene"], "json": str(json_path), "plot": result.get("plot"),
+            "reference": {k: result["reference"].get(k) for k in ("spp", "seconds", "source", "floor")},
+            "curves": curves, "ours": ours, "mitsuba_best": best}
+
+
+def set_rows(render_summary, convergence) -> list[dict]:
+    """The table: a row per scene (and variant) of the render bench, with its scene's times."""
+    by_scene = {c["scene"]: c for c in convergence}
+    rows = []
+    for row in render_summary:
+        conv = by_scene.get(row["scene"], {})
+        ours, best = conv.get("ours") or {}, conv.get("mitsuba_best") or {}
+        speedup = (best["seconds"] / ours["seconds"]) if best.get("seconds") and ours.get("seconds") else None
+        rows.append({**row, "time_to_target": ours.get("seconds"),
+                     "time_to_target_extrapolated": ours.get("extrapolated"), "ours_sampler": ours.get("sampler"), "mitsuba_time_to_target": best.get("seconds"),
+                     "mitsuba_time_to_target_extrapolated": best.get("extrapolated"),
+                     "mitsuba_best_sampler": best.get("sampler"), "mitsuba_time_over_ours": speedup,
+                     "near_floor": bool(ours.get("below_reference_floor"))})
+    return rows
+
+
+def print_set_table(rows, echo=print) -> None:
+    def seconds(value, extrapolated, floor):
+        return "-" if value is None else f"{value:.3g}" + ("*" if extrapolated else "") + ("!" if floor else "")
+
+    def cell(value, fmt, width):
+        return f"{value:{fmt}}" if value else f"{'-':>{width}}"
+
+    width = max([len("scene")] + [len(r["scene"]) for r in rows])
+    echo(f"{'scene':<{width}} {'ours Ms/s':>9} {'Mitsuba':>8} {'ratio':>6} {'lanes':>5} {'t ours s':>9} "
+         f"{'t Mitsuba s':>11} {'(sampler)':<13} {'Mi t/ours t':>11}")
+    for r in rows:
+        ours_t = seconds(r["time_to_target"], r["time_to_target_extrapolated"], r["near_floor"])
+        theirs_t = seconds(r["mitsuba_time_to_target"], r["mitsuba_time_to_target_extrapolated"], r["near_floor"])
+        theirs, ratio = r["mitsuba_samples_per_second"], r["ratio_to_mitsuba"]
+        echo(f"{r['scene']:<{width}} {r['samples_per_second'] / 1e6:9.3f} {cell(theirs and theirs / 1e6, '8.3f', 8)} "
+             f"{cell(ratio, '5.2f', 5)}{'x' if ratio else ''} {r['lanes']:5d} {ours_t:>9} {theirs_t:>11} "
+             f"{'(' + (r['mitsuba_best_sampler'] or '-') + ')':<13} {cell(r['mitsuba_time_over_ours'], '10.2f', 10)}"
+             f"{'x' if r['mitsuba_time_over_ours'] else ''}")
+    echo(f"Ms/s: Msamples/s; ratio: ours / Mitsuba's, the median of the rounds' ratios; t: time to relMSE {TARGET:g} "
+         "(ours: the scene's sampler; Mitsuba: its best sampler); * extrapolated along the fitted line; "
+         "! the target is within 4x of the reference's own noise; Mi t/ours t > 1: we reach it sooner")

@@ -1,0 +1,190 @@
+"""The Mitsuba export of environment maps, image textures, point and directional lights, and of the
+scenes of ``bench set`` (pyopencl_rt/bench/mitsuba_export.py): Mitsuba 3 (``scalar_rgb``, run at
+test time in the interpreter that has it, as tests/bench/test_convergence.py does) renders the
+exported scene, and its means per region equal ours.
+
+Tolerance: per region and channel, |ours - Mitsuba| <= 5 standard errors of the difference (our
+film's variance of the region mean, taken twice: Mitsuba's estimator has about the same variance)
++ 1% of our mean.  The 1% is for what differs by construction: the exported environment map is
+our nearest texels resampled on a finer grid, which Mitsuba filters bilinearly (a blur of a small
+fraction of our texel at its edges: the test's map is smooth, so that the blur is far below 1%),
+and the renderers' random numbers.  A wrong orientation (the map turned by half a turn or
+mirrored, a texture flipped in v) moves the regions by 30% and more here.  Skipped without
+Mitsuba.
+"""
+import subprocess
+
+import numpy as np
+import pytest
+
+from pyopencl_rt import load_scene
+from pyopencl_rt.bench import mitsuba_host
+from pyopencl_rt.bench.mitsuba_export import mitsuba_envmap, save_scene_npz, scene_arrays
+from pyopencl_rt.imageio import write_exr
+from pyopencl_rt.render.api import render_full
+from pyopencl_rt.render.settings import ImageSettings
+
+SIZE = 32
+BLOCK = 8  # regions of BLOCK x BLOCK pixels
+
+
+def mitsuba_python():
+    python, why = mitsuba_host.find_mitsuba_python(variant="scalar_rgb")
+    if python is None:
+        pytest.skip(f"Mitsuba not installed: {why}")
+    return python
+
+
+def render_both(scene, tmp_path, device, spp, size=SIZE):
+    """(ours, Mitsuba's, our variance of the mean) at size x size, independent samples each."""
+    python = mitsuba_python()
+    ours = render_full(scene, spp=spp, width=size, height=size, device=device, seed=5, sampler="independent")
+    settings = ImageSettings.resolve(scene, width=size, height=size)
+    save_scene_npz(tmp_path / "scene.npz", scene_arrays(scene, settings, spp=spp))
+    subprocess.run([python, str(mitsuba_host.HERE / "mitsuba_runner.py"), str(tmp_path / "scene.npz"), str(tmp_path),
+                    "--checkpoints", str(spp), "--variant", "scalar_rgb"],
+                   check=True, capture_output=True, env=mitsuba_host.mitsuba_env(), timeout=300)
+    theirs = np.load(tmp_path / f"mitsuba_{spp}.npy").astype(np.float64)
+    return ours.image.astype(np.float64), theirs, ours.film.variance_of_mean()
+
+
+def region_means(image, block=BLOCK):
+    h, w = image.shape[:2]
+    return image.reshape(h // block, block, w // block, block, -1).mean(axis=(1, 3))
+
+
+def assert_regions_agree(ours, theirs, variance, block=BLOCK):
+    a, b = region_means(ours, block), region_means(theirs, block)
+    se = np.sqrt(2 * region_means(variance, block) / (block * block))
+    bad = np.abs(a - b) > 5 * se + 0.01 * a
+    assert not bad.any(), (f"regions (row, column, channel) {np.argwhere(bad).tolist()}: ours {a[bad]}, "
+                           f"Mitsuba {b[bad]}, standard error {se[bad]}")
+    return a, b
+
+
+def sky_map(path, height=32, width=64):
+    """A map with no symmetry: red as cos(phi) and green as sin(phi) of the azimuth (phi = 2 pi u),
+    blue brighter upwards, and a bright Gaussian spot at (u, v) = (0.3, 0.35); smooth, so that
+    our nearest texel and Mitsuba's bilinear filtering of the export agree in any region."""
+    v, u = np.meshgrid((np.arange(height) + 0.5) / height, (np.arange(width) + 0.5) / width, indexing="ij")
+    phi = 2 * np.pi * u
+    image = np.stack([0.6 + 0.5 * np.cos(phi), 0.6 + 0.5 * np.sin(phi), 0.3 + 0.6 * (1 - v)], -1)
+    image += 15.0 * np.exp(-0.5 * (((u - 0.3) * width) ** 2 + ((v - 0.35) * height) ** 2) / 2.0 ** 2)[..., None]
+    write_exr(path, image.astype(np.float32))
+    return image
+
+
+def test_envmap_resampling_is_our_map_in_mitsubas_layout():
+    """Without Mitsuba: the exported texel of Mitsuba's column i (u = (i + 1/2) / W') and row j
+    (v = j / (H' - 1)) is our nearest texel in that direction, u turned by half a turn."""
+    ours = np.arange(4 * 8 * 3, dtype=np.float32).reshape(4, 8, 3)
+    out = mitsuba_envmap(ours, scale=(2.0, 1.0, 1.0), upsample=2)
+    assert out.shape == (8, 16, 3)
+    assert np.array_equal(out[0, 0], ours[0, 4] * [2, 1, 1])  # Mitsuba's u = 1/32 is our u = 0.53
+    assert np.array_equal(out[0, 8], ours[0, 0] * [2, 1, 1])  # its u = 0.53 is our u = 0.03
+    assert np.array_equal(out[7, 15], ours[3, 3] * [2, 1, 1])  # the bottom row is the south pole's
+    assert np.array_equal(out[3, 8], ours[1, 0] * [2, 1, 1])  # v = 3/7 = 0.43: our row 1
+
+
+def test_environment_map_renders_the_same(tmp_path, device):
+    """The sky seen directly (looking along -z, then straight up) and a diffuse sphere lit by it."""
+    sky_map(tmp_path / "sky.exr")
+    for name, look_at, up in (("horizon", "[0, 0, -1]", "[0, 1, 0]"), ("zenith", "[0, 1, 0]", "[0, 0, -1]")):
+        (tmp_path / f"{name}.toml").write_text(f"""
+[camera]
+eye = [0, 0, 0]
+look_at = {look_at}
+up = {up}
+fov = 100
+[render]
+max_depth = 1
+[environment]
+file = "sky.exr"
+scale = [1.0, 0.9, 1.1]
+[[shape]]
+type = "sphere"
+center = [0, -50, 0]
+radius = 0.01
+""")
+        ours, theirs, variance = render_both(load_scene(tmp_path / f"{name}.toml"), tmp_path, device, spp=16)
+        assert_regions_agree(ours, theirs, variance)
+    (tmp_path / "lit.toml").write_text("""
+[camera]
+eye = [0, 0, 3]
+look_at = [0, 0, 0]
+fov = 45
+[render]
+max_depth = 4
+[environment]
+file = "sky.exr"
+[[shape]]
+type = "sphere"
+center = [0, 0, 0]
+radius = 1
+""")
+    ours, theirs, variance = render_both(load_scene(tmp_path / "lit.toml"), tmp_path, device, spp=128)
+    a, _ = assert_regions_agree(ours, theirs, variance)
+    assert a[1, 1].sum() > 0.1  # the sphere is lit
+
+
+def test_image_textures_and_delta_lights_render_the_same(tmp_path, device):
+    """A diffuse quad with an albedo texture under a constant sky, a point and a directional light,
+    and an emissive quad with an emission texture, both quads with a texture of four different
+    quarters (and a gradient within each), seen at an angle."""
+    from PIL import Image
+
+    y, x = np.indices((16, 16))
+    quarters = np.array([[230, 40, 40], [40, 230, 40], [40, 40, 230], [230, 230, 230]])
+    texture = quarters[(y // 8) * 2 + x // 8] * (0.5 + x[..., None] / 32)
+    Image.fromarray(texture.astype(np.uint8)).save(tmp_path / "quarters.png")
+    (tmp_path / "textured.toml").write_text("""
+[camera]
+eye = [0, 0.5, 3]
+look_at = [0, 0, 0]
+fov = 50
+[render]
+max_depth = 3
+[environment]
+radiance = [0.3, 0.35, 0.4]
+[materials.paper]
+albedo = 0.9
+albedo_texture = "quarters.png"
+[materials.screen]
+albedo = 0
+emission = [2.0, 1.5, 1.0]
+emission_texture = "quarters.png"
+[[light]]
+type = "point"
+position = [-0.5, 1.5, 2.0]
+intensity = [2.0, 2.0, 1.5]
+[[light]]
+type = "directional"
+direction = [0.3, -0.5, -1.0]
+irradiance = [0.5, 0.4, 0.3]
+[[shape]]
+type = "quad"
+material = "paper"
+points = [[-1.2, -0.8, 0], [-0.1, -0.8, 0.3], [-0.1, 0.8, 0.3], [-1.2, 0.8, 0]]
+[[shape]]
+type = "quad"
+material = "screen"
+points = [[0.1, -0.8, 0.3], [1.2, -0.8, 0], [1.2, 0.8, 0], [0.1, 0.8, 0]]
+""")
+    ours, theirs, variance = render_both(load_scene(tmp_path / "textured.toml"), tmp_path, device, spp=64)
+    a, _ = assert_regions_agree(ours, theirs, variance)
+    assert a.max() > 0.2
+
+
+@pytest.mark.parametrize("name", ["textured-sky", "materials"])
+def test_set_scenes_render_the_same(tmp_path, device, name):
+    """The two scenes made for the set: whole-image means within 5 standard errors + 1% (regions
+    would need far more samples with the glass's caustics)."""
+    scene = load_scene(f"scenes/{name}.toml")
+    ours, theirs, variance = render_both(scene, tmp_path, device, spp=128, size=24)
+    assert_regions_agree(ours, theirs, variance, block=24)
+
+
+def test_export_refuses_what_mitsuba_cannot_render_the_same():
+    scene = load_scene("scenes/textured.toml")  # its glTF model's materials are the gltf type
+    with pytest.raises(ValueError, match="gltf"):
+        scene_arrays(scene)
