@@ -236,3 +236,26 @@ def test_glass_and_metals_map_to_mitsuba():
     assert Material(type="conductor").mitsuba_bsdf() == {"type": "conductor", "material": "none"}
     with pytest.raises(ValueError, match="f0"):
         Material(type="conductor", f0=(0.9, 0.8, 0.7)).mitsuba_bsdf()
+
+
+def test_mitsuba_types_map_to_mitsuba():
+    """plastic, roughplastic and principled export as Mitsuba's own plugin with our parameters,
+    wrapped in twosided as ours reflect on both sides; a transmitting principled and
+    principledthin are not wrapped (the first has an inside, the second is two-sided itself)."""
+    rgb = lambda v: {"type": "rgb", "value": list(v)}  # noqa: E731
+    plastic = Material(type="plastic", albedo=(0.5, 0.25, 0.125), ior=1.25, nonlinear=True,
+                       specular_reflectance=(0.5, 0.5, 0.5)).mitsuba_bsdf()
+    assert plastic == {"type": "twosided", "material": {
+        "type": "plastic", "diffuse_reflectance": rgb((0.5, 0.25, 0.125)), "int_ior": 1.25, "ext_ior": 1.0,
+        "nonlinear": True, "specular_reflectance": rgb((0.5, 0.5, 0.5))}}
+    rough = Material(type="roughplastic", alpha=0.25, distribution="beckmann").mitsuba_bsdf()["material"]
+    assert (rough["type"], rough["distribution"], rough["alpha"], "specular_reflectance" in rough) == (
+        "roughplastic", "beckmann", 0.25, False)
+    disney = Material(type="principled", metallic=0.5, ior=1.25, params={"roughness": 0.25, "sheen": 0.5})
+    assert disney.mitsuba_bsdf() == {"type": "twosided", "material": {
+        "type": "principled", "base_color": rgb((0.8, 0.8, 0.8)), "roughness": 0.25, "metallic": 0.5, "eta": 1.25,
+        "sheen": 0.5, "main_specular_sampling_rate": 1.0, "clearcoat_sampling_rate": 1.0,
+        "diffuse_reflectance_sampling_rate": 1.0}}
+    disney.params["spec_trans"] = 0.5
+    assert disney.mitsuba_bsdf()["type"] == "principled"
+    assert Material(type="principledthin", params={"diff_trans": 1.5}).mitsuba_bsdf()["diff_trans"] == 1.5

@@ -426,9 +426,11 @@ def test_rfilters(tmp_path):
 
 def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
     """Mitsuba gives a shape with an area emitter and no BSDF a diffuse of reflectance 0 (one
-    without an emitter 0.5); a checkerboard's to_uv is baked into its image: texel (x, y) of an
-    n x n image is color0 where the fractional parts of the transformed (u, v) at its centre lie
-    on the same side of 1/2 (Mitsuba's checkerboard), 16 texels per period along the densest axis."""
+    without an emitter 0.5); a checkerboard's to_uv is baked into its image: texel (x, y) is color0
+    where the fractional parts of the transformed (u, v) at its centre lie on the same side of 1/2
+    (Mitsuba's checkerboard); per axis, whole-number scales give whole periods of a whole number of
+    texels (at least 16 a period, 64 in all), other scales 16 texels a period (at least 64); a
+    rotation a square image, 16 texels a period along the densest direction."""
     scene, w = load(write(tmp_path, '<shape type="sphere"><emitter type="area"/></shape>'
                                     '<shape type="sphere"><point name="center" x="3"/></shape>'))
     assert w == [] and [scene.materials[i].albedo for i in scene.sphere_materials] == [(0, 0, 0), (0.5, 0.5, 0.5)]
@@ -439,13 +441,19 @@ def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
                                         '</bsdf></shape>'))
         return scene.materials[0].base_texture, w
 
-    for to_uv, (su, sv), n in (('<scale x="5" y="3"/>', (5, 3), 80), ('<scale x="2.5" y="2"/>', (2.5, 2), 64)):
+    for to_uv, (su, sv), (nu, nv) in (('<scale x="5" y="3"/>', (5, 3), (5 * 16, 3 * 22)),
+                                      ('<scale x="2.5" y="2"/>', (2.5, 2), (64, 64)),
+                                      ('<scale x="12.5" y="2.5"/>', (12.5, 2.5), (200, 64))):
         tex, w = checker(to_uv)
-        assert w == [] and (tex.width, tex.height) == (n, n)
-        t = (np.arange(n) + 0.5) / n
-        odd = ((su * t[None, :]) % 1 > 0.5) ^ ((sv * t[:, None]) % 1 > 0.5)  # [row v, column u]
+        assert w == [] and (tex.width, tex.height) == (nu, nv)
+        u, v = (np.arange(nu) + 0.5) / nu, (np.arange(nv) + 0.5) / nv
+        odd = ((su * u[None, :]) % 1 > 0.5) ^ ((sv * v[:, None]) % 1 > 0.5)  # [row v, column u]
         # color0 0.4, color1 0.2 (Mitsuba's defaults), linear
         assert np.allclose(tex.texels[..., 0], np.where(odd, 0.2, 0.4), atol=1e-6)
+    tex, _ = checker('<scale x="5" y="3"/>')
+    assert np.array_equal(tex.texels[:22, :16], tex.texels[44:, 64:])  # one period repeated
+    tex, w = checker('<rotate z="1" angle="30"/><scale x="4" y="4"/>')
+    assert w == [] and tex.width == tex.height == 96
 
 
 def test_orthographic_sensor(tmp_path):

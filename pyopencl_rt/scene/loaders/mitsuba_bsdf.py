@@ -136,17 +136,30 @@ def _spectrum_object(imp, spec):
     return (0.5, 0.5, 0.5)
 
 
+def _checker_texels(scale: float) -> int:
+    """Texels along an axis the checker's to_uv scales by ``scale``: a whole number of periods of
+    a whole number of texels (at least 16, and 64 in all) for a whole-number scale, else 16 per
+    period (at least 64); at most 2048."""
+    s = abs(scale)
+    if s >= 1 and s == round(s):
+        return int(min(s * max(16, -(-64 // s)), 2048))
+    return int(min(max(64, np.ceil(16 * s)), 2048))
+
+
 def _checker(c0, c1, n=64, to_uv=None) -> np.ndarray:
     """Mitsuba's checkerboard: color0 where the fractional parts of u and v (after ``to_uv``, a
-    4 x 4 transform of which the 2D affine part acts on (u, v)) are on the same side of 1/2, color1
-    elsewhere, sampled at the texel centres of uv in [0, 1)^2; with ``to_uv``, 16 texels per
-    checker period along its densest axis (at least 64, at most 2048)."""
+    4 x 4 transform whose 2D affine part acts on (u, v)) are on the same side of 1/2, color1
+    elsewhere, sampled at the texel centres of uv in [0, 1)^2 (a non-whole scale therefore repeats
+    only on uv in [0, 1)); the resolution per axis from _checker_texels (an axis-aligned to_uv),
+    else square, 16 texels per period along the densest direction."""
     m = np.eye(4) if to_uv is None else np.asarray(to_uv, np.float64)
-    scale = max(np.abs(m[:2, :2]).sum(axis=1).max(), 1e-9)
+    nu = nv = n
     if to_uv is not None:
-        n = int(min(max(64, np.ceil(16 * scale)), 2048))
-    t = (np.arange(n) + 0.5) / n
-    u, v = np.meshgrid(t, t)  # [row = v, column = u]
+        if m[0, 1] == 0 and m[1, 0] == 0:
+            nu, nv = _checker_texels(m[0, 0]), _checker_texels(m[1, 1])
+        else:
+            nu = nv = _checker_texels(np.abs(m[:2, :2]).sum(axis=1).max() + 0.5)
+    u, v = np.meshgrid((np.arange(nu) + 0.5) / nu, (np.arange(nv) + 0.5) / nv)  # [row = v, column = u]
     uu = m[0, 0] * u + m[0, 1] * v + m[0, 3]
     vv = m[1, 0] * u + m[1, 1] * v + m[1, 3]
     mask = ((uu - np.floor(uu)) > 0.5) ^ ((vv - np.floor(vv)) > 0.5)

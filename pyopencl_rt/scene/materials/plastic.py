@@ -106,14 +106,16 @@ def pack(material, record) -> None:
 
 
 def coat_to_mitsuba(material, bsdf) -> dict:
+    """The coat's parameters added to ``bsdf``, wrapped in Mitsuba's twosided (ours reflect on
+    both sides)."""
     rgb = lambda v: {"type": "rgb", "value": [float(x) for x in v]}  # noqa: E731
     bsdf.update({"diffuse_reflectance": rgb(material.albedo), "int_ior": float(material.ior), "ext_ior": 1.0,
                  "nonlinear": bool(material.nonlinear)})
     if tuple(material.specular_reflectance) != (1.0, 1.0, 1.0):
         bsdf["specular_reflectance"] = rgb(material.specular_reflectance)
-    return bsdf
+    return {"type": "twosided", "material": bsdf}
 
 
 def to_mitsuba(material) -> dict:
-    """Mitsuba's plastic (int_ior = our eta, ext_ior = 1), without textures."""
+    """Mitsuba's twosided plastic (int_ior = our eta, ext_ior = 1), without textures."""
     return coat_to_mitsuba(material, {"type": "plastic"})

@@ -95,7 +95,8 @@ def pack(material, record) -> None:
 
 
 def to_mitsuba(material) -> dict:
-    """Mitsuba's principled with the same parameters (eta, not specular), without textures."""
+    """Mitsuba's principled with the same parameters (eta, not specular), without textures;
+    twosided unless it transmits (as ours)."""
     p = material.params
     bsdf = {"type": "principled", "base_color": {"type": "rgb", "value": [float(x) for x in material.albedo]},
             "roughness": float(p.get("roughness", 0.5)), "metallic": float(material.metallic),
@@ -105,4 +106,5 @@ def to_mitsuba(material) -> dict:
             bsdf[name] = float(p[name])
     for key, rate in zip(RATES, p.get("rates", (1.0, 1.0, 1.0))):
         bsdf[key] = float(rate)
-    return bsdf
+    transmits = (1.0 - material.metallic) * p.get("spec_trans", 0.0) > 0 or "spec_trans" in material.scalar_textures
+    return bsdf if transmits else {"type": "twosided", "material": bsdf}

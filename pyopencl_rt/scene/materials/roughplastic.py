@@ -69,6 +69,6 @@ def pack(material, record) -> None:
 
 
 def to_mitsuba(material) -> dict:
-    """Mitsuba's roughplastic of the same distribution and alpha, without textures."""
+    """Mitsuba's twosided roughplastic of the same distribution and alpha, without textures."""
     return coat_to_mitsuba(material, {"type": "roughplastic", "distribution": material.distribution,
                                       "alpha": float(material.alpha)})
