@@ -17,8 +17,9 @@ material type Mitsuba renders the same), Mitsuba renders the very same scene, ex
   line (marked so).  A target within 4x of the reference's own noise is marked too: the time
   measured is then longer than the renderer's true time.  The curves run one after the other, so
   a change of the machine's load between two of them moves the ratio of their times; the ratio
-  "in turns" beside it does not: each curve's spp to the target (its time to it times its
-  samples/s) and the ratio of samples/s measured in turns above.
+  "in turns" beside it does not: our spp to the target (a curve's time to it times its samples/s)
+  and that of the sampler of Mitsuba's that needed fewest, with the ratio of samples/s measured in
+  turns above (Mitsuba's independent sampler's).
 
 The references are rendered first, each once (they are cached, see :mod:`.convergence`), so that
 every scene's ``budget`` goes to its curves.  The JSON holds the table's rows, the render bench's
@@ -123,37 +124,58 @@ def convergence_summary(result: dict, json_path) -> dict:
                        "spp_to_target": seconds * rate / pixels if seconds and rate else None})
     ours = next((c for c in curves if c["renderer"] == "pyopencl_rt"), None)
     # measured times first: a curve's line extrapolated beyond its last point is a guess
-    best = min((c for c in curves if c["renderer"] == "mitsuba" and c["time_to_target"]),
-               key=lambda c: (c["extrapolated"], c["time_to_target"]), default=None)
+    theirs = [c for c in curves if c["renderer"] == "mitsuba" and c["time_to_target"]]
+    best = min(theirs, key=lambda c: (c["extrapolated"], c["time_to_target"]), default=None)
+    fewest = min(theirs, key=lambda c: (c["extrapolated"], c["spp_to_target"]), default=None)
     return {"scene": result["scene"], "json": str(json_path), "plot": result.get("plot"),
             "width": result["width"], "height": result["height"],
             "reference": {k: result["reference"].get(k) for k in ("spp", "seconds", "source", "floor")},
-            "curves": curves, "ours": ours, "mitsuba_best": best}
+            "curves": curves, "ours": ours, "mitsuba_best": best, "mitsuba_fewest_spp": fewest}
 
 
 def set_rows(render_summary, convergence) -> list[dict]:
     """The table: a row per scene (and variant) of the render bench, with its scene's times to the
-    target and their ratio, measured (``mitsuba_time_over_ours``: the curves ran one after the
-    other, so a change of load between them moves it) and from the interleaved samples/s
-    (``mitsuba_time_over_ours_interleaved``: Mitsuba's spp to the target over ours, times our
-    samples/s over Mitsuba's as the render bench measured them in turns)."""
+    target and their ratio, measured (``mitsuba_time_over_ours``, against the sampler of Mitsuba's
+    that got there first: the curves ran one after the other, so a change of load between them
+    moves it) and from the interleaved samples/s (``mitsuba_time_over_ours_interleaved``: the spp
+    to the target of the sampler of Mitsuba's that needed fewest over ours, times our samples/s
+    over Mitsuba's as the render bench measured them in turns, its independent sampler's)."""
     by_scene = {c["scene"]: c for c in convergence}
     rows = []
     for row in render_summary:
         conv = by_scene.get(row["scene"], {})
         ours, best = conv.get("ours") or {}, conv.get("mitsuba_best") or {}
+        fewest = conv.get("mitsuba_fewest_spp") or {}
         t_ours, t_theirs = ours.get("time_to_target"), best.get("time_to_target")
-        spp_ours, spp_theirs, ratio = ours.get("spp_to_target"), best.get("spp_to_target"), row["ratio_to_mitsuba"]
+        spp_ours, spp_theirs, ratio = ours.get("spp_to_target"), fewest.get("spp_to_target"), row["ratio_to_mitsuba"]
         rows.append({**row, "ours_sampler": ours.get("sampler"), "time_to_target": t_ours,
                      "time_to_target_extrapolated": ours.get("extrapolated"), "spp_to_target": spp_ours,
                      "mitsuba_best_sampler": best.get("sampler"), "mitsuba_time_to_target": t_theirs,
                      "mitsuba_time_to_target_extrapolated": best.get("extrapolated"),
-                     "mitsuba_spp_to_target": spp_theirs,
+                     "mitsuba_spp_to_target": best.get("spp_to_target"),
+                     "mitsuba_fewest_spp_sampler": fewest.get("sampler"), "mitsuba_fewest_spp_to_target": spp_theirs,
                      "mitsuba_time_over_ours": t_theirs / t_ours if t_theirs and t_ours else None,
                      "mitsuba_time_over_ours_interleaved": (spp_theirs / spp_ours * ratio
                                                             if spp_theirs and spp_ours and ratio else None),
                      "near_floor": bool(ours.get("below_reference_floor"))})
     return rows
+
+
+def rows_again(json_path, echo=print) -> dict:
+    """The rows of a set's JSON derived again from what it measured (its render results and the
+    convergence JSONs beside it), and the table printed: for a table whose derived columns
+    changed after the run.  The JSON is rewritten."""
+    import json
+
+    from ..imageio import write_json
+
+    results = json.loads(Path(json_path).read_text())
+    convergence = [convergence_summary(json.loads(Path(c["json"]).read_text()), c["json"])
+                   for c in results["convergence"]]
+    results.update(convergence=convergence, rows=set_rows(results["render"]["summary"], convergence))
+    write_json(json_path, results)
+    print_set_table(results["rows"], echo)
+    return results
 
 
 def print_set_table(rows, echo=print) -> None:
@@ -165,7 +187,7 @@ def print_set_table(rows, echo=print) -> None:
 
     width = max([len("scene")] + [len(r["scene"]) for r in rows])
     echo(f"{'scene':<{width}} {'ours Ms/s':>9} {'Mitsuba':>8} {'ratio':>6} {'lanes':>5} {'t ours s':>9} "
-         f"{'t Mitsuba s':>11} {'(sampler)':<13} {'Mi/ours t':>9} {'(turns)':>8}")
+         f"{'t Mitsuba s':>11} {'(sampler)':<13} {'Mi/ours t':>9} {'(turns)':>8} {'(sampler)':<13}")
     for r in rows:
         ours_t = seconds(r["time_to_target"], r["time_to_target_extrapolated"], r["near_floor"])
         theirs_t = seconds(r["mitsuba_time_to_target"], r["mitsuba_time_to_target_extrapolated"], r["near_floor"])
@@ -173,8 +195,10 @@ def print_set_table(rows, echo=print) -> None:
         echo(f"{r['scene']:<{width}} {r['samples_per_second'] / 1e6:9.3f} "
              f"{f'{theirs / 1e6:.3f}' if theirs else '-':>8} {times(r['ratio_to_mitsuba']):>6} {r['lanes']:5d} "
              f"{ours_t:>9} {theirs_t:>11} {'(' + (r['mitsuba_best_sampler'] or '-') + ')':<13} "
-             f"{times(r['mitsuba_time_over_ours']):>9} {times(r['mitsuba_time_over_ours_interleaved']):>8}")
+             f"{times(r['mitsuba_time_over_ours']):>9} {times(r['mitsuba_time_over_ours_interleaved']):>8} "
+             f"{'(' + (r['mitsuba_fewest_spp_sampler'] or '-') + ')':<13}")
     echo(f"Ms/s: Msamples/s; ratio: ours / Mitsuba's, the median of the rounds' ratios; t: time to relMSE {TARGET:g} "
          "(ours: the scene's sampler; Mitsuba: its best sampler); * extrapolated along the fitted line; "
          "! the target is within 4x of the reference's own noise; Mi/ours t > 1: we reach it sooner, as measured "
-         "and (turns) from each curve's spp to the target and the ratio of samples/s measured in turns")
+         "and (turns) from the spp to the target, ours and that of Mitsuba's sampler that needed fewest, and the "
+         "ratio of samples/s measured in turns")

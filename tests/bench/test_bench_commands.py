@@ -286,11 +286,12 @@ def test_bench_set_best_mitsuba_sampler_and_rows():
 
     result = {"scene": "s.toml", "width": 2, "height": 5, "reference": {"spp": 64, "floor": {"relmse": 1e-5}},
               "curves": [curve("pyopencl_rt", "sobol", 3.0), curve("mitsuba", "independent", 5.0),
-                         curve("mitsuba", "multijitter", 4.0, rate=50.0), curve("mitsuba", "ldsampler", 2.0, True),
-                         curve("mitsuba", "orthogonal", None)]}
+                         curve("mitsuba", "multijitter", 4.0, rate=50.0), curve("mitsuba", "ldsampler", 0.5, True),
+                         curve("mitsuba", "stratified", 4.5, rate=20.0), curve("mitsuba", "orthogonal", None)]}
     summary = convergence_summary(result, "s.json")
     assert summary["ours"]["sampler"] == "sobol" and summary["mitsuba_best"]["sampler"] == "multijitter"
     assert summary["ours"]["spp_to_target"] == 30.0 and summary["mitsuba_best"]["spp_to_target"] == 20.0
+    assert summary["mitsuba_fewest_spp"]["sampler"] == "stratified"  # 9 spp; ldsampler's 5 are extrapolated
     summary_only_guesses = convergence_summary({**result, "curves": result["curves"][:1] + [
         curve("mitsuba", "independent", 9.0, True), curve("mitsuba", "stratified", 7.0, True)]}, "s.json")
     assert summary_only_guesses["mitsuba_best"]["sampler"] == "stratified"
@@ -300,7 +301,9 @@ def test_bench_set_best_mitsuba_sampler_and_rows():
     assert row["ratio_to_mitsuba"] == 2.1 and row["lanes"] == 8
     assert (row["time_to_target"], row["mitsuba_time_to_target"]) == (3.0, 4.0)
     assert row["mitsuba_best_sampler"] == "multijitter" and row["mitsuba_time_over_ours"] == pytest.approx(4 / 3)
-    assert row["mitsuba_time_over_ours_interleaved"] == pytest.approx(20 / 30 * 2.1)
+    # in turns: the sampler that needed fewest spp (stratified, 9) against our 30, times our 2.1x speed
+    assert row["mitsuba_fewest_spp_sampler"] == "stratified"
+    assert row["mitsuba_time_over_ours_interleaved"] == pytest.approx(9 / 30 * 2.1)
 
 
 def test_bench_set_end_to_end(tmp_path, monkeypatch, capsys):
