@@ -89,11 +89,6 @@ typedef struct {
     pint rec;
 } MaterialLanes;
 
-RT_INLINE pvec3 material_gather3(__global const float *f, pint i)
-{
-    return pv3(pgather(f, i), pgather(f, i + 1), pgather(f, i + 2));
-}
-
 /* materials[index] in each lane (index valid in every lane) */
 RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint index)
 {
@@ -103,11 +98,11 @@ RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint 
     MaterialLanes m;
     m.type = pgather_int(n, i + FIELD_INDEX(Material, type));
     m.flags = pgather_int(n, i + FIELD_INDEX(Material, flags));
-    m.albedo = material_gather3(f, i + FIELD_INDEX(Material, albedo));
-    m.emission = material_gather3(f, i + FIELD_INDEX(Material, emission));
-    m.specular = material_gather3(f, i + FIELD_INDEX(Material, specular));
-    m.eta = material_gather3(f, i + FIELD_INDEX(Material, eta));
-    m.k = material_gather3(f, i + FIELD_INDEX(Material, k));
+    m.albedo = pv3_gather(f, i + FIELD_INDEX(Material, albedo));
+    m.emission = pv3_gather(f, i + FIELD_INDEX(Material, emission));
+    m.specular = pv3_gather(f, i + FIELD_INDEX(Material, specular));
+    m.eta = pv3_gather(f, i + FIELD_INDEX(Material, eta));
+    m.k = pv3_gather(f, i + FIELD_INDEX(Material, k));
     m.alpha = pgather(f, i + FIELD_INDEX(Material, alpha));
     m.metallic = pgather(f, i + FIELD_INDEX(Material, metallic));
     m.ior = pgather(f, i + FIELD_INDEX(Material, ior));

@@ -85,12 +85,12 @@ RT_INLINE pfloat ggx_vndf_pdf(pvec3 wo, pvec3 h, pfloat alpha)
     return fail ? PFLOAT(0.0f) : p;
 }
 
-/* Heitz 2018, listing 1: a visible normal for wo (wo.z > 0) from (u0, u1) in [0, 1)^2.  The
- * hemisphere configuration: stretch wo, sample the projected disk (warped toward the visible
- * half), lift, unstretch. */
-RT_INLINE pvec3 ggx_sample_vndf(pvec3 wo, pfloat alpha, pfloat u0, pfloat u1, pint live)
+/* Heitz 2018, listing 1: a visible normal for wo (wo.z > 0) from (u0, u1) in [0, 1)^2, for the
+ * distribution stretched by (ax, ay) (isotropic: ax = ay = alpha).  The hemisphere configuration:
+ * stretch wo, sample the projected disk (warped toward the visible half), lift, unstretch. */
+RT_INLINE pvec3 ggx_sample_vndf_aniso(pvec3 wo, pfloat ax, pfloat ay, pfloat u0, pfloat u1, pint live)
 {
-    const pvec3 vh = pv3_normalize(pv3(alpha * wo.x, alpha * wo.y, wo.z), live);
+    const pvec3 vh = pv3_normalize(pv3(ax * wo.x, ay * wo.y, wo.z), live);
     const pfloat lensq = vh.x * vh.x + vh.y * vh.y;
     const pfloat rl = microfacet_rsqrt(lensq);
     const pvec3 t1 = pv3_sel(pv3(PFLOAT(1.0f), PFLOAT(0.0f), PFLOAT(0.0f)), pv3(-vh.y * rl, vh.x * rl, 0.0f * rl),
@@ -104,7 +104,12 @@ RT_INLINE pvec3 ggx_sample_vndf(pvec3 wo, pfloat alpha, pfloat u0, pfloat u1, pi
     p2 = (1.0f - s) * psqrt(pfmax(PFLOAT(0.0f), 1.0f - p1 * p1)) + s * p2;
     const pvec3 nh = pv3_add(pv3_add(pv3_scale(t1, p1), pv3_scale(t2, p2)),
                              pv3_scale(vh, psqrt(pfmax(PFLOAT(0.0f), 1.0f - p1 * p1 - p2 * p2))));
-    return pv3_normalize(pv3(alpha * nh.x, alpha * nh.y, pfmax(PFLOAT(1e-7f), nh.z)), live);
+    return pv3_normalize(pv3(ax * nh.x, ay * nh.y, pfmax(PFLOAT(1e-7f), nh.z)), live);
+}
+
+RT_INLINE pvec3 ggx_sample_vndf(pvec3 wo, pfloat alpha, pfloat u0, pfloat u1, pint live)
+{
+    return ggx_sample_vndf_aniso(wo, alpha, alpha, u0, u1, live);
 }
 
 /* Mirror reflection of w about the unit h. */
@@ -269,23 +274,7 @@ RT_INLINE pvec3 mf_sample_vndf(pvec3 v, pfloat ax, pfloat ay, pint beckmann, pfl
 {
     const pint ggx = live & pnot(beckmann), bk = live & beckmann;
     pvec3 m = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f));
-    if (pany(ggx)) { /* Heitz 2018, stretched by ax, ay */
-        const pvec3 vh = pv3_normalize(pv3(ax * v.x, ay * v.y, v.z), ggx);
-        const pfloat lensq = vh.x * vh.x + vh.y * vh.y;
-        const pfloat rl = microfacet_rsqrt(lensq);
-        const pvec3 t1 = pv3_sel(pv3(PFLOAT(1.0f), PFLOAT(0.0f), PFLOAT(0.0f)), pv3(-vh.y * rl, vh.x * rl, 0.0f * rl),
-                                 lensq > 0.0f);
-        const pvec3 t2 = pv3_cross(vh, t1);
-        const pfloat r = psqrt(u0);
-        const pfloat phi = 2.0f * PI_F * u1;
-        const pfloat p1 = r * pcos(phi);
-        pfloat p2 = r * psin(phi);
-        const pfloat s = 0.5f * (1.0f + vh.z);
-        p2 = (1.0f - s) * psqrt(pfmax(PFLOAT(0.0f), 1.0f - p1 * p1)) + s * p2;
-        const pvec3 nh = pv3_add(pv3_add(pv3_scale(t1, p1), pv3_scale(t2, p2)),
-                                 pv3_scale(vh, psqrt(pfmax(PFLOAT(0.0f), 1.0f - p1 * p1 - p2 * p2))));
-        m = pv3_sel(m, pv3_normalize(pv3(ax * nh.x, ay * nh.y, pfmax(PFLOAT(1e-7f), nh.z)), ggx), ggx);
-    }
+    if (pany(ggx)) m = pv3_sel(m, ggx_sample_vndf_aniso(v, ax, ay, u0, u1, ggx), ggx); /* Heitz 2018 */
     if (pany(bk)) { /* Mitsuba: stretch, slopes for alpha 1, rotate, unstretch */
         const pvec3 vp = pv3_normalize(pv3(ax * v.x, ay * v.y, v.z), bk);
         const pfloat s2 = vp.x * vp.x + vp.y * vp.y;

@@ -245,11 +245,13 @@ RT_INLINE pvec3 pv3_cross(pvec3 a, pvec3 b)
     return pv3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
 RT_INLINE pfloat pv3_max3(pvec3 v) { return pfmax(v.x, pfmax(v.y, v.z)); }
+/* base[index + 0..2] in lane k (a float3 stored as three floats: records, vertices, texels) */
+RT_INLINE pvec3 pv3_gather(__global const float *base, pint index)
+{
+    return pv3(pgather(base, index), pgather(base, index + 1), pgather(base, index + 2));
+}
 RT_INLINE pvec3 pv3_from(float3 a) { return pv3_splat(a); } /* width 1: the same vector */
-RT_INLINE pfloat pv3_min3(pvec3 v) { return pfmin(v.x, pfmin(v.y, v.z)); }
-RT_INLINE pvec3 pv3_sel_f(pvec3 a, pfloat b, pint m) { return pv3(m ? b : a.x, m ? b : a.y, m ? b : a.z); }
 RT_INLINE pvec3 pv3_zero(void) { return pv3_splat((float3)(0.0f)); }
-RT_INLINE pint pv3_isfinite(pvec3 v) { return pisfinite(v.x) & pisfinite(v.y) & pisfinite(v.z); }
 RT_INLINE float3 pv3_lane(pvec3 v, int k) { return (float3)(PLANE(v.x, k), PLANE(v.y, k), PLANE(v.z, k)); }
 RT_INLINE void pv3_set_lane(pvec3 *v, int k, float3 a) { PLANE(v->x, k) = a.x; PLANE(v->y, k) = a.y; PLANE(v->z, k) = a.z; }
 

@@ -268,7 +268,7 @@ RT_INLINE void env_texel(pvec3 w, int W, int H, pint *col, pint *row)
 RT_INLINE pvec3 env_texel_rgb(__global const float *env_map, pint i)
 {
     const pint k = 3 * i;
-    return pv3(pgather(env_map, k), pgather(env_map, k + 1), pgather(env_map, k + 2));
+    return pv3_gather(env_map, k);
 }
 
 /* Radiance of the environment lt seen along the unit direction w (nearest texel). */

@@ -219,7 +219,6 @@ typedef struct {
     GridLanes density, albedo_map; /* gathered where the index is >= 0 in some lane (grid 0 in the others) */
 } MediumLanes;
 
-RT_INLINE pvec3 gather3(__global const float *base, pint i) { return pv3(pgather(base, i), pgather(base, i + 1), pgather(base, i + 2)); }
 
 /* media[mi] in each lane (mi valid in every lane; pass 0 where a lane has no medium) */
 RT_INLINE MediumLanes medium_lanes(__global const Medium *media, __global const MediumGrid *grids, pint mi)
@@ -233,9 +232,9 @@ RT_INLINE MediumLanes medium_lanes(__global const Medium *media, __global const 
     m.density_grid = pgather_int(n, base + FIELD_INDEX(Medium, density_grid));
     m.albedo_grid = pgather_int(n, base + FIELD_INDEX(Medium, albedo_grid));
     m.flags = pgather_int(n, base + FIELD_INDEX(Medium, flags));
-    m.sigma_t = gather3(f, base + FIELD_INDEX(Medium, sigma_t));
-    m.albedo = gather3(f, base + FIELD_INDEX(Medium, albedo));
-    m.majorant = gather3(f, base + FIELD_INDEX(Medium, majorant));
+    m.sigma_t = pv3_gather(f, base + FIELD_INDEX(Medium, sigma_t));
+    m.albedo = pv3_gather(f, base + FIELD_INDEX(Medium, albedo));
+    m.majorant = pv3_gather(f, base + FIELD_INDEX(Medium, majorant));
     m.g = pgather(f, base + FIELD_INDEX(Medium, g));
     const pint dense = m.density_grid >= 0, mapped = m.albedo_grid >= 0;
     if (pany(dense)) m.density = grid_lanes(grids, dense ? m.density_grid : PINT(0));

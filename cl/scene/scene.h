@@ -101,14 +101,14 @@ RT_INLINE pvec3 tri_vertex(__global const float4 *tris, pint prim, int k)
 {
     __global const float *f = (__global const float *)tris;
     const pint i = prim * 12 + 4 * k;
-    return pv3(pgather(f, i), pgather(f, i + 1), pgather(f, i + 2));
+    return pv3_gather(f, i);
 }
 
 RT_INLINE pvec3 sphere_center(__global const Sphere *spheres, pint s)
 {
     __global const float *f = (__global const float *)spheres;
     const pint i = s * STRIDE_INDEX(Sphere) + FIELD_INDEX(Sphere, center);
-    return pv3(pgather(f, i), pgather(f, i + 1), pgather(f, i + 2));
+    return pv3_gather(f, i);
 }
 
 RT_INLINE pfloat sphere_radius(__global const Sphere *spheres, pint s)

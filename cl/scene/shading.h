@@ -83,7 +83,7 @@ typedef struct {
 
 RT_INLINE pvec3 gather9_corner(__global const float *f, pint i, int corner)
 {
-    return pv3(pgather(f, i + 3 * corner), pgather(f, i + 3 * corner + 1), pgather(f, i + 3 * corner + 2));
+    return pv3_gather(f, i + 3 * corner);
 }
 
 /* (1 - u - v) a + u b + v c per lane, as triangle_uv interpolates */
