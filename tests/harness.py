@@ -246,12 +246,24 @@ def require_lane_kernels(device, width: int = 16) -> None:
 
 
 def forced_lanes(device) -> str:
-    """The widest lane count a test may force on ``device`` ("16", else "8"), as $PYOPENCL_RT_LANES
-    gives it; skips where neither is built."""
+    """The lane count a test forces on ``device``, as $PYOPENCL_RT_LANES gives it: the width the ISA
+    rule picks (what users get: 8 on AVX2, 16 on AVX-512), else the widest the device builds ("16",
+    else "8"); skips where neither is built.  Every width at once: :func:`lane_widths`."""
     from pyopencl_rt.device import isa
 
     require_lane_kernels(device, 8)
-    return "16" if isa.probe(device).passes_alike(64) else "8"
+    cpu = isa.probe(device)
+    return str(isa.simd_width(cpu)[0] or (16 if cpu.passes_alike(64) else 8))
+
+
+def lane_widths(device) -> tuple[str, ...]:
+    """One path per work-item and every lane count the device builds alike ("0", "8", "16" where
+    16 passes alike): each is a kernel build of several seconds, so only the broadest tests take
+    them all."""
+    from pyopencl_rt.device import isa
+
+    require_lane_kernels(device, 8)
+    return ("0", "8", "16") if isa.probe(device).passes_alike(64) else ("0", "8")
 
 
 # ----------------------------------------------------------------------------- random numbers
