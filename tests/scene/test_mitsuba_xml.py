@@ -18,19 +18,11 @@ from pyopencl_rt.scene.loaders.mitsuba_serialized import write_serialized
 from pyopencl_rt.scene.model import PixelFilter
 
 from scene_compare import render_pair_z, triangle_records, triangles_equal, write_exr_image, write_png_image
+from harness import mitsuba
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 CORNELL_XML = SCENES / "cornell-box.xml"
 CORNELL_TOML = SCENES / "cornell-box.toml"
-
-
-def mitsuba():
-    try:
-        import mitsuba as mi
-    except ImportError as exc:
-        pytest.skip(f"Mitsuba 3 is not installed (pip install mitsuba): {exc}")
-    mi.set_variant("scalar_rgb")
-    return mi
 
 
 def write(tmp_path, body, name="s.xml", version="3.0.0") -> Path:
