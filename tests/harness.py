@@ -347,3 +347,10 @@ def mitsuba():
         pytest.skip(f"Mitsuba 3 is not installed (pip install mitsuba): {exc}")
     mi.set_variant("scalar_rgb")
     return mi
+
+
+def gauss_legendre_cells(edges, x, w):
+    """Nodes and weights of a Gauss-Legendre rule (``x``, ``w`` on [-1, 1]) over each cell between
+    consecutive ``edges``, flattened cell by cell."""
+    mid, half = (edges[1:] + edges[:-1]) / 2, (edges[1:] - edges[:-1]) / 2
+    return (mid[:, None] + half[:, None] * x).ravel(), (half[:, None] * w).ravel()
