@@ -92,23 +92,16 @@ typedef struct {
 /* materials[index] in each lane (index valid in every lane) */
 RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint index)
 {
+    const pint i = index * STRIDE_INDEX(Material); /* the lanes' records, as float indices */
     __global const float *f = (__global const float *)materials;
-    __global const int *n = (__global const int *)materials;
-    const pint i = index * STRIDE_INDEX(Material);
     MaterialLanes m;
-    m.type = pgather_int(n, i + FIELD_INDEX(Material, type));
-    m.flags = pgather_int(n, i + FIELD_INDEX(Material, flags));
-    m.albedo = pv3_gather(f, i + FIELD_INDEX(Material, albedo));
-    m.emission = pv3_gather(f, i + FIELD_INDEX(Material, emission));
-    m.specular = pv3_gather(f, i + FIELD_INDEX(Material, specular));
-    m.eta = pv3_gather(f, i + FIELD_INDEX(Material, eta));
-    m.k = pv3_gather(f, i + FIELD_INDEX(Material, k));
-    m.alpha = pgather(f, i + FIELD_INDEX(Material, alpha));
-    m.metallic = pgather(f, i + FIELD_INDEX(Material, metallic));
-    m.ior = pgather(f, i + FIELD_INDEX(Material, ior));
-    m.tex_base = pgather_int(n, i + FIELD_INDEX(Material, tex_base));
-    m.tex_mr = pgather_int(n, i + FIELD_INDEX(Material, tex_mr));
-    m.tex_emission = pgather_int(n, i + FIELD_INDEX(Material, tex_emission));
+    /* m.x = the lanes' field x of their records */
+#define GATHER_INT(x) m.x = pgather_int((__global const int *)materials, i + FIELD_INDEX(Material, x));
+#define GATHER_VEC3(x) m.x = pv3_gather(f, i + FIELD_INDEX(Material, x));
+#define GATHER_FLOAT(x) m.x = pgather(f, i + FIELD_INDEX(Material, x));
+    GATHER_INT(type) GATHER_INT(flags) GATHER_INT(tex_base) GATHER_INT(tex_mr) GATHER_INT(tex_emission)
+    GATHER_VEC3(albedo) GATHER_VEC3(emission) GATHER_VEC3(specular) GATHER_VEC3(eta) GATHER_VEC3(k)
+    GATHER_FLOAT(alpha) GATHER_FLOAT(metallic) GATHER_FLOAT(ior)
     m.records = f;
     m.rec = i;
     m.fdr = m.spec_weight = m.roughness = m.anisotropic = m.spec_trans = m.spec_tint = m.sheen = m.sheen_tint =
@@ -116,24 +109,18 @@ RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint 
             PFLOAT(0.0f);
 #ifdef HAS_MITSUBA_MATERIALS
     if (pany(m.type >= MATERIAL_PLASTIC)) {
-        m.fdr = pgather(f, i + FIELD_INDEX(Material, fdr));
-        m.spec_weight = pgather(f, i + FIELD_INDEX(Material, spec_weight));
-        m.roughness = pgather(f, i + FIELD_INDEX(Material, roughness));
-        m.anisotropic = pgather(f, i + FIELD_INDEX(Material, anisotropic));
-        m.spec_trans = pgather(f, i + FIELD_INDEX(Material, spec_trans));
-        m.spec_tint = pgather(f, i + FIELD_INDEX(Material, spec_tint));
-        m.sheen = pgather(f, i + FIELD_INDEX(Material, sheen));
-        m.sheen_tint = pgather(f, i + FIELD_INDEX(Material, sheen_tint));
-        m.clearcoat = pgather(f, i + FIELD_INDEX(Material, clearcoat));
-        m.clearcoat_gloss = pgather(f, i + FIELD_INDEX(Material, clearcoat_gloss));
-        m.flatness = pgather(f, i + FIELD_INDEX(Material, flatness));
-        m.diff_trans = pgather(f, i + FIELD_INDEX(Material, diff_trans));
+        GATHER_FLOAT(fdr) GATHER_FLOAT(spec_weight) GATHER_FLOAT(roughness) GATHER_FLOAT(anisotropic)
+        GATHER_FLOAT(spec_trans) GATHER_FLOAT(spec_tint) GATHER_FLOAT(sheen) GATHER_FLOAT(sheen_tint)
+        GATHER_FLOAT(clearcoat) GATHER_FLOAT(clearcoat_gloss) GATHER_FLOAT(flatness) GATHER_FLOAT(diff_trans)
         m.rate0 = pgather(f, i + FIELD_INDEX(Material, rates));
         m.rate1 = pgather(f, i + FIELD_INDEX(Material, rates) + 1);
         m.rate2 = pgather(f, i + FIELD_INDEX(Material, rates) + 2);
         m.rate3 = pgather(f, i + FIELD_INDEX(Material, rates) + 3);
     }
 #endif
+#undef GATHER_INT
+#undef GATHER_VEC3
+#undef GATHER_FLOAT
     return m;
 }
 
