@@ -245,14 +245,18 @@ RT_INLINE WINT WN_(wide_node)(__global const WFLOAT *base, int off, const WideRa
     return WN_(intersect_children)(node, r, tmin, tmax, enter);
 }
 
-/* Closest hit in (tmin, tmax) below the subtree at (off, cnt) (a node: cnt 0; a leaf: cnt
- * packets), closer than hit->t: the hit children of a node nearest entry first (two compared
- * directly, more through the sorting network), the others pushed far to near, and a popped entry
- * skipped when it was entered beyond the closest hit found since.  From the root (0, 0) for
- * bvh_wide_closest_hit4 / bvh_wide_closest_hit8; the packet traversal (bvh_packet.h) calls it for
- * the few rays that enter a subtree. */
-RT_INLINE void WN_(wide_closest_from)(__global const WFLOAT *base, const WideRay *rp, float tmin, Hit *hitp, int off,
-                                      int cnt)
+/* The traversal of the subtree at (off, cnt) (a node: cnt 0; a leaf: cnt packets) in (tmin, tmax),
+ * once for both queries (any_hit is a constant where it is inlined, so each query compiles to its
+ * own loop):
+ *  - closest hit (any_hit 0), closer than hit->t: the hit children of a node nearest entry first
+ *    (two compared directly, more through the sorting network), the others pushed far to near with
+ *    their entry distances, and a popped entry skipped when it was entered beyond the closest hit
+ *    found since; returns 0 (the hit is *hit).
+ *  - any hit (any_hit 1): children in slot order; returns 1 as soon as one triangle is hit, else 0.
+ * From the root (0, 0) for bvh_wide_closest_hit4/8 and bvh_wide_any_hit4/8; the packet traversal
+ * (bvh_packet.h) calls it for the few rays that enter a subtree. */
+RT_INLINE int WN_(wide_traverse)(__global const WFLOAT *base, const WideRay *rp, float tmin, float tmax, Hit *hitp,
+                                 int off, int cnt, const int any_hit)
 {
     const WideRay r = *rp;
     Hit hit = *hitp;
@@ -263,8 +267,15 @@ RT_INLINE void WN_(wide_closest_from)(__global const WFLOAT *base, const WideRay
         if (cnt == 0) {
             WFLOAT enter;
             __global const int *child, *count;
-            const WINT m = WN_(wide_node)(base, off, &r, tmin, hit.t, &enter, &child, &count);
+            const WINT m = WN_(wide_node)(base, off, &r, tmin, any_hit ? tmax : hit.t, &enter, &child, &count);
             int bits = WN_(mask_bits)(m);
+            if (bits && any_hit) {
+                const int k = lowest_bit(bits);
+                for (bits &= bits - 1; bits; bits &= bits - 1)
+                    stack_code[sp++] = WIDE_CODE(off, lowest_bit(bits));
+                off = child[k]; cnt = count[k];
+                continue;
+            }
             if (bits) {
                 const int k0 = lowest_bit(bits);
                 bits &= bits - 1;
@@ -291,44 +302,33 @@ RT_INLINE void WN_(wide_closest_from)(__global const WFLOAT *base, const WideRay
                 off = child[ls[0]]; cnt = count[ls[0]];
                 continue;
             }
+        } else if (any_hit) {
+            if (WN_(occluded_leaf)(base + off, cnt, &r, tmin, tmax)) return 1;
         } else {
             WN_(intersect_leaf)(base + off, cnt, &r, tmin, &hit);
         }
+        /* pop (closest hit: skipping entries entered beyond the closest hit found since) */
         for (;;) {
-            if (sp == 0) { *hitp = hit; return; }
+            if (sp == 0) {
+                if (!any_hit) *hitp = hit;
+                return 0;
+            }
             --sp;
-            if (stack_t[sp] <= hit.t) { WN_(wide_decode)(base, stack_code[sp], &off, &cnt); break; }
+            if (any_hit || stack_t[sp] <= hit.t) { WN_(wide_decode)(base, stack_code[sp], &off, &cnt); break; }
         }
     }
 }
 
-/* Any hit in (tmin, tmax) below the subtree at (off, cnt): returns 1 as soon as one triangle is
- * hit (children in slot order). */
-RT_INLINE int WN_(wide_any_from)(__global const WFLOAT *base, const WideRay *rp, float tmin, float tmax, int off,
-                                 int cnt)
+RT_INLINE void WN_(wide_closest_from)(__global const WFLOAT *base, const WideRay *r, float tmin, Hit *hit, int off,
+                                      int cnt)
 {
-    const WideRay r = *rp;
-    int stack_code[WSTACK];
-    int sp = 0;
-    for (;;) {
-        if (cnt == 0) {
-            WFLOAT enter;
-            __global const int *child, *count;
-            int bits = WN_(mask_bits)(WN_(wide_node)(base, off, &r, tmin, tmax, &enter, &child, &count));
-            if (bits) {
-                const int k = lowest_bit(bits);
-                for (bits &= bits - 1; bits; bits &= bits - 1)
-                    stack_code[sp++] = WIDE_CODE(off, lowest_bit(bits));
-                off = child[k]; cnt = count[k];
-                continue;
-            }
-        } else if (WN_(occluded_leaf)(base + off, cnt, &r, tmin, tmax)) {
-            return 1;
-        }
-        if (sp == 0) return 0;
-        --sp;
-        WN_(wide_decode)(base, stack_code[sp], &off, &cnt);
-    }
+    WN_(wide_traverse)(base, r, tmin, hit->t, hit, off, cnt, 0);
+}
+
+RT_INLINE int WN_(wide_any_from)(__global const WFLOAT *base, const WideRay *r, float tmin, float tmax, int off, int cnt)
+{
+    Hit none; none.t = tmax; none.u = 0.0f; none.v = 0.0f; none.prim = PRIM_MISS;
+    return WN_(wide_traverse)(base, r, tmin, tmax, &none, off, cnt, 1);
 }
 
 /* Closest hit in (tmin, tmax) from the root (hit.prim = PRIM_MISS when nothing is hit) and any hit:
