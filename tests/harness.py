@@ -354,3 +354,13 @@ def gauss_legendre_cells(edges, x, w):
     consecutive ``edges``, flattened cell by cell."""
     mid, half = (edges[1:] + edges[:-1]) / 2, (edges[1:] - edges[:-1]) / 2
     return (mid[:, None] + half[:, None] * x).ravel(), (half[:, None] * w).ravel()
+
+
+def toml_tables(**tables) -> str:
+    """The TOML text of tables of plain values (numbers, strings, booleans, lists of them), in order:
+    ``toml_tables(camera=dict(eye=[0, 0, 3], look_at=[0, 0, 0], fov=45), render=dict(max_depth=4))``,
+    the header of a test's scene file."""
+    import json
+
+    return "".join(f"[{name}]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in table.items())
+                   for name, table in tables.items())
