@@ -144,6 +144,8 @@ assert MATERIAL.itemsize == 464
 # TEXP_<FIELD>: the Material field each multiplies (TEXP_ETA: ior)
 _TEXP = define_enum("TEXP_", ("alpha", "roughness", "metallic", "anisotropic", "spec_trans", "spec_tint", "sheen",
                               "sheen_tint", "clearcoat", "clearcoat_gloss", "flatness", "diff_trans", "eta"))
+(TEXP_ALPHA, TEXP_ROUGHNESS, TEXP_METALLIC, TEXP_ANISOTROPIC, TEXP_SPEC_TRANS, TEXP_SPEC_TINT, TEXP_SHEEN,
+ TEXP_SHEEN_TINT, TEXP_CLEARCOAT, TEXP_CLEARCOAT_GLOSS, TEXP_FLATNESS, TEXP_DIFF_TRANS, TEXP_ETA) = _TEXP.values()
 TEXTURE_PARAMS = {k: "ior" if name == "eta" else name for name, k in _TEXP.items()}
 #   tex_normal    a tangent-space normal map (RGB = (n + 1) / 2, relative to the shading frame), or
 #                 with MATERIAL_FLAG_BUMP_MAP a height map (its luminance), perturbing the
