@@ -80,6 +80,15 @@ RT_INLINE void intersect_children(__global const float4 *node, float8 o8, float8
     *tr = (as_int(q3.w) >= 0 && enter_r <= FAST_MIN(leave_r, tmax)) ? enter_r : INFINITY;
 }
 
+/* A leaf for the query: 1 where it occludes (any_hit), else 0 with its closest hit in *hit. */
+RT_INLINE int query_leaf(float3 o, float3 d, RayShear sh, __global const float4 *tris, int first, int count, float tmin,
+                         float tmax, Hit *hit, const int any_hit)
+{
+    if (any_hit) return occluded_leaf(o, d, sh, tris, first, count, tmin, tmax);
+    intersect_leaf(o, d, sh, tris, first, count, tmin, hit);
+    return 0;
+}
+
 /* The traversal in (tmin, tmax), once for both queries (any_hit is a constant where it is inlined, so
  * each compiles to its own loop): closest hit (any_hit 0; the nearer child first, a popped node
  * skipped when it was entered beyond the closest hit found since; returns 0, the hit in *hitp) or
@@ -102,33 +111,38 @@ RT_INLINE int bvh_traverse(__global const BVHNode *nodes, __global const float4 
          * test's fmin/fmax would turn into an infinite interval: intersect_children skips it */
         float tl, tr;
         intersect_children((__global const float4 *)n, o8, inv8, tmin, any_hit ? tmax : hit.t, &tl, &tr);
-        if (tl != INFINITY && cl > 0) {
-            if (!any_hit) intersect_leaf(o, d, sh, tris, n->child_left, cl, tmin, &hit);
-            else if (occluded_leaf(o, d, sh, tris, n->child_left, cl, tmin, tmax)) return 1;
-            tl = INFINITY;
+        int go_left = tl != INFINITY, go_right = tr != INFINITY;
+        if (go_left && cl > 0) {
+            if (query_leaf(o, d, sh, tris, n->child_left, cl, tmin, tmax, &hit, any_hit)) return 1;
+            go_left = 0;
         }
-        if (tr != INFINITY && cr > 0) {
-            if (!any_hit) intersect_leaf(o, d, sh, tris, n->child_right, cr, tmin, &hit);
-            else if (occluded_leaf(o, d, sh, tris, n->child_right, cr, tmin, tmax)) return 1;
-            tr = INFINITY;
+        if (go_right && cr > 0) {
+            if (query_leaf(o, d, sh, tris, n->child_right, cr, tmin, tmax, &hit, any_hit)) return 1;
+            go_right = 0;
         }
         const int left = n->child_left, right = n->child_right;
-        if (tl != INFINITY && tr != INFINITY) {
-            if (any_hit || tl <= tr) { stack_node[sp] = right; stack_t[sp] = tr; idx = left; }
-            else                     { stack_node[sp] = left;  stack_t[sp] = tl; idx = right; }
+        if (go_left && go_right) {
+            if (any_hit) { stack_node[sp] = right; idx = left; }
+            else if (tl <= tr) { stack_node[sp] = right; stack_t[sp] = tr; idx = left; }
+            else               { stack_node[sp] = left;  stack_t[sp] = tl; idx = right; }
             ++sp;
             continue;
         }
-        if (tl != INFINITY) { idx = left; continue; }
-        if (tr != INFINITY) { idx = right; continue; }
+        if (go_left) { idx = left; continue; }
+        if (go_right) { idx = right; continue; }
         /* pop (closest hit: skipping nodes entered beyond the closest hit found since they were pushed) */
+        if (any_hit) {
+            if (sp == 0) return 0;
+            idx = stack_node[--sp];
+            continue;
+        }
         for (;;) {
             if (sp == 0) {
-                if (!any_hit) *hitp = hit;
+                *hitp = hit;
                 return 0;
             }
             --sp;
-            if (any_hit || stack_t[sp] <= hit.t) { idx = stack_node[sp]; break; }
+            if (stack_t[sp] <= hit.t) { idx = stack_node[sp]; break; }
         }
     }
 }
