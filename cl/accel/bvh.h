@@ -80,23 +80,11 @@ RT_INLINE void intersect_children(__global const float4 *node, float8 o8, float8
     *tr = (as_int(q3.w) >= 0 && enter_r <= FAST_MIN(leave_r, tmax)) ? enter_r : INFINITY;
 }
 
-/* A leaf for the query: 1 where it occludes (any_hit), else 0 with its closest hit in *hit. */
-RT_INLINE int query_leaf(float3 o, float3 d, RayShear sh, __global const float4 *tris, int first, int count, float tmin,
-                         float tmax, Hit *hit, const int any_hit)
+/* Closest hit in (tmin, tmax).  hit.prim = PRIM_MISS when nothing is hit. */
+RT_INLINE Hit bvh_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
+                           float3 o, float3 d, float tmin, float tmax)
 {
-    if (any_hit) return occluded_leaf(o, d, sh, tris, first, count, tmin, tmax);
-    intersect_leaf(o, d, sh, tris, first, count, tmin, hit);
-    return 0;
-}
-
-/* The traversal in (tmin, tmax), once for both queries (any_hit is a constant where it is inlined, so
- * each compiles to its own loop): closest hit (any_hit 0; the nearer child first, a popped node
- * skipped when it was entered beyond the closest hit found since; returns 0, the hit in *hitp) or
- * any hit (any_hit 1; the left child first; returns 1 as soon as one triangle is hit, else 0). */
-RT_INLINE int bvh_traverse(__global const BVHNode *nodes, __global const float4 *tris, float3 o, float3 d, float tmin,
-                           float tmax, Hit *hitp, const int any_hit)
-{
-    Hit hit = *hitp;
+    Hit hit; hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.prim = PRIM_MISS;
     const RayShear sh = ray_shear(d);
     const float3 inv_d = safe_rcp3(d);
     const float8 o8 = (float8)(o, o.z, o, o.z), inv8 = (float8)(inv_d, inv_d.z, inv_d, inv_d.z);
@@ -110,58 +98,57 @@ RT_INLINE int bvh_traverse(__global const BVHNode *nodes, __global const float4 
         /* an absent child (count -1) has an empty box, min=+inf > max=-inf, which the slab
          * test's fmin/fmax would turn into an infinite interval: intersect_children skips it */
         float tl, tr;
-        intersect_children((__global const float4 *)n, o8, inv8, tmin, any_hit ? tmax : hit.t, &tl, &tr);
-        int go_left = tl != INFINITY, go_right = tr != INFINITY;
-        if (go_left && cl > 0) {
-            if (query_leaf(o, d, sh, tris, n->child_left, cl, tmin, tmax, &hit, any_hit)) return 1;
-            go_left = 0;
-        }
-        if (go_right && cr > 0) {
-            if (query_leaf(o, d, sh, tris, n->child_right, cr, tmin, tmax, &hit, any_hit)) return 1;
-            go_right = 0;
-        }
+        intersect_children((__global const float4 *)n, o8, inv8, tmin, hit.t, &tl, &tr);
+        if (tl != INFINITY && cl > 0) { intersect_leaf(o, d, sh, tris, n->child_left, cl, tmin, &hit); tl = INFINITY; }
+        if (tr != INFINITY && cr > 0) { intersect_leaf(o, d, sh, tris, n->child_right, cr, tmin, &hit); tr = INFINITY; }
         const int left = n->child_left, right = n->child_right;
-        if (go_left && go_right) {
-            if (any_hit) { stack_node[sp] = right; idx = left; }
-            else if (tl <= tr) { stack_node[sp] = right; stack_t[sp] = tr; idx = left; }
-            else               { stack_node[sp] = left;  stack_t[sp] = tl; idx = right; }
+        if (tl != INFINITY && tr != INFINITY) {
+            if (tl <= tr) { stack_node[sp] = right; stack_t[sp] = tr; idx = left; }
+            else          { stack_node[sp] = left;  stack_t[sp] = tl; idx = right; }
             ++sp;
             continue;
         }
-        if (go_left) { idx = left; continue; }
-        if (go_right) { idx = right; continue; }
-        /* pop (closest hit: skipping nodes entered beyond the closest hit found since they were pushed) */
-        if (any_hit) {
-            if (sp == 0) return 0;
-            idx = stack_node[--sp];
-            continue;
-        }
+        if (tl != INFINITY) { idx = left; continue; }
+        if (tr != INFINITY) { idx = right; continue; }
+        /* pop, skipping nodes entered beyond the closest hit found since they were pushed */
         for (;;) {
-            if (sp == 0) {
-                *hitp = hit;
-                return 0;
-            }
+            if (sp == 0) return hit;
             --sp;
             if (stack_t[sp] <= hit.t) { idx = stack_node[sp]; break; }
         }
     }
 }
 
-/* Closest hit in (tmin, tmax).  hit.prim = PRIM_MISS when nothing is hit. */
-RT_INLINE Hit bvh_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
-                           float3 o, float3 d, float tmin, float tmax)
-{
-    Hit hit; hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.prim = PRIM_MISS;
-    bvh_traverse(nodes, tris, o, d, tmin, tmax, &hit, 0);
-    return hit;
-}
-
 /* Any hit in (tmin, tmax): returns 1 as soon as one triangle is hit. */
 RT_INLINE int bvh_any_hit(__global const BVHNode *nodes, __global const float4 *tris,
                        float3 o, float3 d, float tmin, float tmax)
 {
-    Hit none; none.t = tmax; none.u = 0.0f; none.v = 0.0f; none.prim = PRIM_MISS;
-    return bvh_traverse(nodes, tris, o, d, tmin, tmax, &none, 1);
+    const RayShear sh = ray_shear(d);
+    const float3 inv_d = safe_rcp3(d);
+    const float8 o8 = (float8)(o, o.z, o, o.z), inv8 = (float8)(inv_d, inv_d.z, inv_d, inv_d.z);
+    int stack_node[BVH_STACK_SIZE];
+    int sp = 0;
+    int idx = 0;
+    for (;;) {
+        __global const BVHNode *n = nodes + idx;
+        const int cl = n->count_left, cr = n->count_right;
+        float tl, tr;
+        intersect_children((__global const float4 *)n, o8, inv8, tmin, tmax, &tl, &tr);
+        int go_left = tl != INFINITY, go_right = tr != INFINITY;
+        if (go_left && cl > 0) {
+            if (occluded_leaf(o, d, sh, tris, n->child_left, cl, tmin, tmax)) return 1;
+            go_left = 0;
+        }
+        if (go_right && cr > 0) {
+            if (occluded_leaf(o, d, sh, tris, n->child_right, cr, tmin, tmax)) return 1;
+            go_right = 0;
+        }
+        if (go_left && go_right) { stack_node[sp++] = n->child_right; idx = n->child_left; continue; }
+        if (go_left) { idx = n->child_left; continue; }
+        if (go_right) { idx = n->child_right; continue; }
+        if (sp == 0) return 0;
+        idx = stack_node[--sp];
+    }
 }
 
 /* Unit geometric normal (v1 - v0) x (v2 - v0) of reordered triangle i (Embree's orientation). */
