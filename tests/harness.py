@@ -325,3 +325,54 @@ def assert_chi2(observed, expected, alpha: float, what: str = ""):
     assert r.p > alpha, (f"{what}: chi-square p = {r.p:.3g} < {alpha} (statistic {r.statistic:.1f}, "
                          f"{r.dof} dof, {r.pooled_in} bins pooled into {r.pooled_out})")
     return r
+
+
+# ----------------------------------------------------------------------------- shared fixtures
+def random_slivers(n, rng):
+    """``n`` random slivers (triangles ~0.3 long and ~1e-3 wide) in the unit cube."""
+    c = rng.random((n, 1, 3))
+    d = rng.normal(size=(n, 1, 3))
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    v = c + d * np.array([-0.15, 0.15, 0.0])[None, :, None] + rng.normal(size=(n, 3, 3)) * 1e-3
+    return v.reshape(-1, 3).astype(np.float32), np.arange(3 * n, dtype=np.int32).reshape(n, 3)
+
+
+def lane_renders(scene, device, monkeypatch, widths, **options):
+    """The same megakernel render at each lane width of ``widths`` ($PYOPENCL_RT_LANES; "0": one
+    path per work-item), by width."""
+    import pyopencl_rt as rt
+    from pyopencl_rt.render import megakernel
+
+    out = {}
+    for width in widths:
+        monkeypatch.setenv(megakernel.LANES_ENV, width)
+        out[width] = rt.render_full(scene, device=device, kernel_mode="megakernel", **options)
+    return out
+
+
+def mitsuba():
+    """Mitsuba 3's module in its scalar_rgb variant (the test is skipped where it is not installed)."""
+    try:
+        import mitsuba as mi
+    except ImportError as exc:
+        import pytest
+        pytest.skip(f"Mitsuba 3 is not installed (pip install mitsuba): {exc}")
+    mi.set_variant("scalar_rgb")
+    return mi
+
+
+def gauss_legendre_cells(edges, x, w):
+    """Nodes and weights of a Gauss-Legendre rule (``x``, ``w`` on [-1, 1]) over each cell between
+    consecutive ``edges``, flattened cell by cell."""
+    mid, half = (edges[1:] + edges[:-1]) / 2, (edges[1:] - edges[:-1]) / 2
+    return (mid[:, None] + half[:, None] * x).ravel(), (half[:, None] * w).ravel()
+
+
+def toml_tables(**tables) -> str:
+    """The TOML text of tables of plain values (numbers, strings, booleans, lists of them), in order:
+    ``toml_tables(camera=dict(eye=[0, 0, 3], look_at=[0, 0, 0], fov=45), render=dict(max_depth=4))``,
+    the header of a test's scene file."""
+    import json
+
+    return "".join(f"[{name}]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in table.items())
+                   for name, table in tables.items())

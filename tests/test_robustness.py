@@ -550,17 +550,8 @@ BAD_OBJS = {
 
 
 def _light_toml(mesh_name, mesh_material):
-    return f"""
-[camera]
-eye = [0.5, 0.5, 3.0]
-look_at = [0.5, 0.5, 0.0]
-fov = 60
-[film]
-width = 16
-height = 16
-[render]
-spp = 4
-max_depth = 4
+    return harness.toml_tables(camera=dict(eye=[0.5, 0.5, 3.0], look_at=[0.5, 0.5, 0.0], fov=60),
+                               film=dict(width=16, height=16), render=dict(spp=4, max_depth=4)) + f"""
 [materials.white]
 albedo = [0.8, 0.8, 0.8]
 [materials.light]

@@ -13,7 +13,7 @@
  * tested that way instead: each lane a pair of one ray and one triangle (packet_pairs; closest
  * hits only).
  *
- * Results, lane by lane, are those of bvh_wide8_closest_hit / bvh_wide8_any_hit bit for bit: the
+ * Results, lane by lane, are those of bvh_wide_closest_hit8 / bvh_wide_any_hit8 bit for bit: the
  * triangle test is intersect_tri8's arithmetic (FP_CONTRACT off), with each lane's own axis
  * permutation and shear applied by selects instead of load offsets, and the same
  * double-precision fallbacks (per lane, in scalar code: they are rare).  Only the order in which
@@ -158,12 +158,7 @@ RT_INLINE pint packet_triangle_lanes(const PacketRay *r, pvec3 p0, pvec3 p1, pve
     const pfloat Cx = PICK(p2.x, p2.y, p2.z, r->kx0, r->kx1) - r->okx;
     const pfloat Cy = PICK(p2.x, p2.y, p2.z, r->ky0, r->ky1) - r->oky;
     const pfloat Cz = PICK(p2.x, p2.y, p2.z, r->kz0, r->kz1) - r->okz;
-    const pfloat ax = Ax - r->sx * Az, ay = Ay - r->sy * Az;
-    const pfloat bx = Bx - r->sx * Bz, by = By - r->sy * Bz;
-    const pfloat cx = Cx - r->sx * Cz, cy = Cy - r->sy * Cz;
-    pfloat U = cx * by - cy * bx;
-    pfloat V = ax * cy - ay * cx;
-    pfloat W = bx * ay - by * ax;
+    SHEARED_EDGES(pfloat, Ax, Ay, Az, Bx, By, Bz, Cx, Cy, Cz, r->sx, r->sy);
 #ifdef cl_khr_fp64
     const pint zero = maybe & ((U == 0.0f) | (V == 0.0f) | (W == 0.0f));
     if (pany(zero)) {
@@ -200,14 +195,14 @@ RT_INLINE pint packet_triangle_lanes(const PacketRay *r, pvec3 p0, pvec3 p1, pve
     return inside & ok & (tt > tmin) & (tt < tmax);
 }
 
-/* Triangle j of a Tri8 (pk) against every lane: its plane from `plane` (tri8_plane's results for
+/* Triangle j of a Tri8 (pk) against every lane: its plane from `plane` (tri_plane8's results for
  * the Tri8, once for its triangles), the rest per lane (packet_triangle_lanes). */
 typedef struct { float8 nx, ny, nz, nabs_x, nabs_y, nabs_z; int8 sliver; } Tri8Plane;
 
 RT_INLINE Tri8Plane tri8_planes(__global const float8 *pk)
 {
     Tri8Plane p;
-    p.sliver = tri8_plane(pk, &p.nx, &p.ny, &p.nz, &p.nabs_x, &p.nabs_y, &p.nabs_z);
+    p.sliver = tri_plane8(pk, &p.nx, &p.ny, &p.nz, &p.nabs_x, &p.nabs_y, &p.nabs_z);
     return p;
 }
 
@@ -254,7 +249,7 @@ RT_INLINE pint packet_pairs(const PacketRay *r, __global const float8 *pk, const
     const pvec3 p0 = pv3(spread8(pk[0], tri), spread8(pk[1], tri), spread8(pk[2], tri));
     const pvec3 p1 = pv3(spread8(pk[3], tri), spread8(pk[4], tri), spread8(pk[5], tri));
     const pvec3 p2 = pv3(spread8(pk[6], tri), spread8(pk[7], tri), spread8(pk[8], tri));
-    /* the planes of tri8_plane (once for the leaf), each lane its triangle's */
+    /* the planes of tri_plane8 (once for the leaf), each lane its triangle's */
     const pvec3 n = pv3(spread8(plane->nx, tri), spread8(plane->ny, tri), spread8(plane->nz, tri));
     const pvec3 nabs = pv3(spread8(plane->nabs_x, tri), spread8(plane->nabs_y, tri), spread8(plane->nabs_z, tri));
     const pint sliver = spread8_int(plane->sliver, tri);
@@ -386,7 +381,7 @@ RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, 
                 Hit h;
                 h.t = PLANE(*t, k); h.prim = PLANE_I(*prim, k); h.u = PLANE(*u, k); h.v = PLANE(*v, k);
                 if (cnt > 0) intersect_leaf8(base + off, cnt, &w, PLANE(tmin, k), &h); /* a leaf: no traversal */
-                else wide8_closest_from(base, &w, PLANE(tmin, k), &h, off, cnt);
+                else wide_closest_from8(base, &w, PLANE(tmin, k), &h, off, cnt);
                 PLANE(*t, k) = h.t; PLANE_I(*prim, k) = h.prim; PLANE(*u, k) = h.u; PLANE(*v, k) = h.v;
             }
         } else if (cnt == 0) {
@@ -429,7 +424,7 @@ RT_INLINE void packet_closest_hit(__global const void *bvh, const PacketRay *r, 
             /* skipped when every lane that entered it has a closer hit by now (one comparison
              * of the lanes against its smallest entry distance, not a reduction of them) */
             if (pbits(PFLOAT(stack_t[sp]) <= *t) & stack_lanes[sp]) {
-                wide8_decode(base, stack_code[sp], &off, &cnt);
+                wide_decode8(base, stack_code[sp], &off, &cnt);
                 lanes = stack_lanes[sp];
                 break;
             }
@@ -455,7 +450,7 @@ RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pflo
                 const int k = lowest_bit(bits);
                 const WideRay w = packet_lane_ray(r, k);
                 if (cnt > 0 ? occluded_leaf8(base + off, cnt, &w, PLANE(tmin, k), PLANE(tmax, k))
-                            : wide8_any_from(base, &w, PLANE(tmin, k), PLANE(tmax, k), off, cnt)) {
+                            : wide_any_from8(base, &w, PLANE(tmin, k), PLANE(tmax, k), off, cnt)) {
                     PLANE_I(hit, k) = -1;
                     PLANE(tmax, k) = -INFINITY;
                 }
@@ -494,7 +489,7 @@ RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pflo
         }
         if (sp == 0) return hit;
         --sp;
-        wide8_decode(base, stack_code[sp], &off, &cnt);
+        wide_decode8(base, stack_code[sp], &off, &cnt);
         lanes = stack_lanes[sp];
     }
 }

@@ -46,7 +46,7 @@ RT_INLINE RayShear ray_shear(float3 d)
 /* The plane of triangle (p0, p1, p2): its normal n = (p1 - p0) x (p2 - p0), the magnitudes of
  * the products each component of n is made of (*n_abs: the rounding bound of n.a below), and in
  * *sliver whether n cancelled by more than SLIVER_CANCELLATION (see intersect_triangle).  The
- * same arithmetic on a Tri8's eight triangles: tri8_plane (bvh_wide8.h), which the single-ray
+ * same arithmetic on a Tri8's eight triangles: tri_plane4 / tri_plane8 (bvh_wide.tpl.h), which the single-ray
  * and the packet tests (bvh_packet.h) take their planes from. */
 RT_INLINE float3 triangle_plane(float3 p0, float3 p1, float3 p2, float3 *n_abs, int *sliver)
 {
@@ -57,6 +57,18 @@ RT_INLINE float3 triangle_plane(float3 p0, float3 p1, float3 p2, float3 *n_abs, 
     return n;
 }
 
+/* The edge functions U, V, W (Woop et al.) of the triangle whose vertices, relative to the ray's
+ * origin and permuted to (kx, ky, kz), are A, B, C, sheared by (sx, sy) (ray_shear): declares the
+ * sheared ax, ay, bx, by, cx, cy and U, V, W of type T (float, or a vector of lanes: the wide and
+ * packet tests, bvh_wide.tpl.h and bvh_packet.h, in the same order). */
+#define SHEARED_EDGES(T, Ax, Ay, Az, Bx, By, Bz, Cx, Cy, Cz, sx, sy) \
+    const T ax = (Ax) - (sx) * (Az), ay = (Ay) - (sy) * (Az); \
+    const T bx = (Bx) - (sx) * (Bz), by = (By) - (sy) * (Bz); \
+    const T cx = (Cx) - (sx) * (Cz), cy = (Cy) - (sy) * (Cz); \
+    T U = cx * by - cy * bx; \
+    T V = ax * cy - ay * cx; \
+    T W = bx * ay - by * ax
+
 /* Returns 1 and sets *t, *u, *v (barycentrics of v1 and v2) on a hit with tmin < t < tmax. */
 RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, float3 p1, float3 p2,
                               float tmin, float tmax, float *t, float *u, float *v)
@@ -66,12 +78,7 @@ RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, floa
     const float4 ap = shuffle((float4)(a, 0.0f), s.perm);
     const float4 bp = shuffle((float4)(b, 0.0f), s.perm);
     const float4 cp = shuffle((float4)(c, 0.0f), s.perm);
-    const float ax = ap.x - s.sx * ap.z, ay = ap.y - s.sy * ap.z;
-    const float bx = bp.x - s.sx * bp.z, by = bp.y - s.sy * bp.z;
-    const float cx = cp.x - s.sx * cp.z, cy = cp.y - s.sy * cp.z;
-    float U = cx * by - cy * bx;
-    float V = ax * cy - ay * cx;
-    float W = bx * ay - by * ax;
+    SHEARED_EDGES(float, ap.x, ap.y, ap.z, bp.x, bp.y, bp.z, cp.x, cp.y, cp.z, s.sx, s.sy);
 #ifdef cl_khr_fp64
     if (U == 0.0f || V == 0.0f || W == 0.0f) {
         U = (float)((double)cx * (double)by - (double)cy * (double)bx);

@@ -49,6 +49,7 @@ RT_INLINE int mask_bits8(int8 m) { return mask_bits4(m.lo) | (mask_bits4(m.hi) <
 RT_INLINE int any8(int8 m) { const int4 q = m.lo | m.hi; const int2 p = q.lo | q.hi; return (p.x | p.y) < 0; }
 #endif
 RT_INLINE float8 abs8(float8 x) { return as_float8(as_uint8(x) & (uint8)(0x7fffffffu)); }
+RT_INLINE float lane4(float4 v, int k) { return k == 0 ? v.s0 : (k == 1 ? v.s1 : (k == 2 ? v.s2 : v.s3)); }
 RT_INLINE float lane8(float8 v, int k) { return ((const float *)&v)[k]; }
 
 #endif

@@ -12,11 +12,11 @@
 #endif
 #if defined(BVH_WIDE8)
 #include "accel/bvh_wide8.h"
-#define bvh_closest_hit bvh_wide8_closest_hit
-#define bvh_any_hit bvh_wide8_any_hit
+#define bvh_closest_hit bvh_wide_closest_hit8
+#define bvh_any_hit bvh_wide_any_hit8
 #elif defined(BVH_WIDE)
-#define bvh_closest_hit bvh_wide_closest_hit
-#define bvh_any_hit bvh_wide_any_hit
+#define bvh_closest_hit bvh_wide_closest_hit4
+#define bvh_any_hit bvh_wide_any_hit4
 #endif
 
 #endif

@@ -92,23 +92,16 @@ typedef struct {
 /* materials[index] in each lane (index valid in every lane) */
 RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint index)
 {
+    const pint i = index * STRIDE_INDEX(Material); /* the lanes' records, as float indices */
     __global const float *f = (__global const float *)materials;
-    __global const int *n = (__global const int *)materials;
-    const pint i = index * STRIDE_INDEX(Material);
     MaterialLanes m;
-    m.type = pgather_int(n, i + FIELD_INDEX(Material, type));
-    m.flags = pgather_int(n, i + FIELD_INDEX(Material, flags));
-    m.albedo = pv3_gather(f, i + FIELD_INDEX(Material, albedo));
-    m.emission = pv3_gather(f, i + FIELD_INDEX(Material, emission));
-    m.specular = pv3_gather(f, i + FIELD_INDEX(Material, specular));
-    m.eta = pv3_gather(f, i + FIELD_INDEX(Material, eta));
-    m.k = pv3_gather(f, i + FIELD_INDEX(Material, k));
-    m.alpha = pgather(f, i + FIELD_INDEX(Material, alpha));
-    m.metallic = pgather(f, i + FIELD_INDEX(Material, metallic));
-    m.ior = pgather(f, i + FIELD_INDEX(Material, ior));
-    m.tex_base = pgather_int(n, i + FIELD_INDEX(Material, tex_base));
-    m.tex_mr = pgather_int(n, i + FIELD_INDEX(Material, tex_mr));
-    m.tex_emission = pgather_int(n, i + FIELD_INDEX(Material, tex_emission));
+    /* m.x = the lanes' field x of their records */
+#define GATHER_INT(x) m.x = pgather_int((__global const int *)materials, i + FIELD_INDEX(Material, x));
+#define GATHER_VEC3(x) m.x = pv3_gather(f, i + FIELD_INDEX(Material, x));
+#define GATHER_FLOAT(x) m.x = pgather(f, i + FIELD_INDEX(Material, x));
+    GATHER_INT(type) GATHER_INT(flags) GATHER_INT(tex_base) GATHER_INT(tex_mr) GATHER_INT(tex_emission)
+    GATHER_VEC3(albedo) GATHER_VEC3(emission) GATHER_VEC3(specular) GATHER_VEC3(eta) GATHER_VEC3(k)
+    GATHER_FLOAT(alpha) GATHER_FLOAT(metallic) GATHER_FLOAT(ior)
     m.records = f;
     m.rec = i;
     m.fdr = m.spec_weight = m.roughness = m.anisotropic = m.spec_trans = m.spec_tint = m.sheen = m.sheen_tint =
@@ -116,97 +109,61 @@ RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint 
             PFLOAT(0.0f);
 #ifdef HAS_MITSUBA_MATERIALS
     if (pany(m.type >= MATERIAL_PLASTIC)) {
-        m.fdr = pgather(f, i + FIELD_INDEX(Material, fdr));
-        m.spec_weight = pgather(f, i + FIELD_INDEX(Material, spec_weight));
-        m.roughness = pgather(f, i + FIELD_INDEX(Material, roughness));
-        m.anisotropic = pgather(f, i + FIELD_INDEX(Material, anisotropic));
-        m.spec_trans = pgather(f, i + FIELD_INDEX(Material, spec_trans));
-        m.spec_tint = pgather(f, i + FIELD_INDEX(Material, spec_tint));
-        m.sheen = pgather(f, i + FIELD_INDEX(Material, sheen));
-        m.sheen_tint = pgather(f, i + FIELD_INDEX(Material, sheen_tint));
-        m.clearcoat = pgather(f, i + FIELD_INDEX(Material, clearcoat));
-        m.clearcoat_gloss = pgather(f, i + FIELD_INDEX(Material, clearcoat_gloss));
-        m.flatness = pgather(f, i + FIELD_INDEX(Material, flatness));
-        m.diff_trans = pgather(f, i + FIELD_INDEX(Material, diff_trans));
+        GATHER_FLOAT(fdr) GATHER_FLOAT(spec_weight) GATHER_FLOAT(roughness) GATHER_FLOAT(anisotropic)
+        GATHER_FLOAT(spec_trans) GATHER_FLOAT(spec_tint) GATHER_FLOAT(sheen) GATHER_FLOAT(sheen_tint)
+        GATHER_FLOAT(clearcoat) GATHER_FLOAT(clearcoat_gloss) GATHER_FLOAT(flatness) GATHER_FLOAT(diff_trans)
         m.rate0 = pgather(f, i + FIELD_INDEX(Material, rates));
         m.rate1 = pgather(f, i + FIELD_INDEX(Material, rates) + 1);
         m.rate2 = pgather(f, i + FIELD_INDEX(Material, rates) + 2);
         m.rate3 = pgather(f, i + FIELD_INDEX(Material, rates) + 3);
     }
 #endif
+#undef GATHER_INT
+#undef GATHER_VEC3
+#undef GATHER_FLOAT
     return m;
 }
 
+/* Each type's parameters from the lanes' Material fields (abi.MATERIAL documents the mapping). */
 RT_INLINE ConductorParams conductor_params(const MaterialLanes *m)
 {
-    ConductorParams c;
-    c.f0 = m->specular;
-    c.eta = m->eta;
-    c.k = m->k;
-    c.alpha = m->alpha;
-    c.schlick = (m->flags & MATERIAL_FLAG_CONDUCTOR_F0) != 0;
+    const ConductorParams c = {.f0 = m->specular, .eta = m->eta, .k = m->k, .alpha = m->alpha,
+                               .schlick = (m->flags & MATERIAL_FLAG_CONDUCTOR_F0) != 0};
     return c;
 }
 
 RT_INLINE GltfParams gltf_params(const MaterialLanes *m)
 {
-    GltfParams g;
-    g.base = m->albedo;
-    g.metallic = pclamp(m->metallic, 0.0f, 1.0f);
-    g.alpha = m->alpha;
     const pfloat r = (m->ior - 1.0f) / (m->ior + 1.0f);
-    g.f0d = pisfinite(r) ? r * r : PFLOAT(0.0f);
+    const GltfParams g = {.base = m->albedo, .metallic = pclamp(m->metallic, 0.0f, 1.0f), .alpha = m->alpha,
+                          .f0d = pisfinite(r) ? r * r : PFLOAT(0.0f)};
     return g;
 }
 
 RT_INLINE PlasticParams plastic_params(const MaterialLanes *m)
 {
-    PlasticParams p;
-    p.diffuse = m->albedo;
-    p.specular = m->specular;
-    p.eta = m->ior;
-    p.fdr = m->fdr;
-    p.spec_weight = m->spec_weight;
-    p.nonlinear = (m->flags & MATERIAL_FLAG_NONLINEAR) != 0;
+    const PlasticParams p = {.diffuse = m->albedo, .specular = m->specular, .eta = m->ior, .fdr = m->fdr,
+                             .spec_weight = m->spec_weight, .nonlinear = (m->flags & MATERIAL_FLAG_NONLINEAR) != 0};
     return p;
 }
 
+/* plastic's parameters and the rough coating's (its transmittance table lies in the record) */
 RT_INLINE RoughPlasticParams roughplastic_params(const MaterialLanes *m)
 {
-    RoughPlasticParams p;
-    p.diffuse = m->albedo;
-    p.specular = m->specular;
-    p.eta = m->ior;
-    p.alpha = pfmax(m->alpha, PFLOAT(1e-4f));
-    p.fdr = m->fdr;
-    p.spec_weight = m->spec_weight;
-    p.nonlinear = (m->flags & MATERIAL_FLAG_NONLINEAR) != 0;
-    p.beckmann = (m->flags & MATERIAL_FLAG_BECKMANN) != 0;
-    p.records = m->records;
-    p.table = m->rec + FIELD_INDEX(Material, table);
+    const RoughPlasticParams p = {.s = plastic_params(m), .alpha = pfmax(m->alpha, PFLOAT(1e-4f)),
+                                  .beckmann = (m->flags & MATERIAL_FLAG_BECKMANN) != 0, .records = m->records,
+                                  .table = m->rec + FIELD_INDEX(Material, table)};
     return p;
 }
 
 RT_INLINE PrincipledParams principled_params(const MaterialLanes *m)
 {
-    PrincipledParams p;
-    p.base = m->albedo;
-    p.roughness = m->roughness;
-    p.anisotropic = m->anisotropic;
-    p.metallic = m->metallic;
-    p.spec_trans = m->spec_trans;
-    p.spec_tint = m->spec_tint;
-    p.sheen = m->sheen;
-    p.sheen_tint = m->sheen_tint;
-    p.clearcoat = m->clearcoat;
-    p.clearcoat_gloss = m->clearcoat_gloss;
-    p.flatness = m->flatness;
-    p.diff_trans = m->diff_trans;
-    p.eta = m->ior;
-    p.rate0 = m->rate0;
-    p.rate1 = m->rate1;
-    p.rate2 = m->rate2;
-    p.rate3 = m->rate3;
+    const PrincipledParams p = {
+        .base = m->albedo, .roughness = m->roughness, .anisotropic = m->anisotropic, .metallic = m->metallic,
+        .spec_trans = m->spec_trans, .spec_tint = m->spec_tint, .sheen = m->sheen, .sheen_tint = m->sheen_tint,
+        .clearcoat = m->clearcoat, .clearcoat_gloss = m->clearcoat_gloss, .flatness = m->flatness,
+        .diff_trans = m->diff_trans, .eta = m->ior, .rate0 = m->rate0, .rate1 = m->rate1, .rate2 = m->rate2,
+        .rate3 = m->rate3};
     return p;
 }
 
@@ -232,48 +189,58 @@ RT_INLINE pint bsdf_has_nondelta_lobes(const MaterialLanes *m)
     return r;
 }
 
-/* The active lanes of each type compiled in, and the others (diffuse, and any type not compiled
- * in, which shades as diffuse). */
+/* The types shaded in the local frame (all but diffuse): X(TYPE, mask, Params, params, eval, sample) with
+ * MATERIAL_<TYPE>, its MaterialMasks field, the type and value of its parameters P, and its bsdf_eval /
+ * bsdf_sample calls over the lanes K of that type.  Each case is compiled only where
+ * HAS_MATERIAL_<TYPE> is defined (RT_WHEN). */
+#define FRAMED_MATERIALS(X) \
+    X(CONDUCTOR, conductor, ConductorParams, conductor_params(m), conductor_eval(&P, K, lo, li, &q), conductor_sample(&P, K, lo, u0, u1, &wl, &q, &d)) \
+    X(DIELECTRIC, dielectric, pfloat, dielectric_eta(m, front), dielectric_eval(m->alpha, P, m->specular, K, lo, li, &q), dielectric_sample(m->alpha, P, m->specular, K, lo, u0, u1, u2, &wl, &q, &d)) \
+    X(GLTF, gltf, GltfParams, gltf_params(m), gltf_eval(&P, K, lo, li, &q), gltf_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d)) \
+    X(PLASTIC, plastic, PlasticParams, plastic_params(m), plastic_eval(&P, K, lo, li, &q), plastic_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d)) \
+    X(ROUGHPLASTIC, roughplastic, RoughPlasticParams, roughplastic_params(m), roughplastic_eval(&P, K, lo, li, &q), roughplastic_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d)) \
+    X(PRINCIPLED, principled, PrincipledParams, principled_params(m), principled_eval(&P, K, front, lo, li, &q), principled_sample(&P, K, front, lo, u0, u1, u2, &wl, &q, &d)) \
+    X(PRINCIPLEDTHIN, principledthin, PrincipledParams, principled_params(m), principledthin_eval(&P, K, lo, li, &q), principledthin_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d))
+
+/* RT_WHEN(HAS_MATERIAL_X)(code) is code where HAS_MATERIAL_X is defined (empty, as above, or 1, as -D
+ * defines it), else nothing: #ifdef inside a macro. */
+#define RT_PASTE3_(a, b, c) a##b##c
+#define RT_PASTE3(a, b, c) RT_PASTE3_(a, b, c)
+#define RT_SECOND_(a, b, ...) b
+#define RT_SECOND(...) RT_SECOND_(__VA_ARGS__)
+#define RT_PROBE__ ~, 1
+#define RT_PROBE_1_ ~, 1
+#define RT_WHEN_0(...)
+#define RT_WHEN_1(...) __VA_ARGS__
+#define RT_WHEN(x) RT_PASTE3(RT_WHEN_, RT_SECOND(RT_PASTE3(RT_PROBE_, x, _), 0, ~), )
+
+/* The active lanes of each type compiled in, those of all of them (framed), and the others (diffuse,
+ * and any type not compiled in, which shades as diffuse). */
 typedef struct {
-    pint conductor, dielectric, gltf, plastic, roughplastic, principled, principledthin, diffuse;
+    pint conductor, dielectric, gltf, plastic, roughplastic, principled, principledthin, framed, diffuse;
 } MaterialMasks;
+
+#define MASK_CASE(T, mask, ...) RT_WHEN(HAS_MATERIAL_##T)(k.mask = active & (m->type == MATERIAL_##T); k.framed |= k.mask;)
 
 RT_INLINE MaterialMasks material_masks(const MaterialLanes *m, pint active)
 {
     MaterialMasks k;
     k.conductor = k.dielectric = k.gltf = k.plastic = k.roughplastic = k.principled = k.principledthin = PINT(0);
-    pint other = PINT(0);
-#ifdef HAS_MATERIAL_CONDUCTOR
-    k.conductor = active & (m->type == MATERIAL_CONDUCTOR);
-    other |= k.conductor;
-#endif
-#ifdef HAS_MATERIAL_DIELECTRIC
-    k.dielectric = active & (m->type == MATERIAL_DIELECTRIC);
-    other |= k.dielectric;
-#endif
-#ifdef HAS_MATERIAL_GLTF
-    k.gltf = active & (m->type == MATERIAL_GLTF);
-    other |= k.gltf;
-#endif
-#ifdef HAS_MATERIAL_PLASTIC
-    k.plastic = active & (m->type == MATERIAL_PLASTIC);
-    other |= k.plastic;
-#endif
-#ifdef HAS_MATERIAL_ROUGHPLASTIC
-    k.roughplastic = active & (m->type == MATERIAL_ROUGHPLASTIC);
-    other |= k.roughplastic;
-#endif
-#ifdef HAS_MATERIAL_PRINCIPLED
-    k.principled = active & (m->type == MATERIAL_PRINCIPLED);
-    other |= k.principled;
-#endif
-#ifdef HAS_MATERIAL_PRINCIPLEDTHIN
-    k.principledthin = active & (m->type == MATERIAL_PRINCIPLEDTHIN);
-    other |= k.principledthin;
-#endif
-    k.diffuse = active & pnot(other);
+    k.framed = PINT(0);
+    FRAMED_MATERIALS(MASK_CASE)
+    k.diffuse = active & pnot(k.framed);
     return k;
 }
+
+/* bsdf_eval's case of one type: its lanes K take f and the pdf q of its eval */
+#define EVAL_CASE(T, mask, Params, params, eval, sample) \
+    RT_WHEN(HAS_MATERIAL_##T)(if (pany(k.mask)) { \
+        const pint K = k.mask; \
+        const Params P = params; \
+        const pvec3 g = eval; \
+        f = pv3_sel(f, g, K); \
+        p = K ? q : p; \
+    })
 
 RT_INLINE pvec3 bsdf_eval(const MaterialLanes *m, pint active, pvec3 n, pint front, pvec3 wo, pvec3 wi, pfloat *pdf)
 {
@@ -281,85 +248,39 @@ RT_INLINE pvec3 bsdf_eval(const MaterialLanes *m, pint active, pvec3 n, pint fro
     pvec3 f = pv3_zero();
     pfloat p = PFLOAT(0.0f);
     if (pany(k.diffuse)) f = diffuse_eval(m->albedo, k.diffuse, n, wi, &p);
-    const pint framed =
-        k.conductor | k.dielectric | k.gltf | k.plastic | k.roughplastic | k.principled | k.principledthin;
-    if (pany(framed)) {
+    if (pany(k.framed)) {
         pvec3 t, b;
         make_onb(n, &t, &b);
         const pvec3 lo = to_local(wo, t, b, n), li = to_local(wi, t, b, n);
         pfloat q;
-        pvec3 g;
-#ifdef HAS_MATERIAL_CONDUCTOR
-        if (pany(k.conductor)) {
-            const ConductorParams c = conductor_params(m);
-            g = conductor_eval(&c, k.conductor, lo, li, &q);
-            f = pv3_sel(f, g, k.conductor);
-            p = k.conductor ? q : p;
-        }
-#endif
-#ifdef HAS_MATERIAL_DIELECTRIC
-        if (pany(k.dielectric)) {
-            g = dielectric_eval(m->alpha, dielectric_eta(m, front), m->specular, k.dielectric, lo, li, &q);
-            f = pv3_sel(f, g, k.dielectric);
-            p = k.dielectric ? q : p;
-        }
-#endif
-#ifdef HAS_MATERIAL_GLTF
-        if (pany(k.gltf)) {
-            const GltfParams gp = gltf_params(m);
-            g = gltf_eval(&gp, k.gltf, lo, li, &q);
-            f = pv3_sel(f, g, k.gltf);
-            p = k.gltf ? q : p;
-        }
-#endif
-#ifdef HAS_MATERIAL_PLASTIC
-        if (pany(k.plastic)) {
-            const PlasticParams pp = plastic_params(m);
-            g = plastic_eval(&pp, k.plastic, lo, li, &q);
-            f = pv3_sel(f, g, k.plastic);
-            p = k.plastic ? q : p;
-        }
-#endif
-#ifdef HAS_MATERIAL_ROUGHPLASTIC
-        if (pany(k.roughplastic)) {
-            const RoughPlasticParams rp = roughplastic_params(m);
-            g = roughplastic_eval(&rp, k.roughplastic, lo, li, &q);
-            f = pv3_sel(f, g, k.roughplastic);
-            p = k.roughplastic ? q : p;
-        }
-#endif
-#ifdef HAS_MATERIAL_PRINCIPLED
-        if (pany(k.principled)) {
-            const PrincipledParams pr = principled_params(m);
-            g = principled_eval(&pr, k.principled, front, lo, li, &q);
-            f = pv3_sel(f, g, k.principled);
-            p = k.principled ? q : p;
-        }
-#endif
-#ifdef HAS_MATERIAL_PRINCIPLEDTHIN
-        if (pany(k.principledthin)) {
-            const PrincipledParams pr = principled_params(m);
-            g = principledthin_eval(&pr, k.principledthin, lo, li, &q);
-            f = pv3_sel(f, g, k.principledthin);
-            p = k.principledthin ? q : p;
-        }
-#endif
+        FRAMED_MATERIALS(EVAL_CASE)
     }
     *pdf = p;
     return f;
 }
 
+/* bsdf_sample's case of one type: its lanes K take the weight g, local direction li, pdf ql and delta
+ * flag dd of its sample */
+#define SAMPLE_CASE(T, mask, Params, params, eval, sample) \
+    RT_WHEN(HAS_MATERIAL_##T)(if (pany(k.mask)) { \
+        const pint K = k.mask; \
+        const Params P = params; \
+        g = pv3_sel(g, sample, K); \
+        li = pv3_sel(li, wl, K); \
+        ql = K ? q : ql; \
+        dd = K ? d : dd; \
+    })
+
 RT_INLINE pvec3 bsdf_sample(const MaterialLanes *m, pint active, pvec3 n, pint front, pvec3 wo, pfloat u0, pfloat u1,
                             pfloat u2, pvec3 *wi, pfloat *pdf, pint *delta)
 {
     const MaterialMasks k = material_masks(m, active);
+    const pint framed = k.framed;
     pvec3 w = pv3_zero();
     pfloat p = PFLOAT(0.0f);
     pint dl = PINT(0);
     *wi = n;
     if (pany(k.diffuse)) w = diffuse_sample(m->albedo, k.diffuse, n, u0, u1, wi, &p);
-    const pint framed =
-        k.conductor | k.dielectric | k.gltf | k.plastic | k.roughplastic | k.principled | k.principledthin;
     if (pany(framed)) {
         pvec3 t, b;
         make_onb(n, &t, &b);
@@ -367,70 +288,7 @@ RT_INLINE pvec3 bsdf_sample(const MaterialLanes *m, pint active, pvec3 n, pint f
         pvec3 li = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f)), wl = li, g = pv3_zero();
         pfloat ql = PFLOAT(0.0f), q;
         pint dd = PINT(0), d;
-#ifdef HAS_MATERIAL_CONDUCTOR
-        if (pany(k.conductor)) {
-            const ConductorParams c = conductor_params(m);
-            g = pv3_sel(g, conductor_sample(&c, k.conductor, lo, u0, u1, &wl, &q, &d), k.conductor);
-            li = pv3_sel(li, wl, k.conductor);
-            ql = k.conductor ? q : ql;
-            dd = k.conductor ? d : dd;
-        }
-#endif
-#ifdef HAS_MATERIAL_DIELECTRIC
-        if (pany(k.dielectric)) {
-            g = pv3_sel(g, dielectric_sample(m->alpha, dielectric_eta(m, front), m->specular, k.dielectric, lo, u0, u1,
-                                             u2, &wl, &q, &d),
-                        k.dielectric);
-            li = pv3_sel(li, wl, k.dielectric);
-            ql = k.dielectric ? q : ql;
-            dd = k.dielectric ? d : dd;
-        }
-#endif
-#ifdef HAS_MATERIAL_GLTF
-        if (pany(k.gltf)) {
-            const GltfParams gp = gltf_params(m);
-            g = pv3_sel(g, gltf_sample(&gp, k.gltf, lo, u0, u1, u2, &wl, &q, &d), k.gltf);
-            li = pv3_sel(li, wl, k.gltf);
-            ql = k.gltf ? q : ql;
-            dd = k.gltf ? d : dd;
-        }
-#endif
-#ifdef HAS_MATERIAL_PLASTIC
-        if (pany(k.plastic)) {
-            const PlasticParams pp = plastic_params(m);
-            g = pv3_sel(g, plastic_sample(&pp, k.plastic, lo, u0, u1, u2, &wl, &q, &d), k.plastic);
-            li = pv3_sel(li, wl, k.plastic);
-            ql = k.plastic ? q : ql;
-            dd = k.plastic ? d : dd;
-        }
-#endif
-#ifdef HAS_MATERIAL_ROUGHPLASTIC
-        if (pany(k.roughplastic)) {
-            const RoughPlasticParams rp = roughplastic_params(m);
-            g = pv3_sel(g, roughplastic_sample(&rp, k.roughplastic, lo, u0, u1, u2, &wl, &q, &d), k.roughplastic);
-            li = pv3_sel(li, wl, k.roughplastic);
-            ql = k.roughplastic ? q : ql;
-            dd = k.roughplastic ? d : dd;
-        }
-#endif
-#ifdef HAS_MATERIAL_PRINCIPLED
-        if (pany(k.principled)) {
-            const PrincipledParams pr = principled_params(m);
-            g = pv3_sel(g, principled_sample(&pr, k.principled, front, lo, u0, u1, u2, &wl, &q, &d), k.principled);
-            li = pv3_sel(li, wl, k.principled);
-            ql = k.principled ? q : ql;
-            dd = k.principled ? d : dd;
-        }
-#endif
-#ifdef HAS_MATERIAL_PRINCIPLEDTHIN
-        if (pany(k.principledthin)) {
-            const PrincipledParams pr = principled_params(m);
-            g = pv3_sel(g, principledthin_sample(&pr, k.principledthin, lo, u0, u1, u2, &wl, &q, &d), k.principledthin);
-            li = pv3_sel(li, wl, k.principledthin);
-            ql = k.principledthin ? q : ql;
-            dd = k.principledthin ? d : dd;
-        }
-#endif
+        FRAMED_MATERIALS(SAMPLE_CASE)
         const pvec3 ww = pv3_normalize(to_world(li, t, b, n), framed);
         /* a non-finite weight or direction fails the sample */
         const pint bad = pnot(pisfinite(g.x + g.y + g.z)) | pnot(pisfinite(ww.x + ww.y + ww.z));

@@ -171,6 +171,46 @@ RT_INLINE pfloat principled_diffuse_factor(pfloat roughness, pfloat flatness, pf
     return flatness != 0.0f ? mi_lerp(f_diff + f_retro, f_ss, flatness) : f_diff + f_retro;
 }
 
+/* Four lobe weights scaled to sum to 1 (the lobe probabilities) */
+RT_INLINE void lobe_probs4(pfloat *a, pfloat *b, pfloat *c, pfloat *d)
+{
+    const pfloat rcp = 1.0f / (*a + *b + *c + *d);
+    *a *= rcp;
+    *b *= rcp;
+    *c *= rcp;
+    *d *= rcp;
+}
+
+/* The lobe u2 picks among four of probabilities a, b, c and the rest, in the lanes of `up` */
+RT_INLINE void pick_lobe4(pint up, pfloat u2, pfloat a, pfloat b, pfloat c, pint *s0, pint *s1, pint *s2, pint *s3)
+{
+    *s0 = up & (u2 < a);
+    *s1 = up & (u2 >= a) & (u2 < a + b);
+    *s2 = up & (u2 >= a + b) & (u2 < a + b + c);
+    *s3 = up & (u2 >= a + b + c);
+}
+
+/* Mitsuba's lobe probabilities of the principled BSDF at F_d: specular reflection and
+ * transmission, clearcoat, diffuse (wo's side: front) */
+RT_INLINE void principled_lobes(const PrincipledParams *P, pint front, pfloat brdf, pfloat bsdf, pfloat F_d,
+                                pfloat *p_refl, pfloat *p_trans, pfloat *p_cc, pfloat *p_diff)
+{
+    *p_refl = front ? P->rate0 * (1.0f - bsdf * (1.0f - F_d)) : F_d;
+    *p_trans = front ? P->rate0 * bsdf * (1.0f - F_d) : 1.0f - F_d;
+    *p_cc = front ? 0.25f * P->clearcoat * P->rate1 : PFLOAT(0.0f);
+    *p_diff = front ? brdf * P->rate2 : PFLOAT(0.0f);
+    lobe_probs4(p_refl, p_trans, p_cc, p_diff);
+}
+
+/* f / pdf (pdf = q) in the lanes of `ok` where it is finite and q > 0, with *pdf = q there; 0 elsewhere */
+RT_INLINE pvec3 sample_weight(pvec3 f, pfloat q, pint ok, pfloat *pdf)
+{
+    const pvec3 w = pv3_div(f, q);
+    ok &= (q > 0.0f) & pisfinite(w.x + w.y + w.z);
+    *pdf = ok ? q : PFLOAT(0.0f);
+    return pv3_sel(pv3_zero(), w, ok);
+}
+
 /* f cos and the pdf in Mitsuba's frame (wi toward the viewer, z outward) */
 RT_INLINE pvec3 principled_eval_mi(const PrincipledParams *P, pint active, pvec3 wi, pvec3 wo, pfloat *pdf)
 {
@@ -244,15 +284,8 @@ RT_INLINE pvec3 principled_eval_mi(const PrincipledParams *P, pint active, pvec3
         value = pv3_sel(value, pv3_add(value, pv3_scale(pv3_scale(c, s), pabs(cos_o))), sheen);
     }
     /* the pdf: Mitsuba's lobe probabilities at F_d(wi.h) */
-    pfloat p_refl = front ? P->rate0 * (1.0f - bsdf * (1.0f - F_d)) : F_d;
-    pfloat p_trans = front ? P->rate0 * bsdf * (1.0f - F_d) : 1.0f - F_d;
-    pfloat p_cc = front ? 0.25f * P->clearcoat * P->rate1 : PFLOAT(0.0f);
-    pfloat p_diff = front ? brdf * P->rate2 : PFLOAT(0.0f);
-    const pfloat rcp = 1.0f / (p_refl + p_trans + p_cc + p_diff);
-    p_refl *= rcp;
-    p_trans *= rcp;
-    p_cc *= rcp;
-    p_diff *= rcp;
+    pfloat p_refl, p_trans, p_cc, p_diff;
+    principled_lobes(P, front, brdf, bsdf, F_d, &p_refl, &p_trans, &p_cc, &p_diff);
     const pfloat den = wih + eta_path * woh;
     const pfloat jac = pabs(reflect ? 1.0f / (4.0f * woh) : (eta_path * eta_path * woh) / (den * den));
     const pvec3 v = pv3_sel(pv3_neg(wi), wi, front); /* Mitsuba's mulsign(wi, cos_i): wi turned outward */
@@ -312,18 +345,10 @@ RT_INLINE pvec3 principled_sample(const PrincipledParams *P, pint active, pint f
     const pvec3 m = mf_sample_vndf(v, ax, ay, PINT(0), u0, u1, up);
     pfloat cos_t, eta_ti;
     const pfloat F_d = mi_fresnel(pv3_dot(mwi, m), P->eta, &cos_t, &eta_ti);
-    pfloat p_refl = mfront ? P->rate0 * (1.0f - bsdf * (1.0f - F_d)) : F_d;
-    pfloat p_trans = mfront ? P->rate0 * bsdf * (1.0f - F_d) : 1.0f - F_d;
-    pfloat p_cc = mfront ? 0.25f * P->clearcoat * P->rate1 : PFLOAT(0.0f);
-    pfloat p_diff = mfront ? brdf * P->rate2 : PFLOAT(0.0f);
-    const pfloat rcp = 1.0f / (p_refl + p_trans + p_cc + p_diff);
-    p_trans *= rcp;
-    p_cc *= rcp;
-    p_diff *= rcp;
-    const pint s_diff = up & (u2 < p_diff);
-    const pint s_cc = up & (u2 >= p_diff) & (u2 < p_diff + p_cc);
-    const pint s_trans = up & (u2 >= p_diff + p_cc) & (u2 < p_diff + p_cc + p_trans);
-    const pint s_refl = up & (u2 >= p_diff + p_cc + p_trans);
+    pfloat p_refl, p_trans, p_cc, p_diff;
+    principled_lobes(P, mfront, brdf, bsdf, F_d, &p_refl, &p_trans, &p_cc, &p_diff);
+    pint s_diff, s_cc, s_trans, s_refl;
+    pick_lobe4(up, u2, p_diff, p_cc, p_trans, &s_diff, &s_cc, &s_trans, &s_refl);
     pvec3 mwo = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f));
     pint ok = PINT(0);
     if (pany(s_refl)) {
@@ -352,10 +377,7 @@ RT_INLINE pvec3 principled_sample(const PrincipledParams *P, pint active, pint f
     if (!pany(ok)) return pv3_zero();
     pfloat q;
     const pvec3 f = principled_eval_mi(P, ok, mwi, mwo, &q);
-    const pvec3 w = pv3_div(f, q);
-    ok &= (q > 0.0f) & pisfinite(w.x + w.y + w.z);
-    *pdf = ok ? q : PFLOAT(0.0f);
-    return pv3_sel(pv3_zero(), w, ok);
+    return sample_weight(f, q, ok, pdf);
 }
 
 #endif

@@ -88,11 +88,7 @@ RT_INLINE pvec3 principledthin_eval(const PrincipledParams *P, pint active, pvec
     /* the pdf */
     pfloat p_sr = st * P->rate0 / 2.0f, p_st = st * P->rate1 / 2.0f;
     pfloat p_cr = P->rate3 * (1.0f - st) * (1.0f - dt), p_ct = P->rate2 * (1.0f - st) * dt;
-    const pfloat rcp = 1.0f / (p_sr + p_st + p_cr + p_ct);
-    p_sr *= rcp;
-    p_st *= rcp;
-    p_cr *= rcp;
-    p_ct *= rcp;
+    lobe_probs4(&p_sr, &p_st, &p_cr, &p_ct);
     const pfloat jac = pabs(1.0f / (4.0f * pv3_dot(wo_r, wh)));
     pfloat p = PFLOAT(0.0f);
     const pint rm = refl_mm & reflect, tm = trans_mm & refract;
@@ -119,14 +115,9 @@ RT_INLINE pvec3 principledthin_sample(const PrincipledParams *P, pint active, pv
     const pfloat st = P->spec_trans, dt = P->diff_trans / 2.0f;
     pfloat p_sr = st * P->rate0 / 2.0f, p_st = st * P->rate1 / 2.0f;
     pfloat p_cr = P->rate3 * (1.0f - st) * (1.0f - dt), p_ct = P->rate2 * (1.0f - st) * dt;
-    const pfloat rcp = 1.0f / (p_sr + p_st + p_cr + p_ct);
-    p_sr *= rcp;
-    p_st *= rcp;
-    p_cr *= rcp;
-    const pint s_sr = up & (u2 < p_sr);
-    const pint s_st = up & (u2 >= p_sr) & (u2 < p_sr + p_st);
-    const pint s_cr = up & (u2 >= p_sr + p_st) & (u2 < p_sr + p_st + p_cr);
-    const pint s_ct = up & (u2 >= p_sr + p_st + p_cr);
+    lobe_probs4(&p_sr, &p_st, &p_cr, &p_ct);
+    pint s_sr, s_st, s_cr, s_ct;
+    pick_lobe4(up, u2, p_sr, p_st, p_cr, &s_sr, &s_st, &s_cr, &s_ct);
     pvec3 li = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f));
     pint ok = s_cr | s_ct;
     const pint spec = s_sr | s_st;
@@ -148,10 +139,7 @@ RT_INLINE pvec3 principledthin_sample(const PrincipledParams *P, pint active, pv
     if (!pany(ok)) return pv3_zero();
     pfloat q;
     const pvec3 f = principledthin_eval(P, ok, wo, li, &q);
-    const pvec3 w = pv3_div(f, q);
-    ok &= (q > 0.0f) & pisfinite(w.x + w.y + w.z);
-    *pdf = ok ? q : PFLOAT(0.0f);
-    return pv3_sel(pv3_zero(), w, ok);
+    return sample_weight(f, q, ok, pdf);
 }
 
 #endif

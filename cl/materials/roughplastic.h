@@ -38,9 +38,9 @@
 #include "materials/plastic.h"
 
 typedef struct {
-    pvec3 diffuse, specular;
-    pfloat eta, alpha, fdr, spec_weight;
-    pint nonlinear, beckmann; /* masks */
+    PlasticParams s; /* plastic's parameters (the smooth coating's) */
+    pfloat alpha;
+    pint beckmann; /* mask */
     __global const float *records;
     pint table;
 } RoughPlasticParams;
@@ -65,11 +65,11 @@ RT_INLINE pvec3 roughplastic_eval_given(const RoughPlasticParams *p, pint ok, pv
     const pfloat d = mf_d(h, p->alpha, p->alpha, p->beckmann);
     const pfloat g1o = mf_g1(wo, h, p->alpha, p->alpha, p->beckmann);
     const pfloat g = g1o * mf_g1(wi, h, p->alpha, p->alpha, p->beckmann);
-    const pfloat F = fresnel_dielectric(pv3_dot(wo, h), p->eta);
-    const pvec3 spec = pv3_scale(p->specular, F * d * g / (4.0f * cos_o));
+    const pfloat F = fresnel_dielectric(pv3_dot(wo, h), p->s.eta);
+    const pvec3 spec = pv3_scale(p->s.specular, F * d * g / (4.0f * cos_o));
     const pfloat t_i = roughplastic_transmittance(p, cos_i);
-    const pfloat inv_eta2 = 1.0f / (p->eta * p->eta);
-    const pvec3 diff = pv3_scale(plastic_internal(p->diffuse, p->fdr, p->nonlinear),
+    const pfloat inv_eta2 = 1.0f / (p->s.eta * p->s.eta);
+    const pvec3 diff = pv3_scale(plastic_internal(p->s.diffuse, p->s.fdr, p->s.nonlinear),
                                  INV_PI_F * inv_eta2 * cos_i * t_o * t_i);
     const pvec3 f = pv3_add(spec, diff);
     const pfloat q = d * g1o / (4.0f * cos_o) * ps + (1.0f - ps) * cos_i * INV_PI_F;
@@ -84,7 +84,7 @@ RT_INLINE pvec3 roughplastic_eval(const RoughPlasticParams *p, pint active, pvec
     *pdf = PFLOAT(0.0f);
     if (!pany(ok)) return pv3_zero();
     const pfloat t_o = roughplastic_transmittance(p, wo.z);
-    return roughplastic_eval_given(p, ok, wo, wi, t_o, plastic_spec_prob(1.0f - t_o, t_o, p->spec_weight), pdf);
+    return roughplastic_eval_given(p, ok, wo, wi, t_o, plastic_spec_prob(1.0f - t_o, t_o, p->s.spec_weight), pdf);
 }
 
 /* Samples wi: u2 picks the lobe, (u0, u1) the direction.  Returns f cos / pdf, sets *pdf and
@@ -95,7 +95,7 @@ RT_INLINE pvec3 roughplastic_sample(const RoughPlasticParams *p, pint active, pv
 {
     const pint up = active & (wo.z > 0.0f);
     const pfloat t_o = roughplastic_transmittance(p, wo.z);
-    const pfloat ps = plastic_spec_prob(1.0f - t_o, t_o, p->spec_weight);
+    const pfloat ps = plastic_spec_prob(1.0f - t_o, t_o, p->s.spec_weight);
     const pint spec = up & (u2 < ps);
     const pint diffuse = up & pnot(spec);
     pvec3 li = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f));

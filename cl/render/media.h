@@ -277,6 +277,32 @@ RT_INLINE pint medium_segment(const MediumLanes *m, pvec3 o, pvec3 d, pfloat tmi
     return live;
 }
 
+/* One tentative collision of the trackers below (rate mu = majorant[channel] from tc along o + t d):
+ * draws the step *s; the lanes of *live whose collision lies at or beyond t1 (or whose step is NaN)
+ * leave *live, with *a and *r weighed by the majorant transmittance of the rest, [tc, t1], over its
+ * channel's; the others advance *tc to the collision and get its coefficients *st, *ss.  Returns 0
+ * where no lane is left. */
+RT_INLINE int medium_tracking_step(const MediumLanes *m, __global const float *grid_data, pvec3 o, pvec3 d, pfloat t1,
+                                   pint channel, puint *rng, pint *live, pfloat *tc, pfloat *s, pvec3 *a, pvec3 *r,
+                                   pvec3 *st, pvec3 *ss)
+{
+    const pvec3 mu = m->majorant;
+    *s = sample_exponential(medium_uniform(rng, *live), pv3_channel(mu, channel));
+    const pfloat next = *tc + *s;
+    const pint escaped = *live & pnot(next < t1);
+    if (pany(escaped)) {
+        const pvec3 T = majorant_transmittance(mu, t1 - *tc);
+        const pfloat p = pv3_channel(T, channel);
+        *a = pv3_weigh(*a, T, p, escaped);
+        *r = pv3_weigh(*r, T, p, escaped);
+        *live &= pnot(escaped);
+    }
+    if (!pany(*live)) return 0;
+    *tc = *live ? next : *tc;
+    medium_coefficients(m, grid_data, pv3_add(o, pv3_scale(d, *tc)), *live, st, ss);
+    return 1;
+}
+
 /* Free-flight sampling along o + t d, t in [tmin, tmax] (tmax: the next surface, or infinity), in the lanes
  * of `active`, with the hero channel `channel` and the tracking stream *rng (see the top).  Delta tracking:
  * tentative collisions at rate mu = majorant[channel] from the start of the medium's segment; one at x is
@@ -299,21 +325,9 @@ RT_INLINE pint medium_sample_free_flight(const MediumLanes *m, __global const fl
     pint real = PINT(0);
     pfloat tc = t0;
     while (pany(live)) {
-        const pfloat s = sample_exponential(medium_uniform(rng, live), mu_c);
-        const pfloat next = tc + s;
-        const pint escaped = live & pnot(next < t1); /* also for a NaN step */
-        if (pany(escaped)) {
-            const pfloat rest = t1 - tc;
-            const pvec3 T = majorant_transmittance(mu, rest);
-            const pfloat p = pv3_channel(T, channel);
-            *beta = pv3_weigh(*beta, T, p, escaped);
-            *r = pv3_weigh(*r, T, p, escaped);
-            live &= pnot(escaped);
-        }
-        if (!pany(live)) break;
-        tc = live ? next : tc;
+        pfloat s;
         pvec3 st, ss;
-        medium_coefficients(m, grid_data, pv3_add(o, pv3_scale(d, tc)), live, &st, &ss);
+        if (!medium_tracking_step(m, grid_data, o, d, t1, channel, rng, &live, &tc, &s, beta, r, &st, &ss)) break;
         const pfloat u = medium_uniform(rng, live);
         const pfloat st_c = pv3_channel(st, channel);
         const pint hit = live & (u * mu_c < st_c); /* u < sigma_t_c / mu_c */
@@ -360,20 +374,9 @@ RT_INLINE void medium_transmittance(const MediumLanes *m, __global const float *
     const pfloat mu_c = pv3_channel(mu, channel);
     pfloat tc = t0;
     while (pany(live)) {
-        const pfloat s = sample_exponential(medium_uniform(rng, live), mu_c);
-        const pfloat next = tc + s;
-        const pint escaped = live & pnot(next < t1);
-        if (pany(escaped)) {
-            const pvec3 Tm = majorant_transmittance(mu, t1 - tc);
-            const pfloat p = pv3_channel(Tm, channel);
-            *T = pv3_weigh(*T, Tm, p, escaped);
-            *r = pv3_weigh(*r, Tm, p, escaped);
-            live &= pnot(escaped);
-        }
-        if (!pany(live)) break;
-        tc = live ? next : tc;
+        pfloat s;
         pvec3 st, ss;
-        medium_coefficients(m, grid_data, pv3_add(o, pv3_scale(d, tc)), live, &st, &ss);
+        if (!medium_tracking_step(m, grid_data, o, d, t1, channel, rng, &live, &tc, &s, T, r, &st, &ss)) break;
         const pvec3 Tm = majorant_transmittance(mu, s);
         const pfloat p = pv3_channel(Tm, channel) * mu_c;
         const pvec3 sn = pv3(pfmax(mu.x - st.x, PFLOAT(0.0f)), pfmax(mu.y - st.y, PFLOAT(0.0f)),

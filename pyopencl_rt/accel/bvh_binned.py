@@ -110,6 +110,13 @@ def _area(lo0, lo1, lo2, hi0, hi1, hi2):
 
 
 @_jit()
+def _union(bb, k, lo0, lo1, lo2, hi0, hi1, hi2):
+    """The box (lo, hi) grown by box k of bb."""
+    return (min(lo0, bb[k, 0]), min(lo1, bb[k, 1]), min(lo2, bb[k, 2]), max(hi0, bb[k, 3]), max(hi1, bb[k, 4]),
+            max(hi2, bb[k, 5]))
+
+
+@_jit()
 def _range_bounds(pb, begin, end, box, cb):
     """box (6,) float32: exact bounds of pb[begin:end]; cb (6,) float64: its centroid bounds."""
     for d in range(3):
@@ -142,6 +149,18 @@ def _grow(pb, i, cbox, ccb, s):
 
 
 @_jit()
+def _swap(pb, idx, i, j):
+    """Exchange triangles i and j (their boxes and indices)."""
+    for d in range(6):
+        t = pb[i, d]
+        pb[i, d] = pb[j, d]
+        pb[j, d] = t
+    t2 = idx[i]
+    idx[i] = idx[j]
+    idx[j] = t2
+
+
+@_jit()
 def _partition_exact(pb, idx, begin, end, bax, cmin, sc, nb, bbin, cbox, ccb):
     """The partition of a node whose plane came from a sample: the children's boxes (cbox, set to
     empty boxes by the caller) are grown here, from every triangle, with their centroid bounds."""
@@ -156,13 +175,7 @@ def _partition_exact(pb, idx, begin, end, bax, cmin, sc, nb, bbin, cbox, ccb):
             j -= 1
         if i >= j:
             break
-        for d in range(6):
-            t = pb[i, d]
-            pb[i, d] = pb[j, d]
-            pb[j, d] = t
-        t2 = idx[i]
-        idx[i] = idx[j]
-        idx[j] = t2
+        _swap(pb, idx, i, j)
         _grow(pb, i, cbox, ccb, 0)
         _grow(pb, j, cbox, ccb, 1)
         i += 1
@@ -228,24 +241,14 @@ def _process_node(pb, idx, begin, end, depth, nid, box, cb, cbox, ccb, tree, kin
             r3 = r4 = r5 = -np.inf
             for b in range(nb - 1, 0, -1):
                 k = a * nb + b
-                r0 = min(r0, bb[k, 0])
-                r1 = min(r1, bb[k, 1])
-                r2 = min(r2, bb[k, 2])
-                r3 = max(r3, bb[k, 3])
-                r4 = max(r4, bb[k, 4])
-                r5 = max(r5, bb[k, 5])
+                r0, r1, r2, r3, r4, r5 = _union(bb, k, r0, r1, r2, r3, r4, r5)
                 rarea[b] = _area(r0, r1, r2, r3, r4, r5)
             l0 = l1 = l2 = np.inf
             l3 = l4 = l5 = -np.inf
             nl = 0
             for b in range(nb - 1):
                 k = a * nb + b
-                l0 = min(l0, bb[k, 0])
-                l1 = min(l1, bb[k, 1])
-                l2 = min(l2, bb[k, 2])
-                l3 = max(l3, bb[k, 3])
-                l4 = max(l4, bb[k, 4])
-                l5 = max(l5, bb[k, 5])
+                l0, l1, l2, l3, l4, l5 = _union(bb, k, l0, l1, l2, l3, l4, l5)
                 nl += cnt[k]
                 nr = m - nl
                 if nl == 0 or nr == 0:
@@ -279,15 +282,7 @@ def _process_node(pb, idx, begin, end, depth, nid, box, cb, cbox, ccb, tree, kin
     if not valid or depth >= median_depth:
         mid = begin + n // 2
         for i in range(begin, end):
-            s = 0 if i < mid else 1
-            for d in range(3):
-                lo = pb[i, d]
-                hi = pb[i, 3 + d]
-                cbox[s, d] = min(cbox[s, d], lo)
-                cbox[s, 3 + d] = max(cbox[s, 3 + d], hi)
-                c = np.float64(lo) + np.float64(hi)
-                ccb[s, d] = min(ccb[s, d], c)
-                ccb[s, 3 + d] = max(ccb[s, 3 + d], c)
+            _grow(pb, i, cbox, ccb, 0 if i < mid else 1)
         return mid
     if step > 1:
         return _partition_exact(pb, idx, begin, end, bax, cb[bax], scale[bax], nb, bbin, cbox, ccb)
@@ -322,13 +317,7 @@ def _process_node(pb, idx, begin, end, depth, nid, box, cb, cbox, ccb, tree, kin
         if i >= j:
             break
         # pb[i] goes right and pb[j] left: swap them
-        for d in range(6):
-            t = pb[i, d]
-            pb[i, d] = pb[j, d]
-            pb[j, d] = t
-        t2 = idx[i]
-        idx[i] = idx[j]
-        idx[j] = t2
+        _swap(pb, idx, i, j)
         c0, c1, c2 = _centroid(pb, i)
         x0, x1, x2 = min(x0, c0), min(x1, c1), min(x2, c2)
         y0, y1, y2 = max(y0, c0), max(y1, c1), max(y2, c2)

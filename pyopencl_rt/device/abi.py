@@ -37,6 +37,11 @@ def define(name: str, value, overridable: bool = False):
     return value
 
 
+def define_enum(prefix: str, names) -> dict:
+    """Record ``#define PREFIX_NAME k`` for the k-th of ``names`` and return {name: k}."""
+    return {name: define(prefix + name.upper(), k) for k, name in enumerate(names)}
+
+
 # ---------------------------------------------------------------------------------------------
 # BVH node (64 bytes).  A binary BVH in which each node stores the boxes of *both* children
 # (the layout of Aila & Laine 2009), so one node fetch gives the traversal loop everything it needs to
@@ -98,18 +103,10 @@ assert TRIANGLE.itemsize == 48
 #                reflection, specular transmission, diffuse transmission and diffuse reflection
 #   table        roughplastic: the rough interface's external transmittance at cos(theta) =
 #                k / 63, k = 0..63 (Mitsuba's table, interpolated linearly)
-MATERIAL_DIFFUSE = define("MATERIAL_DIFFUSE", 0)
-MATERIAL_CONDUCTOR = define("MATERIAL_CONDUCTOR", 1)
-MATERIAL_DIELECTRIC = define("MATERIAL_DIELECTRIC", 2)
-MATERIAL_GLTF = define("MATERIAL_GLTF", 3)
-MATERIAL_PLASTIC = define("MATERIAL_PLASTIC", 4)
-MATERIAL_ROUGHPLASTIC = define("MATERIAL_ROUGHPLASTIC", 5)
-MATERIAL_PRINCIPLED = define("MATERIAL_PRINCIPLED", 6)
-MATERIAL_PRINCIPLEDTHIN = define("MATERIAL_PRINCIPLEDTHIN", 7)
-MATERIAL_TYPES = {"diffuse": MATERIAL_DIFFUSE, "conductor": MATERIAL_CONDUCTOR,
-                  "dielectric": MATERIAL_DIELECTRIC, "gltf": MATERIAL_GLTF,
-                  "plastic": MATERIAL_PLASTIC, "roughplastic": MATERIAL_ROUGHPLASTIC,
-                  "principled": MATERIAL_PRINCIPLED, "principledthin": MATERIAL_PRINCIPLEDTHIN}
+MATERIAL_TYPES = define_enum("MATERIAL_", ("diffuse", "conductor", "dielectric", "gltf", "plastic", "roughplastic",
+                                           "principled", "principledthin"))
+(MATERIAL_DIFFUSE, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_GLTF, MATERIAL_PLASTIC, MATERIAL_ROUGHPLASTIC,
+ MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLEDTHIN) = MATERIAL_TYPES.values()
 MATERIAL_FLAG_TWO_SIDED = define("MATERIAL_FLAG_TWO_SIDED", 1)
 MATERIAL_FLAG_CONDUCTOR_F0 = define("MATERIAL_FLAG_CONDUCTOR_F0", 2)
 MATERIAL_FLAG_NONLINEAR = define("MATERIAL_FLAG_NONLINEAR", 4)
@@ -144,25 +141,12 @@ assert MATERIAL.itemsize == 464
 #   tex_scalar    up to TEX_SLOTS textures of scalar parameters, the used slots first (-1 after
 #                 them): slot k's R channel multiplies the parameter TEXP_* that bits 4k..4k+3 of
 #                 tex_params name (the host stores such a texture's luminance in R, Mitsuba's eval_1)
-TEXP_ALPHA = define("TEXP_ALPHA", 0)
-TEXP_ROUGHNESS = define("TEXP_ROUGHNESS", 1)
-TEXP_METALLIC = define("TEXP_METALLIC", 2)
-TEXP_ANISOTROPIC = define("TEXP_ANISOTROPIC", 3)
-TEXP_SPEC_TRANS = define("TEXP_SPEC_TRANS", 4)
-TEXP_SPEC_TINT = define("TEXP_SPEC_TINT", 5)
-TEXP_SHEEN = define("TEXP_SHEEN", 6)
-TEXP_SHEEN_TINT = define("TEXP_SHEEN_TINT", 7)
-TEXP_CLEARCOAT = define("TEXP_CLEARCOAT", 8)
-TEXP_CLEARCOAT_GLOSS = define("TEXP_CLEARCOAT_GLOSS", 9)
-TEXP_FLATNESS = define("TEXP_FLATNESS", 10)
-TEXP_DIFF_TRANS = define("TEXP_DIFF_TRANS", 11)
-TEXP_ETA = define("TEXP_ETA", 12)
-# the Material field each TEXP_* multiplies
-TEXTURE_PARAMS = {TEXP_ALPHA: "alpha", TEXP_ROUGHNESS: "roughness", TEXP_METALLIC: "metallic",
-                  TEXP_ANISOTROPIC: "anisotropic", TEXP_SPEC_TRANS: "spec_trans", TEXP_SPEC_TINT: "spec_tint",
-                  TEXP_SHEEN: "sheen", TEXP_SHEEN_TINT: "sheen_tint", TEXP_CLEARCOAT: "clearcoat",
-                  TEXP_CLEARCOAT_GLOSS: "clearcoat_gloss", TEXP_FLATNESS: "flatness",
-                  TEXP_DIFF_TRANS: "diff_trans", TEXP_ETA: "ior"}
+# TEXP_<FIELD>: the Material field each multiplies (TEXP_ETA: ior)
+_TEXP = define_enum("TEXP_", ("alpha", "roughness", "metallic", "anisotropic", "spec_trans", "spec_tint", "sheen",
+                              "sheen_tint", "clearcoat", "clearcoat_gloss", "flatness", "diff_trans", "eta"))
+(TEXP_ALPHA, TEXP_ROUGHNESS, TEXP_METALLIC, TEXP_ANISOTROPIC, TEXP_SPEC_TRANS, TEXP_SPEC_TINT, TEXP_SHEEN,
+ TEXP_SHEEN_TINT, TEXP_CLEARCOAT, TEXP_CLEARCOAT_GLOSS, TEXP_FLATNESS, TEXP_DIFF_TRANS, TEXP_ETA) = _TEXP.values()
+TEXTURE_PARAMS = {k: "ior" if name == "eta" else name for name, k in _TEXP.items()}
 #   tex_normal    a tangent-space normal map (RGB = (n + 1) / 2, relative to the shading frame), or
 #                 with MATERIAL_FLAG_BUMP_MAP a height map (its luminance), perturbing the
 #                 shading normal (HAS_NORMAL_MAPS, cl/scene/shading.h); normal_scale scales the
@@ -238,11 +222,8 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 #   dir:    directional: unit direction in which the light travels
 #   rgb:    point: intensity [W/sr]; directional: irradiance on a perpendicular surface;
 #           environment: radiance (constant) or the map's scale
-LIGHT_TRIANGLE = define("LIGHT_TRIANGLE", 0)
-LIGHT_SPHERE = define("LIGHT_SPHERE", 1)
-LIGHT_POINT = define("LIGHT_POINT", 2)
-LIGHT_DIRECTIONAL = define("LIGHT_DIRECTIONAL", 3)
-LIGHT_ENVIRONMENT = define("LIGHT_ENVIRONMENT", 4)
+(LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_ENVIRONMENT) = define_enum(
+    "LIGHT_", ("triangle", "sphere", "point", "directional", "environment")).values()
 LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), ("alias_prob", np.float32),
                   ("alias", np.int32), ("material", np.int32), ("area", np.float32), ("pad", np.int32),
                   ("p", np.float32, 3), ("radius", np.float32), ("dir", np.float32, 3), ("pad1", np.int32),
@@ -290,27 +271,30 @@ assert CAMERA.itemsize == 96
 #   child : float4 offset into the wide buffer of the child node (count 0) or of its first
 #           Tri4 packet (count > 0); 0 for an absent child
 #   count : 0 = inner node, > 0 = leaf of `count` Tri4 packets, -1 = absent (box +inf / -inf)
-WIDE_NODE = np.dtype(
-    [(f"{b}_{c}", np.float32, 4) for b in ("bmin", "bmax") for c in "xyz"]
-    + [("child", np.int32, 4), ("count", np.int32, 4)]
-)
+def _wide_node(lanes: int) -> np.dtype:
+    return np.dtype([(f"{b}_{c}", np.float32, lanes) for b in ("bmin", "bmax") for c in "xyz"]
+                    + [("child", np.int32, lanes), ("count", np.int32, lanes)])
+
+
+def _tri_packet(lanes: int) -> np.dtype:
+    return np.dtype([(f"v{k}{c}", np.float32, lanes) for k in range(3) for c in "xyz"] + [("tri", np.int32, lanes)])
+
+
+WIDE_NODE = _wide_node(4)
 assert WIDE_NODE.itemsize == 128
 
 # Four triangles in structure-of-arrays form (160 bytes): vertex k's coordinate c of the four
 # lanes in v{k}{c}, and each lane's index into the binary BVH's reordered triangle array in tri
 # (-1 for a padding lane, whose vertices are NaN so that it can never hit).
-TRI4 = np.dtype([(f"v{k}{c}", np.float32, 4) for k in range(3) for c in "xyz"] + [("tri", np.int32, 4)])
+TRI4 = _tri_packet(4)
 assert TRI4.itemsize == 160
 
 # The 8-wide layout (cl/accel/bvh_wide8.h, for AVX2 CPUs): the same records with eight lanes, each
 # field one float8/int8, so a node (256 bytes) is one 8-lane slab test and a Tri8 packet (320
 # bytes) one 8-lane triangle test.  Offsets in child are in float8 (32-byte) units of the buffer.
-WIDE8_NODE = np.dtype(
-    [(f"{b}_{c}", np.float32, 8) for b in ("bmin", "bmax") for c in "xyz"]
-    + [("child", np.int32, 8), ("count", np.int32, 8)]
-)
+WIDE8_NODE = _wide_node(8)
 assert WIDE8_NODE.itemsize == 256
-TRI8 = np.dtype([(f"v{k}{c}", np.float32, 8) for k in range(3) for c in "xyz"] + [("tri", np.int32, 8)])
+TRI8 = _tri_packet(8)
 assert TRI8.itemsize == 320
 
 # Registry of every shared struct: name -> dtype.  Add new shared structs here.

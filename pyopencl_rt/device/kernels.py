@@ -1,6 +1,8 @@
 """Locating, assembling and building the OpenCL C sources in ``cl/``.
 
-Sources are assembled on the host: ``#include "x.h"`` lines are expanded here (each file once),
+Sources are assembled on the host: ``#include "x.h"`` lines are expanded here (each file once, but
+for a template, ``*.tpl.h``, which is expanded at every include: cl/accel/bvh_wide.tpl.h is the
+wide traversal written once over the node width, included once per width),
 and the header generated from :mod:`pyopencl_rt.device.abi` (structs, constants, WAVE_PARAMS) is prepended.  The program
 text handed to the driver is therefore self-contained, so the driver's binary cache (and
 pyopencl's) can never serve a stale binary after a header changed.  Feature switches are passed
@@ -29,7 +31,7 @@ def cl_dir() -> Path:
 
 def assemble(*names: str, extra: str = "") -> str:
     """Concatenate the named sources, then ``extra`` source text, with every ``#include "x.h"``
-    expanded from ``cl/`` (each file included once)."""
+    expanded from ``cl/`` (each file included once; a ``*.tpl.h`` template at every include)."""
     root = cl_dir()
     seen: set[Path] = set()
 
@@ -38,7 +40,7 @@ def assemble(*names: str, extra: str = "") -> str:
         path = (base / name).resolve()
         if not path.is_file():
             path = (root / name).resolve()
-        if path in seen:
+        if path in seen and not path.name.endswith(".tpl.h"):
             return ""
         seen.add(path)
         text = path.read_text()

@@ -432,12 +432,16 @@ class Scene:
         s.media, s.camera_medium, s.interfaces, s.face_interfaces, s.sphere_interfaces = [], -1, [], None, None
         return s
 
+    def _per_corner(self, values, k: int, missing: float) -> np.ndarray:
+        """(F, 3, k) float32 per-corner values (``missing`` where the scene has none; NaN as 0)."""
+        if values is None:
+            return np.full((len(self.faces), 3, k), missing, np.float32)
+        v = np.asarray(values, np.float32).reshape(len(self.faces), 3, k)
+        return np.where(np.isfinite(v), v, np.float32(0))
+
     def face_uvs(self) -> np.ndarray:
         """(F, 3, 2) float32 texture coordinates (zeros where the scene has none)."""
-        if self.uvs is None:
-            return np.zeros((len(self.faces), 3, 2), np.float32)
-        uv = np.asarray(self.uvs, np.float32).reshape(len(self.faces), 3, 2)
-        return np.where(np.isfinite(uv), uv, np.float32(0))
+        return self._per_corner(self.uvs, 2, 0.0)
 
     def face_normals(self) -> np.ndarray:
         """(F, 3, 3) float32 unit shading normals per corner (zeros where the scene has none;
@@ -456,10 +460,7 @@ class Scene:
 
     def face_colors(self) -> np.ndarray:
         """(F, 3, 3) float32 linear RGB per corner (1 where the scene has none; NaN as 0)."""
-        if self.colors is None:
-            return np.ones((len(self.faces), 3, 3), np.float32)
-        c = np.asarray(self.colors, np.float32).reshape(len(self.faces), 3, 3)
-        return np.where(np.isfinite(c), c, np.float32(0))
+        return self._per_corner(self.colors, 3, 1.0)
 
     def material_records(self) -> np.ndarray:
         recs = np.zeros(max(1, len(self.materials)), abi.MATERIAL)

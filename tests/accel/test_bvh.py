@@ -6,6 +6,8 @@ from pyopencl_rt.device import abi
 from pyopencl_rt.accel.bvh import MAX_DEPTH, BVH, build_bvh, sah_cost
 from pyopencl_rt.accel.bvh_validate import validate
 
+from harness import random_slivers as slivers
+
 METHODS = ["binned", "sweep"]
 
 
@@ -25,14 +27,6 @@ def torus(major=120, minor=40):
     trimesh = pytest.importorskip("trimesh")
     m = trimesh.creation.torus(major_radius=1.0, minor_radius=0.3, major_sections=major, minor_sections=minor)
     return np.asarray(m.vertices, np.float32), np.asarray(m.faces, np.int32)
-
-
-def slivers(n, rng):
-    c = rng.random((n, 1, 3))
-    d = rng.normal(size=(n, 1, 3))
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    v = c + d * np.array([-0.15, 0.15, 0.0])[None, :, None] + rng.normal(size=(n, 3, 3)) * 1e-3
-    return v.reshape(-1, 3).astype(np.float32), np.arange(3 * n, dtype=np.int32).reshape(n, 3)
 
 
 def edge_cases(rng):

@@ -7,18 +7,12 @@ from pyopencl_rt.accel import bvh_binned
 from pyopencl_rt.accel.bvh import build_bvh
 from pyopencl_rt.accel.bvh_validate import validate
 
+from harness import random_slivers as slivers
+
 
 def soup(n, rng, size=0.05):
     c = rng.random((n, 1, 3))
     v = c + (rng.random((n, 3, 3)) - 0.5) * size
-    return v.reshape(-1, 3).astype(np.float32), np.arange(3 * n, dtype=np.int32).reshape(n, 3)
-
-
-def slivers(n, rng):
-    c = rng.random((n, 1, 3))
-    d = rng.normal(size=(n, 1, 3))
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    v = c + d * np.array([-0.15, 0.15, 0.0])[None, :, None] + rng.normal(size=(n, 3, 3)) * 1e-3
     return v.reshape(-1, 3).astype(np.float32), np.arange(3 * n, dtype=np.int32).reshape(n, 3)
 
 

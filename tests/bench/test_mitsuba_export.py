@@ -18,6 +18,8 @@ import subprocess
 import numpy as np
 import pytest
 
+import harness
+
 from pyopencl_rt import load_scene
 from pyopencl_rt.bench import mitsuba_host
 from pyopencl_rt.bench.mitsuba_export import mitsuba_envmap, save_scene_npz, scene_arrays
@@ -90,15 +92,9 @@ def test_envmap_resampling_is_our_map_in_mitsubas_layout():
 def test_environment_map_renders_the_same(tmp_path, device):
     """The sky seen directly (looking along -z, then straight up) and a diffuse sphere lit by it."""
     sky_map(tmp_path / "sky.exr")
-    for name, look_at, up in (("horizon", "[0, 0, -1]", "[0, 1, 0]"), ("zenith", "[0, 1, 0]", "[0, 0, -1]")):
-        (tmp_path / f"{name}.toml").write_text(f"""
-[camera]
-eye = [0, 0, 0]
-look_at = {look_at}
-up = {up}
-fov = 100
-[render]
-max_depth = 1
+    for name, look_at, up in (("horizon", [0, 0, -1], [0, 1, 0]), ("zenith", [0, 1, 0], [0, 0, -1])):
+        (tmp_path / f"{name}.toml").write_text(harness.toml_tables(
+            camera=dict(eye=[0, 0, 0], look_at=look_at, up=up, fov=100), render=dict(max_depth=1)) + """
 [environment]
 file = "sky.exr"
 scale = [1.0, 0.9, 1.1]
@@ -109,13 +105,8 @@ radius = 0.01
 """)
         ours, theirs, variance = render_both(load_scene(tmp_path / f"{name}.toml"), tmp_path, device, spp=16)
         assert_regions_agree(ours, theirs, variance)
-    (tmp_path / "lit.toml").write_text("""
-[camera]
-eye = [0, 0, 3]
-look_at = [0, 0, 0]
-fov = 45
-[render]
-max_depth = 4
+    (tmp_path / "lit.toml").write_text(harness.toml_tables(
+        camera=dict(eye=[0, 0, 3], look_at=[0, 0, 0], fov=45), render=dict(max_depth=4)) + """
 [environment]
 file = "sky.exr"
 [[shape]]
@@ -138,13 +129,8 @@ def test_image_textures_and_delta_lights_render_the_same(tmp_path, device):
     quarters = np.array([[230, 40, 40], [40, 230, 40], [40, 40, 230], [230, 230, 230]])
     texture = quarters[(y // 8) * 2 + x // 8] * (0.5 + x[..., None] / 32)
     Image.fromarray(texture.astype(np.uint8)).save(tmp_path / "quarters.png")
-    (tmp_path / "textured.toml").write_text("""
-[camera]
-eye = [0, 0.5, 3]
-look_at = [0, 0, 0]
-fov = 50
-[render]
-max_depth = 3
+    (tmp_path / "textured.toml").write_text(harness.toml_tables(
+        camera=dict(eye=[0, 0.5, 3], look_at=[0, 0, 0], fov=50), render=dict(max_depth=3)) + """
 [environment]
 radiance = [0.3, 0.35, 0.4]
 [materials.paper]

@@ -30,6 +30,7 @@ from pyopencl_rt.render.settings import ImageSettings
 from pyopencl_rt.scene.model import PixelFilter
 
 import harness
+from harness import lane_renders as renders, mitsuba
 
 ALPHA = 1e-4
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
@@ -353,14 +354,6 @@ radius = {radius}
 
 
 # ----------------------------------------------------------------------------- lanes and schedules
-def renders(scene, device, monkeypatch, widths, **options):
-    out = {}
-    for width in widths:
-        monkeypatch.setenv(megakernel.LANES_ENV, width)
-        out[width] = rt.render_full(scene, device=device, kernel_mode="megakernel", **options)
-    return out
-
-
 def test_lanes_are_bit_identical(device, monkeypatch):
     """Every filter, with the orthographic camera and with the thin lens: the film sums at 8 and 16
     lanes are the one-path megakernel's bit for bit (the tables are read with gathers, the
@@ -398,15 +391,6 @@ def test_wavefront_megakernel_and_aovs_agree(device, monkeypatch):
 
 
 # ----------------------------------------------------------------------------- against Mitsuba 3
-def mitsuba():
-    try:
-        import mitsuba as mi
-    except ImportError as exc:
-        pytest.skip(f"Mitsuba 3 is not installed (pip install mitsuba): {exc}")
-    mi.set_variant("scalar_rgb")
-    return mi
-
-
 SHAPES = """
     <emitter type="constant"><rgb name="radiance" value="0.2"/></emitter>
     <shape type="rectangle">

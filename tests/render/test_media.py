@@ -64,46 +64,38 @@ RT_INLINE puint lanes_u(__global const uint *a)
     return v;
 }
 
-/* per item: medium mi, ray (o, d), span (tmin, tmax), hero channel, stream key, active;
- * out: t, real, beta.xyz, r.xyz; state: the stream after */
-__kernel void h_free_flight(__global const Medium *media, __global const MediumGrid *grids,
-                            __global const float *grid_data, __global const int *mi, __global const float *ray,
-                            __global const float *span, __global const int *channel, __global const uint *key,
-                            __global const int *act, __global float *out, __global uint *state)
+/* per item: medium mi, ray (o, d), span (tmin, tmax), hero channel, stream key, active; out, with
+ * free_flight: t, real, beta.xyz, r.xyz of the free-flight sample, else T.xyz, r.xyz of the
+ * transmittance (each starting at 1); state: the stream after */
+__kernel void h_track(__global const Medium *media, __global const MediumGrid *grids,
+                      __global const float *grid_data, __global const int *mi, __global const float *ray,
+                      __global const float *span, __global const int *channel, __global const uint *key,
+                      __global const int *act, const int free_flight, __global float *out, __global uint *state)
 {
     const MediumLanes m = medium_lanes(media, grids, lanes_i(mi));
     puint st = lanes_u(key);
     pvec3 beta = pv3_splat((float3)(1.0f)), r = beta;
-    pfloat t = PFLOAT(-1.0f);
-    const pint real = medium_sample_free_flight(&m, grid_data, lanes3(ray, 6, 0), lanes3(ray, 6, 3), lanes_f(span, 2, 0),
-                                                lanes_f(span, 2, 1), lanes_i(channel), &st, lanes_i(act) != 0, &t,
-                                                &beta, &r);
-    for (int k = 0; k < PACKET_WIDTH; ++k) {
-        __global float *o = out + 8 * ITEM(k);
-        o[0] = PLANE(t, k);
-        o[1] = MASK_F(real, k);
-        vstore3(pv3_lane(beta, k), 0, o + 2);
-        vstore3(pv3_lane(r, k), 0, o + 5);
-        state[ITEM(k)] = PLANE_U(st, k);
+    const pvec3 o = lanes3(ray, 6, 0), d = lanes3(ray, 6, 3);
+    const pfloat tmin = lanes_f(span, 2, 0), tmax = lanes_f(span, 2, 1);
+    if (free_flight) {
+        pfloat t = PFLOAT(-1.0f);
+        const pint real = medium_sample_free_flight(&m, grid_data, o, d, tmin, tmax, lanes_i(channel), &st,
+                                                    lanes_i(act) != 0, &t, &beta, &r);
+        for (int k = 0; k < PACKET_WIDTH; ++k) {
+            __global float *q = out + 8 * ITEM(k);
+            q[0] = PLANE(t, k);
+            q[1] = MASK_F(real, k);
+            vstore3(pv3_lane(beta, k), 0, q + 2);
+            vstore3(pv3_lane(r, k), 0, q + 5);
+        }
+    } else {
+        medium_transmittance(&m, grid_data, o, d, tmin, tmax, lanes_i(channel), &st, lanes_i(act) != 0, &beta, &r);
+        for (int k = 0; k < PACKET_WIDTH; ++k) {
+            vstore3(pv3_lane(beta, k), 0, out + 6 * ITEM(k));
+            vstore3(pv3_lane(r, k), 0, out + 6 * ITEM(k) + 3);
+        }
     }
-}
-
-/* the same inputs; out: T.xyz, r.xyz (each starting at 1) */
-__kernel void h_transmittance(__global const Medium *media, __global const MediumGrid *grids,
-                              __global const float *grid_data, __global const int *mi, __global const float *ray,
-                              __global const float *span, __global const int *channel, __global const uint *key,
-                              __global const int *act, __global float *out, __global uint *state)
-{
-    const MediumLanes m = medium_lanes(media, grids, lanes_i(mi));
-    puint st = lanes_u(key);
-    pvec3 T = pv3_splat((float3)(1.0f)), r = T;
-    medium_transmittance(&m, grid_data, lanes3(ray, 6, 0), lanes3(ray, 6, 3), lanes_f(span, 2, 0), lanes_f(span, 2, 1),
-                         lanes_i(channel), &st, lanes_i(act) != 0, &T, &r);
-    for (int k = 0; k < PACKET_WIDTH; ++k) {
-        vstore3(pv3_lane(T, k), 0, out + 6 * ITEM(k));
-        vstore3(pv3_lane(r, k), 0, out + 6 * ITEM(k) + 3);
-        state[ITEM(k)] = PLANE_U(st, k);
-    }
+    for (int k = 0; k < PACKET_WIDTH; ++k) state[ITEM(k)] = PLANE_U(st, k);
 }
 
 /* per item: grid gi, world point p, active; out: value.xyz */
@@ -186,14 +178,15 @@ def items(n, x, dtype, width=None):
 
 
 def track(runtime, kernel, media, mi, ray, span, channel, key, act=1, kernels=HARNESS, lanes=1):
-    """h_free_flight / h_transmittance over len(ray) items -> (out, state)."""
+    """h_track's free flight (kernel "h_free_flight") or transmittance ("h_transmittance") over len(ray)
+    items -> (out, state)."""
     ray = np.asarray(ray, np.float32).reshape(-1, 6)
     n = len(ray)
     recs, table, data = pack(media)
-    width = 8 if kernel == "h_free_flight" else 6
-    return kernels(runtime, kernel, n // lanes, recs, table, data, items(n, mi, np.int32), ray,
+    free_flight = kernel == "h_free_flight"  # h_track's two modes
+    return kernels(runtime, "h_track", n // lanes, recs, table, data, items(n, mi, np.int32), ray,
                    items(n, span, np.float32, 2), items(n, channel, np.int32), items(n, key, np.uint32),
-                   items(n, act, np.int32), (n, width), n)
+                   items(n, act, np.int32), int(free_flight), (n, 8 if free_flight else 6), n)
 
 
 def keys(rng, n):
@@ -550,13 +543,8 @@ def cell_integrals(runtime, ptype, g, mu_edges, phi_edges, k=8):
     """The device pdf integrated over (mu, phi) cells about the travel direction -wi (k x k-point
     Gauss-Legendre per cell, float64 on the host)."""
     x, w = np.polynomial.legendre.leggauss(k)
-
-    def nodes(edges):
-        mid, half = (edges[1:] + edges[:-1]) / 2, (edges[1:] - edges[:-1]) / 2
-        return (mid[:, None] + half[:, None] * x).ravel(), (half[:, None] * w).ravel()
-
-    mu, wmu = nodes(mu_edges)
-    phi, wphi = nodes(phi_edges)
+    mu, wmu = harness.gauss_legendre_cells(mu_edges, x, w)
+    phi, wphi = harness.gauss_legendre_cells(phi_edges, x, w)
     M, P = np.meshgrid(mu, phi, indexing="ij")
     e1, e2, e3 = frame(-WI)
     s = np.sqrt(np.maximum(0, 1 - M * M))

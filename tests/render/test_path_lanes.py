@@ -21,17 +21,9 @@ from pyopencl_rt.render.film import Film
 from pyopencl_rt.render.wavefront import Wavefront
 
 import harness
+from harness import lane_renders as renders
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
-
-
-def renders(scene, device, monkeypatch, widths, **options):
-    """The same render with the lane kernel off (one path per work-item) and at each width."""
-    out = {}
-    for width in widths:
-        monkeypatch.setenv(megakernel.LANES_ENV, width)
-        out[width] = rt.render_full(scene, device=device, kernel_mode="megakernel", **options)
-    return out
 
 
 def assert_same(results):

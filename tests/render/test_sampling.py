@@ -230,13 +230,8 @@ def bin_pdf_integrals(runtime, which, param, theta_edges, phi_edges, k=6):
     """Integral of the device pdf (solid angle) over each (theta, phi) bin, by k x k-point
     Gauss-Legendre quadrature per bin in float64 (the pdf itself is evaluated on the device)."""
     x, wts = np.polynomial.legendre.leggauss(k)
-
-    def nodes(edges):
-        mid, half = (edges[1:] + edges[:-1]) / 2, (edges[1:] - edges[:-1]) / 2
-        return (mid[:, None] + half[:, None] * x).ravel(), (half[:, None] * wts).ravel()
-
-    th, wth = nodes(theta_edges)
-    ph, wph = nodes(phi_edges)
+    th, wth = harness.gauss_legendre_cells(theta_edges, x, wts)
+    ph, wph = harness.gauss_legendre_cells(phi_edges, x, wts)
     T, P = np.meshgrid(th, ph, indexing="ij")
     dirs = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1).reshape(-1, 3).astype(np.float32)
     pdf = HARNESS(runtime, "h_pdf", len(dirs), which=which, param=param, w=dirs,

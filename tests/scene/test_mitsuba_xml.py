@@ -18,19 +18,11 @@ from pyopencl_rt.scene.loaders.mitsuba_serialized import write_serialized
 from pyopencl_rt.scene.model import PixelFilter
 
 from scene_compare import render_pair_z, triangle_records, triangles_equal, write_exr_image, write_png_image
+from harness import mitsuba
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 CORNELL_XML = SCENES / "cornell-box.xml"
 CORNELL_TOML = SCENES / "cornell-box.toml"
-
-
-def mitsuba():
-    try:
-        import mitsuba as mi
-    except ImportError as exc:
-        pytest.skip(f"Mitsuba 3 is not installed (pip install mitsuba): {exc}")
-    mi.set_variant("scalar_rgb")
-    return mi
 
 
 def write(tmp_path, body, name="s.xml", version="3.0.0") -> Path:
@@ -996,6 +988,9 @@ def dict_to_xml(d: dict) -> str:
     tags = {"integrator": "integrator", "sensor": "sensor", "sampler": "sampler", "film": "film",
             "rfilter": "rfilter", "bsdf": "bsdf", "material": "bsdf", "emitter": "emitter"}
 
+    scalars = ((bool, "boolean", lambda v: str(v).lower()), (int, "integer", str), (float, "float", repr),
+               (str, "string", str))
+
     def num(v):
         return ", ".join(repr(float(x)) for x in np.ravel(v))
 
@@ -1004,14 +999,9 @@ def dict_to_xml(d: dict) -> str:
             if v["type"] == "rgb":
                 return f'<rgb name="{name}" value="{num(v["value"])}"/>'
             return plugin(tags.get(name, "shape"), v)
-        if isinstance(v, bool):
-            return f'<boolean name="{name}" value="{str(v).lower()}"/>'
-        if isinstance(v, int):
-            return f'<integer name="{name}" value="{v}"/>'
-        if isinstance(v, float):
-            return f'<float name="{name}" value="{v!r}"/>'
-        if isinstance(v, str):
-            return f'<string name="{name}" value="{v}"/>'
+        for kind, tag, text in scalars:  # bool before int: a bool is an int
+            if isinstance(v, kind):
+                return f'<{tag} name="{name}" value="{text(v)}"/>'
         if isinstance(v, _LookAt):
             return (f'<transform name="{name}"><lookat origin="{num(v.origin)}" target="{num(v.target)}" '
                     f'up="{num(v.up)}"/></transform>')

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..model import Camera, DirectionalLight, Environment, Material, PointLight, RenderSettings, Scene
 from .assembly import angle_weighted_normals, frame_scene, transform_normals, triangle_scene
-from .values import SceneError, one_line
+from .values import SceneError, first_use_index, one_line
 
 
 class SceneFormatError(SceneError):
@@ -356,20 +356,11 @@ class SceneBuilder:
 
     def medium_index(self, medium) -> int:
         """The index of ``medium`` (a scene.media.Medium) in the scene's media (added on first use)."""
-        key = id(medium)
-        if key not in self._medium_index:
-            self._medium_index[key] = len(self.media)
-            self.media.append(medium)
-        return self._medium_index[key]
+        return first_use_index(self.media, self._medium_index, medium, key=id(medium))
 
     def interface_index(self, interface) -> int:
         """The index of a scene.media.MediumInterface (one entry per distinct value); None: -1."""
-        if interface is None:
-            return -1
-        if interface not in self._interface_index:
-            self._interface_index[interface] = len(self.interfaces)
-            self.interfaces.append(interface)
-        return self._interface_index[interface]
+        return -1 if interface is None else first_use_index(self.interfaces, self._interface_index, interface)
 
     def add_mesh(self, vertices, faces, material: Material, uvs=None, matrix=None, flip=False, normals=None,
                  colors=None, compute_normals=None, interface=None) -> None:

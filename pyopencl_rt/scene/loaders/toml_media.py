@@ -9,7 +9,8 @@ import numpy as np
 
 from ...errors import UserError
 from ..media import Grid, Medium, MediumInterface, PhaseFunction
-from .values import check_boolean, check_choice, check_keys, check_number, check_vector, describe, one_line
+from .values import (check_boolean, check_choice, check_keys, check_number, check_vector, describe, first_use_index,
+                     one_line)
 
 MEDIUM_KEYS = {"type", "sigma_t", "albedo", "scale", "phase", "g", "sample_emitters", "file", "density", "bounds",
                "matrix", "filter", "outside", "albedo_file"}
@@ -159,12 +160,7 @@ class Interfaces:
     def index(self, where, table) -> int:
         """The index of the shape's medium interface (-1: none)."""
         interface = shape_interface(self.ctx, where, table, self.media_index)
-        if interface is None:
-            return -1
-        if interface not in self._index:
-            self._index[interface] = len(self.list)
-            self.list.append(interface)
-        return self._index[interface]
+        return -1 if interface is None else first_use_index(self.list, self._index, interface)
 
 
 def camera_medium(ctx, table, media_index: dict) -> int:

@@ -29,6 +29,16 @@ class ErrorContext:
         return SceneError(one_line(prefix + what))
 
 
+def first_use_index(items: list, index: dict, value, key=None) -> int:
+    """The index of ``value`` in ``items``, appended on its first use (``index`` maps ``key``, by
+    default the value itself, to the index)."""
+    key = value if key is None else key
+    if key not in index:
+        index[key] = len(items)
+        items.append(value)
+    return index[key]
+
+
 def is_number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
