@@ -18,7 +18,7 @@ $(STAMP): setup.cfg pyproject.toml
 venv: $(STAMP)
 
 test: $(STAMP)
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q -n auto tests
 
 render: $(STAMP)
 	$(VENV)/bin/pyopencl-rt render scenes/cornell-box.toml -o $(OUT)/cornell-box.exr --spp 64
