@@ -147,7 +147,7 @@ RT_INLINE void path_escape(__global const Light *lights, __global const float *e
     w = s->pdf > 0.0f ? PFLOAT(0.0f) : w;
 #elif INTEGRATOR == 0
     const pint mis = seen & (s->pdf > 0.0f);
-    if (pany(mis)) w = mis ? power_heuristic(s->pdf, lt->pmf * env_pdf(lt, env_cdf, s->d)) : w;
+    if (pany(mis)) w = mis ? power_heuristic(s->pdf, lt->pmf * env_pdf(lt, env_map, env_cdf, s->d)) : w;
 #endif
     s->L = pv3_sel(s->L, pv3_add(s->L, pv3_scale(pv3_mul(s->beta, Le), w)), seen);
 }

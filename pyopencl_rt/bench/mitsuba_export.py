@@ -30,14 +30,14 @@ environments and the scenes of ``bench set``, tests/bench/test_mitsuba_export.py
   coordinates without flipping them).  Spheres have no texture coordinates here and use the
   factors alone, so their BSDF and emitter are the untextured ones.  A type whose texture has no
   Mitsuba place (``gltf``, which has no ``to_mitsuba`` at all) is refused;
-* environment: a constant one is Mitsuba's ``constant``; a map is ``envmap`` (identity
-  ``to_world``), resampled to Mitsuba's layout: Mitsuba's u = atan2(x, -z) / 2 pi looks along -z
-  at u = 0, ours (cl/render/lights.h) along +z, so its u is ours + 1/2; its column i is centred at
-  u = (i + 1/2) / W, its row j at v = j / (H - 1) (poles on the first and last rows: Mitsuba 3.9's
-  envmap.cpp), and it filters bilinearly where we take the nearest texel, so each of its texels is
-  our nearest texel at its centre, on a grid finer than ours (:data:`ENV_WIDTH`: 4 times for a
-  map 256 texels wide), so that the bilinear blur spans an eighth of our texel on either side of
-  its edges.  Our RGB scale is multiplied in;
+* environment: a constant one is Mitsuba's ``constant``; a map is ``envmap``.  Both interpolate
+  bilinearly; Mitsuba's u = atan2(x, -z) / 2 pi looks along -z at u = 0, ours (cl/render/lights.h)
+  along +z, so its frame is ours turned half a turn about +y; its column i is centred at
+  u = (i + 1/2) / W, its row j at v = j / (H - 1) (the poles on the first and last rows: Mitsuba
+  3.9's envmap.cpp).  A map of ours with rows on the poles (one read from Mitsuba's XML) is
+  exported as it is with the ``to_world`` of its rotation; one with centred rows is resampled,
+  each of Mitsuba's texels our interpolated map at its node, on a grid finer than ours
+  (:data:`ENV_WIDTH`: 4 times for a map 256 texels wide).  Our RGB scale is multiplied in;
 * point and directional lights: Mitsuba's ``point`` (``intensity``) and ``directional``
   (``irradiance``), the same quantities as ours;
 * camera: ``perspective``, ``to_world = look_at(eye, look_at, up)``, ``fov_axis = 'y'`` (our
@@ -168,25 +168,34 @@ def _environment_record(environment, arrays: dict) -> dict | None:
         return None
     if environment.image is None:
         return {"type": "constant", "radiance": [float(x) for x in environment.radiance]}
-    arrays["envmap"] = mitsuba_envmap(environment.image, environment.radiance)
-    return {"type": "envmap"}
+    arrays["envmap"], to_world = mitsuba_envmap(environment)
+    return {"type": "envmap", "to_world": to_world.tolist()}
 
 
-def mitsuba_envmap(image, scale=(1.0, 1.0, 1.0), upsample=None) -> np.ndarray:
-    """Our equirectangular map (times ``scale``) as Mitsuba's ``envmap`` reads it with an identity
-    ``to_world``: each of its texels is our nearest texel in the direction of that texel's centre
-    (the module docstring has both layouts); (H', W', 3) float32."""
-    ours = np.nan_to_num(np.asarray(image, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
-    ours = np.maximum(ours, 0.0) * np.asarray(scale, np.float32)  # as our loader treats such texels
-    h, w = ours.shape[:2]
+def mitsuba_envmap(environment, upsample=None) -> tuple[np.ndarray, np.ndarray]:
+    """(image (H', W', 3) float32, to_world 3x3) of Mitsuba's ``envmap`` for our ``environment``
+    (its RGB scale multiplied in).  A map whose rows lie on the poles is Mitsuba's own layout: its
+    texels as they are, and the to_world that turns our frame into Mitsuba's (u turned by half a
+    turn).  A map of centred rows is resampled: each of Mitsuba's texels is our interpolated map in
+    the direction of its node, on a grid ``upsample`` times finer than ours (:data:`ENV_WIDTH`)."""
+    from ..render.lights import environment_radiance
+
+    img = np.maximum(np.nan_to_num(np.asarray(environment.image, np.float64)[:, :, :3], nan=0.0, posinf=0.0,
+                                   neginf=0.0), 0.0)
+    turn = np.diag([-1.0, 1.0, -1.0])  # Mitsuba's frame: ours turned half a turn about +y
+    rotation = np.eye(3) if environment.rotation is None else np.asarray(environment.rotation, np.float64)
+    if environment.rows == "poles":
+        return (img * np.asarray(environment.radiance, np.float64)).astype(np.float32), rotation.T @ turn
+    h, w = img.shape[:2]
     k = upsample or min(ENV_MAX_UPSAMPLE, max(1, -(-ENV_WIDTH // w)))
     out_w, out_h = k * w, max(3, k * h)
-    u_mitsuba = (np.arange(out_w) + 0.5) / out_w
-    v = np.arange(out_h) / (out_h - 1)
-    u_ours = np.mod(u_mitsuba + 0.5, 1.0)
-    col = np.minimum((u_ours * w).astype(np.int64), w - 1)
-    row = np.minimum((v * h).astype(np.int64), h - 1)
-    return np.ascontiguousarray(ours[row[:, None], col[None, :]], np.float32)
+    # the nodes on the poles take our map's limit there along their own azimuth
+    v = np.clip(np.arange(out_h) / (out_h - 1), 1e-6, 1 - 1e-6)
+    v, u = np.meshgrid(v, (np.arange(out_w) + 0.5) / out_w, indexing="ij")
+    theta, phi = np.pi * v.ravel(), 2 * np.pi * u.ravel()
+    local = np.stack([np.sin(theta) * np.sin(phi), np.cos(theta), -np.sin(theta) * np.cos(phi)], 1)
+    texels = environment_radiance(environment, local)  # Mitsuba's identity to_world: its frame is the world's
+    return texels.reshape(out_h, out_w, 3).astype(np.float32), np.eye(3)
 
 
 def save_scene_npz(path, arrays: dict) -> None:
@@ -299,7 +308,9 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
     if environment and environment["type"] == "constant":
         d["environment"] = {"type": "constant", "radiance": {"type": "rgb", "value": environment["radiance"]}}
     elif environment:
-        d["environment"] = {"type": "envmap", "filename": bitmap_file("envmap")}
+        to_world = np.eye(4)
+        to_world[:3, :3] = environment.get("to_world", np.eye(3))
+        d["environment"] = {"type": "envmap", "filename": bitmap_file("envmap"), "to_world": T(to_world.tolist())}
     return d
 
 

@@ -214,7 +214,8 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 # An emitter that next-event estimation samples (80 bytes; cl/render/lights.h documents each kind).
 #   kind: LIGHT_TRIANGLE (prim = original face index) or LIGHT_SPHERE (prim = sphere index),
 #         LIGHT_POINT, LIGHT_DIRECTIONAL (delta lights: sampled, never hit) or LIGHT_ENVIRONMENT
-#         (prim = the map's width, material = its height; 0 x 0 = constant radiance)
+#         (prim = the map's width, material = its height; 0 x 0 = constant radiance; cells: its
+#         sampling cells per texel along each axis)
 #   pmf: probability that the light sampler picks this light (proportional to power)
 #   alias, alias_prob: Walker/Vose alias table entry for O(1) sampling
 #   p:      point: position; directional, environment: centre of the scene's bounding sphere
@@ -222,10 +223,16 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 #   dir:    directional: unit direction in which the light travels
 #   rgb:    point: intensity [W/sr]; directional: irradiance on a perpendicular surface;
 #           environment: radiance (constant) or the map's scale
+# The environment map's buffer (env_map): a header of ENV_MAP_HEADER floats, then the H x W RGB
+# texels row by row from the top.  Header: the rows of the 3x3 world-to-map rotation at floats 0-2,
+# 4-6 and 8-10 (directions are turned into the map's frame before (u, v) is taken), and at 3 and 7
+# the row coordinate of v: y = v * v_scale + v_offset (H, -0.5: rows centred in [0, 1]; H - 1, 0:
+# the first and last rows on the poles, Mitsuba's envmap); the texels are interpolated bilinearly.
+ENV_MAP_HEADER = define("ENV_MAP_HEADER", 16)
 (LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_ENVIRONMENT) = define_enum(
     "LIGHT_", ("triangle", "sphere", "point", "directional", "environment")).values()
 LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), ("alias_prob", np.float32),
-                  ("alias", np.int32), ("material", np.int32), ("area", np.float32), ("pad", np.int32),
+                  ("alias", np.int32), ("material", np.int32), ("area", np.float32), ("cells", np.int32),
                   ("p", np.float32, 3), ("radius", np.float32), ("dir", np.float32, 3), ("pad1", np.int32),
                   ("rgb", np.float32, 3), ("pad2", np.int32)])
 assert LIGHT.itemsize == 80

@@ -102,19 +102,42 @@ def _rgb(x) -> np.ndarray:
     return np.where(np.isfinite(a), np.maximum(a, 0.0), 0.0)
 
 
-def environment_tables(image) -> tuple[np.ndarray, np.ndarray, float]:
-    """(map H x W x 3 float32, cdf float32, mean radiance luminance over the sphere) of an
-    equirectangular map: negative and non-finite texels become 0.  cdf is the marginal CDF over
-    rows (H + 1 values from 0 to 1), then the conditional CDF of each row (W + 1 values), of
-    luminance x sin(theta) at the row centre; a row (or map) with nothing in it is uniform."""
+ENV_ROWS = {"centred": lambda h: (float(h), -0.5), "poles": lambda h: (float(max(h - 1, 1)), 0.0)}
+
+
+ENV_SAMPLING_CELLS = 1 << 22  # a map gets 2 x 2 to 4 x 4 sampling cells per texel while they stay below this
+
+
+def environment_tables(image, rows: str = "centred", rotation=None) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """(env_map, env_cdf, mean radiance luminance over the sphere, cells) of an equirectangular map:
+    env_map is the kernel's buffer (abi.ENV_MAP_HEADER floats: the world-to-map ``rotation`` and the
+    ``rows`` layout, then the texels; negative and non-finite texels become 0).  The sampling
+    density is constant over cells x cells cells per texel (S H x S W in all, S = cells: up to 4 on
+    small maps, where the interpolated radiance varies most within a texel's solid angle).  env_cdf
+    is the marginal CDF over the S H rows of cells (S H + 1 values from 0 to 1), then the
+    conditional CDF of each row (S W + 1 values): a cell's weight is the bilinearly interpolated
+    luminance averaged over it (4 x 4 points) times sin(theta) at the row centre, plus 1e-3 of the
+    largest luminance of the texels around it, so that no cell where the radiance is positive has
+    density 0; a row (or map) with nothing in it is uniform."""
     img = np.asarray(image, np.float64)
     if img.ndim != 3 or img.shape[2] < 3 or img.shape[0] < 1 or img.shape[1] < 1:
         raise ValueError(f"an environment map must be H x W x 3, got shape {img.shape}")
+    if rows not in ENV_ROWS:
+        raise ValueError(f"environment map rows must be one of {', '.join(ENV_ROWS)}, got {rows!r}")
     img = img[:, :, :3]
     img = np.where(np.isfinite(img), np.maximum(img, 0.0), 0.0)
     h, w = img.shape[:2]
+    v_scale, v_offset = ENV_ROWS[rows](h)
+    lum = img @ LUMINANCE
+    sub = int(np.clip(np.floor(np.sqrt(ENV_SAMPLING_CELLS / (h * w))), 1, 4))
+    cells = (_cell_means(sub * h, h, v_scale, v_offset, wrap=False)
+             @ (_cell_means(sub * w, w, float(w), -0.5, wrap=True) @ lum.T).T)
+    from scipy.ndimage import maximum_filter
+
+    near = np.repeat(np.repeat(maximum_filter(lum, size=3, mode=("nearest", "wrap")), sub, 0), sub, 1)
+    h, w = sub * h, sub * w  # the cells from here on
     sin_t = np.sin(np.pi * (np.arange(h) + 0.5) / h)
-    f = (img @ LUMINANCE) * sin_t[:, None]
+    f = (np.maximum(cells, 0.0) + 1e-3 * near) * sin_t[:, None]
 
     def cdf_rows(weights):  # (R, N) -> (R, N + 1), each row from 0 to 1
         total = weights.sum(1, keepdims=True)
@@ -127,29 +150,81 @@ def environment_tables(image) -> tuple[np.ndarray, np.ndarray, float]:
     cond = cdf_rows(f)
     marg = cdf_rows(f.sum(1)[None, :])[0]
     cdf = np.concatenate([marg, cond.reshape(-1)]).astype(np.float32)
-    mean = float(f.sum() * (np.pi / h) * (2 * np.pi / w) / (4 * np.pi))
-    return img.astype(np.float32), cdf, mean
+    mean = float((np.maximum(cells, 0.0) * sin_t[:, None]).sum() * (np.pi / h) * (2 * np.pi / w) / (4 * np.pi))
+    header = np.zeros(abi.ENV_MAP_HEADER, np.float32)
+    rot = np.eye(3) if rotation is None else np.asarray(rotation, np.float64)
+    header[[0, 1, 2, 4, 5, 6, 8, 9, 10]] = rot.reshape(-1)
+    header[3], header[7] = v_scale, v_offset
+    return np.concatenate([header, img.astype(np.float32).reshape(-1)]), cdf, mean, sub
+
+
+def environment_radiance(env, directions) -> np.ndarray:
+    """(N, 3) float64 radiance of the Environment ``env`` along unit world ``directions`` (N, 3),
+    as cl/render/lights.h computes it (the map's frame, then bilinear interpolation): the host's
+    reference of the kernel's lookup."""
+    d = np.asarray(directions, np.float64)
+    scale = np.asarray(env.radiance, np.float64)
+    if env.image is None:
+        return np.broadcast_to(scale, d.shape).copy()
+    if env.rotation is not None:
+        d = d @ np.asarray(env.rotation, np.float64).T
+    img = np.asarray(env.image, np.float64)[:, :, :3]
+    img = np.where(np.isfinite(img), np.maximum(img, 0.0), 0.0)
+    h, w = img.shape[:2]
+    u = np.mod(np.arctan2(-d[:, 0], d[:, 2]) / (2 * np.pi), 1.0)
+    v = np.arccos(np.clip(d[:, 1], -1.0, 1.0)) / np.pi
+    v_scale, v_offset = ENV_ROWS[env.rows](h)
+    fx, fy = u * w - 0.5, v * v_scale + v_offset
+    x0, y0 = np.floor(fx), np.floor(fy)
+    ax, ay = (fx - x0)[:, None], (fy - y0)[:, None]
+    x0 = x0.astype(np.int64) % w
+    x1 = (x0 + 1) % w
+    y1 = np.clip(y0.astype(np.int64) + 1, 0, h - 1)
+    y0 = np.clip(y0.astype(np.int64), 0, h - 1)
+    top = img[y0, x0] * (1 - ax) + img[y0, x1] * ax
+    bottom = img[y1, x0] * (1 - ax) + img[y1, x1] * ax
+    return (top * (1 - ay) + bottom * ay) * scale
+
+
+def _cell_means(n_cells: int, n: int, scale: float, offset: float, wrap: bool):
+    """(n_cells x n) sparse: the linear interpolation of n texels at coordinate t * scale + offset,
+    averaged over 4 points of each of n_cells equal cells of t in [0, 1]; the texels wrap around or
+    are clamped at the ends."""
+    from scipy.sparse import csr_matrix
+
+    k = 4
+    t = (np.arange(n_cells)[:, None] + (np.arange(k)[None, :] + 0.5) / k) / n_cells
+    f = t * scale + offset
+    i0 = np.floor(f)
+    a = f - i0
+    i0 = i0.astype(np.int64)
+    i1 = i0 + 1
+    i0, i1 = (i0 % n, i1 % n) if wrap else (np.clip(i0, 0, n - 1), np.clip(i1, 0, n - 1))
+    rows = np.repeat(np.arange(n_cells), 2 * k)
+    cols = np.stack([i0, i1], 2).reshape(-1)
+    data = np.stack([1 - a, a], 2).reshape(-1) / k
+    return csr_matrix((data, (rows, cols)), shape=(n_cells, n))
 
 
 def _env_tables(env):
-    """environment_tables of env.image, computed once per Environment."""
+    """environment_tables of env.image (its rows and rotation), computed once per Environment."""
     if env.image is None:
         return None
-    key = id(env.image)
+    key = (id(env.image), getattr(env, "rows", "centred"), None if env.rotation is None else env.rotation.tobytes())
     cached = getattr(env, "_tables", None)
     if cached is None or cached[0] != key:
-        cached = (key, environment_tables(env.image))
+        cached = (key, environment_tables(env.image, env.rows, env.rotation))
         env._tables = cached
     return cached[1]
 
 
 def environment_buffers(scene) -> tuple[np.ndarray, np.ndarray]:
-    """The env_map and env_cdf kernel arguments (1-element dummies without a map)."""
+    """The env_map and env_cdf kernel arguments (dummies without a map)."""
     env = getattr(scene, "environment", None)
     tables = _env_tables(env) if env is not None else None
     if tables is None:
-        return np.zeros(4, np.float32), np.zeros(4, np.float32)
-    return tables[0].reshape(-1), tables[1]
+        return np.zeros(abi.ENV_MAP_HEADER, np.float32), np.zeros(4, np.float32)
+    return tables[0], tables[1]
 
 
 def other_lights(scene) -> tuple[np.ndarray, np.ndarray]:
@@ -190,8 +265,8 @@ def other_lights(scene) -> tuple[np.ndarray, np.ndarray]:
             tables = _env_tables(spec)
             mean = 1.0
             if tables is not None:
-                h, w = tables[0].shape[:2]
-                r["prim"], r["material"] = w, h
+                h, w = np.asarray(spec.image).shape[:2]
+                r["prim"], r["material"], r["cells"] = w, h, tables[3]
                 mean = tables[2]
             power[i] = 4 * np.pi * np.pi * radius**2 * float(r["rgb"] @ LUMINANCE) * mean
         else:

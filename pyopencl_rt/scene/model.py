@@ -287,6 +287,11 @@ class Environment:
     radiance: tuple = (1.0, 1.0, 1.0)
     image: np.ndarray | None = None
     source: str | None = None  # the map's file, for messages
+    # the map's frame: world directions are turned by this 3x3 rotation (None: the identity) before
+    # (u, v) is taken; rows "centred" in [0, 1] (row i at v = (i + 0.5) / H) or on the "poles" (row i
+    # at v = i / (H - 1), Mitsuba's envmap); texels are interpolated bilinearly
+    rotation: np.ndarray | None = None
+    rows: str = "centred"
 
 
 @dataclass

@@ -25,6 +25,7 @@ from pyopencl_rt.bench import mitsuba_host
 from pyopencl_rt.bench.mitsuba_export import mitsuba_envmap, save_scene_npz, scene_arrays
 from pyopencl_rt.imageio import write_exr
 from pyopencl_rt.render.api import render_full
+from pyopencl_rt.scene.model import Environment
 from pyopencl_rt.render.settings import ImageSettings
 
 SIZE = 32
@@ -77,16 +78,31 @@ def sky_map(path, height=32, width=64):
     return image
 
 
-def test_envmap_resampling_is_our_map_in_mitsubas_layout():
-    """Without Mitsuba: the exported texel of Mitsuba's column i (u = (i + 1/2) / W') and row j
-    (v = j / (H' - 1)) is our nearest texel in that direction, u turned by half a turn."""
+def test_envmap_export_is_our_map_in_mitsubas_layout():
+    """Without Mitsuba: a map of centred rows is sampled at Mitsuba's nodes (column i at
+    u = (i + 1/2) / W', row j at v = j / (H' - 1), u turned by half a turn), bilinearly as our
+    kernel reads it; a map with rows on the poles (Mitsuba's own) goes as it is, with the to_world
+    of its rotation."""
     ours = np.arange(4 * 8 * 3, dtype=np.float32).reshape(4, 8, 3)
-    out = mitsuba_envmap(ours, scale=(2.0, 1.0, 1.0), upsample=2)
-    assert out.shape == (8, 16, 3)
-    assert np.array_equal(out[0, 0], ours[0, 4] * [2, 1, 1])  # Mitsuba's u = 1/32 is our u = 0.53
-    assert np.array_equal(out[0, 8], ours[0, 0] * [2, 1, 1])  # its u = 0.53 is our u = 0.03
-    assert np.array_equal(out[7, 15], ours[3, 3] * [2, 1, 1])  # the bottom row is the south pole's
-    assert np.array_equal(out[3, 8], ours[1, 0] * [2, 1, 1])  # v = 3/7 = 0.43: our row 1
+    out, to_world = mitsuba_envmap(Environment(radiance=(2.0, 1.0, 1.0), image=ours), upsample=2)
+    assert out.shape == (8, 16, 3) and np.array_equal(to_world, np.eye(3))
+    s = np.array([2.0, 1.0, 1.0])
+    # Mitsuba's u = 1/32 is our u = 0.53125: x = 3.75 between our columns 3 and 4; v = 0: row 0
+    assert np.allclose(out[0, 0], (0.25 * ours[0, 3] + 0.75 * ours[0, 4]) * s, rtol=1e-5)
+    # its u = 0.53125 is our 0.03125: x = -0.25, wrapping around between columns 7 and 0
+    assert np.allclose(out[0, 8], (0.25 * ours[0, 7] + 0.75 * ours[0, 0]) * s, rtol=1e-5)
+    # the bottom row is the south pole's (our row 3, clamped); u = 31/32 -> our 15/32: x = 3.25
+    assert np.allclose(out[7, 15], (0.75 * ours[3, 3] + 0.25 * ours[3, 4]) * s, rtol=1e-5)
+    # v = 3/7: y = 12/7 - 1/2 between our rows 1 and 2
+    a = 12 / 7 - 1.5
+    assert np.allclose(out[3, 8], ((1 - a) * (0.25 * ours[1, 7] + 0.75 * ours[1, 0])
+                                   + a * (0.25 * ours[2, 7] + 0.75 * ours[2, 0])) * s, rtol=1e-5)
+    c, sn = np.cos(0.4), np.sin(0.4)
+    rot = np.array([[c, 0, sn], [0, 1, 0], [-sn, 0, c]])
+    out, to_world = mitsuba_envmap(Environment(radiance=(2.0, 1.0, 1.0), image=ours, rows="poles", rotation=rot))
+    assert np.array_equal(out, ours * s.astype(np.float32))
+    # a world direction w: ours reads the map at rot @ w, Mitsuba at to_world^-1 @ w, turned
+    assert np.allclose(np.diag([-1.0, 1.0, -1.0]) @ rot, np.linalg.inv(to_world))
 
 
 def test_environment_map_renders_the_same(tmp_path, device):

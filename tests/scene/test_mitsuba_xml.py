@@ -19,6 +19,7 @@ from pyopencl_rt.scene.model import PixelFilter
 
 from scene_compare import render_pair_z, triangle_records, triangles_equal, write_exr_image, write_png_image
 from harness import mitsuba
+from pyopencl_rt.render.lights import environment_radiance
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 CORNELL_XML = SCENES / "cornell-box.xml"
@@ -802,46 +803,50 @@ def test_emitters(tmp_path):
     assert point.position == (1, 2, 3) and point.intensity == (5, 5, 5)
     assert np.allclose(directional.direction, [0, -1, 0])  # +z rotated 90 degrees about x
     env = scene.environment
-    assert env.radiance == (2, 2, 2) and env.image.shape == (2, 4, 3)
-    # Mitsuba: +x at u = 1/4, +z at 1/2, -x at 3/4, -z at 0; ours: -x at u = 1/4, -z at 1/2, +x at 3/4
-    # (docs/SCENE_FORMAT.md): our columns hold Mitsuba's 3, 4, 1, 2 (within the bilinear spread)
-    assert np.allclose(env.image[:, :, 0], [3, 4, 1, 2])  # texel centres fall on texel centres: exact
-    # rotated 90 degrees about y: our u = 1/8 looks along (-1, 0, 1)/sqrt 2, in the map's frame (-1, 0, -1)/sqrt 2:
-    # Mitsuba's u = atan2(-1, 1) / 2 pi = 7/8, its value 4; and so on round
+    # read as it is, Mitsuba's layout (rows on the poles) in a frame turned half a turn about +y:
+    # Mitsuba's +x at u = 1/4, +z at 1/2, -x at 3/4, -z at 0 (docs/SCENE_FORMAT.md)
+    assert env.radiance == (2, 2, 2) and np.array_equal(env.image, image) and env.rows == "poles"
+    assert np.allclose(env.rotation, np.diag([-1, 1, -1]))
+    axes = np.array([[1, 0, 0], [0, 0, 1], [-1, 0, 0], [0, 0, -1]], np.float64)  # Mitsuba's u = 1/4 + k/4
+    assert np.allclose(environment_radiance(env, axes)[:, 0], 2 * np.array([1.5, 2.5, 3.5, 2.5]))
+    # rotated 90 degrees about y: the map's +x (Mitsuba's u = 1/4) looks along world -z
     rotated = write(tmp_path, SPHERE + """<emitter type="envmap"><string name="filename" value="env.exr"/>
         <transform name="to_world"><rotate y="1" angle="90"/></transform></emitter>""", name="r.xml")
-    assert np.allclose(load(rotated)[0].environment.image[:, :, 0], [4, 1, 2, 3])
+    assert np.allclose(environment_radiance(load(rotated)[0].environment, axes[3:])[:, 0], 1.5)
     assert [w.split(": ", 1)[1] for w in warned] == [
         "a second environment light: we render one; ignored", '<emitter type="spot">: spot lights are not supported; ignored']
     assert line_of(path, "constant") == int(warned[0].split(":")[1])
 
 
 def test_envmap_agrees_with_mitsuba(tmp_path):
-    """Our resampled environment, looked up as our kernels do (nearest texel), against Mitsuba's
-    envmap emitter, for random directions, with a to_world rotation."""
+    """Our environment, looked up as our kernels do (environment_radiance: the float64 reference
+    of cl/render/lights.h, tests/render/test_lights.py), against Mitsuba's envmap emitter, for
+    random directions and the poles, with a to_world rotation; an axis that is not a unit vector
+    (Mitsuba does not normalise it: not a rotation) has the map resampled."""
     mi = mitsuba()
     h, w = 32, 64
     v, u = np.meshgrid((np.arange(h) + 0.5) / h, (np.arange(w) + 0.5) / w, indexing="ij")
     image = np.stack([1 + np.sin(2 * np.pi * u), 1 + v, 1 + np.cos(np.pi * v) * np.cos(2 * np.pi * u)], -1)
     write_exr_image(tmp_path / "env.exr", image)
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(400, 3))
+    d[:2] = [[0, 1, 0], [0, -1, 0]]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
     path = write(tmp_path, SPHERE + """<emitter type="envmap"><string name="filename" value="env.exr"/>
         <transform name="to_world"><rotate y="1" angle="40"/><rotate x="1" angle="-25"/></transform></emitter>""")
     env = load(path)[0].environment
     emitter = mi.load_file(str(path)).emitters()[0]
-    rng = np.random.default_rng(3)
-    d = rng.normal(size=(200, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    theta, phi = np.arccos(d[:, 1]), np.arctan2(-d[:, 0], d[:, 2])  # docs: (-sin t sin p, cos t, sin t cos p)
-    col = (np.mod(phi / (2 * np.pi), 1.0) * w).astype(int) % w
-    row = np.minimum((theta / np.pi * h).astype(int), h - 1)
-    ours = env.image[row, col].astype(np.float64)
     si = mi.SurfaceInteraction3f()
     theirs = []
     for di in d:
         si.wi = mi.Vector3f(*(-di))
         theirs.append(np.ravel(emitter.eval(si)))
-    err = np.abs(ours - np.asarray(theirs))
-    assert np.median(err) < 0.05 and err.max() < 0.3, err.max()  # nearest against bilinear texels
+    assert env.rows == "poles"
+    assert np.allclose(environment_radiance(env, d), theirs, rtol=1e-4, atol=1e-6)
+    skewed = write(tmp_path, SPHERE + """<emitter type="envmap"><string name="filename" value="env.exr"/>
+        <transform name="to_world"><rotate x="0.3" y="1" z="0.2" angle="30"/></transform></emitter>""", name="s.xml")
+    env = load(skewed)[0].environment
+    assert env.rows == "centred" and env.rotation is None
 
 
 # -- warnings and errors -----------------------------------------------------------------------------

@@ -53,15 +53,18 @@ def scale(v) -> np.ndarray:
     return np.diag([float(v[0]), float(v[1]), float(v[2]), 1.0])
 
 
-def rotate(axis, angle_degrees) -> np.ndarray:
-    """Right-handed rotation by ``angle_degrees`` about ``axis`` (Rodrigues), as Mitsuba and pbrt
-    write it (pbrt's ``Rotate`` gives the same matrix)."""
-    axis = np.asarray(axis, np.float64)
-    x, y, z = axis / np.linalg.norm(axis)
-    a = math.radians(angle_degrees)
-    k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
+def rotate(axis, angle_degrees, normalize: bool = True) -> np.ndarray:
+    """Right-handed rotation by ``angle_degrees`` about ``axis``: cos I + (1 - cos) a a^T + sin [a]x
+    (Rodrigues), a the unit axis as pbrt's ``Rotate`` takes it, or (``normalize`` False) the axis as
+    given, as Mitsuba 3's ``rotate`` does (not a rotation unless the axis is a unit vector)."""
+    a = np.asarray(axis, np.float64)
+    if normalize:
+        a = a / np.linalg.norm(a)
+    x, y, z = a
+    t = math.radians(angle_degrees)
     m = np.eye(4)
-    m[:3, :3] = np.eye(3) + math.sin(a) * k + (1 - math.cos(a)) * (k @ k)
+    m[:3, :3] = (math.cos(t) * np.eye(3) + (1 - math.cos(t)) * np.outer(a, a)
+                 + math.sin(t) * np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]]))
     return m
 
 
@@ -285,8 +288,16 @@ class EnvMap:
     source: str
     out_shape: tuple  # (H, W) of our resampled map
     wrap_u: bool = True  # False: clamp u too (an octahedral map's edges do not wrap around)
+    # the kernel's own layout of rows ("centred", "poles": Mitsuba's) when ``lookup`` is an
+    # equirectangular map the kernel reads as it is (u = atan2(x, -z) / 2 pi, v = acos(y) / pi, in
+    # the map's frame); None: resampled into our layout
+    rows: str | None = None
 
     def resample(self, mirror=None) -> Environment:
+        rotation = self.kernel_rotation(mirror)
+        if rotation is not None:
+            return Environment(radiance=self.scale, image=np.asarray(self.image, np.float32)[:, :, :3],
+                               source=self.source, rotation=rotation, rows=self.rows)
         h, w = self.out_shape
         d = our_env_directions(h, w)
         if mirror is not None:
@@ -298,6 +309,20 @@ class EnvMap:
             u = np.clip(u, 0.5 / self.image.shape[1], 1 - 0.5 / self.image.shape[1])
         texels = bilinear_wrap(np.nan_to_num(np.asarray(self.image, np.float64)), u, v)
         return Environment(radiance=self.scale, image=texels.reshape(h, w, 3).astype(np.float32), source=self.source)
+
+    def kernel_rotation(self, mirror=None) -> np.ndarray | None:
+        """The world-to-map rotation of our layout that reads this map as it is: (-x, y, -z) of
+        the file's frame (where u = atan2(x, -z) / 2 pi is our atan2(-x, z) / 2 pi), after
+        ``to_world``'s inverse and the scene's ``mirror``; None where the map is resampled (no
+        ``rows``, or a ``to_world`` that is not a rotation times a uniform scale)."""
+        if self.rows is None:
+            return None
+        t = np.asarray(self.to_world, np.float64)
+        scale = abs(np.linalg.det(t)) ** (1.0 / 3.0)
+        if not scale > 0 or not np.allclose(t @ t.T, scale**2 * np.eye(3), rtol=0.0, atol=1e-6 * scale**2):
+            return None
+        m = np.eye(3) if mirror is None else np.asarray(mirror, np.float64)[:3, :3]
+        return np.diag([-1.0, 1.0, -1.0]) @ (t.T / scale) @ m
 
 
 # --------------------------------------------------------------------------------------------

@@ -435,7 +435,7 @@ class _Importer:
         rot = np.eye(3) if m is None else m[:3, :3]
         h, w = image.shape[:2]
         self.b.set_environment(EnvMap(image=image, lookup=_mitsuba_env_uv, to_world=rot, scale=(s, s, s),
-                                      source=str(fname), out_shape=(h, w)), obj.node.pos)
+                                      source=str(fname), out_shape=(h, w), rows="poles"), obj.node.pos)
 
 
 def _mitsuba_env_uv(d):

@@ -477,7 +477,7 @@ class Document:
                 axis = self._xyz(op, 0.0)
                 if not np.linalg.norm(axis) > 0:
                     raise error_at(op.pos, "<rotate> needs a non-zero axis (x, y, z or value)")
-                step = rotate(axis, self._float_attr(op, "angle"))
+                step = rotate(axis, self._float_attr(op, "angle"), normalize=False)  # as Mitsuba: the axis as given
             elif tag == "matrix":
                 v = self._numbers(op, self._attr(op, "value"), (9, 16), '"value"')
                 step = np.eye(4)
