@@ -113,7 +113,8 @@ def test_same_image_and_rays(device, monkeypatch, tmp_path, sampler):
                         height=30, sampler=sampler))
 
 
-@pytest.mark.parametrize("name", ["mitsuba-cbox", "cornell-spheres", "veach-mis", "textured", "cornell-jensen"])
+@pytest.mark.parametrize("name", ["mitsuba-cbox", "cornell-spheres", "veach-mis", "textured", "cornell-jensen",
+                                  "textured-sky", "materials"])
 def test_same_image_on_the_scenes(device, monkeypatch, name):
     """Every scene of scenes/ (triangles, spheres, conductors, glass, textures with emission
     textures, the glTF material)."""
