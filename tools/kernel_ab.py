@@ -6,7 +6,15 @@
 Each ``--variant`` is ImageSettings overrides (kernel_mode, sampler, max_depth, ...) and
 optionally ``defines``: extra kernel defines (switches such as RT_PORTABLE_BUILTINS in
 cl/cpu_builtins.h), and ``env``: environment variables set while the variant is built (such as
-``{"PYOPENCL_RT_LANES": "0"}``, the megakernel with one path per work-item). Every variant is
+``{"PYOPENCL_RT_LANES": "0"}``, the megakernel with one path per work-item), and ``cl``: the
+kernel sources of another tree for that variant (a folder holding ``accel/``, ``render/``, ...,
+as ``/tmp/wt-x/cl``), or ``rev``: a git revision of this repository whose ``cl/`` is taken
+(``git archive``), so that kernel changes are compared in one process:
+
+    python tools/kernel_ab.py scenes/textured-sky.toml --variant '{"rev": "main"}' --variant '{}'
+
+(only the kernels differ there: the host code is this tree's, so the revision's kernels must take
+this tree's ABI). Every variant is
 built and warmed up first; then each round renders every variant once, in turn, so a shared
 machine's load falls on all of them alike. Printed per variant: the median Msamples/s over the
 rounds, and its ratio to the first variant's median, plus the median of the per-round ratios
@@ -18,7 +26,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +36,20 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def revision_cl(rev: str, scratch: Path) -> Path:
+    """The cl/ folder of git revision ``rev``, extracted under ``scratch``."""
+    out = scratch / rev.replace("/", "_")
+    out.mkdir(parents=True, exist_ok=True)
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "cl"], check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(out)], input=archive, check=True)
+    return out / "cl"
+
+
 def main(argv=None):
+    from pyopencl_rt.device import kernels as kernels_module
     from pyopencl_rt.device.devices import select_device
     from pyopencl_rt.render import wavefront as wavefront_module
     from pyopencl_rt.render.film import Film
@@ -44,12 +67,23 @@ def main(argv=None):
     device = select_device(args.device)
     scene = load_scene(args.scene)
     features = wavefront_module.kernel_features
+    own_cl_dir = kernels_module.cl_dir
+    scratch = Path(tempfile.mkdtemp(prefix="kernel_ab_"))
     engines = []
     try:
-        for text in args.variant:
+        for index, text in enumerate(args.variant):
             config = json.loads(text)
             defines = config.pop("defines", {})
             env = config.pop("env", {})
+            tree = config.pop("cl", None)
+            rev = config.pop("rev", None)
+            if rev is not None:
+                tree = revision_cl(rev, scratch)
+            if tree is not None:
+                # another tree's kernels: read while this variant builds; the define keeps its
+                # programs apart from the others' in the runtime's cache
+                kernels_module.cl_dir = lambda _t=Path(tree).resolve(): _t
+                defines = {**defines, "RT_KERNEL_AB_TREE": index + 1}
             saved = {k: os.environ.get(k) for k in env}
             os.environ.update(env)
             # the features are read when the kernels are built, in the constructor
@@ -62,8 +96,10 @@ def main(argv=None):
                     os.environ[k] = v
             wf.run(Film(args.width, args.width), passes=1)  # warm-up
             engines.append((text, wf))
+            kernels_module.cl_dir = own_cl_dir
     finally:
         wavefront_module.kernel_features = features
+        kernels_module.cl_dir = own_cl_dir
     rates = np.zeros((args.rounds, len(engines)))
     images = [None] * len(engines)
     for r in range(args.rounds):

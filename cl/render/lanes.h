@@ -13,8 +13,9 @@
  * cpu_builtins.h's builtins (sqrt correctly rounded; fmin/fmax as minnum/maxnum, so NaN operands
  * behave alike; dot, cross, length and normalize as defined, products summed left to right;
  * length and normalize of a lane whose squared length could over- or underflow fall back to the
- * scalar function, which rescales), so every width renders the same image.  Library functions
- * with no inline form (sin, cos, atan2, acos, ...) are called lane by lane (plib1): a vector of
+ * scalar function, which rescales), so every width renders the same image.  sin, cos, atan2 and
+ * acos are inline polynomials (render/lanes_math.h); library functions with no inline form (exp,
+ * log, pow, erf, ...) are called lane by lane (plib1): a vector of
  * 32 bytes or more never crosses into PoCL's built-in library (issue 22).  FP_CONTRACT is off
  * (common.h). */
 #ifndef PYOPENCL_RT_LANES_H
@@ -214,10 +215,8 @@ RT_INLINE pfloat psqrt(pfloat x)
 #define PLIB1(f, x) ({ const pfloat x_ = (x); pfloat r_; for (int k_ = 0; k_ < PACKET_WIDTH; ++k_) PLANE(r_, k_) = f(PLANE(x_, k_)); r_; })
 #define PLIB2(f, x, y) ({ const pfloat x_ = (x), y_ = (y); pfloat r_; for (int k_ = 0; k_ < PACKET_WIDTH; ++k_) PLANE(r_, k_) = f(PLANE(x_, k_), PLANE(y_, k_)); r_; })
 #endif
-RT_INLINE pfloat psin(pfloat x) { return PLIB1(sin, x); }
-RT_INLINE pfloat pcos(pfloat x) { return PLIB1(cos, x); }
-RT_INLINE pfloat pacos(pfloat x) { return PLIB1(acos, x); }
-RT_INLINE pfloat patan2(pfloat y, pfloat x) { return PLIB2(atan2, y, x); }
+/* psin, pcos, psincos, patan2, pacos: inline polynomials, the same at every width */
+#include "render/lanes_math.h"
 RT_INLINE pfloat pfloor(pfloat x) { return PLIB1(floor, x); }
 RT_INLINE pfloat pexp(pfloat x) { return PLIB1(exp, x); }
 RT_INLINE pfloat plog(pfloat x) { return PLIB1(log, x); }

@@ -7,8 +7,8 @@
  * packet traversal reports the other of two triangles at exactly the same distance:
  * tests/render/test_path_lanes.py).  Divergence is handled with masks: a material is evaluated
  * over the lanes that hit it (cl/materials/dispatch.h), a light over the lanes that picked it
- * (cl/render/lights.h); what has no lane form (texture fetches, the environment map's CDF search,
- * library sin/cos, the double-precision plane test near a light) runs lane by lane.
+ * (cl/render/lights.h); what has no lane form (texture fetches, the double-precision plane test
+ * near a light) runs lane by lane; sin, cos, atan2 and acos are inline (render/lanes_math.h).
  *
  *   camera_ray      the camera rays of (pixel, pass): the pixel filter's offset (filter.h) and
  *                   the sample's weight, perspective or orthographic, thin lens

@@ -111,7 +111,8 @@ def test_other_samplers(device, monkeypatch, sampler):
                         width=32, height=24, sampler=sampler))
 
 
-@pytest.mark.parametrize("name", ["mitsuba-cbox", "cornell-spheres", "veach-mis", "textured", "cornell-jensen"])
+@pytest.mark.parametrize("name", ["mitsuba-cbox", "cornell-spheres", "veach-mis", "textured", "cornell-jensen",
+                                  "textured-sky", "materials"])
 def test_same_image_on_the_scenes(device, monkeypatch, name):
     """Every scene of scenes/ (triangles, spheres, conductors, glass, textures with emission
     textures, the glTF material)."""
