@@ -525,11 +525,8 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("n_listed", "scalar", "int", "generate, path: samples go to pixel_list[0..n_listed); 0: every pixel",
           launch=True),
 )
-WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
-assert len(WAVE_PARAM) == len(WAVE_PARAMS)
-
-# What the volumetric integrator will add to WAVE_PARAMS (not yet in it: no kernel takes them; the buffers are
-# pyopencl_rt/scene/media.py:pack_media's, tri_interface reordered as tri_material is).
+# Participating media (cl/render/volpath.h, compiled with HAS_MEDIA): every kernel takes them, 16-byte dummies
+# without media; the buffers are pyopencl_rt/scene/media.py:pack_media's, tri_interface reordered as tri_material is.
 MEDIA_PARAMS: tuple[Param, ...] = (
     Param("media", "const", "Medium", "participating media (cl/render/media.h)"),
     Param("medium_grids", "const", "MediumGrid", "their density and albedo grids"),
@@ -539,6 +536,10 @@ MEDIA_PARAMS: tuple[Param, ...] = (
     Param("sphere_interface", "const", "int", "medium interface per sphere, -1 if none"),
     Param("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none"),
 )
+WAVE_PARAMS = WAVE_PARAMS + MEDIA_PARAMS
+WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
+assert len(WAVE_PARAM) == len(WAVE_PARAMS)
+
 
 
 # ---------------------------------------------------------------------------------------------
