@@ -120,8 +120,9 @@ RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global con
         const pint at = live ? prim : PINT(ANY_PRIM);
         const pint ii = hit_interface(tri_interface, sphere_interface, at);
         const pint null = live & ((interface_flags(medium_interfaces, ii) & MEDIUM_IF_NULL) != 0);
-        T = pv3_sel(T, pv3_zero(), live & pnot(null) | (null & (crossing == MAX_NULL_CROSSINGS)));
-        live = null & (crossing < MAX_NULL_CROSSINGS);
+        const int last = crossing == MAX_NULL_CROSSINGS; /* a scalar: select masks with it, never & */
+        T = pv3_sel(T, pv3_zero(), (live & pnot(null)) | (last ? null : PINT(0)));
+        live = last ? PINT(0) : null;
         if (!pany(live)) break;
         pvec3 p_err;
         const pvec3 p = hit_point(tris, spheres, at, o, seg, th, u, v, &p_err);
@@ -260,7 +261,9 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
     s->o = pv3_sel(s->o, p, on);
     s->ref = pv3_sel(s->ref, p, on);
     s->d = pv3_sel(s->d, wo, on);
-    s->pdf = on ? pdf : s->pdf;
+    /* a medium that does not sample emitters: the next emitter hit counts in full (Mitsuba's specular chain) */
+    const pint emitters = (med.flags & MEDIUM_FLAG_SAMPLE_EMITTERS) != 0;
+    s->pdf = on ? (emitters ? pdf : PFLOAT(0.0f)) : s->pdf;
     s->depth = on ? segments : s->depth;
     *goes_on = on | *crossed;
 }
