@@ -3,8 +3,8 @@ loaders' media): Mitsuba's .vol grids; Mitsuba 3 XML media, phase functions, vol
 interiors and exteriors, null BSDFs, the sensor's medium and volpath settings, compared with
 Mitsuba 3's own parse (scalar_rgb: its media's coefficients and majorant at points, its phase
 functions); pbrt-v4 MakeNamedMedium / MediumInterface / "interface" shapes and the camera medium;
-TOML [media] tables; the kernel records; the checks of scene/validate.py; the renderer's one
-warning until the volumetric integrator lands."""
+TOML [media] tables; the kernel records; the checks of scene/validate.py; the renderer takes such
+scenes as they are (the volumetric integrator: tests/render/test_volpath.py)."""
 from __future__ import annotations
 
 import warnings
