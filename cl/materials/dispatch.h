@@ -213,7 +213,8 @@ RT_INLINE PrincipledParams principled_params(const MaterialLanes *m)
 /* a thin sheet (principledthin) does not bend light: 1 */
 RT_INLINE pfloat dielectric_eta(const MaterialLanes *m, pint front)
 {
-    const pfloat ior = ((m->ior > 0.0f) & (m->type != MATERIAL_PRINCIPLEDTHIN)) ? m->ior : PFLOAT(1.0f);
+    const pfloat ior = ((m->ior > 0.0f) & (m->type != MATERIAL_PRINCIPLEDTHIN) & ((m->flags & MATERIAL_FLAG_THIN) == 0))
+                           ? m->ior : PFLOAT(1.0f);
     return front ? ior : 1.0f / ior;
 }
 
@@ -381,6 +382,16 @@ RT_INLINE pvec3 bsdf_sample(const MaterialLanes *m, pint active, pvec3 n, pint f
             g = pv3_sel(g, dielectric_sample(m->alpha, dielectric_eta(m, front), m->specular, k.dielectric, lo, u0, u1,
                                              u2, &wl, &q, &d),
                         k.dielectric);
+            const pint thin = k.dielectric & ((m->flags & MATERIAL_FLAG_THIN) != 0);
+            if (pany(thin)) {
+                pvec3 wt;
+                pfloat qt;
+                pint dt;
+                g = pv3_sel(g, thin_dielectric_sample(m->ior, m->specular, thin, lo, u2, &wt, &qt, &dt), thin);
+                wl = pv3_sel(wl, wt, thin);
+                q = thin ? qt : q;
+                d = thin ? dt : d;
+            }
             li = pv3_sel(li, wl, k.dielectric);
             ql = k.dielectric ? q : ql;
             dd = k.dielectric ? d : dd;

@@ -121,6 +121,9 @@ MATERIAL_FLAG_VERTEX_COLOR = define("MATERIAL_FLAG_VERTEX_COLOR", 32)
 MATERIAL_FLAG_MAP_FLIP = define("MATERIAL_FLAG_MAP_FLIP", 64)
 MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
 MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
+# dielectric: a thin sheet (Mitsuba's thindielectric): Fresnel reflection with the sheet's inter-reflections,
+# transmission straight through (cl/materials/dielectric.h, thin_dielectric_sample)
+MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),

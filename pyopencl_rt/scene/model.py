@@ -59,6 +59,7 @@ class Material:
     # R channel holds the value (the luminance of a colour image, as Mitsuba's eval_1).
     specular_reflectance: tuple = (1.0, 1.0, 1.0)
     nonlinear: bool = False
+    thin: bool = False  # dielectric: a thin sheet (Mitsuba's thindielectric), light passes straight through
     distribution: str = "ggx"
     params: dict = field(default_factory=dict)
     scalar_textures: dict = field(default_factory=dict)
