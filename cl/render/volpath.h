@@ -90,12 +90,38 @@ RT_INLINE void spectral_normalise(pvec3 *beta, pvec3 *r, pint m)
 #endif
 }
 
+/* Thin dielectric sheets (MATERIAL_FLAG_THIN, Mitsuba's thindielectric) are null boundaries that
+ * reflect: Mitsuba flags their straight-through lobe Null, so volpath crosses them without a bounce and
+ * its shadow rays pass them with the transmission 1 - R (R = 2F / (1 + F), F = Fr(|cos|, eta)).  The
+ * lanes of `live` whose primitive's material is one: *thin, with *ior and the transmission along d. */
+RT_INLINE pfloat thin_sheet(__global const int *tri_material, __global const int *sphere_material,
+                            __global const Material *materials, pint prim, pint live, pvec3 ng, pvec3 d, pint *thin)
+{
+    pint mi, li_unused;
+    hit_records(tri_material, tri_material, sphere_material, sphere_material, prim, &mi, &li_unused);
+    __global const int *n = (__global const int *)materials;
+    const pint base = mi * STRIDE_INDEX(Material);
+    const pint type = pgather_int(n, base + FIELD_INDEX(Material, type));
+    const pint flags = pgather_int(n, base + FIELD_INDEX(Material, flags));
+    *thin = live & (type == MATERIAL_DIELECTRIC) & ((flags & MATERIAL_FLAG_THIN) != 0);
+    pfloat t = PFLOAT(1.0f);
+    if (pany(*thin)) {
+        const pfloat ior = pgather((__global const float *)materials, base + FIELD_INDEX(Material, ior));
+        const pfloat cos = pabs(pv3_dot(ng, d)) / pv3_length(d, *thin);
+        const pfloat F = fresnel_dielectric(pclamp(cos, 0.0f, 1.0f), ior);
+        t = *thin ? 1.0f - 2.0f * F / (1.0f + F) : t;
+    }
+    return t;
+}
+
 /* The transmittance of the shadow rays o + t d, t in (0, 1), of the lanes of `active`, which start in
  * `medium`: through media and null surfaces (crossing into the medium behind each), 0 where another
  * surface (or more than MAX_NULL_CROSSINGS null ones) blocks it.  r: the path's ratios (mean 1); the
  * result is the spectral-MIS estimate of the transmittance given them. */
 RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global const float4 *tris,
-                                     __global const Sphere *spheres, int n_spheres, MEDIA_PATH_PARAMS, pvec3 o, pvec3 d,
+                                     __global const Sphere *spheres, int n_spheres, __global const int *tri_material,
+                                     __global const int *sphere_material, __global const Material *materials,
+                                     MEDIA_PATH_PARAMS, pvec3 o, pvec3 d,
                                      pint medium, pint channel, puint *rng, pvec3 r, pint active)
 {
     pvec3 T = pv3_splat((float3)(1.0f)), ratios = r;
@@ -119,7 +145,18 @@ RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global con
         if (!pany(live)) break;
         const pint at = live ? prim : PINT(ANY_PRIM);
         const pint ii = hit_interface(tri_interface, sphere_interface, at);
-        const pint null = live & ((interface_flags(medium_interfaces, ii) & MEDIUM_IF_NULL) != 0);
+        pint null = live & ((interface_flags(medium_interfaces, ii) & MEDIUM_IF_NULL) != 0);
+#ifdef HAS_MATERIAL_DIELECTRIC
+        {
+            pvec3 p_err;
+            const pvec3 ph = hit_point(tris, spheres, at, o, seg, th, u, v, &p_err);
+            pint thin;
+            const pfloat tr = thin_sheet(tri_material, sphere_material, materials, at, live & pnot(null),
+                                         hit_normal(tris, spheres, at, ph, live), seg, &thin);
+            T = pv3_sel(T, pv3_scale(T, tr), thin);
+            null |= thin;
+        }
+#endif
         const int last = crossing == MAX_NULL_CROSSINGS; /* a scalar: select masks with it, never & */
         T = pv3_sel(T, pv3_zero(), (live & pnot(null)) | (last ? null : PINT(0)));
         live = last ? PINT(0) : null;
@@ -175,7 +212,11 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
 
     /* -- null surfaces: straight through, into the medium behind ------------------------------- */
     const pint surf = hit & pnot(real);
+#ifdef HAS_MATERIAL_DIELECTRIC
+    const pint boundary = surf;
+#else
     const pint boundary = surf & (*iface >= 0);
+#endif
     if (pany(boundary)) {
         pvec3 p_err;
         const pvec3 p = hit_point(tris, spheres, at, s->o, s->d, t, u, v, &p_err);
@@ -183,11 +224,35 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
         pint null;
         const pint next = medium_after_crossing(medium_interfaces, *iface, *ng, s->d, s->medium, &null);
         null &= boundary;
+#ifdef HAS_MATERIAL_DIELECTRIC
+        /* a thin sheet: straight through with probability 1 - R, a null event; else a delta reflection
+         * (a bounce), here about the geometric normal (Mitsuba's about the shading normal); the choice
+         * from the tracking stream (a crossing takes no sampler dimension) */
+        pint thin;
+        const pfloat tr = thin_sheet(tri_material, sphere_material, materials, at, boundary & pnot(null), *ng, s->d, &thin);
+        if (pany(thin)) {
+            const pint pass = thin & (medium_uniform(&s->rng, thin) < tr);
+            null |= pass;
+            const pint mirror = thin & pnot(pass);
+            if (pany(mirror)) {
+                const pint segments = s->depth + 1;
+                const pint on = mirror & (max_depth >= 0 ? segments < max_depth : PTRUE);
+                const pvec3 side = pv3_sel(*ng, pv3_neg(*ng), pv3_dot(*ng, s->d) > 0.0f); /* the incoming side */
+                const pvec3 r = pv3_sub(s->d, pv3_scale(*ng, 2.0f * pv3_dot(s->d, *ng)));
+                s->o = pv3_sel(s->o, offset_ray_origin_bound(p, p_err, side), on);
+                s->d = pv3_sel(s->d, r, on);
+                s->pdf = on ? PFLOAT(0.0f) : s->pdf;
+                s->depth = on ? segments : s->depth;
+                *crossed |= on;
+                *scattered |= mirror & pnot(on); /* ends here, unshaded */
+            }
+        }
+#endif
         if (pany(null)) {
             const pvec3 beyond = offset_ray_origin_bound(p, p_err, pv3_sel(pv3_neg(*ng), *ng, pv3_dot(*ng, s->d) > 0.0f));
             s->o = pv3_sel(s->o, beyond, null);
             s->medium = null ? next : s->medium;
-            *crossed = null & (pv3_max3(s->beta) > 0.0f);
+            *crossed |= null & (pv3_max3(s->beta) > 0.0f);
         }
     }
 

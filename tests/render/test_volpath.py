@@ -253,3 +253,62 @@ def test_no_media_no_media_code(device, tmp_path):
     src = preprocessed(fog.features)
     for name in ("path_medium", "shadow_transmittance", "medium_sample_free_flight"):
         assert name in src, name
+
+
+THIN = """
+[camera]
+type = "orthographic"
+eye = [0.0, 0.0, -5.0]
+look_at = [0.0, 0.0, 0.0]
+extent = 1.0
+
+[film]
+width = 16
+height = 16
+
+[render]
+spp = 64
+max_depth = 4
+seed = 9
+
+[materials.glow]
+albedo = [0.0, 0.0, 0.0]
+emission = [2.0, 1.0, 0.5]
+
+[[shape]]  # the emitter, facing the camera
+type = "quad"
+material = "glow"
+points = [[-2.0, -2.0, 3.0], [-2.0, 2.0, 3.0], [2.0, 2.0, 3.0], [2.0, -2.0, 3.0]]
+"""
+
+
+@pytest.mark.parametrize("media", [False, True])
+def test_thin_dielectric_sheet(device, tmp_path, media):
+    """Mitsuba's thindielectric (a dielectric with MATERIAL_FLAG_THIN): at normal incidence an emitter
+    behind the sheet is seen through it, undeflected, with 1 - R, R = F + (1 - F)^2 F / (1 - F^2): by the
+    surface integrator's BSDF sampling, and (media: an empty index-matched box makes it the volumetric
+    one) as the null crossing with probability 1 - R of cl/render/volpath.h."""
+    from pyopencl_rt.scene.model import Material
+
+    box = '\n[[shape]]\ntype = "box"\ncenter = [0.0, 0.0, 1.5]\nsize = 1.0\nindex_matched = true\n'
+    scene = load(tmp_path, THIN + (box if media else ""))
+    assert scene.has_media() == media
+    scene.uvs = scene.normals = None
+    glow = scene.materials[0]
+    sheet = Material(name="sheet", type="dielectric", ior=1.5, thin=True)
+    scene.materials = [glow, sheet]
+    # a sheet at z = 0, both triangles facing the camera
+    v = np.array([[-2, -2, 0], [-2, 2, 0], [2, 2, 0], [2, -2, 0]], np.float32)
+    n = len(scene.vertices)
+    scene.vertices = np.concatenate([scene.vertices, v]).astype(np.float32)
+    scene.faces = np.concatenate([scene.faces, np.array([[n, n + 1, n + 2], [n, n + 2, n + 3]])]).astype(np.int32)
+    scene.face_materials = np.concatenate([scene.face_materials, [1, 1]]).astype(np.int32)
+    if scene.face_interfaces is not None:
+        scene.face_interfaces = np.concatenate([scene.face_interfaces, [-1, -1]]).astype(np.int32)
+    r = rt.render_full(scene, device=device)
+    assert ("HAS_MEDIA" in r.info["features"]) == media
+    F = 0.04  # ((1.5 - 1) / (1.5 + 1))^2
+    R = F + (1 - F) ** 2 * F / (1 - F * F)
+    assert_mean(r, np.array([2.0, 1.0, 0.5]) * (1 - R))
+    if r.stats.rays_extend:  # straight through: the image is Le (1 - R) on average, never deflected
+        assert pixel_means(r).max() <= 2.0 + 1e-6
