@@ -121,8 +121,7 @@ MATERIAL_FLAG_VERTEX_COLOR = define("MATERIAL_FLAG_VERTEX_COLOR", 32)
 MATERIAL_FLAG_MAP_FLIP = define("MATERIAL_FLAG_MAP_FLIP", 64)
 MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
 MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
-# dielectric: a thin sheet (Mitsuba's thindielectric): Fresnel reflection with the sheet's inter-reflections,
-# transmission straight through (cl/materials/dielectric.h, thin_dielectric_sample)
+# dielectric: a thin sheet, Mitsuba's thindielectric (cl/materials/dielectric.h: thin_dielectric_sample)
 MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
@@ -542,8 +541,6 @@ MEDIA_PARAMS: tuple[Param, ...] = (
 WAVE_PARAMS = WAVE_PARAMS + MEDIA_PARAMS
 WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
 assert len(WAVE_PARAM) == len(WAVE_PARAMS)
-
-
 
 # ---------------------------------------------------------------------------------------------
 # The generated header.
