@@ -128,4 +128,20 @@ RT_INLINE pvec3 dielectric_sample(pfloat alpha, pfloat eta, pvec3 tint, pint act
     return pv3_sel(pv3_zero(), w, ok);
 }
 
+/* A thin sheet (MATERIAL_FLAG_THIN: Mitsuba's thindielectric): reflection with probability R = F + T^2 F /
+ * (1 - F^2) (F = Fr(|cos_o|, eta), T = 1 - F: the sheet's inter-reflections summed), else straight through
+ * (wi = -wo); both delta, weight tint.  No refraction: the path's eta_scale is unchanged (dielectric_eta 1). */
+RT_INLINE pvec3 thin_dielectric_sample(pfloat eta, pvec3 tint, pint active, pvec3 wo, pfloat u2, pvec3 *wi,
+                                       pfloat *pdf, pint *delta)
+{
+    pfloat r = fresnel_dielectric(pabs(wo.z), eta);
+    const pfloat t = 1.0f - r;
+    r = r < 1.0f ? r + t * t * r / (1.0f - r * r) : r;
+    const pint refl = u2 < r;
+    *wi = pv3_sel(pv3_neg(wo), pv3(-wo.x, -wo.y, wo.z), refl);
+    *pdf = PFLOAT(0.0f);
+    *delta = active;
+    return pv3_sel(pv3_zero(), tint, active);
+}
+
 #endif

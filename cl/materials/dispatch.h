@@ -170,8 +170,28 @@ RT_INLINE PrincipledParams principled_params(const MaterialLanes *m)
 /* a thin sheet (principledthin) does not bend light: 1 */
 RT_INLINE pfloat dielectric_eta(const MaterialLanes *m, pint front)
 {
-    const pfloat ior = ((m->ior > 0.0f) & (m->type != MATERIAL_PRINCIPLEDTHIN)) ? m->ior : PFLOAT(1.0f);
+    const pfloat ior = ((m->ior > 0.0f) & (m->type != MATERIAL_PRINCIPLEDTHIN) & ((m->flags & MATERIAL_FLAG_THIN) == 0))
+                           ? m->ior : PFLOAT(1.0f);
     return front ? ior : 1.0f / ior;
+}
+
+/* A dielectric's sample: it refracts, or (MATERIAL_FLAG_THIN, Mitsuba's thindielectric) a thin sheet
+ * lets light through unbent or reflects it. */
+RT_INLINE pvec3 dielectric_or_thin_sample(const MaterialLanes *m, pfloat eta, pint active, pvec3 lo, pfloat u0,
+                                          pfloat u1, pfloat u2, pvec3 *wl, pfloat *q, pint *d)
+{
+    pvec3 g = dielectric_sample(m->alpha, eta, m->specular, active, lo, u0, u1, u2, wl, q, d);
+    const pint thin = active & ((m->flags & MATERIAL_FLAG_THIN) != 0);
+    if (pany(thin)) {
+        pvec3 wt;
+        pfloat qt;
+        pint dt;
+        g = pv3_sel(g, thin_dielectric_sample(m->ior, m->specular, thin, lo, u2, &wt, &qt, &dt), thin);
+        *wl = pv3_sel(*wl, wt, thin);
+        *q = thin ? qt : *q;
+        *d = thin ? dt : *d;
+    }
+    return g;
 }
 
 RT_INLINE pint bsdf_has_nondelta_lobes(const MaterialLanes *m)
@@ -195,7 +215,7 @@ RT_INLINE pint bsdf_has_nondelta_lobes(const MaterialLanes *m)
  * HAS_MATERIAL_<TYPE> is defined (RT_WHEN). */
 #define FRAMED_MATERIALS(X) \
     X(CONDUCTOR, conductor, ConductorParams, conductor_params(m), conductor_eval(&P, K, lo, li, &q), conductor_sample(&P, K, lo, u0, u1, &wl, &q, &d)) \
-    X(DIELECTRIC, dielectric, pfloat, dielectric_eta(m, front), dielectric_eval(m->alpha, P, m->specular, K, lo, li, &q), dielectric_sample(m->alpha, P, m->specular, K, lo, u0, u1, u2, &wl, &q, &d)) \
+    X(DIELECTRIC, dielectric, pfloat, dielectric_eta(m, front), dielectric_eval(m->alpha, P, m->specular, K, lo, li, &q), dielectric_or_thin_sample(m, P, K, lo, u0, u1, u2, &wl, &q, &d)) \
     X(GLTF, gltf, GltfParams, gltf_params(m), gltf_eval(&P, K, lo, li, &q), gltf_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d)) \
     X(PLASTIC, plastic, PlasticParams, plastic_params(m), plastic_eval(&P, K, lo, li, &q), plastic_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d)) \
     X(ROUGHPLASTIC, roughplastic, RoughPlasticParams, roughplastic_params(m), roughplastic_eval(&P, K, lo, li, &q), roughplastic_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d)) \

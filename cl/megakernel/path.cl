@@ -18,6 +18,9 @@
  * per work-item and the wave's group size at width 1).  The rays it traces are counted in
  * counters[COUNTER_RAYS_EXTEND] and [COUNTER_RAYS_SHADOW]. */
 #include "render/path.h"
+#ifdef HAS_MEDIA
+#include "render/volpath.h"
+#endif
 #include "megakernel/ray_counts.h"
 
 #ifndef PACKET_BLOCK
@@ -66,7 +69,8 @@ RT_INLINE void cursor_step(SampleCursor *c, int n_take, int ring_size, int width
  * `starting`, or fewer when the block runs out). */
 RT_INLINE int start_lanes(__global const Camera *camera, __global const float *filter_cdf, int starting,
                           SampleCursor *cur, int last, int n_pixels, __global const int *pixel_list, int n_listed,
-                          int ring_size, uint seed, PathState *s, SampleKey *key, pint *out, pfloat *weight)
+                          int ring_size, uint seed, int camera_medium, PathState *s, SampleKey *key, pint *out,
+                          pfloat *weight)
 {
     const int width = camera->width;
     const int n_take = n_listed > 0 ? n_listed : n_pixels;
@@ -98,6 +102,9 @@ RT_INLINE int start_lanes(__global const Camera *camera, __global const float *f
     pfloat w;
     camera_ray(camera, filter_cdf, *key, px, py, on, &o, &d, &w);
     path_start(s, on, o, d);
+#ifdef HAS_MEDIA
+    path_start_media(s, on, camera_medium, *key);
+#endif
     *weight = on ? w : *weight;
     return started;
 }
@@ -116,10 +123,13 @@ __kernel void mk_path(WAVE_PARAMS)
     path_start(&s, PTRUE, pv3_zero(), pv3_splat((float3)(0.0f, 0.0f, 1.0f)));
     SampleKey key;
     key.a = key.b = key.c = PUINT(0);
+#ifdef HAS_MEDIA
+    path_start_media(&s, PTRUE, MEDIUM_VACUUM, key);
+#endif
     pint out = PINT(0);
     pfloat weight = PFLOAT(1.0f); /* the camera samples' filter weights */
     int live = start_lanes(camera, filter_cdf, (1 << PACKET_WIDTH) - 1, &cur, last, n_pixels, pixel_list, n_listed,
-                           ring_size, seed, &s, &key, &out, &weight); /* bit k: lane k holds a path */
+                           ring_size, seed, camera_medium, &s, &key, &out, &weight); /* bit k: lane k holds a path */
     while (live) {
         const pint live_lanes = pmask(live);
         /* -- extend: the live lanes' rays ------------------------------------------------------ */
@@ -127,20 +137,46 @@ __kernel void mk_path(WAVE_PARAMS)
         pint prim;
         scene_closest_hit(nodes, tris, spheres, n_spheres, s.o, s.d, live_lanes, &t, &prim, &u, &v);
         n_extend += popcount(live);
-        const pint hit = live_lanes & (prim != PRIM_MISS);
+        pint hit = live_lanes & (prim != PRIM_MISS), escaped = live_lanes & pnot(hit);
+#ifdef HAS_MEDIA
+        /* -- the media along the rays: free flights, scattering, null boundaries (render/volpath.h) */
+        pint scattered, crossed, medium_on, medium_shadow, iface, shadow_medium;
+        pvec3 ng;
+        ShadowRay mshadow;
+        path_medium(PATH_ARGS, MEDIA_PATH_ARGS, key, live_lanes, hit, prim, t, u, v, &s, &scattered, &crossed,
+                    &medium_on, &medium_shadow, &mshadow, &shadow_medium, &iface, &ng);
+        escaped &= pnot(scattered);
+        hit &= pnot(scattered | crossed) & (pv3_max3(s.beta) > 0.0f);
+#endif
 #ifdef HAS_ENVIRONMENT
-        path_escape(lights, env_map, env_cdf, live_lanes & pnot(hit), &s);
+        path_escape(lights, env_map, env_cdf, escaped, &s);
 #endif
         pint goes_on, with_shadow;
         ShadowRay shadow;
         path_shade(PATH_ARGS, PINT(0), key, hit, prim, t, u, v, &s, &goes_on, &with_shadow, &shadow);
+#ifdef HAS_MEDIA
+        path_surface_media(medium_interfaces, hit, iface, ng, goes_on, with_shadow, &shadow, &s, &shadow_medium);
+        goes_on |= medium_on;
+        shadow.o = pv3_sel(shadow.o, mshadow.o, medium_shadow);
+        shadow.d = pv3_sel(shadow.d, mshadow.d, medium_shadow);
+        shadow.contribution = pv3_sel(shadow.contribution, mshadow.contribution, medium_shadow);
+        with_shadow |= medium_shadow;
+#endif
         /* -- shadow: the lanes with a light sample (after the emission of this hit, as the
          * wavefront's shadow stage adds it) ---------------------------------------------------- */
         if (pany(with_shadow)) {
             n_shadow += popcount(pbits(with_shadow));
+#ifdef HAS_MEDIA
+            /* through media and null boundaries: the transmittance, 0 where a surface blocks */
+            const pvec3 tr = shadow_transmittance(nodes, tris, spheres, n_spheres, tri_material, sphere_material,
+                                                  materials, MEDIA_PATH_ARGS, shadow.o, shadow.d,
+                                                  shadow_medium, s.channel, &s.rng, s.r, with_shadow);
+            s.L = pv3_sel(s.L, pv3_add(s.L, pv3_mul(shadow.contribution, tr)), with_shadow);
+#else
             const pint occluded = scene_occluded(nodes, tris, spheres, n_spheres, shadow.o, shadow.d, with_shadow,
                                                  PFLOAT(1.0f));
             s.L = pv3_sel(s.L, pv3_add(s.L, shadow.contribution), with_shadow & pnot(occluded));
+#endif
         }
         /* -- ended paths: their radiance out, the block's next samples in -------------------- */
         const int ended = live & ~pbits(goes_on);
@@ -156,7 +192,7 @@ __kernel void mk_path(WAVE_PARAMS)
         live &= ~ended;
         if (ended && cur.j < last)
             live |= start_lanes(camera, filter_cdf, ended, &cur, last, n_pixels, pixel_list, n_listed, ring_size,
-                                seed, &s, &key, &out, &weight);
+                                seed, camera_medium, &s, &key, &out, &weight);
     }
     add_group_ray_counts(group_rays, LANE_GROUP, n_extend, n_shadow, counters);
 }

@@ -59,6 +59,13 @@ typedef struct {
     pfloat pdf;      /* solid-angle pdf of the BSDF sample that made d; 0 = camera or delta */
     pfloat eta_scale; /* product of eta^2 over the refractions so far */
     pint depth;      /* segments traced before this ray */
+#ifdef HAS_MEDIA
+    pvec3 ref;       /* the last scattering vertex (light_pdf's reference point; o after a null crossing is not) */
+    pvec3 r;         /* spectral-MIS ratios p_k / p_hero, mean 1 (cl/render/volpath.h) */
+    pint medium;     /* the medium the ray is in, MEDIUM_VACUUM if none */
+    pint channel;    /* the hero channel its distances are sampled with */
+    puint rng;       /* its tracking stream (cl/render/media.h, medium_uniform) */
+#endif
 } PathState;
 
 /* A light sample's shadow ray, from o to o + d (t in (0, 1)), and what it adds if unoccluded. */
@@ -227,7 +234,12 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
         if (pany(mis)) {
             const pint li = mis ? light_index : PINT(0);
             const pfloat pmf = pgather((__global const float *)lights, li * STRIDE_INDEX(Light) + FIELD_INDEX(Light, pmf));
-            w = mis ? power_heuristic(s->pdf, pmf * light_pdf(spheres, lights, li, o, p, ng)) : w;
+#ifdef HAS_MEDIA
+            const pvec3 from = s->ref; /* the last scattering vertex: null boundaries move o, not it */
+#else
+            const pvec3 from = o;
+#endif
+            w = mis ? power_heuristic(s->pdf, pmf * light_pdf(spheres, lights, li, from, p, ng)) : w;
         }
 #endif
         s->L = pv3_sel(s->L, pv3_add(s->L, pv3_scale(pv3_mul(s->beta, Le), w)), glows);

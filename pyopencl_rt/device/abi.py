@@ -118,6 +118,8 @@ MATERIAL_FLAG_VERTEX_COLOR = define("MATERIAL_FLAG_VERTEX_COLOR", 32)
 MATERIAL_FLAG_MAP_FLIP = define("MATERIAL_FLAG_MAP_FLIP", 64)
 MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
 MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
+# dielectric: a thin sheet, Mitsuba's thindielectric (cl/materials/dielectric.h: thin_dielectric_sample)
+MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
@@ -516,11 +518,8 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("n_listed", "scalar", "int", "generate, path: samples go to pixel_list[0..n_listed); 0: every pixel",
           launch=True),
 )
-WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
-assert len(WAVE_PARAM) == len(WAVE_PARAMS)
-
-# What the volumetric integrator will add to WAVE_PARAMS (not yet in it: no kernel takes them; the buffers are
-# pyopencl_rt/scene/media.py:pack_media's, tri_interface reordered as tri_material is).
+# Participating media (cl/render/volpath.h, compiled with HAS_MEDIA): every kernel takes them, 16-byte dummies
+# without media; the buffers are pyopencl_rt/scene/media.py:pack_media's, tri_interface reordered as tri_material is.
 MEDIA_PARAMS: tuple[Param, ...] = (
     Param("media", "const", "Medium", "participating media (cl/render/media.h)"),
     Param("medium_grids", "const", "MediumGrid", "their density and albedo grids"),
@@ -530,7 +529,9 @@ MEDIA_PARAMS: tuple[Param, ...] = (
     Param("sphere_interface", "const", "int", "medium interface per sphere, -1 if none"),
     Param("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none"),
 )
-
+WAVE_PARAMS = WAVE_PARAMS + MEDIA_PARAMS
+WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
+assert len(WAVE_PARAM) == len(WAVE_PARAMS)
 
 # ---------------------------------------------------------------------------------------------
 # The generated header.

@@ -46,20 +46,8 @@ def scene_argument(scene) -> Scene:
 
         raise UsageError(f"scene must be a Scene or a scene file's path, got a {type(scene).__name__}")
     check_scene(scene)
-    return surfaces_only(scene)
+    return scene
 
-
-def surfaces_only(scene: Scene) -> Scene:
-    """The scene without its media until the volumetric integrator renders them (issue 25): the one
-    place that says so, in one warning line."""
-    if not scene.has_media():
-        return scene
-    import warnings
-
-    n_null = sum(mi.null for mi in scene.interfaces)
-    warnings.warn(f"{scene.source}: participating media are not rendered yet ({len(scene.media)} media, {n_null} "
-                  "index-matched boundaries): rendered as vacuum, without the boundaries", stacklevel=4)
-    return scene.surfaces_only()
 
 def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=None, width=None, height=None,
                 max_depth=None, rr_depth=None, integrator=None, wave_size=None, intersector="opencl", progress=None,

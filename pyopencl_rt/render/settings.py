@@ -174,6 +174,10 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
     defines.update(layout_defines(bvh_layout))
     if settings.film_aovs:
         defines["HAS_AOVS"] = True  # cl/render/aov.h
+    if scene.has_media():
+        defines["HAS_MEDIA"] = True  # the volumetric integrator (cl/render/volpath.h)
+        if getattr(scene.settings, "spectral_mis", True) and any(m.chromatic() for m in scene.media):
+            defines["SPECTRAL_MIS"] = True  # chromatic sigma_t: the balance heuristic over the channels
     return defines
 
 

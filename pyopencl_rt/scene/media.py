@@ -169,6 +169,13 @@ class Medium:
         e = self.extinction()
         return e if self.density is None else e * self.density.maxima()
 
+    def chromatic(self) -> bool:
+        """Whether sigma_t (or its majorant) differs between the channels: the distances a path samples
+        with one channel's coefficients then need the spectral-MIS weights (cl/render/media.h)."""
+        e, m = self.extinction(), self.majorant_rgb()
+        rgb_grid = self.density is not None and self.density.channels == 3
+        return bool(rgb_grid or np.ptp(e) > 0 or np.ptp(m) > 0)
+
     def grids(self) -> list:
         return [g for g in (self.density, self.albedo_grid) if g is not None]
 

@@ -59,6 +59,7 @@ class Material:
     # R channel holds the value (the luminance of a colour image, as Mitsuba's eval_1).
     specular_reflectance: tuple = (1.0, 1.0, 1.0)
     nonlinear: bool = False
+    thin: bool = False  # dielectric: a thin sheet (Mitsuba's thindielectric), light passes straight through
     distribution: str = "ggx"
     params: dict = field(default_factory=dict)
     scalar_textures: dict = field(default_factory=dict)
@@ -414,28 +415,6 @@ class Scene:
         if self.sphere_interfaces is None:
             return np.full(len(self.spheres), -1, np.int32)
         return np.asarray(self.sphere_interfaces, np.int32).reshape(len(self.spheres))
-
-    def surfaces_only(self) -> "Scene":
-        """The scene as the surface integrator renders it, until the volumetric one lands: without
-        its media, and without the index-matched (null) surfaces that do not emit (they only bound
-        media).  Returns self when there is nothing to drop."""
-        import copy
-
-        if not self.has_media():
-            return self
-        null = np.array([mi.null for mi in self.interfaces] + [False], bool)  # index -1: the False
-        glows = np.array([m.is_emissive for m in self.materials], bool)
-        f_if, s_if = self.face_interface_array(), self.sphere_interface_array()
-        keep_f = ~null[f_if] | glows[np.asarray(self.face_materials, np.int64)] if len(self.faces) else np.zeros(0, bool)
-        keep_s = ~null[s_if] | glows[np.asarray(self.sphere_materials, np.int64)] if len(self.spheres) else np.zeros(0, bool)
-        s = copy.copy(self)
-        s.faces, s.face_materials = self.faces[keep_f], self.face_materials[keep_f]
-        s.uvs = None if self.uvs is None else self.face_uvs()[keep_f]
-        s.normals = None if self.normals is None else np.asarray(self.normals, np.float32).reshape(-1, 3, 3)[keep_f]
-        s.colors = None if self.colors is None else np.asarray(self.colors, np.float32).reshape(-1, 3, 3)[keep_f]
-        s.spheres, s.sphere_materials = self.spheres[keep_s], self.sphere_materials[keep_s]
-        s.media, s.camera_medium, s.interfaces, s.face_interfaces, s.sphere_interfaces = [], -1, [], None, None
-        return s
 
     def _per_corner(self, values, k: int, missing: float) -> np.ndarray:
         """(F, 3, k) float32 per-corner values (``missing`` where the scene has none; NaN as 0)."""

@@ -3,8 +3,8 @@ loaders' media): Mitsuba's .vol grids; Mitsuba 3 XML media, phase functions, vol
 interiors and exteriors, null BSDFs, the sensor's medium and volpath settings, compared with
 Mitsuba 3's own parse (scalar_rgb: its media's coefficients and majorant at points, its phase
 functions); pbrt-v4 MakeNamedMedium / MediumInterface / "interface" shapes and the camera medium;
-TOML [media] tables; the kernel records; the checks of scene/validate.py; the renderer's one
-warning until the volumetric integrator lands."""
+TOML [media] tables; the kernel records; the checks of scene/validate.py; the renderer takes such
+scenes as they are (the volumetric integrator: tests/render/test_volpath.py)."""
 from __future__ import annotations
 
 import warnings
@@ -437,22 +437,17 @@ def test_validation_refuses_bad_media(tmp_path):
             check_scene(bad)
 
 
-def test_renderer_warns_once_and_renders_surfaces(tmp_path):
-    """Until the volumetric integrator lands, render_full's scene argument warns in one line and drops
-    the media and the index-matched shapes that do not emit (an emitting one stays); a scene without
-    media is passed through untouched, without a word; camera_relative moves the grids with the scene."""
+def test_renderer_takes_media_without_a_word(tmp_path):
+    """render_full's scene argument passes a scene with media through untouched (the volumetric
+    integrator renders them, cl/render/volpath.h), as it does a scene without; camera_relative moves the
+    grids with the scene."""
     from pyopencl_rt.render.api import scene_argument
 
     (tmp_path / "s.toml").write_text(TOML)
     scene, _ = load(tmp_path / "s.toml")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        reduced = scene_argument(scene)
-    assert [str(w.message) for w in caught] == [
-        f"{scene.source}: participating media are not rendered yet (3 media, 1 index-matched boundaries): rendered "
-        "as vacuum, without the boundaries"]
-    assert len(reduced.faces) == 2 and len(reduced.spheres) == 1 and not reduced.has_media()
-    assert reduced.media == [] and reduced.face_interfaces is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert scene_argument(scene) is scene
     plain = load_scene("scenes/cornell-box.toml")
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -580,7 +580,7 @@ def test_bsdfs(tmp_path):
         dict(type="diffuse", albedo=(0.5, 0.5, 0.5)),
         dict(type="dielectric", ior=pytest.approx(1.6 / 1.333), alpha=0.0),
         dict(type="dielectric", ior=pytest.approx(1.5046 / 1.000277), alpha=0.3, tint=(0.9, 0.8, 0.7)),
-        dict(type="dielectric", ior=pytest.approx(1.5046 / 1.000277), alpha=0.0),
+        dict(type="dielectric", ior=pytest.approx(1.5046 / 1.000277), alpha=0.0, thin=True),
         dict(type="conductor", eta=None, f0=(1.0, 1.0, 1.0), alpha=0.0),  # Mitsuba's "none": a mirror
         dict(type="conductor", eta=METALS["gold"][0], k=METALS["gold"][1]),
         dict(type="conductor", eta=(0.2, 0.9, 1.1), k=(3, 2.5, 2), alpha=0.2),
@@ -599,8 +599,7 @@ def test_bsdfs(tmp_path):
     for i, (mat, want) in enumerate(zip(mats, expect)):
         for key, value in want.items():
             assert getattr(mat, key) == value, (i, key, getattr(mat, key))
-    expected_warnings = ['<bsdf type="thindielectric">: approximated by a dielectric interface',
-                         '<bsdf type="roughconductor">: the Beckmann distribution (Mitsuba\'s default) is rendered as GGX',
+    expected_warnings = ['<bsdf type="roughconductor">: the Beckmann distribution (Mitsuba\'s default) is rendered as GGX',
                          '<bsdf type="mask">: opacity masks are not supported; rendering its nested BSDF',
                          '<bsdf type="roughconductor">: the Beckmann distribution']
     assert len(warned) == len(expected_warnings)

@@ -4,7 +4,7 @@
 |---|---|
 | ``diffuse`` | ``diffuse`` (reflectance, a bitmap as its texture) |
 | ``conductor``, ``roughconductor`` | ``conductor``: ``material`` Au/Ag/Cu/Al as our named metals, ``none`` (the default) as a perfect mirror times ``specular_reflectance``, or ``eta``/``k`` |
-| ``dielectric``, ``roughdielectric`` (``thindielectric`` with a warning) | ``dielectric`` of IOR ``int_ior / ext_ior``, tint ``specular_transmittance`` |
+| ``dielectric``, ``roughdielectric``, ``thindielectric`` (a thin sheet) | ``dielectric`` of IOR ``int_ior / ext_ior``, tint ``specular_transmittance`` |
 | ``plastic``, ``roughplastic`` | ``plastic``, ``roughplastic`` (Mitsuba's parameters; a texture of ``diffuse_reflectance``) |
 | ``principled``, ``principledthin`` | ``principled``, ``principledthin`` (Mitsuba's parameters; textures of ``base_color`` and of up to 6 scalar parameters) |
 | ``twosided`` | its nested BSDF (ours reflect on both sides) |
@@ -391,9 +391,7 @@ class BsdfMapper:
     def _dielectric(self, obj, mat) -> None:
         imp = self.imp
         mat.type = "dielectric"
-        if obj.type == "thindielectric":
-            imp.warn(obj.node.pos, f"{obj.label()}: approximated by a dielectric interface (a thin sheet refracts "
-                                   "instead of passing light straight through)")
+        mat.thin = obj.type == "thindielectric"  # a sheet: straight through (cl/materials/dielectric.h)
         mat.ior = self._ior(obj, "int_ior", "bk7") / self._ior(obj, "ext_ior", "air")
         mat.alpha = self._alpha(obj, 0.1, mat) if obj.type == "roughdielectric" else 0.0
         refl, _ = color_value(imp, obj, "specular_reflectance", (1.0,) * 3)

@@ -11,6 +11,7 @@ Glass should be closed geometry (a sphere, a closed mesh with outward-facing tri
 """
 from __future__ import annotations
 
+from ...device import abi
 from .microfacet import ROUGHNESS_KEYS, read_alpha
 
 TOML_KEYS = ROUGHNESS_KEYS | {"ior", "tint"}
@@ -37,6 +38,8 @@ def pack(material, record) -> None:
     record["alpha"] = material.alpha
     record["ior"] = material.ior
     record["specular"] = material.tint
+    if getattr(material, "thin", False):
+        record["flags"] |= abi.MATERIAL_FLAG_THIN
 
 
 def to_mitsuba(material) -> dict:
