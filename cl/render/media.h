@@ -107,13 +107,9 @@ RT_INLINE GridLanes grid_lanes(__global const MediumGrid *grids, pint gi)
     __global const int *n = (__global const int *)grids;
     const pint base = gi * STRIDE_INDEX(MediumGrid);
     GridLanes g;
-    g.offset = pgather_int(n, base + FIELD_INDEX(MediumGrid, offset));
-    g.nx = pgather_int(n, base + FIELD_INDEX(MediumGrid, nx));
-    g.ny = pgather_int(n, base + FIELD_INDEX(MediumGrid, ny));
-    g.nz = pgather_int(n, base + FIELD_INDEX(MediumGrid, nz));
-    g.channels = pgather_int(n, base + FIELD_INDEX(MediumGrid, channels));
-    g.filter = pgather_int(n, base + FIELD_INDEX(MediumGrid, filter));
-    g.outside = pgather_int(n, base + FIELD_INDEX(MediumGrid, outside));
+#define GRID_INT(x) g.x = pgather_int(n, base + FIELD_INDEX(MediumGrid, x));
+    GRID_INT(offset) GRID_INT(nx) GRID_INT(ny) GRID_INT(nz) GRID_INT(channels) GRID_INT(filter) GRID_INT(outside)
+#undef GRID_INT
     for (int k = 0; k < 12; ++k) g.m[k] = pgather(f, base + FIELD_INDEX(MediumGrid, to_local) + k);
     return g;
 }
@@ -227,14 +223,12 @@ RT_INLINE MediumLanes medium_lanes(__global const Medium *media, __global const 
     __global const int *n = (__global const int *)media;
     const pint base = mi * STRIDE_INDEX(Medium);
     MediumLanes m;
-    m.type = pgather_int(n, base + FIELD_INDEX(Medium, type));
-    m.phase = pgather_int(n, base + FIELD_INDEX(Medium, phase));
-    m.density_grid = pgather_int(n, base + FIELD_INDEX(Medium, density_grid));
-    m.albedo_grid = pgather_int(n, base + FIELD_INDEX(Medium, albedo_grid));
-    m.flags = pgather_int(n, base + FIELD_INDEX(Medium, flags));
-    m.sigma_t = pv3_gather(f, base + FIELD_INDEX(Medium, sigma_t));
-    m.albedo = pv3_gather(f, base + FIELD_INDEX(Medium, albedo));
-    m.majorant = pv3_gather(f, base + FIELD_INDEX(Medium, majorant));
+#define MEDIUM_INT(x) m.x = pgather_int(n, base + FIELD_INDEX(Medium, x));
+#define MEDIUM_VEC3(x) m.x = pv3_gather(f, base + FIELD_INDEX(Medium, x));
+    MEDIUM_INT(type) MEDIUM_INT(phase) MEDIUM_INT(density_grid) MEDIUM_INT(albedo_grid) MEDIUM_INT(flags)
+    MEDIUM_VEC3(sigma_t) MEDIUM_VEC3(albedo) MEDIUM_VEC3(majorant)
+#undef MEDIUM_INT
+#undef MEDIUM_VEC3
     m.g = pgather(f, base + FIELD_INDEX(Medium, g));
     const pint dense = m.density_grid >= 0, mapped = m.albedo_grid >= 0;
     if (pany(dense)) m.density = grid_lanes(grids, dense ? m.density_grid : PINT(0));

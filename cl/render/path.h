@@ -186,6 +186,48 @@ RT_INLINE void hit_records(__global const int *tri_material, __global const int 
 #define ANY_PRIM SPHERE_PRIM(0)
 #endif
 
+#if defined(HAS_LIGHTS) && INTEGRATOR != 1
+/* The MIS weight of a light sample of density lpdf against the BSDF's or phase function's density
+ * `other` for the same direction: the power heuristic, 1 for delta lights and without MIS. */
+RT_INLINE pfloat nee_mis_weight(pint delta, pfloat lpdf, pfloat other)
+{
+#if INTEGRATOR == 0
+    return delta ? PFLOAT(1.0f) : power_heuristic(lpdf, other);
+#else
+    return PFLOAT(1.0f);
+#endif
+}
+
+/* Next-event estimation's light sample from ref (a surface's spawn point or a medium's scattering
+ * point) in the lanes of `active`: a light picked by power (*pick_pmf) and a point on it (*ls, its
+ * texture's emission included).  Returns the lanes with a sample of positive density and radiance;
+ * there *wi is the unit direction toward it and *dist its distance (for an infinitely far light
+ * the exact direction and the far end). */
+RT_INLINE pint nee_light_sample(PATH_PARAMS, SampleKey key, puint dim, pint active, pvec3 ref, LightSample *ls,
+                                pfloat *pick_pmf, pvec3 *wi, pfloat *dist)
+{
+    pfloat ulx, uly;
+    const pint li = sample_alias(lights, n_lights, sample_1d(key, dim + DIM_LIGHT_PICK), pick_pmf);
+    sample_2d(key, dim + DIM_LIGHT_POINT, &ulx, &uly);
+    pint sampled = active & (*pick_pmf > 0.0f);
+    sampled &= light_sample_all(tris, spheres, materials, env_map, env_cdf, lights, li, sampled, ref, ulx, uly, ls);
+#ifdef HAS_TEXTURES
+    texture_light_emission(tri_uv, textures, tex_data, materials, lights, li, sampled, ulx, uly, ls);
+#endif
+    sampled &= (ls->pdf > 0.0f) & (pv3_max3(ls->Le) > 0.0f);
+    const pvec3 to = pv3_sub(ls->p, ref);
+    const pfloat len = pv3_length(to, sampled);
+    *wi = pv3_div(to, sampled ? len : PFLOAT(1.0f));
+    *dist = len;
+#ifdef HAS_INFINITE_LIGHTS
+    const pint far = ls->far > 0.0f;
+    *wi = pv3_sel(*wi, ls->n, far);
+    *dist = far ? ls->far : *dist;
+#endif
+    return sampled;
+}
+#endif
+
 /* Shades the hits (prim, t, u, v) of the lanes of `hit`.  Sets *goes_on to the lanes whose
  * paths go on (s then holds their next rays) and *with_shadow to those with a light sample to
  * test (*shadow).  Lanes outside `hit` keep their state.  `slot`: each lane's AOV entry. */
@@ -260,42 +302,24 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
 #if defined(HAS_LIGHTS) && INTEGRATOR != 1
     const pint nee = going & bsdf_has_nondelta_lobes(&m);
     if (pany(nee)) {
-        pfloat pick_pmf, ulx, uly;
-        const pint li = sample_alias(lights, n_lights, sample_1d(key, dim + DIM_LIGHT_PICK), &pick_pmf);
-        sample_2d(key, dim + DIM_LIGHT_POINT, &ulx, &uly);
         LightSample ls;
-        pint sampled = nee & (pick_pmf > 0.0f);
-        sampled &= light_sample_all(tris, spheres, materials, env_map, env_cdf, lights, li, sampled, ref, ulx, uly, &ls);
-#ifdef HAS_TEXTURES
-        texture_light_emission(tri_uv, textures, tex_data, materials, lights, li, sampled, ulx, uly, &ls);
-#endif
-        sampled &= (ls.pdf > 0.0f) & (pv3_max3(ls.Le) > 0.0f);
+        pfloat pick_pmf, dist;
+        pvec3 wi;
+        const pint sampled = nee_light_sample(PATH_ARGS, key, dim, nee, ref, &ls, &pick_pmf, &wi, &dist);
         if (pany(sampled)) {
-            pvec3 wi = pv3_sub(ls.p, ref);
-            pfloat dist = pv3_length(wi, sampled);
-            wi = pv3_div(wi, dist);
-#ifdef HAS_INFINITE_LIGHTS
-            const pint far = ls.far > 0.0f; /* exact direction, far end */
-            wi = pv3_sel(wi, ls.n, far);
-            dist = far ? ls.far : dist;
-#endif
             pfloat bpdf;
             pvec3 f = bsdf_eval(&m, sampled, sh.n, sh.front, wo, wi, &bpdf);
             f = shading_eval(&sh, wi, f, &bpdf);
             const pint lit = sampled & (pv3_max3(f) > 0.0f) & (dist > 0.0f);
             if (pany(lit)) {
                 const pfloat lpdf = pick_pmf * ls.pdf;
-#if INTEGRATOR == 0
-                const pfloat w = ls.delta ? PFLOAT(1.0f) : power_heuristic(lpdf, bpdf);
-#else
-                const pfloat w = PFLOAT(1.0f);
-#endif
+                const pfloat w = nee_mis_weight(ls.delta, lpdf, bpdf);
                 const pvec3 so = pv3_sel(below, ref, pv3_dot(n, wi) > 0.0f);
                 const pvec3 sp = offset_ray_origin_bound(ls.p, ls.err, ls.n);
                 shadow->o = so;
                 shadow->d = pv3_sub(sp, so);
 #ifdef HAS_INFINITE_LIGHTS
-                shadow->d = pv3_sel(shadow->d, pv3_scale(wi, ls.far), far);
+                shadow->d = pv3_sel(shadow->d, pv3_scale(wi, ls.far), ls.far > 0.0f);
 #endif
                 shadow->contribution = pv3_scale(pv3_mul(pv3_mul(s->beta, f), ls.Le), w / lpdf);
                 *with_shadow = lit;

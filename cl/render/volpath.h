@@ -269,39 +269,21 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
 #if defined(HAS_LIGHTS) && INTEGRATOR != 1
     const pint nee = going & ((med.flags & MEDIUM_FLAG_SAMPLE_EMITTERS) != 0);
     if (pany(nee)) {
-        pfloat pick_pmf, ulx, uly;
-        const pint li = sample_alias(lights, n_lights, sample_1d(key, dim + DIM_LIGHT_PICK), &pick_pmf);
-        sample_2d(key, dim + DIM_LIGHT_POINT, &ulx, &uly);
         LightSample ls;
-        pint sampled = nee & (pick_pmf > 0.0f);
-        sampled &= light_sample_all(tris, spheres, materials, env_map, env_cdf, lights, li, sampled, p, ulx, uly, &ls);
-#ifdef HAS_TEXTURES
-        texture_light_emission(tri_uv, textures, tex_data, materials, lights, li, sampled, ulx, uly, &ls);
-#endif
-        sampled &= (ls.pdf > 0.0f) & (pv3_max3(ls.Le) > 0.0f);
+        pfloat pick_pmf, dist;
+        pvec3 wl;
+        const pint sampled = nee_light_sample(PATH_ARGS, key, dim, nee, p, &ls, &pick_pmf, &wl, &dist);
         if (pany(sampled)) {
-            pvec3 wl = pv3_sub(ls.p, p);
-            pfloat dist = pv3_length(wl, sampled);
-            wl = pv3_div(wl, sampled ? dist : PFLOAT(1.0f));
-#ifdef HAS_INFINITE_LIGHTS
-            const pint far = ls.far > 0.0f;
-            wl = pv3_sel(wl, ls.n, far);
-            dist = far ? ls.far : dist;
-#endif
             const pfloat ph = phase_eval(&med, wi_back, wl);
             const pint lit = sampled & (ph > 0.0f) & (dist > 0.0f);
             if (pany(lit)) {
                 const pfloat lpdf = pick_pmf * ls.pdf;
-#if INTEGRATOR == 0
-                const pfloat w = ls.delta ? PFLOAT(1.0f) : power_heuristic(lpdf, ph);
-#else
-                const pfloat w = PFLOAT(1.0f);
-#endif
+                const pfloat w = nee_mis_weight(ls.delta, lpdf, ph);
                 const pvec3 sp = offset_ray_origin_bound(ls.p, ls.err, ls.n);
                 shadow->o = pv3_sel(shadow->o, p, lit);
                 shadow->d = pv3_sel(shadow->d, pv3_sub(sp, p), lit);
 #ifdef HAS_INFINITE_LIGHTS
-                shadow->d = pv3_sel(shadow->d, pv3_scale(wl, ls.far), lit & far);
+                shadow->d = pv3_sel(shadow->d, pv3_scale(wl, ls.far), lit & (ls.far > 0.0f));
 #endif
                 shadow->contribution = pv3_sel(shadow->contribution, pv3_scale(pv3_mul(s->beta, ls.Le), ph * w / lpdf), lit);
                 *shadow_medium = lit ? s->medium : *shadow_medium;

@@ -23,6 +23,8 @@ import pytest
 import pyopencl_rt as rt
 from pyopencl_rt.render import megakernel
 
+import harness
+
 Z_MAX = 4.5
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 
@@ -150,22 +152,13 @@ def test_furnace(device, tmp_path):
     assert_mean(r, np.full(3, 2.0), rel=0.05)
 
 
-SINGLE = """
-[camera]
-type = "orthographic"
-eye = [0.0, 0.0, -5.0]
-look_at = [0.0, 0.0, 0.0]
-extent = 1.0
+def ortho_header(**render) -> str:
+    """A 16 x 16 orthographic view of the unit square around the origin from z = -5, and ``render``."""
+    return harness.toml_tables(camera=dict(type="orthographic", eye=[0.0, 0.0, -5.0], look_at=[0.0, 0.0, 0.0],
+                                           extent=1.0), film=dict(width=16, height=16), render=render)
 
-[film]
-width = 16
-height = 16
 
-[render]
-spp = 64
-max_depth = 2
-seed = 7
-
+SINGLE = ortho_header(spp=64, max_depth=2, seed=7) + """
 [materials.black]
 albedo = 0.0
 
@@ -255,22 +248,7 @@ def test_no_media_no_media_code(device, tmp_path):
         assert name in src, name
 
 
-THIN = """
-[camera]
-type = "orthographic"
-eye = [0.0, 0.0, -5.0]
-look_at = [0.0, 0.0, 0.0]
-extent = 1.0
-
-[film]
-width = 16
-height = 16
-
-[render]
-spp = 64
-max_depth = 4
-seed = 9
-
+THIN = ortho_header(spp=64, max_depth=4, seed=9) + """
 [materials.glow]
 albedo = [0.0, 0.0, 0.0]
 emission = [2.0, 1.0, 0.5]
