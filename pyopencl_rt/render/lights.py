@@ -170,20 +170,11 @@ def environment_radiance(env, directions) -> np.ndarray:
         d = d @ np.asarray(env.rotation, np.float64).T
     img = np.asarray(env.image, np.float64)[:, :, :3]
     img = np.where(np.isfinite(img), np.maximum(img, 0.0), 0.0)
-    h, w = img.shape[:2]
     u = np.mod(np.arctan2(-d[:, 0], d[:, 2]) / (2 * np.pi), 1.0)
     v = np.arccos(np.clip(d[:, 1], -1.0, 1.0)) / np.pi
-    v_scale, v_offset = ENV_ROWS[env.rows](h)
-    fx, fy = u * w - 0.5, v * v_scale + v_offset
-    x0, y0 = np.floor(fx), np.floor(fy)
-    ax, ay = (fx - x0)[:, None], (fy - y0)[:, None]
-    x0 = x0.astype(np.int64) % w
-    x1 = (x0 + 1) % w
-    y1 = np.clip(y0.astype(np.int64) + 1, 0, h - 1)
-    y0 = np.clip(y0.astype(np.int64), 0, h - 1)
-    top = img[y0, x0] * (1 - ax) + img[y0, x1] * ax
-    bottom = img[y1, x0] * (1 - ax) + img[y1, x1] * ax
-    return (top * (1 - ay) + bottom * ay) * scale
+    from ..scene.loaders.builder import bilinear_wrap
+
+    return bilinear_wrap(img, u, v, *ENV_ROWS[env.rows](img.shape[0])) * scale
 
 
 def _cell_means(n_cells: int, n: int, scale: float, offset: float, wrap: bool):

@@ -258,12 +258,12 @@ def our_env_directions(height: int, width: int) -> np.ndarray:
     return np.stack([-np.sin(theta) * np.sin(phi), np.cos(theta), np.sin(theta) * np.cos(phi)], 1)
 
 
-def bilinear_wrap(image, u, v) -> np.ndarray:
-    """Bilinear lookup at (u, v) in [0, 1) (texel centres at (i + 0.5) / n), wrapping in u and
-    clamping in v."""
+def bilinear_wrap(image, u, v, v_scale: float | None = None, v_offset: float = -0.5) -> np.ndarray:
+    """Bilinear lookup at (u, v) in [0, 1) (columns centred at (i + 0.5) / w; rows at y = v v_scale +
+    v_offset, by default h and -0.5: centred too), wrapping in u and clamping in v."""
     h, w = image.shape[:2]
     fx = np.mod(u, 1.0) * w - 0.5
-    fy = np.clip(v, 0.0, 1.0) * h - 0.5
+    fy = np.clip(v, 0.0, 1.0) * (h if v_scale is None else v_scale) + v_offset
     x0, y0 = np.floor(fx), np.floor(fy)
     ax, ay = (fx - x0)[:, None], (fy - y0)[:, None]
     x0 = x0.astype(np.int64)
