@@ -14,8 +14,8 @@
  * ends, its radiance (times its camera sample's filter weight) is written to its pass_ring entry
  * (entry j of the launch with n_listed > 0) and the lane starts the block's next sample, so the
  * lanes stay full until the block runs out.
- * PACKET_BLOCK and LANE_GROUP come from the host (pyopencl_rt/render/megakernel.py; one sample
- * per work-item and the wave's group size at width 1).  The rays it traces are counted in
+ * PACKET_BLOCK and LANE_GROUP come from the host (pyopencl_rt/render/megakernel.py: groups of one
+ * work-item on CPUs; one sample per work-item and the wave's group size on GPUs).  The rays it traces are counted in
  * counters[COUNTER_RAYS_EXTEND] and [COUNTER_RAYS_SHADOW]. */
 #include "render/path.h"
 #ifdef HAS_MEDIA

@@ -37,7 +37,10 @@ KERNEL_MODES = ("wavefront", "megakernel")
 KERNEL_MODE_ENV = "PYOPENCL_RT_KERNEL_MODE"
 SOURCES = ("megakernel/path.cl",)
 LANE_BLOCK = 16           # samples per work-item, in units of the lane width, taken in turn by its lanes
-LANE_GROUP = 8            # work-items per group: a launch of the CPU wave (2^18 samples) makes 128 groups
+# work-items per group on CPUs: PoCL compiles a group of one without its work-item loop, which
+# cuts a cold build of the megakernel by 20-40% and runs as fast (docs/BENCHMARKS.md, "Kernel
+# builds"); GPUs keep the wave's group size (WAVE_LOCAL_SIZE) at one path per work-item
+LANE_GROUP = 1
 
 
 def kernel_mode(device, intersector: str, film_aovs, requested: str | None = None, media: bool = False) -> str:
@@ -82,6 +85,16 @@ def lane_features(width: int) -> dict:
     return {"PACKET_WIDTH": width, "PACKET_BLOCK": LANE_BLOCK * width, "LANE_GROUP": LANE_GROUP} if width else {}
 
 
+def group_features(device, width: int) -> dict:
+    """The defines of the megakernel at ``width`` paths per work-item on ``device``: the lanes',
+    and at one path per work-item the CPU's group size (GPUs: the wave's)."""
+    import pyopencl as cl
+
+    if width:
+        return lane_features(width)
+    return {"LANE_GROUP": LANE_GROUP} if device.type & cl.device_type.CPU else {}
+
+
 def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=False, first_pass=0,
         cancel=None, pixels=None) -> RunStats:
     """:meth:`Wavefront.run` for the megakernel: whole passes per launch, as many as the wave
@@ -112,9 +125,8 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
     # two sets of host buffers: one being filled by the queue while the host sums the other
     results = [np.empty((passes_per_launch, n_pixels, 3), np.float32) for _ in range(2)]
     ray_counts = [np.zeros(2, np.int32) for _ in range(2)]
-    lanes = lane_features(wf.lane_width)
-    local = lanes.get("LANE_GROUP", abi.WAVE_LOCAL_SIZE)
-    block = lanes.get("PACKET_BLOCK", 1)  # samples per work-item
+    local = wf.features.get("LANE_GROUP", abi.WAVE_LOCAL_SIZE)  # as the kernel was built
+    block = wf.features.get("PACKET_BLOCK", 1)  # samples per work-item
     end = None if passes is None else first_pass + passes
     zero_rays = np.zeros(2, np.int32)
     rays_at = abi.COUNTER_RAYS_EXTEND * 4  # both ray counters, read and zeroed as one pair

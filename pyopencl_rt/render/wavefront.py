@@ -115,7 +115,8 @@ class Wavefront:
         self.lane_width, self.lane_reason = megakernel.lane_choice(self.kernel_mode, device, self.features)
         if self.lane_width:
             try:
-                lane_features = {**self.features, **megakernel.lane_features(self.lane_width)}
+                # the scene's defines last: a benchmark variant (tools/kernel_ab.py) may set LANE_GROUP
+                lane_features = {**megakernel.lane_features(self.lane_width), **self.features}
                 self.kernels = {"path": self.rt.new_kernels(megakernel.SOURCES, ("mk_path",),
                                                             lane_features)["mk_path"]}
                 self.features = lane_features
@@ -126,6 +127,7 @@ class Wavefront:
                 warnings.warn(f"{failure}: rendering with one path per work-item", stacklevel=2)
                 self.lane_width, self.lane_reason = 0, f"one path per work-item: {failure}"
         if not self.lane_width and self.kernel_mode == "megakernel":
+            self.features = {**megakernel.group_features(device, 0), **self.features}
             self.kernels = {"path": self.rt.new_kernels(megakernel.SOURCES, ("mk_path",), self.features)["mk_path"]}
         elif not self.lane_width:
             kernels = self.rt.new_kernels(SOURCES, [f"wf_{s}" for s in STAGES], self.features)
