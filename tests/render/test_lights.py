@@ -755,8 +755,9 @@ def test_thin_lens_blur_and_focus(device):
 
 # ----------------------------------------------------------------------------------- robustness
 def test_extreme_parameters_finite(device):
-    """Huge intensities, delta lights on glossy, mirror and glass surfaces, an environment map of
-    zeros, a huge aperture with a tiny focus distance: no NaN or Inf anywhere."""
+    """Huge intensities, delta lights on glossy, mirror and glass surfaces, spots and projectors at
+    their limits, an environment map of zeros, a huge aperture with a tiny focus distance: no NaN
+    or Inf anywhere."""
     v = np.array([[-10, 0, -10], [-10, 0, 10], [10, 0, 10], [10, 0, -10]], np.float32)
     f = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
     mats = [Material("plane", albedo=(0.5,) * 3), Material("glossy", type="conductor", alpha=1e-3),
@@ -769,7 +770,16 @@ def test_extreme_parameters_finite(device):
                settings=RenderSettings(width=16, height=16, max_depth=6),
                lights=[PointLight(position=(0, 3, 1), intensity=(1e20,) * 3),
                        PointLight(position=(-2, 1, 0), intensity=(1.0,) * 3),  # inside a sphere
-                       DirectionalLight(direction=(0, -1, 0), irradiance=(1e20, 0, 1e-30))],
+                       DirectionalLight(direction=(0, -1, 0), irradiance=(1e20, 0, 1e-30)),
+                       # a needle of a spot (beam = cutoff: no ramp), one lighting everything, a projector grazing
+                       # the plane (its depth z -> 0 there), one nearly 180 degrees wide
+                       SpotLight(position=(0, 3, 1), intensity=(1e20,) * 3, cutoff_angle=0.01, beam_width=0.01,
+                                 to_world=look_at_frame((0, 3, 1), (0, 0, 1), (0, 0, 1))),
+                       SpotLight(position=(1, 2, 1), cutoff_angle=180, beam_width=0),
+                       ProjectorLight(position=(0, 1e-3, 0), fov=90, to_world=look_at_frame((0, 1e-3, 0), (0, 1e-3, 1),
+                                                                                          (0, 1, 0))),
+                       ProjectorLight(position=(0, 2, 0), fov=179.99, scale=1e20,
+                                      to_world=look_at_frame((0, 2, 0), (0, 0, 0), (0, 0, 1)))],
                environment=Environment(radiance=(1.0, 1.0, 1.0), image=np.zeros((4, 8, 3), np.float32)))
     for integ in ("path", "nee"):
         r = render_full(sc, spp=4, device=device, seed=1, integrator=integ)
