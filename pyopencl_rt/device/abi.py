@@ -223,22 +223,13 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 #   p:      point, spot, projector: position; directional, environment: centre of the scene's
 #           bounding sphere
 #   radius: directional, environment: radius of the scene's bounding sphere (shadow-ray length)
-#   dir:    directional: unit direction in which the light travels; projector: its to_world's
-#           image of local +z (Mitsuba's n, not normalised)
-#   texture: spot, projector: the texture (index into the Texture table) that multiplies the
-#           emission at the light's (u, v), or -1
-#   flags:  spot: LIGHT_SPOT_SMOOTHSTEP for pbrt-v4's falloff (else Mitsuba's); projector:
-#           LIGHT_PROJECTOR_COS3 for Mitsuba's irradiance normalisation (else pbrt-v4's intensity)
+#   dir:    directional: unit direction of travel; projector: to_world's image of local +z
 #   rgb:    point, spot: intensity [W/sr] (a spot's on its axis); directional: irradiance on a
-#           perpendicular surface; environment: radiance (constant) or the map's scale; projector:
-#           Mitsuba: pi scale irradiance, pbrt-v4: scale (times the texture)
-#   frame:  spot, projector: the rows of the 3x3 world-to-light linear map (the inverse of
-#           to_world's): the light's local vector of a world vector v is frame v, +z its axis
-#   cone:   spot: cos cutoff, cos beam (Mitsuba's beam_width; pbrt-v4's falloff start), the cutoff
-#           angle [rad], 1 / (cutoff - beam width angle) (Mitsuba's linear ramp)
-#   uv_scale: spot, projector: the local vector (x, y, z) looks at texture coordinates
-#           (0.5 + uv_scale[0] x / z, 0.5 + uv_scale[1] y / z); a projector lights (u, v) in
-#           [0, 1]^2 with z > 0 only
+#           perpendicular surface; environment: radiance or the map's scale; projector: see lights.h
+#   spot, projector (cl/render/lights.h has the formulas): texture (-1: none), flags
+#   (LIGHT_SPOT_SMOOTHSTEP: pbrt-v4's falloff; LIGHT_PROJECTOR_COS3: Mitsuba's normalisation), frame
+#   (the rows of the world-to-light 3x3 map), cone (cos cutoff, cos beam, cutoff [rad], 1 /
+#   (cutoff - beam) [1/rad]), uv_scale (local (x, y, z) -> texture (0.5 + uv_scale (x, y) / z))
 # The environment map's buffer (env_map): a header of ENV_MAP_HEADER floats, then the H x W RGB
 # texels row by row from the top.  Header: the rows of the 3x3 world-to-map rotation at floats 0-2,
 # 4-6 and 8-10 (directions are turned into the map's frame before (u, v) is taken), and at 3 and 7
