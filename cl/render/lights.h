@@ -23,6 +23,19 @@
  *                ls->delta set, ls->pdf = 1 and MIS weight 1 (BSDF sampling never hits it)
  *   directional  (HAS_DELTA_LIGHTS) irradiance E on a surface perpendicular to the direction of
  *                travel `dir`: Le = E, delta as above, infinitely far
+ *   spot         (HAS_DELTA_LIGHTS) a point light at p whose intensity I (on its axis, local +z)
+ *                falls off with the angle theta from the axis: with l = frame (ref - p) the
+ *                reference point in the light's frame and cos theta = l.z / |l|, Le = I f / dist^2
+ *                with Mitsuba's f (spot.cpp): 1 for cos theta >= cos beam, (cutoff - acos(cos
+ *                theta)) / (cutoff - beam) down to the cutoff, 0 for cos theta <= cos cutoff; or
+ *                pbrt-v4's (LIGHT_SPOT_SMOOTHSTEP): smoothstep(cos cutoff, cos beam, cos theta);
+ *                times the texture (if any) at (u, v) = 0.5 + uv_scale (l.x / l.z, l.y / l.z)
+ *   projector    (HAS_DELTA_LIGHTS) a pinhole at p projecting (u, v) = 0.5 + uv_scale (l.x / l.z,
+ *                l.y / l.z) for l.z > 0 and (u, v) in [0, 1]^2 (0 elsewhere): Mitsuba's
+ *                (projector.cpp, LIGHT_PROJECTOR_COS3) Le = rgb tex(u, v) / (l.z^2 cos) with cos =
+ *                dir . (ref - p) / dist, so that the irradiance on the plane at z = 1 is rgb tex
+ *                (rgb = pi scale irradiance); pbrt-v4's Le = rgb tex(u, v) / dist^2
+ *                Both set ls->tex / ls->uv for the texture, applied by cl/scene/textures.h.
  *   environment  (HAS_ENVIRONMENT) radiance from every direction: constant (uniform sampling of
  *                the sphere, pdf 1 / 4 pi) or an equirectangular map (env_map: a header, then RGB
  *                rows from the top; pyopencl_rt/device/abi.py ENV_MAP_HEADER), times rgb.  A world
@@ -69,8 +82,10 @@ typedef struct {
     pfloat pdf;  /* solid-angle density at the reference point (not including the pick pmf) */
     pfloat far;  /* > 0 for an infinitely distant light (directional, environment): n is then the
                   * unit direction toward it, far the shadow ray's length; 0 otherwise */
-    pint delta;  /* mask of the delta lights' lanes (point, directional): Le is the contribution
-                  * over pdf = 1, no MIS (BSDF sampling cannot hit it) */
+    pint delta;  /* mask of the delta lights' lanes (point, directional, spot, projector): Le is the
+                  * contribution over pdf = 1, no MIS (BSDF sampling cannot hit it) */
+    pint tex;    /* spot, projector: the texture that multiplies Le at uv (textures.h), else -1 */
+    pfloat tu, tv;
 } LightSample;
 
 /* Radiance leaving an emitter with material m at a point of geometric normal ng toward w. */
@@ -186,8 +201,9 @@ RT_INLINE pint light_sample(__global const float4 *tris, __global const Sphere *
     const pint row = light_index * STRIDE_INDEX(Light);
     const pint kind = LIGHT_I(lights, row, kind);
     ls->p = ls->err = ls->n = ls->Le = pv3_zero();
-    ls->pdf = ls->far = PFLOAT(0.0f);
+    ls->pdf = ls->far = ls->tu = ls->tv = PFLOAT(0.0f);
     ls->delta = PINT(0);
+    ls->tex = PINT(-1);
     pint got = PINT(0);
     const pint tri = active & (kind == LIGHT_TRIANGLE);
     if (pany(tri)) got = got | light_sample_triangle(tris, materials, lights, row, tri, ref, ux, uy, ls);
@@ -218,6 +234,55 @@ RT_INLINE pfloat light_pdf(__global const Sphere *spheres, __global const Light 
 }
 
 /* -- lights that are not surfaces -------------------------------------------------------------- */
+
+#ifdef HAS_DELTA_LIGHTS
+/* Spot and projector lights (the lanes of `spot`, `proj`): the reference point in the light's
+ * frame, Le and the texture coordinates (see the top of this file). */
+RT_INLINE pint light_sample_cone(__global const Light *lights, pint row, pint spot, pint proj, pvec3 ref,
+                                 LightSample *ls)
+{
+    const pint sel = spot | proj;
+    const pvec3 p = LIGHT_V3(lights, row, p);
+    const pvec3 to_ref = pv3_sub(ref, p);
+    const pfloat dist2 = pv3_dot(to_ref, to_ref);
+    const pfloat dist = psqrt(dist2);
+    const pvec3 l = pv3(pv3_dot(LIGHT_V3(lights, row, frame), to_ref), pv3_dot(LIGHT_V3(lights, row + 3, frame), to_ref),
+                        pv3_dot(LIGHT_V3(lights, row + 6, frame), to_ref));
+    const pint flags = LIGHT_I(lights, row, flags);
+    const pfloat inv_z = 1.0f / l.z;
+    const pfloat u = 0.5f + LIGHT_F(lights, row, uv_scale) * (l.x * inv_z);
+    const pfloat v = 0.5f + LIGHT_F(lights, row + 1, uv_scale) * (l.y * inv_z);
+    pfloat f = PFLOAT(0.0f);
+    if (pany(spot)) {
+        const pfloat cos_t = l.z / pv3_length(l, spot);
+        const pfloat cos_cut = LIGHT_F(lights, row, cone), cos_beam = LIGHT_F(lights, row + 1, cone);
+        /* Mitsuba: linear in the angle between the beam width and the cutoff */
+        const pfloat ramp = (LIGHT_F(lights, row + 2, cone) - pacos(pclamp(cos_t, -1.0f, 1.0f))) *
+                            LIGHT_F(lights, row + 3, cone);
+        pfloat fm = cos_t >= cos_beam ? PFLOAT(1.0f) : ramp;
+        fm = cos_t > cos_cut ? fm : PFLOAT(0.0f);
+        /* pbrt-v4: smoothstep in the cosine */
+        const pfloat t = cos_beam == cos_cut ? (cos_t < cos_cut ? PFLOAT(0.0f) : PFLOAT(1.0f))
+                                             : pclamp((cos_t - cos_cut) / (cos_beam - cos_cut), 0.0f, 1.0f);
+        const pfloat fs = t * t * (3.0f - 2.0f * t);
+        f = ((flags & LIGHT_SPOT_SMOOTHSTEP) != 0) ? fs : fm;
+        f = spot ? f / dist2 : f;
+    }
+    if (pany(proj)) {
+        const pint inside = (l.z > 0.0f) & (u >= 0.0f) & (u <= 1.0f) & (v >= 0.0f) & (v <= 1.0f);
+        const pfloat cos_n = pv3_dot(LIGHT_V3(lights, row, dir), to_ref) / dist;
+        const pfloat fp = ((flags & LIGHT_PROJECTOR_COS3) != 0) ? 1.0f / (l.z * l.z * cos_n) : 1.0f / dist2;
+        f = proj ? (inside ? fp : PFLOAT(0.0f)) : f;
+    }
+    light_sample_set(ls, sel, p, pv3_zero(), pv3_scale(to_ref, 1.0f / dist), pv3_scale(LIGHT_V3(lights, row, rgb), f),
+                     PFLOAT(1.0f));
+    ls->delta = ls->delta | sel;
+    ls->tex = sel ? LIGHT_I(lights, row, texture) : ls->tex;
+    ls->tu = sel ? u : ls->tu;
+    ls->tv = sel ? v : ls->tv;
+    return sel & (dist2 > 0.0f);
+}
+#endif
 
 /* Length of a shadow ray from ref that leaves the scene's bounding sphere (centre, radius: the
  * record's p and radius) of a directional or environment light. */
@@ -390,6 +455,8 @@ RT_INLINE pint light_sample_all(__global const float4 *tris, __global const Sphe
         ls->delta = ls->delta | point;
         got = got | (point & (dist2 > 0.0f));
     }
+    const pint spot = active & (kind == LIGHT_SPOT), proj = active & (kind == LIGHT_PROJECTOR);
+    if (pany(spot | proj)) got = got | light_sample_cone(lights, row, spot, proj, ref, ls);
 #else
     const pint directional = PINT(0);
 #endif

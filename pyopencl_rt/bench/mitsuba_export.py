@@ -39,7 +39,9 @@ environments and the scenes of ``bench set``, tests/bench/test_mitsuba_export.py
   each of Mitsuba's texels our interpolated map at its node, on a grid finer than ours
   (:data:`ENV_WIDTH`: 4 times for a map 256 texels wide).  Our RGB scale is multiplied in;
 * point and directional lights: Mitsuba's ``point`` (``intensity``) and ``directional``
-  (``irradiance``), the same quantities as ours;
+  (``irradiance``), the same quantities as ours; spot and projector lights (untextured, with
+  Mitsuba's conventions: a textured one or pbrt-v4's is refused) its ``spot`` and ``projector``
+  with our position and frame as ``to_world``;
 * camera: ``perspective``, ``to_world = look_at(eye, look_at, up)``, ``fov_axis = 'y'`` (our
   fov is vertical), or ``orthographic`` with ``to_world = look_at(...) @ scale(s, s, 1)``, s our
   film's half width (Mitsuba's film is 2 wide and 2 / aspect high before the scale), the origin
@@ -160,6 +162,18 @@ def _light_record(light) -> dict:
     if name == "DirectionalLight":
         return {"type": "directional", "direction": [float(x) for x in light.direction],
                 "irradiance": [float(x) for x in light.irradiance]}
+    if name in ("SpotLight", "ProjectorLight"):
+        if light.texture is not None or getattr(light, "falloff", "mitsuba") != "mitsuba" or \
+                getattr(light, "convention", "mitsuba") != "mitsuba":
+            raise ValueError(f"a textured {name}, or one with pbrt-v4's conventions, is not exported to Mitsuba")
+        to_world = np.eye(4)
+        to_world[:3, :3] = light.frame()
+        to_world[:3, 3] = light.position
+        if name == "SpotLight":
+            return {"type": "spot", "to_world": to_world.tolist(), "intensity": [float(x) for x in light.intensity],
+                    "cutoff_angle": float(light.cutoff_angle), "beam_width": light.beam()}
+        return {"type": "projector", "to_world": to_world.tolist(), "irradiance": [float(x) for x in light.irradiance],
+                "scale": float(light.scale), "fov": float(light.fov)}
     raise ValueError(f"a {name} is not exported to Mitsuba")
 
 
@@ -301,6 +315,13 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
         if light["type"] == "point":
             d[f"light_{i}"] = {"type": "point", "position": light["position"],
                                "intensity": {"type": "rgb", "value": light["intensity"]}}
+        elif light["type"] == "spot":
+            d[f"light_{i}"] = {"type": "spot", "to_world": T(light["to_world"]),
+                               "intensity": {"type": "rgb", "value": light["intensity"]},
+                               "cutoff_angle": light["cutoff_angle"], "beam_width": light["beam_width"]}
+        elif light["type"] == "projector":
+            d[f"light_{i}"] = {"type": "projector", "to_world": T(light["to_world"]), "fov": light["fov"],
+                               "irradiance": {"type": "rgb", "value": light["irradiance"]}, "scale": light["scale"]}
         else:
             d[f"light_{i}"] = {"type": "directional", "direction": light["direction"],
                                "irradiance": {"type": "rgb", "value": light["irradiance"]}}

@@ -213,31 +213,40 @@ assert MEDIUM_INTERFACE.itemsize == 16
 # A sphere (16 bytes): centre and radius.
 SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 
-# An emitter that next-event estimation samples (80 bytes; cl/render/lights.h documents each kind).
+# An emitter that next-event estimation samples (144 bytes; cl/render/lights.h documents each kind).
 #   kind: LIGHT_TRIANGLE (prim = original face index) or LIGHT_SPHERE (prim = sphere index),
-#         LIGHT_POINT, LIGHT_DIRECTIONAL (delta lights: sampled, never hit) or LIGHT_ENVIRONMENT
-#         (prim = the map's width, material = its height; 0 x 0 = constant radiance; cells: its
-#         sampling cells per texel along each axis)
+#         LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT, LIGHT_PROJECTOR (delta lights: sampled, never
+#         hit) or LIGHT_ENVIRONMENT (prim = the map's width, material = its height; 0 x 0 = constant
+#         radiance; cells: its sampling cells per texel along each axis)
 #   pmf: probability that the light sampler picks this light (proportional to power)
 #   alias, alias_prob: Walker/Vose alias table entry for O(1) sampling
-#   p:      point: position; directional, environment: centre of the scene's bounding sphere
+#   p:      point, spot, projector: position; directional, environment: centre of the scene's
+#           bounding sphere
 #   radius: directional, environment: radius of the scene's bounding sphere (shadow-ray length)
-#   dir:    directional: unit direction in which the light travels
-#   rgb:    point: intensity [W/sr]; directional: irradiance on a perpendicular surface;
-#           environment: radiance (constant) or the map's scale
+#   dir:    directional: unit direction of travel; projector: to_world's image of local +z
+#   rgb:    point, spot: intensity [W/sr] (a spot's on its axis); directional: irradiance on a
+#           perpendicular surface; environment: radiance or the map's scale; projector: see lights.h
+#   spot, projector (cl/render/lights.h has the formulas): texture (-1: none), flags
+#   (LIGHT_SPOT_SMOOTHSTEP: pbrt-v4's falloff; LIGHT_PROJECTOR_COS3: Mitsuba's normalisation), frame
+#   (the rows of the world-to-light 3x3 map), cone (cos cutoff, cos beam, cutoff [rad], 1 /
+#   (cutoff - beam) [1/rad]), uv_scale (local (x, y, z) -> texture (0.5 + uv_scale (x, y) / z))
 # The environment map's buffer (env_map): a header of ENV_MAP_HEADER floats, then the H x W RGB
 # texels row by row from the top.  Header: the rows of the 3x3 world-to-map rotation at floats 0-2,
 # 4-6 and 8-10 (directions are turned into the map's frame before (u, v) is taken), and at 3 and 7
 # the row coordinate of v: y = v * v_scale + v_offset (H, -0.5: rows centred in [0, 1]; H - 1, 0:
 # the first and last rows on the poles, Mitsuba's envmap); the texels are interpolated bilinearly.
 ENV_MAP_HEADER = define("ENV_MAP_HEADER", 16)
-(LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_ENVIRONMENT) = define_enum(
-    "LIGHT_", ("triangle", "sphere", "point", "directional", "environment")).values()
+(LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_ENVIRONMENT, LIGHT_SPOT,
+ LIGHT_PROJECTOR) = define_enum(
+    "LIGHT_", ("triangle", "sphere", "point", "directional", "environment", "spot", "projector")).values()
+LIGHT_SPOT_SMOOTHSTEP = define("LIGHT_SPOT_SMOOTHSTEP", 1)
+LIGHT_PROJECTOR_COS3 = define("LIGHT_PROJECTOR_COS3", 1)
 LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), ("alias_prob", np.float32),
                   ("alias", np.int32), ("material", np.int32), ("area", np.float32), ("cells", np.int32),
-                  ("p", np.float32, 3), ("radius", np.float32), ("dir", np.float32, 3), ("pad1", np.int32),
-                  ("rgb", np.float32, 3), ("pad2", np.int32)])
-assert LIGHT.itemsize == 80
+                  ("p", np.float32, 3), ("radius", np.float32), ("dir", np.float32, 3), ("texture", np.int32),
+                  ("rgb", np.float32, 3), ("flags", np.int32), ("frame", np.float32, 9), ("cone", np.float32, 4),
+                  ("uv_scale", np.float32, 2), ("pad", np.int32)])
+assert LIGHT.itemsize == 144
 
 # The camera (96 bytes), perspective (pinhole or thin lens) or orthographic.  A pixel (x, y) with
 # jitter (jx, jy) (from the pixel's top-left corner) maps to the film position sx = (x+jx)/W*2-1,

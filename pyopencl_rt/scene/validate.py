@@ -155,7 +155,13 @@ def check_lights(scene) -> None:
         kind = type(light).__name__
         if hasattr(light, "position"):
             _vector(scene, light.position, f"light #{i} ({kind}): position", GEOMETRY_LIMIT)
-            _radiance(scene, light.intensity, f"light #{i} ({kind}): intensity")
+            what = "irradiance" if hasattr(light, "irradiance") else "intensity"
+            _radiance(scene, getattr(light, what), f"light #{i} ({kind}): {what}")
+            if hasattr(light, "to_world"):
+                try:
+                    light.frame()
+                except ValueError as exc:
+                    _fail(scene, f"light #{i} ({kind}): {exc}")
         else:
             d = _vector(scene, light.direction, f"light #{i} ({kind}): direction")
             if not np.linalg.norm(d) > 0:

@@ -136,9 +136,9 @@ radius = 1
 
 
 def test_image_textures_and_delta_lights_render_the_same(tmp_path, device):
-    """A diffuse quad with an albedo texture under a constant sky, a point and a directional light,
-    and an emissive quad with an emission texture, both quads with a texture of four different
-    quarters (and a gradient within each), seen at an angle."""
+    """A diffuse quad with an albedo texture under a constant sky, a point, a directional, a spot
+    and a projector light, and an emissive quad with an emission texture, both quads with a texture
+    of four different quarters (and a gradient within each), seen at an angle."""
     from PIL import Image
 
     y, x = np.indices((16, 16))
@@ -164,6 +164,18 @@ intensity = [2.0, 2.0, 1.5]
 type = "directional"
 direction = [0.3, -0.5, -1.0]
 irradiance = [0.5, 0.4, 0.3]
+[[light]]
+type = "spot"
+position = [-1.0, 0.2, 1.5]
+look_at = [-0.6, 0.0, 0.0]
+intensity = [3.0, 2.0, 2.5]
+cutoff_angle = 25
+[[light]]
+type = "projector"
+position = [-0.4, 0.4, 2.0]
+look_at = [-0.7, 0.2, 0.1]
+irradiance = [0.2, 0.3, 0.4]
+fov = 30
 [[shape]]
 type = "quad"
 material = "paper"

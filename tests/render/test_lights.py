@@ -16,7 +16,8 @@ import pytest
 from pyopencl_rt.device import abi
 from pyopencl_rt.render.lights import LUMINANCE, environment_radiance, environment_tables, other_lights
 from pyopencl_rt.render.api import render_full
-from pyopencl_rt.scene.model import Camera, DirectionalLight, Environment, Material, PointLight, RenderSettings, Scene
+from pyopencl_rt.scene.model import (Camera, DirectionalLight, Environment, Material, PointLight, ProjectorLight,
+                                     RenderSettings, Scene, SpotLight, look_at_frame)
 
 import harness
 
@@ -59,8 +60,8 @@ LANE_SOURCE = r"""
 #include "render/lights.h"
 
 #define L_IN 14  /* per lane: ref (3), u (2), p (3), ng (3), w (3) */
-#define L_OUT 21 /* per lane: got, ls.p (3), ls.err (3), ls.n (3), ls.Le (3), ls.pdf, ls.far, ls.delta,
-                  * light_pdf(p, ng), env_pdf(w), env_radiance(w).x */
+#define L_OUT 24 /* per lane: got, ls.p (3), ls.err (3), ls.n (3), ls.Le (3), ls.pdf, ls.far, ls.delta,
+                  * light_pdf(p, ng), env_pdf(w), env_radiance(w) (3), ls.tex, ls.tu, ls.tv */
 /* index: (light, active) per lane; env_light: the environment light's index */
 __kernel void h_lights(__global const float4 *tris, __global const Sphere *spheres,
                        __global const Material *materials, __global const float *env_map,
@@ -102,6 +103,7 @@ __kernel void h_lights(__global const float4 *tris, __global const Sphere *spher
         o[16] = PLANE(lpdf, k);
         o[17] = PLANE(epdf, k);
         o[18] = pv3_lane(eL, k).x; o[19] = pv3_lane(eL, k).y; o[20] = pv3_lane(eL, k).z;
+        o[21] = (float)PLANE_I(ls.tex, k); o[22] = PLANE(ls.tu, k); o[23] = PLANE(ls.tv, k);
     }
 }
 
@@ -284,6 +286,38 @@ def test_env_map_of_zeros_and_constant(runtime):
 
 
 # ----------------------------------------------------------------------------------- lanes
+# wide cones from near the origin, so that many of lane_inputs' reference points are lit
+SPOTS = [SpotLight(position=(0.2, 0.5, 0.1), intensity=(2.0, 1.0, 3.0), cutoff_angle=70, beam_width=40,
+                   to_world=look_at_frame((0.2, 0.5, 0.1), (1, -1, 0.5), (0, 1, 0))),
+         SpotLight(position=(-0.3, 0.2, 0.4), intensity=(1.0, 2.0, 0.5), cutoff_angle=80, beam_width=50,
+                   falloff="smoothstep", to_world=np.diag([1.0, 2.0, 0.5])),
+         ProjectorLight(position=(0.1, -0.2, 0.3), irradiance=(1.0, 0.5, 2.0), scale=1.5, fov=120,
+                        to_world=look_at_frame((0.1, -0.2, 0.3), (-1, 0.5, 1), (0, 1, 0)))]
+
+
+def cone_closed_form(rec, ref):
+    """(Le, u, v) of spot and projector records at reference points ref (float64, numpy): the
+    closed forms of cl/render/lights.h, Mitsuba's falloff computed as spot.cpp does."""
+    p = rec["p"].astype(np.float64)
+    to_ref = ref - p
+    d2 = (to_ref ** 2).sum(1)
+    l = np.einsum("nij,nj->ni", rec["frame"].astype(np.float64).reshape(-1, 3, 3), to_ref)
+    cos = l[:, 2] / np.linalg.norm(l, axis=1)
+    cc, cb, cut, inv = (rec["cone"][:, i].astype(np.float64) for i in range(4))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = 0.5 + rec["uv_scale"][:, 0] * l[:, 0] / l[:, 2]
+        v = 0.5 + rec["uv_scale"][:, 1] * l[:, 1] / l[:, 2]
+        mitsuba = np.where(cos > cc, np.where(cos >= cb, 1.0, (cut - np.arccos(np.clip(cos, -1, 1))) * inv), 0.0)
+        t = np.clip((cos - cc) / (cb - cc), 0, 1)
+        smooth = t * t * (3 - 2 * t)
+        spot = np.where(rec["flags"] & abi.LIGHT_SPOT_SMOOTHSTEP, smooth, mitsuba) / d2
+        inside = (l[:, 2] > 0) & (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1)
+        cos_n = (rec["dir"].astype(np.float64) * to_ref).sum(1) / np.sqrt(d2)
+        proj = np.where(inside, 1 / (l[:, 2] ** 2 * cos_n), 0.0)
+    f = np.where(rec["kind"] == abi.LIGHT_SPOT, spot, proj)
+    return rec["rgb"].astype(np.float64) * f[:, None], u, v
+
+
 def lights_setup(rng, env_image):
     """Emissive triangles (one- and two-sided materials), emissive spheres, a point, a directional
     and an environment light (env_image None: constant), as the kernels read them."""
@@ -305,7 +339,8 @@ def lights_setup(rng, env_image):
     sc = Scene(**empty_mesh(), materials=[Material()], spheres=np.array([[0, 0, 0, 4]], np.float32),
                sphere_materials=np.array([0], np.int32),
                lights=[PointLight(position=(0.5, 1.0, -0.3), intensity=(2.0, 3.0, 4.0)),
-                       DirectionalLight(direction=(0.3, -1.0, 0.2), irradiance=(1.0, 2.0, 0.5))],
+                       DirectionalLight(direction=(0.3, -1.0, 0.2), irradiance=(1.0, 2.0, 0.5)),
+                       *SPOTS],
                environment=env)
     others, _ = other_lights(sc)
     area = np.zeros(n_tri + 3, abi.LIGHT)
@@ -366,7 +401,7 @@ def run_lights(runtime, width, setup, index, ins):
     n = len(index)
     return lane_kernels(width)(runtime, "h_lights", n // width, setup["tris"], setup["spheres"], setup["materials"],
                                setup["env_map"], setup["env_cdf"], setup["lights"], setup["env_light"], index, ins,
-                               (n, 21))
+                               (n, 24))
 
 
 def test_light_sample_all_one_lane(runtime, rng):
@@ -400,6 +435,16 @@ def test_light_sample_all_one_lane(runtime, rng):
         fd = 1.01 * (np.linalg.norm(ref[dl] - rec["p"][dl], axis=1) + rec["radius"][dl])
         assert np.allclose(far[dl], fd, rtol=1e-5)
         assert np.allclose(lp[dl], ref[dl] + far[dl, None] * n_[dl], rtol=1e-5, atol=1e-5)
+        # spot and projector: delta lights at p, Le and (u, v) as the closed forms have them
+        cone = act & ((kind == abi.LIGHT_SPOT) | (kind == abi.LIGHT_PROJECTOR))
+        assert got[cone].all() and delta[cone].all() and np.all(pdf[cone] == 1) and np.all(far[cone] == 0)
+        assert np.all(out[cone, 21] == -1)
+        le_cf, u_cf, v_cf = cone_closed_form(rec[cone], ref[cone])
+        lit = le_cf.max(1) > 0
+        assert lit.mean() > 0.2 and (~lit).any()
+        assert np.allclose(le[cone], le_cf, rtol=2e-4, atol=1e-7)
+        assert np.allclose(lp[cone], rec["p"][cone])
+        assert np.allclose(out[cone, 22][lit], u_cf[lit], atol=1e-4) and np.allclose(out[cone, 23][lit], v_cf[lit], atol=1e-4)
         ev = act & (kind == abi.LIGHT_ENVIRONMENT)
         assert got[ev].mean() > 0.99 and not delta[ev].any() and np.all(far[ev] > 0)
         e = ev & got
@@ -459,9 +504,11 @@ def test_lights_lanes_equal_one_lane(device, runtime, rng, width):
         assert np.array_equal(one[:, 0], lanes[:, 0]) and got.mean() > 0.5
         bits1, bitsw = one.view(np.uint32), lanes.view(np.uint32)
         assert np.array_equal(bits1[got, :16], bitsw[got, :16]), "light_sample_all"
+        assert np.array_equal(bits1[got, 21:], bitsw[got, 21:]), "light_sample_all: a texture's (u, v)"
+        assert {abi.LIGHT_SPOT, abi.LIGHT_PROJECTOR} <= set(kind[got].tolist())
         area = (kind == abi.LIGHT_TRIANGLE) | (kind == abi.LIGHT_SPHERE)
         assert np.array_equal(bits1[area, 16], bitsw[area, 16]), "light_pdf"
-        assert np.array_equal(bits1[:, 17:], bitsw[:, 17:]), "env_pdf, env_radiance"
+        assert np.array_equal(bits1[:, 17:21], bitsw[:, 17:21]), "env_pdf, env_radiance"
     # hits: triangles (barycentrics inside and a little outside), spheres from outside and inside, misses
     tris, spheres = setup["tris"], setup["spheres"]
     prims = rng.integers(0, len(tris) // 3, n).astype(np.int32)
@@ -559,6 +606,49 @@ def test_point_light_over_plane(device):
         r = render_full(sc, spp=16, device=device, seed=2, integrator=integ)
         assert r.info["nonfinite_samples"] == 0
         assert_pixels(r, expect, f"point light, {integ}")
+
+
+def test_spot_and_projector_over_plane(device):
+    """Radiance rho / pi * E on the plane (pixel averages by 8 x 8 quadrature) under a textured
+    spot with Mitsuba's linear falloff, a spot with pbrt-v4's smoothstep and a textured projector
+    with Mitsuba's normalisation (E = pi scale irradiance texture / (z^2 cos) cos_surface, z the
+    depth along its axis: a plane facing it is lit by exactly pi scale irradiance texture / z^2
+    there), each tilted, light sampling alone (the lights are delta lights: no other strategy sees
+    them); the pixels on a light's edge (the cone's, the projected image's) left out."""
+    from pyopencl_rt.scene.textures import bilinear, texture_from_array
+
+    rho, size = 0.5, 16
+    tex = texture_from_array(np.array([[[1.0, 0.2, 0.2], [0.2, 1.0, 0.2], [0.3, 0.3, 0.3]],
+                                       [[0.2, 0.2, 1.0], [1.0, 1.0, 1.0], [0.0, 0.5, 1.0]]], np.float32))
+    sp, pp = np.array([0.4, 2.0, -0.3]), np.array([-0.5, 2.5, 0.4])
+    lights = [SpotLight(position=tuple(sp), intensity=(3.0, 2.0, 4.0), cutoff_angle=40, beam_width=25, texture=tex,
+                        to_world=look_at_frame(sp, (0.2, 0, 0.1), (0, 0, 1))),
+              SpotLight(position=tuple(sp), intensity=(3.0, 2.0, 4.0), cutoff_angle=35, beam_width=20,
+                        falloff="smoothstep", to_world=look_at_frame(sp, (-0.3, 0, 0), (1, 0, 0))),
+              ProjectorLight(position=tuple(pp), irradiance=(1.0, 2.0, 0.5), texture=tex, scale=0.7, fov=50,
+                             to_world=look_at_frame(pp, (-0.2, 0, 0.1), (0, 0, 1)))]
+    for light in lights:
+        sc = plane_scene([light], rho, size=size)
+        rec = sc.camera.record(size, size)
+        d = pixel_points(rec, size, size)
+        eye = np.asarray(rec["origin"], np.float64)
+        p = (eye + d * (-eye[1] / d[..., 1:2])).reshape(-1, 3)
+        r_ = other_lights(sc)[0][0]
+        le, u, v = cone_closed_form(np.repeat(r_[None], len(p), 0), p)
+        if light.texture is not None:
+            with np.errstate(invalid="ignore"):
+                le *= bilinear(light.texture.texels[..., :3], np.stack([u, v], 1))
+        to_l = np.asarray(light.position) - p
+        e = np.nan_to_num(le) * (to_l[:, 1] / np.linalg.norm(to_l, axis=1))[:, None]
+        expect = (rho / np.pi * e).reshape(size, size, -1, 3).mean(2)
+        r = render_full(sc, spp=8, device=device, seed=2, integrator="nee")
+        assert r.info["nonfinite_samples"] == 0
+        # pixels across the light's edge (the cone's, the image's) left out: 8 samples may all miss a sliver
+        lit = (np.nan_to_num(le).max(1) > 0).reshape(size, size, -1)
+        keep = lit.all(2) | ~lit.any(2)
+        assert keep.mean() > 0.6 and lit.all(2).mean() > 0.1
+        expect, r.image[~keep] = np.where(keep[..., None], expect, 0), 0
+        assert_pixels(r, expect, type(light).__name__)
 
 
 def test_directional_light_over_plane(device):
@@ -665,8 +755,9 @@ def test_thin_lens_blur_and_focus(device):
 
 # ----------------------------------------------------------------------------------- robustness
 def test_extreme_parameters_finite(device):
-    """Huge intensities, delta lights on glossy, mirror and glass surfaces, an environment map of
-    zeros, a huge aperture with a tiny focus distance: no NaN or Inf anywhere."""
+    """Huge intensities, delta lights on glossy, mirror and glass surfaces, spots and projectors at
+    their limits, an environment map of zeros, a huge aperture with a tiny focus distance: no NaN
+    or Inf anywhere."""
     v = np.array([[-10, 0, -10], [-10, 0, 10], [10, 0, 10], [10, 0, -10]], np.float32)
     f = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
     mats = [Material("plane", albedo=(0.5,) * 3), Material("glossy", type="conductor", alpha=1e-3),
@@ -679,7 +770,16 @@ def test_extreme_parameters_finite(device):
                settings=RenderSettings(width=16, height=16, max_depth=6),
                lights=[PointLight(position=(0, 3, 1), intensity=(1e20,) * 3),
                        PointLight(position=(-2, 1, 0), intensity=(1.0,) * 3),  # inside a sphere
-                       DirectionalLight(direction=(0, -1, 0), irradiance=(1e20, 0, 1e-30))],
+                       DirectionalLight(direction=(0, -1, 0), irradiance=(1e20, 0, 1e-30)),
+                       # a needle of a spot (beam = cutoff: no ramp), one lighting everything, a projector grazing
+                       # the plane (its depth z -> 0 there), one nearly 180 degrees wide
+                       SpotLight(position=(0, 3, 1), intensity=(1e20,) * 3, cutoff_angle=0.01, beam_width=0.01,
+                                 to_world=look_at_frame((0, 3, 1), (0, 0, 1), (0, 0, 1))),
+                       SpotLight(position=(1, 2, 1), cutoff_angle=180, beam_width=0),
+                       ProjectorLight(position=(0, 1e-3, 0), fov=90, to_world=look_at_frame((0, 1e-3, 0), (0, 1e-3, 1),
+                                                                                          (0, 1, 0))),
+                       ProjectorLight(position=(0, 2, 0), fov=179.99, scale=1e20,
+                                      to_world=look_at_frame((0, 2, 0), (0, 0, 0), (0, 0, 1)))],
                environment=Environment(radiance=(1.0, 1.0, 1.0), image=np.zeros((4, 8, 3), np.float32)))
     for integ in ("path", "nee"):
         r = render_full(sc, spp=4, device=device, seed=1, integrator=integ)
@@ -731,6 +831,23 @@ type = "directional"
 direction = [0, -2, 0]
 irradiance = 2
 
+[[light]]
+type = "spot"
+position = [1, 2, 3]
+look_at = [1, 0, 3]
+up = [0, 0, -1]
+intensity = 4
+cutoff_angle = 30
+falloff = "smoothstep"
+
+[[light]]
+type = "projector"
+position = [0, 2, 0]
+look_at = [0, 0, 0]
+up = [1, 0, 0]
+fov = 60
+scale = 2
+
 [environment]
 file = "sky.exr"
 scale = 0.5
@@ -739,11 +856,21 @@ scale = 0.5
     assert sc.camera.aperture_radius == 0.1 and sc.camera.focus_distance == 4
     assert sc.lights[0].intensity == (1, 2, 3) and sc.lights[1].direction == (0, -1, 0)
     assert sc.environment.image.shape == (8, 16, 3) and sc.environment.radiance == (0.5,) * 3
+    spot, proj = sc.lights[2:]
+    assert spot.beam() == 22.5 and spot.falloff == "smoothstep" and spot.intensity == (4, 4, 4)
+    assert np.allclose(spot.frame(), [[-1, 0, 0], [0, 0, -1], [0, -1, 0]])  # x = y cross z, z down, y toward up
+    assert proj.fov == 60 and proj.scale == 2 and proj.texture is None and np.allclose(proj.frame()[:, 2], (0, -1, 0))
     rec = sc.camera.record(8, 8)
     assert rec["lens_radius"] == np.float32(0.1) and rec["focus_distance"] == 4
     (tmp_path / "b.toml").write_text(base + "[environment]\nradiance = [0.2, 0.3, 0.4]\n")
     assert load_scene(tmp_path / "b.toml").environment.radiance == (0.2, 0.3, 0.4)
-    for bad, msg in (('[[light]]\ntype = "spot"\n', "unknown type"),
+    spot = '[[light]]\ntype = "spot"\nposition = [0, 2, 0]\nlook_at = [0, 0, 0]\nup = [0, 0, 1]\n'
+    for bad, msg in (('[[light]]\ntype = "goniometric"\n', "unknown type"),
+                     ('[[light]]\ntype = "spot"\nposition = [0, 2, 0]\n', "missing 'look_at'"),
+                     (spot.replace("[0, 0, 1]", "[0, 1, 0]"), "parallel"),
+                     (spot + "cutoff_angle = 20\nbeam_width = 25\n", "beam_width"),
+                     (spot + 'falloff = "linear"\n', "falloff"),
+                     (spot.replace('"spot"', '"projector"') + "fov = 180\n", "fov"),
                      ('[[light]]\ntype = "point"\n', "missing 'position'"),
                      ('[[light]]\ntype = "directional"\ndirection = [0, 0, 0]\n', "must not be zero"),
                      ('[environment]\nfile = "nope.exr"\n', "not found"),
@@ -752,3 +879,128 @@ scale = 0.5
         (tmp_path / "c.toml").write_text(base + bad)
         with pytest.raises(SceneError, match=msg):
             load_scene(tmp_path / "c.toml")
+
+
+# ------------------------------------------------------------------------- against Mitsuba 3
+def _spot_xml(tmp_path, flip=False) -> str:
+    """A diffuse plane under a textured spot (cutoff 35, beam 20, a non-uniform to_world scale),
+    an untextured spot with Mitsuba's defaults (cutoff 20, beam 3/4 of it), a textured projector
+    (fov along y, an image 8 x 5) and a projector with Mitsuba's default focal length and a
+    constant irradiance; ``flip``: the textures mirrored left to right."""
+    from PIL import Image
+
+    r = np.random.default_rng(11)
+    for name, shape in (("spot.png", (6, 8, 3)), ("proj.png", (5, 8, 3))):
+        texels = r.integers(20, 256, shape).astype(np.uint8)
+        Image.fromarray(texels[:, ::-1] if flip else texels, "RGB").save(tmp_path / name)
+
+    def bitmap(role, fname):
+        return f'<texture name="{role}" type="bitmap"><string name="filename" value="{fname}"/></texture>'
+
+    body = f"""
+<integrator type="direct"/>
+<sensor type="perspective"><float name="fov" value="70"/>
+  <transform name="to_world"><lookat origin="0, -0.5, 6" target="0, 0, 0" up="0, 1, 0"/></transform>
+  <sampler type="independent"><integer name="sample_count" value="64"/></sampler>
+  <film type="hdrfilm"><integer name="width" value="48"/><integer name="height" value="32"/><rfilter type="box"/></film>
+</sensor>
+<shape type="rectangle"><transform name="to_world"><scale x="6" y="4"/></transform>
+  <bsdf type="diffuse"><rgb name="reflectance" value="0.6"/></bsdf></shape>
+<emitter type="spot"><rgb name="intensity" value="6, 5, 4"/>{bitmap("texture", "spot.png")}
+  <float name="cutoff_angle" value="35"/><float name="beam_width" value="20"/>
+  <transform name="to_world"><scale x="1.3" y="0.8"/><lookat origin="-3, 0.5, 2" target="-2.6, 0.2, 0" up="0, 1, 0"/></transform>
+</emitter>
+<emitter type="spot"><rgb name="intensity" value="2, 3, 4"/>
+  <transform name="to_world"><lookat origin="-0.5, -1, 2.5" target="-0.3, -1.2, 0" up="1, 0, 0"/></transform>
+</emitter>
+<emitter type="projector">{bitmap("irradiance", "proj.png")}<float name="fov" value="50"/>
+  <string name="fov_axis" value="y"/><float name="scale" value="0.8"/>
+  <transform name="to_world"><lookat origin="2.6, 1.2, 2" target="2.4, 1.5, 0" up="0, 1, 0.3"/></transform>
+</emitter>
+<emitter type="projector"><rgb name="irradiance" value="0.3, 0.2, 0.1"/>
+  <transform name="to_world"><lookat origin="1.5, -1.8, 3" target="1.5, -1.8, 0" up="0, 1, 0"/></transform>
+</emitter>
+"""
+    path = tmp_path / ("flipped.xml" if flip else "lights.xml")
+    path.write_text(f'<scene version="3.0.0">{body}</scene>\n')
+    return str(path)
+
+
+def _tiles(a, tile=8):
+    h, w = a.shape[:2]
+    return a.reshape(h // tile, tile, w // tile, tile, 3).mean(axis=(1, 3))
+
+
+def test_spot_and_projector_match_mitsuba(tmp_path):
+    """The XML scene above rendered by Mitsuba 3 (scalar_rgb, 8 batches of 64 spp: their spread is
+    its variance) and by us (512 spp): every 8 x 8 tile within 4.5 sigma and the image mean within
+    4 (measured: 1.1 and 0.7), so falloff, texture orientation, to_world and the projector's
+    normalisation and fov are Mitsuba's.  With the textures mirrored, Mitsuba's image is many
+    sigma from ours (measured: 34): the comparison sees the textures' orientation."""
+    mi = harness.mitsuba()
+    from pyopencl_rt.scene.loaders import load_scene
+
+    def mitsuba_render(path, batches=8):
+        scene = mi.load_file(path)
+        images = np.stack([np.asarray(mi.render(scene, seed=i), np.float64)[..., :3] for i in range(batches)])
+        return images.mean(0), images.var(0, ddof=1) / batches
+
+    theirs, their_var = mitsuba_render(_spot_xml(tmp_path))
+    flipped, flipped_var = mitsuba_render(_spot_xml(tmp_path, flip=True))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # every element is read without a word
+        scene = load_scene(_spot_xml(tmp_path))
+    kinds = {type(lt).__name__ for lt in scene.lights}
+    assert kinds == {"SpotLight", "ProjectorLight"} and scene.has_textures()
+    r = render_full(scene, spp=512, device="cpu", seed=5)
+    ours, var = r.image.astype(np.float64), r.film.variance_of_mean()
+    z = (_tiles(ours) - _tiles(theirs)) / np.sqrt((_tiles(var) + _tiles(their_var)) / 64 + 1e-12)
+    mean_z = (ours.mean((0, 1)) - theirs.mean((0, 1))) / np.sqrt((var + their_var).sum((0, 1))) * ours[..., 0].size
+    assert (_tiles(theirs).max(-1) > 1e-3).mean() > 0.4 and np.abs(z).max() < 4.5, np.round(z, 1)
+    assert np.abs(mean_z).max() < 4.0, mean_z
+    z_flip = (_tiles(ours) - _tiles(flipped)) / np.sqrt((_tiles(var) + _tiles(flipped_var)) / 64 + 1e-12)
+    assert np.abs(z_flip).max() > 8, np.round(z_flip, 1)
+
+
+def test_pbrt_spot_and_projection(tmp_path):
+    """pbrt-v4's spot (smoothstep falloff) and projection light, placed in the camera's frame
+    (CoordSysTransform "camera") over a diffuse plane facing it: the spot's centre has rho / pi * I
+    / d^2 and nothing lies beyond its cone; the projection light shows its 2 x 2 image (red, green
+    over blue, white) upright and unmirrored, as pbrt-v4 projects it (its y flip: image rows from
+    the top), each texel's colour at its centre, I = scale x texel there."""
+    from PIL import Image
+
+    from pyopencl_rt.scene.loaders import load_scene
+
+    Image.fromarray(np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [255, 255, 255]]], np.uint8)).save(
+        tmp_path / "quad.png")
+    head = ('LookAt 0 0 5  0 0 0  0 1 0\nCamera "perspective" "float fov" 40\nPixelFilter "box"\n'
+            'Film "rgb" "integer xresolution" 16 "integer yresolution" 16 "string filename" "x.exr"\n'
+            'WorldBegin\nAttributeBegin\nCoordSysTransform "camera"\n')
+    tail = ('AttributeEnd\nMaterial "diffuse" "rgb reflectance" [0.5 0.5 0.5]\n'
+            'Shape "bilinearmesh" "point3 P" [-5 -5 0  5 -5 0  -5 5 0  5 5 0]\n')
+    lights = {"spot": 'LightSource "spot" "rgb I" [2 2 2] "float coneangle" 10 "float conedeltaangle" 5\n',
+              "projection": 'LightSource "projection" "string filename" "quad.png" "float fov" 30 '
+                            '"float scale" 3\n'}
+    images = {}
+    for name, light in lights.items():
+        (tmp_path / f"{name}.pbrt").write_text(head + light + tail)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            scene = load_scene(tmp_path / f"{name}.pbrt")
+        images[name] = render_full(scene, spp=4, device="cpu", seed=1, integrator="nee").image.astype(np.float64)
+    spot = images["spot"][..., 0]
+    centre = 0.5 / np.pi * 2 / 25  # on the axis, d = 5
+    assert np.allclose(spot[7:9, 7:9], centre, rtol=5e-3)  # cos^3 over the pixels: 0.3%
+    yy, xx = np.mgrid[0:16, 0:16] + 0.5 - 8
+    angle = np.degrees(np.arctan(np.hypot(xx, yy) / 8 * np.tan(np.radians(20))))
+    assert np.all(spot[angle > 11.5] == 0) and np.all(spot[angle < 8.5] > 0)  # pixels span 2.5 degrees
+    proj = images["projection"]
+    # texel centres at a quarter of the projected square (half width 8 tan 15 / tan 20 pixels)
+    q = 8 * np.tan(np.radians(15)) / np.tan(np.radians(20)) / 2
+    for (dy, dx), rgb in {(-q, -q): (1, 0, 0), (-q, q): (0, 1, 0), (q, -q): (0, 0, 1), (q, q): (1, 1, 1)}.items():
+        y, x = int(8 + dy), int(8 + dx)
+        got = proj[y, x] / (0.5 / np.pi * 3 / 25)
+        assert np.allclose(got / got.max(), rgb, atol=0.25), (y, x, got)
+    assert 0.85 < got.max() < 1.02, got  # white: scale x texel x cos^3 (0.97), blended a little (0.89)
+    assert np.all(proj[0] == 0) and np.all(proj[:, 0] == 0)

@@ -37,12 +37,17 @@ def test_same_image_and_rays_as_the_wavefront(device, name):
 
 
 def test_other_lights_integrators_and_depths(device):
-    """Point, directional and environment lights, the single-technique integrators, a max depth."""
+    """Point, directional, spot, projector and environment lights, the single-technique
+    integrators, a max depth."""
     scene = rt.load_scene(SCENES / "cornell-box.toml")
-    from pyopencl_rt.scene.model import DirectionalLight, Environment, PointLight
+    from pyopencl_rt.scene.model import DirectionalLight, Environment, PointLight, ProjectorLight, SpotLight, look_at_frame
 
     scene.lights = [PointLight(position=(278.0, 400.0, 200.0), intensity=(2e4, 2e4, 2e4)),
-                    DirectionalLight(direction=(0.2, -1.0, 0.3), irradiance=(0.5, 0.5, 0.5))]
+                    DirectionalLight(direction=(0.2, -1.0, 0.3), irradiance=(0.5, 0.5, 0.5)),
+                    SpotLight(position=(278.0, 540.0, 278.0), intensity=(3e4, 2e4, 1e4), cutoff_angle=40,
+                              to_world=look_at_frame((278, 540, 278), (300, 0, 250), (0, 0, 1))),
+                    ProjectorLight(position=(100.0, 300.0, 100.0), irradiance=(1e4, 2e4, 3e4), fov=30,
+                                   to_world=look_at_frame((100, 300, 100), (400, 100, 500), (0, 1, 0)))]
     scene.environment = Environment(radiance=(0.2, 0.3, 0.4))
     for options in ({}, {"integrator": "nee"}, {"integrator": "bsdf", "max_depth": 3}, {"max_depth": -1}):
         wavefront, megakernel = both(scene, device, **options)

@@ -198,6 +198,22 @@ def test_single_scattering(device, tmp_path):
     assert_mean(r, expected, rel=0.05)
 
 
+def test_spot_light_in_a_medium(device, tmp_path):
+    """Volumetric next-event estimation from a spot light: the slab above lit by a spot whose beam
+    covers every scattering point the camera sees renders what a point light of its intensity
+    renders (the same samples: Le differs only by rounding); aimed away, nothing."""
+    text = SINGLE.format(sx=0.0, cz=1.0, d=0.5, half=0.25).split("[[light]]")
+    point = text[0] + '[[light]]\ntype = "point"\nposition = [0.2, 0.1, -1.0]\nintensity = 2.0\n' + \
+        text[1].split("\n", 4)[4]
+    spot = point.replace('type = "point"', 'type = "spot"\nlook_at = [0.2, 0.1, 0.0]\ncutoff_angle = 85\n'
+                                           'beam_width = 80')
+    results = [rt.render_full(load(tmp_path, t, f"{i}.toml"), device=device, spp=4) for i, t in enumerate((point, spot))]
+    assert results[0].image.mean() > 0.005
+    assert np.allclose(results[1].film.sum, results[0].film.sum, rtol=1e-5, atol=0)
+    away = spot.replace("look_at = [0.2, 0.1, 0.0]", "look_at = [0.2, 0.1, -2.0]")
+    assert rt.render_full(load(tmp_path, away, "away.toml"), device=device, spp=4).film.sum.max() == 0
+
+
 def test_lanes_render_the_same_bits(device, monkeypatch):
     """8 and 16 lanes against one on the media scene of scenes/ (test_path_lanes.py's rule)."""
     import harness

@@ -793,13 +793,18 @@ def test_emitters(tmp_path):
         <emitter type="directional"><transform name="to_world"><rotate x="1" angle="90"/></transform></emitter>
         <emitter type="envmap"><string name="filename" value="env.exr"/><float name="scale" value="2"/></emitter>
         <emitter type="constant"/>
-        <emitter type="spot"/>""")
+        <emitter type="spot"/>
+        <emitter type="projector"><float name="fov" value="40"/><float name="scale" value="3"/></emitter>
+        <emitter type="sunsky"/>""")
     scene, warned = load(path)
     area = [m for m in scene.materials if m.is_emissive]
     # an emitter without a BSDF reflects nothing (Mitsuba's shape.cpp)
     assert len(area) == 1 and area[0].emission == (1, 2, 3) and area[0].albedo == (0, 0, 0)
-    point, directional = scene.lights
+    point, directional, spot, projector = scene.lights
     assert point.position == (1, 2, 3) and point.intensity == (5, 5, 5)
+    # Mitsuba's defaults: cutoff 20, beam 3/4 of it; the projector's fov along x, 1 x 1 without an image
+    assert (spot.cutoff_angle, spot.beam(), spot.position, spot.texture) == (20, 15, (0, 0, 0), None)
+    assert (projector.fov, projector.scale, projector.aspect(), projector.irradiance) == (40, 3, 1, (1, 1, 1))
     assert np.allclose(directional.direction, [0, -1, 0])  # +z rotated 90 degrees about x
     env = scene.environment
     # read as it is, Mitsuba's layout (rows on the poles) in a frame turned half a turn about +y:
@@ -813,7 +818,7 @@ def test_emitters(tmp_path):
         <transform name="to_world"><rotate y="1" angle="90"/></transform></emitter>""", name="r.xml")
     assert np.allclose(environment_radiance(load(rotated)[0].environment, axes[3:])[:, 0], 1.5)
     assert [w.split(": ", 1)[1] for w in warned] == [
-        "a second environment light: we render one; ignored", '<emitter type="spot">: spot lights are not supported; ignored']
+        "a second environment light: we render one; ignored", '<emitter type="sunsky">: emitter type not supported; ignored']
     assert line_of(path, "constant") == int(warned[0].split(":")[1])
 
 
@@ -857,7 +862,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
         <medium type="homogeneous" id="fog"><phase type="rayleigh"/></medium>
         <shape type="shapegroup" id="g"><ref name="interior" id="fog"/></shape>
         <shape type="sphere"><bsdf type="hair"/><emitter type="point"/></shape>
-        <emitter type="projector"/>
+        <emitter type="sunsky"/>
         <rgb name="stray" value="1"/>
         <unknown/>""")
     scene, warned = load(path)
@@ -867,7 +872,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
               ("shapegroup", '<shape type="shapegroup" id="g">: shape type not supported; ignored'),
               ("hair", '<bsdf type="hair">: BSDF type not supported; using diffuse 0.5'),
               ("point", '<emitter type="point"> in <shape type="sphere">: only area emitters attach to shapes; ignored'),
-              ("projector", '<emitter type="projector">: emitter type not supported; ignored'),
+              ("sunsky", '<emitter type="sunsky">: emitter type not supported; ignored'),
               ("stray", '<rgb name="stray">: a property of the scene itself; ignored'),
               ("unknown", "<unknown>: unknown element; ignored")]
     assert len(warned) == len(expect)
@@ -1072,7 +1077,7 @@ def test_exporter_orthographic_camera_and_filters(tmp_path, real_mitsuba):
 
 
 def test_sidecar_records_format_and_warnings(tmp_path):
-    path = write(tmp_path, SPHERE + '<emitter type="constant"/><emitter type="spot"/>')
+    path = write(tmp_path, SPHERE + '<emitter type="constant"/><emitter type="sunsky"/>')
     scene, warned = load(path)
     r = rt.render_full(scene, spp=1, width=4, height=4, device="cpu")
     assert r.info["scene_format"] == "mitsuba-xml"
@@ -1086,9 +1091,9 @@ def test_cli_render_with_defines(tmp_path, capsys, monkeypatch):
 
     path = write(tmp_path, '<default name="n" value="3"/><sensor type="perspective"><sampler type="independent">'
                            '<integer name="sample_count" value="$n"/></sampler></sensor>' + SPHERE +
-                 '<emitter type="constant"/><emitter type="spot"/>')
+                 '<emitter type="constant"/><emitter type="sunsky"/>')
     out = tmp_path / "o.exr"
-    with pytest.warns(UserWarning, match="spot lights are not supported"):
+    with pytest.warns(UserWarning, match="emitter type not supported"):
         main(["render", str(path), "-o", str(out), "--width", "4", "--height", "4", "-D", "n=2", "-q", "-d", "cpu"])
     info = json.loads(out.with_suffix(".json").read_text())
     assert info["spp"] == 2 and info["scene_format"] == "mitsuba-xml" and len(info["scene_warnings"]) == 1

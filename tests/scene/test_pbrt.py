@@ -334,13 +334,17 @@ def test_lights(tmp_path):
         AttributeEnd
         LightSource "infinite" "rgb L" [0.1 0.2 0.3]
         LightSource "spot"
+        LightSource "goniometric"
         AttributeBegin
           AreaLightSource "diffuse" "rgb L" [4 5 6] "bool twosided" true "float scale" 0.5
           {TRIANGLE}
         AttributeEnd
         {TRIANGLE}""")
-    point, distant = s.lights
+    point, distant, spot = s.lights
     assert point.position == (1, 2, 4) and point.intensity == (2, 4, 6)
+    # pbrt-v4's defaults: from the origin along +z, coneangle 30, conedeltaangle 5, smoothstep
+    assert (spot.position, spot.cutoff_angle, spot.beam(), spot.falloff) == ((0, 0, 0), 30, 25, "smoothstep")
+    assert np.allclose(spot.frame()[:, 2], [0, 0, 1])
     assert np.allclose(distant.direction, [0, -1, 0])
     r, g, b = distant.irradiance  # 6500 K: nearly white, luminance 1
     assert np.isclose(0.2126 * r + 0.7152 * g + 0.0722 * b, 1, rtol=1e-3) and 0.9 < b / r < 1.3
@@ -348,7 +352,7 @@ def test_lights(tmp_path):
     lit, plain = (s.materials[i] for i in s.face_materials)
     assert lit.emission == (2, 2.5, 3) and lit.two_sided and lit.albedo == (0.5, 0.5, 0.5)
     assert not plain.is_emissive  # the area light ended with its attribute block
-    assert [x.split(": ", 1)[1] for x in w] == ['LightSource "spot": not supported; ignored']
+    assert [x.split(": ", 1)[1] for x in w] == ['LightSource "goniometric": not supported; ignored']
 
 
 def test_equal_area_octahedral_map():

@@ -26,7 +26,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..model import Camera, DirectionalLight, Environment, Material, PointLight, RenderSettings, Scene
+from ..model import (Camera, DirectionalLight, Environment, Material, PointLight, ProjectorLight, RenderSettings,
+                     Scene, SpotLight)
 from .assembly import angle_weighted_normals, frame_scene, transform_normals, triangle_scene
 from .values import SceneError, first_use_index, one_line
 
@@ -475,7 +476,10 @@ class SceneBuilder:
             colors = colors[:, ::-1] if colors is not None else None
             if len(spheres):
                 spheres[:, :3] = transform_points(mirror, spheres[:, :3])
-            lights = [dataclasses.replace(lt, position=tuple(transform_points(mirror, lt.position)[0]))
+            lights = [dataclasses.replace(lt, position=tuple(transform_points(mirror, lt.position)[0]),
+                                          to_world=mirror[:3, :3] @ lt.frame())
+                      if isinstance(lt, (SpotLight, ProjectorLight)) else
+                      dataclasses.replace(lt, position=tuple(transform_points(mirror, lt.position)[0]))
                       if isinstance(lt, PointLight) else
                       dataclasses.replace(lt, direction=tuple(transform_vector(mirror, lt.direction)))
                       if isinstance(lt, DirectionalLight) else lt for lt in lights]

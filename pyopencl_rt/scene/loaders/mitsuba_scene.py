@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model import DirectionalLight, Environment, PixelFilter, PointLight, RenderSettings
+from ..model import (DirectionalLight, Environment, PixelFilter, PointLight, ProjectorLight, RenderSettings,
+                     SpotLight)
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cube_mesh, cylinder_mesh, disk_mesh, error_at,
                       rectangle_mesh, transform_points, transform_vector, vertical_fov)
 from ..media import MediumInterface
@@ -413,15 +414,49 @@ class _Importer:
             irradiance, _ = color_value(self, obj, "irradiance", (1.0, 1.0, 1.0))
             self.b.add_light(DirectionalLight(direction=tuple(map(float, d / np.linalg.norm(d))),
                                               irradiance=irradiance))
+        elif t == "spot":
+            return self.spot(obj, m)
+        elif t == "projector":
+            return self.projector(obj, m)
         elif t == "constant":
             radiance, _ = color_value(self, obj, "radiance", (1.0, 1.0, 1.0))
             self.b.set_environment(Environment(radiance=radiance), obj.node.pos)
         elif t == "envmap":
             self.envmap(obj, m)
         else:
-            what = "spot lights are not supported" if t == "spot" else "emitter type not supported"
-            self.warn(obj.node.pos, f"{obj.label()}: {what}; ignored")
+            self.warn(obj.node.pos, f"{obj.label()}: emitter type not supported; ignored")
             return
+        self.unused(obj)
+
+    def _light_frame(self, obj: MiObject, m):
+        """(position, 3x3 local-to-world) of a spot's or projector's to_world (None: the identity)."""
+        if m is None:
+            return (0.0, 0.0, 0.0), None
+        if abs(np.linalg.det(m[:3, :3])) < 1e-300:
+            raise error_at(obj.props["to_world"].node.pos, f"{obj.label()}: to_world is singular")
+        return tuple(map(float, m[:3, 3])), m[:3, :3].copy()
+
+    def spot(self, obj: MiObject, m) -> None:
+        intensity, _ = color_value(self, obj, "intensity", (1.0, 1.0, 1.0))
+        tint, texture = color_value(self, obj, "texture", (1.0, 1.0, 1.0), texture_ok=True)
+        cutoff = obj.float("cutoff_angle", 20.0, positive=True)
+        beam = obj.float("beam_width", 0.75 * cutoff, minimum=0.0)
+        if beam > cutoff or cutoff > 180:
+            raise error_at(obj.node.pos, f"{obj.label()}: needs beam_width <= cutoff_angle <= 180, got "
+                                         f"{beam:g} and {cutoff:g}")
+        position, frame = self._light_frame(obj, m)
+        self.b.add_light(SpotLight(position=position, intensity=tuple(a * b for a, b in zip(intensity, tint)),
+                                   cutoff_angle=cutoff, beam_width=beam, texture=texture, to_world=frame))
+        self.unused(obj)
+
+    def projector(self, obj: MiObject, m) -> None:
+        irradiance, texture = color_value(self, obj, "irradiance", (1.0, 1.0, 1.0), texture_ok=True)
+        scale = obj.float("scale", 1.0)
+        aspect = 1.0 if texture is None else texture.width / texture.height
+        fov = _mitsuba_fov_x(obj, aspect)
+        position, frame = self._light_frame(obj, m)
+        self.b.add_light(ProjectorLight(position=position, irradiance=irradiance, texture=texture, scale=scale,
+                                        fov=fov, to_world=frame))
         self.unused(obj)
 
     def envmap(self, obj: MiObject, m) -> None:
@@ -461,3 +496,35 @@ def _read_ply(path, where):
         uvc = np.asarray(uv, np.float32)[np.asarray(f)][..., :2]  # Mitsuba reads PLY uvs as they are
     return v, f, uvc, ply_extras(loaded, f)
 
+
+def _mitsuba_fov_x(obj: MiObject, aspect: float) -> float:
+    """The field of view along x [degrees] of a sensor-like plugin's fov / fov_axis / focal_length
+    for an image of width / height ``aspect`` (Mitsuba's parse_fov, src/render/sensor.cpp)."""
+    if obj.has("fov") and obj.has("focal_length"):
+        raise error_at(obj.node.pos, f"{obj.label()}: give fov or focal_length, not both")
+    if obj.has("fov"):
+        fov = obj.float("fov", positive=True)
+        axis = obj.string("fov_axis", "x").lower()
+        if axis == "smaller":
+            axis = "y" if aspect > 1 else "x"
+        elif axis == "larger":
+            axis = "x" if aspect > 1 else "y"
+        if axis not in ("x", "y", "diagonal"):
+            raise error_at(obj.props["fov_axis"].node.pos,
+                           f"{obj.label()}: unknown fov_axis '{axis}' (x, y, diagonal, smaller, larger)")
+    else:
+        text = obj.string("focal_length", "50mm")
+        try:
+            f = float(text[:-2] if text.endswith("mm") else text)
+        except ValueError:
+            raise error_at(obj.props["focal_length"].node.pos,
+                           f"{obj.label()}: focal_length must look like '35mm', got '{text}'") from None
+        fov, axis = float(np.degrees(2 * np.arctan(np.hypot(36.0, 24.0) / (2 * f)))), "diagonal"
+    if not 0 < fov < 180:
+        raise error_at(obj.node.pos, f"{obj.label()}: fov must be between 0 and 180 degrees, got {fov:g}")
+    half = np.tan(np.radians(fov) / 2)
+    if axis == "y":
+        half *= aspect
+    elif axis == "diagonal":
+        half /= np.sqrt(1.0 + 1.0 / (aspect * aspect))
+    return float(np.degrees(2 * np.arctan(half)))

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..media import MediumInterface
-from ..model import DirectionalLight, Environment, Material, PixelFilter, PointLight, RenderSettings
+from ..model import (DirectionalLight, Environment, Material, PixelFilter, PointLight, ProjectorLight,
+                     RenderSettings, SpotLight, look_at_frame)
 from .assembly import transform_normals
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh,
                       transform_points, transform_vector, translate)
@@ -398,10 +399,66 @@ class _Importer:
             radiance = spectrum_rgb(self, p, "L", (1.0, 1.0, 1.0))
             self.b.add_light(DirectionalLight(direction=tuple(map(float, direction / np.linalg.norm(direction))),
                                               irradiance=tuple(c * s for c in radiance)))
+        elif t == "spot":
+            src = np.asarray(p.numbers("from", ("point3", "point"), 3, [0.0, 0.0, 0.0]), np.float64)
+            dst = np.asarray(p.numbers("to", ("point3", "point"), 3, [0.0, 0.0, 1.0]), np.float64)
+            axis = dst - src
+            if not np.linalg.norm(axis) > 0:
+                raise error_at(d.pos, 'LightSource "spot": "from" and "to" are the same point')
+            cone = p.float("coneangle", 30.0)
+            delta = p.float("conedeltaangle", 5.0)
+            if not 0 < cone <= 180 or not 0 <= delta <= cone:
+                raise error_at(d.pos, f'LightSource "spot": needs 0 < coneangle <= 180 and 0 <= conedeltaangle '
+                                      f"<= coneangle, got {cone:g} and {delta:g}")
+            # a frame whose +z is the axis (its x and y do not matter: no texture), then the CTM
+            up = np.array([0.0, 1.0, 0.0]) if abs(axis[1]) < 0.9 * np.linalg.norm(axis) else np.array([1.0, 0.0, 0.0])
+            frame = m[:3, :3] @ look_at_frame(src, dst, up)
+            if abs(np.linalg.det(frame)) < 1e-300:
+                raise error_at(d.pos, 'LightSource "spot": the transform is singular')
+            intensity = spectrum_rgb(self, p, "I", (1.0, 1.0, 1.0))
+            self.b.add_light(SpotLight(position=tuple(map(float, transform_points(m, src)[0])),
+                                       intensity=tuple(c * s for c in intensity), cutoff_angle=cone,
+                                       beam_width=cone - delta, falloff="smoothstep", to_world=frame))
+        elif t == "projection":
+            self.projection(d, s, m)
         elif t == "infinite":
             self.infinite(d, s)
         else:
             self.warn(d.pos, f'LightSource "{t}": not supported; ignored')
+
+    def projection(self, d, s, m) -> None:
+        """pbrt-v4's projection light: the image `filename` projected from the CTM's origin along its
+        +z, `fov` (default 90) across the image's shorter side, intensity `scale` x the texel."""
+        from ..textures import texture_from_array, texture_from_image
+
+        p = d.params
+        fname = p.string("filename")
+        if fname is None:
+            raise error_at(d.pos, 'LightSource "projection" needs "string filename"')
+        path = self.path.parent / fname
+        if not path.is_file():
+            raise error_at(d.pos, f"LightSource \"projection\": file '{fname}' not found (looked for {path})")
+        where = f'{d.pos}: LightSource "projection"'
+        if path.suffix.lower() in (".exr", ".pfm"):
+            from .images import read_hdr_image
+
+            texture = texture_from_array(read_hdr_image(path, where), name=fname)
+        else:
+            try:
+                texture = texture_from_image(path, srgb=True)
+            except Exception as exc:
+                raise error_at(where, f"cannot read '{fname}' ({type(exc).__name__}: {exc})") from None
+        fov = p.float("fov", 90.0)
+        if not 0 < fov < 180:
+            raise error_at(d.pos, f'LightSource "projection": fov must be between 0 and 180 degrees, got {fov:g}')
+        aspect = texture.width / texture.height
+        fov_x = fov if aspect <= 1 else float(np.degrees(2 * np.arctan(np.tan(np.radians(fov) / 2) * aspect)))
+        if abs(np.linalg.det(m[:3, :3])) < 1e-300:
+            raise error_at(d.pos, 'LightSource "projection": the transform is singular')
+        self.warn(d.pos, 'LightSource "projection": the image is interpolated bilinearly (pbrt-v4 takes the '
+                         "nearest texel)")
+        self.b.add_light(ProjectorLight(position=tuple(map(float, m[:3, 3])), texture=texture, scale=s, fov=fov_x,
+                                        convention="pbrt", to_world=m[:3, :3].copy()))
 
     def infinite(self, d, s) -> None:
         p = d.params

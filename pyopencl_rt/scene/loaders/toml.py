@@ -69,12 +69,13 @@ from ...errors import UserError
 from ...imageio import read_exr
 from ..materials import REGISTRY
 from ..mesh import MeshError, flatten, load_trimesh
-from ..model import (AOVS, FILTERS, INTEGRATORS, SAMPLERS, Camera, DirectionalLight, Environment, Material,
-                     PixelFilter, PointLight, PROJECTIONS, RenderSettings, Scene)
+from ..model import (AOVS, FILTERS, INTEGRATORS, SAMPLERS, Camera, Environment, Material, PixelFilter, PROJECTIONS,
+                     RenderSettings, Scene)
 from .assembly import DEFAULT_FOV, frame_scene, transform_normals, triangle_scene
 from .gltf import read_gltf
 from .meshfile import ply_extras, trimesh_uvs
 from .obj import obj_with_materials
+from .toml_lights import read_lights
 from .toml_media import SHAPE_KEYS, Interfaces, camera_medium, read_media
 from .values import (ErrorContext, SceneError, TableReader, check_boolean, check_choice, check_color,
                      check_integer, check_keys, check_number, check_points, check_vector, describe,
@@ -89,11 +90,9 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
         tomllib = None
 
 SHAPE_TYPES = ("mesh", "quad", "triangle", "box", "sphere")
-LIGHT_TYPES = ("point", "directional")
 
 _TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environment", "media"}
 _CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance", "type", "extent", "medium"}
-_LIGHT_KEYS = {"point": {"type", "position", "intensity"}, "directional": {"type", "direction", "irradiance"}}
 _ENVIRONMENT_KEYS = {"radiance", "file", "scale"}
 _FILM_KEYS = {"width", "height", "aovs", "filter"}
 # each pixel filter's keys, and its radius when none is given (Mitsuba 3's: gaussian 4 sigma, lanczos tau)
@@ -302,7 +301,7 @@ def load_toml_scene(path: Path, name: str) -> Scene:
         scene.camera_medium = camera_medium(ctx, doc["camera"], media_index)
     else:
         frame_scene(scene)
-    scene.lights = _read_lights(ctx, doc.get("light", []))
+    scene.lights = read_lights(ctx, doc.get("light", []))
     if "environment" in doc:
         scene.environment = _read_environment(ctx, path, doc["environment"])
     return scene
@@ -315,36 +314,6 @@ def _check_reach(ctx, where, reach, what):
     if not reach <= GEOMETRY_LIMIT:
         raise ctx.error(where, f"{what} {reach:.3g} from the origin, beyond {GEOMETRY_LIMIT:.3g}: the float32 kernels "
                                "cannot intersect it (scale the scene down)")
-
-
-def _read_lights(ctx, lights) -> list:
-    if not isinstance(lights, list):
-        raise ctx.error("light", "must be an array of tables written [[light]]")
-    out = []
-    for number, table in enumerate(lights, 1):
-        where = f"[[light]] #{number}"
-        if not isinstance(table, dict):
-            raise ctx.error(where, f"must be a table, got {describe(table)}")
-        ltype = table.get("type")
-        if not isinstance(ltype, str) or ltype not in LIGHT_TYPES:
-            shown = "missing 'type'" if ltype is None else f"unknown type {ltype!r}"
-            raise ctx.error(where, f"{shown} (expected one of: {', '.join(LIGHT_TYPES)})")
-        where = f"[[light]] #{number} ({ltype})"
-        check_keys(ctx, where, table, _LIGHT_KEYS[ltype])
-        if ltype == "point":
-            if "position" not in table:
-                raise ctx.error(where, "missing 'position'")
-            out.append(PointLight(position=tuple(float(x) for x in check_vector(ctx, where, "position", table["position"])),
-                                  intensity=check_color(ctx, where, "intensity", table.get("intensity", 1.0))))
-        else:
-            if "direction" not in table:
-                raise ctx.error(where, "missing 'direction' (the way the light travels)")
-            d = check_vector(ctx, where, "direction", table["direction"])
-            if not np.linalg.norm(d) > 0:
-                raise ctx.error(where, "'direction' must not be zero")
-            out.append(DirectionalLight(direction=tuple(float(x) for x in d / np.linalg.norm(d)),
-                                        irradiance=check_color(ctx, where, "irradiance", table.get("irradiance", 1.0))))
-    return out
 
 
 def _read_environment(ctx, scene_path: Path, table):
