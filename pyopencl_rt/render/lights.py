@@ -1,5 +1,7 @@
 """The emitter table for next-event estimation: every emissive triangle and sphere, picked in
-proportion to its power (emitted radiance luminance x area x pi, x2 when two-sided)."""
+proportion to its power (emitted radiance luminance x area x pi, x2 when two-sided), and the
+point, spot, projector, directional and environment lights.  Infinitely distant lights are
+picked as pbrt-v4's BVH light sampler picks them (:func:`selection_weights`)."""
 from __future__ import annotations
 
 import math
@@ -72,8 +74,31 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return lights, tri_light, sphere_light
     if not (power > 0).any():  # only black lights (an environment map of zeros): any valid table
         power = np.ones(len(lights))
-    fill_light_table(lights, power)
+    fill_light_table(lights, selection_weights(lights["kind"], power))
     return lights, tri_light, sphere_light
+
+
+INFINITE_LIGHTS = (abi.LIGHT_DIRECTIONAL, abi.LIGHT_ENVIRONMENT)
+
+
+def selection_weights(kinds, power) -> np.ndarray:
+    """Light-picking weights: each of the n infinitely distant lights (directional, environment)
+    with radiance is picked with probability 1 / (n + 1) and the lights in the scene together with
+    1 / (n + 1), by power among them (pbrt-v4's BVH light sampler splits so).  A power estimate
+    of an environment (its radiance over a disc of the scene's bounding radius) can dwarf a
+    spot's or a small emitter's by orders of magnitude although both light the same points about
+    equally: picked by power alone, a spot in a sky got 2.6% of the samples and 37x Mitsuba's
+    variance (its uniform pick: 50%) on the suite's spot_light scene."""
+    power = np.asarray(power, np.float64)
+    infinite = np.isin(kinds, INFINITE_LIGHTS) & (power > 0)
+    bounded = ~np.isin(kinds, INFINITE_LIGHTS) & (power > 0)
+    if not infinite.any() or not bounded.any():
+        return power
+    share = 1.0 / (infinite.sum() + 1)
+    weights = np.zeros_like(power)
+    weights[infinite] = share
+    weights[bounded] = share * power[bounded] / power[bounded].sum()
+    return weights
 
 
 # ----------------------------------------------------------------------------------------------

@@ -1004,3 +1004,18 @@ def test_pbrt_spot_and_projection(tmp_path):
         assert np.allclose(got / got.max(), rgb, atol=0.25), (y, x, got)
     assert 0.85 < got.max() < 1.02, got  # white: scale x texel x cos^3 (0.97), blended a little (0.89)
     assert np.all(proj[0] == 0) and np.all(proj[:, 0] == 0)
+
+
+def test_infinite_lights_take_pbrts_share_of_the_picks():
+    """n infinitely distant lights with radiance: 1 / (n + 1) of the picks each, the others
+    1 / (n + 1) together by power; without either kind, power alone; black lights never."""
+    from pyopencl_rt.render.lights import selection_weights
+
+    kinds = np.array([abi.LIGHT_TRIANGLE, abi.LIGHT_SPOT, abi.LIGHT_ENVIRONMENT, abi.LIGHT_DIRECTIONAL,
+                      abi.LIGHT_POINT])
+    w = selection_weights(kinds, [3.0, 1.0, 1e9, 5.0, 0.0])
+    assert np.allclose(w / w.sum(), [0.25, 1 / 12, 1 / 3, 1 / 3, 0.0], rtol=1e-12)
+    assert np.array_equal(selection_weights(kinds[:2], [3.0, 1.0]), [3.0, 1.0])
+    assert np.array_equal(selection_weights(kinds[2:4], [1e9, 5.0]), [1e9, 5.0])
+    w = selection_weights(kinds[:3], [3.0, 1.0, 0.0])  # an environment of zeros: never picked
+    assert np.array_equal(w, [3.0, 1.0, 0.0])
