@@ -13,9 +13,9 @@ This module imports nothing but numpy at module level and nothing from the packa
 and numpy but not pyopencl.
 
 Correspondence (checked against our renderer by tests/bench/test_convergence.py and, for textures,
-environments and the scenes of ``bench set``, tests/bench/test_mitsuba_export.py):
+environments, participating media and the scenes of ``bench set``, tests/bench/test_mitsuba_export.py):
 
-* triangles: one PLY mesh per material (``face_normals = true``: flat shading on the geometric
+* triangles: one PLY mesh per material and medium interface (``face_normals = true``: flat shading on the geometric
   normal, as ours), BSDF from the material type's ``to_mitsuba`` (pyopencl_rt/scene/materials/;
   a type without one is refused);
 * emitters: ``area`` emitter with our radiance.  Ours is one-sided along the geometric normal
@@ -64,7 +64,8 @@ environments and the scenes of ``bench set``, tests/bench/test_mitsuba_export.py
   grid's box.  Our ``outside = "zero"`` (pbrt-v4's) is the same with ``nearest`` filtering and is
   refused with ``trilinear`` (Mitsuba has no such wrap mode).  Mitsuba's heterogeneous majorant is
   one number (``scale`` times the grid's maximum, or our ``max_value`` times the largest sigma_t)
-  where ours is per channel: the same expectation, other noise.  An albedo grid is the ``albedo``
+  where ours is per channel (an explicit ``majorant`` of ours is not exported): the same expectation,
+  other noise.  An albedo grid is the ``albedo``
   volume.  Phase: ``isotropic`` or ``hg`` with our g.  Media are top-level objects referenced by
   id: a shape's medium interface gives its ``interior`` / ``exterior`` (the exterior on the side
   its normal faces, as ours; a side that is vacuum has none, and a shape that is no medium

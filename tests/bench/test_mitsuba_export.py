@@ -1,5 +1,5 @@
-"""The Mitsuba export of environment maps, image textures, point and directional lights, and of the
-scenes of ``bench set`` (pyopencl_rt/bench/mitsuba_export.py): Mitsuba 3 (``scalar_rgb``, run at
+"""The Mitsuba export of environment maps, image textures, point and directional lights, participating
+media, and of the scenes of ``bench set`` (pyopencl_rt/bench/mitsuba_export.py): Mitsuba 3 (``scalar_rgb``, run at
 test time in the interpreter that has it, as tests/bench/test_convergence.py does) renders the
 exported scene, and its means per region equal ours.
 
@@ -297,7 +297,8 @@ def test_media_export_maps_every_part(tmp_path):
     assert smoke["type"] == "heterogeneous" and smoke["scale"] == 1.0 and smoke["phase"] == {"type": "isotropic"}
     values = arrays[smoke["sigma_t"]["grid"]]  # density times the chromatic sigma_t, (z, y, x, 3)
     assert values.shape == (3, 3, 3, 3) and np.allclose(values[1, 1, 1], [3.2, 0.8, 0.2])
-    assert np.allclose(smoke["sigma_t"]["to_world"], [[1.2, 0, 0, -1.4], [0, 1.2, 0, -0.2], [0, 0, 1.2, 0.2], [0, 0, 0, 1]])
+    assert np.allclose(smoke["sigma_t"]["to_world"],
+                       [[1.2, 0, 0, -1.4], [0, 1.2, 0, -0.2], [0, 0, 1.2, 0.2], [0, 0, 0, 1]])
     itfs = [(i["interior"], i["exterior"], i["null"]) for i in s["interfaces"]]
     h, f, m, k = (names.index(n) for n in ("haze", "fog", "marble", "smoke"))
     assert itfs == [(h, -1, True), (f, h, True), (m, h, False), (k, h, True)]
