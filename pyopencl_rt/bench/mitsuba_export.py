@@ -15,8 +15,8 @@ and numpy but not pyopencl.
 Correspondence (checked against our renderer by tests/bench/test_convergence.py and, for textures,
 environments, participating media and the scenes of ``bench set``, tests/bench/test_mitsuba_export.py):
 
-* triangles: one PLY mesh per material and medium interface (``face_normals = true``: flat shading on the geometric
-  normal, as ours), BSDF from the material type's ``to_mitsuba`` (pyopencl_rt/scene/materials/;
+* triangles: one PLY mesh per material and medium interface (``face_normals = true``: flat shading
+  on the geometric normal, as ours), BSDF from the material type's ``to_mitsuba`` (pyopencl_rt/scene/materials/;
   a type without one is refused);
 * emitters: ``area`` emitter with our radiance.  Ours is one-sided along the geometric normal
   (v1 - v0) x (v2 - v0); Mitsuba's area emitter emits on the side of the mesh normal, which for
@@ -65,9 +65,9 @@ environments, participating media and the scenes of ``bench set``, tests/bench/t
   refused with ``trilinear`` (Mitsuba has no such wrap mode).  Mitsuba's heterogeneous majorant is
   one number (``scale`` times the grid's maximum, or our ``max_value`` times the largest sigma_t)
   where ours is per channel (an explicit ``majorant`` of ours is not exported): the same expectation,
-  other noise.  An albedo grid is the ``albedo``
-  volume.  Phase: ``isotropic`` or ``hg`` with our g.  Media are top-level objects referenced by
-  id: a shape's medium interface gives its ``interior`` / ``exterior`` (the exterior on the side
+  other noise.  An albedo grid is the ``albedo`` volume.  Phase: ``isotropic`` or ``hg`` with our g.
+  A constant sigma_t is an ``srgb`` spectrum with ``unbounded`` (load_dict's ``rgb`` refuses values
+  over 1).  Media are top-level objects referenced by id: a shape's medium interface gives its ``interior`` / ``exterior`` (the exterior on the side
   its normal faces, as ours; a side that is vacuum has none, and a shape that is no medium
   transition has neither, keeping the ray's medium in both renderers); an index-matched shape's
   BSDF is ``null``; the camera's medium is the sensor's ``medium``.  The meshes are written per
