@@ -13,10 +13,10 @@ This module imports nothing but numpy at module level and nothing from the packa
 and numpy but not pyopencl.
 
 Correspondence (checked against our renderer by tests/bench/test_convergence.py and, for textures,
-environments and the scenes of ``bench set``, tests/bench/test_mitsuba_export.py):
+environments, participating media and the scenes of ``bench set``, tests/bench/test_mitsuba_export.py):
 
-* triangles: one PLY mesh per material (``face_normals = true``: flat shading on the geometric
-  normal, as ours), BSDF from the material type's ``to_mitsuba`` (pyopencl_rt/scene/materials/;
+* triangles: one PLY mesh per material and medium interface (``face_normals = true``: flat shading
+  on the geometric normal, as ours), BSDF from the material type's ``to_mitsuba`` (pyopencl_rt/scene/materials/;
   a type without one is refused);
 * emitters: ``area`` emitter with our radiance.  Ours is one-sided along the geometric normal
   (v1 - v0) x (v2 - v0); Mitsuba's area emitter emits on the side of the mesh normal, which for
@@ -53,6 +53,27 @@ environments and the scenes of ``bench set``, tests/bench/test_mitsuba_export.py
   the ``rr_depth``-th surface interaction on, keeping a path with probability
   min(max(throughput) eta^2, 0.95), eta^2 the product over the path's refractions.  Mitsuba's ``path`` is MIS of BSDF and emitter sampling, as our
   ``path`` integrator.
+* participating media (pyopencl_rt/scene/media.py), scenes with media or index-matched shapes: the
+  integrator is ``volpath``, or ``volpathmis`` where our estimator weighs chromatic distance samples
+  by spectral MIS (``RenderSettings.spectral_mis`` and a chromatic medium: our ``SPECTRAL_MIS``
+  define; with achromatic media the two estimators are the same and ``volpath`` is taken), with the
+  same max_depth / rr_depth.  A homogeneous medium is Mitsuba's ``homogeneous`` (``sigma_t``,
+  ``scale``, ``albedo``, ``sample_emitters``); a grid medium is ``heterogeneous`` whose ``sigma_t``
+  is a ``gridvolume`` of our density times sigma_t * scale (baked in, ``scale`` 1; one channel while
+  both are achromatic), built in memory (``mi.VolumeGrid`` of the (z, y, x, c) array: Mitsuba's
+  order), with our grid's ``to_world`` and filter; both take the edge texels beyond the outer texel
+  centres (``clamp``, Dr.Jit's texel centres at (i + 1/2) / n as ours) and are vacuum outside the
+  grid's box.  Our ``outside = "zero"`` (pbrt-v4's) is the same with ``nearest`` filtering and is
+  refused with ``trilinear`` (Mitsuba has no such wrap mode).  Mitsuba's heterogeneous majorant is
+  one number (``scale`` times the grid's maximum, or our ``max_value`` times the largest sigma_t)
+  where ours is per channel (an explicit ``majorant`` of ours is not exported): the same expectation,
+  other noise.  An albedo grid is the ``albedo`` volume.  Phase: ``isotropic`` or ``hg`` with our g.
+  A constant sigma_t is an ``srgb`` spectrum with ``unbounded`` (load_dict's ``rgb`` refuses values
+  over 1).  Media are top-level objects referenced by id: a shape's medium interface gives its ``interior`` / ``exterior`` (the exterior on the side
+  its normal faces, as ours; a side that is vacuum has none, and a shape that is no medium
+  transition has neither, keeping the ray's medium in both renderers); an index-matched shape's
+  BSDF is ``null``; the camera's medium is the sensor's ``medium``.  The meshes are written per
+  (material, interface) pair.
 """
 from __future__ import annotations
 
@@ -73,8 +94,6 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
     from ..render.settings import ImageSettings  # here, not at the top: see the module docstring
 
     settings = settings or ImageSettings.resolve(scene)
-    if scene.has_media():
-        raise ValueError("participating media are not exported to Mitsuba 3 yet")
     for m in scene.materials:
         if m.is_emissive and m.two_sided:
             raise ValueError(f"material {m.name!r}: Mitsuba 3 has no two-sided area emitter")
@@ -97,6 +116,7 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
         "filter": settings.filter.as_dict(),
         "materials": materials, "lights": [_light_record(light) for light in scene.lights],
         "environment": _environment_record(scene.environment, arrays),
+        "media": _media_record(scene, arrays),
     }
     if any(m.get("textured") for m in materials):  # per-corner (u, v); none given: all 0, as ours
         arrays["uvs"] = (np.zeros((len(scene.faces), 3, 2), np.float32) if scene.uvs is None
@@ -110,6 +130,54 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
         "settings": json.dumps(record),
         **arrays,
     }
+
+
+def _media_record(scene, arrays: dict) -> dict | None:
+    """The media (grids into ``arrays``), the interfaces, the camera's medium and the integrator;
+    with each face's and sphere's interface index in ``arrays``.  None without media."""
+    if not scene.has_media():
+        return None
+    media = [_medium_record(m, i, arrays) for i, m in enumerate(scene.media)]
+    interfaces = []
+    for k, itf in enumerate(scene.interfaces):
+        sides = (int(itf.interior), int(itf.exterior)) if itf.transition else (-1, -1)
+        if itf.transition and sides == (-1, -1):  # Mitsuba: a shape with no medium is no transition
+            raise ValueError(f"medium interface {k}: a transition to vacuum on both sides has no Mitsuba form")
+        interfaces.append({"interior": sides[0], "exterior": sides[1], "null": bool(itf.null)})
+    arrays["face_interfaces"] = np.asarray(scene.face_interface_array(), np.int32)
+    arrays["sphere_interfaces"] = np.asarray(scene.sphere_interface_array(), np.int32)
+    spectral_mis = bool(getattr(scene.settings, "spectral_mis", True)) and any(m.chromatic() for m in scene.media)
+    return {"media": media, "interfaces": interfaces, "camera_medium": int(scene.camera_medium),
+            "integrator": "volpathmis" if spectral_mis else "volpath"}
+
+
+def _grid_record(grid, key: str, values, arrays: dict, what: str) -> dict:
+    """A gridvolume's record: ``values`` (z, y, x, c) into ``arrays[key]``, the grid's box and filter."""
+    if grid.outside == "zero" and grid.filter != "nearest":
+        raise ValueError(f"{what}: a trilinear grid that fades to 0 beyond its edge texels (outside = \"zero\") has "
+                         "no Mitsuba wrap mode (gridvolume clamps)")
+    arrays[key] = np.ascontiguousarray(values, np.float32)
+    return {"grid": key, "to_world": np.asarray(grid.to_world, np.float64).tolist(), "filter": grid.filter}
+
+
+def _medium_record(m, index: int, arrays: dict) -> dict:
+    """A medium's export (see the module docstring)."""
+    rec = {"name": m.name, "sample_emitters": bool(m.sample_emitters),
+           "phase": {"type": "hg", "g": float(m.phase.g)} if m.phase.type == "hg" else {"type": "isotropic"},
+           "albedo": [float(x) for x in m.albedo]}
+    if m.density is None:
+        rec.update(type="homogeneous", sigma_t=[float(x) for x in m.sigma_t], scale=float(m.scale))
+    else:
+        ext, data = m.extinction(), m.density.data.astype(np.float64)
+        values = data * ext[0] if data.shape[3] == 1 and np.ptp(ext) == 0 else data * ext
+        sigma_t = _grid_record(m.density, f"medium_density_{index}", values, arrays, f"medium {m.name!r}")
+        if m.density.max_value is not None:  # the majorant's maximum as ours takes it
+            sigma_t["max_value"] = float(m.density.max_value * ext.max())
+        rec.update(type="heterogeneous", sigma_t=sigma_t, scale=1.0)
+    if m.albedo_grid is not None:
+        rec["albedo"] = _grid_record(m.albedo_grid, f"medium_albedo_{index}", m.albedo_grid.data, arrays,
+                                     f"medium {m.name!r}'s albedo")
+    return rec
 
 
 # the exported environment map's grid is finer than ours (see the module docstring) by the factor
@@ -264,6 +332,28 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
                      "rfilter": mitsuba_rfilter(s.get("filter", {"type": "box"})), "pixel_format": "rgb"},
         },
     }
+    media = s.get("media")
+    if media:
+        d["integrator"]["type"] = media["integrator"]
+        for i, m in enumerate(media["media"]):
+            d[f"medium_{i}"] = _mitsuba_medium(m, arrays, mi)
+        if media["camera_medium"] >= 0:
+            d["sensor"]["medium"] = {"type": "ref", "id": f"medium_{media['camera_medium']}"}
+    interfaces = media["interfaces"] if media else []
+
+    def with_interface(shape, k):
+        """``shape`` bounding the media of interface ``k`` (-1: none): a null BSDF where index-matched."""
+        if k < 0:
+            return shape
+        itf = interfaces[k]
+        if itf["null"]:
+            shape = {**shape, "bsdf": {"type": "null"}}
+            shape.pop("emitter", None)
+        for side in ("interior", "exterior"):
+            if itf[side] >= 0:
+                shape[side] = {"type": "ref", "id": f"medium_{itf[side]}"}
+        return shape
+
     mats = s["materials"]
     files = {}
 
@@ -289,12 +379,14 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
         return {"type": "area", "radiance": radiance}
 
     verts, faces, fmat = arrays["vertices"], arrays["faces"], arrays["face_materials"]
+    fif = arrays.get("face_interfaces", np.full(len(fmat), -1, np.int32))
     uvs = arrays.get("uvs")
-    for mi_index in np.unique(fmat):
+    for mi_index, k in np.unique(np.stack([fmat, fif], 1).reshape(-1, 2), axis=0):
         m = mats[int(mi_index)]
-        in_material = fmat == mi_index
+        in_material = (fmat == mi_index) & (fif == k)
         sel = faces[in_material]
-        path = os.path.join(tmpdir, f"mesh_{int(mi_index)}.ply")
+        name = f"mesh_{int(mi_index)}" if k < 0 else f"mesh_{int(mi_index)}_interface_{int(k)}"
+        path = os.path.join(tmpdir, f"{name}.ply")
         if m.get("textured") and uvs is not None:  # a vertex per corner, with the corner's (u, v)
             write_ply(path, verts[sel.ravel()], np.arange(3 * len(sel)).reshape(-1, 3), uvs[in_material].reshape(-1, 2))
         else:
@@ -303,14 +395,15 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
         shape = {"type": "ply", "filename": path, "face_normals": True, "bsdf": resolved(m["bsdf"])}
         if max(m["emission"]) > 0:
             shape["emitter"] = emitter(m)
-        d[f"mesh_{int(mi_index)}"] = shape
+        d[name] = with_interface(shape, int(k))
+    sif = arrays.get("sphere_interfaces", np.full(len(arrays["sphere_materials"]), -1, np.int32))
     for i, (sp, mi_index) in enumerate(zip(arrays["spheres"], arrays["sphere_materials"])):
         m = mats[int(mi_index)]  # no texture coordinates on our spheres: the factors alone
         shape = {"type": "sphere", "center": [float(x) for x in sp[:3]], "radius": float(sp[3]),
                  "bsdf": m.get("bsdf_plain", m["bsdf"])}
         if max(m["emission"]) > 0:
             shape["emitter"] = emitter(m, textured=False)
-        d[f"sphere_{i}"] = shape
+        d[f"sphere_{i}"] = with_interface(shape, int(sif[i]))
     for i, light in enumerate(s.get("lights", [])):
         if light["type"] == "point":
             d[f"light_{i}"] = {"type": "point", "position": light["position"],
@@ -333,6 +426,26 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
         to_world[:3, :3] = environment.get("to_world", np.eye(3))
         d["environment"] = {"type": "envmap", "filename": bitmap_file("envmap"), "to_world": T(to_world.tolist())}
     return d
+
+
+def _mitsuba_medium(m: dict, arrays: dict, mi) -> dict:
+    """Mitsuba's medium dict of a record of :func:`_medium_record` (grids built in memory)."""
+    T = mi.ScalarTransform4f
+
+    def value(v, unbounded=False):
+        if isinstance(v, dict):  # a grid
+            vol = {"type": "gridvolume", "grid": mi.VolumeGrid(np.ascontiguousarray(arrays[v["grid"]], np.float32)),
+                   "filter_type": v["filter"], "wrap_mode": "clamp", "to_world": T(v["to_world"])}
+            if "max_value" in v:
+                vol["max_value"] = float(v["max_value"])
+            return vol
+        if unbounded:  # the srgb plugin itself: load_dict's "rgb" has no "unbounded" (and refuses values over 1)
+            return {"type": "srgb", "color": [float(x) for x in v], "unbounded": True}
+        return {"type": "rgb", "value": [float(x) for x in v]}
+
+    phase = {"type": "hg", "g": m["phase"]["g"]} if m["phase"]["type"] == "hg" else {"type": "isotropic"}
+    return {"type": m["type"], "sigma_t": value(m["sigma_t"], unbounded=True), "albedo": value(m["albedo"]),
+            "scale": float(m["scale"]), "sample_emitters": bool(m["sample_emitters"]), "phase": phase}
 
 
 def mitsuba_rfilter(flt: dict) -> dict:
