@@ -78,6 +78,15 @@ class Material:
     # the reflectance (albedo; a dielectric's tint) is multiplied by the triangles' interpolated
     # vertex colours (Scene.colors): Mitsuba's mesh_attribute texture, glTF's COLOR_0, PLY colours
     vertex_colors: bool = False
+    # An alpha cut-out (Mitsuba's mask BSDF): ``masked`` surfaces are met with probability
+    # ``opacity`` (times scalar_textures["opacity"], the texture's luminance as Mitsuba's eval_1
+    # reads it; clamped to [0, 1]), else the path goes straight through in a null, delta bounce
+    # that counts toward max_depth (cl/render/path.h); shadow rays see them opaque, as Mitsuba's.
+    masked: bool = False
+    opacity: float = 1.0
+    # one-sided (Mitsuba's BSDFs outside a twosided): nothing is reflected seen from behind the
+    # shading normal; ours are two-sided otherwise
+    one_sided: bool = False
 
 
     def textures(self) -> list:
@@ -141,7 +150,9 @@ class Material:
             rec["tex_params"] |= param_ids[name] << (4 * slot)
             slot += 1
         rec["normal_scale"] = self.normal_scale
+        rec["opacity"] = min(max(float(self.opacity), 0.0), 1.0)
         flags = int(rec["flags"]) | (abi.MATERIAL_FLAG_VERTEX_COLOR if self.vertex_colors else 0)
+        flags |= (abi.MATERIAL_FLAG_MASK if self.masked else 0) | (abi.MATERIAL_FLAG_ONE_SIDED if self.one_sided else 0)
         if self.normal_texture is not None:
             flags |= abi.MATERIAL_FLAG_BUMP_MAP if self.bump_map else 0
             for name in self.map_conventions:
