@@ -150,7 +150,7 @@ class Material:
             rec["tex_params"] |= param_ids[name] << (4 * slot)
             slot += 1
         rec["normal_scale"] = self.normal_scale
-        rec["opacity"] = min(max(float(self.opacity), 0.0), 1.0)
+        rec["opacity"] = min(max(float(self.opacity), 0.0), 1.0) if self.masked else 0.0  # read with the flag only
         flags = int(rec["flags"]) | (abi.MATERIAL_FLAG_VERTEX_COLOR if self.vertex_colors else 0)
         flags |= (abi.MATERIAL_FLAG_MASK if self.masked else 0) | (abi.MATERIAL_FLAG_ONE_SIDED if self.one_sided else 0)
         if self.normal_texture is not None:
