@@ -41,6 +41,7 @@
 #include "render/filter.h"
 #ifdef HAS_TEXTURES
 #include "scene/textures.h"
+#include "scene/texture_lights.h"
 #endif
 #include "scene/shading.h"
 #ifdef HAS_AOVS

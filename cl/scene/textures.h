@@ -27,7 +27,7 @@
  *                 bilinear lookup, as Mitsuba's bump maps take it), read by cl/scene/shading.h
  * texture_material() applies them to the lanes' gathered materials (MaterialLanes) before
  * shading, so the BSDF and emission code is unchanged.  For next-event estimation
- * texture_light_emission() re-derives the sampled point's barycentrics from the same random
+ * texture_light_emission() (scene/texture_lights.h) re-derives the sampled point's barycentrics from the same random
  * numbers light_sample_all() used and applies the emission texture there.
  */
 #ifndef PYOPENCL_RT_TEXTURES_H
@@ -187,25 +187,5 @@ RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Te
     }
 }
 
-#ifdef PYOPENCL_RT_LIGHTS_H /* included after lights.h: next-event estimation */
-/* After light_sample_all(..., light_index, sampled, ref, ux, uy, ls): the emission texture at the
- * sampled point of the lanes whose light is a textured emissive triangle. */
-RT_INLINE void texture_light_emission(__global const float2 *tri_uv, __global const Texture *textures,
-                                      __global const float4 *data, __global const Material *materials,
-                                      __global const Light *lights, pint light_index, pint sampled, pfloat ux,
-                                      pfloat uy, LightSample *ls)
-{
-    pfloat b1, b2;
-    sample_triangle_barycentrics(ux, uy, &b1, &b2);
-    for (int k = 0; k < PACKET_WIDTH; ++k) {
-        if (!PLANE_I(sampled, k)) continue;
-        __global const Light *light = lights + PLANE_I(light_index, k);
-        __global const Material *m = materials + light->material;
-        if (light->kind != LIGHT_TRIANGLE || m->tex_emission < 0) continue;
-        const float2 uv = triangle_uv(tri_uv, light->prim, PLANE(b1, k), PLANE(b2, k));
-        pv3_set_lane(&ls->Le, k, pv3_lane(ls->Le, k) * tex_sample(textures, data, m->tex_emission, uv).xyz);
-    }
-}
-#endif
+#endif /* PYOPENCL_RT_TEXTURES_H */
 
-#endif

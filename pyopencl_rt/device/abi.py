@@ -98,8 +98,6 @@ assert TRIANGLE.itemsize == 48
 #                specular_reflectance and diffuse_reflectance
 #   roughness, anisotropic, spec_trans, spec_tint, sheen, sheen_tint, clearcoat,
 #   clearcoat_gloss, flatness, diff_trans   principled, principledthin: Mitsuba's parameters
-#   opacity      with MATERIAL_FLAG_MASK: the probability that a ray meets the surface (Mitsuba's
-#                mask), clamped to [0, 1] after its texture (TEXP_OPACITY) is applied
 #   rates        principled: the sampling rates of the main specular lobe, the clearcoat and
 #                the diffuse reflection (4th unused); principledthin: of the specular
 #                reflection, specular transmission, diffuse transmission and diffuse reflection
@@ -122,12 +120,10 @@ MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
 MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
 # dielectric: a thin sheet, Mitsuba's thindielectric (cl/materials/dielectric.h: thin_dielectric_sample)
 MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)
-# an alpha cut-out (Mitsuba's mask BSDF): the surface is there with probability `opacity` (times a
-# texture of it, TEXP_OPACITY), else the path goes straight through it (cl/render/path.h)
-MATERIAL_FLAG_MASK = define("MATERIAL_FLAG_MASK", 1024)
-# one-sided (Mitsuba's BSDFs outside twosided): seen from behind its shading normal the surface
-# reflects nothing (cl/materials/dispatch.h)
-MATERIAL_FLAG_ONE_SIDED = define("MATERIAL_FLAG_ONE_SIDED", 2048)
+# MASK: Mitsuba's mask, met with probability `opacity` (cl/render/path.h); ONE_SIDED: black from behind (Mitsuba's
+# BSDFs outside twosided); CUTOUT: a cut-out in the intersection, alpha `opacity`, `alpha_cutoff` (cl/scene/scene.h)
+MATERIAL_FLAG_MASK, MATERIAL_FLAG_ONE_SIDED, MATERIAL_FLAG_CUTOUT = (
+    define("MATERIAL_FLAG_MASK", 1024), define("MATERIAL_FLAG_ONE_SIDED", 2048), define("MATERIAL_FLAG_CUTOUT", 4096))
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
@@ -139,7 +135,7 @@ MATERIAL = np.dtype(
      ("flatness", np.float32), ("diff_trans", np.float32), ("rates", np.float32, 4),
      ("tex_scalar", np.int32, TEX_SLOTS), ("tex_params", np.int32),
      ("table", np.float32, ROUGH_TRANSMITTANCE_RES),
-     ("normal_scale", np.float32), ("opacity", np.float32), ("pad1", np.int32), ("pad2", np.int32)]
+     ("normal_scale", np.float32), ("opacity", np.float32), ("alpha_cutoff", np.float32), ("pad2", np.int32)]
 )
 assert MATERIAL.itemsize == 464
 # Texture indices (into the TEXTURE table; -1 = none), used only when the program is built with
@@ -153,31 +149,19 @@ assert MATERIAL.itemsize == 464
 #                 tex_params name (the host stores such a texture's luminance in R, Mitsuba's eval_1)
 # TEXP_<FIELD>: the Material field each multiplies (TEXP_ETA: ior)
 _TEXP = define_enum("TEXP_", ("alpha", "roughness", "metallic", "anisotropic", "spec_trans", "spec_tint", "sheen",
-                              "sheen_tint", "clearcoat", "clearcoat_gloss", "flatness", "diff_trans", "eta",
-                              "opacity"))
+                              "sheen_tint", "clearcoat", "clearcoat_gloss", "flatness", "diff_trans", "eta"))
 (TEXP_ALPHA, TEXP_ROUGHNESS, TEXP_METALLIC, TEXP_ANISOTROPIC, TEXP_SPEC_TRANS, TEXP_SPEC_TINT, TEXP_SHEEN,
- TEXP_SHEEN_TINT, TEXP_CLEARCOAT, TEXP_CLEARCOAT_GLOSS, TEXP_FLATNESS, TEXP_DIFF_TRANS, TEXP_ETA,
- TEXP_OPACITY) = _TEXP.values()
+ TEXP_SHEEN_TINT, TEXP_CLEARCOAT, TEXP_CLEARCOAT_GLOSS, TEXP_FLATNESS, TEXP_DIFF_TRANS, TEXP_ETA) = _TEXP.values()
+_TEXP["opacity"] = TEXP_OPACITY = define("TEXP_OPACITY", len(_TEXP))  # Material.opacity (mask, cut-out)
 TEXTURE_PARAMS = {k: "ior" if name == "eta" else name for name, k in _TEXP.items()}
 #   tex_normal    a tangent-space normal map (RGB = (n + 1) / 2, relative to the shading frame), or
 #                 with MATERIAL_FLAG_BUMP_MAP a height map (its luminance), perturbing the
 #                 shading normal (HAS_NORMAL_MAPS, cl/scene/shading.h); normal_scale scales the
 #                 normal map's x and y (glTF's normalTexture.scale) or the bump map's gradient
-
-# A texture (64 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row
-# by row from the top of the image (v = 0 is the top row, as in glTF; OBJ's v is flipped at load),
-# already linear (sRGB images that hold colours are decoded at load: flags bit 0 records that).
-# channels: the source image's channel count (informative).  How it is looked up
-# (cl/scene/textures.h, as Mitsuba 3's bitmap and Dr.Jit's textures do it):
-#   to_uv   the lookup's coordinates are (to_uv[0] u + to_uv[1] v + to_uv[2],
-#           to_uv[3] u + to_uv[4] v + to_uv[5]) of the hit's (u, v): a 2-D affine map (Mitsuba's
-#           to_uv, pbrt-v4's uscale/vscale/udelta/vdelta, glTF's KHR_texture_transform); identity
-#           (1 0 0 0 1 0) by default
-#   wrap    TEXTURE_WRAP_REPEAT (tile), _MIRROR (tile, every other copy mirrored) or _CLAMP (the
-#           edge texels continue) for coordinates outside [0, 1)
-#   filter  TEXTURE_FILTER_BILINEAR (between the four nearest texel centres) or _NEAREST (the
-#           texel that holds the coordinate)
-# Several records may share texels (the same image with other lookup settings).
+# A texture (64 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row by row from the
+# top (v = 0 is the top row, as in glTF; OBJ's v is flipped at load), linear (sRGB colour images are decoded at
+# load: flags bit 0); channels: the source's (informative).  Looked up (cl/scene/textures.h, as Mitsuba's bitmap)
+# at (a u + b v + c, d u + e v + f), to_uv = (a..f); wrap TEXTURE_WRAP_*, filter TEXTURE_FILTER_*; texels shared.
 TEXTURE_FLAG_SRGB = define("TEXTURE_FLAG_SRGB", 1)
 TEXTURE_WRAPS = define_enum("TEXTURE_WRAP_", ("repeat", "mirror", "clamp"))
 TEXTURE_FILTERS = define_enum("TEXTURE_FILTER_", ("bilinear", "nearest"))

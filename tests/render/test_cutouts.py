@@ -136,3 +136,47 @@ def test_lookups_and_masks_in_lanes(device, monkeypatch, tmp_path):
         assert r.info["lanes"] == int(width)
         assert np.array_equal(r.film.sum, base.film.sum) and np.array_equal(r.film.sum_sq, base.film.sum_sq), width
         assert (r.stats.rays_extend, r.stats.rays_shadow) == (base.stats.rays_extend, base.stats.rays_shadow), width
+
+
+def _cutout_scene(pbrt_like=True):
+    """A floor (albedo 0.5) under a directional light straight down (irradiance 1), seen from above
+    by an orthographic camera through a black quad at height 0.5 that is an alpha cut-out in the
+    intersection: alpha 0, 0.5 and 1 in thirds along x (a 3 x 1 texture, nearest)."""
+    from pyopencl_rt.scene.model import Camera, DirectionalLight, Material, RenderSettings, Scene
+    from pyopencl_rt.scene.textures import texture_from_array
+
+    quad = np.array([[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1]], np.float32)
+    v = np.concatenate([quad, quad + [0, 0.5, 0]])
+    f = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]], np.int32)
+    uv = ((v[f][..., [0, 2]] + 1) / 2).astype(np.float32)
+    alpha = texture_from_array(np.array([[0.0, 0.5, 1.0]], np.float32)).with_lookup(filter="nearest")
+    cut = Material("cut", albedo=(0, 0, 0), cutout=True, opacity=1.0, scalar_textures={"opacity": alpha})
+    return Scene(vertices=v, faces=f, face_materials=np.array([0, 0, 1, 1], np.int32),
+                 materials=[Material("floor", albedo=(0.5,) * 3), cut], uvs=uv,
+                 camera=Camera(eye=(0, 2, 0), look_at=(0, 0, 0), up=(0, 0, -1), projection="orthographic", extent=2),
+                 lights=[DirectionalLight(direction=(0, -1, 0), irradiance=(1, 1, 1))],
+                 settings=RenderSettings(width=30, height=30, max_depth=2))
+
+
+def test_intersection_cutouts_closed_form(device):
+    """pbrt-v4's alpha (Material.cutout, cl/scene/scene.h): where alpha is 0 the camera sees the lit
+    floor, 0.5 / pi; where it is 0.5 a camera ray passes with probability 1/2 and so does the
+    floor's shadow ray (each its own hash): 0.5 / (4 pi); where it is 1 the black quad, 0.  And
+    the same bits at every lane width."""
+    scene = _cutout_scene()
+    assert scene.material_defines().get("HAS_CUTOUTS")
+    r = rt.render_full(scene, spp=256, device=device, seed=4)
+    img = r.image.astype(np.float64).mean(-1)
+    thirds = [img[2:28, 1:9].mean(), img[2:28, 11:19].mean(), img[2:28, 21:29].mean()]
+    assert abs(thirds[0] / (0.5 / np.pi) - 1) < 0.01, thirds
+    assert abs(thirds[1] / (0.5 / (4 * np.pi)) - 1) < 0.03, thirds
+    assert thirds[2] == 0.0, thirds
+
+
+def test_intersection_cutouts_in_lanes(device, monkeypatch):
+    widths = ("0", harness.forced_lanes(device))
+    results = harness.lane_renders(_cutout_scene(), device, monkeypatch, widths, spp=8, seed=2)
+    base = results["0"]
+    for width, r in results.items():
+        assert np.array_equal(r.film.sum, base.film.sum) and np.array_equal(r.film.sum_sq, base.film.sum_sq), width
+        assert (r.stats.rays_extend, r.stats.rays_shadow) == (base.stats.rays_extend, base.stats.rays_shadow), width

@@ -420,7 +420,7 @@ WorldBegin
 MakeNamedMedium "fog" "string type" "nanovdb"
 Attribute "shape" "float radius" 2
 Material "diffuse" "float sigma" 20
-Shape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0] "float alpha" 0.5
+Shape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0]
 LightSource "goniometric"
 TransformTimes 0 1
 """)
@@ -431,7 +431,6 @@ TransformTimes 0 1
               ("MakeNamedMedium", 'MakeNamedMedium "fog": medium type "nanovdb" is not supported; rendered as vacuum'),
               ("Attribute", 'Attribute "shape": default parameters are not supported; ignored'),
               ("sigma", '"float sigma" of Material "diffuse": not supported; ignored'),
-              ("alpha", 'Shape "trianglemesh": "alpha" cut-outs are not supported'),
               ("goniometric", 'LightSource "goniometric": not supported; ignored'),
               ("TransformTimes", "TransformTimes: motion blur is not supported; ignored"),
               ("realistic", 'Camera "realistic": not supported; using a camera that frames the scene')]
@@ -489,3 +488,27 @@ def test_malformed_input_is_one_clear_error(tmp_path, text, message):
 def test_no_shapes_is_an_error(tmp_path):
     with pytest.raises(SceneError, match=r"s\.pbrt: the scene has no shapes that we can render"):
         load_scene(write(tmp_path, 'WorldBegin LightSource "infinite"'))
+
+
+def test_shape_alpha_is_an_intersection_cutout(tmp_path):
+    """pbrt-v4's shape "alpha": a float (1: opaque, the material unchanged) or a float texture
+    (its first channel) makes the shape's material an alpha cut-out tested in the intersection
+    (Material.cutout, stochastic: alpha_cutoff 0); shapes sharing a material and an alpha share
+    the cut-out material."""
+    write_png_image(tmp_path / "a.png", np.array([[[0, 10, 20], [255, 0, 0]]], np.uint8))
+    s, w = world(tmp_path, f"""
+        Texture "mask" "float" "imagemap" "string filename" "a.png" "string encoding" "linear" "string filter" "point"
+        Material "diffuse"
+        Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0] "float alpha" 1
+        Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0] "float alpha" 0.25
+        Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0] "float alpha" 0.25
+        Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0] "texture alpha" "mask"
+        """)
+    assert w == []
+    opaque, quarter, quarter2, textured = (s.materials[i] for i in s.face_materials)
+    assert not opaque.cutout and quarter is quarter2
+    assert quarter.cutout and quarter.opacity == 0.25 and quarter.alpha_cutoff == 0.0
+    t = textured.scalar_textures["opacity"]
+    assert textured.cutout and textured.opacity == 1.0 and t.filter == "nearest"
+    assert np.allclose(t.texels[0, :, :3], [[0, 0, 0], [1, 1, 1]])  # channel 0, as pbrt's float textures
+    assert s.material_defines().get("HAS_CUTOUTS")

@@ -397,3 +397,30 @@ def test_textured_scene_renders(device):
     r = render_full(sc, spp=4, device=device, seed=1, width=40, height=30)
     assert r.info["nonfinite_samples"] == 0
     assert np.isfinite(r.image).all() and r.image.mean() > 0
+
+
+def test_gltf_alpha_modes_are_intersection_cutouts(tmp_path):
+    """glTF alphaMode MASK (alphaCutoff, default 0.5) and BLEND become cut-outs in the intersection
+    (Material.cutout; BLEND stochastic, as pbrt-v4's alpha): alpha = baseColorFactor's alpha times
+    the base texture's (an RGB texture has none); OPAQUE, and a MASK every texel passes, stay opaque."""
+    p = write_test_glb(tmp_path / "t.glb")
+
+    def edit(tree):
+        for m in tree["materials"]:
+            if m.get("name") == "paint":
+                m["alphaMode"], m["alphaCutoff"] = "MASK", 0.5
+                m["pbrMetallicRoughness"]["baseColorFactor"][3] = 0.4
+            if m.get("name") == "glass":
+                m["alphaMode"], m["alphaCutoff"] = "MASK", 0.3  # alpha 1 everywhere: every texel passes
+            if m.get("name") == "lamp":
+                m["alphaMode"] = "BLEND"
+                m.setdefault("pbrMetallicRoughness", {})["baseColorFactor"] = [1, 1, 1, 0.6]
+
+    _edit_glb(p, edit)
+    mats = {m.name: m for m in load_scene(p).materials}
+    paint, lamp, glass = mats["paint"], mats["lamp"], mats["glass"]
+    assert paint.cutout and paint.alpha_cutoff == pytest.approx(0.5) and paint.opacity == pytest.approx(0.4)
+    assert lamp.cutout and lamp.alpha_cutoff == 0.0 and lamp.opacity == pytest.approx(0.6)
+    assert not glass.cutout
+    rec = paint.record()
+    assert rec["flags"] & abi.MATERIAL_FLAG_CUTOUT and rec["alpha_cutoff"] == pytest.approx(0.5)

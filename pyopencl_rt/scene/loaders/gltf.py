@@ -25,7 +25,9 @@ What is read:
   not used: the per-triangle tangent approximates them).  A primitive without a material gets
   glTF's default (white, metallic 1, roughness 1).  Samplers' wrapS (both axes) and magFilter
   (nearest or bilinear) and KHR_texture_transform (the lookup's affine map) are kept (Texture).
-  Alpha (``alphaMode``) and occlusion maps are ignored;
+  ``alphaMode`` MASK (``alphaCutoff``) and BLEND (stochastic: pbrt-v4's alpha) are cut-outs in the
+  intersection (baseColorFactor's alpha times the base texture's; Material.cutout).  Occlusion maps
+  are ignored;
 * images embedded in the GLB / a buffer view, as data: URIs or as files next to the .gltf;
 * the first perspective camera in the node tree (``yfov``; the node's world transform, looking
   down its local -z with +y up).  Orthographic cameras are ignored.
@@ -272,6 +274,19 @@ class _Reader:
         mat.emission_texture = self.texture(infos[2], srgb=True) if mat.is_emissive else None
         mat.normal_texture = self.texture(infos[3], srgb=False)
         mat.normal_scale = float(infos[3].get("scale", 1.0)) if infos[3] else 1.0
+        mode = m.get("alphaMode", "OPAQUE")
+        if mode in ("MASK", "BLEND"):  # alpha cut-outs in the intersection (Material.cutout)
+            mat.cutout = True
+            mat.opacity = min(max(float(np.asarray(pbr.get("baseColorFactor", (1, 1, 1, 1)), np.float64)[3]), 0.0), 1.0)
+            mat.alpha_cutoff = max(float(m.get("alphaCutoff", 0.5)), 1e-6) if mode == "MASK" else 0.0
+            t = mat.base_texture
+            if t is not None and t.channels in (2, 4):  # the base colour's alpha
+                a = np.repeat(t.texels[..., 3:4], 4, axis=-1)
+                a[..., 3] = 1.0
+                mat.scalar_textures["opacity"] = Texture(np.ascontiguousarray(a), channels=1, name=t.name,
+                                                         wrap=t.wrap, filter=t.filter, to_uv=t.to_uv)
+            if mode == "MASK" and mat.opacity >= mat.alpha_cutoff and "opacity" not in mat.scalar_textures:
+                mat.cutout = False  # every texel passes
         if transmission > 0:
             mat.type, mat.tint, mat.albedo = "dielectric", mat.albedo, (0.8, 0.8, 0.8)
             mat.ior = ior if ior > 1.0 else 1.5  # KHR_materials_ior's 0 (= 1) would be invisible
