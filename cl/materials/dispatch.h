@@ -83,6 +83,7 @@ typedef struct {
     pvec3 albedo, emission, specular, eta, k;
     pfloat alpha, metallic, ior;
     pint tex_base, tex_mr, tex_emission; /* texture indices, -1 none */
+    pfloat opacity; /* MATERIAL_FLAG_MASK: the record's opacity (times its texture, cl/scene/textures.h); else 1 */
     pfloat fdr, spec_weight, roughness, anisotropic, spec_trans, spec_tint, sheen, sheen_tint, clearcoat,
         clearcoat_gloss, flatness, diff_trans, rate0, rate1, rate2, rate3;
     __global const float *records; /* the Material array as floats, and each lane's record in it */
@@ -104,6 +105,9 @@ RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint 
     GATHER_FLOAT(alpha) GATHER_FLOAT(metallic) GATHER_FLOAT(ior)
     m.records = f;
     m.rec = i;
+    m.opacity = PFLOAT(1.0f);
+    const pint masked = (m.flags & MATERIAL_FLAG_MASK) != 0;
+    if (pany(masked)) m.opacity = masked ? pgather(f, i + FIELD_INDEX(Material, opacity)) : m.opacity;
     m.fdr = m.spec_weight = m.roughness = m.anisotropic = m.spec_trans = m.spec_tint = m.sheen = m.sheen_tint =
         m.clearcoat = m.clearcoat_gloss = m.flatness = m.diff_trans = m.rate0 = m.rate1 = m.rate2 = m.rate3 =
             PFLOAT(0.0f);

@@ -135,7 +135,7 @@ __kernel void mk_path(WAVE_PARAMS)
         /* -- extend: the live lanes' rays ------------------------------------------------------ */
         pfloat t, u, v;
         pint prim;
-        scene_closest_hit(nodes, tris, spheres, n_spheres, s.o, s.d, live_lanes, &t, &prim, &u, &v);
+        scene_closest_hit(nodes, tris, spheres, n_spheres, s.o, s.d, live_lanes, &t, &prim, &u, &v CUTOUT_ARGS);
         n_extend += popcount(live);
         pint hit = live_lanes & (prim != PRIM_MISS), escaped = live_lanes & pnot(hit);
 #ifdef HAS_MEDIA
@@ -174,7 +174,7 @@ __kernel void mk_path(WAVE_PARAMS)
             s.L = pv3_sel(s.L, pv3_add(s.L, pv3_mul(shadow.contribution, tr)), with_shadow);
 #else
             const pint occluded = scene_occluded(nodes, tris, spheres, n_spheres, shadow.o, shadow.d, with_shadow,
-                                                 PFLOAT(1.0f));
+                                                 PFLOAT(1.0f) CUTOUT_ARGS);
             s.L = pv3_sel(s.L, pv3_add(s.L, shadow.contribution), with_shadow & pnot(occluded));
 #endif
         }

@@ -41,6 +41,7 @@
 #include "render/filter.h"
 #ifdef HAS_TEXTURES
 #include "scene/textures.h"
+#include "scene/texture_lights.h"
 #endif
 #include "scene/shading.h"
 #ifdef HAS_AOVS
@@ -258,6 +259,11 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
      * or n (cl/scene/shading.h) */
     const ShadingLanes sh = shading_lanes(tris, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit,
                                           prim, u, v, ng, n, front, wo);
+    /* alpha cut-outs (MATERIAL_FLAG_MASK, Mitsuba's mask): the surface is met with probability
+     * `opacity`; one-sided BSDFs (MATERIAL_FLAG_ONE_SIDED) reflect nothing seen from behind */
+    const pint masked = hit & ((m.flags & MATERIAL_FLAG_MASK) != 0);
+    const pfloat opacity = masked ? pclamp(m.opacity, 0.0f, 1.0f) : PFLOAT(1.0f);
+    const pint surface = hit & pnot(((m.flags & MATERIAL_FLAG_ONE_SIDED) != 0) & pnot(sh.front));
 #ifdef HAS_AOVS
     aov_hit(aov_path, slot, hit, s->depth, &m, sh.n, wo, p, t, s->beta);
 #endif
@@ -300,7 +306,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
 
     /* -- next-event estimation -------------------------------------------------------------- */
 #if defined(HAS_LIGHTS) && INTEGRATOR != 1
-    const pint nee = going & bsdf_has_nondelta_lobes(&m);
+    const pint nee = going & surface & bsdf_has_nondelta_lobes(&m) & (opacity > 0.0f);
     if (pany(nee)) {
         LightSample ls;
         pfloat pick_pmf, dist;
@@ -310,6 +316,10 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
             pfloat bpdf;
             pvec3 f = bsdf_eval(&m, sampled, sh.n, sh.front, wo, wi, &bpdf);
             f = shading_eval(&sh, wi, f, &bpdf);
+            if (pany(masked)) { /* Mitsuba's mask: the nested BSDF's f and pdf times the opacity */
+                f = pv3_scale(f, opacity);
+                bpdf *= opacity;
+            }
             const pint lit = sampled & (pv3_max3(f) > 0.0f) & (dist > 0.0f);
             if (pany(lit)) {
                 const pfloat lpdf = pick_pmf * ls.pdf;
@@ -330,16 +340,29 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     /* -- BSDF sampling continues the path ---------------------------------------------------- */
     pfloat ubx, uby, pdf;
     sample_2d(key, dim + DIM_BSDF, &ubx, &uby);
+    pfloat ulobe = sample_1d(key, dim + DIM_BSDF_LOBE);
+    /* a masked surface lets the path through with probability 1 - opacity (Mitsuba's mask: the
+     * lobe sample u >= opacity; a null, delta bounce of weight 1 that counts as a segment), else
+     * its nested BSDF samples with u / opacity and pdf times opacity */
+    const pint passes = masked & (ulobe >= opacity);
+    ulobe = masked & pnot(passes) ? ulobe / opacity : ulobe;
     pvec3 wi;
     pint delta;
-    pvec3 weight = bsdf_sample(&m, going, sh.n, sh.front, wo, ubx, uby, sample_1d(key, dim + DIM_BSDF_LOBE), &wi,
-                               &pdf, &delta);
+    pvec3 weight = bsdf_sample(&m, going & surface & pnot(passes), sh.n, sh.front, wo, ubx, uby, ulobe, &wi, &pdf,
+                               &delta);
     weight = shading_sample(&sh, wi, weight, &pdf);
+    if (pany(masked)) {
+        pdf *= opacity;
+        weight = pv3_sel(weight, pv3_splat((float3)(1.0f)), passes);
+        wi = pv3_sel(wi, d, passes);
+        pdf = passes ? PFLOAT(0.0f) : pdf;
+        delta |= passes;
+    }
     pint on = going & ((pdf > 0.0f) | delta) & (pv3_max3(weight) > 0.0f);
     if (!pany(on)) return;
     const pvec3 beta = pv3_mul(s->beta, weight);
     const pfloat eta = dielectric_eta(&m, sh.front);
-    const pfloat eta_scale = pv3_dot(wi, sh.n) < 0.0f ? s->eta_scale * (eta * eta) : s->eta_scale;
+    const pfloat eta_scale = (pv3_dot(wi, sh.n) < 0.0f) & pnot(passes) ? s->eta_scale * (eta * eta) : s->eta_scale;
     const pint roulette = segments >= rr_depth;
 #ifdef RR_NO_ETA
     const pfloat q = pfmin(pv3_max3(beta), PFLOAT(0.95f));

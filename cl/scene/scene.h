@@ -20,17 +20,102 @@
 #include "render/spawn.h"
 #include "materials/dispatch.h"
 #include "render/sampler.h"
+/* the alpha cut-outs below look textures up (the host includes a file once, wherever its first
+ * #include stands, even inside an #if: so here, unconditionally) */
+#include "scene/textures.h"
 
 #define SPHERE_PRIM(s) (PRIM_SPHERE_FIRST - (s))
 #define IS_SPHERE(prim) ((prim) <= PRIM_SPHERE_FIRST)
 #define SPHERE_INDEX(prim) (PRIM_SPHERE_FIRST - (prim))
+
+/* Alpha cut-outs in the intersection (MATERIAL_FLAG_CUTOUT: pbrt-v4's shape alpha, glTF's
+ * alphaMode; not in scenes with media): a triangle hit whose alpha fails the test is no hit, so
+ * the closest-hit and occlusion queries trace on past it (t > the skipped hit's t), up to
+ * MAX_CUTOUT_SKIPS times (then the hit stands).  The test, at the hit's uv, lane by lane: alpha =
+ * opacity times the R of its TEXP_OPACITY texture; alpha_cutoff > 0: alpha < alpha_cutoff fails
+ * (glTF MASK); else alpha <= 0 fails, alpha >= 1 passes, and otherwise a hash of the ray's origin
+ * and direction in [0, 1) above alpha fails (pbrt-v4's HashFloat(o, d) > alpha).  Spheres (no
+ * uv) are opaque.  CUTOUT_PARAMS / CUTOUT_ARGS add the buffers the test reads to
+ * scene_closest_hit and scene_occluded; the kernels' WAVE_PARAMS name them. */
+#if defined(HAS_CUTOUTS) && !defined(HAS_MEDIA) && defined(HAS_TRIANGLES)
+#define CUTOUTS_ON
+#ifndef MAX_CUTOUT_SKIPS
+#define MAX_CUTOUT_SKIPS 16
+#endif
+#define CUTOUT_PARAMS , __global const int *tri_material, __global const Material *materials, \
+    __global const float2 *tri_uv, __global const Texture *textures, __global const float4 *tex_data
+#define CUTOUT_ARGS , tri_material, materials, tri_uv, textures, tex_data
+
+/* a hash of the ray's bits in [0, 1) (pbrt-v4 hashes them with MurmurHash: any good mix will do) */
+RT_INLINE float cutout_hash(float3 o, float3 d)
+{
+    uint h = 0x9e3779b9u;
+    const uint w[6] = {as_uint(o.x), as_uint(o.y), as_uint(o.z), as_uint(d.x), as_uint(d.y), as_uint(d.z)};
+    for (int i = 0; i < 6; ++i) {
+        h ^= w[i] * 0xcc9e2d51u;
+        h = (h << 15) | (h >> 17);
+        h *= 0x1b873593u;
+        h ^= h >> 16;
+        h *= 0x85ebca6bu;
+        h ^= h >> 13;
+    }
+    return (float)(h >> 8) * 0x1p-24f;
+}
+
+/* 1 where the triangle hit (prim, u, v) of ray (o, d) is cut out */
+RT_INLINE int cutout_skips(__global const int *tri_material, __global const Material *materials,
+                           __global const float2 *tri_uv, __global const Texture *textures,
+                           __global const float4 *tex_data, int prim, float u, float v, float3 o, float3 d)
+{
+    if (prim < 0) return 0; /* a miss or a sphere */
+    __global const Material *m = materials + tri_material[prim];
+    if ((m->flags & MATERIAL_FLAG_CUTOUT) == 0) return 0;
+    float a = m->opacity;
+#ifdef HAS_TEXTURES
+    for (int slot = 0; slot < TEX_SLOTS; ++slot) {
+        const int t = m->tex_scalar[slot];
+        if (t < 0) break;
+        if (((m->tex_params >> (4 * slot)) & 15) == TEXP_OPACITY)
+            a *= tex_sample(textures, tex_data, t, triangle_uv(tri_uv, prim, u, v)).x;
+    }
+#endif
+    if (m->alpha_cutoff > 0.0f) return a < m->alpha_cutoff;
+    if (a >= 1.0f) return 0;
+    if (a <= 0.0f) return 1;
+    return cutout_hash(o, d) > a;
+}
+
+/* the lanes of `live` whose hits (prim, t, u, v) are cut out */
+RT_INLINE pint cutout_lanes(__global const int *tri_material, __global const Material *materials,
+                            __global const float2 *tri_uv, __global const Texture *textures,
+                            __global const float4 *tex_data, pint live, pint prim, pfloat u, pfloat v, pvec3 o, pvec3 d)
+{
+#if PACKET_WIDTH == 1
+    return live && cutout_skips(tri_material, materials, tri_uv, textures, tex_data, prim, u, v, (float3)(o.x, o.y, o.z),
+                                (float3)(d.x, d.y, d.z));
+#else
+    pint out = PINT(0);
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        if (!PLANE_I(live, k)) continue;
+        const float3 ok = (float3)(PLANE(o.x, k), PLANE(o.y, k), PLANE(o.z, k));
+        const float3 dk = (float3)(PLANE(d.x, k), PLANE(d.y, k), PLANE(d.z, k));
+        PLANE_I(out, k) = cutout_skips(tri_material, materials, tri_uv, textures, tex_data, PLANE_I(prim, k),
+                                       PLANE(u, k), PLANE(v, k), ok, dk) ? -1 : 0;
+    }
+    return out;
+#endif
+}
+#else
+#define CUTOUT_PARAMS
+#define CUTOUT_ARGS
+#endif
 
 /* The closest hits of the lanes of `live` (t in (0, inf)): *prim (PRIM_MISS for none), *t, and
  * the barycentrics *u, *v of a triangle.  One ray through the BVH layout of traverse.h at width 1,
  * a packet (cl/accel/bvh_packet.h) in lanes; spheres one after the other, over the lanes. */
 RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
                                  __global const Sphere *spheres, int n_spheres, pvec3 o, pvec3 d, pint live,
-                                 pfloat *t, pint *prim, pfloat *u, pfloat *v)
+                                 pfloat *t, pint *prim, pfloat *u, pfloat *v CUTOUT_PARAMS)
 {
     *prim = PINT(PRIM_MISS);
     *u = *v = PFLOAT(0.0f);
@@ -38,7 +123,13 @@ RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const f
     *t = INFINITY;
 #ifdef HAS_TRIANGLES
     if (live) {
-        const Hit h = bvh_closest_hit(nodes, tris, (float3)(o.x, o.y, o.z), (float3)(d.x, d.y, d.z), 0.0f, INFINITY);
+        const float3 o1 = (float3)(o.x, o.y, o.z), d1 = (float3)(d.x, d.y, d.z);
+        Hit h = bvh_closest_hit(nodes, tris, o1, d1, 0.0f, INFINITY);
+#ifdef CUTOUTS_ON
+        for (int k = 0; k < MAX_CUTOUT_SKIPS && cutout_skips(tri_material, materials, tri_uv, textures, tex_data, h.prim,
+                                                            h.u, h.v, o1, d1); ++k)
+            h = bvh_closest_hit(nodes, tris, o1, d1, h.t, INFINITY);
+#endif
         *t = h.t; *prim = h.prim; *u = h.u; *v = h.v;
     }
 #endif
@@ -47,6 +138,22 @@ RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const f
 #ifdef HAS_TRIANGLES
     const PacketRay r = packet_rays(o, d);
     packet_closest_hit(nodes, &r, PFLOAT(0.0f), t, prim, u, v);
+#ifdef CUTOUTS_ON
+    pint again = cutout_lanes(tri_material, materials, tri_uv, textures, tex_data, live, *prim, *u, *v, o, d);
+    for (int k = 0; k < MAX_CUTOUT_SKIPS && pany(again); ++k) {
+        /* the cut-out lanes trace on past their hits; the others sit idle (tmax < tmin) */
+        const pfloat tmin = again ? *t : PFLOAT(0.0f);
+        pfloat t2 = again ? PFLOAT(INFINITY) : PFLOAT(-1.0f), u2 = PFLOAT(0.0f), v2 = PFLOAT(0.0f);
+        pint p2 = PINT(PRIM_MISS);
+        packet_closest_hit(nodes, &r, tmin, &t2, &p2, &u2, &v2);
+        *t = again ? t2 : *t;
+        *prim = again ? p2 : *prim;
+        *u = again ? u2 : *u;
+        *v = again ? v2 : *v;
+        again = cutout_lanes(tri_material, materials, tri_uv, textures, tex_data, again, *prim, *u, *v, o, d);
+    }
+    *t = live & (*prim == PRIM_MISS) ? PFLOAT(INFINITY) : *t;
+#endif
 #endif
 #endif
 #ifdef HAS_SPHERES
@@ -63,7 +170,7 @@ RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const f
 /* The lanes of `live` whose segment o + t d, t in (0, tmax), is blocked. */
 RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const float4 *tris,
                               __global const Sphere *spheres, int n_spheres, pvec3 o, pvec3 d, pint live,
-                              pfloat tmax)
+                              pfloat tmax CUTOUT_PARAMS)
 {
     pint blocked = PINT(0);
 #ifdef HAS_SPHERES
@@ -75,6 +182,36 @@ RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const floa
 #endif
 #ifdef HAS_TRIANGLES
     const pint rest = live & pnot(blocked);
+#ifdef CUTOUTS_ON
+    /* the closest hits in turn, past the cut-out ones: blocked by the first that stands */
+#if PACKET_WIDTH == 1
+    if (rest) {
+        const float3 o1 = (float3)(o.x, o.y, o.z), d1 = (float3)(d.x, d.y, d.z);
+        Hit h = bvh_closest_hit(nodes, tris, o1, d1, 0.0f, tmax);
+        for (int k = 0; k < MAX_CUTOUT_SKIPS && cutout_skips(tri_material, materials, tri_uv, textures, tex_data, h.prim,
+                                                            h.u, h.v, o1, d1); ++k)
+            h = bvh_closest_hit(nodes, tris, o1, d1, h.t, tmax);
+        blocked = h.prim != PRIM_MISS;
+    }
+#else
+    if (pany(rest)) {
+        const PacketRay r = packet_rays(o, d);
+        pint again = rest;
+        pfloat tmin = PFLOAT(0.0f);
+        for (int k = 0; k <= MAX_CUTOUT_SKIPS && pany(again); ++k) {
+            pfloat th = again ? tmax : PFLOAT(-1.0f), uh = PFLOAT(0.0f), vh = PFLOAT(0.0f);
+            pint ph = PINT(PRIM_MISS);
+            packet_closest_hit(nodes, &r, again ? tmin : PFLOAT(0.0f), &th, &ph, &uh, &vh);
+            const pint found = again & (ph != PRIM_MISS);
+            const pint cut = k < MAX_CUTOUT_SKIPS ? cutout_lanes(tri_material, materials, tri_uv, textures, tex_data,
+                                                                 found, ph, uh, vh, o, d) : PINT(0);
+            blocked |= found & pnot(cut);
+            tmin = cut ? th : tmin;
+            again = cut;
+        }
+    }
+#endif
+#else
 #if PACKET_WIDTH == 1
     if (rest) blocked = bvh_any_hit(nodes, tris, (float3)(o.x, o.y, o.z), (float3)(d.x, d.y, d.z), 0.0f, tmax);
 #else
@@ -82,6 +219,7 @@ RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const floa
         const PacketRay r = packet_rays(o, d);
         blocked |= packet_any_hit(nodes, &r, PFLOAT(0.0f), rest ? tmax : PFLOAT(-1.0f));
     }
+#endif
 #endif
 #endif
     return blocked & live;

@@ -9,7 +9,7 @@ __kernel void wf_extend(WAVE_PARAMS)
     float t, u, v;
     int prim;
     scene_closest_hit(nodes, tris, spheres, n_spheres, pv3_from(load3(ray_o, slot)), pv3_from(load3(ray_d, slot)),
-                      PTRUE, &t, &prim, &u, &v);
+                      PTRUE, &t, &prim, &u, &v CUTOUT_ARGS);
     hit_t[slot] = t;
     hit_prim[slot] = prim;
     hit_u[slot] = u;

@@ -202,6 +202,12 @@ def _material_record(m, index: int, arrays: dict) -> dict:
     into ``arrays``."""
     bsdf = m.mitsuba_bsdf()
     record = {"name": m.name, "bsdf": bsdf, "emission": [float(x) for x in m.emission]}
+    if m.masked or m.one_sided:
+        raise ValueError(f"material {m.name!r}: alpha cut-outs and one-sided materials are not exported to Mitsuba")
+    for t in (m.base_texture, m.emission_texture):
+        if t is not None and (t.wrap, t.filter, tuple(t.to_uv)) != ("repeat", "bilinear", (1, 0, 0, 0, 1, 0)):
+            raise ValueError(f"material {m.name!r}: a texture looked up other than bilinearly, repeated and "
+                             "untransformed is not exported to Mitsuba")
     if m.base_texture is not None and m.type != "conductor":  # a conductor's is inert in our kernels
         key = f"texture_base_{index}"
         if m.type == "diffuse":

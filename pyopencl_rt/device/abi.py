@@ -120,6 +120,10 @@ MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
 MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
 # dielectric: a thin sheet, Mitsuba's thindielectric (cl/materials/dielectric.h: thin_dielectric_sample)
 MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)
+# MASK: Mitsuba's mask, met with probability `opacity` (cl/render/path.h); ONE_SIDED: black from behind (Mitsuba's
+# BSDFs outside twosided); CUTOUT: a cut-out in the intersection, alpha `opacity`, `alpha_cutoff` (cl/scene/scene.h)
+MATERIAL_FLAG_MASK, MATERIAL_FLAG_ONE_SIDED, MATERIAL_FLAG_CUTOUT = (
+    define("MATERIAL_FLAG_MASK", 1024), define("MATERIAL_FLAG_ONE_SIDED", 2048), define("MATERIAL_FLAG_CUTOUT", 4096))
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
@@ -131,7 +135,7 @@ MATERIAL = np.dtype(
      ("flatness", np.float32), ("diff_trans", np.float32), ("rates", np.float32, 4),
      ("tex_scalar", np.int32, TEX_SLOTS), ("tex_params", np.int32),
      ("table", np.float32, ROUGH_TRANSMITTANCE_RES),
-     ("normal_scale", np.float32), ("pad0", np.int32), ("pad1", np.int32), ("pad2", np.int32)]
+     ("normal_scale", np.float32), ("opacity", np.float32), ("alpha_cutoff", np.float32), ("pad2", np.int32)]
 )
 assert MATERIAL.itemsize == 464
 # Texture indices (into the TEXTURE table; -1 = none), used only when the program is built with
@@ -148,20 +152,25 @@ _TEXP = define_enum("TEXP_", ("alpha", "roughness", "metallic", "anisotropic", "
                               "sheen_tint", "clearcoat", "clearcoat_gloss", "flatness", "diff_trans", "eta"))
 (TEXP_ALPHA, TEXP_ROUGHNESS, TEXP_METALLIC, TEXP_ANISOTROPIC, TEXP_SPEC_TRANS, TEXP_SPEC_TINT, TEXP_SHEEN,
  TEXP_SHEEN_TINT, TEXP_CLEARCOAT, TEXP_CLEARCOAT_GLOSS, TEXP_FLATNESS, TEXP_DIFF_TRANS, TEXP_ETA) = _TEXP.values()
+_TEXP["opacity"] = TEXP_OPACITY = define("TEXP_OPACITY", len(_TEXP))  # Material.opacity (mask, cut-out)
 TEXTURE_PARAMS = {k: "ior" if name == "eta" else name for name, k in _TEXP.items()}
 #   tex_normal    a tangent-space normal map (RGB = (n + 1) / 2, relative to the shading frame), or
 #                 with MATERIAL_FLAG_BUMP_MAP a height map (its luminance), perturbing the
 #                 shading normal (HAS_NORMAL_MAPS, cl/scene/shading.h); normal_scale scales the
 #                 normal map's x and y (glTF's normalTexture.scale) or the bump map's gradient
-
-# A texture (32 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row
-# by row from the top of the image (v = 0 is the top row, as in glTF; OBJ's v is flipped at load),
-# already linear (sRGB images that hold colours are decoded at load: flags bit 0 records that).
-# channels: the source image's channel count (informative).
+# A texture (64 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row by row from the
+# top (v = 0 is the top row, as in glTF; OBJ's v is flipped at load), linear (sRGB colour images are decoded at
+# load: flags bit 0); channels: the source's (informative).  Looked up (cl/scene/textures.h, as Mitsuba's bitmap)
+# at (a u + b v + c, d u + e v + f), to_uv = (a..f); wrap TEXTURE_WRAP_*, filter TEXTURE_FILTER_*; texels shared.
 TEXTURE_FLAG_SRGB = define("TEXTURE_FLAG_SRGB", 1)
+TEXTURE_WRAPS = define_enum("TEXTURE_WRAP_", ("repeat", "mirror", "clamp"))
+TEXTURE_FILTERS = define_enum("TEXTURE_FILTER_", ("bilinear", "nearest"))
+TEXTURE_WRAP_REPEAT, TEXTURE_WRAP_MIRROR, TEXTURE_WRAP_CLAMP = TEXTURE_WRAPS.values()
+TEXTURE_FILTER_BILINEAR, TEXTURE_FILTER_NEAREST = TEXTURE_FILTERS.values()
 TEXTURE = np.dtype([("offset", np.int32), ("width", np.int32), ("height", np.int32), ("channels", np.int32),
-                    ("flags", np.int32), ("pad0", np.int32), ("pad1", np.int32), ("pad2", np.int32)])
-assert TEXTURE.itemsize == 32
+                    ("flags", np.int32), ("wrap", np.int32), ("filter", np.int32), ("pad0", np.int32),
+                    ("to_uv", np.float32, 6), ("pad1", np.int32), ("pad2", np.int32)])
+assert TEXTURE.itemsize == 64
 
 # Participating media (cl/render/media.h; pyopencl_rt/scene/media.py packs them).  A medium (64 bytes):
 #   type      MEDIUM_TYPE_HOMOGENEOUS (sigma_t everywhere) or MEDIUM_TYPE_GRID (sigma_t times its density grid, inside the

@@ -78,6 +78,22 @@ class Material:
     # the reflectance (albedo; a dielectric's tint) is multiplied by the triangles' interpolated
     # vertex colours (Scene.colors): Mitsuba's mesh_attribute texture, glTF's COLOR_0, PLY colours
     vertex_colors: bool = False
+    # An alpha cut-out (Mitsuba's mask BSDF): ``masked`` surfaces are met with probability
+    # ``opacity`` (times scalar_textures["opacity"], the texture's luminance as Mitsuba's eval_1
+    # reads it; clamped to [0, 1]), else the path goes straight through in a null, delta bounce
+    # that counts toward max_depth (cl/render/path.h); shadow rays see them opaque, as Mitsuba's.
+    masked: bool = False
+    opacity: float = 1.0
+    # one-sided (Mitsuba's BSDFs outside a twosided): nothing is reflected seen from behind the
+    # shading normal; ours are two-sided otherwise
+    one_sided: bool = False
+    # An alpha cut-out in the intersection (pbrt-v4's shape "alpha", glTF's alphaMode MASK /
+    # BLEND): a triangle hit whose alpha (``opacity`` times scalar_textures["opacity"]'s R) is below
+    # ``alpha_cutoff`` (> 0, glTF's MASK) or, with alpha_cutoff 0, below a hash of the ray (pbrt-v4's
+    # stochastic alpha) is no hit, for paths and shadow rays alike (cl/scene/scene.h); spheres
+    # are opaque.  Not with participating media (the scene warns).
+    cutout: bool = False
+    alpha_cutoff: float = 0.0
 
 
     def textures(self) -> list:
@@ -141,7 +157,11 @@ class Material:
             rec["tex_params"] |= param_ids[name] << (4 * slot)
             slot += 1
         rec["normal_scale"] = self.normal_scale
+        rec["opacity"] = min(max(float(self.opacity), 0.0), 1.0) if self.masked or self.cutout else 0.0  # with a flag only
+        rec["alpha_cutoff"] = float(self.alpha_cutoff) if self.cutout else 0.0
         flags = int(rec["flags"]) | (abi.MATERIAL_FLAG_VERTEX_COLOR if self.vertex_colors else 0)
+        flags |= (abi.MATERIAL_FLAG_MASK if self.masked else 0) | (abi.MATERIAL_FLAG_ONE_SIDED if self.one_sided else 0)
+        flags |= abi.MATERIAL_FLAG_CUTOUT if self.cutout else 0
         if self.normal_texture is not None:
             flags |= abi.MATERIAL_FLAG_BUMP_MAP if self.bump_map else 0
             for name in self.map_conventions:
@@ -549,6 +569,14 @@ class Scene:
             defines["HAS_NORMAL_MAPS"] = True
         if self.has_vertex_colors():
             defines["HAS_VERTEX_COLORS"] = True
+        if len(self.faces) and any(m.cutout for m in self.materials):
+            if self.media:
+                import warnings
+
+                warnings.warn("alpha cut-outs in the intersection (pbrt alpha, glTF alphaMode) are not rendered in "
+                              "scenes with participating media: the surfaces are opaque", stacklevel=2)
+            else:
+                defines["HAS_CUTOUTS"] = True  # cl/scene/scene.h
         return defines
 
     def sphere_records(self) -> np.ndarray:

@@ -8,12 +8,13 @@ transfer function (IEC 61966-2-1); data textures (glTF metallic-roughness) are u
 8-bit values map to [0, 1] by /255, 16-bit by /65535; grey images are replicated into RGB and a
 missing alpha is 1.
 
-The device samples textures with bilinear filtering and wrap (repeat) addressing
-(``cl/scene/textures.h``); :func:`bilinear` is the same lookup in numpy float64 (the reference the tests
-hold the kernel to).
+The device looks textures up as each Texture's ``to_uv``, ``wrap`` and ``filter`` say (bilinear
+and repeat by default; ``cl/scene/textures.h``, abi.TEXTURE); :func:`lookup` is the same lookup in
+numpy float64 (the reference the tests hold the kernel to), :func:`bilinear` its default case.
 """
 from __future__ import annotations
 
+import dataclasses
 import weakref
 from dataclasses import dataclass
 
@@ -28,14 +29,64 @@ def srgb_to_linear(c):
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
+WRAPS = tuple(abi.TEXTURE_WRAPS)      # "repeat", "mirror", "clamp"
+FILTERS = tuple(abi.TEXTURE_FILTERS)  # "bilinear", "nearest"
+IDENTITY_UV = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+
+
+def affine_uv(matrix) -> tuple:
+    """The 2-D affine map (a, b, c, d, e, f): u' = a u + b v + c, v' = d u + e v + f, of a 3 x 3
+    matrix acting on (u, v, 1), or of a 4 x 4 one whose rows 0, 1 and columns 0, 1, 3 act on
+    (u, v) (Mitsuba's to_uv given as a 4 x 4 transform, as its Properties read it)."""
+    m = np.asarray(matrix, np.float64)
+    if m.shape == (4, 4):
+        m = m[np.ix_([0, 1, 3], [0, 1, 3])]
+    if m.shape != (3, 3):
+        raise ValueError(f"a texture coordinate transform must be 3 x 3 or 4 x 4, got {m.shape}")
+    return tuple(float(x) for x in (m[0, 0], m[0, 1], m[0, 2], m[1, 0], m[1, 1], m[1, 2]))
+
+
+def compose_uv(outer, inner) -> tuple:
+    """The affine map ``outer`` after ``inner`` (both (a, b, c, d, e, f))."""
+    a = np.array([[*outer[:3]], [*outer[3:]], [0, 0, 1]], np.float64)
+    b = np.array([[*inner[:3]], [*inner[3:]], [0, 0, 1]], np.float64)
+    return affine_uv(a @ b)
+
+
 @dataclass(eq=False)
 class Texture:
-    """Linear RGBA texels (H, W, 4) float32; ``srgb`` records that they were decoded from sRGB."""
+    """Linear RGBA texels (H, W, 4) float32; ``srgb`` records that they were decoded from sRGB.
+
+    How it is looked up: ``to_uv``, the affine map (a, b, c, d, e, f) applied to the hit's uv
+    (u' = a u + b v + c, v' = d u + e v + f), ``wrap`` (one of WRAPS) and ``filter`` (one of
+    FILTERS); :meth:`with_lookup` gives the same texels with other settings (they share one copy
+    on the device)."""
 
     texels: np.ndarray
     srgb: bool = False
     channels: int = 4
     name: str = "texture"
+    wrap: str = "repeat"
+    filter: str = "bilinear"
+    to_uv: tuple = IDENTITY_UV
+
+    def __post_init__(self):
+        if self.wrap not in WRAPS:
+            raise ValueError(f"{self.name}: wrap must be one of {', '.join(WRAPS)}, got {self.wrap!r}")
+        if self.filter not in FILTERS:
+            raise ValueError(f"{self.name}: filter must be one of {', '.join(FILTERS)}, got {self.filter!r}")
+        self.to_uv = tuple(float(x) for x in self.to_uv)
+        if len(self.to_uv) != 6 or not all(np.isfinite(self.to_uv)):
+            raise ValueError(f"{self.name}: to_uv must be 6 finite numbers (a b c d e f), got {self.to_uv}")
+
+    def with_lookup(self, wrap=None, filter=None, to_uv=None) -> "Texture":
+        """These texels with other lookup settings (None keeps one); ``self`` when nothing changes."""
+        wrap = self.wrap if wrap is None else wrap
+        filter = self.filter if filter is None else filter
+        to_uv = self.to_uv if to_uv is None else tuple(float(x) for x in to_uv)
+        if (wrap, filter, to_uv) == (self.wrap, self.filter, self.to_uv):
+            return self
+        return dataclasses.replace(self, wrap=wrap, filter=filter, to_uv=to_uv)
 
     @property
     def width(self) -> int:
@@ -66,7 +117,8 @@ def scalar_texture(texture: Texture) -> Texture:
         lum = t[..., :3] @ np.array(LUMINANCE) if texture.channels >= 3 else t[..., 0]
         out = np.ones_like(t)
         out[..., :3] = lum[..., None]
-        cached = Texture(np.ascontiguousarray(out, np.float32), srgb=texture.srgb, channels=1, name=texture.name)
+        cached = Texture(np.ascontiguousarray(out, np.float32), srgb=texture.srgb, channels=1, name=texture.name,
+                         wrap=texture.wrap, filter=texture.filter, to_uv=texture.to_uv)
         _SCALAR_TEXTURES[texture] = cached
     return cached
 
@@ -122,42 +174,73 @@ def texture_from_image(image, *, srgb: bool = False, name: str | None = None) ->
 
 
 def pack_textures(textures) -> tuple[np.ndarray, np.ndarray]:
-    """(TEXTURE table, float32 texel buffer of 4 floats per texel) for a list of textures."""
+    """(TEXTURE table, float32 texel buffer of 4 floats per texel) for a list of textures; textures
+    that share their texels array (Texture.with_lookup) share its copy in the buffer."""
     table = np.zeros(max(1, len(textures)), abi.TEXTURE)
+    table["to_uv"] = IDENTITY_UV
     chunks = []
     offset = 0
+    placed: dict[int, int] = {}  # id(texels) -> offset
     for i, t in enumerate(textures):
-        table[i]["offset"] = offset
+        if id(t.texels) not in placed:
+            placed[id(t.texels)] = offset
+            chunks.append(t.texels.reshape(-1))
+            offset += t.width * t.height
+        table[i]["offset"] = placed[id(t.texels)]
         table[i]["width"] = t.width
         table[i]["height"] = t.height
         table[i]["channels"] = t.channels
         table[i]["flags"] = abi.TEXTURE_FLAG_SRGB if t.srgb else 0
-        chunks.append(t.texels.reshape(-1))
-        offset += t.width * t.height
+        table[i]["wrap"] = abi.TEXTURE_WRAPS[t.wrap]
+        table[i]["filter"] = abi.TEXTURE_FILTERS[t.filter]
+        table[i]["to_uv"] = t.to_uv
     if offset >= 2**31:
         raise ValueError("textures too large (more than 2^31 texels in all)")
     data = np.concatenate(chunks).astype(np.float32) if chunks else np.zeros(4, np.float32)
     return table, data
 
 
-def bilinear(texels, uv) -> np.ndarray:
-    """Bilinear lookup with wrap addressing (float64), as cl/scene/textures.h does it: texel (x, y)
-    covers [x, x+1) / W x [y, y+1) / H, its centre at ((x + 0.5) / W, (y + 0.5) / H)."""
+def _wrap_index(i, n, wrap):
+    if wrap == "clamp":
+        return np.clip(i, 0, n - 1)
+    if wrap == "mirror":
+        m = np.mod(i, 2 * n)
+        return np.where(m >= n, 2 * n - 1 - m, m)
+    return np.mod(i, n)
+
+
+def lookup(texels, uv, wrap="repeat", filter="bilinear", to_uv=IDENTITY_UV) -> np.ndarray:
+    """A lookup as cl/scene/textures.h does it (float64), from Dr.Jit's definitions: uv through
+    to_uv; bilinear: texel x's centre at (x + 0.5) / W, the four centres around uv weighted;
+    nearest: texel floor(u W); indices outside the image wrapped (repeat: modulo W; mirror:
+    modulo 2 W, the second copy reversed; clamp: to [0, W - 1])."""
     t = np.asarray(texels, np.float64)
     h, w = t.shape[:2]
     uv = np.asarray(uv, np.float64).reshape(-1, 2)
     uv = np.where(np.isfinite(uv), uv, 0.0)
-    uv = uv - np.floor(uv)
-    fx = uv[:, 0] * w - 0.5
-    fy = uv[:, 1] * h - 0.5
+    a, b, c, d, e, f = to_uv
+    u = a * uv[:, 0] + b * uv[:, 1] + c
+    v = d * uv[:, 0] + e * uv[:, 1] + f
+    if filter == "nearest":
+        x = _wrap_index(np.floor(u * w).astype(np.int64), w, wrap)
+        y = _wrap_index(np.floor(v * h).astype(np.int64), h, wrap)
+        return t[y, x]
+    fx = u * w - 0.5
+    fy = v * h - 0.5
     x0 = np.floor(fx)
     y0 = np.floor(fy)
     ax = (fx - x0)[:, None]
     ay = (fy - y0)[:, None]
-    x0 = x0.astype(np.int64) % w
-    y0 = y0.astype(np.int64) % h
-    x1 = (x0 + 1) % w
-    y1 = (y0 + 1) % h
+    x0 = x0.astype(np.int64)
+    y0 = y0.astype(np.int64)
+    x1, y1 = _wrap_index(x0 + 1, w, wrap), _wrap_index(y0 + 1, h, wrap)
+    x0, y0 = _wrap_index(x0, w, wrap), _wrap_index(y0, h, wrap)
     top = t[y0, x0] * (1 - ax) + t[y0, x1] * ax
     bot = t[y1, x0] * (1 - ax) + t[y1, x1] * ax
     return top * (1 - ay) + bot * ay
+
+
+def bilinear(texels, uv) -> np.ndarray:
+    """Bilinear lookup with wrap (repeat) addressing (float64), as cl/scene/textures.h does it by
+    default: texel (x, y) covers [x, x+1) / W x [y, y+1) / H, its centre at ((x + 0.5) / W, (y + 0.5) / H)."""
+    return lookup(texels, uv)

@@ -164,8 +164,10 @@ CASES = [  # (type, TOML keys, expected record fields)
       "tex_params": texp("spec_tint", "sheen", "sheen_tint", "flatness")}),
 ]
 # the keys every type takes, and what they do to the record
-COMMON = ({"emission": [1.0, 2.0, 4.0], "two_sided": True, "emission_texture": "t.png"},
-          {"emission": (1, 2, 4), "flags": abi.MATERIAL_FLAG_TWO_SIDED, "tex_emission": 0})
+COMMON = ({"emission": [1.0, 2.0, 4.0], "two_sided": True, "emission_texture": "t.png", "opacity": 0.5,
+           "opacity_texture": "t.png"},
+          {"emission": (1, 2, 4), "flags": abi.MATERIAL_FLAG_TWO_SIDED | abi.MATERIAL_FLAG_MASK, "tex_emission": 0,
+           "opacity": 0.5, "tex_scalar": (1, -1, -1, -1, -1, -1), "tex_params": abi.TEXP_OPACITY})
 
 
 def _toml_value(v):

@@ -419,11 +419,11 @@ def test_rfilters(tmp_path):
 
 def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
     """Mitsuba gives a shape with an area emitter and no BSDF a diffuse of reflectance 0 (one
-    without an emitter 0.5); a checkerboard's to_uv is baked into its image: texel (x, y) is color0
-    where the fractional parts of the transformed (u, v) at its centre lie on the same side of 1/2
-    (Mitsuba's checkerboard); per axis, whole-number scales give whole periods of a whole number of
-    texels (at least 16 a period, 64 in all), other scales 16 texels a period (at least 64); a
-    rotation a square image, 16 texels a period along the densest direction."""
+    without an emitter 0.5); a checkerboard is a 2 x 2 image looked up nearest and repeated
+    through its to_uv (the lookup's affine map, rows 0, 1 and columns 0, 1, 3 of the 4 x 4): color0
+    where the fractional parts of the transformed (u, v) lie on the same side of 1/2."""
+    from pyopencl_rt.scene.textures import lookup
+
     scene, w = load(write(tmp_path, '<shape type="sphere"><emitter type="area"/></shape>'
                                     '<shape type="sphere"><point name="center" x="3"/></shape>'))
     assert w == [] and [scene.materials[i].albedo for i in scene.sphere_materials] == [(0, 0, 0), (0.5, 0.5, 0.5)]
@@ -434,19 +434,21 @@ def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
                                         '</bsdf></shape>'))
         return scene.materials[0].base_texture, w
 
-    for to_uv, (su, sv), (nu, nv) in (('<scale x="5" y="3"/>', (5, 3), (5 * 16, 3 * 22)),
-                                      ('<scale x="2.5" y="2"/>', (2.5, 2), (64, 64)),
-                                      ('<scale x="12.5" y="2.5"/>', (12.5, 2.5), (200, 64))):
+    rng = np.random.default_rng(3)
+    uv = rng.uniform(0, 1, (4000, 2))
+    for to_uv, m in (('<scale x="5" y="3"/>', np.array([[5, 0, 0], [0, 3, 0]])),
+                     ('<scale x="2.5" y="2"/><translate x="0.1" y="-0.3"/>', np.array([[2.5, 0, 0.1], [0, 2, -0.3]])),
+                     ('<rotate z="1" angle="30"/><scale x="4" y="4"/>',
+                      4 * np.array([[math.cos(math.pi / 6), -math.sin(math.pi / 6), 0],
+                                    [math.sin(math.pi / 6), math.cos(math.pi / 6), 0]]))):
         tex, w = checker(to_uv)
-        assert w == [] and (tex.width, tex.height) == (nu, nv)
-        u, v = (np.arange(nu) + 0.5) / nu, (np.arange(nv) + 0.5) / nv
-        odd = ((su * u[None, :]) % 1 > 0.5) ^ ((sv * v[:, None]) % 1 > 0.5)  # [row v, column u]
+        assert w == [] and (tex.width, tex.height, tex.filter, tex.wrap) == (2, 2, "nearest", "repeat")
+        assert np.allclose(tex.to_uv, m.reshape(-1), atol=1e-6)
+        t = uv @ m[:, :2].T + m[:, 2]
+        odd = ((t[:, 0] % 1) > 0.5) ^ ((t[:, 1] % 1) > 0.5)
         # color0 0.4, color1 0.2 (Mitsuba's defaults), linear
-        assert np.allclose(tex.texels[..., 0], np.where(odd, 0.2, 0.4), atol=1e-6)
-    tex, _ = checker('<scale x="5" y="3"/>')
-    assert np.array_equal(tex.texels[:22, :16], tex.texels[44:, 64:])  # one period repeated
-    tex, w = checker('<rotate z="1" angle="30"/><scale x="4" y="4"/>')
-    assert w == [] and tex.width == tex.height == 96
+        got = lookup(tex.texels, uv, tex.wrap, tex.filter, tex.to_uv)[:, 0]
+        assert np.mean(np.abs(got - np.where(odd, 0.2, 0.4)) > 1e-6) < 1e-3
 
 
 def test_orthographic_sensor(tmp_path):
@@ -593,14 +595,13 @@ def test_bsdfs(tmp_path):
               "sheen_tint": 0.0, "clearcoat": 0.0, "clearcoat_gloss": 0.0, "flatness": 0.0, "rates": (1, 1, 1, 0)},
              ior=pytest.approx(2 / (1 - math.sqrt(0.04)) - 1)),  # Mitsuba's eta from specular 0.5
         dict(type="conductor", eta=None, f0=(0.5, 0.5, 0.5)),
-        dict(type="diffuse", albedo=(0.2, 0.2, 0.2)),
+        dict(type="diffuse", albedo=(0.2, 0.2, 0.2), masked=True, opacity=0.5, one_sided=True),
         dict(type="conductor", alpha=0.1, bump_map=True, normal_scale=2.0, map_conventions=("side", "flip", "terminator")),
     ]
     for i, (mat, want) in enumerate(zip(mats, expect)):
         for key, value in want.items():
             assert getattr(mat, key) == value, (i, key, getattr(mat, key))
     expected_warnings = ['<bsdf type="roughconductor">: the Beckmann distribution (Mitsuba\'s default) is rendered as GGX',
-                         '<bsdf type="mask">: opacity masks are not supported; rendering its nested BSDF',
                          '<bsdf type="roughconductor">: the Beckmann distribution']
     assert len(warned) == len(expected_warnings)
     for w, needle in zip(warned, expected_warnings):
@@ -619,6 +620,8 @@ def test_textures(tmp_path):
     assert mats[0].albedo == (1, 1, 1) and mats[0].base_texture.srgb and mats[0].base_texture.texels.shape == (4, 8, 4)
     assert np.allclose(mats[0].base_texture.texels[..., :3], [1, 0, 0])
     assert not mats[1].base_texture.srgb
+    assert (mats[0].base_texture.wrap, mats[0].base_texture.filter) == ("repeat", "bilinear")
+    assert (mats[1].base_texture.wrap, mats[1].base_texture.filter) == ("clamp", "nearest")
     t = mats[2].base_texture.texels[..., 0]
     n = t.shape[0]  # Mitsuba's checkerboard: color0 where u and v are on the same side of 1/2
     assert np.allclose([t[0, 0], t[n - 1, n - 1], t[0, n - 1], t[n - 1, 0]], [0.1, 0.1, 0.9, 0.9])
@@ -629,13 +632,15 @@ def test_textures(tmp_path):
     assert mats[4].eta == pytest.approx((0.3, 0.3, 0.3))  # only the alpha of rough conductors is textured
     metallic, roughness = (mats[5].scalar_textures[k].texels for k in ("metallic", "roughness"))
     assert mats[5].metallic == 1.0 and mats[5].params["roughness"] == 1.0
-    v, u = (np.arange(metallic.shape[0]) + 0.5) / metallic.shape[0], (np.arange(metallic.shape[1]) + 0.5) / metallic.shape[1]
-    same = ((4 * u[None, :] % 1) > 0.5) == ((2 * v[:, None] % 1) > 0.5)  # to_uv: u * 4, v * 2
-    assert np.allclose(metallic[..., 0], np.where(same, 0.1, 0.9)) and np.allclose(metallic[..., :3], metallic[..., :1])
+    from pyopencl_rt.scene.textures import lookup
+
+    mt = mats[5].scalar_textures["metallic"]
+    uv = np.random.default_rng(1).uniform(0, 1, (2000, 2))
+    same = ((4 * uv[:, 0] % 1) > 0.5) == ((2 * uv[:, 1] % 1) > 0.5)  # to_uv: u * 4, v * 2
+    got = lookup(mt.texels, uv, mt.wrap, mt.filter, mt.to_uv)
+    assert np.allclose(got[:, 0], np.where(same, 0.1, 0.9)) and np.allclose(metallic[..., :3], metallic[..., :1])
     assert np.allclose(roughness[..., :3], 0.212671)  # luminance of the red image
     assert [w.split(": ", 1)[1] for w in warned] == [
-        '<texture type="bitmap">: filter_type \'nearest\': we filter bilinearly',
-        '<texture type="bitmap">: wrap_mode \'clamp\': we repeat',
         '<texture type="checkerboard"> as "eta" of <bsdf type="roughconductor">: textures are not supported here; '
         'using its mean (0.3, 0.3, 0.3)']
 

@@ -308,18 +308,33 @@ def test_textures(tmp_path):
     write_png_image(tmp_path / "t.png", np.array([[[255, 0, 0]], [[0, 0, 255]]], np.uint8))  # red above blue
     s, w = world(tmp_path, """
         Texture "img" "spectrum" "imagemap" "string filename" "t.png" "string encoding" "linear" "float scale" 0.5
-        Texture "check" "spectrum" "checkerboard" "float uscale" 2 "float vscale" 2
-            "rgb tex1" [1 1 1] "rgb tex2" [0 0 0]
+        Texture "check" "spectrum" "checkerboard" "float uscale" 2 "float vscale" 3 "float udelta" 0.3
+            "float vdelta" -0.2 "rgb tex1" [1 1 1] "rgb tex2" [0 0 0]
         Texture "c" "spectrum" "constant" "rgb value" [0.2 0.3 0.4]
+        Texture "moved" "spectrum" "imagemap" "string filename" "t.png" "float uscale" 4 "float vscale" 2
+            "float udelta" 0.25 "float vdelta" 0.5 "string wrap" "clamp" "string filter" "point"
         Material "diffuse" "texture reflectance" "img" """ + TRIANGLE + """
         Material "diffuse" "texture reflectance" "check" """ + TRIANGLE + """
-        Material "diffuse" "texture reflectance" "c" """ + TRIANGLE)
+        Material "diffuse" "texture reflectance" "c" """ + TRIANGLE + """
+        Material "diffuse" "texture reflectance" "moved" """ + TRIANGLE)
     assert w == []
-    img, check, const = (s.materials[i] for i in s.face_materials)
+    img, check, const, moved = (s.materials[i] for i in s.face_materials)
     assert not img.base_texture.srgb and np.allclose(img.base_texture.texels[:, 0, :3], [[0.5, 0, 0], [0, 0, 0.5]])
-    t = check.base_texture.texels[..., 0]
-    n = t.shape[0]  # pbrt: tex1 where floor(2u) + floor(2t) is even; t = 1 - our v
-    assert np.allclose([t[n - 1, 0], t[0, 0], t[n - 1, n - 1], t[0, n - 1]], [1, 0, 0, 1])
+    from pyopencl_rt.scene.textures import lookup
+
+    # pbrt-v4: (s, t) = (uscale u + udelta, vscale v + vdelta) of its uv, whose v is 1 - ours
+    uv = np.random.default_rng(2).uniform(0, 1, (3000, 2))
+    st = np.stack([2 * uv[:, 0] + 0.3, 3 * (1 - uv[:, 1]) - 0.2], -1)
+    even = (np.floor(st[:, 0]) + np.floor(st[:, 1])) % 2 == 0  # tex1 where floor(s) + floor(t) is even
+    t = check.base_texture
+    got = lookup(t.texels, uv, t.wrap, t.filter, t.to_uv)[:, 0]
+    assert np.mean(got != np.where(even, 1.0, 0.0)) < 1e-3
+    # an image map is looked up at (s, 1 - t): our v' = 1 - t
+    t = moved.base_texture
+    assert (t.wrap, t.filter) == ("clamp", "nearest")
+    st = np.stack([4 * uv[:, 0] + 0.25, 2 * (1 - uv[:, 1]) + 0.5], -1)
+    want = lookup(t.texels, np.stack([st[:, 0], 1 - st[:, 1]], -1), "clamp", "nearest")
+    assert np.allclose(lookup(t.texels, uv, t.wrap, t.filter, t.to_uv), want)
     assert const.albedo == (0.2, 0.3, 0.4) and const.base_texture is None
 
 
@@ -409,7 +424,7 @@ WorldBegin
 MakeNamedMedium "fog" "string type" "nanovdb"
 Attribute "shape" "float radius" 2
 Material "diffuse" "float sigma" 20
-Shape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0] "float alpha" 0.5
+Shape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0]
 LightSource "goniometric"
 TransformTimes 0 1
 """)
@@ -420,7 +435,6 @@ TransformTimes 0 1
               ("MakeNamedMedium", 'MakeNamedMedium "fog": medium type "nanovdb" is not supported; rendered as vacuum'),
               ("Attribute", 'Attribute "shape": default parameters are not supported; ignored'),
               ("sigma", '"float sigma" of Material "diffuse": not supported; ignored'),
-              ("alpha", 'Shape "trianglemesh": "alpha" cut-outs are not supported'),
               ("goniometric", 'LightSource "goniometric": not supported; ignored'),
               ("TransformTimes", "TransformTimes: motion blur is not supported; ignored"),
               ("realistic", 'Camera "realistic": not supported; using a camera that frames the scene')]
@@ -478,3 +492,27 @@ def test_malformed_input_is_one_clear_error(tmp_path, text, message):
 def test_no_shapes_is_an_error(tmp_path):
     with pytest.raises(SceneError, match=r"s\.pbrt: the scene has no shapes that we can render"):
         load_scene(write(tmp_path, 'WorldBegin LightSource "infinite"'))
+
+
+def test_shape_alpha_is_an_intersection_cutout(tmp_path):
+    """pbrt-v4's shape "alpha": a float (1: opaque, the material unchanged) or a float texture
+    (its first channel) makes the shape's material an alpha cut-out tested in the intersection
+    (Material.cutout, stochastic: alpha_cutoff 0); shapes sharing a material and an alpha share
+    the cut-out material."""
+    write_png_image(tmp_path / "a.png", np.array([[[0, 10, 20], [255, 0, 0]]], np.uint8))
+    s, w = world(tmp_path, f"""
+        Texture "mask" "float" "imagemap" "string filename" "a.png" "string encoding" "linear" "string filter" "point"
+        Material "diffuse"
+        Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0] "float alpha" 1
+        Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0] "float alpha" 0.25
+        Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0] "float alpha" 0.25
+        Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0] "texture alpha" "mask"
+        """)
+    assert w == []
+    opaque, quarter, quarter2, textured = (s.materials[i] for i in s.face_materials)
+    assert not opaque.cutout and quarter is quarter2
+    assert quarter.cutout and quarter.opacity == 0.25 and quarter.alpha_cutoff == 0.0
+    t = textured.scalar_textures["opacity"]
+    assert textured.cutout and textured.opacity == 1.0 and t.filter == "nearest"
+    assert np.allclose(t.texels[0, :, :3], [[0, 0, 0], [1, 1, 1]])  # channel 0, as pbrt's float textures
+    assert s.material_defines().get("HAS_CUTOUTS")

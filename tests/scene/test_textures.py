@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 from pyopencl_rt import load_scene
+from pyopencl_rt.device import abi
 from pyopencl_rt.render.api import render_full
 from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
-from pyopencl_rt.scene.textures import bilinear, pack_textures, srgb_to_linear, texture_from_array
+from pyopencl_rt.scene.textures import bilinear, lookup, pack_textures, srgb_to_linear, texture_from_array
 
 import harness
 
@@ -60,6 +61,47 @@ def test_bilinear_matches_reference(runtime, rng):
     # non-finite uv reads (0, 0)
     got = tex_lookup(runtime, texs, 0, np.array([[np.nan, np.inf]], np.float32))
     assert np.all(np.isfinite(got))
+
+
+def test_wrap_filter_and_to_uv_match_reference(runtime, rng):
+    """Every wrap mode (repeat, mirror, clamp) with either filter (bilinear, nearest) and an affine
+    to_uv, on textures that share one image (packed once), matches the float64 reference for uv
+    inside, outside and far outside [0, 1)."""
+    base = texture_from_array(rng.random((5, 7, 4)).astype(np.float32))
+    to_uv = (2.0, 0.3, -0.5, -0.2, 1.5, 0.25)
+    texs = [base.with_lookup(wrap=w, filter=f, to_uv=to_uv) for w in ("repeat", "mirror", "clamp")
+            for f in ("bilinear", "nearest")]
+    table, data = pack_textures(texs)
+    assert len(data) == 5 * 7 * 4 and np.all(table["offset"] == 0)  # one copy of the texels
+    uv = np.concatenate([rng.uniform(0, 1, (1500, 2)), rng.uniform(-4, 4, (1500, 2)),
+                         rng.uniform(-300, 300, (300, 2))]).astype(np.float32)
+    for i, t in enumerate(texs):
+        got = tex_lookup(runtime, texs, i, uv)
+        want = lookup(t.texels, uv, t.wrap, t.filter, t.to_uv)
+        err = np.abs(got - want).max(axis=1)
+        # nearest: a coordinate within rounding of a texel edge may land on either side
+        bad = err > (2e-4 if np.abs(uv).max() > 10 else 2e-5)
+        assert bad.mean() < (0.002 if t.filter == "nearest" else 0.0005), (t.wrap, t.filter, err.max())
+
+
+def test_wrap_modes_closed_form():
+    """The reference's wrap modes on a 1 x 4 ramp (texel x holds x), Dr.Jit's definitions: mirror
+    repeats the edge texel once at each border, clamp continues it, repeat tiles; bilinear halfway
+    between two texel centres averages them, nearest takes the texel holding the coordinate."""
+    ramp = np.arange(4, dtype=np.float64).reshape(1, 4, 1)
+    u = np.array([-0.125, 0.0625, 0.9375, 1.125, 1.375, -0.375])  # texel coordinates -0.5, 0.25, 3.75, 4.5, 5.5, -1.5
+    uv = np.stack([u, np.full_like(u, 0.5)], -1)
+    near = {w: lookup(ramp, uv, w, "nearest")[:, 0] for w in ("repeat", "mirror", "clamp")}
+    assert list(near["repeat"]) == [3, 0, 3, 0, 1, 2]
+    assert list(near["mirror"]) == [0, 0, 3, 3, 2, 1]
+    assert list(near["clamp"]) == [0, 0, 3, 3, 3, 0]
+    # bilinear at u = 0 (texel coordinate -0.5: halfway between texel -1 and 0) and u = 1
+    at = np.array([[0.0, 0.5], [1.0, 0.5]])
+    assert list(lookup(ramp, at, "repeat")[:, 0]) == [1.5, 1.5]
+    assert list(lookup(ramp, at, "mirror")[:, 0]) == [0.0, 3.0]
+    assert list(lookup(ramp, at, "clamp")[:, 0]) == [0.0, 3.0]
+    # to_uv: u' = 2 u - 0.5, so u = 0.25 reads u' = 0 (bilinear, repeat: texels 3 and 0)
+    assert lookup(ramp, [[0.25, 0.5]], to_uv=(2, 0, -0.5, 0, 1, 0))[0, 0] == 1.5
 
 
 def test_srgb_decode():
@@ -238,6 +280,74 @@ def test_gltf_import(tmp_path):
     assert sc.material_defines().get("HAS_TEXTURES")
 
 
+def _edit_glb(path, edit):
+    data = Path(path).read_bytes()
+    jlen = struct.unpack_from("<I", data, 12)[0]
+    tree = json.loads(data[20:20 + jlen])
+    edit(tree)
+    j = json.dumps(tree).encode()
+    j += b" " * (-len(j) % 4)
+    body = struct.pack("<II", len(j), 0x4E4F534A) + j + data[20 + jlen:]
+    Path(path).write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
+
+
+def test_gltf_samplers_and_texture_transform(tmp_path):
+    """A glTF sampler's wrapS (MIRRORED_REPEAT) and magFilter (NEAREST) and KHR_texture_transform
+    (offset, rotation, scale: translation x rotation x scale, the extension's matrix) become the
+    texture's lookup; the metallic-roughness texture, without them, keeps the defaults."""
+    p = write_test_glb(tmp_path / "t.glb")
+
+    def edit(tree):
+        paint = next(m for m in tree["materials"] if m.get("name") == "paint")
+        info = paint["pbrMetallicRoughness"]["baseColorTexture"]
+        info["extensions"] = {"KHR_texture_transform": {"offset": [0.25, -0.5], "rotation": 0.3, "scale": [2, 3]}}
+        tree["samplers"] = [{"wrapS": 33648, "wrapT": 33648, "magFilter": 9728}]
+        tree["textures"][info["index"]]["sampler"] = 0
+        tree.setdefault("extensionsUsed", []).append("KHR_texture_transform")
+
+    _edit_glb(p, edit)
+    with __import__("warnings").catch_warnings():
+        __import__("warnings").simplefilter("error")
+        paint = next(m for m in load_scene(p).materials if m.name == "paint")
+    t = paint.base_texture
+    c, s_ = math.cos(0.3), math.sin(0.3)
+    assert (t.wrap, t.filter) == ("mirror", "nearest")
+    assert np.allclose(t.to_uv, (2 * c, 3 * s_, 0.25, -2 * s_, 3 * c, -0.5))
+    m = np.array([[1, 0, 0.25], [0, 1, -0.5], [0, 0, 1]]) @ np.array([[c, s_, 0], [-s_, c, 0], [0, 0, 1]]) \
+        @ np.diag([2, 3, 1])
+    assert np.allclose(t.to_uv, m[:2].reshape(-1))
+    assert (paint.mr_texture.wrap, paint.mr_texture.filter, paint.mr_texture.to_uv) == ("repeat", "bilinear",
+                                                                                       (1, 0, 0, 0, 1, 0))
+
+
+def test_toml_texture_tables_and_opacity(tmp_path):
+    """TOML: a texture key takes a path or a table {file, wrap, filter, scale, offset, rotation}
+    (the lookup's coordinates offset + R(rotation) (scale uv)); opacity / opacity_texture make an
+    alpha cut-out (the texture's luminance, linear); unknown table keys are one-line errors."""
+    from PIL import Image
+
+    from pyopencl_rt.errors import UserError
+
+    Image.fromarray(np.array([[0, 255], [255, 128]], np.uint8)).save(tmp_path / "a.png")
+    head = harness.toml_tables(camera=dict(eye=[0, 0, 3], look_at=[0, 0, 0]))
+    shape = '[[shape]]\ntype = "quad"\nmaterial = "m"\npoints = [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]\n'
+    (tmp_path / "s.toml").write_text(head + '[materials.m]\nalbedo_texture = { file = "a.png", wrap = "clamp", '
+                                     'filter = "nearest", scale = [2, 4], offset = [0.5, 0], rotation = 90 }\n'
+                                     'opacity = 0.75\nopacity_texture = "a.png"\n' + shape)
+    m = load_scene(tmp_path / "s.toml").materials[0]
+    t = m.base_texture
+    assert (t.wrap, t.filter) == ("clamp", "nearest") and np.allclose(t.to_uv, (0, -4, 0.5, 2, 0, 0), atol=1e-12)
+    assert m.masked and m.opacity == 0.75
+    o = m.scalar_textures["opacity"].texels[..., 0]
+    assert np.allclose(o, [[0, 1], [1, 128 / 255]])  # linear data
+    rec = m.record({id(t): 0, id(m.scalar_textures["opacity"]): 1})
+    assert rec["flags"] & abi.MATERIAL_FLAG_MASK and rec["opacity"] == 0.75 and rec["tex_scalar"][0] == 1
+    (tmp_path / "bad.toml").write_text(head + '[materials.m]\nalbedo_texture = { file = "a.png", warp = "clamp" }\n'
+                                       + shape)
+    with pytest.raises(UserError, match="unknown keys warp"):
+        load_scene(tmp_path / "bad.toml")
+
+
 def test_gltf_without_camera_is_framed(tmp_path):
     sc = load_scene(write_test_glb(tmp_path / "t.glb", camera=False))
     lo, hi = sc.vertices.min(0), sc.vertices.max(0)
@@ -287,3 +397,30 @@ def test_textured_scene_renders(device):
     r = render_full(sc, spp=4, device=device, seed=1, width=40, height=30)
     assert r.info["nonfinite_samples"] == 0
     assert np.isfinite(r.image).all() and r.image.mean() > 0
+
+
+def test_gltf_alpha_modes_are_intersection_cutouts(tmp_path):
+    """glTF alphaMode MASK (alphaCutoff, default 0.5) and BLEND become cut-outs in the intersection
+    (Material.cutout; BLEND stochastic, as pbrt-v4's alpha): alpha = baseColorFactor's alpha times
+    the base texture's (an RGB texture has none); OPAQUE, and a MASK every texel passes, stay opaque."""
+    p = write_test_glb(tmp_path / "t.glb")
+
+    def edit(tree):
+        for m in tree["materials"]:
+            if m.get("name") == "paint":
+                m["alphaMode"], m["alphaCutoff"] = "MASK", 0.5
+                m["pbrMetallicRoughness"]["baseColorFactor"][3] = 0.4
+            if m.get("name") == "glass":
+                m["alphaMode"], m["alphaCutoff"] = "MASK", 0.3  # alpha 1 everywhere: every texel passes
+            if m.get("name") == "lamp":
+                m["alphaMode"] = "BLEND"
+                m.setdefault("pbrMetallicRoughness", {})["baseColorFactor"] = [1, 1, 1, 0.6]
+
+    _edit_glb(p, edit)
+    mats = {m.name: m for m in load_scene(p).materials}
+    paint, lamp, glass = mats["paint"], mats["lamp"], mats["glass"]
+    assert paint.cutout and paint.alpha_cutoff == pytest.approx(0.5) and paint.opacity == pytest.approx(0.4)
+    assert lamp.cutout and lamp.alpha_cutoff == 0.0 and lamp.opacity == pytest.approx(0.6)
+    assert not glass.cutout
+    rec = paint.record()
+    assert rec["flags"] & abi.MATERIAL_FLAG_CUTOUT and rec["alpha_cutoff"] == pytest.approx(0.5)

@@ -23,8 +23,11 @@ What is read:
   baseColor and its texture); ``normalTexture`` (linear, x and y times its ``scale``) as a normal
   map in the frame of the triangle's dp/du (cl/scene/shading.h; ``TANGENT`` and MikkTSpace are
   not used: the per-triangle tangent approximates them).  A primitive without a material gets
-  glTF's default (white, metallic 1, roughness 1).  Alpha (``alphaMode``), occlusion maps,
-  samplers (always bilinear + repeat) and KHR_texture_transform are ignored;
+  glTF's default (white, metallic 1, roughness 1).  Samplers' wrapS (both axes) and magFilter
+  (nearest or bilinear) and KHR_texture_transform (the lookup's affine map) are kept (Texture).
+  ``alphaMode`` MASK (``alphaCutoff``) and BLEND (stochastic: pbrt-v4's alpha) are cut-outs in the
+  intersection (baseColorFactor's alpha times the base texture's; Material.cutout).  Occlusion maps
+  are ignored;
 * images embedded in the GLB / a buffer view, as data: URIs or as files next to the .gltf;
 * the first perspective camera in the node tree (``yfov``; the node's world transform, looking
   down its local -z with +y up).  Orthographic cameras are ignored.
@@ -187,9 +190,8 @@ class _Reader:
     def texture(self, info: dict | None, srgb: bool) -> Texture | None:
         if not info or "index" not in info:
             return None
-        if "extensions" in info and "KHR_texture_transform" in info["extensions"]:
-            warnings.warn(f"{self.name}: KHR_texture_transform is ignored", stacklevel=4)
         tex = self.tree["textures"][info["index"]]
+        lookup = self._lookup(tex, info)
         src = tex.get("source")
         if src is None:  # e.g. EXT_texture_webp only
             for ext in tex.get("extensions", {}).values():
@@ -213,7 +215,32 @@ class _Reader:
             except Exception as exc:
                 raise self.error(f"image {src}: cannot decode ({type(exc).__name__}: {exc})") from None
             self._textures[key] = texture_from_image(im, srgb=srgb, name=f"{self.name}#image{src}")
-        return self._textures[key]
+        return self._textures[key].with_lookup(**lookup)
+
+    def _lookup(self, tex: dict, info: dict) -> dict:
+        """The Texture lookup settings of a texture reference: its sampler's wrap (one mode for
+        both axes) and magnification filter, and KHR_texture_transform as the affine to_uv
+        (translation x rotation x scale, the extension's order; its rotation turns uv clockwise)."""
+        out = {}
+        if "sampler" in tex:
+            smp = self.tree.get("samplers", [])[tex["sampler"]]
+            wraps = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
+            ws, wt = (wraps.get(int(smp.get(k, 10497)), "repeat") for k in ("wrapS", "wrapT"))
+            if ws != wt:
+                warnings.warn(f"{self.name}: sampler {tex['sampler']}: wrapS {ws} and wrapT {wt} differ; "
+                              f"using {ws} for both", stacklevel=5)
+            out["wrap"] = ws
+            out["filter"] = "nearest" if int(smp.get("magFilter", 9729)) == 9728 else "bilinear"
+        xf = info.get("extensions", {}).get("KHR_texture_transform")
+        if xf is not None:
+            ox, oy = (float(x) for x in xf.get("offset", (0.0, 0.0)))
+            r = float(xf.get("rotation", 0.0))
+            sx, sy = (float(x) for x in xf.get("scale", (1.0, 1.0)))
+            c, s = math.cos(r), math.sin(r)
+            out["to_uv"] = (c * sx, s * sy, ox, -s * sx, c * sy, oy)
+            if "texCoord" in xf and xf["texCoord"] != info.get("texCoord", 0):
+                warnings.warn(f"{self.name}: KHR_texture_transform's texCoord {xf['texCoord']} is ignored", stacklevel=5)
+        return out
 
     def material(self, i: int | None) -> tuple[Material, int]:
         """(Material, texCoord set) of glTF material i (None: the default material)."""
@@ -247,6 +274,19 @@ class _Reader:
         mat.emission_texture = self.texture(infos[2], srgb=True) if mat.is_emissive else None
         mat.normal_texture = self.texture(infos[3], srgb=False)
         mat.normal_scale = float(infos[3].get("scale", 1.0)) if infos[3] else 1.0
+        mode = m.get("alphaMode", "OPAQUE")
+        if mode in ("MASK", "BLEND"):  # alpha cut-outs in the intersection (Material.cutout)
+            mat.cutout = True
+            mat.opacity = min(max(float(np.asarray(pbr.get("baseColorFactor", (1, 1, 1, 1)), np.float64)[3]), 0.0), 1.0)
+            mat.alpha_cutoff = max(float(m.get("alphaCutoff", 0.5)), 1e-6) if mode == "MASK" else 0.0
+            t = mat.base_texture
+            if t is not None and t.channels in (2, 4):  # the base colour's alpha
+                a = np.repeat(t.texels[..., 3:4], 4, axis=-1)
+                a[..., 3] = 1.0
+                mat.scalar_textures["opacity"] = Texture(np.ascontiguousarray(a), channels=1, name=t.name,
+                                                         wrap=t.wrap, filter=t.filter, to_uv=t.to_uv)
+            if mode == "MASK" and mat.opacity >= mat.alpha_cutoff and "opacity" not in mat.scalar_textures:
+                mat.cutout = False  # every texel passes
         if transmission > 0:
             mat.type, mat.tint, mat.albedo = "dielectric", mat.albedo, (0.8, 0.8, 0.8)
             mat.ior = ior if ior > 1.0 else 1.5  # KHR_materials_ior's 0 (= 1) would be invisible

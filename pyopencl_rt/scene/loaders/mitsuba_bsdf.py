@@ -9,7 +9,8 @@
 | ``principled``, ``principledthin`` | ``principled``, ``principledthin`` (Mitsuba's parameters; textures of ``base_color`` and of up to 6 scalar parameters) |
 | ``twosided`` | its nested BSDF (ours reflect on both sides) |
 | ``normalmap``, ``bumpmap`` | its nested BSDF with the map (``normal_texture``; ``scale``, ``flip_invalid_normals``, ``use_shadowing_function`` as Mitsuba reads them: cl/scene/shading.h) |
-| ``mask``, ``blendbsdf`` | their (first) nested BSDF, with a warning |
+| ``mask`` | its nested BSDF as an alpha cut-out (``opacity``: a float or a texture; Material.masked), the nested BSDF one-sided unless a ``twosided`` |
+| ``blendbsdf`` | its first nested BSDF, with a warning |
 
 Textures: ``bitmap``, ``checkerboard``, ``rawconstant`` (a 1 x 1 texture of its value, unconverted)
 and, as a BSDF's reflectance (diffuse ``reflectance``, plastic ``diffuse_reflectance``, principled
@@ -18,8 +19,9 @@ colours (``vertex_color``, ``face_color``, ...: Material.vertex_colors) times it
 
 Rough conductors and dielectrics keep ``alpha`` (a texture of it too; ``alpha_u``/``alpha_v``: their
 mean, with a warning); a Beckmann ``distribution`` (Mitsuba's default) is rendered as GGX of the
-same alpha, with a warning (``roughplastic`` renders Beckmann).  A checkerboard's ``to_uv`` is
-baked into its image.
+same alpha, with a warning (``roughplastic`` renders Beckmann).  ``bitmap`` and ``checkerboard`` keep
+``to_uv`` (the lookup's affine map); ``bitmap`` its ``wrap_mode`` and ``filter_type`` (Texture: the
+device looks them up as Mitsuba does, cl/scene/textures.h).
 """
 from __future__ import annotations
 
@@ -43,6 +45,9 @@ IOR = {
     "amber": 1.55, "pet": 1.5750, "diamond": 2.419,
 }
 METAL_NAMES = {"Au": "gold", "Ag": "silver", "Cu": "copper", "Cu_palik": "copper", "Al": "aluminium"}
+# Mitsuba's BSDFs that reflect on their front side only (outside a twosided): Material.one_sided
+# where that changes the image (around a mask: its back can be seen through the cut-out's holes)
+ONE_SIDED = {"diffuse", "conductor", "roughconductor", "plastic", "roughplastic"}
 # parameters that Mitsuba's plugins read with get_unbounded_texture (not clamped to [0, 1])
 UNBOUNDED = {"eta", "k", "alpha", "alpha_u", "alpha_v"}
 
@@ -136,34 +141,12 @@ def _spectrum_object(imp, spec):
     return (0.5, 0.5, 0.5)
 
 
-def _checker_texels(scale: float) -> int:
-    """Texels along an axis the checker's to_uv scales by ``scale``: a whole number of periods of
-    a whole number of texels (at least 16, and 64 in all) for a whole-number scale, else 16 per
-    period (at least 64); at most 2048."""
-    s = abs(scale)
-    if s >= 1 and s == round(s):
-        return int(min(s * max(16, -(-64 // s)), 2048))
-    return int(min(max(64, np.ceil(16 * s)), 2048))
-
-
-def _checker(c0, c1, n=64, to_uv=None) -> np.ndarray:
-    """Mitsuba's checkerboard: color0 where the fractional parts of u and v (after ``to_uv``, a
-    4 x 4 transform whose 2D affine part acts on (u, v)) are on the same side of 1/2, color1
-    elsewhere, sampled at the texel centres of uv in [0, 1)^2 (a non-whole scale therefore repeats
-    only on uv in [0, 1)); the resolution per axis from _checker_texels (an axis-aligned to_uv),
-    else square, 16 texels per period along the densest direction."""
-    m = np.eye(4) if to_uv is None else np.asarray(to_uv, np.float64)
-    nu = nv = n
-    if to_uv is not None:
-        if m[0, 1] == 0 and m[1, 0] == 0:
-            nu, nv = _checker_texels(m[0, 0]), _checker_texels(m[1, 1])
-        else:
-            nu = nv = _checker_texels(np.abs(m[:2, :2]).sum(axis=1).max() + 0.5)
-    u, v = np.meshgrid((np.arange(nu) + 0.5) / nu, (np.arange(nv) + 0.5) / nv)  # [row = v, column = u]
-    uu = m[0, 0] * u + m[0, 1] * v + m[0, 3]
-    vv = m[1, 0] * u + m[1, 1] * v + m[1, 3]
-    mask = ((uu - np.floor(uu)) > 0.5) ^ ((vv - np.floor(vv)) > 0.5)
-    return np.where(mask[..., None], np.asarray(c1, np.float64), np.asarray(c0, np.float64))
+def _checker(c0, c1) -> np.ndarray:
+    """Mitsuba's checkerboard as a 2 x 2 image looked up nearest, repeated: color0 where the
+    fractional parts of u and v are on the same side of 1/2, color1 elsewhere (the texture's
+    to_uv goes to the lookup; src/textures/checkerboard.cpp)."""
+    c0, c1 = np.asarray(c0, np.float64), np.asarray(c1, np.float64)
+    return np.array([[c0, c1], [c1, c0]])
 
 
 class BsdfMapper:
@@ -171,6 +154,7 @@ class BsdfMapper:
         self.imp = importer
         self._materials: dict[int, Material] = {}
         self._textures: dict[int, object] = {}
+        self._images: dict[tuple, object] = {}  # (path, raw) -> the Texture read from it (lookups share it)
         self.attributes: dict[int, str] = {}  # id(material) -> its mesh_attribute's name
         self._default = {}
 
@@ -193,10 +177,11 @@ class BsdfMapper:
         return self._textures[key]
 
     def _make_texture(self, obj, swap=False):
-        from ..textures import texture_from_array, texture_from_image
+        from ..textures import IDENTITY_UV, affine_uv, texture_from_array, texture_from_image
 
         imp = self.imp
         to_uv = obj.transform("to_uv")
+        uv_map = IDENTITY_UV if to_uv is None else affine_uv(to_uv)
         if obj.type == "rawconstant":
             p = obj.prop("value")
             if p is None or p.kind not in ("float", "integer", "rgb", "vector", "point"):
@@ -219,12 +204,13 @@ class BsdfMapper:
             imp.unused(obj)
             if swap:
                 c0, c1 = c1, c0
-            texture = texture_from_array(_checker(c0, c1, to_uv=to_uv).astype(np.float32), name=obj.label())
+            texture = texture_from_array(_checker(c0, c1).astype(np.float32), name=obj.label()).with_lookup(
+                filter="nearest", to_uv=uv_map)
             texture.mitsuba_mean = 0.5 * (float(np.mean(c0)) + float(np.mean(c1)))  # Mitsuba's mean()
             return texture
-        if to_uv is not None:
-            imp.warn(obj.props["to_uv"].node.pos, f"{obj.label()}: to_uv is not supported; ignored")
         if obj.type != "bitmap":
+            if to_uv is not None:
+                imp.warn(obj.props["to_uv"].node.pos, f"{obj.label()}: to_uv is not supported here; ignored")
             imp.warn(obj.node.pos, f"{obj.label()}: texture type not supported; ignored")
             return None
         fname = obj.string("filename")
@@ -232,22 +218,30 @@ class BsdfMapper:
             raise error_at(obj.node.pos, f'{obj.label()} needs <string name="filename">')
         path = imp.resolve(fname, obj)
         filt = obj.string("filter_type", "bilinear")
-        if filt != "bilinear":
-            imp.warn(obj.props["filter_type"].node.pos, f"{obj.label()}: filter_type '{filt}': we filter bilinearly")
+        if filt not in ("bilinear", "nearest"):
+            raise error_at(obj.props["filter_type"].node.pos, f'{obj.label()}: filter_type must be "bilinear" or '
+                                                              f'"nearest", got "{filt}" (as Mitsuba)')
         wrap = obj.string("wrap_mode", "repeat")
-        if wrap != "repeat":
-            imp.warn(obj.props["wrap_mode"].node.pos, f"{obj.label()}: wrap_mode '{wrap}': we repeat")
+        if wrap not in ("repeat", "mirror", "clamp"):
+            raise error_at(obj.props["wrap_mode"].node.pos, f'{obj.label()}: wrap_mode must be "repeat", "mirror" '
+                                                            f'or "clamp", got "{wrap}" (as Mitsuba)')
         raw = bool(obj.boolean("raw", False))
         imp.unused(obj)
         where = f"{obj.node.pos}: {obj.label()}"
-        if path.suffix.lower() in (".exr", ".pfm", ".hdr"):
-            from .images import read_hdr_image
+        image = self._images.get((str(path), raw))
+        if image is None:
+            if path.suffix.lower() in (".exr", ".pfm", ".hdr"):
+                from .images import read_hdr_image
 
-            return texture_from_array(read_hdr_image(path, where), name=str(fname))
-        try:
-            return texture_from_image(path, srgb=not raw)
-        except Exception as exc:
-            raise error_at(obj.node.pos, f"{obj.label()}: cannot read '{fname}' ({type(exc).__name__}: {exc})") from None
+                image = texture_from_array(read_hdr_image(path, where), name=str(fname))
+            else:
+                try:
+                    image = texture_from_image(path, srgb=not raw)
+                except Exception as exc:
+                    raise error_at(obj.node.pos, f"{obj.label()}: cannot read '{fname}' "
+                                                 f"({type(exc).__name__}: {exc})") from None
+            self._images[(str(path), raw)] = image
+        return image.with_lookup(wrap=wrap, filter=filt, to_uv=uv_map)
 
     # -- BSDFs -----------------------------------------------------------------------------------
 
@@ -327,9 +321,10 @@ class BsdfMapper:
             return mat
         if t in ("normalmap", "bumpmap"):
             return self._mapped(obj, name)
-        if t in ("mask", "blendbsdf"):
-            what = {"mask": "opacity masks are not supported", "blendbsdf": "blends are not supported"}[t]
-            return self._nested(obj, what)
+        if t == "mask":
+            return self._mask(obj, name)
+        if t == "blendbsdf":
+            return self._nested(obj, "blends are not supported")
         mat = Material(name=name)
         if t == "diffuse":
             mat.albedo, mat.base_texture = color_value(imp, obj, "reflectance", (0.5,) * 3, texture_ok=True,
@@ -384,6 +379,27 @@ class BsdfMapper:
             imp.warn(obj.node.pos, f"{obj.label()}: a map over a mapped BSDF: only the outer map is applied")
         mat = dataclasses.replace(nested, name=obj.id or nested.name, normal_texture=texture,
                                   bump_map=obj.type == "bumpmap", normal_scale=float(scale), map_conventions=conventions)
+        if id(nested) in self.attributes:
+            self.attributes[id(mat)] = self.attributes[id(nested)]
+        return mat
+
+    def _mask(self, obj, name) -> Material:
+        """Mitsuba's mask (src/bsdfs/mask.cpp): the nested BSDF with probability ``opacity`` (a float
+        or a texture's luminance, default 0.5, clamped to [0, 1]), else a null, straight-through
+        interaction (Material.masked; cl/render/path.h).  A nested BSDF that is not a twosided is
+        one-sided, as Mitsuba's are: black seen from behind (the null part still lets light through)."""
+        nested_objs = obj.children_of("bsdf")
+        if len(nested_objs) > 1:
+            raise error_at(nested_objs[1].node.pos, f"{obj.label()}: more than one nested BSDF (Mitsuba refuses it)")
+        nested = self._nested(obj, "")
+        if nested.masked:
+            self.imp.warn(obj.node.pos, f"{obj.label()}: a mask around a mask: only the outer opacity is applied")
+        mat = dataclasses.replace(nested, name=obj.id or nested.name, masked=True,
+                                  scalar_textures=dict(nested.scalar_textures), params=dict(nested.params),
+                                  one_sided=nested.one_sided or nested_objs[0].type in ONE_SIDED)
+        mat.scalar_textures.pop("opacity", None)
+        mat.opacity = min(max(float(self._scalar(obj, mat, "opacity", 0.5)), 0.0), 1.0)
+        self.imp.unused(obj)
         if id(nested) in self.attributes:
             self.attributes[id(mat)] = self.attributes[id(nested)]
         return mat

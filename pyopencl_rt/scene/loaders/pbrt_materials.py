@@ -162,12 +162,18 @@ class MaterialMapper:
         path = self.imp.path.parent / fname
         if not path.is_file():
             raise error_at(d.pos, f"Texture \"{d.args[0]}\": file '{fname}' not found (looked for {path})")
-        if self._mapping(d) != (1.0, 1.0, 0.0, 0.0):
-            self.imp.warn(d.pos, f'Texture "{d.args[0]}": uscale/vscale/udelta/vdelta are not supported; ignored')
-        for key, ok in (("filter", "bilinear"), ("wrap", "repeat")):
-            value = p.string(key, ok)
-            if value != ok:
-                self.imp.warn(p.items[key].pos, f'Texture "{d.args[0]}": {key} "{value}": we use {ok}')
+        us, vs, ud, vd = self._mapping(d)
+        # pbrt-v4's UVMapping (s, t) = (us u + ud, vs v + vd), looked up at (s, 1 - t); our v is 1 - pbrt's
+        lookup = dict(to_uv=(us, 0.0, ud, 0.0, vs, 1.0 - vs - vd))
+        filt = p.string("filter", "bilinear")
+        if filt not in ("point", "bilinear"):
+            self.imp.warn(p.items["filter"].pos, f'Texture "{d.args[0]}": filter "{filt}": we filter bilinearly '
+                                                 "(no mipmaps)")
+        lookup["filter"] = "nearest" if filt == "point" else "bilinear"
+        wrap = p.string("wrap", "repeat")
+        if wrap not in ("repeat", "clamp"):
+            self.imp.warn(p.items["wrap"].pos, f'Texture "{d.args[0]}": wrap "{wrap}": we repeat')
+        lookup["wrap"] = "clamp" if wrap == "clamp" else "repeat"
         if p.boolean("invert", False):
             self.imp.warn(p.items["invert"].pos, f'Texture "{d.args[0]}": invert is not supported; ignored')
         encoding = p.string("encoding", "sRGB")
@@ -176,7 +182,7 @@ class MaterialMapper:
         if path.suffix.lower() in (".exr", ".pfm"):
             from .images import read_hdr_image
 
-            return texture_from_array(read_hdr_image(path, where) * s, name=fname)
+            return texture_from_array(read_hdr_image(path, where) * s, name=fname).with_lookup(**lookup)
         if encoding not in ("sRGB", "linear"):
             self.imp.warn(p.items["encoding"].pos, f'Texture "{d.args[0]}": encoding "{encoding}" read as sRGB')
         try:
@@ -185,7 +191,7 @@ class MaterialMapper:
             raise error_at(where, f"cannot read '{fname}' ({type(exc).__name__}: {exc})") from None
         if s != 1.0:
             tex.texels[..., :3] *= s
-        return tex
+        return tex.with_lookup(**lookup)
 
     def _checkerboard(self, d):
         from ..textures import texture_from_array
@@ -196,13 +202,11 @@ class MaterialMapper:
         c1, _ = self.color(p, "tex1", (1.0, 1.0, 1.0))
         c2, _ = self.color(p, "tex2", (0.0, 0.0, 0.0))
         us, vs, ud, vd = self._mapping(d)
-        n = int(min(1024, max(16, 16 * max(abs(us), abs(vs)))))
-        centres = (np.arange(n) + 0.5) / n
-        s = centres[None, :] * us + ud
-        t = (1 - centres[:, None]) * vs + vd  # our v runs down the image, pbrt's t up
-        even = (np.floor(s) + np.floor(t)) % 2 == 0
-        img = np.where(even[..., None], np.asarray(c1), np.asarray(c2)).astype(np.float32)
-        return texture_from_array(img, name=d.args[0])
+        # tex1 where floor(s) + floor(t) is even, (s, t) = (us u + ud, vs (1 - v) + vd) (our v runs down
+        # the image, pbrt's t up): a 2 x 2 image looked up nearest at (s / 2, t / 2), repeated
+        img = np.array([[c1, c2], [c2, c1]], np.float32)
+        return texture_from_array(img, name=d.args[0]).with_lookup(
+            filter="nearest", to_uv=(us / 2, 0.0, ud / 2, 0.0, -vs / 2, (vs + vd) / 2))
 
     # -- materials -------------------------------------------------------------------------------
 

@@ -541,6 +541,40 @@ class _Importer:
             mat = self.b.emissive(mat, radiance, two_sided)
         return mat
 
+    def _alpha(self, d, mat):
+        """The shape's material as pbrt-v4's alpha cut-out ("float alpha" or "texture alpha", a float
+        texture's first channel): Material.cutout, tested in the intersection (cl/scene/scene.h)."""
+        import dataclasses
+
+        q = d.params.items["alpha"]
+        q.used = True
+        tex = None
+        if q.type == "texture":
+            tname = d.params.string("alpha", types=("texture",))
+            if tname not in self.materials.textures:
+                raise error_at(q.pos, f'"texture alpha": no texture named "{tname}"')
+            rgb, tex = self.materials.textures[tname]
+            value = 1.0 if tex is not None else float(rgb[0])
+        else:
+            value = d.params.float("alpha", 1.0)
+        if tex is None and value >= 1.0:
+            return mat
+        key = (id(mat), value, id(tex))
+        cache = self.__dict__.setdefault("_alpha_materials", {})
+        if key not in cache:
+            cut = dataclasses.replace(mat, cutout=True, opacity=min(max(value, 0.0), 1.0), alpha_cutoff=0.0,
+                                      scalar_textures=dict(mat.scalar_textures), params=dict(mat.params))
+            if tex is not None:
+                from ..textures import Texture
+
+                first = np.repeat(tex.texels[..., :1], 4, axis=-1)  # pbrt's float textures read channel 0
+                first[..., 3] = 1.0
+                cut.scalar_textures["opacity"] = Texture(np.ascontiguousarray(first), srgb=tex.srgb, channels=1,
+                                                         name=tex.name, wrap=tex.wrap, filter=tex.filter,
+                                                         to_uv=tex.to_uv)
+            cache[key] = (cut, mat)  # keep mat alive: the key holds its id
+        return cache[key][0]
+
     def d_Shape(self, d):
         from .pbrt_shapes import shape_geometry
 
@@ -551,8 +585,7 @@ class _Importer:
                 self.null_material = Material(name="pbrt-interface", albedo=(0.0, 0.0, 0.0))
             mat = self.null_material
         if "alpha" in d.params:
-            self.warn(d.params.items["alpha"].pos, f'Shape "{d.args[0]}": "alpha" cut-outs are not supported')
-            d.params.items["alpha"].used = True
+            mat = self._alpha(d, mat)
         geometry = shape_geometry(self, d)
         if geometry is None:
             return

@@ -28,6 +28,8 @@
     albedo = [0.725, 0.71, 0.68]  #   whose module documents its keys
     emission = [0, 0, 0]          # linear RGB radiance >= 0 (or one number), default 0; any type
     two_sided = false             # emit from both sides, default false
+    opacity = 1.0                 # an alpha cut-out: met with this probability (times opacity_texture's
+                                  #   luminance), else passed straight through; default: opaque
 
     [media.fog]                   # participating media (toml_media.py), referred to by NAME
     sigma_t = [0.5, 1.0, 2.0]     #   from shapes' interior / exterior and [camera] medium
@@ -100,7 +102,7 @@ _FILTER_KEYS = {"box": {"type", "radius"}, "tent": {"type", "radius"}, "gaussian
                 "mitchell": {"type", "radius", "b", "c"}, "lanczos": {"type", "radius", "tau"}}
 _RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth", "sampler", "adaptive", "target_error"}
 # the keys of every [materials.NAME]; each type adds its own (MaterialType.toml_keys)
-MATERIAL_COMMON_KEYS = frozenset({"type", "emission", "two_sided", "emission_texture"})
+MATERIAL_COMMON_KEYS = frozenset({"type", "emission", "two_sided", "emission_texture", "opacity", "opacity_texture"})
 _TRANSFORM_KEYS = {"translate", "scale", "rotate", "matrix", "flip_normals"}
 _SHAPE_KEYS = {
     "mesh": {"type", "material", "file", "use_file_materials"} | _TRANSFORM_KEYS,
@@ -126,6 +128,14 @@ def _read_material(ctx, where, name, spec) -> Material:
     table = TableReader(ctx, where, spec)
     material.emission_texture = table.texture("emission_texture", srgb=True)
     material_type.read_toml(material, table)
+    if "opacity" in spec or "opacity_texture" in spec:  # an alpha cut-out, as Mitsuba's mask
+        from ..textures import scalar_texture
+
+        material.masked = True
+        material.opacity = table.number("opacity", 1.0, minimum=0.0, maximum=1.0)
+        opacity = table.texture("opacity_texture", srgb=False)
+        if opacity is not None:
+            material.scalar_textures["opacity"] = scalar_texture(opacity)
     return material
 
 

@@ -135,10 +135,33 @@ def check_rgb01(ctx, where, key, value) -> tuple:
     return tuple(float(x) for x in v)
 
 
+TEXTURE_TABLE_KEYS = ("file", "wrap", "filter", "scale", "offset", "rotation")
+
+
 def read_texture(ctx, where, key, fname, *, srgb):
-    """The image file ``fname`` (relative to the scene file) of the key ``key``, as a Texture."""
+    """The image file ``fname`` (relative to the scene file) of the key ``key``, as a Texture; or
+    a table {file, wrap, filter, scale, offset, rotation}: the file and how it is looked up (wrap
+    "repeat", "mirror" or "clamp"; filter "bilinear" or "nearest"; the lookup's coordinates
+    offset + R(rotation) (scale * uv), rotation in degrees, counter-clockwise in uv)."""
+    if isinstance(fname, dict):
+        from ..textures import FILTERS, WRAPS
+
+        unknown = sorted(set(fname) - set(TEXTURE_TABLE_KEYS))
+        if unknown:
+            raise ctx.error(where, f"'{key}': unknown keys {', '.join(unknown)} (a texture table has "
+                                   f"{', '.join(TEXTURE_TABLE_KEYS)})")
+        if "file" not in fname:
+            raise ctx.error(where, f"'{key}' needs 'file', the image path")
+        tex = read_texture(ctx, where, f"{key}.file", fname["file"], srgb=srgb)
+        wrap = check_choice(ctx, where, f"{key}.wrap", fname.get("wrap", "repeat"), WRAPS)
+        filt = check_choice(ctx, where, f"{key}.filter", fname.get("filter", "bilinear"), FILTERS)
+        su, sv = check_vector(ctx, where, f"{key}.scale", fname.get("scale", [1.0, 1.0]), 2, allow_scalar=True)
+        ou, ov = check_vector(ctx, where, f"{key}.offset", fname.get("offset", [0.0, 0.0]), 2)
+        r = np.radians(check_number(ctx, where, f"{key}.rotation", fname.get("rotation", 0.0)))
+        c, s_ = float(np.cos(r)), float(np.sin(r))
+        return tex.with_lookup(wrap=wrap, filter=filt, to_uv=(c * su, -s_ * sv, ou, s_ * su, c * sv, ov))
     if not isinstance(fname, str) or not fname:
-        raise ctx.error(where, f"'{key}' must be an image file path, got {describe(fname)}")
+        raise ctx.error(where, f"'{key}' must be an image file path or a texture table, got {describe(fname)}")
     path = Path(ctx.name).parent / Path(fname).expanduser()
     if not path.is_file():
         raise ctx.error(where, f"{key} '{fname}' not found (looked for {path})")
