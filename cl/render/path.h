@@ -257,7 +257,8 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     /* the BSDF's frame: the shading normal (interpolated, normal- or bump-mapped) on wo's side,
      * or n (cl/scene/shading.h) */
     const ShadingLanes sh = shading_lanes(tris, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit,
-                                          prim, u, v, ng, n, front, wo);
+                                          prim, u, v, ng, n, front, wo,
+                                          hit & ((m.flags & MATERIAL_FLAG_ANISOTROPIC) != 0));
 #ifdef HAS_AOVS
     aov_hit(aov_path, slot, hit, s->depth, &m, sh.n, wo, p, t, s->beta);
 #endif
@@ -308,7 +309,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
         const pint sampled = nee_light_sample(PATH_ARGS, key, dim, nee, ref, &ls, &pick_pmf, &wi, &dist);
         if (pany(sampled)) {
             pfloat bpdf;
-            pvec3 f = bsdf_eval(&m, sampled, sh.n, sh.front, wo, wi, &bpdf);
+            pvec3 f = bsdf_eval(&m, sampled, sh.n, sh.t, sh.front, wo, wi, &bpdf);
             f = shading_eval(&sh, wi, f, &bpdf);
             const pint lit = sampled & (pv3_max3(f) > 0.0f) & (dist > 0.0f);
             if (pany(lit)) {
@@ -332,7 +333,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     sample_2d(key, dim + DIM_BSDF, &ubx, &uby);
     pvec3 wi;
     pint delta;
-    pvec3 weight = bsdf_sample(&m, going, sh.n, sh.front, wo, ubx, uby, sample_1d(key, dim + DIM_BSDF_LOBE), &wi,
+    pvec3 weight = bsdf_sample(&m, going, sh.n, sh.t, sh.front, wo, ubx, uby, sample_1d(key, dim + DIM_BSDF_LOBE), &wi,
                                &pdf, &delta);
     weight = shading_sample(&sh, wi, weight, &pdf);
     pint on = going & ((pdf > 0.0f) | delta) & (pv3_max3(weight) > 0.0f);

@@ -75,15 +75,20 @@ assert TRIANGLE.itemsize == 48
 #   flags     bit 0: emission on both sides (default: only on the side the geometric normal
 #             faces); bit 1: conductor Fresnel from `specular` as F0 (Schlick) instead of eta, k;
 #             bit 2 (MATERIAL_FLAG_NONLINEAR): plastic, roughplastic: Mitsuba's `nonlinear`;
-#             bit 3 (MATERIAL_FLAG_BECKMANN): roughplastic: the Beckmann distribution (else GGX)
+#             bit 3 (MATERIAL_FLAG_BECKMANN): roughplastic, conductor, dielectric: Beckmann (else GGX)
 #             bit 4: tex_normal is a height (bump) map, not a tangent-space normal map; bit 5:
 #             the reflectance (albedo, dielectric tint) is multiplied by the triangle's vertex
 #             colours (tri_color); bits 6-8: the normal/bump map's Mitsuba conventions
 #             (cl/scene/shading.h): flip normals that face away from the viewer, the shadowing
-#             term of Estevez et al. 2019, directions on opposite sides of the two frames masked
+#             term of Estevez et al. 2019, directions on opposite sides of the two frames masked;
+#             bit 9 (MATERIAL_FLAG_THIN): a thin dielectric sheet; bit 10
+#             (MATERIAL_FLAG_ANISOTROPIC): conductor, dielectric: alpha along the tangent (dp/du),
+#             alpha_v along the bitangent; bit 11 (MATERIAL_FLAG_SEPARABLE): conductor, dielectric:
+#             Mitsuba's separable shadowing-masking G1(wo) G1(wi) (else height-correlated)
 #   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes;
 #             plastic, roughplastic: specular_reflectance
-#   alpha     GGX roughness alpha (conductor, dielectric, gltf; < 1e-3 is perfectly smooth);
+#   alpha     microfacet roughness alpha (conductor, dielectric: alpha_u with
+#             MATERIAL_FLAG_ANISOTROPIC; gltf: GGX; < 1e-3 is perfectly smooth);
 #             roughplastic: the distribution's alpha (clamped to >= 1e-4, as Mitsuba's)
 #   eta, k    conductor: complex index of refraction eta + i k per channel
 #   metallic  gltf, principled
@@ -91,7 +96,8 @@ assert TRIANGLE.itemsize == 48
 #             index (F0 = ((ior - 1) / (ior + 1))^2); plastic, roughplastic, principled: the
 #             relative index eta = int_ior / ext_ior; principledthin: the sheet's eta
 # The fields after the texture indices serve the types of Mitsuba 3 (issue 24):
-#   alpha_v      (reserved: 0)
+#   alpha_v      conductor, dielectric with MATERIAL_FLAG_ANISOTROPIC: the roughness along the
+#                bitangent (else unused)
 #   fdr          plastic: the internal diffuse Fresnel reflectance fdr_int (Egan & Hilgeman's fit
 #                at 1 / eta); roughplastic: the rough interface's internal reflectance
 #   spec_weight  plastic, roughplastic: the specular sampling weight s / (d + s) of the means of
@@ -120,6 +126,8 @@ MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
 MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
 # dielectric: a thin sheet, Mitsuba's thindielectric (cl/materials/dielectric.h: thin_dielectric_sample)
 MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)
+MATERIAL_FLAG_ANISOTROPIC = define("MATERIAL_FLAG_ANISOTROPIC", 1024)
+MATERIAL_FLAG_SEPARABLE = define("MATERIAL_FLAG_SEPARABLE", 2048)
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
@@ -145,9 +153,10 @@ assert MATERIAL.itemsize == 464
 #                 tex_params name (the host stores such a texture's luminance in R, Mitsuba's eval_1)
 # TEXP_<FIELD>: the Material field each multiplies (TEXP_ETA: ior)
 _TEXP = define_enum("TEXP_", ("alpha", "roughness", "metallic", "anisotropic", "spec_trans", "spec_tint", "sheen",
-                              "sheen_tint", "clearcoat", "clearcoat_gloss", "flatness", "diff_trans", "eta"))
+                              "sheen_tint", "clearcoat", "clearcoat_gloss", "flatness", "diff_trans", "eta", "alpha_v"))
 (TEXP_ALPHA, TEXP_ROUGHNESS, TEXP_METALLIC, TEXP_ANISOTROPIC, TEXP_SPEC_TRANS, TEXP_SPEC_TINT, TEXP_SHEEN,
- TEXP_SHEEN_TINT, TEXP_CLEARCOAT, TEXP_CLEARCOAT_GLOSS, TEXP_FLATNESS, TEXP_DIFF_TRANS, TEXP_ETA) = _TEXP.values()
+ TEXP_SHEEN_TINT, TEXP_CLEARCOAT, TEXP_CLEARCOAT_GLOSS, TEXP_FLATNESS, TEXP_DIFF_TRANS, TEXP_ETA, TEXP_ALPHA_V) = \
+    _TEXP.values()
 TEXTURE_PARAMS = {k: "ior" if name == "eta" else name for name, k in _TEXP.items()}
 #   tex_normal    a tangent-space normal map (RGB = (n + 1) / 2, relative to the shading frame), or
 #                 with MATERIAL_FLAG_BUMP_MAP a height map (its luminance), perturbing the

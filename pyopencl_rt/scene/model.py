@@ -61,6 +61,11 @@ class Material:
     nonlinear: bool = False
     thin: bool = False  # dielectric: a thin sheet (Mitsuba's thindielectric), light passes straight through
     distribution: str = "ggx"
+    # conductor, dielectric: the roughness along the bitangent (alpha is then the roughness along the
+    # tangent, dp/du; None: isotropic), and the shadowing-masking term: "correlated" (Smith's
+    # height-correlated G2, pbrt-v4's) or "separable" (G1(wo) G1(wi), Mitsuba's)
+    alpha_v: float | None = None
+    masking: str = "correlated"
     params: dict = field(default_factory=dict)
     scalar_textures: dict = field(default_factory=dict)
 
@@ -94,6 +99,13 @@ class Material:
     @property
     def is_emissive(self) -> bool:
         return max(self.emission) > 0.0
+
+    @property
+    def is_anisotropic(self) -> bool:
+        """Roughness along the tangent and the bitangent that differ, or a texture of either."""
+        return self.type in ("conductor", "dielectric") and (
+            (self.alpha_v is not None and float(self.alpha_v) != float(self.alpha))
+            or "alpha_v" in self.scalar_textures)
 
     @property
     def roughness(self) -> float:
@@ -364,6 +376,10 @@ class Scene:
         """Some face has a (non-zero) vertex normal: the kernels interpolate them."""
         return self.normals is not None and len(self.faces) > 0 and bool(np.any(self.face_normals()))
 
+    def has_anisotropy(self) -> bool:
+        """Some material has anisotropic roughness: the kernels compute the tangent (dp/du)."""
+        return any(m.is_anisotropic for m in self.materials)
+
     def has_normal_maps(self) -> bool:
         return len(self.faces) > 0 and any(m.normal_texture is not None for m in self.materials)
 
@@ -470,6 +486,8 @@ class Scene:
             defines["HAS_NORMAL_MAPS"] = True
         if self.has_vertex_colors():
             defines["HAS_VERTEX_COLORS"] = True
+        if self.has_anisotropy():
+            defines["HAS_ANISOTROPY"] = True  # cl/scene/shading.h: the frame's tangent
         return defines
 
     def sphere_records(self) -> np.ndarray:

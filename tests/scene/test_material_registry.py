@@ -109,10 +109,15 @@ CASES = [  # (type, TOML keys, expected record fields)
      {"specular": (0.5, 0.25, 1.0), "flags": F0_FLAG, "alpha": 0.25}),
     ("conductor", {"metal": "gold", "alpha": 0.125}, {"eta": GOLD_ETA, "k": GOLD_K, "alpha": 0.125}),
     ("conductor", {"eta": [1.5, 1.25, 1.0], "k": 2}, {"eta": (1.5, 1.25, 1.0), "k": (2, 2, 2)}),
+    ("conductor", {"alpha_u": 0.25, "alpha_v": 0.5, "distribution": "beckmann", "masking": "separable"},
+     {"specular": (1, 1, 1), "alpha": 0.25, "alpha_v": 0.5,
+      "flags": F0_FLAG | abi.MATERIAL_FLAG_ANISOTROPIC | abi.MATERIAL_FLAG_BECKMANN | abi.MATERIAL_FLAG_SEPARABLE}),
     ("dielectric", {}, {"ior": 1.5, "specular": (1, 1, 1)}),
     ("dielectric", {"ior": 1.25, "roughness": 0.5, "tint": [0.5, 0.75, 1.0]},
      {"ior": 1.25, "alpha": 0.25, "specular": (0.5, 0.75, 1.0)}),
     ("dielectric", {"alpha": 0.5}, {"ior": 1.5, "alpha": 0.5, "specular": (1, 1, 1)}),
+    ("dielectric", {"alpha_u": 0.5, "alpha_v": 0.125, "distribution": "ggx", "masking": "correlated"},
+     {"ior": 1.5, "alpha": 0.5, "alpha_v": 0.125, "specular": (1, 1, 1), "flags": abi.MATERIAL_FLAG_ANISOTROPIC}),
     ("gltf", {}, {"albedo": (1, 1, 1), "metallic": 1, "alpha": 1, "ior": 1.5}),
     ("gltf", {"base_color": [0.5, 0.25, 0.125], "metallic": 0.5, "roughness": 0.5, "ior": 1.25,
               "base_color_texture": "t.png", "metallic_roughness_texture": "t.png"},
@@ -243,6 +248,9 @@ def test_glass_and_metals_map_to_mitsuba():
     assert gold == {"type": "roughconductor", "distribution": "ggx", "alpha": 0.25, "eta": rgb((0.5, 0.25, 1.0)),
                     "k": rgb((3.0, 2.0, 1.5))}
     assert Material(type="conductor").mitsuba_bsdf() == {"type": "conductor", "material": "none"}
+    aniso = Material(type="dielectric", alpha=0.25, alpha_v=0.5, distribution="beckmann").mitsuba_bsdf()
+    assert {k: aniso[k] for k in ("type", "distribution", "alpha_u", "alpha_v")} == {
+        "type": "roughdielectric", "distribution": "beckmann", "alpha_u": 0.25, "alpha_v": 0.5}
     with pytest.raises(ValueError, match="f0"):
         Material(type="conductor", f0=(0.9, 0.8, 0.7)).mitsuba_bsdf()
 
