@@ -9,7 +9,7 @@ lobe). Single-scattering microfacets lose energy at high roughness (a white roug
 | key | type | default | meaning |
 |---|---|---|---|
 | `distribution` | `"ggx"` or `"beckmann"` | `"ggx"` | the microfacet distribution |
-| `alpha_u`, `alpha_v` | numbers in [0, 1], both | | anisotropic α along the tangent (dp/du of the mesh's UVs) and the bitangent, instead of `alpha` / `roughness` |
+| `alpha_u`, `alpha_v` | numbers in [0, 1], both | | anisotropic α along the tangent (dp/du: of a mesh's UVs, else of its triangles' first edge; a sphere's circles the z axis) and the bitangent, instead of `alpha` / `roughness` |
 | `masking` | `"correlated"` or `"separable"` | `"correlated"` | Smith's shadowing-masking: height-correlated (pbrt-v4) or G1(wo) G1(wi) (Mitsuba 3) |
 """
 from __future__ import annotations
