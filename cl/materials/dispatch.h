@@ -19,9 +19,10 @@
  *          (bsdf_sample sets their *wi to n)
  *   n      the unit geometric normal flipped to wo's side
  *   tangent the frame's tangent direction (need not be unit nor orthogonal to n; Mitsuba's dp/du):
- *          the x axis of the local frame of the lanes with MATERIAL_FLAG_ANISOTROPIC, made
- *          orthogonal to n; where it is zero or parallel to n, and for every other lane, the
- *          local frame is make_onb(n) (any frame: their BSDFs are isotropic)
+ *          the x axis of the local frame of the lanes with MATERIAL_FLAG_ANISOTROPIC (anisotropic
+ *          conductors, dielectrics, principled), made orthogonal to n; where it is zero or parallel
+ *          to n, and for every other lane, the local frame is make_onb(n) (any frame: their BSDFs
+ *          are isotropic)
  *   front  mask: the lanes where wo lies on the side the geometric normal points to (the
  *          outside: a sphere's outward normal, a triangle's (v1 - v0) x (v2 - v0)); dielectrics
  *          refract into the inside then, with relative index ior, else out of it with 1 / ior

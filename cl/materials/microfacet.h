@@ -1,6 +1,7 @@
-/* Shared pieces of the microfacet materials (conductor.h, dielectric.h, gltf.h).
+/* Shared pieces of the microfacet materials (conductor.h, dielectric.h, gltf.h, and the Mitsuba types).
  *
- * Distribution: isotropic GGX / Trowbridge-Reitz (Walter et al. 2007, "Microfacet Models for
+ * gltf.h's distribution (conductor.h and dielectric.h use the general one below, mf_*): isotropic
+ * GGX / Trowbridge-Reitz (Walter et al. 2007, "Microfacet Models for
  * Refraction through Rough Surfaces"), parameter alpha (the GGX alpha; alpha = roughness^2 for
  * the perceptual roughness of glTF / Disney):
  *
@@ -187,9 +188,10 @@ RT_INLINE pvec3 fresnel_schlick(pvec3 f0, pfloat cos_i)
 
 
 /* -- Mitsuba 3's microfacet distribution (include/mitsuba/render/microfacet.h), as the Mitsuba
- * types (roughplastic.h, principled.h, principledthin.h) use it: anisotropic GGX (alpha_x along
- * the tangent, alpha_y along the bitangent) or isotropic Beckmann, with Smith's *separable*
- * shadowing-masking G = G1(wo, m) G1(wi, m) (not the height-correlated G2 above).
+ * types (roughplastic.h, principled.h, principledthin.h) use it: GGX or Beckmann, anisotropic
+ * (alpha_x along the tangent, alpha_y along the bitangent), with Smith's *separable*
+ * shadowing-masking G = G1(wo, m) G1(wi, m) (not the height-correlated G2 above).  conductor.h and
+ * dielectric.h use it through a Microfacet record, with either masking term (mf_g).
  *
  *   GGX       D(m) = 1 / (pi ax ay ((m.x / ax)^2 + (m.y / ay)^2 + m.z^2)^2),
  *             G1(v, m) = 2 / (1 + sqrt(1 + (ax^2 v.x^2 + ay^2 v.y^2) / v.z^2))

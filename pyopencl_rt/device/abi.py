@@ -82,8 +82,8 @@ assert TRIANGLE.itemsize == 48
 #             (cl/scene/shading.h): flip normals that face away from the viewer, the shadowing
 #             term of Estevez et al. 2019, directions on opposite sides of the two frames masked;
 #             bit 9 (MATERIAL_FLAG_THIN): a thin dielectric sheet; bit 10
-#             (MATERIAL_FLAG_ANISOTROPIC): conductor, dielectric: alpha along the tangent (dp/du),
-#             alpha_v along the bitangent; bit 11 (MATERIAL_FLAG_SEPARABLE): conductor, dielectric:
+#             (MATERIAL_FLAG_ANISOTROPIC): the frame's x is dp/du; conductor, dielectric: alpha along
+#             it, alpha_v along the bitangent; bit 11 (MATERIAL_FLAG_SEPARABLE): conductor, dielectric:
 #             Mitsuba's separable shadowing-masking G1(wo) G1(wi) (else height-correlated)
 #   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes;
 #             plastic, roughplastic: specular_reflectance

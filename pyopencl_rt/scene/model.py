@@ -102,7 +102,10 @@ class Material:
 
     @property
     def is_anisotropic(self) -> bool:
-        """Roughness along the tangent and the bitangent that differ, or a texture of either."""
+        """Roughness along the tangent and the bitangent that differ, or a texture of either (principled,
+        principledthin: a non-zero or textured `anisotropic`): the BSDF's frame follows dp/du."""
+        if self.type in ("principled", "principledthin"):
+            return float(self.params.get("anisotropic", 0.0)) != 0.0 or "anisotropic" in self.scalar_textures
         return self.type in ("conductor", "dielectric") and (
             (self.alpha_v is not None and float(self.alpha_v) != float(self.alpha))
             or "alpha_v" in self.scalar_textures)

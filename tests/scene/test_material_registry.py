@@ -145,7 +145,8 @@ CASES = [  # (type, TOML keys, expected record fields)
      {"albedo": (0.25, 0.5, 0.75), "roughness": 0.25, "metallic": 0.5, "anisotropic": 0.125, "spec_trans": 0.25,
       "spec_tint": 0.375, "sheen": 0.5, "sheen_tint": 0.625, "clearcoat": 0.75, "clearcoat_gloss": 0.875,
       "flatness": 1.0, "ior": 1.25, "rates": (2, 3, 4, 0), "tex_base": 0, "tex_scalar": (1, 2, 3, 4, 5, -1),
-      "tex_params": texp("roughness", "metallic", "anisotropic", "spec_trans", "spec_tint")}),
+      "tex_params": texp("roughness", "metallic", "anisotropic", "spec_trans", "spec_tint"),
+      "flags": abi.MATERIAL_FLAG_ANISOTROPIC}),
     ("principled", {"specular": 0.25, "sheen_texture": "t.png", "sheen_tint_texture": "t.png",
                     "clearcoat_texture": "t.png", "clearcoat_gloss_texture": "t.png", "flatness_texture": "t.png"},
      {"albedo": (0.5, 0.5, 0.5), "roughness": 0.5, "ior": eta_from_specular(0.25), "rates": (1, 1, 1, 0),
@@ -162,7 +163,8 @@ CASES = [  # (type, TOML keys, expected record fields)
      {"albedo": (0.25, 0.25, 0.25), "roughness": 0.25, "anisotropic": 0.125, "spec_trans": 0.25, "spec_tint": 0.375,
       "sheen": 0.5, "sheen_tint": 0.625, "flatness": 0.75, "diff_trans": 1.5, "ior": 1.25, "rates": (2, 3, 4, 5),
       "tex_base": 0, "tex_scalar": (1, 2, 3, 4, 5, -1),
-      "tex_params": texp("roughness", "anisotropic", "spec_trans", "diff_trans", "ior")}),
+      "tex_params": texp("roughness", "anisotropic", "spec_trans", "diff_trans", "ior"),
+      "flags": abi.MATERIAL_FLAG_ANISOTROPIC}),
     ("principledthin", {"spec_tint_texture": "t.png", "sheen_texture": "t.png", "sheen_tint_texture": "t.png",
                         "flatness_texture": "t.png"},
      {"albedo": (0.5, 0.5, 0.5), "roughness": 0.5, "ior": 1.5, "rates": (1, 1, 1, 1), "tex_scalar": (0, 1, 2, 3, -1, -1),
@@ -221,6 +223,15 @@ def test_common_keys_pack_into_documented_fields(tmp_path, mtype):
 def test_every_toml_key_is_covered(mtype):
     covered = set(COMMON[0]) | {"type"} | {k for t, keys, _ in CASES if t == mtype for k in keys}
     assert covered == MATERIAL_COMMON_KEYS | REGISTRY[mtype].toml_keys
+
+
+@pytest.mark.parametrize("keys, message", [({"alpha_u": 0.2}, "go together"),
+                                           ({"alpha_u": 0.2, "alpha_v": 0.1, "roughness": 0.3}, "not both"),
+                                           ({"distribution": "phong"}, "distribution"),
+                                           ({"masking": "uncorrelated"}, "masking")])
+def test_distribution_keys_are_checked(tmp_path, keys, message):
+    with pytest.raises(Exception, match=message):
+        _record(tmp_path, "conductor", keys)
 
 
 def test_unknown_type_is_an_error():

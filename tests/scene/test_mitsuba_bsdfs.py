@@ -155,7 +155,7 @@ RENDER_SCENE = """
     {4}
 </shape>
 """
-FLOOR = """
+FLOOR_BSDF = """
     <bsdf type="principled">
         <texture name="base_color" type="checkerboard"><transform name="to_uv"><scale x="4" y="4"/></transform>
             <rgb name="color0" value="0.8, 0.7, 0.2"/><rgb name="color1" value="0.1, 0.3, 0.6"/></texture>
@@ -175,10 +175,8 @@ ROUGH_FLOOR = """
     </bsdf>"""
 SPHERES = {  # three spheres, the floor's rotation and BSDF
     "plastics": (BSDFS["plastic_bk7_nonlinear"], BSDFS["roughplastic"], BSDFS["roughplastic_ggx_nonlinear"], "",
-                 FLOOR),
-    "principled": (BSDFS["principled"].replace('<float name="anisotropic" value="0.6"/>', ""),
-                   BSDFS["principled_glass"], BSDFS["principledthin"].replace('<float name="anisotropic" value="0.3"/>',
-                                                                              ""), "", FLOOR),
+                 FLOOR_BSDF),
+    "principled": (BSDFS["principled"], BSDFS["principled_glass"], BSDFS["principledthin"], "", FLOOR_BSDF),
     "rough": (BSDFS["conductor_beckmann_aniso_aC"], BSDFS["dielectric_beckmann"], BSDFS["dielectric_ggx_aniso"],
               '<rotate z="1" angle="35"/>', ROUGH_FLOOR),
 }
@@ -192,8 +190,8 @@ def test_render_matches_mitsuba(tmp_path, which):
     by us (512 spp): the image means per channel within 4 standard errors and 1% of each other,
     and every 8 x 8 tile within 5 standard errors.  "rough": rough conductors and dielectrics,
     Beckmann and GGX, anisotropic on the spheres (their tangent: dp/du of Mitsuba's unrotated sphere)
-    and on a rotated floor (dp/du of its UVs) with a textured alpha_v.  (principled's anisotropy is
-    left out: its frame is still make_onb's, not the UV frame.)"""
+    and on a rotated floor (dp/du of its UVs) with a textured alpha_v.  The anisotropic principled
+    and principledthin spheres follow the same tangent."""
     mi = mitsuba()
     path = write(tmp_path, RENDER_SCENE.format(*SPHERES[which]))
     w = h = 32
