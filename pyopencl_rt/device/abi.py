@@ -81,9 +81,9 @@ assert TRIANGLE.itemsize == 48
 #             colours (tri_color); bits 6-8: the normal/bump map's Mitsuba conventions
 #             (cl/scene/shading.h): flip normals that face away from the viewer, the shadowing
 #             term of Estevez et al. 2019, directions on opposite sides of the two frames masked;
-#             bit 9 (MATERIAL_FLAG_THIN): a thin dielectric sheet; bit 10
+#             bit 9 (MATERIAL_FLAG_THIN): a thin dielectric sheet; bit 12
 #             (MATERIAL_FLAG_ANISOTROPIC): the frame's x is dp/du; conductor, dielectric: alpha along
-#             it, alpha_v along the bitangent; bit 11 (MATERIAL_FLAG_SEPARABLE): conductor, dielectric:
+#             it, alpha_v along the bitangent; bit 13 (MATERIAL_FLAG_SEPARABLE): conductor, dielectric:
 #             Mitsuba's separable shadowing-masking G1(wo) G1(wi) (else height-correlated)
 #   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes;
 #             plastic, roughplastic: specular_reflectance
@@ -126,8 +126,8 @@ MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
 MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
 # dielectric: a thin sheet, Mitsuba's thindielectric (cl/materials/dielectric.h: thin_dielectric_sample)
 MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)
-MATERIAL_FLAG_ANISOTROPIC = define("MATERIAL_FLAG_ANISOTROPIC", 1024)
-MATERIAL_FLAG_SEPARABLE = define("MATERIAL_FLAG_SEPARABLE", 2048)
+MATERIAL_FLAG_ANISOTROPIC = define("MATERIAL_FLAG_ANISOTROPIC", 4096)
+MATERIAL_FLAG_SEPARABLE = define("MATERIAL_FLAG_SEPARABLE", 8192)
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
