@@ -53,10 +53,12 @@ def shading_scene(width=40, height=30, seed=3, max_depth=5):
                               normal_texture=normal_map, map_conventions=MITSUBA_MAP), uvs=uv, matrix=at(0, 0),
                normals=smooth)
     b.add_mesh(v, f, Material("bumped", type="conductor", eta=(0.18, 0.42, 1.37), k=(3.42, 2.35, 1.77), alpha=0.09,
+                              alpha_v=0.3, distribution="beckmann", masking="separable",
                               normal_texture=texture_from_array(height_map, name="height"), bump_map=True,
                               normal_scale=0.05, map_conventions=MITSUBA_MAP), uvs=uv, matrix=at(1.4, 0),
                normals=smooth)
-    b.add_mesh(v, f, Material("glass", type="dielectric", ior=1.5, normal_texture=normal_map, normal_scale=0.5),
+    b.add_mesh(v, f, Material("glass", type="dielectric", ior=1.5, normal_texture=normal_map, normal_scale=0.5,
+                              alpha=0.2, alpha_v=0.04),
                uvs=uv, matrix=at(0.7, 1.3), normals=smooth)
     b.add_sphere((-1.5, 2.4, 1.5), 0.3, Material("lamp", albedo=(0, 0, 0), emission=(6.0, 5.0, 4.0)))
     b.add_light(PointLight(position=(1.0, 2.5, 2.0), intensity=(3.0, 3.0, 3.0)))

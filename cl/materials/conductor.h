@@ -1,8 +1,14 @@
-/* Conductors: smooth ("mirror") and rough (GGX microfacet) metal reflection ("conductor").
+/* Conductors: smooth ("mirror") and rough (microfacet) metal reflection ("conductor").
  *
  * Parameters (Material fields):
- *   alpha      GGX roughness alpha in [0, 1] (alpha = roughness^2 for the perceptual roughness
- *              of the scene format); below 1e-3 the surface is a perfect mirror (a delta lobe)
+ *   alpha      the microfacet roughness alpha in [0, 1] (GGX: alpha = roughness^2 for the perceptual
+ *              roughness of the scene format); below 1e-3 the surface is a perfect mirror (a delta
+ *              lobe).  With MATERIAL_FLAG_ANISOTROPIC alpha is alpha_u, along the frame's tangent
+ *              (dp/du made orthogonal to the shading normal, as Mitsuba's sh_frame.s), and alpha_v
+ *              the roughness along the bitangent; the mirror then needs both below 1e-3
+ *   flags      MATERIAL_FLAG_BECKMANN: the Beckmann distribution (else GGX / Trowbridge-Reitz);
+ *              MATERIAL_FLAG_SEPARABLE: Mitsuba's separable shadowing-masking G1(wo) G1(wi)
+ *              (else Smith's height-correlated G2, pbrt-v4's); microfacet.h, mf_*
  *   eta, k     complex index of refraction eta + i k per RGB channel (relative to the outside),
  *              e.g. gold (0.183, 0.421, 1.373) + i (3.424, 2.346, 1.770); exact unpolarised
  *              Fresnel reflectance (Mitsuba 3's fresnel_conductor)
@@ -11,13 +17,13 @@
  *              f0 = 1 is an ideal mirror (F = 1 at every angle).
  *
  * Lobes and densities, in the local frame (z = the normal on wo's side: the material is
- * two-sided, as pbrt-v4's and Mitsuba 3's conductors seen from either side):
+ * two-sided, as pbrt-v4's conductor; Mitsuba's is black from behind unless wrapped in twosided):
  *   smooth:  wi = (-wo.x, -wo.y, wo.z) with weight F(cos_o); a delta lobe, so eval() is 0 and
  *            the sample is flagged delta (no pdf)
- *   rough:   f = D(h) G2(wo, wi) F(wo.h) / (4 cos_o cos_i), h = normalize(wo + wi), both
- *            directions above the surface (Walter et al. 2007 with Smith height-correlated G2);
- *            sampled with the visible normals of wo (Heitz 2018):
- *            pdf = D_wo(h) / (4 wo.h), weight f cos_i / pdf = F G2 / G1(wo).  A sampled h that
+ *   rough:   f = D(h) G(wo, wi) F(wo.h) / (4 cos_o cos_i), h = normalize(wo + wi), both
+ *            directions above the surface (Walter et al. 2007); sampled with the visible normals
+ *            of wo (Heitz 2018 for GGX, Jakob 2014 for Beckmann):
+ *            pdf = D_wo(h) / (4 wo.h), weight f cos_i / pdf = F G / G1(wo).  A sampled h that
  *            reflects wo below the surface fails (weight 0), so the pdf integrates to the
  *            probability of success (< 1), as in pbrt-v4 and Mitsuba 3.
  *
@@ -36,7 +42,8 @@
 
 typedef struct {
     pvec3 f0, eta, k;
-    pfloat alpha;
+    Microfacet d;
+    pint smooth;  /* mask: a mirror */
     pint schlick; /* mask: Fresnel from f0 (Schlick), else from eta + i k */
 } ConductorParams;
 
@@ -51,7 +58,7 @@ RT_INLINE pvec3 conductor_fresnel(const ConductorParams *c, pfloat cos_i)
 /* f * cos_i and *pdf for local wo, wi (wo.z >= 0). */
 RT_INLINE pvec3 conductor_eval(const ConductorParams *c, pint active, pvec3 wo, pvec3 wi, pfloat *pdf)
 {
-    pint ok = active & pnot(microfacet_is_smooth(c->alpha) | (wo.z <= 0.0f) | (wi.z <= 0.0f));
+    pint ok = active & pnot(c->smooth | (wo.z <= 0.0f) | (wi.z <= 0.0f));
     *pdf = PFLOAT(0.0f);
     if (!pany(ok)) return pv3_zero();
     const pvec3 hs = pv3_add(wo, wi);
@@ -59,10 +66,10 @@ RT_INLINE pvec3 conductor_eval(const ConductorParams *c, pint active, pvec3 wo, 
     const pvec3 h = pv3_scale(hs, microfacet_rsqrt(len2));
     const pfloat wh = pv3_dot(wo, h);
     ok &= (len2 > 1e-12f) & pnot(wh <= 0.0f);
-    const pfloat d = ggx_d(h, c->alpha);
-    const pfloat pdf_h = ggx_vndf_pdf(wo, h, c->alpha);
+    const pfloat d = mf_d(h, c->d.ax, c->d.ay, c->d.beckmann);
+    const pfloat pdf_h = mf_vndf_pdf(wo, h, c->d.ax, c->d.ay, c->d.beckmann);
     const pfloat p = pdf_h / (4.0f * wh);
-    const pvec3 f = pv3_scale(conductor_fresnel(c, wh), d * ggx_g2(wo, wi, c->alpha) / (4.0f * wo.z));
+    const pvec3 f = pv3_scale(conductor_fresnel(c, wh), d * mf_g(&c->d, wo, wi, h) / (4.0f * wo.z));
     ok &= pisfinite(p) & pisfinite(f.x + f.y + f.z);
     *pdf = ok ? p : PFLOAT(0.0f);
     return pv3_sel(pv3_zero(), f, ok);
@@ -75,16 +82,17 @@ RT_INLINE pvec3 conductor_sample(const ConductorParams *c, pint active, pvec3 wo
                                  pfloat *pdf, pint *delta)
 {
     const pint up = active & pnot(wo.z <= 0.0f);
-    const pint smooth = up & microfacet_is_smooth(c->alpha);
+    const pint smooth = up & c->smooth;
     const pint rough = up & pnot(smooth);
     pvec3 li = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f));
     pfloat p = PFLOAT(0.0f), cos_f = wo.z;
     pint ok = PINT(0);
+    pvec3 h = li;
     if (pany(rough)) {
-        const pvec3 h = ggx_sample_vndf(wo, c->alpha, u0, u1, rough);
+        h = mf_sample_vndf(wo, c->d.ax, c->d.ay, c->d.beckmann, u0, u1, rough);
         const pfloat wh = pv3_dot(wo, h);
         li = pv3_sel(li, reflect_about(wo, h), rough);
-        const pfloat pr = ggx_vndf_pdf(wo, h, c->alpha) / (4.0f * wh);
+        const pfloat pr = mf_vndf_pdf(wo, h, c->d.ax, c->d.ay, c->d.beckmann) / (4.0f * wh);
         ok = rough & pnot((li.z <= 0.0f) | (wh <= 0.0f)) & (pr > 0.0f) & pisfinite(pr);
         p = ok ? pr : p;
         cos_f = rough ? wh : cos_f;
@@ -95,9 +103,9 @@ RT_INLINE pvec3 conductor_sample(const ConductorParams *c, pint active, pvec3 wo
     *delta = smooth;
     const pint any_weight = smooth | ok;
     if (!pany(any_weight)) return pv3_zero();
-    /* F(cos_o) for the mirror; F(wo.h) G2 / G1(wo) for a microfacet sample */
+    /* F(cos_o) for the mirror; F(wo.h) G / G1(wo) for a microfacet sample */
     const pvec3 F = conductor_fresnel(c, cos_f);
-    const pvec3 w = pv3_sel(F, pv3_scale(F, ggx_g2_over_g1(wo, li, c->alpha)), rough);
+    const pvec3 w = pv3_sel(F, pv3_scale(F, mf_g_over_g1(&c->d, wo, li, h)), rough);
     return pv3_sel(pv3_zero(), w, any_weight);
 }
 

@@ -1,11 +1,14 @@
-/* Dielectrics: smooth glass and rough (GGX microfacet) glass ("dielectric").
+/* Dielectrics: smooth glass and rough (microfacet) glass ("dielectric").
  *
  * Parameters (Material fields):
  *   ior     index of refraction of the inside (the side the geometric normal points away from:
  *           a sphere's interior, the back of a triangle), relative to the outside (taken as 1).
  *           The relative index eta = eta_t / eta_i seen by wo is ior when wo is outside
  *           (front) and 1 / ior when it is inside.  ior = 1 is an invisible interface.
- *   alpha   GGX roughness alpha in [0, 1]; below 1e-3 (or for ior = 1) the interface is smooth.
+ *   alpha   microfacet roughness alpha in [0, 1]; below 1e-3 (or for ior = 1) the interface is
+ *           smooth.  The distribution (GGX or Beckmann), anisotropy (alpha along the tangent,
+ *           alpha_v along the bitangent) and shadowing-masking term are the conductor's
+ *           (conductor.h: MATERIAL_FLAG_BECKMANN, MATERIAL_FLAG_ANISOTROPIC, MATERIAL_FLAG_SEPARABLE).
  *
  * Lobes, in the local frame with z = the normal on wo's side (wo.z >= 0):
  *   smooth:  reflection wi = (-wo.x, -wo.y, wo.z) with probability F = Fr(cos_o, eta) (exact
@@ -13,13 +16,13 @@
  *            weight 1; otherwise refraction by Snell's law, eta sin(theta_t) = sin(theta_o),
  *            weight 1 / eta^2.  Both are delta lobes: eval() is 0, the sample is flagged delta.
  *   rough:   (Walter et al. 2007; pbrt-v4's DielectricBxDF)
- *            reflection    f = D G2 F(wo.h) / (4 cos_o cos_i),  h = normalize(wo + wi)
- *            transmission  f = D G2 (1 - F(wo.h)) |wi.h| |wo.h| / (|cos_o cos_i| (eta wi.h + wo.h)^2),
+ *            reflection    f = D G F(wo.h) / (4 cos_o cos_i),  h = normalize(wo + wi)
+ *            transmission  f = D G (1 - F(wo.h)) |wi.h| |wo.h| / (|cos_o cos_i| (eta wi.h + wo.h)^2),
  *                          h = +-normalize(wo + eta wi) facing z
  *            a visible normal h of wo is sampled (Heitz 2018), then reflection with probability
  *            F(wo.h), else refraction about h:
  *            pdf = D_wo(h) F / (4 wo.h)  or  D_wo(h) (1 - F) eta^2 |wi.h| / (eta wi.h + wo.h)^2,
- *            weights G2 / G1(wo) and G2 / (G1(wo) eta^2).  Samples that leave on the wrong side
+ *            weights G / G1(wo) and G / (G1(wo) eta^2).  Samples that leave on the wrong side
  *            fail (weight 0); the pdf integrates to the probability of success.
  *
  * The 1 / eta^2 factor of transmission is pbrt-v4's and Mitsuba 3's for radiance transport
@@ -31,7 +34,7 @@
  *
  *   tint    (the Material's specular field) multiplies both lobes; 1 for clear glass.
  *
- * Over the lanes (cl/render/lanes.h): alpha, eta and tint per lane; lanes outside `active`
+ * Over the lanes (cl/render/lanes.h): the distribution, eta and tint per lane; lanes outside `active`
  * give 0 (*pdf = 0, *delta = 0).
  */
 #ifndef PYOPENCL_RT_DIELECTRIC_H
@@ -39,17 +42,19 @@
 
 #include "materials/microfacet.h"
 
-/* mask */
-RT_INLINE pint dielectric_is_smooth(pfloat alpha, pfloat eta)
+/* mask: `smooth` (the distribution's lanes below the threshold) or an invisible interface */
+RT_INLINE pint dielectric_is_smooth(pint smooth, pfloat eta)
 {
-    return microfacet_is_smooth(alpha) | (eta == 1.0f);
+    return smooth | (eta == 1.0f);
 }
 
-/* f * |cos_i| and *pdf for local wo (wo.z >= 0) and wi; eta = relative index seen by wo. */
-RT_INLINE pvec3 dielectric_eval(pfloat alpha, pfloat eta, pvec3 tint, pint active, pvec3 wo, pvec3 wi, pfloat *pdf)
+/* f * |cos_i| and *pdf for local wo (wo.z >= 0) and wi; eta = relative index seen by wo; d the
+ * distribution, `smooth` its lanes that are smooth. */
+RT_INLINE pvec3 dielectric_eval(const Microfacet *md, pint smooth, pfloat eta, pvec3 tint, pint active, pvec3 wo,
+                                pvec3 wi, pfloat *pdf)
 {
     const pfloat cos_o = wo.z, cos_i = wi.z;
-    pint ok = active & pnot(dielectric_is_smooth(alpha, eta) | (cos_o <= 0.0f) | (cos_i == 0.0f));
+    pint ok = active & pnot(dielectric_is_smooth(smooth, eta) | (cos_o <= 0.0f) | (cos_i == 0.0f));
     *pdf = PFLOAT(0.0f);
     if (!pany(ok)) return pv3_zero();
     const pint reflect = cos_i > 0.0f;
@@ -63,9 +68,9 @@ RT_INLINE pvec3 dielectric_eval(pfloat alpha, pfloat eta, pvec3 tint, pint activ
     /* discard back-facing microfacets */
     ok &= pnot((wh <= 0.0f) | (ih * cos_i <= 0.0f));
     const pfloat F = fresnel_dielectric(wh, eta);
-    const pfloat d = ggx_d(h, alpha);
-    const pfloat g = ggx_g2(wo, wi, alpha);
-    const pfloat pdf_h = ggx_vndf_pdf(wo, h, alpha);
+    const pfloat d = mf_d(h, md->ax, md->ay, md->beckmann);
+    const pfloat g = mf_g(md, wo, wi, h);
+    const pfloat pdf_h = mf_vndf_pdf(wo, h, md->ax, md->ay, md->beckmann);
     /* reflection */
     const pfloat f_r = d * g * F / (4.0f * cos_o);
     const pfloat p_r = pdf_h * F / (4.0f * wh);
@@ -86,15 +91,15 @@ RT_INLINE pvec3 dielectric_eval(pfloat alpha, pfloat eta, pvec3 tint, pint activ
  * sampled direction, also where the sample failed after drawing one; (0, 0, 1) where none was
  * drawn (wo below the surface, total internal reflection of a refraction, a back-facing
  * microfacet normal, lanes outside `active`). */
-RT_INLINE pvec3 dielectric_sample(pfloat alpha, pfloat eta, pvec3 tint, pint active, pvec3 wo, pfloat u0, pfloat u1,
-                                  pfloat u2, pvec3 *wi, pfloat *pdf, pint *delta)
+RT_INLINE pvec3 dielectric_sample(const Microfacet *md, pint smooth_d, pfloat eta, pvec3 tint, pint active, pvec3 wo,
+                                  pfloat u0, pfloat u1, pfloat u2, pvec3 *wi, pfloat *pdf, pint *delta)
 {
     const pint up = active & pnot(wo.z <= 0.0f);
-    const pint smooth = dielectric_is_smooth(alpha, eta);
+    const pint smooth = dielectric_is_smooth(smooth_d, eta);
     const pint rough = up & pnot(smooth);
     /* the microfacet normal: the normal itself for the smooth interface */
     pvec3 h = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f));
-    if (pany(rough)) h = pv3_sel(h, ggx_sample_vndf(wo, alpha, u0, u1, rough), rough);
+    if (pany(rough)) h = pv3_sel(h, mf_sample_vndf(wo, md->ax, md->ay, md->beckmann, u0, u1, rough), rough);
     const pfloat wh = pv3_dot(wo, h);
     const pint facing = smooth | pnot(wh <= 0.0f); /* rough: a back-facing h fails */
     const pfloat F = fresnel_dielectric(smooth ? wo.z : wh, eta);
@@ -110,11 +115,11 @@ RT_INLINE pvec3 dielectric_sample(pfloat alpha, pfloat eta, pvec3 tint, pint act
     pfloat p = PFLOAT(0.0f);
     pint ok = sd;
     if (pany(rough)) {
-        const pfloat pdf_h = ggx_vndf_pdf(wo, h, alpha);
+        const pfloat pdf_h = mf_vndf_pdf(wo, h, md->ax, md->ay, md->beckmann);
         const pfloat ih = pv3_dot(li, h);
         const pfloat den = wh + eta * ih;
         const pfloat pr = refl ? pdf_h * F / (4.0f * wh) : pdf_h * (1.0f - F) * eta * eta * pabs(ih) / (den * den);
-        pfloat wr = ggx_g2_over_g1(wo, pv3_sel(pv3_neg(li), li, refl), alpha);
+        pfloat wr = mf_g_over_g1(md, wo, li, h);
         wr = refl ? wr : wr / (eta * eta);
         const pint rok = rough & facing & (refl ? pnot(li.z <= 0.0f) : tok & pnot(li.z >= 0.0f)) & (pr > 0.0f) &
                          pisfinite(pr) & pisfinite(wr);

@@ -18,6 +18,11 @@
  *   active the mask of the lanes to compute; the others give weight / f 0, *pdf 0, *delta 0
  *          (bsdf_sample sets their *wi to n)
  *   n      the unit geometric normal flipped to wo's side
+ *   tangent the frame's tangent direction (need not be unit nor orthogonal to n; Mitsuba's dp/du):
+ *          the x axis of the local frame of the lanes with MATERIAL_FLAG_ANISOTROPIC (anisotropic
+ *          conductors, dielectrics, principled), made orthogonal to n; where it is zero or parallel
+ *          to n, and for every other lane, the local frame is make_onb(n) (any frame: their BSDFs
+ *          are isotropic)
  *   front  mask: the lanes where wo lies on the side the geometric normal points to (the
  *          outside: a sphere's outward normal, a triangle's (v1 - v0) x (v2 - v0)); dielectrics
  *          refract into the inside then, with relative index ior, else out of it with 1 / ior
@@ -81,7 +86,7 @@
 typedef struct {
     pint type, flags;
     pvec3 albedo, emission, specular, eta, k;
-    pfloat alpha, metallic, ior;
+    pfloat alpha, alpha_v, metallic, ior;
     pint tex_base, tex_mr, tex_emission; /* texture indices, -1 none */
     pfloat opacity; /* MATERIAL_FLAG_MASK: the record's opacity (times its texture, cl/scene/textures.h); else 1 */
     pfloat fdr, spec_weight, roughness, anisotropic, spec_trans, spec_tint, sheen, sheen_tint, clearcoat,
@@ -102,7 +107,7 @@ RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint 
 #define GATHER_FLOAT(x) m.x = pgather(f, i + FIELD_INDEX(Material, x));
     GATHER_INT(type) GATHER_INT(flags) GATHER_INT(tex_base) GATHER_INT(tex_mr) GATHER_INT(tex_emission)
     GATHER_VEC3(albedo) GATHER_VEC3(emission) GATHER_VEC3(specular) GATHER_VEC3(eta) GATHER_VEC3(k)
-    GATHER_FLOAT(alpha) GATHER_FLOAT(metallic) GATHER_FLOAT(ior)
+    GATHER_FLOAT(alpha) GATHER_FLOAT(alpha_v) GATHER_FLOAT(metallic) GATHER_FLOAT(ior)
     m.records = f;
     m.rec = i;
     m.opacity = PFLOAT(1.0f);
@@ -128,13 +133,34 @@ RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint 
     return m;
 }
 
+/* The microfacet distribution of a conductor or dielectric (microfacet.h): alpha (alpha_u) and,
+ * with MATERIAL_FLAG_ANISOTROPIC, alpha_v; *smooth: the lanes whose alphas are all below the
+ * smooth threshold (a delta lobe). */
+RT_INLINE Microfacet microfacet_params(const MaterialLanes *m, pint *smooth)
+{
+    const pfloat ay = (m->flags & MATERIAL_FLAG_ANISOTROPIC) != 0 ? m->alpha_v : m->alpha;
+    *smooth = microfacet_is_smooth(m->alpha) & microfacet_is_smooth(ay);
+    const Microfacet d = {.ax = pfmax(m->alpha, PFLOAT(1e-4f)), .ay = pfmax(ay, PFLOAT(1e-4f)),
+                          .beckmann = (m->flags & MATERIAL_FLAG_BECKMANN) != 0,
+                          .separable = (m->flags & MATERIAL_FLAG_SEPARABLE) != 0};
+    return d;
+}
+
 /* Each type's parameters from the lanes' Material fields (abi.MATERIAL documents the mapping). */
 RT_INLINE ConductorParams conductor_params(const MaterialLanes *m)
 {
-    const ConductorParams c = {.f0 = m->specular, .eta = m->eta, .k = m->k, .alpha = m->alpha,
-                               .schlick = (m->flags & MATERIAL_FLAG_CONDUCTOR_F0) != 0};
+    ConductorParams c = {.f0 = m->specular, .eta = m->eta, .k = m->k,
+                         .schlick = (m->flags & MATERIAL_FLAG_CONDUCTOR_F0) != 0};
+    c.d = microfacet_params(m, &c.smooth);
     return c;
 }
+
+/* a dielectric's distribution and the relative index seen by wo (dielectric_eta) */
+typedef struct {
+    Microfacet d;
+    pint smooth;
+    pfloat eta;
+} DielectricParams;
 
 RT_INLINE GltfParams gltf_params(const MaterialLanes *m)
 {
@@ -179,12 +205,20 @@ RT_INLINE pfloat dielectric_eta(const MaterialLanes *m, pint front)
     return front ? ior : 1.0f / ior;
 }
 
+RT_INLINE DielectricParams dielectric_params(const MaterialLanes *m, pint front)
+{
+    DielectricParams p;
+    p.d = microfacet_params(m, &p.smooth);
+    p.eta = dielectric_eta(m, front);
+    return p;
+}
+
 /* A dielectric's sample: it refracts, or (MATERIAL_FLAG_THIN, Mitsuba's thindielectric) a thin sheet
  * lets light through unbent or reflects it. */
-RT_INLINE pvec3 dielectric_or_thin_sample(const MaterialLanes *m, pfloat eta, pint active, pvec3 lo, pfloat u0,
-                                          pfloat u1, pfloat u2, pvec3 *wl, pfloat *q, pint *d)
+RT_INLINE pvec3 dielectric_or_thin_sample(const MaterialLanes *m, const DielectricParams *p, pint active, pvec3 lo,
+                                          pfloat u0, pfloat u1, pfloat u2, pvec3 *wl, pfloat *q, pint *d)
 {
-    pvec3 g = dielectric_sample(m->alpha, eta, m->specular, active, lo, u0, u1, u2, wl, q, d);
+    pvec3 g = dielectric_sample(&p->d, p->smooth, p->eta, m->specular, active, lo, u0, u1, u2, wl, q, d);
     const pint thin = active & ((m->flags & MATERIAL_FLAG_THIN) != 0);
     if (pany(thin)) {
         pvec3 wt;
@@ -201,11 +235,15 @@ RT_INLINE pvec3 dielectric_or_thin_sample(const MaterialLanes *m, pfloat eta, pi
 RT_INLINE pint bsdf_has_nondelta_lobes(const MaterialLanes *m)
 {
     pint r = pnot(PINT(0)); /* diffuse, and any type not compiled in */
+#if defined(HAS_MATERIAL_CONDUCTOR) || defined(HAS_MATERIAL_DIELECTRIC)
+    pint smooth;
+    (void)microfacet_params(m, &smooth);
+#endif
 #ifdef HAS_MATERIAL_CONDUCTOR
-    r = m->type == MATERIAL_CONDUCTOR ? pnot(microfacet_is_smooth(m->alpha)) : r;
+    r = m->type == MATERIAL_CONDUCTOR ? pnot(smooth) : r;
 #endif
 #ifdef HAS_MATERIAL_DIELECTRIC
-    r = m->type == MATERIAL_DIELECTRIC ? pnot(dielectric_is_smooth(m->alpha, m->ior)) : r;
+    r = m->type == MATERIAL_DIELECTRIC ? pnot(dielectric_is_smooth(smooth, m->ior)) : r;
 #endif
 #ifdef HAS_MATERIAL_GLTF
     r = m->type == MATERIAL_GLTF ? pnot(microfacet_is_smooth(m->alpha)) | (m->metallic < 1.0f) : r;
@@ -219,7 +257,7 @@ RT_INLINE pint bsdf_has_nondelta_lobes(const MaterialLanes *m)
  * HAS_MATERIAL_<TYPE> is defined (RT_WHEN). */
 #define FRAMED_MATERIALS(X) \
     X(CONDUCTOR, conductor, ConductorParams, conductor_params(m), conductor_eval(&P, K, lo, li, &q), conductor_sample(&P, K, lo, u0, u1, &wl, &q, &d)) \
-    X(DIELECTRIC, dielectric, pfloat, dielectric_eta(m, front), dielectric_eval(m->alpha, P, m->specular, K, lo, li, &q), dielectric_or_thin_sample(m, P, K, lo, u0, u1, u2, &wl, &q, &d)) \
+    X(DIELECTRIC, dielectric, DielectricParams, dielectric_params(m, front), dielectric_eval(&P.d, P.smooth, P.eta, m->specular, K, lo, li, &q), dielectric_or_thin_sample(m, &P, K, lo, u0, u1, u2, &wl, &q, &d)) \
     X(GLTF, gltf, GltfParams, gltf_params(m), gltf_eval(&P, K, lo, li, &q), gltf_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d)) \
     X(PLASTIC, plastic, PlasticParams, plastic_params(m), plastic_eval(&P, K, lo, li, &q), plastic_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d)) \
     X(ROUGHPLASTIC, roughplastic, RoughPlasticParams, roughplastic_params(m), roughplastic_eval(&P, K, lo, li, &q), roughplastic_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d)) \
@@ -256,6 +294,21 @@ RT_INLINE MaterialMasks material_masks(const MaterialLanes *m, pint active)
     return k;
 }
 
+/* The local frame (t, b, n) of the framed lanes `framed`: make_onb(n), or for anisotropic lanes the
+ * tangent made orthogonal to n (Mitsuba's sh_frame.s) and b = n x t. */
+RT_INLINE void bsdf_frame(const MaterialLanes *m, pint framed, pvec3 n, pvec3 tangent, pvec3 *t, pvec3 *b)
+{
+    make_onb(n, t, b);
+    const pint aniso = framed & ((m->flags & MATERIAL_FLAG_ANISOTROPIC) != 0);
+    if (!pany(aniso)) return;
+    const pvec3 s = pv3_sub(tangent, pv3_scale(n, pv3_dot(n, tangent)));
+    const pfloat l2 = pv3_dot(s, s);
+    const pint use = aniso & (l2 > 0.0f) & pisfinite(l2);
+    const pvec3 su = pv3_scale(s, 1.0f / psqrt(use ? l2 : PFLOAT(1.0f)));
+    *t = pv3_sel(*t, su, use);
+    *b = pv3_sel(*b, pv3_cross(n, su), use);
+}
+
 /* bsdf_eval's case of one type: its lanes K take f and the pdf q of its eval */
 #define EVAL_CASE(T, mask, Params, params, eval, sample) \
     RT_WHEN(HAS_MATERIAL_##T)(if (pany(k.mask)) { \
@@ -266,7 +319,8 @@ RT_INLINE MaterialMasks material_masks(const MaterialLanes *m, pint active)
         p = K ? q : p; \
     })
 
-RT_INLINE pvec3 bsdf_eval(const MaterialLanes *m, pint active, pvec3 n, pint front, pvec3 wo, pvec3 wi, pfloat *pdf)
+RT_INLINE pvec3 bsdf_eval(const MaterialLanes *m, pint active, pvec3 n, pvec3 tangent, pint front, pvec3 wo, pvec3 wi,
+                          pfloat *pdf)
 {
     const MaterialMasks k = material_masks(m, active);
     pvec3 f = pv3_zero();
@@ -274,7 +328,7 @@ RT_INLINE pvec3 bsdf_eval(const MaterialLanes *m, pint active, pvec3 n, pint fro
     if (pany(k.diffuse)) f = diffuse_eval(m->albedo, k.diffuse, n, wi, &p);
     if (pany(k.framed)) {
         pvec3 t, b;
-        make_onb(n, &t, &b);
+        bsdf_frame(m, k.framed, n, tangent, &t, &b);
         const pvec3 lo = to_local(wo, t, b, n), li = to_local(wi, t, b, n);
         pfloat q;
         FRAMED_MATERIALS(EVAL_CASE)
@@ -295,8 +349,8 @@ RT_INLINE pvec3 bsdf_eval(const MaterialLanes *m, pint active, pvec3 n, pint fro
         dd = K ? d : dd; \
     })
 
-RT_INLINE pvec3 bsdf_sample(const MaterialLanes *m, pint active, pvec3 n, pint front, pvec3 wo, pfloat u0, pfloat u1,
-                            pfloat u2, pvec3 *wi, pfloat *pdf, pint *delta)
+RT_INLINE pvec3 bsdf_sample(const MaterialLanes *m, pint active, pvec3 n, pvec3 tangent, pint front, pvec3 wo,
+                            pfloat u0, pfloat u1, pfloat u2, pvec3 *wi, pfloat *pdf, pint *delta)
 {
     const MaterialMasks k = material_masks(m, active);
     const pint framed = k.framed;
@@ -307,7 +361,7 @@ RT_INLINE pvec3 bsdf_sample(const MaterialLanes *m, pint active, pvec3 n, pint f
     if (pany(k.diffuse)) w = diffuse_sample(m->albedo, k.diffuse, n, u0, u1, wi, &p);
     if (pany(framed)) {
         pvec3 t, b;
-        make_onb(n, &t, &b);
+        bsdf_frame(m, framed, n, tangent, &t, &b);
         const pvec3 lo = to_local(wo, t, b, n);
         pvec3 li = pv3(PFLOAT(0.0f), PFLOAT(0.0f), PFLOAT(1.0f)), wl = li, g = pv3_zero();
         pfloat ql = PFLOAT(0.0f), q;

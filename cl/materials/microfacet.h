@@ -1,6 +1,7 @@
-/* Shared pieces of the microfacet materials (conductor.h, dielectric.h, gltf.h).
+/* Shared pieces of the microfacet materials (conductor.h, dielectric.h, gltf.h, and the Mitsuba types).
  *
- * Distribution: isotropic GGX / Trowbridge-Reitz (Walter et al. 2007, "Microfacet Models for
+ * gltf.h's distribution (conductor.h and dielectric.h use the general one below, mf_*): isotropic
+ * GGX / Trowbridge-Reitz (Walter et al. 2007, "Microfacet Models for
  * Refraction through Rough Surfaces"), parameter alpha (the GGX alpha; alpha = roughness^2 for
  * the perceptual roughness of glTF / Disney):
  *
@@ -187,9 +188,10 @@ RT_INLINE pvec3 fresnel_schlick(pvec3 f0, pfloat cos_i)
 
 
 /* -- Mitsuba 3's microfacet distribution (include/mitsuba/render/microfacet.h), as the Mitsuba
- * types (roughplastic.h, principled.h, principledthin.h) use it: anisotropic GGX (alpha_x along
- * the tangent, alpha_y along the bitangent) or isotropic Beckmann, with Smith's *separable*
- * shadowing-masking G = G1(wo, m) G1(wi, m) (not the height-correlated G2 above).
+ * types (roughplastic.h, principled.h, principledthin.h) use it: GGX or Beckmann, anisotropic
+ * (alpha_x along the tangent, alpha_y along the bitangent), with Smith's *separable*
+ * shadowing-masking G = G1(wo, m) G1(wi, m) (not the height-correlated G2 above).  conductor.h and
+ * dielectric.h use it through a Microfacet record, with either masking term (mf_g).
  *
  *   GGX       D(m) = 1 / (pi ax ay ((m.x / ax)^2 + (m.y / ay)^2 + m.z^2)^2),
  *             G1(v, m) = 2 / (1 + sqrt(1 + (ax^2 v.x^2 + ay^2 v.y^2) / v.z^2))
@@ -247,6 +249,52 @@ RT_INLINE pfloat mf_g1(pvec3 v, pvec3 m, pfloat ax, pfloat ay, pint beckmann)
 RT_INLINE pfloat mf_vndf_pdf(pvec3 v, pvec3 m, pfloat ax, pfloat ay, pint beckmann)
 {
     return mf_d(m, ax, ay, beckmann) * mf_g1(v, m, ax, ay, beckmann) * pabs(pv3_dot(v, m)) / v.z;
+}
+
+/* Smith's Lambda(v) of the same distribution (G1 = 1 / (1 + Lambda) away from the side test):
+ * GGX (-1 + sqrt(1 + (ax^2 v.x^2 + ay^2 v.y^2) / v.z^2)) / 2, written without cancellation;
+ * Beckmann the Lambda of Mitsuba's rational G1 fit, (1 - 1.259 a + 0.396 a^2) / (3.535 a + 2.181 a^2)
+ * for a = 1 / (alpha tan(theta_v)) < 1.6, else 0.  Infinite for v.z == 0. */
+RT_INLINE pfloat mf_lambda(pvec3 v, pfloat ax, pfloat ay, pint beckmann)
+{
+    const pfloat cos2 = v.z * v.z;
+    const pfloat t2 = ((ax * v.x) * (ax * v.x) + (ay * v.y) * (ay * v.y)) / cos2;
+    pfloat l = 0.5f * t2 / (1.0f + psqrt(1.0f + t2));
+    if (pany(beckmann)) {
+        const pfloat a = 1.0f / psqrt(t2), a2 = a * a;
+        const pfloat lb = a >= 1.6f ? PFLOAT(0.0f) : (1.0f - 1.259f * a + 0.396f * a2) / (3.535f * a + 2.181f * a2);
+        l = beckmann ? lb : l;
+    }
+    return ((cos2 > 1e-30f) & pisfinite(l)) ? l : PFLOAT(INFINITY);
+}
+
+/* A rough conductor's or dielectric's distribution, per lane: alpha_x along the frame's tangent,
+ * alpha_y along its bitangent (each at least 1e-4, Mitsuba's floor), Beckmann or GGX, and the
+ * shadowing-masking term: Smith's height-correlated G2 = 1 / (1 + Lambda(wo) + Lambda(wi))
+ * (pbrt-v4; the default) or, where `separable`, Mitsuba's G1(wo, m) G1(wi, m). */
+typedef struct {
+    pfloat ax, ay;
+    pint beckmann, separable; /* masks */
+} Microfacet;
+
+/* G(wo, wi) for the microfacet normal m (both directions on m's front, which the callers check) */
+RT_INLINE pfloat mf_g(const Microfacet *d, pvec3 wo, pvec3 wi, pvec3 m)
+{
+    pfloat g = 1.0f / (1.0f + mf_lambda(wo, d->ax, d->ay, d->beckmann) + mf_lambda(wi, d->ax, d->ay, d->beckmann));
+    if (pany(d->separable))
+        g = d->separable ? mf_g1(wo, m, d->ax, d->ay, d->beckmann) * mf_g1(wi, m, d->ax, d->ay, d->beckmann) : g;
+    return g;
+}
+
+/* The weight G / G1(wo) of a visible-normal sample m of wo leaving along wi: (1 + Lambda_o) /
+ * (1 + Lambda_o + Lambda_i) (1 for a grazing wo, 0 for a grazing wi, never NaN), or G1(wi, m)
+ * where separable (Mitsuba's roughconductor / roughdielectric weight) */
+RT_INLINE pfloat mf_g_over_g1(const Microfacet *d, pvec3 wo, pvec3 wi, pvec3 m)
+{
+    const pfloat lo = mf_lambda(wo, d->ax, d->ay, d->beckmann), li = mf_lambda(wi, d->ax, d->ay, d->beckmann);
+    pfloat g = pisfinite(li) ? 1.0f / (1.0f + li / (1.0f + lo)) : PFLOAT(0.0f);
+    if (pany(d->separable)) g = d->separable ? mf_g1(wi, m, d->ax, d->ay, d->beckmann) : g;
+    return g;
 }
 
 /* The Beckmann slopes of visible normals for alpha = 1 at cos_theta (Mitsuba's sample_visible_11) */

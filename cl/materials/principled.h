@@ -29,8 +29,8 @@
  * side the geometric normal faces (`front`), as the dielectric; a lane without is two-sided, as
  * every opaque material here (Mitsuba's principled is black from behind).
  *
- * Deviations from Mitsuba: anisotropy is relative to our tangent frame (make_onb of the normal),
- * not to the UV parameterisation; sheen needs the diffuse lobe (brdf > 0), as Mitsuba's scalar
+ * Anisotropy is relative to dp/du, as Mitsuba's sh_frame (MATERIAL_FLAG_ANISOTROPIC: dispatch.h's
+ * bsdf_frame).  Deviation from Mitsuba: sheen needs the diffuse lobe (brdf > 0), as Mitsuba's scalar
  * variants compute it.
  *
  * Over the lanes (cl/render/lanes.h): PrincipledParams holds each lane's parameters; lanes outside

@@ -21,8 +21,8 @@
  *   diffuse transmission   (1 - spec_trans) d base / pi
  * Sampling: lobe probabilities spec_trans rate / 2 (specular reflection, transmission),
  * (1 - spec_trans)(1 - d) rate and (1 - spec_trans) d rate (diffuse), normalised; the pdf the
- * mixture, the weight f cos / pdf.  Deviation from Mitsuba: anisotropy is relative to our tangent
- * frame (make_onb), not to the UV parameterisation.
+ * mixture, the weight f cos / pdf.  Anisotropy is relative to dp/du, as Mitsuba's sh_frame
+ * (MATERIAL_FLAG_ANISOTROPIC: dispatch.h's bsdf_frame).
  */
 #ifndef PYOPENCL_RT_PRINCIPLEDTHIN_H
 #define PYOPENCL_RT_PRINCIPLEDTHIN_H

@@ -258,7 +258,8 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     /* the BSDF's frame: the shading normal (interpolated, normal- or bump-mapped) on wo's side,
      * or n (cl/scene/shading.h) */
     const ShadingLanes sh = shading_lanes(tris, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit,
-                                          prim, u, v, ng, n, front, wo);
+                                          prim, u, v, ng, n, front, wo,
+                                          hit & ((m.flags & MATERIAL_FLAG_ANISOTROPIC) != 0));
     /* alpha cut-outs (MATERIAL_FLAG_MASK, Mitsuba's mask): the surface is met with probability
      * `opacity`; one-sided BSDFs (MATERIAL_FLAG_ONE_SIDED) reflect nothing seen from behind */
     const pint masked = hit & ((m.flags & MATERIAL_FLAG_MASK) != 0);
@@ -314,7 +315,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
         const pint sampled = nee_light_sample(PATH_ARGS, key, dim, nee, ref, &ls, &pick_pmf, &wi, &dist);
         if (pany(sampled)) {
             pfloat bpdf;
-            pvec3 f = bsdf_eval(&m, sampled, sh.n, sh.front, wo, wi, &bpdf);
+            pvec3 f = bsdf_eval(&m, sampled, sh.n, sh.t, sh.front, wo, wi, &bpdf);
             f = shading_eval(&sh, wi, f, &bpdf);
             if (pany(masked)) { /* Mitsuba's mask: the nested BSDF's f and pdf times the opacity */
                 f = pv3_scale(f, opacity);
@@ -348,8 +349,8 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     ulobe = masked & pnot(passes) ? ulobe / opacity : ulobe;
     pvec3 wi;
     pint delta;
-    pvec3 weight = bsdf_sample(&m, going & surface & pnot(passes), sh.n, sh.front, wo, ubx, uby, ulobe, &wi, &pdf,
-                               &delta);
+    pvec3 weight = bsdf_sample(&m, going & surface & pnot(passes), sh.n, sh.t, sh.front, wo, ubx, uby, ulobe, &wi,
+                               &pdf, &delta);
     weight = shading_sample(&sh, wi, weight, &pdf);
     if (pany(masked)) {
         pdf *= opacity;

@@ -49,6 +49,14 @@
  *                                   min(tan^2 theta_n / 8, 1), angles to the shading normal
  *                   A viewer on the shading normal's back side sees the map mirrored through the
  *                   tangent plane (Mitsuba's twosided around the wrapper).
+ *   tangent         (HAS_ANISOTROPY: the lanes of MATERIAL_FLAG_ANISOTROPIC) the direction of the
+ *                   BSDF frame's x axis, as Mitsuba's sh_frame.s: dp/du of the triangle from its
+ *                   vertices and UVs (a triangle without a UV parameterisation: its edge v1 - v0,
+ *                   Mitsuba's barycentric dp/du), of a sphere (-n.y, n.x, 0) (Mitsuba's sphere
+ *                   in its own unrotated frame); under a normal or bump map, dp/du made
+ *                   orthogonal to the shading normal, which the BSDF's frame then makes
+ *                   orthogonal to the mapped normal (Mitsuba's normalmap frame).  dispatch.h's
+ *                   bsdf_frame() makes it orthogonal to the BSDF's normal.
  *   vertex colours  (MATERIAL_FLAG_VERTEX_COLOR) tri_color: 9 floats per reordered triangle,
  *                   linear RGB per corner, interpolated as the UVs; they multiply the albedo (a
  *                   dielectric's tint), as the base texture does (Mitsuba's mesh_attribute
@@ -71,6 +79,7 @@
 /* The BSDF's frame at the lanes' hits. */
 typedef struct {
     pvec3 n;      /* the BSDF's normal, on wo's side */
+    pvec3 t;      /* the frame's tangent direction of anisotropic lanes (bsdf_frame), else 0 */
     pint front;   /* wo on the side the shading normal points to (dielectrics: the outside) */
 #ifdef HAS_NORMAL_MAPS
     pint mapped;  /* lanes whose normal a map tilted, with Mitsuba's side test or shadowing term */
@@ -190,16 +199,38 @@ RT_INLINE int map_normal1(__global const float4 *tris, __global const float2 *tr
 }
 #endif
 
+#ifdef HAS_ANISOTROPY
+/* dp/du of the lanes' triangles (prim valid in every lane) from their vertices and UVs; the edge
+ * v1 - v0 where the UVs give none (all UVs equal: a mesh without them) */
+RT_INLINE pvec3 triangle_dpdu(__global const float4 *tris, __global const float2 *tri_uv, pint prim)
+{
+    __global const float *P = (__global const float *)tris;
+    __global const float *T = (__global const float *)tri_uv;
+    const pint i = prim * 12, j = prim * 6;
+    const pvec3 p0 = pv3_gather(P, i);
+    const pvec3 dp0 = pv3_sub(pv3_gather(P, i + 4), p0), dp1 = pv3_sub(pv3_gather(P, i + 8), p0);
+    const pfloat u0 = pgather(T, j), v0 = pgather(T, j + 1);
+    const pfloat du0 = pgather(T, j + 2) - u0, dv0 = pgather(T, j + 3) - v0;
+    const pfloat du1 = pgather(T, j + 4) - u0, dv1 = pgather(T, j + 5) - v0;
+    const pfloat det = du0 * dv1 - dv0 * du1;
+    const pvec3 dpdu = pv3_scale(pv3_sub(pv3_scale(dp0, dv1), pv3_scale(dp1, dv0)), 1.0f / det);
+    const pint ok = (det != 0.0f) & pisfinite(dpdu.x + dpdu.y + dpdu.z);
+    return pv3_sel(dp0, dpdu, ok);
+}
+#endif
+
 /* The BSDF's frame at the lanes' hits: ng the unit geometric normal, n it on wo's side, front
- * the geometric side of wo; mat_index the lanes' materials. */
+ * the geometric side of wo; mat_index the lanes' materials, aniso those with
+ * MATERIAL_FLAG_ANISOTROPIC (their tangent is computed with HAS_ANISOTROPY). */
 RT_INLINE ShadingLanes shading_lanes(__global const float4 *tris, __global const float *tri_normal,
                                      __global const float2 *tri_uv, __global const Texture *textures,
                                      __global const float4 *tex_data, __global const Material *materials,
                                      pint mat_index, pint hit, pint prim, pfloat u, pfloat v, pvec3 ng, pvec3 n,
-                                     pint front, pvec3 wo)
+                                     pint front, pvec3 wo, pint aniso)
 {
     ShadingLanes sh;
     sh.n = n;
+    sh.t = pv3_zero();
     sh.front = front;
 #if defined(HAS_SHADING_NORMALS) || defined(HAS_NORMAL_MAPS)
     pvec3 ns = ng; /* the shading normal, in its own orientation */
@@ -246,6 +277,21 @@ RT_INLINE ShadingLanes shading_lanes(__global const float4 *tris, __global const
         sh.mapped = pmask(mapped_bits);
         sh.side = pmask(side_bits);
     }
+#endif
+#ifdef HAS_ANISOTROPY
+    aniso &= hit;
+    if (pany(aniso)) {
+        const pint tri = aniso & pnot(IS_SPHERE(prim));
+        pvec3 t = pv3(-ng.y, ng.x, PFLOAT(0.0f)); /* a sphere's dp/du */
+        if (pany(tri)) t = pv3_sel(t, triangle_dpdu(tris, tri_uv, tri ? prim : PINT(0)), tri);
+#ifdef HAS_NORMAL_MAPS
+        /* under a map: the shading frame's tangent (dp/du orthogonal to the shading normal) */
+        t = pv3_sel(t, pv3_sub(t, pv3_scale(sh.base, pv3_dot(sh.base, t))), sh.mapped);
+#endif
+        sh.t = pv3_sel(pv3_zero(), t, aniso);
+    }
+#else
+    (void)aniso;
 #endif
     return sh;
 }

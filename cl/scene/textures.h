@@ -21,7 +21,7 @@
  *   tex_mr        glTF metallicRoughness: metallic *= b, roughness *= g (alpha *= g^2)
  *   tex_emission  emission *= rgb
  *   tex_scalar    slot k (used slots first, -1 after them): the parameter TEXP_* named by bits
- *                 4k..4k+3 of tex_params *= r (alpha, roughness, metallic, anisotropic, ...: the
+ *                 4k..4k+3 of tex_params *= r (alpha, alpha_v, roughness, metallic, anisotropic, ...: the
  *                 Mitsuba types' textured parameters; the host stores the value in R)
  *   tex_normal    a normal map (tex_sample) or bump map (tex_gradient: the derivative of the
  *                 bilinear lookup, as Mitsuba's bump maps take it), read by cl/scene/shading.h
@@ -181,6 +181,7 @@ RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Te
             case TEXP_DIFF_TRANS: PLANE(m->diff_trans, k) *= c; break;
             case TEXP_ETA: PLANE(m->ior, k) *= c; break;
             case TEXP_OPACITY: PLANE(m->opacity, k) *= c; break;
+            case TEXP_ALPHA_V: PLANE(m->alpha_v, k) *= c; break;
             default: break;
             }
         }

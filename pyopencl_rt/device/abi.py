@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import sobol
 
 # Every #define of the generated header (name -> int or float), in declaration order.
 DEFINES: dict[str, int | float] = {}
@@ -75,15 +74,20 @@ assert TRIANGLE.itemsize == 48
 #   flags     bit 0: emission on both sides (default: only on the side the geometric normal
 #             faces); bit 1: conductor Fresnel from `specular` as F0 (Schlick) instead of eta, k;
 #             bit 2 (MATERIAL_FLAG_NONLINEAR): plastic, roughplastic: Mitsuba's `nonlinear`;
-#             bit 3 (MATERIAL_FLAG_BECKMANN): roughplastic: the Beckmann distribution (else GGX)
+#             bit 3 (MATERIAL_FLAG_BECKMANN): roughplastic, conductor, dielectric: Beckmann (else GGX)
 #             bit 4: tex_normal is a height (bump) map, not a tangent-space normal map; bit 5:
 #             the reflectance (albedo, dielectric tint) is multiplied by the triangle's vertex
 #             colours (tri_color); bits 6-8: the normal/bump map's Mitsuba conventions
 #             (cl/scene/shading.h): flip normals that face away from the viewer, the shadowing
-#             term of Estevez et al. 2019, directions on opposite sides of the two frames masked
+#             term of Estevez et al. 2019, directions on opposite sides of the two frames masked;
+#             bit 9 (MATERIAL_FLAG_THIN): a thin dielectric sheet; bit 12
+#             (MATERIAL_FLAG_ANISOTROPIC): the frame's x is dp/du; conductor, dielectric: alpha along
+#             it, alpha_v along the bitangent; bit 13 (MATERIAL_FLAG_SEPARABLE): conductor, dielectric:
+#             Mitsuba's separable shadowing-masking G1(wo) G1(wi) (else height-correlated)
 #   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes;
 #             plastic, roughplastic: specular_reflectance
-#   alpha     GGX roughness alpha (conductor, dielectric, gltf; < 1e-3 is perfectly smooth);
+#   alpha     microfacet roughness alpha (conductor, dielectric: alpha_u with
+#             MATERIAL_FLAG_ANISOTROPIC; gltf: GGX; < 1e-3 is perfectly smooth);
 #             roughplastic: the distribution's alpha (clamped to >= 1e-4, as Mitsuba's)
 #   eta, k    conductor: complex index of refraction eta + i k per channel
 #   metallic  gltf, principled
@@ -91,7 +95,8 @@ assert TRIANGLE.itemsize == 48
 #             index (F0 = ((ior - 1) / (ior + 1))^2); plastic, roughplastic, principled: the
 #             relative index eta = int_ior / ext_ior; principledthin: the sheet's eta
 # The fields after the texture indices serve the types of Mitsuba 3 (issue 24):
-#   alpha_v      (reserved: 0)
+#   alpha_v      conductor, dielectric with MATERIAL_FLAG_ANISOTROPIC: the roughness along the
+#                bitangent (else unused)
 #   fdr          plastic: the internal diffuse Fresnel reflectance fdr_int (Egan & Hilgeman's fit
 #                at 1 / eta); roughplastic: the rough interface's internal reflectance
 #   spec_weight  plastic, roughplastic: the specular sampling weight s / (d + s) of the means of
@@ -124,6 +129,8 @@ MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)
 # BSDFs outside twosided); CUTOUT: a cut-out in the intersection, alpha `opacity`, `alpha_cutoff` (cl/scene/scene.h)
 MATERIAL_FLAG_MASK, MATERIAL_FLAG_ONE_SIDED, MATERIAL_FLAG_CUTOUT = (
     define("MATERIAL_FLAG_MASK", 1024), define("MATERIAL_FLAG_ONE_SIDED", 2048), define("MATERIAL_FLAG_CUTOUT", 4096))
+MATERIAL_FLAG_ANISOTROPIC = define("MATERIAL_FLAG_ANISOTROPIC", 8192)
+MATERIAL_FLAG_SEPARABLE = define("MATERIAL_FLAG_SEPARABLE", 16384)
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
@@ -149,9 +156,10 @@ assert MATERIAL.itemsize == 464
 #                 tex_params name (the host stores such a texture's luminance in R, Mitsuba's eval_1)
 # TEXP_<FIELD>: the Material field each multiplies (TEXP_ETA: ior)
 _TEXP = define_enum("TEXP_", ("alpha", "roughness", "metallic", "anisotropic", "spec_trans", "spec_tint", "sheen",
-                              "sheen_tint", "clearcoat", "clearcoat_gloss", "flatness", "diff_trans", "eta"))
+                              "sheen_tint", "clearcoat", "clearcoat_gloss", "flatness", "diff_trans", "eta", "alpha_v"))
 (TEXP_ALPHA, TEXP_ROUGHNESS, TEXP_METALLIC, TEXP_ANISOTROPIC, TEXP_SPEC_TRANS, TEXP_SPEC_TINT, TEXP_SHEEN,
- TEXP_SHEEN_TINT, TEXP_CLEARCOAT, TEXP_CLEARCOAT_GLOSS, TEXP_FLATNESS, TEXP_DIFF_TRANS, TEXP_ETA) = _TEXP.values()
+ TEXP_SHEEN_TINT, TEXP_CLEARCOAT, TEXP_CLEARCOAT_GLOSS, TEXP_FLATNESS, TEXP_DIFF_TRANS, TEXP_ETA, TEXP_ALPHA_V) = \
+    _TEXP.values()
 _TEXP["opacity"] = TEXP_OPACITY = define("TEXP_OPACITY", len(_TEXP))  # Material.opacity (mask, cut-out)
 TEXTURE_PARAMS = {k: "ior" if name == "eta" else name for name, k in _TEXP.items()}
 #   tex_normal    a tangent-space normal map (RGB = (n + 1) / 2, relative to the shading frame), or
@@ -551,59 +559,9 @@ WAVE_PARAMS = WAVE_PARAMS + MEDIA_PARAMS
 WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
 assert len(WAVE_PARAM) == len(WAVE_PARAMS)
 
-# ---------------------------------------------------------------------------------------------
-# The generated header.
-# ---------------------------------------------------------------------------------------------
-_CL_SCALAR = {
-    np.dtype(np.float32): "float",
-    np.dtype(np.int32): "int",
-    np.dtype(np.uint32): "uint",
-}
-
-
-def cl_struct(name: str, dtype: np.dtype) -> str:
-    """Return ``typedef struct {...} name;`` for a structured dtype of 4-byte fields."""
-    lines = []
-    for field in dtype.names:
-        ftype, offset = dtype.fields[field][:2]
-        base, shape = (ftype.subdtype if ftype.subdtype else (ftype, ()))
-        if base not in _CL_SCALAR:
-            raise TypeError(f"{name}.{field}: unsupported base type {base}")
-        count = int(np.prod(shape)) if shape else 0
-        suffix = f"[{count}]" if count else ""
-        lines.append(f"    {_CL_SCALAR[base]} {field}{suffix};  /* offset {offset} */")
-    body = "\n".join(lines)
-    return f"typedef struct {{\n{body}\n}} {name};  /* {dtype.itemsize} bytes */\n"
-
-
-def cl_literal(value) -> str:
-    if isinstance(value, float):
-        return f"{value!r}f"
-    return f"({value})" if value < 0 else str(value)
-
-
-def cl_defines(defines: dict, overridable=frozenset()) -> str:
-    lines = []
-    for name, value in defines.items():
-        line = f"#define {name} {cl_literal(value)}"
-        lines.append(f"#ifndef {name}\n{line}\n#endif" if name in overridable else line)
-    return "\n".join(lines) + "\n"
-
-
-def cl_params(macro: str, params) -> str:
-    """``#define macro`` the parameter list, one parameter a line with its doc."""
-    lines = [f"    {p.cl()}{',' if i < len(params) - 1 else ''}" + (f" /* {p.doc} */" if p.doc else "")
-             for i, p in enumerate(params)]
-    width = max(map(len, lines))
-    return f"#define {macro} \\\n" + " \\\n".join(line.ljust(width) for line in lines[:-1]) + f" \\\n{lines[-1]}\n"
-
-
 def cl_header() -> str:
-    """The OpenCL C declarations of this module's tables, prepended to every program."""
-    return "\n".join([
-        "/* generated from pyopencl_rt/device/abi.py: do not edit */",
-        *(cl_struct(name, dt) for name, dt in STRUCTS.items()),
-        cl_defines(DEFINES, OVERRIDABLE),
-        cl_params("WAVE_PARAMS", WAVE_PARAMS),
-        sobol.cl_table(),
-    ])
+    """The OpenCL C declarations of this module's tables, prepended to every program
+    (:mod:`.cl_header` writes them)."""
+    from . import cl_header as header
+
+    return header.cl_header(STRUCTS, DEFINES, OVERRIDABLE, WAVE_PARAMS)

@@ -218,10 +218,13 @@ class Wavefront:
 
     def _texture_buffers(self, const) -> dict:
         """tri_uv, textures and tex_data (cl/scene/textures.h); 16-byte dummies when the scene has
-        no textures."""
+        no textures (tri_uv is kept for the tangent of anisotropic materials)."""
         if not self.scene.has_textures():
             dummy = const(np.zeros(0, np.uint8))
-            return {"tri_uv": dummy, "textures": dummy, "tex_data": dummy}
+            uv = dummy
+            if self.scene.has_anisotropy() and len(self.scene.faces):  # the tangent's dp/du (shading.h)
+                uv = const(self.scene.face_uvs()[self.bvh.prim_ids].reshape(-1, 2))
+            return {"tri_uv": uv, "textures": dummy, "tex_data": dummy}
         from ..scene.textures import pack_textures
 
         uv = self.scene.face_uvs()[self.bvh.prim_ids].reshape(-1, 2)

@@ -124,12 +124,14 @@ def test_same_image_on_the_scenes(device, monkeypatch, name):
 def test_shading_normals_maps_and_vertex_colors(device, monkeypatch):
     """Interpolated vertex normals (and flat faces beside them), a normal map and a bump map
     (lane by lane, under Mitsuba's rules and under none) and vertex colours, on every material
-    type (cl/scene/shading.h): the same bits at every width."""
+    type, anisotropic rough ones under the maps (their tangent frames; cl/scene/shading.h): the same
+    bits at every width."""
     from scenes_small import shading_scene
 
     wide = harness.forced_lanes(device)
     scene = shading_scene()
-    assert {"HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS"} <= set(scene.material_defines())
+    assert {"HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS", "HAS_ANISOTROPY"} <= set(
+        scene.material_defines())
     assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=4, seed=2, width=32, height=24))
 
 

@@ -109,10 +109,15 @@ CASES = [  # (type, TOML keys, expected record fields)
      {"specular": (0.5, 0.25, 1.0), "flags": F0_FLAG, "alpha": 0.25}),
     ("conductor", {"metal": "gold", "alpha": 0.125}, {"eta": GOLD_ETA, "k": GOLD_K, "alpha": 0.125}),
     ("conductor", {"eta": [1.5, 1.25, 1.0], "k": 2}, {"eta": (1.5, 1.25, 1.0), "k": (2, 2, 2)}),
+    ("conductor", {"alpha_u": 0.25, "alpha_v": 0.5, "distribution": "beckmann", "masking": "separable"},
+     {"specular": (1, 1, 1), "alpha": 0.25, "alpha_v": 0.5,
+      "flags": F0_FLAG | abi.MATERIAL_FLAG_ANISOTROPIC | abi.MATERIAL_FLAG_BECKMANN | abi.MATERIAL_FLAG_SEPARABLE}),
     ("dielectric", {}, {"ior": 1.5, "specular": (1, 1, 1)}),
     ("dielectric", {"ior": 1.25, "roughness": 0.5, "tint": [0.5, 0.75, 1.0]},
      {"ior": 1.25, "alpha": 0.25, "specular": (0.5, 0.75, 1.0)}),
     ("dielectric", {"alpha": 0.5}, {"ior": 1.5, "alpha": 0.5, "specular": (1, 1, 1)}),
+    ("dielectric", {"alpha_u": 0.5, "alpha_v": 0.125, "distribution": "ggx", "masking": "correlated"},
+     {"ior": 1.5, "alpha": 0.5, "alpha_v": 0.125, "specular": (1, 1, 1), "flags": abi.MATERIAL_FLAG_ANISOTROPIC}),
     ("gltf", {}, {"albedo": (1, 1, 1), "metallic": 1, "alpha": 1, "ior": 1.5}),
     ("gltf", {"base_color": [0.5, 0.25, 0.125], "metallic": 0.5, "roughness": 0.5, "ior": 1.25,
               "base_color_texture": "t.png", "metallic_roughness_texture": "t.png"},
@@ -140,7 +145,8 @@ CASES = [  # (type, TOML keys, expected record fields)
      {"albedo": (0.25, 0.5, 0.75), "roughness": 0.25, "metallic": 0.5, "anisotropic": 0.125, "spec_trans": 0.25,
       "spec_tint": 0.375, "sheen": 0.5, "sheen_tint": 0.625, "clearcoat": 0.75, "clearcoat_gloss": 0.875,
       "flatness": 1.0, "ior": 1.25, "rates": (2, 3, 4, 0), "tex_base": 0, "tex_scalar": (1, 2, 3, 4, 5, -1),
-      "tex_params": texp("roughness", "metallic", "anisotropic", "spec_trans", "spec_tint")}),
+      "tex_params": texp("roughness", "metallic", "anisotropic", "spec_trans", "spec_tint"),
+      "flags": abi.MATERIAL_FLAG_ANISOTROPIC}),
     ("principled", {"specular": 0.25, "sheen_texture": "t.png", "sheen_tint_texture": "t.png",
                     "clearcoat_texture": "t.png", "clearcoat_gloss_texture": "t.png", "flatness_texture": "t.png"},
      {"albedo": (0.5, 0.5, 0.5), "roughness": 0.5, "ior": eta_from_specular(0.25), "rates": (1, 1, 1, 0),
@@ -157,7 +163,8 @@ CASES = [  # (type, TOML keys, expected record fields)
      {"albedo": (0.25, 0.25, 0.25), "roughness": 0.25, "anisotropic": 0.125, "spec_trans": 0.25, "spec_tint": 0.375,
       "sheen": 0.5, "sheen_tint": 0.625, "flatness": 0.75, "diff_trans": 1.5, "ior": 1.25, "rates": (2, 3, 4, 5),
       "tex_base": 0, "tex_scalar": (1, 2, 3, 4, 5, -1),
-      "tex_params": texp("roughness", "anisotropic", "spec_trans", "diff_trans", "ior")}),
+      "tex_params": texp("roughness", "anisotropic", "spec_trans", "diff_trans", "ior"),
+      "flags": abi.MATERIAL_FLAG_ANISOTROPIC}),
     ("principledthin", {"spec_tint_texture": "t.png", "sheen_texture": "t.png", "sheen_tint_texture": "t.png",
                         "flatness_texture": "t.png"},
      {"albedo": (0.5, 0.5, 0.5), "roughness": 0.5, "ior": 1.5, "rates": (1, 1, 1, 1), "tex_scalar": (0, 1, 2, 3, -1, -1),
@@ -220,6 +227,15 @@ def test_every_toml_key_is_covered(mtype):
     assert covered == MATERIAL_COMMON_KEYS | REGISTRY[mtype].toml_keys
 
 
+@pytest.mark.parametrize("keys, message", [({"alpha_u": 0.2}, "go together"),
+                                           ({"alpha_u": 0.2, "alpha_v": 0.1, "roughness": 0.3}, "not both"),
+                                           ({"distribution": "phong"}, "distribution"),
+                                           ({"masking": "uncorrelated"}, "masking")])
+def test_distribution_keys_are_checked(tmp_path, keys, message):
+    with pytest.raises(Exception, match=message):
+        _record(tmp_path, "conductor", keys)
+
+
 def test_unknown_type_is_an_error():
     with pytest.raises(ValueError, match="unknown type 'velvet'"):
         Material(name="v", type="velvet").record()
@@ -245,6 +261,9 @@ def test_glass_and_metals_map_to_mitsuba():
     assert gold == {"type": "roughconductor", "distribution": "ggx", "alpha": 0.25, "eta": rgb((0.5, 0.25, 1.0)),
                     "k": rgb((3.0, 2.0, 1.5))}
     assert Material(type="conductor").mitsuba_bsdf() == {"type": "conductor", "material": "none"}
+    aniso = Material(type="dielectric", alpha=0.25, alpha_v=0.5, distribution="beckmann").mitsuba_bsdf()
+    assert {k: aniso[k] for k in ("type", "distribution", "alpha_u", "alpha_v")} == {
+        "type": "roughdielectric", "distribution": "beckmann", "alpha_u": 0.25, "alpha_v": 0.5}
     with pytest.raises(ValueError, match="f0"):
         Material(type="conductor", f0=(0.9, 0.8, 0.7)).mitsuba_bsdf()
 

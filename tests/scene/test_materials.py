@@ -35,6 +35,8 @@ HARNESS = harness.Kernels(r"""
  * Per item: the material index, front (0/1), active (0/1), n, wo, and u or wi. */
 #define ITEM(k) ((int)get_global_id(0) * PACKET_WIDTH + (k))
 #define MASK_TRUE (PACKET_WIDTH == 1 ? 1 : -1) /* what a comparison gives */
+/* the frame's tangent (anisotropic materials): +x, so that with n = +z the local frame is the world's */
+#define TANGENT pv3(PFLOAT(1.0f), PFLOAT(0.0f), PFLOAT(0.0f))
 
 RT_INLINE pvec3 lanes3(__global const float *a)
 {
@@ -60,8 +62,8 @@ __kernel void h_bsdf_sample(__global const Material *mats, __global const int *m
     pvec3 wi = pv3_zero();
     pfloat pdf = PFLOAT(-1.0f);
     pint delta = PINT(-1);
-    const pvec3 w = bsdf_sample(&m, lanes_int(act) != 0, lanes3(n), lanes_int(front) != 0, lanes3(wo), uu.x, uu.y,
-                                uu.z, &wi, &pdf, &delta);
+    const pvec3 w = bsdf_sample(&m, lanes_int(act) != 0, lanes3(n), TANGENT, lanes_int(front) != 0, lanes3(wo), uu.x,
+                                uu.y, uu.z, &wi, &pdf, &delta);
     for (int k = 0; k < PACKET_WIDTH; ++k) {
         __global float *o = out + 8 * ITEM(k);
         store3(o, 0, pv3_lane(wi, k));
@@ -78,7 +80,8 @@ __kernel void h_bsdf_eval(__global const Material *mats, __global const int *mi,
 {
     const MaterialLanes m = material_lanes(mats, lanes_int(mi));
     pfloat pdf = PFLOAT(-1.0f);
-    const pvec3 f = bsdf_eval(&m, lanes_int(act) != 0, lanes3(n), lanes_int(front) != 0, lanes3(wo), lanes3(wi), &pdf);
+    const pvec3 f = bsdf_eval(&m, lanes_int(act) != 0, lanes3(n), TANGENT, lanes_int(front) != 0, lanes3(wo), lanes3(wi),
+                              &pdf);
     for (int k = 0; k < PACKET_WIDTH; ++k) {
         __global float *o = out + 4 * ITEM(k);
         store3(o, 0, pv3_lane(f, k));
@@ -224,8 +227,12 @@ def conductor(alpha, **kw):
     return Material("c", type="conductor", alpha=alpha, **kw)
 
 
-def dielectric(alpha, ior):
-    return Material("d", type="dielectric", alpha=alpha, ior=ior)
+def dielectric(alpha, ior, **kw):
+    return Material("d", type="dielectric", alpha=alpha, ior=ior, **kw)
+
+
+BECKMANN = dict(distribution="beckmann")
+MITSUBA = dict(masking="separable")  # Mitsuba's shadowing-masking
 
 
 def gltf(alpha, metallic, base=(0.8, 0.6, 0.4), ior=1.5):
@@ -259,12 +266,20 @@ CHI2_CASES = {
     "conductor_gold_a0.4_70": (conductor(0.4, eta=GOLD[0], k=GOLD[1]), 1, 70),
     "conductor_f0_a1_85": (conductor(1.0, f0=(0.9, 0.5, 0.2)), 1, 85),
     "conductor_f0_a0.25_0": (conductor(0.25), 1, 0),
+    "conductor_beckmann_a0.3_50": (conductor(0.3, eta=GOLD[0], k=GOLD[1], **BECKMANN), 1, 50),
+    "conductor_aniso_ggx_0.4_0.05_60": (conductor(0.4, alpha_v=0.05), 1, 60),
+    "conductor_aniso_beckmann_sep_0.05_0.5_75": (conductor(0.05, alpha_v=0.5, **BECKMANN, **MITSUBA), 1, 75),
+    "conductor_aniso_ggx_sep_0.6_0.2_0": (conductor(0.6, alpha_v=0.2, **MITSUBA), 1, 0),
     "dielectric_1.5_a0.15_out_20": (dielectric(0.15, 1.5), 1, 20),
     "dielectric_1.5_a0.5_out_70": (dielectric(0.5, 1.5), 1, 70),
     "dielectric_1.5_a0.3_in_30": (dielectric(0.3, 1.5), 0, 30),
     "dielectric_1.5_a0.3_in_60_tir": (dielectric(0.3, 1.5), 0, 60),
     "dielectric_2.4_a1_out_45": (dielectric(1.0, 2.4), 1, 45),
     "dielectric_1.33_a0.2_in_0": (dielectric(0.2, 1.33), 0, 0),
+    "dielectric_beckmann_1.5_a0.3_out_40": (dielectric(0.3, 1.5, **BECKMANN, **MITSUBA), 1, 40),
+    "dielectric_beckmann_1.5_a0.2_in_50_tir": (dielectric(0.2, 1.5, **BECKMANN), 0, 50),
+    "dielectric_aniso_ggx_1.7_0.5_0.1_out_60": (dielectric(0.5, 1.7, alpha_v=0.1, **MITSUBA), 1, 60),
+    "dielectric_aniso_beckmann_1.33_0.1_0.4_in_20": (dielectric(0.1, 1.33, alpha_v=0.4, **BECKMANN), 0, 20),
     "gltf_m0_a0.1_40": (gltf(0.1, 0.0), 1, 40),
     "gltf_m0.5_a0.5_75": (gltf(0.5, 0.5), 1, 75),
     "gltf_m1_a0.3_10": (gltf(0.3, 1.0), 1, 10),
@@ -394,7 +409,8 @@ def _random_dirs(rng, n, lower=False):
 
 
 RECIPROCITY_MATERIALS = [conductor(0.2, eta=GOLD[0], k=GOLD[1]), conductor(0.7, f0=(0.5, 0.7, 0.9)),
-                         dielectric(0.3, 1.5), dielectric(0.8, 2.4), gltf(0.2, 0.3), gltf(0.6, 0.0),
+                         conductor(0.8, alpha_v=0.5, **BECKMANN, **MITSUBA), dielectric(0.3, 1.5), dielectric(0.8, 2.4),
+                         dielectric(0.9, 1.5, alpha_v=0.5, **BECKMANN), dielectric(0.6, 1.3, alpha_v=1.0, **MITSUBA), gltf(0.2, 0.3), gltf(0.6, 0.0),
                          Material("diffuse", albedo=(0.3, 0.5, 0.7)), plastic(nonlinear=True),
                          roughplastic(0.2), roughplastic(0.5, "beckmann", specular_reflectance=(0.5, 0.6, 0.7)),
                          principled(metallic=0.4, **PRINCIPLED_ALL),
@@ -580,7 +596,8 @@ def test_smooth_gltf_mirror_fraction(runtime, rng):
 
 # ----------------------------------------------------------------------------- robustness
 def test_no_nan_or_inf_for_extreme_parameters(runtime, rng):
-    """Roughness 0, 5e-4, 1e-3 and 1, IOR 1, 1 + 1e-6 and 10, albedo 0 and 1, metallic 0 and 1,
+    """Roughness 0, 5e-4, 1e-3 and 1 (conductor, dielectric: also anisotropic, from a to 1 - a, Beckmann,
+    separable), IOR 1, 1 + 1e-6 and 10, albedo 0 and 1, metallic 0 and 1,
     k = 0 and 1000, F0 = 0 and 1 (plastics: alpha 1e-4 and 1, specular_reflectance 0; principled:
     every parameter 0 or 1, eta 1.001 and 10; principledthin: eta 1 to 10, diff_trans 0 and 2),
     at normal, grazing (theta 89.999 deg), exactly tangent (wo.z = 0)
@@ -590,9 +607,11 @@ def test_no_nan_or_inf_for_extreme_parameters(runtime, rng):
     mats = []
     for a in (0.0, 5e-4, 1e-3, 1.0):
         mats += [conductor(a), conductor(a, f0=(0.0, 0.0, 0.0)), conductor(a, eta=(1.0, 1.0, 1.0), k=(0.0, 0.0, 0.0)),
-                 conductor(a, eta=(0.01, 1.0, 100.0), k=(1000.0, 0.0, 1.0))]
+                 conductor(a, eta=(0.01, 1.0, 100.0), k=(1000.0, 0.0, 1.0)),
+                 conductor(a, alpha_v=1.0 - a, **BECKMANN), conductor(1.0 - a, alpha_v=a, **MITSUBA)]
         for ior in (1.0, 1.000001, 1.5, 10.0):
             mats.append(dielectric(a, ior))
+            mats.append(dielectric(a, ior, alpha_v=1.0 - a, **BECKMANN, **MITSUBA))
         for m in (0.0, 1.0):
             for base in ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)):
                 mats.append(gltf(a, m, base=base, ior=1.0))
@@ -652,6 +671,10 @@ def _random_lane_inputs(rng, n, n_mats=97):
     mats["metallic"] = np.where(rng.random(n_mats) < 0.3, rng.integers(0, 2, n_mats), rng.random(n_mats))
     mats["ior"] = np.where(rng.random(n_mats) < 0.1, 1.0, rng.uniform(1.0, 3.0, n_mats))
     mats["flags"] = rng.integers(0, 16, n_mats)  # two-sided, F0, nonlinear, Beckmann
+    # conductor, dielectric: anisotropic (alpha_v), Mitsuba's separable masking
+    mats["flags"] |= np.where(rng.random(n_mats) < 0.4, abi.MATERIAL_FLAG_ANISOTROPIC, 0)
+    mats["flags"] |= np.where(rng.random(n_mats) < 0.4, abi.MATERIAL_FLAG_SEPARABLE, 0)
+    mats["alpha_v"] = np.where(rng.random(n_mats) < 0.2, 0.0, rng.random(n_mats) ** 2)
     for f in ("fdr", "spec_weight", "roughness", "anisotropic", "spec_trans", "spec_tint", "sheen", "sheen_tint",
               "clearcoat", "clearcoat_gloss", "flatness"):
         mats[f] = np.where(rng.random(n_mats) < 0.2, rng.integers(0, 2, n_mats), rng.random(n_mats))

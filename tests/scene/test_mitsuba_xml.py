@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import pyopencl_rt as rt
+from pyopencl_rt.device import abi
 from pyopencl_rt.scene.loaders import SceneError, load_scene
 from pyopencl_rt.scene.loaders.mitsuba_serialized import write_serialized
 from pyopencl_rt.scene.model import PixelFilter
@@ -561,7 +562,7 @@ def _materials(tmp_path, bsdfs: str):
 
 
 def test_bsdfs(tmp_path):
-    from pyopencl_rt.scene.materials.conductor import METALS
+    from pyopencl_rt.scene.loaders.mitsuba_metals import CONDUCTORS as METALS
 
     mats, warned = _materials(tmp_path, """
 <bsdf type="diffuse"/>
@@ -581,12 +582,13 @@ def test_bsdfs(tmp_path):
     expect = [
         dict(type="diffuse", albedo=(0.5, 0.5, 0.5)),
         dict(type="dielectric", ior=pytest.approx(1.6 / 1.333), alpha=0.0),
-        dict(type="dielectric", ior=pytest.approx(1.5046 / 1.000277), alpha=0.3, tint=(0.9, 0.8, 0.7)),
+        dict(type="dielectric", ior=pytest.approx(1.5046 / 1.000277), alpha=0.3, tint=(0.9, 0.8, 0.7),
+             distribution="ggx", masking="separable", alpha_v=None),
         dict(type="dielectric", ior=pytest.approx(1.5046 / 1.000277), alpha=0.0, thin=True),
         dict(type="conductor", eta=None, f0=(1.0, 1.0, 1.0), alpha=0.0),  # Mitsuba's "none": a mirror
-        dict(type="conductor", eta=METALS["gold"][0], k=METALS["gold"][1]),
+        dict(type="conductor", eta=METALS["Au"][0], k=METALS["Au"][1]),
         dict(type="conductor", eta=(0.2, 0.9, 1.1), k=(3, 2.5, 2), alpha=0.2),
-        dict(type="conductor", eta=METALS["copper"][0], alpha=0.1),
+        dict(type="conductor", eta=METALS["Cu"][0], alpha=0.1, distribution="beckmann"),
         dict(type="plastic", albedo=(0.1, 0.2, 0.3), ior=pytest.approx(1.49 / 1.000277), nonlinear=False,
              specular_reflectance=(1.0, 1.0, 1.0)),
         dict(type="roughplastic", albedo=(0.5, 0.5, 0.5), alpha=0.25, ior=1.5, distribution="ggx"),
@@ -601,11 +603,49 @@ def test_bsdfs(tmp_path):
     for i, (mat, want) in enumerate(zip(mats, expect)):
         for key, value in want.items():
             assert getattr(mat, key) == value, (i, key, getattr(mat, key))
-    expected_warnings = ['<bsdf type="roughconductor">: the Beckmann distribution (Mitsuba\'s default) is rendered as GGX',
-                         '<bsdf type="roughconductor">: the Beckmann distribution']
+    expected_warnings = []
     assert len(warned) == len(expected_warnings)
     for w, needle in zip(warned, expected_warnings):
         assert re.match(r".*s\.xml:\d+: ", w) and needle in w, (w, needle)
+
+
+def test_named_conductors_are_mitsubas_rgb():
+    """Every named conductor of mitsuba_metals.py has the eta and k Mitsuba's scalar_rgb gives a
+    roughconductor of that ``material`` (to float32 rounding), and Mitsuba has no other name."""
+    import os
+
+    from pyopencl_rt.scene.loaders.mitsuba_metals import CONDUCTORS
+
+    mi = mitsuba()
+    data = Path(mi.__file__).parent / "data" / "ior"
+    if data.is_dir():
+        assert set(CONDUCTORS) == {f[:-len(".k.spd")] for f in os.listdir(data) if f.endswith(".k.spd")}
+    for name, (eta, k) in CONDUCTORS.items():
+        params = mi.traverse(mi.load_dict({"type": "roughconductor", "material": name}))
+        theirs = [float(x) for x in params["eta.value"]], [float(x) for x in params["k.value"]]
+        assert np.allclose(eta, theirs[0], rtol=1e-6, atol=1e-9), (name, eta, theirs[0])
+        assert np.allclose(k, theirs[1], rtol=1e-6, atol=1e-9), (name, k, theirs[1])
+
+
+def test_rough_distributions(tmp_path):
+    """roughconductor / roughdielectric keep Mitsuba's distribution (Beckmann by default), alpha_u and
+    alpha_v (numbers or textures: the alpha and alpha_v texture slots) and its separable masking;
+    alpha with alpha_u is an error, as in Mitsuba."""
+    mats, warned = _materials(tmp_path, """
+<bsdf type="roughconductor"><string name="material" value="a-C"/><float name="alpha_u" value="0.3"/><float name="alpha_v" value="0.05"/></bsdf>
+<bsdf type="roughdielectric"><string name="distribution" value="ggx"/><texture type="checkerboard" name="alpha_u"/><float name="alpha_v" value="0.2"/></bsdf>
+<bsdf type="roughconductor"><texture type="checkerboard" name="alpha_u"/><texture type="checkerboard" name="alpha_v"><float name="color0" value="0.1"/></texture></bsdf>""")
+    assert warned == []
+    a, b, c = mats
+    assert (a.distribution, a.masking, a.alpha, a.alpha_v, a.is_anisotropic) == ("beckmann", "separable", 0.3, 0.05, True)
+    assert (b.distribution, b.alpha, b.alpha_v, set(b.scalar_textures), b.is_anisotropic) == (
+        "ggx", 1.0, 0.2, {"alpha"}, True)
+    assert (c.alpha, c.alpha_v, set(c.scalar_textures)) == (1.0, 1.0, {"alpha", "alpha_v"}) and c.is_anisotropic
+    rec = c.record({id(t): i for i, t in enumerate(c.textures())})
+    assert rec["flags"] & abi.MATERIAL_FLAG_ANISOTROPIC and rec["tex_params"] == abi.TEXP_ALPHA | (abi.TEXP_ALPHA_V << 4)
+    with pytest.raises(SceneError, match="alpha_u and alpha_v"):
+        _materials(tmp_path, '<bsdf type="roughconductor"><float name="alpha" value="0.1"/>'
+                             '<float name="alpha_u" value="0.2"/><float name="alpha_v" value="0.3"/></bsdf>')
 
 
 def test_textures(tmp_path):

@@ -3,7 +3,7 @@
 | Mitsuba | ours |
 |---|---|
 | ``diffuse`` | ``diffuse`` (reflectance, a bitmap as its texture) |
-| ``conductor``, ``roughconductor`` | ``conductor``: ``material`` Au/Ag/Cu/Al as our named metals, ``none`` (the default) as a perfect mirror times ``specular_reflectance``, or ``eta``/``k`` |
+| ``conductor``, ``roughconductor`` | ``conductor``: ``material`` (Mitsuba's named conductors, ``a-C`` to ``W``, in the RGB Mitsuba's RGB variants compute: mitsuba_metals.py), ``none`` (the default) as a perfect mirror times ``specular_reflectance``, or ``eta``/``k`` |
 | ``dielectric``, ``roughdielectric``, ``thindielectric`` (a thin sheet) | ``dielectric`` of IOR ``int_ior / ext_ior``, tint ``specular_transmittance`` |
 | ``plastic``, ``roughplastic`` | ``plastic``, ``roughplastic`` (Mitsuba's parameters; a texture of ``diffuse_reflectance``) |
 | ``principled``, ``principledthin`` | ``principled``, ``principledthin`` (Mitsuba's parameters; textures of ``base_color`` and of up to 6 scalar parameters) |
@@ -17,11 +17,11 @@ and, as a BSDF's reflectance (diffuse ``reflectance``, plastic ``diffuse_reflect
 ``base_color``, dielectric ``specular_transmittance``), ``mesh_attribute``: the shape's vertex or face
 colours (``vertex_color``, ``face_color``, ...: Material.vertex_colors) times its ``scale``.
 
-Rough conductors and dielectrics keep ``alpha`` (a texture of it too; ``alpha_u``/``alpha_v``: their
-mean, with a warning); a Beckmann ``distribution`` (Mitsuba's default) is rendered as GGX of the
-same alpha, with a warning (``roughplastic`` renders Beckmann).  ``bitmap`` and ``checkerboard`` keep
-``to_uv`` (the lookup's affine map); ``bitmap`` its ``wrap_mode`` and ``filter_type`` (Texture: the
-device looks them up as Mitsuba does, cl/scene/textures.h).
+Rough conductors and dielectrics keep Mitsuba's distribution: Beckmann (the default) or GGX,
+``alpha`` or anisotropic ``alpha_u``/``alpha_v`` (along dp/du and the bitangent, as Mitsuba's
+sh_frame), each a number or a texture, with Mitsuba's separable shadowing-masking.  ``bitmap`` and
+``checkerboard`` keep ``to_uv`` (the lookup's affine map); ``bitmap`` its ``wrap_mode`` and
+``filter_type`` (Texture: the device looks them up as Mitsuba does, cl/scene/textures.h).
 """
 from __future__ import annotations
 
@@ -34,6 +34,7 @@ import numpy as np
 from ...device import abi
 from ..model import Material
 from .builder import error_at
+from .mitsuba_metals import CONDUCTORS
 from .mitsuba_spectrum import spectrum_rgb
 
 # Mitsuba's named indices of refraction (include/mitsuba/render/ior.h)
@@ -44,7 +45,6 @@ IOR = {
     "pyrex": 1.470, "acrylic glass": 1.49, "polypropylene": 1.49, "bk7": 1.5046, "sodium chloride": 1.544,
     "amber": 1.55, "pet": 1.5750, "diamond": 2.419,
 }
-METAL_NAMES = {"Au": "gold", "Ag": "silver", "Cu": "copper", "Cu_palik": "copper", "Al": "aluminium"}
 # Mitsuba's BSDFs that reflect on their front side only (outside a twosided): Material.one_sided
 # where that changes the image (around a mask: its back can be seen through the cut-out's holes)
 ONE_SIDED = {"diffuse", "conductor", "roughconductor", "plastic", "roughplastic"}
@@ -59,14 +59,6 @@ def spectrum_context(obj, name) -> str:
     if obj.tag == "emitter":
         return "emission"
     return "unbounded" if name in UNBOUNDED else "reflectance"
-
-
-def _metals():
-    try:
-        from ..materials.conductor import METALS
-    except ImportError:  # pragma: no cover - before the material registry
-        from ..model import CONDUCTORS as METALS
-    return METALS
 
 
 @dataclass(frozen=True)
@@ -280,31 +272,36 @@ class BsdfMapper:
         value = obj.float(name, positive=True)
         return value
 
-    def _alpha(self, obj, default, mat=None) -> float:
-        """The alpha of a rough conductor or dielectric; a texture of it goes to mat's texture
-        slot (the factor is then 1)."""
+    def _alpha(self, obj, default, mat) -> float:
+        """The distribution of a rough conductor or dielectric into mat (Mitsuba's
+        MicrofacetDistribution): ``alpha``, or ``alpha_u`` / ``alpha_v`` (anisotropic: mat.alpha_v), each a
+        number or a texture (its slot in mat.scalar_textures: "alpha" for alpha / alpha_u, "alpha_v";
+        the factor is then 1), the ``distribution`` (Beckmann by default) and Mitsuba's separable
+        shadowing-masking.  Returns mat.alpha."""
         imp = self.imp
-        p = obj.props.get("alpha")
-        if mat is not None and p is not None and p.kind == "object" and p.value.tag == "texture":
-            alpha = self._scalar(obj, mat, "alpha", default)
-        elif obj.has("alpha_u") or obj.has("alpha_v"):
-            au, _ = color_value(imp, obj, "alpha_u", (default,) * 3)
-            av, _ = color_value(imp, obj, "alpha_v", (default,) * 3)
-            alpha = 0.5 * (au[0] + av[0])
-            if au[0] != av[0]:
-                imp.warn(obj.node.pos, f"{obj.label()}: anisotropic roughness rendered isotropic, alpha {alpha:g}")
+        mat.masking = "separable"
+        mat.distribution = self._distribution(obj)
+        obj.used.add("sample_visible")
+
+        def value(name, field):
+            p = obj.props.get(name)
+            if p is not None and p.kind == "object" and p.value.tag == "texture":
+                return self._scalar(obj, mat, name, default, field=field)
+            a = color_value(imp, obj, name, (default,) * 3)[0][0]
+            if not 0 <= a <= 1:
+                imp.warn(obj.node.pos, f"{obj.label()}: {name} {a:g} clamped to [0, 1]")
+                a = min(max(a, 0.0), 1.0)
+            return float(a)
+
+        if obj.has("alpha_u") or obj.has("alpha_v"):
+            if not (obj.has("alpha_u") and obj.has("alpha_v")) or obj.has("alpha"):
+                raise error_at(obj.node.pos, f"{obj.label()}: give both alpha_u and alpha_v, and no alpha "
+                                             "(Mitsuba refuses the others)")
+            mat.alpha = value("alpha_u", "alpha")
+            mat.alpha_v = value("alpha_v", "alpha_v")
         else:
-            alpha = color_value(imp, obj, "alpha", (default,) * 3)[0][0]
-        dist = obj.string("distribution", "beckmann")
-        if dist not in ("beckmann", "ggx"):
-            raise error_at(obj.props["distribution"].node.pos, f"{obj.label()}: unknown distribution '{dist}'")
-        if dist == "beckmann" and alpha > 0:
-            imp.warn(obj.node.pos, f"{obj.label()}: the Beckmann distribution (Mitsuba's default) is rendered as "
-                                   f"GGX with the same alpha {alpha:g}")
-        if not 0 <= alpha <= 1:
-            imp.warn(obj.node.pos, f"{obj.label()}: alpha {alpha:g} clamped to [0, 1]")
-            alpha = min(max(alpha, 0.0), 1.0)
-        return float(alpha)
+            mat.alpha = value("alpha", "alpha")
+        return mat.alpha
 
     def _make(self, obj) -> Material:
         imp, t = self.imp, obj.type
@@ -409,7 +406,8 @@ class BsdfMapper:
         mat.type = "dielectric"
         mat.thin = obj.type == "thindielectric"  # a sheet: straight through (cl/materials/dielectric.h)
         mat.ior = self._ior(obj, "int_ior", "bk7") / self._ior(obj, "ext_ior", "air")
-        mat.alpha = self._alpha(obj, 0.1, mat) if obj.type == "roughdielectric" else 0.0
+        if obj.type == "roughdielectric":
+            self._alpha(obj, 0.1, mat)
         refl, _ = color_value(imp, obj, "specular_reflectance", (1.0,) * 3)
         trans, tex = color_value(imp, obj, "specular_transmittance", (1.0,) * 3, texture_ok=True, attribute_ok=True)
         mat.tint, mat.base_texture = _clamp01(imp, obj, trans, "specular_transmittance"), tex
@@ -420,7 +418,8 @@ class BsdfMapper:
     def _conductor(self, obj, mat) -> None:
         imp = self.imp
         mat.type = "conductor"
-        mat.alpha = self._alpha(obj, 0.1, mat) if obj.type == "roughconductor" else 0.0
+        if obj.type == "roughconductor":
+            self._alpha(obj, 0.1, mat)
         spec, _ = color_value(imp, obj, "specular_reflectance", (1.0,) * 3)
         if obj.has("eta") or obj.has("k"):
             mat.eta, _ = color_value(imp, obj, "eta", (0.0,) * 3)
@@ -434,12 +433,10 @@ class BsdfMapper:
             if metal == "none":
                 mat.f0 = _clamp01(imp, obj, spec, "specular_reflectance")
                 return
-            ours = METAL_NAMES.get(metal)
-            if ours is None:
-                imp.warn(p.node.pos, f"{obj.label()}: material '{metal}' is not among our metals "
-                                     f"({', '.join(METAL_NAMES)}); using aluminium")
-                ours = "aluminium"
-            mat.eta, mat.k = _metals()[ours]
+            if metal not in CONDUCTORS:
+                raise error_at(p.node.pos, f"{obj.label()}: unknown material '{metal}' (one of "
+                                           f"{', '.join(CONDUCTORS)}, or none)")
+            mat.eta, mat.k = CONDUCTORS[metal]
         if spec != (1.0, 1.0, 1.0):
             imp.warn(obj.props["specular_reflectance"].node.pos,
                      f"{obj.label()}: specular_reflectance with eta/k is not supported; ignored")

@@ -210,17 +210,24 @@ class MaterialMapper:
 
     # -- materials -------------------------------------------------------------------------------
 
-    def _alpha(self, p, what) -> float:
+    def _alpha(self, p, what, mat=None) -> float:
+        """The alpha of `roughness`, or of `uroughness` (along dp/du); a `vroughness` that differs sets
+        mat.alpha_v (pbrt-v4's anisotropic Trowbridge-Reitz; without mat: their mean, with a warning)."""
+        remap = p.boolean("remaproughness", True)
+
+        def alpha(r):
+            return min(math.sqrt(max(r, 0.0)) if remap else max(r, 0.0), 1.0)
+
         if "roughness" in p:
-            r = p.float("roughness", 0.0)
-        else:
-            ru, rv = p.float("uroughness", 0.0), p.float("vroughness", 0.0)
-            if ru != rv:
-                self.imp.warn(p.items.get("uroughness", p.items.get("vroughness")).pos,
-                              f"{what}: anisotropic roughness rendered isotropic")
-            r = 0.5 * (ru + rv)
-        alpha = math.sqrt(max(r, 0.0)) if p.boolean("remaproughness", True) else max(r, 0.0)
-        return min(alpha, 1.0)
+            return alpha(p.float("roughness", 0.0))
+        ru, rv = p.float("uroughness", 0.0), p.float("vroughness", 0.0)
+        if ru != rv and mat is not None:
+            mat.alpha_v = alpha(rv)
+            return alpha(ru)
+        if ru != rv:
+            self.imp.warn(p.items.get("uroughness", p.items.get("vroughness")).pos,
+                          f"{what}: anisotropic roughness rendered isotropic")
+        return alpha(0.5 * (ru + rv))
 
     def make(self, mtype: str, p, pos: str, what: str, name: str | None = None) -> Material | None:
         imp = self.imp
@@ -246,7 +253,7 @@ class MaterialMapper:
                 imp.warn(pos, f"{what}: approximated by a dielectric interface (a thin sheet refracts instead of "
                               "passing light straight through)")
             mat.ior = self._eta(p, what)
-            mat.alpha = self._alpha(p, what)
+            mat.alpha = self._alpha(p, what, mat)
         elif mtype == "coateddiffuse":
             mat.type, mat.metallic = "gltf", 0.0
             mat.albedo, mat.base_texture = self.color(p, "reflectance", (0.5, 0.5, 0.5))
@@ -302,7 +309,7 @@ class MaterialMapper:
 
     def _conductor(self, mat, p, pos, what, prefix) -> None:
         mat.type = "conductor"
-        mat.alpha = self._alpha(p, what)
+        mat.alpha = self._alpha(p, what, mat)
         if prefix + "reflectance" in p:
             rgb, tex = self.color(p, prefix + "reflectance", (1.0,) * 3)
             if tex is not None:

@@ -1,10 +1,10 @@
-"""`"conductor"` — a metal: a mirror when smooth, GGX microfacets otherwise
+"""`"conductor"` — a metal: a mirror when smooth, GGX or Beckmann microfacets otherwise
 (`cl/materials/conductor.h`). Give at most one of `metal`, `eta` + `k`, `f0`; with none it is a
 perfect mirror (`f0` = 1).
 
 | key | type | default | meaning |
 |---|---|---|---|
-| `roughness` / `alpha` | number in [0, 1] | 0 | see **Roughness** above |
+| `roughness` / `alpha` | number in [0, 1] | 0 | see **Roughness** above (also `distribution`, `alpha_u`/`alpha_v`, `masking`) |
 | `metal` | `"gold"`, `"silver"`, `"copper"` or `"aluminium"` | | the metal's complex index of refraction at 650, 550, 450 nm (refractiveindex.info data, as tabulated in Chaos Group's "Understanding metalness") |
 | `eta`, `k` | [r, g, b] or one number (`eta` > 0, `k` ≥ 0), both | | complex index of refraction η + iκ; exact Fresnel reflectance |
 | `f0` | [r, g, b] in [0, 1], or one number | 1 | reflectance at normal incidence, Schlick's approximation |
@@ -12,7 +12,8 @@ perfect mirror (`f0` = 1).
 from __future__ import annotations
 
 from ...device import abi
-from .microfacet import ROUGHNESS_KEYS, read_alpha
+from .microfacet import DISTRIBUTION_KEYS, ROUGHNESS_KEYS, distribution_to_mitsuba, pack_distribution, \
+    read_distribution
 
 # Complex indices of refraction eta + i k of named metals at the RGB wavelengths 650, 550 and
 # 450 nm (sampled from the refractiveindex.info data sets, as tabulated in Chaos Group's
@@ -24,13 +25,13 @@ METALS = {
     "aluminium": ((1.3456, 0.96521, 0.61722), (7.4746, 6.3995, 5.3031)),
 }
 
-TOML_KEYS = ROUGHNESS_KEYS | {"metal", "eta", "k", "f0"}
+TOML_KEYS = ROUGHNESS_KEYS | DISTRIBUTION_KEYS | {"metal", "eta", "k", "f0"}
 KERNEL_DEFINE = "HAS_MATERIAL_CONDUCTOR"
 MTL_PRECEDENCE = 2
 
 
 def read_toml(material, table) -> None:
-    material.alpha = read_alpha(table)
+    read_distribution(material, table)
     given = [k for k in ("metal", "f0") if k in table] + (["eta/k"] if "eta" in table or "k" in table else [])
     if len(given) > 1:
         raise table.error(f"give only one of 'metal', 'eta' and 'k', or 'f0' (got {', '.join(given)})")
@@ -59,8 +60,9 @@ def from_mtl(material, mtl) -> bool:
 
 
 def pack(material, record) -> None:
-    """Fresnel from eta + i k, or (eta None) from f0 by Schlick, flagged MATERIAL_FLAG_CONDUCTOR_F0."""
-    record["alpha"] = material.alpha
+    """Fresnel from eta + i k, or (eta None) from f0 by Schlick, flagged MATERIAL_FLAG_CONDUCTOR_F0; the
+    distribution (alpha, alpha_v and their flags)."""
+    pack_distribution(material, record)
     if material.eta is None:
         record["flags"] |= abi.MATERIAL_FLAG_CONDUCTOR_F0
         record["specular"] = material.f0
@@ -70,11 +72,11 @@ def pack(material, record) -> None:
 
 
 def to_mitsuba(material) -> dict:
-    """Mitsuba's ``conductor`` (smooth) or ``roughconductor`` (GGX, same alpha) with our eta and k as
-    RGB values; f0 = 1 is Mitsuba's perfect mirror (``material = "none"``).  Schlick's f0 < 1 has
-    no Mitsuba counterpart (ValueError)."""
-    bsdf = {"type": "conductor"} if material.alpha <= 0.0 else {"type": "roughconductor", "distribution": "ggx",
-                                                                 "alpha": float(material.alpha)}
+    """Mitsuba's ``conductor`` (smooth) or ``roughconductor`` (the same distribution and alphas) with our
+    eta and k as RGB values; f0 = 1 is Mitsuba's perfect mirror (``material = "none"``).  Schlick's
+    f0 < 1 has no Mitsuba counterpart (ValueError).  (Mitsuba's masking is always separable.)"""
+    smooth = material.alpha <= 0.0 and not material.is_anisotropic
+    bsdf = {"type": "conductor"} if smooth else {"type": "roughconductor", **distribution_to_mitsuba(material)}
     if material.eta is not None:
         k = material.k if material.k is not None else (0.0, 0.0, 0.0)
         bsdf["eta"] = {"type": "rgb", "value": [float(x) for x in material.eta]}

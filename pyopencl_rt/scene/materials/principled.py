@@ -85,6 +85,8 @@ def pack_params(material, record, rates) -> None:
     for name, value in params.items():
         if name in record.dtype.names:
             record[name] = value
+    if material.is_anisotropic:  # the frame's tangent is dp/du, as Mitsuba's sh_frame (dispatch.h, bsdf_frame)
+        record["flags"] |= abi.MATERIAL_FLAG_ANISOTROPIC
 
 
 def pack(material, record) -> None:

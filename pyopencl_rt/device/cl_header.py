@@ -1,0 +1,63 @@
+"""OpenCL C text of the kernel ABI's tables (:mod:`pyopencl_rt.device.abi`): struct typedefs from
+numpy structured dtypes, #defines, a parameter-list macro; :func:`cl_header` is the header every
+program build starts with (:func:`pyopencl_rt.device.abi.cl_header`)."""
+from __future__ import annotations
+
+import numpy as np
+
+from . import sobol
+
+_CL_SCALAR = {
+    np.dtype(np.float32): "float",
+    np.dtype(np.int32): "int",
+    np.dtype(np.uint32): "uint",
+}
+
+
+def cl_struct(name: str, dtype: np.dtype) -> str:
+    """Return ``typedef struct {...} name;`` for a structured dtype of 4-byte fields."""
+    lines = []
+    for field in dtype.names:
+        ftype, offset = dtype.fields[field][:2]
+        base, shape = (ftype.subdtype if ftype.subdtype else (ftype, ()))
+        if base not in _CL_SCALAR:
+            raise TypeError(f"{name}.{field}: unsupported base type {base}")
+        count = int(np.prod(shape)) if shape else 0
+        suffix = f"[{count}]" if count else ""
+        lines.append(f"    {_CL_SCALAR[base]} {field}{suffix};  /* offset {offset} */")
+    body = "\n".join(lines)
+    return f"typedef struct {{\n{body}\n}} {name};  /* {dtype.itemsize} bytes */\n"
+
+
+def cl_literal(value) -> str:
+    if isinstance(value, float):
+        return f"{value!r}f"
+    return f"({value})" if value < 0 else str(value)
+
+
+def cl_defines(defines: dict, overridable=frozenset()) -> str:
+    lines = []
+    for name, value in defines.items():
+        line = f"#define {name} {cl_literal(value)}"
+        lines.append(f"#ifndef {name}\n{line}\n#endif" if name in overridable else line)
+    return "\n".join(lines) + "\n"
+
+
+def cl_params(macro: str, params) -> str:
+    """``#define macro`` the parameter list, one parameter a line with its doc."""
+    lines = [f"    {p.cl()}{',' if i < len(params) - 1 else ''}" + (f" /* {p.doc} */" if p.doc else "")
+             for i, p in enumerate(params)]
+    width = max(map(len, lines))
+    return f"#define {macro} \\\n" + " \\\n".join(line.ljust(width) for line in lines[:-1]) + f" \\\n{lines[-1]}\n"
+
+
+def cl_header(structs: dict, defines: dict, overridable, wave_params) -> str:
+    """The header of :mod:`.abi`'s tables: struct typedefs, #defines, the WAVE_PARAMS macro and
+    the Sobol matrices."""
+    return "\n".join([
+        "/* generated from pyopencl_rt/device/abi.py: do not edit */",
+        *(cl_struct(name, dt) for name, dt in structs.items()),
+        cl_defines(defines, overridable),
+        cl_params("WAVE_PARAMS", wave_params),
+        sobol.cl_table(),
+    ])
