@@ -266,9 +266,9 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
     const pint segments = s->depth + 1;
     const pint going = real & (max_depth >= 0 ? segments < max_depth : PTRUE) & (pv3_max3(s->beta) > 0.0f);
     const puint dim = convert_puint(2 + DIMS_PER_BOUNCE * s->depth);
-#if defined(HAS_LIGHTS) && INTEGRATOR != 1
+#ifdef HAS_LIGHTS
     const pint nee = going & ((med.flags & MEDIUM_FLAG_SAMPLE_EMITTERS) != 0);
-    if (pany(nee)) {
+    if (integrator != INTEGRATOR_BSDF && pany(nee)) {
         LightSample ls;
         pfloat pick_pmf, dist;
         pvec3 wl;
@@ -278,7 +278,7 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
             const pint lit = sampled & (ph > 0.0f) & (dist > 0.0f);
             if (pany(lit)) {
                 const pfloat lpdf = pick_pmf * ls.pdf;
-                const pfloat w = nee_mis_weight(ls.delta, lpdf, ph);
+                const pfloat w = nee_mis_weight(integrator, ls.delta, lpdf, ph);
                 const pvec3 sp = offset_ray_origin_bound(ls.p, ls.err, ls.n);
                 shadow->o = pv3_sel(shadow->o, p, lit);
                 shadow->d = pv3_sel(shadow->d, pv3_sub(sp, p), lit);

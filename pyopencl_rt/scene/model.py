@@ -16,6 +16,8 @@ from .lights import DirectionalLight, Environment, PointLight, ProjectorLight, S
 from .materials import REGISTRY, MaterialType
 
 INTEGRATORS = ("path", "bsdf", "nee")
+assert [INTEGRATORS.index(k) for k in ("path", "bsdf", "nee")] == [abi.INTEGRATOR_MIS, abi.INTEGRATOR_BSDF,
+                                                             abi.INTEGRATOR_NEE]  # the kernel argument
 # where the random numbers come from (cl/render/sampler.h), the default first
 SAMPLERS = ("sobol", "stratified", "independent")
 assert set(SAMPLERS) == set(abi.SAMPLERS)
