@@ -361,6 +361,31 @@ def mitsuba():
     return mi
 
 
+def mitsuba_batches(mi, path, batches=8):
+    """Mitsuba's render of the XML file ``path`` as ``batches`` renders of other seeds: their mean
+    and the variance of that mean (the spread of the batches), RGB as float64."""
+    import numpy as np
+
+    scene = mi.load_file(str(path))
+    images = np.stack([np.asarray(mi.render(scene, seed=i), np.float64)[..., :3] for i in range(batches)])
+    return images.mean(0), images.var(0, ddof=1) / batches
+
+
+def tiles(a, tile=8):
+    """The means of the tile x tile blocks of an H x W x 3 image (H, W multiples of tile)."""
+    h, w = a.shape[:2]
+    return a.reshape(h // tile, tile, w // tile, tile, 3).mean(axis=(1, 3))
+
+
+def tile_z(a, a_var, b, b_var, tile=8):
+    """|a - b| per tile x tile block in standard errors, from the per-pixel variances of the two
+    means (0 / 0, as where both see a constant sky, gives 0)."""
+    import numpy as np
+
+    return np.abs(tiles(a, tile) - tiles(b, tile)) / np.sqrt((tiles(a_var, tile) + tiles(b_var, tile)) / tile**2
+                                                            + 1e-12)
+
+
 def gauss_legendre_cells(edges, x, w):
     """Nodes and weights of a Gauss-Legendre rule (``x``, ``w`` on [-1, 1]) over each cell between
     consecutive ``edges``, flattened cell by cell."""

@@ -18,6 +18,8 @@ from pyopencl_rt.scene.loaders.builder import SceneBuilder, quad_mesh, sphere_me
 from pyopencl_rt.scene.model import MITSUBA_MAP, Camera, DirectionalLight, Material, PointLight, RenderSettings
 from pyopencl_rt.scene.textures import texture_from_array
 
+import harness
+
 LIGHT = np.array([0.3, -0.4, -1.0])
 
 
@@ -180,15 +182,6 @@ def _mitsuba_scene(tmp_path, maps=True) -> str:
     return str(path)
 
 
-def _mitsuba_render(mi, path, batches=8):
-    scene = mi.load_file(path)
-    images = np.stack([np.asarray(mi.render(scene, seed=i), np.float64)[..., :3] for i in range(batches)])
-    return images.mean(0), images.var(0, ddof=1) / batches
-
-
-def _tiles(a, tile=8):
-    h, w = a.shape[:2]
-    return a.reshape(h // tile, tile, w // tile, tile, 3).mean(axis=(1, 3))
 
 
 def test_smooth_normals_maps_and_vertex_colors_match_mitsuba(tmp_path):
@@ -198,14 +191,10 @@ def test_smooth_normals_maps_and_vertex_colors_match_mitsuba(tmp_path):
     variance) and by us (1024 spp); every 8 x 8 tile within 4.5 sigma and the image mean within 4
     (measured: 1.8 and 0.2).  The same scene without the maps, by Mitsuba, is many sigma away from
     the one with them in the mapped balls' tiles: the comparison sees each map."""
-    try:
-        import mitsuba as mi
-    except ImportError as exc:
-        pytest.skip(f"Mitsuba 3 is not installed (pip install mitsuba): {exc}")
-    mi.set_variant("scalar_rgb")
+    mi = harness.mitsuba()
     path = _mitsuba_scene(tmp_path)
-    theirs, their_var = _mitsuba_render(mi, path)
-    plain, plain_var = _mitsuba_render(mi, _mitsuba_scene(tmp_path, maps=False))
+    theirs, their_var = harness.mitsuba_batches(mi, path)
+    plain, plain_var = harness.mitsuba_batches(mi, _mitsuba_scene(tmp_path, maps=False))
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # every element above is read without a word
         scene = load_scene(path)
@@ -213,11 +202,11 @@ def test_smooth_normals_maps_and_vertex_colors_match_mitsuba(tmp_path):
     assert {"HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS"} <= set(defines)
     r = rt.render_full(scene, spp=1024, device="cpu", seed=5)
     ours, var = r.image.astype(np.float64), r.film.variance_of_mean()
-    z = (_tiles(ours) - _tiles(theirs)) / np.sqrt((_tiles(var) + _tiles(their_var)) / 64 + 1e-12)  # the sky: 0 / 0
+    z = harness.tile_z(ours, var, theirs, their_var)  # the sky: 0 / 0
     mean_z = (ours.mean((0, 1)) - theirs.mean((0, 1))) / np.sqrt((var + their_var).sum((0, 1))) * ours[..., 0].size
     assert np.abs(z).max() < 4.5, np.round(z, 1)
     assert np.abs(mean_z).max() < 4.0, mean_z
-    z_plain = (_tiles(plain) - _tiles(theirs)) / np.sqrt((_tiles(plain_var) + _tiles(their_var)) / 64 + 1e-12)
+    z_plain = harness.tile_z(plain, plain_var, theirs, their_var)
     # the normal-mapped ball fills tile columns 0-1, the bump-mapped one 2-3 (measured: 18 and 10)
     assert np.abs(z_plain[:, :2]).max() > 10 and np.abs(z_plain[:, 2:4]).max() > 6, np.round(z_plain, 1)
 

@@ -149,24 +149,7 @@ class _Importer:
         if obj.type not in ("perspective", "thinlens"):
             self.warn(obj.node.pos, f"{obj.label()}: not supported; using a camera that frames the scene")
             return
-        if obj.has("fov") and obj.has("focal_length"):
-            raise error_at(obj.node.pos, f"{obj.label()}: give fov or focal_length, not both")
-        if obj.has("fov"):
-            fov = obj.float("fov", positive=True)
-            axis = obj.string("fov_axis", "x").lower()
-            if axis not in ("x", "y", "diagonal", "smaller", "larger"):
-                raise error_at(obj.props["fov_axis"].node.pos,
-                               f"{obj.label()}: unknown fov_axis '{axis}' (x, y, diagonal, smaller, larger)")
-        else:
-            text = obj.string("focal_length", "50mm")
-            try:
-                f = float(text[:-2] if text.endswith("mm") else text)
-            except ValueError:
-                raise error_at(obj.props["focal_length"].node.pos,
-                               f"{obj.label()}: focal_length must look like '35mm', got '{text}'") from None
-            fov, axis = float(np.degrees(2 * np.arctan(np.hypot(36.0, 24.0) / (2 * f)))), "diagonal"
-        if not 0 < fov < 180:
-            raise error_at(obj.node.pos, f"{obj.label()}: fov must be between 0 and 180 degrees, got {fov:g}")
+        fov, axis = _mitsuba_fov(obj)
         vfov = vertical_fov(fov, axis, settings.width, settings.height)
         aperture, focus = 0.0, None
         if obj.type == "thinlens":
@@ -500,19 +483,16 @@ def _read_ply(path, where):
     return v, f, uvc, ply_extras(loaded, f)
 
 
-def _mitsuba_fov_x(obj: MiObject, aspect: float) -> float:
-    """The field of view along x [degrees] of a sensor-like plugin's fov / fov_axis / focal_length
-    for an image of width / height ``aspect`` (Mitsuba's parse_fov, src/render/sensor.cpp)."""
+def _mitsuba_fov(obj: MiObject) -> tuple[float, str]:
+    """(fov [degrees], its axis: x, y, diagonal, smaller or larger) of a sensor-like plugin's fov /
+    fov_axis or focal_length (a 35 mm film's diagonal), checked (Mitsuba's parse_fov,
+    src/render/sensor.cpp)."""
     if obj.has("fov") and obj.has("focal_length"):
         raise error_at(obj.node.pos, f"{obj.label()}: give fov or focal_length, not both")
     if obj.has("fov"):
         fov = obj.float("fov", positive=True)
         axis = obj.string("fov_axis", "x").lower()
-        if axis == "smaller":
-            axis = "y" if aspect > 1 else "x"
-        elif axis == "larger":
-            axis = "x" if aspect > 1 else "y"
-        if axis not in ("x", "y", "diagonal"):
+        if axis not in ("x", "y", "diagonal", "smaller", "larger"):
             raise error_at(obj.props["fov_axis"].node.pos,
                            f"{obj.label()}: unknown fov_axis '{axis}' (x, y, diagonal, smaller, larger)")
     else:
@@ -525,6 +505,17 @@ def _mitsuba_fov_x(obj: MiObject, aspect: float) -> float:
         fov, axis = float(np.degrees(2 * np.arctan(np.hypot(36.0, 24.0) / (2 * f)))), "diagonal"
     if not 0 < fov < 180:
         raise error_at(obj.node.pos, f"{obj.label()}: fov must be between 0 and 180 degrees, got {fov:g}")
+    return fov, axis
+
+
+def _mitsuba_fov_x(obj: MiObject, aspect: float) -> float:
+    """The field of view along x [degrees] of a sensor-like plugin for an image of width / height
+    ``aspect``."""
+    fov, axis = _mitsuba_fov(obj)
+    if axis == "smaller":
+        axis = "y" if aspect > 1 else "x"
+    elif axis == "larger":
+        axis = "x" if aspect > 1 else "y"
     half = np.tan(np.radians(fov) / 2)
     if axis == "y":
         half *= aspect
