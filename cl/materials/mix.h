@@ -20,8 +20,8 @@
  * colours multiplies it (Mitsuba's mesh_attribute as the weight).  w is clamped to [0, 1].
  *
  * The uniform number: sample dimension DIM_MIX of the bounce (cl/render/sampler.h), so every width
- * and schedule picks the same record for a path.  The emission stays the mix record's own
- * (mix_keep_emission). */
+ * and schedule picks the same record for a path.  The emission and an alpha mask stay the mix
+ * record's own (mix_keep_top). */
 #ifndef PYOPENCL_RT_MIX_H
 #define PYOPENCL_RT_MIX_H
 
@@ -177,16 +177,38 @@ RT_INLINE pvec3 mix_blend_sample(const MixOther *x, const MaterialLanes *m, cons
     return pv3_sel(weight, pv3_sel(pv3_zero(), pv3_div(f, ok ? pc : PFLOAT(1.0f)), ok), both);
 }
 
-/* The emission of the lanes' records `top` (the hit's own material) kept in m, gathered from the
- * record picked by mix_sample (`index`): emission, its texture and its two-sidedness. */
-RT_INLINE void mix_keep_emission(__global const Material *materials, pint top, pint index, MaterialLanes *m)
+/* What stays the hit's own record's (`top`, where mix_sample moved to `index`): its emission, emission
+ * texture and two-sidedness, and its alpha mask (MATERIAL_FLAG_MASK: Mitsuba's mask around a
+ * blendbsdf) with its opacity, times its opacity texture at the hit (triangles). */
+RT_INLINE void mix_keep_top(__global const Material *materials, __global const float2 *tri_uv,
+                            __global const Texture *textures, __global const float4 *tex_data, pint top, pint index,
+                            pint prim, pfloat u, pfloat v, MaterialLanes *m)
 {
     const pint moved = top != index;
     if (!pany(moved)) return;
     const MaterialLanes t = material_lanes(materials, moved ? top : index);
+    const int kept = MATERIAL_FLAG_TWO_SIDED | MATERIAL_FLAG_MASK;
     m->emission = pv3_sel(m->emission, t.emission, moved);
     m->tex_emission = moved ? t.tex_emission : m->tex_emission;
-    m->flags = moved ? ((m->flags & ~MATERIAL_FLAG_TWO_SIDED) | (t.flags & MATERIAL_FLAG_TWO_SIDED)) : m->flags;
+    m->flags = moved ? ((m->flags & ~kept) | (t.flags & kept)) : m->flags;
+    m->opacity = moved ? t.opacity : m->opacity;
+#ifdef HAS_TEXTURES
+    const pint masked = moved & pnot(IS_SPHERE(prim)) & ((t.flags & MATERIAL_FLAG_MASK) != 0);
+    if (!pany(masked)) return;
+    __global const int *ints = (__global const int *)materials;
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        if (!PLANE_I(masked, k)) continue;
+        __global const int *rec = ints + PLANE_I(t.rec, k);
+        const int params = rec[FIELD_INDEX(Material, tex_params)];
+        for (int slot = 0; slot < TEX_SLOTS; ++slot) {
+            const int tx = rec[FIELD_INDEX(Material, tex_scalar) + slot];
+            if (tx < 0) break;
+            if (((params >> (4 * slot)) & 15) != TEXP_OPACITY) continue;
+            const float2 uv = triangle_uv(tri_uv, PLANE_I(prim, k), PLANE(u, k), PLANE(v, k));
+            PLANE(m->opacity, k) *= tex_sample(textures, tex_data, tx, uv).x;
+        }
+    }
+#endif
 }
 
 #endif /* HAS_MATERIAL_MIX */

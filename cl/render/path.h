@@ -258,7 +258,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     mat_index = mix_sample(materials, tri_uv, textures, tex_data, tri_color, hit, prim, u, v,
                            sample_1d(key, dim + DIM_MIX), mat_index, &mix_index, &mix_w);
     MaterialLanes m = material_lanes(materials, mat_index);
-    mix_keep_emission(materials, top_index, mat_index, &m);
+    mix_keep_top(materials, tri_uv, textures, tex_data, top_index, mat_index, prim, u, v, &m);
     /* a mix of two materials that are not mixes: the other one, evaluated beside the picked one */
     const MixOther mo = mix_other(tris, tri_normal, materials, tri_uv, textures, tex_data, tri_color, hit, prim, u, v,
                                   ng, n, front, wo, mix_index, mix_w);

@@ -183,6 +183,8 @@ class Material:
         rec["alpha_cutoff"] = float(self.alpha_cutoff) if self.cutout else 0.0
         if self.type == "mix":
             rec["rates"][:2] = [(material_index or {}).get(id(m), -1) for m in self.blend]
+            if material_index is not None and min(rec["rates"][:2]) < 0:
+                raise ValueError(f"material {self.name!r}: a material it blends is not among the scene's materials")
         flags = int(rec["flags"]) | (abi.MATERIAL_FLAG_VERTEX_COLOR if self.vertex_colors else 0)
         flags |= (abi.MATERIAL_FLAG_MASK if self.masked else 0) | (abi.MATERIAL_FLAG_ONE_SIDED if self.one_sided else 0)
         flags |= abi.MATERIAL_FLAG_CUTOUT if self.cutout else 0

@@ -24,7 +24,7 @@ def _rect(x, y, bsdf, angle=0.0):
 def _scene(tmp_path, variant=False) -> str:
     """Six panels before a grey wall under a point light and a constant sky: blends of a diffuse and
     a rough conductor (GGX and Beckmann) with a constant weight, with a bitmap weight (0, 0.5 and 1
-    texels), a blend inside a blend, and a blend of two diffuse ones. ``variant``: every blend
+    texels), a blend inside a blend, and a masked blend of two diffuse ones (opacity 0.6). ``variant``: every blend
     replaced by its first BSDF (what the importer did before), to show that the comparison sees it."""
     from PIL import Image
 
@@ -41,12 +41,15 @@ def _scene(tmp_path, variant=False) -> str:
             return a
         return f'<bsdf type="blendbsdf">{weight}{a}{b}</bsdf>'
 
+    def mask(nested):
+        return nested if variant else f'<bsdf type="mask"><float name="opacity" value="0.6"/>{nested}</bsdf>'
+
     bitmap = ('<texture type="bitmap" name="weight"><string name="filename" value="weight.png"/>'
               '<boolean name="raw" value="true"/><string name="filter_type" value="nearest"/></texture>')
     panels = [
         _rect(-2.0, 1.0, blend('<float name="weight" value="0.3"/>', red, ggx), angle=20),
         _rect(0.0, 1.0, blend(bitmap, blue, beckmann), angle=-15),
-        _rect(2.0, 1.0, blend('<float name="weight" value="0.6"/>', red, blue)),
+        _rect(2.0, 1.0, mask(blend('<float name="weight" value="0.6"/>', red, blue))),
         _rect(-2.0, -1.0, blend('<float name="weight" value="0.5"/>',
                                 blend('<float name="weight" value="0.25"/>', red, blue), ggx), angle=-25),
         _rect(0.0, -1.0, blend('<float name="weight" value="0.8"/>', beckmann, red), angle=10),
@@ -83,8 +86,8 @@ def _tiles(a):
 def test_blends_match_mitsuba(tmp_path):
     """48 x 32, six blended panels (constant and bitmap weights, diffuse and rough conductors, a
     blend in a blend), by Mitsuba (4 batches of 64 spp: their spread its variance) and by us (512
-    spp): every 8 x 8 tile within 4.5 sigma.  Mitsuba's render of the scene with every blend
-    replaced by its first BSDF is more than 10 sigma from ours in some tile."""
+    spp): every 8 x 8 tile within 4.5 sigma (measured: 2.3).  Mitsuba's render of the scene with every
+    blend replaced by its first BSDF is more than 10 sigma from ours in every tile (measured: 38 and more)."""
     mi = harness.mitsuba()
 
     def z_scores(a, a_var, b, b_var):
@@ -101,7 +104,8 @@ def test_blends_match_mitsuba(tmp_path):
     z = z_scores(ours, var, theirs, their_var)
     assert z.max() < 4.5, np.round(z.max(-1), 1)
     other, other_var = _mitsuba_render(mi, _scene(tmp_path, variant=True))
-    assert z_scores(ours, var, other, other_var).max() > 10
+    z_other = z_scores(ours, var, other, other_var).max(-1)
+    assert z_other.min() > 10, np.round(z_other, 1)
 
 
 def test_blends_in_lanes(device, monkeypatch, tmp_path):
@@ -148,6 +152,8 @@ radius = 1
     assert ab["type"] == abi.MATERIAL_MIX and np.isclose(ab["metallic"], 0.25)
     assert list(ab["rates"][:2]) == [names.index("a"), names.index("b")]
     assert scene.material_defines().get("HAS_MATERIAL_MIX")
+    bsdf = scene.materials[names.index("ab")].mitsuba_bsdf()  # the export (bench compare)
+    assert (bsdf["type"], bsdf["weight"], bsdf["bsdf_1"]["type"]) == ("blendbsdf", 0.25, "roughconductor")
     (tmp_path / "bad.toml").write_text('[materials.a]\n[materials.ab]\ntype = "mix"\nmaterials = ["a", "zz"]\n')
     try:
         rt.load_scene(tmp_path / "bad.toml")

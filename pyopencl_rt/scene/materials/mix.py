@@ -43,7 +43,11 @@ def pack(material, record) -> None:
 
 def to_mitsuba(material) -> dict:
     """Mitsuba's blendbsdf of the two materials' BSDFs (a constant weight only)."""
-    if "metallic" in material.scalar_textures:
+    if "metallic" in material.scalar_textures or material.vertex_colors:
         raise ValueError(f"material {material.name!r}: a textured mix weight is not exported to Mitsuba")
+    for m in material.blend:
+        if m.textures() or m.masked or m.one_sided or m.vertex_colors:
+            raise ValueError(f"material {material.name!r}: a textured, masked or one-sided material in a mix "
+                             "is not exported to Mitsuba")
     return {"type": "blendbsdf", "weight": float(material.metallic),
             "bsdf_0": material.blend[0].mitsuba_bsdf(), "bsdf_1": material.blend[1].mitsuba_bsdf()}
