@@ -12,6 +12,9 @@
  * (1 - w) f_a + w f_b with the pdf (1 - w) p_a + w p_b, and the picked material's BSDF sample
  * (continuous) is weighed by that f over that pdf (one-sample MIS over the two); a delta sample
  * of the picked one keeps its own weight (its selection probability w_c cancels the blend's w_c).
+ * There Mitsuba differs: its blendbsdf weighs a delta sample as if its density were 1 against the
+ * other BSDF's density, which is not the blend's expectation (a mirror blended with a diffuse comes
+ * out up to 10% darker than picking alone gives; tests/render/test_mix.py checks ours against picks).
  * Nested mixes are resolved by picks alone (pbrt-v4's way), which is unbiased too.
  *
  * Record (abi.MATERIAL): metallic the weight w, rates[0] / rates[1] the indices of a and b (floats);
