@@ -149,7 +149,7 @@ __kernel void mk_path(WAVE_PARAMS)
         hit &= pnot(scattered | crossed) & (pv3_max3(s.beta) > 0.0f);
 #endif
 #ifdef HAS_ENVIRONMENT
-        path_escape(lights, env_map, env_cdf, escaped, &s);
+        path_escape(lights, env_map, env_cdf, integrator, escaped, &s);
 #endif
         pint goes_on, with_shadow;
         ShadowRay shadow;
@@ -168,8 +168,8 @@ __kernel void mk_path(WAVE_PARAMS)
             n_shadow += popcount(pbits(with_shadow));
 #ifdef HAS_MEDIA
             /* through media and null boundaries: the transmittance, 0 where a surface blocks */
-            const pvec3 tr = shadow_transmittance(nodes, tris, spheres, n_spheres, tri_material, sphere_material,
-                                                  materials, MEDIA_PATH_ARGS, shadow.o, shadow.d,
+            const pvec3 tr = shadow_transmittance(nodes, tris, tri_normal, spheres, n_spheres, tri_material,
+                                                  sphere_material, materials, MEDIA_PATH_ARGS, shadow.o, shadow.d,
                                                   shadow_medium, s.channel, &s.rng, s.r, with_shadow);
             s.L = pv3_sel(s.L, pv3_add(s.L, pv3_mul(shadow.contribution, tr)), with_shadow);
 #else

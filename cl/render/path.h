@@ -15,11 +15,11 @@
  *   path_escape     (HAS_ENVIRONMENT) the environment seen by the lanes whose rays left the
  *                   scene, weighted as the emission of a hit
  *   path_shade      at the lanes' hits: their emission, weighted by MIS against light sampling
- *                   (power heuristic; weight 1 for camera rays), or by 1 (INTEGRATOR 1, BSDF
- *                   sampling only) or 0 after the first segment (INTEGRATOR 2, light sampling
+ *                   (power heuristic; weight 1 for camera rays), or by 1 (integrator 1, BSDF
+ *                   sampling only) or 0 after the first segment (integrator 2, light sampling
  *                   only); one light sample each (picked by power with the alias table) whose
  *                   contribution, weighted by MIS (weight 1 for delta lights), comes back with
- *                   its shadow ray (not with INTEGRATOR 1; infinitely distant lights get a shadow
+ *                   its shadow ray (not with integrator 1; infinitely distant lights get a shadow
  *                   ray of length ls.far along their exact direction); one BSDF sample that
  *                   continues the path, with Russian roulette after rr_depth bounces keeping it
  *                   with probability min(max(throughput) * eta_scale, 0.95) (eta_scale: the
@@ -49,9 +49,8 @@
 #include "render/aov.h"
 #endif
 
-#ifndef INTEGRATOR
-#define INTEGRATOR 0
-#endif
+/* The estimator is a kernel argument (`integrator`, as max_depth: one build serves the three):
+ * INTEGRATOR_MIS, INTEGRATOR_BSDF (BSDF sampling only) or INTEGRATOR_NEE (light sampling only). */
 
 /* What a path carries from one vertex to the next, per lane. */
 typedef struct {
@@ -82,11 +81,11 @@ typedef struct {
     __global const Light *lights, const int n_lights, __global const float *env_map,                 \
     __global const float *env_cdf, __global const float2 *tri_uv, __global const Texture *textures,  \
     __global const float4 *tex_data, __global const float *tri_normal, __global const float *tri_color, \
-    __global float *aov_path, const int max_depth, const int rr_depth
+    __global float *aov_path, const int max_depth, const int rr_depth, const int integrator
 #define PATH_ARGS                                                                                     \
     tris, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,          \
     n_lights, env_map, env_cdf, tri_uv, textures, tex_data, tri_normal, tri_color, aov_path, max_depth, \
-    rr_depth
+    rr_depth, integrator
 
 /* The camera rays through pixels (x, y) of the lanes, and the weight each sample carries (the
  * pixel filter's sign and normalisation, cl/render/filter.h; 1 for filters without negative
@@ -145,19 +144,19 @@ RT_INLINE void path_start(PathState *s, pint m, pvec3 o, pvec3 d)
 #ifdef HAS_ENVIRONMENT
 /* The environment seen by the lanes of `missed`, whose rays left the scene. */
 RT_INLINE void path_escape(__global const Light *lights, __global const float *env_map,
-                           __global const float *env_cdf, pint missed, PathState *s)
+                           __global const float *env_cdf, int integrator, pint missed, PathState *s)
 {
     __global const Light *lt = lights + ENV_LIGHT;
     const pvec3 Le = env_radiance(lt, env_map, s->d);
     const pint seen = missed & (pv3_max3(Le) > 0.0f);
     if (!pany(seen)) return;
     pfloat w = PFLOAT(1.0f);
-#if INTEGRATOR == 2
-    w = s->pdf > 0.0f ? PFLOAT(0.0f) : w;
-#elif INTEGRATOR == 0
-    const pint mis = seen & (s->pdf > 0.0f);
-    if (pany(mis)) w = mis ? power_heuristic(s->pdf, lt->pmf * env_pdf(lt, env_map, env_cdf, s->d)) : w;
-#endif
+    if (integrator == INTEGRATOR_NEE) {
+        w = s->pdf > 0.0f ? PFLOAT(0.0f) : w;
+    } else if (integrator == INTEGRATOR_MIS) {
+        const pint mis = seen & (s->pdf > 0.0f);
+        if (pany(mis)) w = mis ? power_heuristic(s->pdf, lt->pmf * env_pdf(lt, env_map, env_cdf, s->d)) : w;
+    }
     s->L = pv3_sel(s->L, pv3_add(s->L, pv3_scale(pv3_mul(s->beta, Le), w)), seen);
 }
 #endif
@@ -188,16 +187,13 @@ RT_INLINE void hit_records(__global const int *tri_material, __global const int 
 #define ANY_PRIM SPHERE_PRIM(0)
 #endif
 
-#if defined(HAS_LIGHTS) && INTEGRATOR != 1
+#ifdef HAS_LIGHTS
 /* The MIS weight of a light sample of density lpdf against the BSDF's or phase function's density
  * `other` for the same direction: the power heuristic, 1 for delta lights and without MIS. */
-RT_INLINE pfloat nee_mis_weight(pint delta, pfloat lpdf, pfloat other)
+RT_INLINE pfloat nee_mis_weight(int integrator, pint delta, pfloat lpdf, pfloat other)
 {
-#if INTEGRATOR == 0
+    if (integrator != INTEGRATOR_MIS) return PFLOAT(1.0f);
     return delta ? PFLOAT(1.0f) : power_heuristic(lpdf, other);
-#else
-    return PFLOAT(1.0f);
-#endif
 }
 
 /* Next-event estimation's light sample from ref (a surface's spawn point or a medium's scattering
@@ -290,12 +286,11 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     const pint glows = hit & (pv3_max3(Le) > 0.0f);
     if (pany(glows)) {
         pfloat w = PFLOAT(1.0f);
-#if INTEGRATOR == 2
-        w = s->pdf > 0.0f ? PFLOAT(0.0f) : w;
-#elif INTEGRATOR == 0 && defined(HAS_LIGHTS)
+        if (integrator == INTEGRATOR_NEE) w = s->pdf > 0.0f ? PFLOAT(0.0f) : w;
+#ifdef HAS_LIGHTS
         /* MIS against light sampling: light_pdf of the hit light, from the ray's origin */
         const pint mis = glows & (s->pdf > 0.0f) & (light_index >= 0);
-        if (pany(mis)) {
+        if (integrator == INTEGRATOR_MIS && pany(mis)) {
             const pint li = mis ? light_index : PINT(0);
             const pfloat pmf = pgather((__global const float *)lights, li * STRIDE_INDEX(Light) + FIELD_INDEX(Light, pmf));
 #ifdef HAS_MEDIA
@@ -321,12 +316,12 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     const pvec3 below = offset_ray_origin_bound(p, p_err, pv3_neg(n));
 
     /* -- next-event estimation -------------------------------------------------------------- */
-#if defined(HAS_LIGHTS) && INTEGRATOR != 1
+#ifdef HAS_LIGHTS
     pint nee = going & surface & bsdf_has_nondelta_lobes(&m) & (opacity > 0.0f);
 #ifdef HAS_MATERIAL_MIX
     nee |= going & mo.surface & bsdf_has_nondelta_lobes(&mo.m) & (opacity > 0.0f);
 #endif
-    if (pany(nee)) {
+    if (integrator != INTEGRATOR_BSDF && pany(nee)) { /* (a scalar test: a lane mask is -1, not 1) */
         LightSample ls;
         pfloat pick_pmf, dist;
         pvec3 wi;
@@ -345,7 +340,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
             const pint lit = sampled & (pv3_max3(f) > 0.0f) & (dist > 0.0f);
             if (pany(lit)) {
                 const pfloat lpdf = pick_pmf * ls.pdf;
-                const pfloat w = nee_mis_weight(ls.delta, lpdf, bpdf);
+                const pfloat w = nee_mis_weight(integrator, ls.delta, lpdf, bpdf);
                 const pvec3 so = pv3_sel(below, ref, pv3_dot(n, wi) > 0.0f);
                 const pvec3 sp = offset_ray_origin_bound(ls.p, ls.err, ls.n);
                 shadow->o = so;

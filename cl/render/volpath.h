@@ -92,8 +92,9 @@ RT_INLINE void spectral_normalise(pvec3 *beta, pvec3 *r, pint m)
 
 /* Thin dielectric sheets (MATERIAL_FLAG_THIN, Mitsuba's thindielectric) are null boundaries that
  * reflect: Mitsuba flags their straight-through lobe Null, so volpath crosses them without a bounce and
- * its shadow rays pass them with the transmission 1 - R (R = 2F / (1 + F), F = Fr(|cos|, eta)).  The
- * lanes of `live` whose primitive's material is one: *thin, with *ior and the transmission along d. */
+ * its shadow rays pass them with the transmission 1 - R (R = 2F / (1 + F), F = Fr(|cos|, eta)), cos
+ * in the shading frame (n: the interpolated normal where the mesh has one, as Mitsuba's BSDFs see
+ * it).  The lanes of `live` whose primitive's material is one: *thin, with the transmission along d. */
 RT_INLINE pfloat thin_sheet(__global const int *tri_material, __global const int *sphere_material,
                             __global const Material *materials, pint prim, pint live, pvec3 ng, pvec3 d, pint *thin)
 {
@@ -114,11 +115,24 @@ RT_INLINE pfloat thin_sheet(__global const int *tri_material, __global const int
     return t;
 }
 
+/* The normal a thin sheet's BSDF sees at the lanes' hits: the interpolated vertex normal of a
+ * smooth mesh, else the geometric normal ng. */
+RT_INLINE pvec3 sheet_normal(__global const float *tri_normal, pint live, pint prim, pfloat u, pfloat v, pvec3 ng)
+{
+#ifdef HAS_SHADING_NORMALS
+    pint has;
+    return interpolated_normal(tri_normal, live & (prim >= 0), prim, u, v, ng, &has);
+#else
+    return ng;
+#endif
+}
+
 /* The transmittance of the shadow rays o + t d, t in (0, 1), of the lanes of `active`, which start in
  * `medium`: through media and null surfaces (crossing into the medium behind each), 0 where another
  * surface (or more than MAX_NULL_CROSSINGS null ones) blocks it.  r: the path's ratios (mean 1); the
  * result is the spectral-MIS estimate of the transmittance given them. */
 RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global const float4 *tris,
+                                     __global const float *tri_normal,
                                      __global const Sphere *spheres, int n_spheres, __global const int *tri_material,
                                      __global const int *sphere_material, __global const Material *materials,
                                      MEDIA_PATH_PARAMS, pvec3 o, pvec3 d,
@@ -151,8 +165,8 @@ RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global con
             pvec3 p_err;
             const pvec3 ph = hit_point(tris, spheres, at, o, seg, th, u, v, &p_err);
             pint thin;
-            const pfloat tr = thin_sheet(tri_material, sphere_material, materials, at, live & pnot(null),
-                                         hit_normal(tris, spheres, at, ph, live), seg, &thin);
+            const pvec3 sn = sheet_normal(tri_normal, live, at, u, v, hit_normal(tris, spheres, at, ph, live));
+            const pfloat tr = thin_sheet(tri_material, sphere_material, materials, at, live & pnot(null), sn, seg, &thin);
             T = pv3_sel(T, pv3_scale(T, tr), thin);
             null |= thin;
         }
@@ -226,10 +240,11 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
         null &= boundary;
 #ifdef HAS_MATERIAL_DIELECTRIC
         /* a thin sheet: straight through with probability 1 - R, a null event; else a delta reflection
-         * (a bounce), here about the geometric normal (Mitsuba's about the shading normal); the choice
-         * from the tracking stream (a crossing takes no sampler dimension) */
+         * (a bounce) about the shading normal, as Mitsuba's thindielectric reflects in its shading
+         * frame; the choice from the tracking stream (a crossing takes no sampler dimension) */
         pint thin;
-        const pfloat tr = thin_sheet(tri_material, sphere_material, materials, at, boundary & pnot(null), *ng, s->d, &thin);
+        const pvec3 sn = sheet_normal(tri_normal, boundary, at, u, v, *ng);
+        const pfloat tr = thin_sheet(tri_material, sphere_material, materials, at, boundary & pnot(null), sn, s->d, &thin);
         if (pany(thin)) {
             const pint pass = thin & (medium_uniform(&s->rng, thin) < tr);
             null |= pass;
@@ -237,8 +252,8 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
             if (pany(mirror)) {
                 const pint segments = s->depth + 1;
                 const pint on = mirror & (max_depth >= 0 ? segments < max_depth : PTRUE);
-                const pvec3 side = pv3_sel(*ng, pv3_neg(*ng), pv3_dot(*ng, s->d) > 0.0f); /* the incoming side */
-                const pvec3 r = pv3_sub(s->d, pv3_scale(*ng, 2.0f * pv3_dot(s->d, *ng)));
+                const pvec3 r = pv3_sub(s->d, pv3_scale(sn, 2.0f * pv3_dot(s->d, sn)));
+                const pvec3 side = pv3_sel(pv3_neg(*ng), *ng, pv3_dot(*ng, r) > 0.0f); /* where r leaves to */
                 s->o = pv3_sel(s->o, offset_ray_origin_bound(p, p_err, side), on);
                 s->d = pv3_sel(s->d, r, on);
                 s->pdf = on ? PFLOAT(0.0f) : s->pdf;
@@ -266,9 +281,9 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
     const pint segments = s->depth + 1;
     const pint going = real & (max_depth >= 0 ? segments < max_depth : PTRUE) & (pv3_max3(s->beta) > 0.0f);
     const puint dim = convert_puint(2 + DIMS_PER_BOUNCE * s->depth);
-#if defined(HAS_LIGHTS) && INTEGRATOR != 1
+#ifdef HAS_LIGHTS
     const pint nee = going & ((med.flags & MEDIUM_FLAG_SAMPLE_EMITTERS) != 0);
-    if (pany(nee)) {
+    if (integrator != INTEGRATOR_BSDF && pany(nee)) {
         LightSample ls;
         pfloat pick_pmf, dist;
         pvec3 wl;
@@ -278,7 +293,7 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
             const pint lit = sampled & (ph > 0.0f) & (dist > 0.0f);
             if (pany(lit)) {
                 const pfloat lpdf = pick_pmf * ls.pdf;
-                const pfloat w = nee_mis_weight(ls.delta, lpdf, ph);
+                const pfloat w = nee_mis_weight(integrator, ls.delta, lpdf, ph);
                 const pvec3 sp = offset_ray_origin_bound(ls.p, ls.err, ls.n);
                 shadow->o = pv3_sel(shadow->o, p, lit);
                 shadow->d = pv3_sel(shadow->d, pv3_sub(sp, p), lit);

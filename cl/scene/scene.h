@@ -4,8 +4,8 @@
  * pyopencl_rt/device/abi.py.
  *
  * Features are compiled in only when the scene uses them: HAS_TRIANGLES, HAS_SPHERES,
- * HAS_LIGHTS (next-event estimation), and INTEGRATOR (0 = MIS path, 1 = BSDF sampling only,
- * 2 = light sampling only).
+ * HAS_LIGHTS (next-event estimation); the estimator (MIS path, BSDF sampling only, light sampling
+ * only) is the kernel argument `integrator`.
  */
 #ifndef PYOPENCL_RT_SCENE_H
 #define PYOPENCL_RT_SCENE_H

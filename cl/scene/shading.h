@@ -222,6 +222,21 @@ RT_INLINE pvec3 triangle_dpdu(__global const float4 *tris, __global const float2
 /* The BSDF's frame at the lanes' hits: ng the unit geometric normal, n it on wo's side, front
  * the geometric side of wo; mat_index the lanes' materials, aniso those with
  * MATERIAL_FLAG_ANISOTROPIC (their tangent is computed with HAS_ANISOTROPY). */
+#ifdef HAS_SHADING_NORMALS
+/* The unit barycentric interpolation of the vertex normals of the lanes of `tri` (triangle hits):
+ * *has where the face has normals (its corners not 0) and their sum is finite, else ng. */
+RT_INLINE pvec3 interpolated_normal(__global const float *tri_normal, pint tri, pint prim, pfloat u, pfloat v,
+                                    pvec3 ng, pint *has)
+{
+    const pint i = tri ? prim * 9 : PINT(0);
+    const pvec3 s = barycentric3(gather9_corner(tri_normal, i, 0), gather9_corner(tri_normal, i, 1),
+                                 gather9_corner(tri_normal, i, 2), u, v);
+    const pfloat d = pv3_dot(s, s);
+    *has = tri & (d > 0.0f) & pisfinite(d);
+    return pv3_sel(ng, pv3_normalize(s, *has), *has);
+}
+#endif
+
 RT_INLINE ShadingLanes shading_lanes(__global const float4 *tris, __global const float *tri_normal,
                                      __global const float2 *tri_uv, __global const Texture *textures,
                                      __global const float4 *tex_data, __global const Material *materials,
@@ -238,12 +253,8 @@ RT_INLINE ShadingLanes shading_lanes(__global const float4 *tris, __global const
 #ifdef HAS_SHADING_NORMALS
     const pint tri = hit & (prim >= 0);
     if (pany(tri)) {
-        const pint i = tri ? prim * 9 : PINT(0);
-        const pvec3 s = barycentric3(gather9_corner(tri_normal, i, 0), gather9_corner(tri_normal, i, 1),
-                                     gather9_corner(tri_normal, i, 2), u, v);
-        const pfloat d = pv3_dot(s, s);
-        const pint has = tri & (d > 0.0f) & pisfinite(d);
-        ns = pv3_sel(ns, pv3_normalize(s, has), has);
+        pint has;
+        ns = interpolated_normal(tri_normal, tri, prim, u, v, ns, &has);
         const pint sfront = pv3_dot(ns, wo) >= 0.0f;
         sh.front = has ? sfront : front;
         sh.n = pv3_sel(n, pv3_sel(pv3_neg(ns), ns, sfront), has);

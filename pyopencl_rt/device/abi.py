@@ -402,6 +402,8 @@ SAMPLER_INDEPENDENT = define("SAMPLER_INDEPENDENT", 0)
 SAMPLER_SOBOL = define("SAMPLER_SOBOL", 1)
 SAMPLER_STRATIFIED = define("SAMPLER_STRATIFIED", 2)
 SAMPLERS = {"independent": SAMPLER_INDEPENDENT, "sobol": SAMPLER_SOBOL, "stratified": SAMPLER_STRATIFIED}
+# the estimators, in the order of scene.model.INTEGRATORS ("path", "bsdf", "nee"): a kernel argument
+INTEGRATOR_MIS, INTEGRATOR_BSDF, INTEGRATOR_NEE = define_enum("INTEGRATOR_", ("mis", "bsdf", "nee")).values()
 SOBOL_LOG2_ROUND = define("SOBOL_LOG2_ROUND", 16, overridable=True)
 
 # The per-sample AOVs (compiled with HAS_AOVS; cl/render/aov.h): AOV_FLOATS floats per path in
@@ -536,6 +538,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("ring_size", "scalar", "int", "passes in flight at most"),
     Param("max_depth", "scalar", "int", "path segments, < 0 for no limit"),
     Param("rr_depth", "scalar", "int", "segments before Russian roulette"),
+    Param("integrator", "scalar", "int", "INTEGRATOR_MIS, _BSDF (BSDF sampling only) or _NEE (light sampling only)"),
     Param("seed", "scalar", "uint"),
     # per-stage scalars (each stage reads the ones its .cl file names)
     Param("n_items", "scalar", "int", "work-items with work: new paths, or active paths", launch=True),

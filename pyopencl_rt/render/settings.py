@@ -152,7 +152,7 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
     """
     from ..accel.device_bvh import layout_defines
 
-    defines = {"INTEGRATOR": INTEGRATORS.index(settings.integrator), "SAMPLER": abi.SAMPLERS[settings.sampler]}
+    defines = {"SAMPLER": abi.SAMPLERS[settings.sampler]}  # the integrator: a kernel argument
     if len(scene.faces):
         defines["HAS_TRIANGLES"] = True
     if len(scene.spheres):

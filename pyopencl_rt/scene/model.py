@@ -16,6 +16,8 @@ from .lights import DirectionalLight, Environment, PointLight, ProjectorLight, S
 from .materials import REGISTRY, MaterialType
 
 INTEGRATORS = ("path", "bsdf", "nee")
+assert [INTEGRATORS.index(k) for k in ("path", "bsdf", "nee")] == [abi.INTEGRATOR_MIS, abi.INTEGRATOR_BSDF,
+                                                             abi.INTEGRATOR_NEE]  # the kernel argument
 # where the random numbers come from (cl/render/sampler.h), the default first
 SAMPLERS = ("sobol", "stratified", "independent")
 assert set(SAMPLERS) == set(abi.SAMPLERS)
@@ -329,6 +331,22 @@ class RenderSettings:
 
 
 @dataclass
+class Instance:
+    """One instance of a shape group (Mitsuba's shapegroup / instance, pbrt-v4's ObjectBegin /
+    ObjectInstance): the group's name, its 4x4 to_world, and where its copy of the group's shapes
+    lies in the Scene's arrays (faces[first_face:first_face + n_faces], spheres likewise).  The
+    loaders flatten instances (each adds its own moved copy); these records are what a two-level
+    BVH (instances sharing one BLAS) would build from."""
+
+    group: str
+    to_world: np.ndarray
+    first_face: int = 0
+    n_faces: int = 0
+    first_sphere: int = 0
+    n_spheres: int = 0
+
+
+@dataclass
 class Scene:
     vertices: np.ndarray  # (V, 3) float32, world space
     faces: np.ndarray  # (F, 3) int32
@@ -362,6 +380,11 @@ class Scene:
     interfaces: list = field(default_factory=list)
     face_interfaces: np.ndarray | None = None
     sphere_interfaces: np.ndarray | None = None
+    # the shape-group instances the file had (Instance records; already flattened into the arrays above)
+    instances: list = field(default_factory=list)
+    # True: the corner normals are used as given, not each made unit length: their lengths weigh the
+    # interpolation (which the kernels normalise), as an unevenly scaled instance's normals need
+    normals_as_given: bool = False
 
     def __post_init__(self):
         self.add_blended_materials()
@@ -470,7 +493,8 @@ class Scene:
 
     def face_normals(self) -> np.ndarray:
         """(F, 3, 3) float32 unit shading normals per corner (zeros where the scene has none;
-        a non-finite or zero normal becomes 0: that face is shaded flat)."""
+        a non-finite or zero normal becomes 0: that face is shaded flat); with normals_as_given,
+        the normals with their lengths."""
         if self.normals is None:
             return np.zeros((len(self.faces), 3, 3), np.float32)
         n = np.asarray(self.normals, np.float64).reshape(len(self.faces), 3, 3)
@@ -478,6 +502,8 @@ class Scene:
             length = np.linalg.norm(n, axis=2, keepdims=True)
             unit = n / length
         good = np.isfinite(unit).all(axis=2, keepdims=True) & (length > 0)
+        if self.normals_as_given:
+            unit = n
         unit = np.where(good, unit, 0.0)
         flat = ~good.all(axis=(1, 2))  # a face with a missing corner normal is shaded flat
         unit[flat] = 0.0

@@ -905,7 +905,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
         <integrator type="aov"><string name="aovs" value="nn:sh_normal"/><integrator type="path"/></integrator>
         <sensor type="radiancemeter"/>
         <medium type="homogeneous" id="fog"><phase type="rayleigh"/></medium>
-        <shape type="shapegroup" id="g"><ref name="interior" id="fog"/></shape>
+        <shape type="sdfgrid" id="g"><ref name="interior" id="fog"/></shape>
         <shape type="sphere"><bsdf type="hair"/><emitter type="point"/></shape>
         <emitter type="sunsky"/>
         <rgb name="stray" value="1"/>
@@ -914,7 +914,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
     assert len(scene.spheres) == 1 and scene.materials[0].albedo == (0.5, 0.5, 0.5)
     expect = [("radiancemeter", '<sensor type="radiancemeter">: not supported; using a camera that frames the scene'),
               ("rayleigh", '<phase type="rayleigh">: phase function not supported; rendered isotropic'),
-              ("shapegroup", '<shape type="shapegroup" id="g">: shape type not supported; ignored'),
+              ("sdfgrid", '<shape type="sdfgrid" id="g">: shape type not supported; ignored'),
               ("hair", '<bsdf type="hair">: BSDF type not supported; using diffuse 0.5'),
               ("point", '<emitter type="point"> in <shape type="sphere">: only area emitters attach to shapes; ignored'),
               ("sunsky", '<emitter type="sunsky">: emitter type not supported; ignored'),

@@ -79,14 +79,17 @@ def flat_where_planar(vertices, faces, normals, tolerance: float = 1e-5):
     return n if n.any() else None
 
 
-def transform_normals(matrix, normals):
+def transform_normals(matrix, normals, unit: bool = True):
     """Per-corner normals (F, 3, 3) moved by the 4x4 ``matrix`` (its inverse transpose) and made
-    unit length; zero (absent) normals stay 0."""
+    unit length; zero (absent) normals stay 0.  ``unit`` False: not made unit length (so that the
+    kernels' normalised interpolation gives the moved interpolated normal: an instance's)."""
     if normals is None:
         return None
     n = np.asarray(normals, np.float64).reshape(-1, 3)
     m = np.asarray(matrix, np.float64)[:3, :3]
     n = n @ np.linalg.inv(m)  # (M^-T n)^T = n^T M^-1
+    if not unit:
+        return np.nan_to_num(n).reshape(-1, 3, 3).astype(np.float32)
     with np.errstate(invalid="ignore", divide="ignore"):
         n = n / np.linalg.norm(n, axis=1, keepdims=True)
     return np.nan_to_num(n, nan=0.0, posinf=0.0, neginf=0.0).reshape(-1, 3, 3).astype(np.float32)

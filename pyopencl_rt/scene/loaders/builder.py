@@ -358,6 +358,24 @@ class SceneBuilder:
         self.face_interfaces: list = []
         self.sphere_interfaces: list = []
         self.camera_medium = -1
+        # shape groups and instances (loaders/instancing.py): the group being recorded (None: shapes
+        # go to the scene), the groups by name, the Instance records, and the faces added so far
+        self.recording = None
+        self.groups: dict = {}
+        self.instances: list = []
+        self.n_faces = 0
+        self.normals_as_given = False  # an unevenly scaled instance's normals (Scene.normals_as_given)
+
+    def begin_group(self, name: str):
+        """Record the shapes added from now on in a new group ``name`` (until :meth:`end_group`)."""
+        from .instancing import ShapeGroup
+
+        self.recording = self.groups[name] = ShapeGroup(name)
+        return self.recording
+
+    def end_group(self):
+        group, self.recording = self.recording, None
+        return group
 
     def warn(self, position: str, what: str) -> None:
         msg = one_line(f"{position}: {what}")
@@ -404,10 +422,10 @@ class SceneBuilder:
         col = None if colors is None else np.asarray(colors, np.float32).reshape(-1, 3, 3)
         if nrm is not None and flip:
             nrm = -nrm
-        if matrix is not None:
-            v = transform_points(matrix, v)
-            nrm = transform_normals(matrix, nrm)
-            if np.linalg.det(matrix[:3, :3]) < 0:
+        if matrix is not None or nrm is not None:  # unit normals (as Mitsuba's meshes), also without a matrix
+            v = transform_points(matrix, v) if matrix is not None else v
+            nrm = transform_normals(np.eye(4) if matrix is None else matrix, nrm)
+            if matrix is not None and np.linalg.det(matrix[:3, :3]) < 0:
                 flip = not flip
         keys = None
         if compute_normals is not None and compute_normals is not False and nrm is None:
@@ -422,6 +440,13 @@ class SceneBuilder:
             return
         if keys is not None:
             nrm = angle_weighted_normals(v, f, keys)
+        if self.recording is not None:
+            self.recording.meshes.append((v, f, uv, nrm, col, material, interface))
+            return
+        self.append_mesh(v, f, uv, nrm, col, material, interface)
+
+    def append_mesh(self, v, f, uv, nrm, col, material: Material, interface) -> None:
+        """Triangles already in world space, their fronts set (what add_mesh leaves)."""
         self.vertices.append(v)
         self.faces.append(f + self.n_vertices)
         self.uvs.append(np.zeros((len(f), 3, 2), np.float32) if uv is None else uv)
@@ -430,11 +455,16 @@ class SceneBuilder:
         self.face_materials.append(np.full(len(f), self.material_index(material), np.int32))
         self.face_interfaces.append(np.full(len(f), self.interface_index(interface), np.int32))
         self.n_vertices += len(v)
+        self.n_faces += len(f)
         self.any_normals |= nrm is not None
         self.any_colors |= col is not None
 
     def add_sphere(self, centre, radius: float, material: Material, interface=None) -> None:
         """A sphere, its front outside (an interface given for an inward-facing one must be flipped)."""
+        if self.recording is not None:
+            self.recording.spheres.append((np.asarray(centre, np.float64).reshape(3), float(radius), material,
+                                           interface))
+            return
         self.spheres.append([*map(float, centre), float(radius)])
         self.sphere_materials.append(self.material_index(material))
         self.sphere_interfaces.append(self.interface_index(interface))
@@ -472,7 +502,7 @@ class SceneBuilder:
             vertices = transform_points(mirror, vertices)
             faces = faces[:, ::-1]
             uvs = uvs[:, ::-1] if uvs is not None else None
-            normals = transform_normals(mirror, normals)[:, ::-1] if normals is not None else None
+            normals = transform_normals(mirror, normals, unit=False)[:, ::-1] if normals is not None else None
             colors = colors[:, ::-1] if colors is not None else None
             if len(spheres):
                 spheres[:, :3] = transform_points(mirror, spheres[:, :3])
@@ -484,6 +514,9 @@ class SceneBuilder:
                       dataclasses.replace(lt, direction=tuple(transform_vector(mirror, lt.direction)))
                       if isinstance(lt, DirectionalLight) else lt for lt in lights]
             media = [m.transformed(mirror) for m in media]
+        instances = self.instances
+        if instances and mirror is not None:
+            instances = [dataclasses.replace(i, to_world=mirror @ i.to_world) for i in instances]
         if not self.faces and not self.spheres:
             raise SceneFormatError(f"{self.name}: the scene has no shapes that we can render")
         scene = triangle_scene(vertices, faces, face_materials, self.materials, self.name, uvs=uvs, normals=normals,
@@ -492,10 +525,16 @@ class SceneBuilder:
                                sphere_materials=np.asarray(self.sphere_materials, np.int32),
                                settings=self.settings,
                                face_interfaces=face_interfaces if self.interfaces else None)
+        scene.normals_as_given = bool(self.normals_as_given)
         if self.interfaces or media:
             scene.media, scene.interfaces, scene.camera_medium = media, list(self.interfaces), int(self.camera_medium)
             scene.sphere_interfaces = np.asarray(self.sphere_interfaces, np.int32)
         scene.lights = lights
+        if instances:
+            from .assembly import _finite_faces
+            from .instancing import remap_instances
+
+            scene.instances = remap_instances(instances, _finite_faces(vertices, faces) if self.faces else None)
         env = self.environment
         scene.environment = env.resample(mirror) if isinstance(env, EnvMap) else env
         if self.camera is None:

@@ -17,6 +17,7 @@ from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cube_mesh, cylin
                       rectangle_mesh, transform_points, transform_vector, vertical_fov)
 from ..media import MediumInterface
 from .mitsuba_bsdf import BsdfMapper, color_value
+from .mitsuba_instances import instance, shapegroup
 from .mitsuba_media import MediaMapper
 from .mitsuba_xml import Document, MiObject
 
@@ -75,7 +76,9 @@ class _Importer:
         if sensors:
             self.sensor(sensors[0], settings)
         for obj in self.doc.objects:
-            if obj.tag == "shape":
+            if obj.tag == "shape" and obj.type in ("shapegroup", "instance"):  # loaders/mitsuba_instances.py
+                (shapegroup if obj.type == "shapegroup" else instance)(self, obj)
+            elif obj.tag == "shape":
                 self.shape(obj)
             elif obj.tag == "emitter":
                 self.emitter(obj)

@@ -17,9 +17,9 @@ import numpy as np
 
 from ..media import MediumInterface
 from ..model import Material, PixelFilter, RenderSettings
-from .assembly import transform_normals
 from .builder import (SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh, transform_points,
                       translate)
+from .instancing import add_instance
 from .pbrt import Directive, Parser
 from .pbrt_lights import light_source
 from .pbrt_materials import MaterialMapper, spectrum_rgb
@@ -63,8 +63,6 @@ class _Importer:
         self.named_media: dict = {}  # MakeNamedMedium: name -> Medium, or None (a type we do not render)
         self.null_material = None  # the "interface" shapes' (they never scatter: cl/render/media.h)
         self.options: dict[str, Directive] = {}
-        self.instances: dict[str, list] = {}
-        self.recording: list | None = None
         self.in_world = False
 
     def warn(self, pos, what) -> None:
@@ -186,28 +184,28 @@ class _Importer:
         pass
 
     def d_ObjectBegin(self, d):
-        if self.recording is not None:
+        """A shape group (loaders/instancing.py): its shapes are recorded with their CTM, not drawn."""
+        if self.b.recording is not None:
             raise error_at(d.pos, "ObjectBegin inside another ObjectBegin")
+        if d.args[0] in self.b.groups:
+            raise error_at(d.pos, f"ObjectBegin: object '{d.args[0]}' is already defined")
         self.d_AttributeBegin(d)
-        self.recording = self.instances[d.args[0]] = []
+        self.b.begin_group(d.args[0])
 
     def d_ObjectEnd(self, d):
-        if self.recording is None:
+        if self.b.recording is None:
             raise error_at(d.pos, "ObjectEnd without ObjectBegin")
-        self.recording = None
+        self.b.end_group()
         self.d_AttributeEnd(d)
 
     def d_ObjectInstance(self, d):
-        if d.args[0] not in self.instances:
+        """The object's shapes moved by the CTM (pbrt-v4: render-from-instance times each shape's
+        own CTM at its definition)."""
+        if self.b.recording is not None:
+            raise error_at(d.pos, "ObjectInstance inside ObjectBegin")
+        if d.args[0] not in self.b.groups:
             raise error_at(d.pos, f"ObjectInstance: no object named '{d.args[0]}' (ObjectBegin)")
-        m = self.state.ctm
-        for kind, *data in self.instances[d.args[0]]:
-            if kind == "mesh":
-                v, f, uv, mat, normals, interface = data
-                self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, normals=normals, interface=interface)
-            else:
-                centre, radius, mat, pos, interface = data
-                self._sphere(transform_points(m, centre)[0], radius, m, mat, pos, False, interface)
+        add_instance(self.b, self.b.groups[d.args[0]], self.state.ctm, d.pos)
 
     # -- options ---------------------------------------------------------------------------------
 
@@ -429,7 +427,10 @@ class _Importer:
             mat = self.materials.named[mname]
         if mat is None:  # "interface"
             return None
-        if self.state.area is not None:
+        if self.state.area is not None and self.b.recording is not None:
+            self.warn(pos, "AreaLightSource in ObjectBegin: area lights are not supported with object instancing "
+                           "(as in pbrt-v4); the shape does not emit")
+        elif self.state.area is not None:
             radiance, two_sided = self.state.area
             mat = self.b.emissive(mat, radiance, two_sided)
         return mat
@@ -485,25 +486,10 @@ class _Importer:
         m, flip = self.state.ctm, self.state.reverse
         if isinstance(geometry[0], str):  # ("sphere", radius)
             _, radius = geometry
-            if self.recording is not None:
-                self.recording.append(("sphere", transform_points(m, [0, 0, 0])[0], radius, mat, d.pos, interface))
-                return
             self._sphere(transform_points(m, [0, 0, 0])[0], radius, m, mat, d.pos, flip, interface)
             return
         v, f, uv, *rest = geometry
         normals = rest[0] if rest else None
-        if self.recording is not None:
-            def reverse(a):
-                return a[:, ::-1] if a is not None else None
-
-            if flip:
-                f, uv, normals = f[:, ::-1], reverse(uv), None if normals is None else -reverse(normals)
-            v = transform_points(m, v)
-            normals = transform_normals(m, normals)
-            if np.linalg.det(m[:3, :3]) < 0:
-                f, uv, normals = f[:, ::-1], reverse(uv), reverse(normals)
-            self.recording.append(("mesh", v, f, uv, mat, normals, interface))
-            return
         self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=normals, interface=interface)
 
     def _sphere(self, centre, radius, m, mat, pos, flip, interface=None) -> None:
