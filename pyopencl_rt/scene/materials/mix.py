@@ -4,7 +4,8 @@ renders a blendbsdf: a light sample sees the blend of both, and the BSDF sample 
 (the second with probability `w`) is weighed by the blend over the blended densities. A mix inside
 a mix is resolved by picking one material at each level, with probability as its weight, as
 pbrt-v4 does (the same image in expectation, more noise). The emission (`emission`, `emission_texture`,
-`two_sided`) is the mix's own; the blended materials' emission is not used.
+`two_sided`) and an alpha mask are the mix's own; the blended materials' emission is not used.
+The albedo AOV shows the material picked at each sample (averaged over samples: the blend).
 
 | key | type | default | meaning |
 |---|---|---|---|
