@@ -49,6 +49,9 @@
  *            Fresnel term plus the diffuse base's share; the Mitsuba types: their diffuse
  *            reflectance or base colour, as Mitsuba's eval_diffuse_reflectance)
  *
+ * A mix (materials/mix.h) never reaches these functions: cl/render/path.h resolves it to one of the
+ * records it blends first (so the albedo AOV is that record's, the one picked for the path).
+ *
  * The Mitsuba 3 types (plastic, roughplastic, principled, principledthin) read the Material
  * fields after the texture indices; material_lanes() gathers those only when some lane has such
  * a type.  roughplastic reads its table from the records themselves (MaterialLanes.records/rec).
@@ -75,6 +78,7 @@
 #define HAS_MATERIAL_ROUGHPLASTIC
 #define HAS_MATERIAL_PRINCIPLED
 #define HAS_MATERIAL_PRINCIPLEDTHIN
+#define HAS_MATERIAL_MIX
 #endif
 #if defined(HAS_MATERIAL_PLASTIC) || defined(HAS_MATERIAL_ROUGHPLASTIC) || defined(HAS_MATERIAL_PRINCIPLED) || \
     defined(HAS_MATERIAL_PRINCIPLEDTHIN)

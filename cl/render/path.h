@@ -44,6 +44,7 @@
 #include "scene/texture_lights.h"
 #endif
 #include "scene/shading.h"
+#include "materials/mix.h"
 #ifdef HAS_AOVS
 #include "render/aov.h"
 #endif
@@ -244,7 +245,22 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     const pvec3 n = pv3_sel(pv3_neg(ng), ng, front); /* normal on the viewer's side */
     pint mat_index, light_index;
     hit_records(tri_material, tri_light, sphere_material, sphere_light, prim, &mat_index, &light_index);
+    const puint dim = convert_puint(2 + DIMS_PER_BOUNCE * s->depth);
+#ifdef HAS_MATERIAL_MIX
+    /* a mix is shaded as one of its materials, picked by its weight (cl/materials/mix.h) */
+    const pint top_index = mat_index;
+    pint mix_index;
+    pfloat mix_w;
+    mat_index = mix_sample(materials, tri_uv, textures, tex_data, tri_color, hit, prim, u, v,
+                           sample_1d(key, dim + DIM_MIX), mat_index, &mix_index, &mix_w);
     MaterialLanes m = material_lanes(materials, mat_index);
+    mix_keep_top(materials, tri_uv, textures, tex_data, top_index, mat_index, prim, u, v, &m);
+    /* a mix of two materials that are not mixes: the other one, evaluated beside the picked one */
+    const MixOther mo = mix_other(tris, tri_normal, materials, tri_uv, textures, tex_data, tri_color, hit, prim, u, v,
+                                  ng, n, front, wo, mix_index, mix_w);
+#else
+    MaterialLanes m = material_lanes(materials, mat_index);
+#endif
 #ifdef HAS_TEXTURES
     texture_material(tri_uv, textures, tex_data, hit & pnot(IS_SPHERE(prim)), prim, u, v, &m);
 #endif
@@ -264,7 +280,6 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
 #ifdef HAS_AOVS
     aov_hit(aov_path, slot, hit, s->depth, &m, sh.n, wo, p, t, s->beta);
 #endif
-    const puint dim = convert_puint(2 + DIMS_PER_BOUNCE * s->depth);
 
     /* -- emission seen by the path ---------------------------------------------------------- */
     const pvec3 Le = emitted(&m, ng, wo);
@@ -302,7 +317,10 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
 
     /* -- next-event estimation -------------------------------------------------------------- */
 #ifdef HAS_LIGHTS
-    const pint nee = going & surface & bsdf_has_nondelta_lobes(&m) & (opacity > 0.0f);
+    pint nee = going & surface & bsdf_has_nondelta_lobes(&m) & (opacity > 0.0f);
+#ifdef HAS_MATERIAL_MIX
+    nee |= going & mo.surface & bsdf_has_nondelta_lobes(&mo.m) & (opacity > 0.0f);
+#endif
     if (integrator != INTEGRATOR_BSDF && pany(nee)) { /* (a scalar test: a lane mask is -1, not 1) */
         LightSample ls;
         pfloat pick_pmf, dist;
@@ -310,8 +328,11 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
         const pint sampled = nee_light_sample(PATH_ARGS, key, dim, nee, ref, &ls, &pick_pmf, &wi, &dist);
         if (pany(sampled)) {
             pfloat bpdf;
-            pvec3 f = bsdf_eval(&m, sampled, sh.n, sh.t, sh.front, wo, wi, &bpdf);
+            pvec3 f = bsdf_eval(&m, sampled & surface, sh.n, sh.t, sh.front, wo, wi, &bpdf);
             f = shading_eval(&sh, wi, f, &bpdf);
+#ifdef HAS_MATERIAL_MIX
+            f = mix_blend_eval(&mo, sampled, f, wo, wi, &bpdf);
+#endif
             if (pany(masked)) { /* Mitsuba's mask: the nested BSDF's f and pdf times the opacity */
                 f = pv3_scale(f, opacity);
                 bpdf *= opacity;
@@ -347,6 +368,9 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     pvec3 weight = bsdf_sample(&m, going & surface & pnot(passes), sh.n, sh.t, sh.front, wo, ubx, uby, ulobe, &wi,
                                &pdf, &delta);
     weight = shading_sample(&sh, wi, weight, &pdf);
+#ifdef HAS_MATERIAL_MIX
+    weight = mix_blend_sample(&mo, &m, &sh, going & surface & pnot(passes), wo, wi, delta, weight, &pdf);
+#endif
     if (pany(masked)) {
         pdf *= opacity;
         weight = pv3_sel(weight, pv3_splat((float3)(1.0f)), passes);

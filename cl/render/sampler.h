@@ -46,7 +46,8 @@
 
 /* The samples of a path: their dimension ids.  The pixel jitter (2D) takes
  * 0 and 1, then each bounce DIMS_PER_BOUNCE ids from 2 + DIMS_PER_BOUNCE * depth on: a 1D light
- * pick, a 2D light point, a 2D BSDF direction, 1D Russian roulette and a 1D BSDF lobe choice.
+ * pick, a 2D light point, a 2D BSDF direction, 1D Russian roulette, a 1D BSDF lobe choice and a 1D
+ * choice of a mix's material (cl/materials/mix.h).
  * Every 1D or 2D sample is scrambled on its own, so the ids only need to differ. */
 #define DIM_PIXEL 0
 #define DIM_LENS 0xFFFFFFF0u /* and + 1: the thin lens, far from every bounce's dimensions */
@@ -56,6 +57,7 @@
 #define DIM_BSDF 3        /* and 4 */
 #define DIM_RR 5
 #define DIM_BSDF_LOBE 6
+#define DIM_MIX 7
 
 #define SOBOL_TILE_BITS ((32 - SOBOL_LOG2_ROUND) / 2)
 #define SAMPLER_KEY_SOBOL 0x50B01u     /* rng_hash dimension keys of the per-path key */

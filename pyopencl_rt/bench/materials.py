@@ -24,6 +24,9 @@ def with_materials(scene, change):
     """A shallow copy of ``scene`` whose materials are copies passed through ``change``."""
     changed = copy.copy(scene)
     changed.materials = [change(dataclasses.replace(m)) for m in scene.materials]
+    copies = {id(old): new for old, new in zip(scene.materials, changed.materials)}
+    for m in changed.materials:  # a mix blends the copies
+        m.blend = tuple(copies.get(id(b), b) for b in m.blend)
     return changed
 
 

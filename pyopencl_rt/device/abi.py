@@ -108,10 +108,12 @@ assert TRIANGLE.itemsize == 48
 #                reflection, specular transmission, diffuse transmission and diffuse reflection
 #   table        roughplastic: the rough interface's external transmittance at cos(theta) =
 #                k / 63, k = 0..63 (Mitsuba's table, interpolated linearly)
+#   (mix: metallic the blend weight, rates[0] and rates[1] the two blended records' indices, as floats;
+#   cl/materials/mix.h resolves it to one of them before shading)
 MATERIAL_TYPES = define_enum("MATERIAL_", ("diffuse", "conductor", "dielectric", "gltf", "plastic", "roughplastic",
-                                           "principled", "principledthin"))
+                                           "principled", "principledthin", "mix"))
 (MATERIAL_DIFFUSE, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_GLTF, MATERIAL_PLASTIC, MATERIAL_ROUGHPLASTIC,
- MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLEDTHIN) = MATERIAL_TYPES.values()
+ MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLEDTHIN, MATERIAL_MIX) = MATERIAL_TYPES.values()
 MATERIAL_FLAG_TWO_SIDED = define("MATERIAL_FLAG_TWO_SIDED", 1)
 MATERIAL_FLAG_CONDUCTOR_F0 = define("MATERIAL_FLAG_CONDUCTOR_F0", 2)
 MATERIAL_FLAG_NONLINEAR = define("MATERIAL_FLAG_NONLINEAR", 4)

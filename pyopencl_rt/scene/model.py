@@ -102,6 +102,10 @@ class Material:
     # are opaque.  Not with participating media (the scene warns).
     cutout: bool = False
     alpha_cutoff: float = 0.0
+    # mix (Mitsuba's blendbsdf, pbrt's mix): the two blended Materials (each also in Scene.materials,
+    # which Scene adds); the weight is ``metallic`` (times scalar_textures["metallic"], or with
+    # vertex_colors the interpolated colours' luminance)
+    blend: tuple = ()
 
 
     def textures(self) -> list:
@@ -148,9 +152,11 @@ class Material:
             raise ValueError(f"material {self.name!r}: type {self.type!r} is not exported to Mitsuba yet")
         return to_mitsuba(self)
 
-    def record(self, texture_index: dict | None = None) -> np.ndarray:
+    def record(self, texture_index: dict | None = None, material_index: dict | None = None) -> np.ndarray:
         """The MATERIAL struct; ``texture_index`` maps id(texture) to its index in the scene's
-        texture table (without it, or for a texture not in it, no texture is used)."""
+        texture table (without it, or for a texture not in it, no texture is used);
+        ``material_index`` id(material) to its index in the scene's materials (a mix's blended
+        materials; without it they are -1)."""
         material_type = self.material_type
         rec = np.zeros((), abi.MATERIAL)
         rec["type"] = material_type.type_id
@@ -177,6 +183,10 @@ class Material:
         rec["normal_scale"] = self.normal_scale
         rec["opacity"] = min(max(float(self.opacity), 0.0), 1.0) if self.masked or self.cutout else 0.0  # with a flag only
         rec["alpha_cutoff"] = float(self.alpha_cutoff) if self.cutout else 0.0
+        if self.type == "mix":
+            rec["rates"][:2] = [(material_index or {}).get(id(m), -1) for m in self.blend]
+            if material_index is not None and min(rec["rates"][:2]) < 0:
+                raise ValueError(f"material {self.name!r}: a material it blends is not among the scene's materials")
         flags = int(rec["flags"]) | (abi.MATERIAL_FLAG_VERTEX_COLOR if self.vertex_colors else 0)
         flags |= (abi.MATERIAL_FLAG_MASK if self.masked else 0) | (abi.MATERIAL_FLAG_ONE_SIDED if self.one_sided else 0)
         flags |= abi.MATERIAL_FLAG_CUTOUT if self.cutout else 0
@@ -376,6 +386,23 @@ class Scene:
     # interpolation (which the kernels normalise), as an unevenly scaled instance's normals need
     normals_as_given: bool = False
 
+    def __post_init__(self):
+        self.add_blended_materials()
+
+    def add_blended_materials(self) -> None:
+        """Appends to ``materials`` the materials that mixes blend and that are not in it yet
+        (nested mixes too), so that each has a record."""
+        if not isinstance(self.materials, list):
+            return
+        known = {id(m) for m in self.materials}
+        k = 0
+        while k < len(self.materials):
+            for m in getattr(self.materials[k], "blend", ()):
+                if id(m) not in known:
+                    known.add(id(m))
+                    self.materials.append(m)
+            k += 1
+
     def textures(self) -> list:
         """The distinct textures the materials use, in order of first use, then the lights' (spot
         and projector textures)."""
@@ -491,8 +518,9 @@ class Scene:
         for f in ("tex_base", "tex_mr", "tex_emission", "tex_normal", "tex_scalar"):
             recs[f] = -1
         index = {id(t): i for i, t in enumerate(self.textures())}
+        materials = {id(m): i for i, m in enumerate(self.materials)}
         for i, m in enumerate(self.materials):
-            recs[i] = m.record(index)
+            recs[i] = m.record(index, materials)
         return recs
 
     def material_defines(self) -> dict:

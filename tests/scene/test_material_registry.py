@@ -169,6 +169,9 @@ CASES = [  # (type, TOML keys, expected record fields)
                         "flatness_texture": "t.png"},
      {"albedo": (0.5, 0.5, 0.5), "roughness": 0.5, "ior": 1.5, "rates": (1, 1, 1, 1), "tex_scalar": (0, 1, 2, 3, -1, -1),
       "tex_params": texp("spec_tint", "sheen", "sheen_tint", "flatness")}),
+    ("mix", {}, {"metallic": 0.5, "rates": (1, 2, 0, 0)}),
+    ("mix", {"materials": ["b", "a"], "weight": 0.25, "weight_texture": "t.png"},
+     {"metallic": 0.25, "rates": (2, 1, 0, 0), "tex_scalar": (0, -1, -1, -1, -1, -1), "tex_params": texp("metallic")}),
 ]
 # the keys every type takes, and what they do to the record
 COMMON = ({"emission": [1.0, 2.0, 4.0], "two_sided": True, "emission_texture": "t.png", "opacity": 0.5,
@@ -187,11 +190,15 @@ def _record(tmp_path, mtype, keys) -> np.void:
     from PIL import Image
 
     Image.new("RGB", (2, 2), (255, 128, 0)).save(tmp_path / "t.png")
+    if mtype == "mix":  # it blends two others, named after it (records 1 and 2)
+        keys = {"materials": ["a", "b"], **keys}
     lines = ["[materials.m]", f'type = "{mtype}"'] + [f"{k} = {_toml_value(v)}" for k, v in keys.items()]
+    if mtype == "mix":
+        lines += ["[materials.a]", "[materials.b]", 'type = "conductor"']
     lines += ["[[shape]]", 'type = "quad"', 'material = "m"', "points = [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]"]
     (tmp_path / "m.toml").write_text("\n".join(lines) + "\n")
     scene = load_scene(tmp_path / "m.toml")
-    assert [m.name for m in scene.materials] == ["m"]
+    assert [m.name for m in scene.materials] == (["m", "a", "b"] if mtype == "mix" else ["m"])
     return scene.material_records()[0]
 
 

@@ -10,7 +10,7 @@
 | ``twosided`` | its nested BSDF (ours reflect on both sides) |
 | ``normalmap``, ``bumpmap`` | its nested BSDF with the map (``normal_texture``; ``scale``, ``flip_invalid_normals``, ``use_shadowing_function`` as Mitsuba reads them: cl/scene/shading.h) |
 | ``mask`` | its nested BSDF as an alpha cut-out (``opacity``: a float or a texture; Material.masked), the nested BSDF one-sided unless a ``twosided`` |
-| ``blendbsdf`` | its first nested BSDF, with a warning |
+| ``blendbsdf`` | ``mix`` of its two nested BSDFs (``weight``: a float, a texture's luminance or a ``mesh_attribute``) |
 
 Textures: ``bitmap``, ``checkerboard``, ``rawconstant`` (a 1 x 1 texture of its value, unconverted)
 and, as a BSDF's reflectance (diffuse ``reflectance``, plastic ``diffuse_reflectance``, principled
@@ -321,7 +321,7 @@ class BsdfMapper:
         if t == "mask":
             return self._mask(obj, name)
         if t == "blendbsdf":
-            return self._nested(obj, "blends are not supported")
+            return self._blend(obj, name)
         mat = Material(name=name)
         if t == "diffuse":
             mat.albedo, mat.base_texture = color_value(imp, obj, "reflectance", (0.5,) * 3, texture_ok=True,
@@ -399,6 +399,35 @@ class BsdfMapper:
         self.imp.unused(obj)
         if id(nested) in self.attributes:
             self.attributes[id(mat)] = self.attributes[id(nested)]
+        return mat
+
+    def _blend(self, obj, name) -> Material:
+        """Mitsuba's blendbsdf (src/bsdfs/blendbsdf.cpp): (1 - weight) times the first nested BSDF plus
+        weight times the second; ``weight`` (default 0.5, clamped to [0, 1]) a float, a texture (its
+        luminance, eval_1) or a mesh_attribute (the shape's colours' luminance: Material.vertex_colors)."""
+        nested = obj.children_of("bsdf")
+        if len(nested) != 2:
+            raise error_at(obj.node.pos, f"{obj.label()} needs two nested BSDFs, got {len(nested)} (as Mitsuba)")
+        mat = Material(name=name, type="mix", blend=tuple(self.material(b) for b in nested))
+        p = obj.prop("weight")
+        attribute = None
+        if p is not None and p.kind == "object" and p.value.tag == "texture" and p.value.type == "mesh_attribute":
+            attr = self.texture(p.value, scalar=True)
+            attribute, mat.vertex_colors, mat.metallic = attr.name, True, float(attr.scale)
+            obj.used.add("weight")
+        else:
+            mat.metallic = float(self._scalar(obj, mat, "weight", 0.5, field="metallic"))
+        if not 0.0 <= mat.metallic <= 1.0 and "metallic" not in mat.scalar_textures:
+            self.imp.warn(obj.node.pos, f"{obj.label()}: weight {mat.metallic:g} clamped to [0, 1]")
+            mat.metallic = min(max(mat.metallic, 0.0), 1.0)
+        # the shape's colours: the weight's attribute, else a blended BSDF's (one attribute per shape)
+        wanted = {a for a in [attribute] + [self.attribute(m) for m in mat.blend] if a is not None}
+        if len(wanted) > 1:
+            self.imp.warn(obj.node.pos, f"{obj.label()}: reads the mesh attributes {sorted(wanted)}; only "
+                                        f'"{attribute or sorted(wanted)[0]}" is used')
+        if wanted:
+            self.attributes[id(mat)] = attribute or sorted(wanted)[0]
+        self.imp.unused(obj)
         return mat
 
     def _dielectric(self, obj, mat) -> None:

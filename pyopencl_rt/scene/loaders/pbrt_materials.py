@@ -8,7 +8,8 @@
 | ``coateddiffuse`` | ``gltf`` with metallic 0: base colour ``reflectance``, IOR ``eta``, the coating's roughness (documented approximation) |
 | ``coatedconductor`` | ``conductor`` of its conductor layer, with a warning |
 | ``interface`` | no surface: its shapes only bound media (index-matched: pbrt_media.py) |
-| others (``diffusetransmission``, ``hair``, ``measured``, ``mix``, ``subsurface``) | ``diffuse`` 0.5, with a warning |
+| ``mix`` | ``mix`` of the two named ``materials``, weight ``amount`` (a float or a texture; 1 is the second) |
+| others (``diffusetransmission``, ``hair``, ``measured``, ``subsurface``) | ``diffuse`` 0.5, with a warning |
 
 Roughness: ``roughness`` (or the mean of ``uroughness`` and ``vroughness``, with a warning when they
 differ) becomes GGX alpha = sqrt(roughness) when ``remaproughness`` is true (the default), as
@@ -234,7 +235,7 @@ class MaterialMapper:
         self._count += 1
         mat = Material(name=name or f"{mtype}#{self._count}")
         for q in list(p.items.values()):  # textures where we take a number (roughness, eta, ...)
-            if q.type == "texture" and not q.name.endswith("reflectance"):
+            if q.type == "texture" and not q.name.endswith("reflectance") and not (mtype == "mix" and q.name == "amount"):
                 imp.warn(q.pos, f'{what}: "texture {q.name}": textures are not supported here; using the default')
                 q.used = True
                 del p.items[q.name]
@@ -267,6 +268,8 @@ class MaterialMapper:
                     p.items[key].used = True
         elif mtype == "interface":
             return None
+        elif mtype == "mix":
+            return self._mix(mat, p, pos, what)
         else:
             imp.warn(pos, f"{what}: material type not supported; using diffuse 0.5")
             for q in p.items.values():
@@ -290,6 +293,32 @@ class MaterialMapper:
             except Exception as exc:
                 raise error_at(p.items["normalmap"].pos, f"{what}: cannot read normal map '{fname}' "
                                                          f"({type(exc).__name__}: {exc})") from None
+        return mat
+
+    def _mix(self, mat, p, pos, what) -> Material:
+        """pbrt-v4's MixMaterial: materials[1] with probability ``amount`` (default 0.5), else materials[0]."""
+        from ..textures import scalar_texture
+
+        names, q = p._values("materials", {"string"}, 2)
+        if names is None:
+            raise error_at(pos, f'{what} needs "string materials" [ "first" "second" ]')
+        blend = []
+        for n in names:
+            if self.named.get(n) is None:
+                raise error_at(q.pos, f'{what}: no material named "{n}" (MakeNamedMaterial; not an interface)')
+            blend.append(self.named[n])
+        mat.type, mat.blend = "mix", tuple(blend)
+        amount = p.get("amount")
+        if amount is not None and amount.type == "texture":
+            rgb, texture = self.color(p, "amount", (0.5, 0.5, 0.5))
+            mat.metallic = float(np.dot(rgb, (0.212671, 0.715160, 0.072169)))
+            if texture is not None:
+                mat.scalar_textures["metallic"] = scalar_texture(texture)
+        else:
+            mat.metallic = p.float("amount", 0.5)
+        if not 0.0 <= mat.metallic <= 1.0:
+            self.imp.warn(pos, f"{what}: amount {mat.metallic:g} clamped to [0, 1]")
+            mat.metallic = min(max(mat.metallic, 0.0), 1.0)
         return mat
 
     def _eta(self, p, what) -> float:

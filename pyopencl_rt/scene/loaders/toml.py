@@ -147,6 +147,16 @@ def _read_materials(ctx, table):
     for name, spec in table.items():
         index[name] = len(materials)
         materials.append(_read_material(ctx, f"[materials.{name}]", name, spec))
+    for m in materials:  # a mix's two materials, by name
+        if m.type == "mix":
+            names = m.params.pop("materials")
+            for n in names:
+                if n not in index:
+                    raise ctx.error(f"[materials.{m.name}]", f"'materials': unknown material '{n}' "
+                                                             f"(materials: {', '.join(index)})")
+                if n == m.name:
+                    raise ctx.error(f"[materials.{m.name}]", "'materials': a mix cannot blend itself")
+            m.blend = tuple(materials[index[n]] for n in names)
     return materials, index
 
 
