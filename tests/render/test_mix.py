@@ -73,16 +73,6 @@ def _scene(tmp_path, variant=False) -> str:
     return str(path)
 
 
-def _mitsuba_render(mi, path, batches=4):
-    scene = mi.load_file(path)
-    images = np.stack([np.asarray(mi.render(scene, seed=i), np.float64)[..., :3] for i in range(batches)])
-    return images.mean(0), images.var(0, ddof=1) / batches
-
-
-def _tiles(a):
-    return a.reshape(H // TILE, TILE, W // TILE, TILE, 3).mean(axis=(1, 3))
-
-
 def test_blends_match_mitsuba(tmp_path):
     """48 x 32, six blended panels (constant and bitmap weights, diffuse and rough conductors, a
     blend in a blend), by Mitsuba (4 batches of 64 spp: their spread its variance) and by us (512
@@ -90,21 +80,18 @@ def test_blends_match_mitsuba(tmp_path):
     blend replaced by its first BSDF is more than 10 sigma from ours in every tile (measured: 38 and more)."""
     mi = harness.mitsuba()
 
-    def z_scores(a, a_var, b, b_var):
-        return np.abs(_tiles(a) - _tiles(b)) / np.sqrt((_tiles(a_var) + _tiles(b_var)) / TILE**2 + 1e-12)
-
     path = _scene(tmp_path)
-    theirs, their_var = _mitsuba_render(mi, path)
+    theirs, their_var = harness.mitsuba_batches(mi, path, batches=4)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # every element is read without a word
         scene = load_scene(path)
     assert sum(m.type == "mix" for m in scene.materials) == 7
     r = rt.render_full(scene, spp=512, device="cpu", seed=3)
     ours, var = r.image.astype(np.float64), r.film.variance_of_mean()
-    z = z_scores(ours, var, theirs, their_var)
+    z = harness.tile_z(ours, var, theirs, their_var, TILE)
     assert z.max() < 4.5, np.round(z.max(-1), 1)
-    other, other_var = _mitsuba_render(mi, _scene(tmp_path, variant=True))
-    z_other = z_scores(ours, var, other, other_var).max(-1)
+    other, other_var = harness.mitsuba_batches(mi, _scene(tmp_path, variant=True), batches=4)
+    z_other = harness.tile_z(ours, var, other, other_var, TILE).max(-1)
     assert z_other.min() > 10, np.round(z_other, 1)
 
 
@@ -168,7 +155,7 @@ def test_blended_evaluation_agrees_with_picks(tmp_path):
         return r.image.astype(np.float64), r.film.variance_of_mean()
 
     (a, a_var), (b, b_var) = render(False, 3), render(True, 4)
-    z = np.abs(_tiles(a) - _tiles(b)) / np.sqrt((_tiles(a_var) + _tiles(b_var)) / TILE**2 + 1e-12)
+    z = harness.tile_z(a, a_var, b, b_var, TILE)
     assert z.max() < 4.5, np.round(z.max(-1), 1)
 
 
