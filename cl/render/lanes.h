@@ -114,10 +114,11 @@ RT_INLINE pint pnot(pint m) { return ~m; }
 /* every lane of m set (of the lanes in `of`) */
 RT_INLINE int pall(pint m) { return !pany(pnot(m)); }
 
-/* base[index[k]] in lane k (every index valid): an AVX-512 or AVX2 gather, else lane by lane.  The
+/* base[index[k]] in lane k (every index valid): an AVX-512 gather, else lane by lane.  The
  * structure fields the lanes read are gathered this way (FIELD_INDEX: a field's index in floats).
- * AVX2's vgatherdps renders as fast as 8 loads here, and one instruction in place of 16 makes a
- * cold build of the 8-lane megakernel about a quarter shorter (docs/BENCHMARKS.md, "Kernel builds"). */
+ * AVX2's vgatherdps in place of the 8 loads made a cold build a quarter shorter at the same speed,
+ * but under `qemu-x86_64 -cpu Haswell` (make isa-check) the 8-lane film then differs from one
+ * path's, so it is not used (docs/BENCHMARKS.md, "Kernel builds"). */
 #define FIELD_INDEX(type, field) ((int)(__builtin_offsetof(type, field) / 4))
 #define STRIDE_INDEX(type) ((int)(sizeof(type) / 4))
 RT_INLINE pfloat pgather(__global const float *base, pint index)
@@ -126,8 +127,6 @@ RT_INLINE pfloat pgather(__global const float *base, pint index)
     return base[index];
 #elif PACKET_WIDTH == 16 && defined(__AVX512F__)
     return __builtin_ia32_gathersiv16sf(PFLOAT(0.0f), base, index, (ushort)0xffff, 4);
-#elif PACKET_WIDTH == 8 && defined(__AVX2__)
-    return __builtin_ia32_gatherd_ps256(PFLOAT(0.0f), base, index, as_float8((int8)(-1)), 4);
 #else
     pfloat r;
     for (int k = 0; k < PACKET_WIDTH; ++k) PLANE(r, k) = base[PLANE_I(index, k)];
