@@ -361,6 +361,20 @@ def mitsuba():
     return mi
 
 
+def mitsuba_sensor(origin, fov, width, height, max_depth=3, spp=64, target="0, 0, 0") -> str:
+    """The path integrator and a perspective sensor (box filter, independent sampler) of a small
+    Mitsuba 3 test scene, as XML."""
+    return f"""
+<integrator type="path"><integer name="max_depth" value="{max_depth}"/></integrator>
+<sensor type="perspective"><float name="fov" value="{fov}"/>
+  <transform name="to_world"><lookat origin="{origin}" target="{target}" up="0, 1, 0"/></transform>
+  <sampler type="independent"><integer name="sample_count" value="{spp}"/></sampler>
+  <film type="hdrfilm"><integer name="width" value="{width}"/><integer name="height" value="{height}"/>
+    <rfilter type="box"/></film>
+</sensor>
+"""
+
+
 def mitsuba_batches(mi, path, batches=8):
     """Mitsuba's render of the XML file ``path`` as ``batches`` renders of other seeds: their mean
     and the variance of that mean (the spread of the batches), RGB as float64."""

@@ -41,13 +41,7 @@ def _scene(tmp_path, variant=False) -> str:
     instances = ['<translate x="-2.1"/>',
                  ("" if variant else '<scale x="1" y="1.6" z="0.6"/>') + '<rotate x="1" angle="-30"/>',
                  '<rotate y="1" angle="50"/><rotate z="1" angle="35"/><translate x="2.1" y="0.1"/>']
-    body = f"""
-<integrator type="path"><integer name="max_depth" value="3"/></integrator>
-<sensor type="perspective"><float name="fov" value="60"/>
-  <transform name="to_world"><lookat origin="0.2, 0.3, 4.5" target="0, 0, 0" up="0, 1, 0"/></transform>
-  <sampler type="independent"><integer name="sample_count" value="16"/></sampler>
-  <film type="hdrfilm"><integer name="width" value="{W}"/><integer name="height" value="{H}"/><rfilter type="box"/></film>
-</sensor>
+    body = f"""{harness.mitsuba_sensor("0.2, 0.3, 4.5", 60, W, H, max_depth=3, spp=16)}
 <emitter type="point"><point name="position" x="1" y="2" z="4"/><rgb name="intensity" value="15"/></emitter>
 <emitter type="constant"><rgb name="radiance" value="0.3"/></emitter>
 <shape type="shapegroup" id="g">{shapes}</shape>

@@ -55,13 +55,7 @@ def _scene(tmp_path, variant=False) -> str:
         _rect(0.0, -1.0, blend('<float name="weight" value="0.8"/>', beckmann, red), angle=10),
         _rect(2.0, -1.0, blend(bitmap, ggx, blue), angle=30),
     ]
-    body = f"""
-<integrator type="path"><integer name="max_depth" value="3"/></integrator>
-<sensor type="perspective"><float name="fov" value="55"/>
-  <transform name="to_world"><lookat origin="0.3, 0.4, 6" target="0, 0, 0" up="0, 1, 0"/></transform>
-  <sampler type="independent"><integer name="sample_count" value="64"/></sampler>
-  <film type="hdrfilm"><integer name="width" value="{W}"/><integer name="height" value="{H}"/><rfilter type="box"/></film>
-</sensor>
+    body = f"""{harness.mitsuba_sensor("0.3, 0.4, 6", 55, W, H, max_depth=3, spp=64)}
 <emitter type="point"><point name="position" x="1" y="2" z="5"/><rgb name="intensity" value="20"/></emitter>
 <emitter type="constant"><rgb name="radiance" value="0.3"/></emitter>
 {''.join(panels)}

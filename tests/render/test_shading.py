@@ -162,13 +162,7 @@ def _mitsuba_scene(tmp_path, maps=True) -> str:
             f'{diffuse}</bsdf>') if maps else diffuse
     colors = ('<bsdf type="diffuse"><texture type="mesh_attribute" name="reflectance">'
               '<string name="name" value="vertex_color"/></texture></bsdf>')
-    body = f"""
-<integrator type="path"><integer name="max_depth" value="3"/></integrator>
-<sensor type="perspective"><float name="fov" value="50"/>
-  <transform name="to_world"><lookat origin="0, 0.9, 3.2" target="0, 0, 0" up="0, 1, 0"/></transform>
-  <sampler type="independent"><integer name="sample_count" value="64"/></sampler>
-  <film type="hdrfilm"><integer name="width" value="48"/><integer name="height" value="32"/><rfilter type="box"/></film>
-</sensor>
+    body = f"""{harness.mitsuba_sensor("0, 0.9, 3.2", 50, 48, 32, max_depth=3, spp=64)}
 <emitter type="directional"><vector name="direction" value="0.3, -0.6, -1"/><rgb name="irradiance" value="2.5"/></emitter>
 <emitter type="constant"><rgb name="radiance" value="0.25"/></emitter>
 {_shape("ball.obj", -1.1, normal)}
