@@ -361,6 +361,20 @@ def mitsuba():
     return mi
 
 
+def assert_same_lanes(results):
+    """Renders by lane width (:func:`lane_renders`, "0" among them): each ran at its width and gave
+    one path per work-item's film bit for bit (sums and sums of squares) and its ray counts."""
+    import numpy as np
+
+    base = results["0"]
+    assert base.info["lanes"] == 0 and base.stats.rays_extend > 0
+    for width, r in results.items():
+        assert r.info["lanes"] == int(width), (width, r.info["lanes"])
+        assert np.array_equal(r.film.sum, base.film.sum), width
+        assert np.array_equal(r.film.sum_sq, base.film.sum_sq), width
+        assert (r.stats.rays_extend, r.stats.rays_shadow) == (base.stats.rays_extend, base.stats.rays_shadow), width
+
+
 def mitsuba_sensor(origin, fov, width, height, max_depth=3, spp=64, target="0, 0, 0") -> str:
     """The path integrator and a perspective sensor (box filter, independent sampler) of a small
     Mitsuba 3 test scene, as XML."""

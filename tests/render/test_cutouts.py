@@ -114,11 +114,7 @@ def test_lookups_and_masks_in_lanes(device, monkeypatch, tmp_path):
     widths = ("0", harness.forced_lanes(device))
     scene = load_scene(_scene(tmp_path, max_depth=4))
     results = harness.lane_renders(scene, device, monkeypatch, widths, spp=4, seed=2, width=W, height=H)
-    base = results["0"]
-    for width, r in results.items():
-        assert r.info["lanes"] == int(width)
-        assert np.array_equal(r.film.sum, base.film.sum) and np.array_equal(r.film.sum_sq, base.film.sum_sq), width
-        assert (r.stats.rays_extend, r.stats.rays_shadow) == (base.stats.rays_extend, base.stats.rays_shadow), width
+    harness.assert_same_lanes(results)
 
 
 def _cutout_scene(pbrt_like=True):
@@ -159,7 +155,4 @@ def test_intersection_cutouts_closed_form(device):
 def test_intersection_cutouts_in_lanes(device, monkeypatch):
     widths = ("0", harness.forced_lanes(device))
     results = harness.lane_renders(_cutout_scene(), device, monkeypatch, widths, spp=8, seed=2)
-    base = results["0"]
-    for width, r in results.items():
-        assert np.array_equal(r.film.sum, base.film.sum) and np.array_equal(r.film.sum_sq, base.film.sum_sq), width
-        assert (r.stats.rays_extend, r.stats.rays_shadow) == (base.stats.rays_extend, base.stats.rays_shadow), width
+    harness.assert_same_lanes(results)

@@ -26,17 +26,6 @@ from harness import lane_renders as renders
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 
 
-def assert_same(results):
-    base = results["0"]
-    assert base.info["lanes"] == 0
-    for width, r in results.items():
-        assert r.info["lanes"] == int(width)
-        assert np.array_equal(r.film.sum, base.film.sum), width
-        assert np.array_equal(r.film.sum_sq, base.film.sum_sq), width
-        assert r.stats.rays_extend == base.stats.rays_extend > 0, width
-        assert r.stats.rays_shadow == base.stats.rays_shadow, width
-
-
 # ----------------------------------------------------------------------------- which kernel
 def test_selection(device, monkeypatch):
     """On PoCL's CPU device (of an x86 host: the lane code is clang-on-x86 C) the megakernel runs
@@ -97,7 +86,7 @@ def mixed_scene(tmp_path, environment=True):
 def test_same_image_and_rays(device, monkeypatch, tmp_path):
     """A scene of every material, shape and light type (and an environment map): the film sums bit
     for bit and the same numbers of rays at every lane count the device builds."""
-    assert_same(renders(mixed_scene(tmp_path), device, monkeypatch, widths=harness.lane_widths(device), spp=4, seed=3,
+    harness.assert_same_lanes(renders(mixed_scene(tmp_path), device, monkeypatch, widths=harness.lane_widths(device), spp=4, seed=3,
                         width=40, height=30))
 
 
@@ -107,7 +96,7 @@ def test_other_samplers(device, monkeypatch, sampler):
     (tests/render/test_sampler.py compares them sample by sample): here the Cornell box, a small
     kernel, with the consumption of a whole path."""
     scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
-    assert_same(renders(scene, device, monkeypatch, widths=("0", harness.forced_lanes(device)), spp=4, seed=3,
+    harness.assert_same_lanes(renders(scene, device, monkeypatch, widths=("0", harness.forced_lanes(device)), spp=4, seed=3,
                         width=32, height=24, sampler=sampler))
 
 
@@ -118,7 +107,7 @@ def test_same_image_on_the_scenes(device, monkeypatch, name):
     textures, the glTF material)."""
     wide = harness.forced_lanes(device)
     scene = rt.load_scene(SCENES / f"{name}.toml")
-    assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=2, seed=1, width=32, height=24))
+    harness.assert_same_lanes(renders(scene, device, monkeypatch, widths=("0", wide), spp=2, seed=1, width=32, height=24))
 
 
 def test_shading_normals_maps_and_vertex_colors(device, monkeypatch):
@@ -132,14 +121,14 @@ def test_shading_normals_maps_and_vertex_colors(device, monkeypatch):
     scene = shading_scene()
     assert {"HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS", "HAS_ANISOTROPY"} <= set(
         scene.material_defines())
-    assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=4, seed=2, width=32, height=24))
+    harness.assert_same_lanes(renders(scene, device, monkeypatch, widths=("0", wide), spp=4, seed=2, width=32, height=24))
 
 
 @pytest.mark.parametrize("integrator", ["bsdf", "nee"])
 def test_integrators(device, monkeypatch, tmp_path, integrator):
     """BSDF sampling only and light sampling only (the MIS integrator: above)."""
     wide = harness.forced_lanes(device)
-    assert_same(renders(mixed_scene(tmp_path), device, monkeypatch, widths=("0", wide), spp=2, seed=8, width=24,
+    harness.assert_same_lanes(renders(mixed_scene(tmp_path), device, monkeypatch, widths=("0", wide), spp=2, seed=8, width=24,
                         height=16, integrator=integrator))
 
 
@@ -150,7 +139,7 @@ def test_depths_and_roulette(device, monkeypatch, options):
     bounce, unbounded paths ended by roulette alone."""
     wide = harness.forced_lanes(device)
     scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
-    assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=4, seed=5, width=32, height=24,
+    harness.assert_same_lanes(renders(scene, device, monkeypatch, widths=("0", wide), spp=4, seed=5, width=32, height=24,
                         **options))
 
 
@@ -163,8 +152,8 @@ def test_thin_lens_two_sided_light_and_ior(device, monkeypatch):
     materials = [dataclasses.replace(m, two_sided=True) if max(m.emission) > 0 else m for m in scene.materials]
     materials[0] = dataclasses.replace(materials[0], ior=1.5)
     scene.materials = materials
-    assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=6, seed=2, width=24, height=20))
-    assert_same(renders(scene, device, monkeypatch, widths=("0", wide), spp=9, seed=2, width=1, height=1))
+    harness.assert_same_lanes(renders(scene, device, monkeypatch, widths=("0", wide), spp=6, seed=2, width=24, height=20))
+    harness.assert_same_lanes(renders(scene, device, monkeypatch, widths=("0", wide), spp=9, seed=2, width=1, height=1))
 
 
 def test_small_waves_and_adaptive_pixel_lists(device, monkeypatch):
@@ -184,7 +173,7 @@ def test_small_waves_and_adaptive_pixel_lists(device, monkeypatch):
                        adaptive=True, target_error=0.05)
     assert adaptive[wide].film.counts.min() < adaptive[wide].film.counts.max()  # pixel lists were used
     assert np.array_equal(adaptive["0"].film.counts, adaptive[wide].film.counts)
-    assert_same(adaptive)
+    harness.assert_same_lanes(adaptive)
 
 
 # ----------------------------------------------------------------------------- building blocks

@@ -221,18 +221,9 @@ def test_lanes_render_the_same_bits(device, monkeypatch):
     if not harness.lane_kernels_build_on(device):
         pytest.skip("the lane kernels are built for PoCL's CPU device on x86 only")
     scene = rt.load_scene(SCENES / "cornell-fog.toml")
-    results = {}
-    for width in ("0", "8", "16"):
-        monkeypatch.setenv(megakernel.LANES_ENV, width)
-        results[width] = rt.render_full(scene, device=device, kernel_mode="megakernel", spp=2, seed=4, width=24,
-                                        height=24)
-    base = results["0"]
-    assert base.info["lanes"] == 0 and "HAS_MEDIA" in base.info["features"]
-    assert base.film.sum.max() > 0
-    for width, r in results.items():
-        assert np.array_equal(r.film.sum, base.film.sum), (width, r.info["lanes"])
-        assert r.stats.rays_extend == base.stats.rays_extend, width
-        assert r.stats.rays_shadow == base.stats.rays_shadow, width
+    results = harness.lane_renders(scene, device, monkeypatch, ("0", "8", "16"), spp=2, seed=4, width=24, height=24)
+    assert "HAS_MEDIA" in results["0"].info["features"] and results["0"].film.sum.max() > 0
+    harness.assert_same_lanes(results)
 
 
 def preprocessed(features) -> str:
