@@ -926,11 +926,6 @@ def _spot_xml(tmp_path, flip=False) -> str:
     return str(path)
 
 
-def _tiles(a, tile=8):
-    h, w = a.shape[:2]
-    return a.reshape(h // tile, tile, w // tile, tile, 3).mean(axis=(1, 3))
-
-
 def test_spot_and_projector_match_mitsuba(tmp_path):
     """The XML scene above rendered by Mitsuba 3 (scalar_rgb, 8 batches of 64 spp: their spread is
     its variance) and by us (512 spp): every 8 x 8 tile within 4.5 sigma and the image mean within
@@ -940,13 +935,8 @@ def test_spot_and_projector_match_mitsuba(tmp_path):
     mi = harness.mitsuba()
     from pyopencl_rt.scene.loaders import load_scene
 
-    def mitsuba_render(path, batches=8):
-        scene = mi.load_file(path)
-        images = np.stack([np.asarray(mi.render(scene, seed=i), np.float64)[..., :3] for i in range(batches)])
-        return images.mean(0), images.var(0, ddof=1) / batches
-
-    theirs, their_var = mitsuba_render(_spot_xml(tmp_path))
-    flipped, flipped_var = mitsuba_render(_spot_xml(tmp_path, flip=True))
+    theirs, their_var = harness.mitsuba_batches(mi, _spot_xml(tmp_path))
+    flipped, flipped_var = harness.mitsuba_batches(mi, _spot_xml(tmp_path, flip=True))
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # every element is read without a word
         scene = load_scene(_spot_xml(tmp_path))
@@ -954,12 +944,12 @@ def test_spot_and_projector_match_mitsuba(tmp_path):
     assert kinds == {"SpotLight", "ProjectorLight"} and scene.has_textures()
     r = render_full(scene, spp=512, device="cpu", seed=5)
     ours, var = r.image.astype(np.float64), r.film.variance_of_mean()
-    z = (_tiles(ours) - _tiles(theirs)) / np.sqrt((_tiles(var) + _tiles(their_var)) / 64 + 1e-12)
+    z = harness.tile_z(ours, var, theirs, their_var)
     mean_z = (ours.mean((0, 1)) - theirs.mean((0, 1))) / np.sqrt((var + their_var).sum((0, 1))) * ours[..., 0].size
-    assert (_tiles(theirs).max(-1) > 1e-3).mean() > 0.4 and np.abs(z).max() < 4.5, np.round(z, 1)
+    assert (harness.tiles(theirs).max(-1) > 1e-3).mean() > 0.4 and z.max() < 4.5, np.round(z, 1)
     assert np.abs(mean_z).max() < 4.0, mean_z
-    z_flip = (_tiles(ours) - _tiles(flipped)) / np.sqrt((_tiles(var) + _tiles(flipped_var)) / 64 + 1e-12)
-    assert np.abs(z_flip).max() > 8, np.round(z_flip, 1)
+    z_flip = harness.tile_z(ours, var, flipped, flipped_var)
+    assert z_flip.max() > 8, np.round(z_flip, 1)
 
 
 def test_pbrt_spot_and_projection(tmp_path):
