@@ -38,7 +38,7 @@ KERNEL_MODE_ENV = "PYOPENCL_RT_KERNEL_MODE"
 SOURCES = ("megakernel/path.cl",)
 LANE_BLOCK = 16           # samples per work-item, in units of the lane width, taken in turn by its lanes
 # work-items per group on CPUs: PoCL compiles a group of one without its work-item loop, which
-# cuts a cold build of the megakernel by 20-40% and runs as fast (docs/BENCHMARKS.md, "Kernel
+# cuts a cold build of the megakernel by 20-55% and runs as fast (docs/BENCHMARKS.md, "Kernel
 # builds"); GPUs keep the wave's group size (WAVE_LOCAL_SIZE) at one path per work-item
 LANE_GROUP = 1
 
