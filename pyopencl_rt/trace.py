@@ -84,10 +84,11 @@ def _opencl(bvh, o, d, tmin, tmax, device, any_hit, layout=None):
         mapped.base.release(queue)
 
     bo, bd, bmin, bmax = inbuf(o), inbuf(d), inbuf(tmin), inbuf(tmax)
-    gsize, lsize = (n,), None
+    # Groups of 64 rays (the kernels skip items past n): PoCL keeps a private stack per work-item of
+    # a group, and it compiles a kernel once per group size, so a size of the driver's choice (the
+    # whole grid) meant a new compile for every new ray count.
+    gsize, lsize = ((n + 63) // 64 * 64,), (64,)
     defines, suffix, spread = dev.defines, "", ()
-    if dev.layout != "binary":  # small work-groups: PoCL keeps a private stack per work-item of a group
-        gsize, lsize = ((n + 63) // 64 * 64,), (64,)
     width = packet_width(rt.device) if dev.layout == "wide8" else 0
     if width and not _packets_build(rt, {**dev.defines, "PACKET_WIDTH": width}):
         width = 0

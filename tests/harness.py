@@ -129,11 +129,21 @@ def parse_signatures(source: str) -> dict[str, tuple[Param, ...]]:
     return found
 
 
+def cpu_group(runtime) -> int | None:
+    """The work-group size of a harness launch that names none: 1 on a CPU device, else the
+    driver's choice.  PoCL compiles a kernel once per work-group size and, left to choose, takes
+    the whole grid as one group, so every new item count was a new compile of the same kernel
+    (33 of one BSDF kernel in one test run); groups of one item divide every count."""
+    import pyopencl as cl
+
+    return 1 if runtime.device.type & cl.device_type.CPU else None
+
+
 class Kernels:
     """Harness kernels: ``source`` (OpenCL C; ``#include "x.h"`` pulls in ``cl/x.h``) built after
     the ``cl/`` files ``names`` (usually none) with the preprocessor ``defines``.  ``local_size``:
     work-groups of that size (the global size rounded up to it: kernels then ignore work-items
-    beyond ``n``), else the runtime's choice.  PoCL's CPU device keeps a work-group's private
+    beyond ``n``), else :func:`cpu_group`'s.  PoCL's CPU device keeps a work-group's private
     memory on one thread's stack, so a kernel with large private arrays (a packet's rays and
     traversal stack) needs small groups: the whole grid in one group overflowed it."""
 
@@ -193,9 +203,10 @@ class Kernels:
                 bufs.append(cl.Buffer(ctx, flags | mf.COPY_HOST_PTR, hostbuf=v))
             if p.kind == "out":
                 outs.append((v, bufs[-1]))
-        if self.local_size:
-            size = -(-int(n) // self.local_size) * self.local_size
-            self.kernel(runtime, name)(q, (size,), (self.local_size,), *bufs)
+        local = self.local_size or cpu_group(runtime)
+        if local:
+            size = -(-int(n) // local) * local
+            self.kernel(runtime, name)(q, (size,), (local,), *bufs)
         else:
             self.kernel(runtime, name)(q, (int(n),), None, *bufs)
         for host, buf in outs:
