@@ -421,6 +421,19 @@ def gauss_legendre_cells(edges, x, w):
     return (mid[:, None] + half[:, None] * x).ravel(), (half[:, None] * w).ravel()
 
 
+def load_warned(path, defines=None):
+    """(scene, the messages of its warnings) of ``load_scene(path, defines)``, every warning recorded
+    (none shown)."""
+    import warnings
+
+    from pyopencl_rt.scene.loaders import load_scene
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        scene = load_scene(path, defines=defines)
+    return scene, [str(w.message) for w in caught]
+
+
 def toml_tables(**tables) -> str:
     """The TOML text of tables of plain values (numbers, strings, booleans, lists of them), in order:
     ``toml_tables(camera=dict(eye=[0, 0, 3], look_at=[0, 0, 0], fov=45), render=dict(max_depth=4))``,
