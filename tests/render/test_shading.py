@@ -171,9 +171,7 @@ def _mitsuba_scene(tmp_path, maps=True) -> str:
 <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="-90"/><scale value="4"/>
   <translate y="-0.5"/></transform><bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf></shape>
 """
-    path = tmp_path / ("maps.xml" if maps else "plain.xml")
-    path.write_text(f'<scene version="3.0.0">{body}</scene>\n')
-    return str(path)
+    return harness.write_mitsuba_scene(tmp_path / ("maps.xml" if maps else "plain.xml"), body)
 
 
 
