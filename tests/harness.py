@@ -400,6 +400,32 @@ def mitsuba_sensor(origin, fov, width, height, max_depth=3, spp=64, target="0, 0
 """
 
 
+def mitsuba_rect(x, y, bsdf, angle=0.0, axis="y", size=0.9) -> str:
+    """A panel of a Mitsuba test scene: a rectangle ``2 size`` wide with ``bsdf``, turned by ``angle``
+    degrees about ``axis``, its centre at (x, y, 0)."""
+    return (f'<shape type="rectangle"><transform name="to_world"><scale value="{size}"/>'
+            f'<rotate {axis}="1" angle="{angle}"/><translate x="{x}" y="{y}"/></transform>{bsdf}</shape>')
+
+
+def mitsuba_stage(sensor, content, wall_bsdf, light_z=5, intensity=20) -> str:
+    """The XML of a small Mitsuba 3 test scene: ``sensor`` (:func:`mitsuba_sensor`), a point light of
+    ``intensity`` at (1, 2, light_z), a constant sky of 0.3, ``content``, and behind it a wall of
+    ``wall_bsdf``, 12 x 12 at z = -1.5."""
+    return f"""{sensor}
+<emitter type="point"><point name="position" x="1" y="2" z="{light_z}"/><rgb name="intensity" value="{intensity}"/></emitter>
+<emitter type="constant"><rgb name="radiance" value="0.3"/></emitter>
+{content}
+<shape type="rectangle"><transform name="to_world"><scale value="6"/><translate z="-1.5"/></transform>
+  {wall_bsdf}</shape>
+"""
+
+
+def write_mitsuba_scene(path, body) -> str:
+    """Writes ``body`` (XML elements) as the Mitsuba 3 scene file ``path``; returns the path as a string."""
+    path.write_text(f'<scene version="3.0.0">{body}</scene>\n')
+    return str(path)
+
+
 def mitsuba_batches(mi, path, batches=8):
     """Mitsuba's render of the XML file ``path`` as ``batches`` renders of other seeds: their mean
     and the variance of that mean (the spread of the batches), RGB as float64."""
@@ -430,6 +456,19 @@ def gauss_legendre_cells(edges, x, w):
     consecutive ``edges``, flattened cell by cell."""
     mid, half = (edges[1:] + edges[:-1]) / 2, (edges[1:] - edges[:-1]) / 2
     return (mid[:, None] + half[:, None] * x).ravel(), (half[:, None] * w).ravel()
+
+
+def load_warned(path, defines=None):
+    """(scene, the messages of its warnings) of ``load_scene(path, defines)``, every warning recorded
+    (none shown)."""
+    import warnings
+
+    from pyopencl_rt.scene.loaders import load_scene
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        scene = load_scene(path, defines=defines)
+    return scene, [str(w.message) for w in caught]
 
 
 def toml_tables(**tables) -> str:

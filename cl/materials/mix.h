@@ -45,16 +45,9 @@ RT_INLINE pfloat mix_eval(__global const Material *materials, __global const flo
     const pint textured = tri & (pgather_int(ints, i + FIELD_INDEX(Material, tex_scalar)) >= 0);
     if (pany(textured)) {
         for (int k = 0; k < PACKET_WIDTH; ++k) {
-            if (!PLANE_I(textured, k)) continue;
-            __global const int *rec = ints + PLANE_I(i, k);
-            const int params = rec[FIELD_INDEX(Material, tex_params)];
-            for (int slot = 0; slot < TEX_SLOTS; ++slot) {
-                const int t = rec[FIELD_INDEX(Material, tex_scalar) + slot];
-                if (t < 0) break;
-                if (((params >> (4 * slot)) & 15) != TEXP_METALLIC) continue;
-                const float2 uv = triangle_uv(tri_uv, PLANE_I(prim, k), PLANE(u, k), PLANE(v, k));
-                PLANE(w, k) *= tex_sample(textures, tex_data, t, uv).x;
-            }
+            if (PLANE_I(textured, k))
+                PLANE(w, k) = tex_scalar_times(PLANE(w, k), ints + PLANE_I(i, k), TEXP_METALLIC, tri_uv, textures,
+                                               tex_data, PLANE_I(prim, k), PLANE(u, k), PLANE(v, k));
         }
     }
 #endif
@@ -200,16 +193,9 @@ RT_INLINE void mix_keep_top(__global const Material *materials, __global const f
     if (!pany(masked)) return;
     __global const int *ints = (__global const int *)materials;
     for (int k = 0; k < PACKET_WIDTH; ++k) {
-        if (!PLANE_I(masked, k)) continue;
-        __global const int *rec = ints + PLANE_I(t.rec, k);
-        const int params = rec[FIELD_INDEX(Material, tex_params)];
-        for (int slot = 0; slot < TEX_SLOTS; ++slot) {
-            const int tx = rec[FIELD_INDEX(Material, tex_scalar) + slot];
-            if (tx < 0) break;
-            if (((params >> (4 * slot)) & 15) != TEXP_OPACITY) continue;
-            const float2 uv = triangle_uv(tri_uv, PLANE_I(prim, k), PLANE(u, k), PLANE(v, k));
-            PLANE(m->opacity, k) *= tex_sample(textures, tex_data, tx, uv).x;
-        }
+        if (PLANE_I(masked, k))
+            PLANE(m->opacity, k) = tex_scalar_times(PLANE(m->opacity, k), ints + PLANE_I(t.rec, k), TEXP_OPACITY, tri_uv,
+                                                    textures, tex_data, PLANE_I(prim, k), PLANE(u, k), PLANE(v, k));
     }
 #endif
 }

@@ -297,6 +297,13 @@ RT_INLINE int medium_tracking_step(const MediumLanes *m, __global const float *g
     return 1;
 }
 
+/* sigma_n = mu - sigma_t, at least 0: the null collisions' coefficient under the majorant mu */
+RT_INLINE pvec3 majorant_null(pvec3 mu, pvec3 sigma_t)
+{
+    return pv3(pfmax(mu.x - sigma_t.x, PFLOAT(0.0f)), pfmax(mu.y - sigma_t.y, PFLOAT(0.0f)),
+               pfmax(mu.z - sigma_t.z, PFLOAT(0.0f)));
+}
+
 /* Free-flight sampling along o + t d, t in [tmin, tmax] (tmax: the next surface, or infinity), in the lanes
  * of `active`, with the hero channel `channel` and the tracking stream *rng (see the top).  Delta tracking:
  * tentative collisions at rate mu = majorant[channel] from the start of the medium's segment; one at x is
@@ -312,12 +319,11 @@ RT_INLINE pint medium_sample_free_flight(const MediumLanes *m, __global const fl
                                          pfloat tmin, pfloat tmax, pint channel, puint *rng, pint active, pfloat *t,
                                          pvec3 *beta, pvec3 *r)
 {
-    pfloat t0, t1;
-    pint live = medium_segment(m, o, d, tmin, tmax, active, &t0, &t1);
+    pfloat tc, t1; /* tracking starts where the segment does */
+    pint live = medium_segment(m, o, d, tmin, tmax, active, &tc, &t1);
     const pvec3 mu = m->majorant;
     const pfloat mu_c = pv3_channel(mu, channel);
     pint real = PINT(0);
-    pfloat tc = t0;
     while (pany(live)) {
         pfloat s;
         pvec3 st, ss;
@@ -334,8 +340,7 @@ RT_INLINE pint medium_sample_free_flight(const MediumLanes *m, __global const fl
             real |= hit;
         }
         const pint null = live & pnot(hit);
-        const pvec3 sn = pv3(pfmax(mu.x - st.x, PFLOAT(0.0f)), pfmax(mu.y - st.y, PFLOAT(0.0f)),
-                             pfmax(mu.z - st.z, PFLOAT(0.0f)));
+        const pvec3 sn = majorant_null(mu, st);
         const pvec3 f = pv3_mul(T, sn);
         const pfloat p = pv3_channel(f, channel);
         *beta = pv3_weigh(*beta, f, p, null);
@@ -362,19 +367,17 @@ RT_INLINE void medium_transmittance(const MediumLanes *m, __global const float *
         const pvec3 tr = majorant_transmittance(m->sigma_t, tmax - tmin);
         *T = pv3_sel(*T, pv3_mul(*T, tr), homogeneous);
     }
-    pfloat t0, t1;
-    pint live = medium_segment(m, o, d, tmin, tmax, active & (m->density_grid >= 0), &t0, &t1);
+    pfloat tc, t1; /* tracking starts where the segment does */
+    pint live = medium_segment(m, o, d, tmin, tmax, active & (m->density_grid >= 0), &tc, &t1);
     const pvec3 mu = m->majorant;
     const pfloat mu_c = pv3_channel(mu, channel);
-    pfloat tc = t0;
     while (pany(live)) {
         pfloat s;
         pvec3 st, ss;
         if (!medium_tracking_step(m, grid_data, o, d, t1, channel, rng, &live, &tc, &s, T, r, &st, &ss)) break;
         const pvec3 Tm = majorant_transmittance(mu, s);
         const pfloat p = pv3_channel(Tm, channel) * mu_c;
-        const pvec3 sn = pv3(pfmax(mu.x - st.x, PFLOAT(0.0f)), pfmax(mu.y - st.y, PFLOAT(0.0f)),
-                             pfmax(mu.z - st.z, PFLOAT(0.0f)));
+        const pvec3 sn = majorant_null(mu, st);
         *T = pv3_weigh(*T, pv3_mul(Tm, sn), p, live);
         *r = pv3_weigh(*r, pv3_mul(Tm, mu), p, live);
         live &= (pv3_max3(*T) > 0.0f) & (p > 0.0f); /* nothing left to carry */

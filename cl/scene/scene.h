@@ -72,12 +72,7 @@ RT_INLINE int cutout_skips(__global const int *tri_material, __global const Mate
     if ((m->flags & MATERIAL_FLAG_CUTOUT) == 0) return 0;
     float a = m->opacity;
 #ifdef HAS_TEXTURES
-    for (int slot = 0; slot < TEX_SLOTS; ++slot) {
-        const int t = m->tex_scalar[slot];
-        if (t < 0) break;
-        if (((m->tex_params >> (4 * slot)) & 15) == TEXP_OPACITY)
-            a *= tex_sample(textures, tex_data, t, triangle_uv(tri_uv, prim, u, v)).x;
-    }
+    a = tex_scalar_times(a, (__global const int *)m, TEXP_OPACITY, tri_uv, textures, tex_data, prim, u, v);
 #endif
     if (m->alpha_cutoff > 0.0f) return a < m->alpha_cutoff;
     if (a >= 1.0f) return 0;

@@ -132,6 +132,22 @@ RT_INLINE float2 triangle_uv(__global const float2 *tri_uv, int prim, float u, f
     return (1.0f - u - v) * tri_uv[3 * prim] + u * tri_uv[3 * prim + 1] + v * tri_uv[3 * prim + 2];
 }
 
+/* x times the R of each scalar texture of kind `kind` (TEXP_*) of the Material record `rec` (as ints),
+ * in slot order, at the triangle hit (prim, u, v) */
+RT_INLINE float tex_scalar_times(float x, __global const int *rec, int kind, __global const float2 *tri_uv,
+                                 __global const Texture *textures, __global const float4 *tex_data, int prim,
+                                 float u, float v)
+{
+    const int params = rec[FIELD_INDEX(Material, tex_params)];
+    for (int slot = 0; slot < TEX_SLOTS; ++slot) {
+        const int t = rec[FIELD_INDEX(Material, tex_scalar) + slot];
+        if (t < 0) break;
+        if (((params >> (4 * slot)) & 15) != kind) continue;
+        x *= tex_sample(textures, tex_data, t, triangle_uv(tri_uv, prim, u, v)).x;
+    }
+    return x;
+}
+
 /* The textures of the lanes' materials applied at their hits (lanes of `tri_hit`: hits on
  * triangles, prim a triangle there), lane by lane: a texture lookup is a gather of its own. */
 RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Texture *textures,

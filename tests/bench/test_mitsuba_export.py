@@ -14,6 +14,7 @@ Mitsuba.
 """
 import json
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,6 +31,8 @@ from pyopencl_rt.render.settings import ImageSettings
 
 SIZE = 32
 BLOCK = 8  # regions of BLOCK x BLOCK pixels
+HERE = Path(__file__).parent
+TEXTURED_SCENE = HERE / "textured_scene.toml"  # beside quarters.png, which the test writes
 
 
 def mitsuba_python():
@@ -145,46 +148,7 @@ def test_image_textures_and_delta_lights_render_the_same(tmp_path, device):
     quarters = np.array([[230, 40, 40], [40, 230, 40], [40, 40, 230], [230, 230, 230]])
     texture = quarters[(y // 8) * 2 + x // 8] * (0.5 + x[..., None] / 32)
     Image.fromarray(texture.astype(np.uint8)).save(tmp_path / "quarters.png")
-    (tmp_path / "textured.toml").write_text(harness.toml_tables(
-        camera=dict(eye=[0, 0.5, 3], look_at=[0, 0, 0], fov=50), render=dict(max_depth=3)) + """
-[environment]
-radiance = [0.3, 0.35, 0.4]
-[materials.paper]
-albedo = 0.9
-albedo_texture = "quarters.png"
-[materials.screen]
-albedo = 0
-emission = [2.0, 1.5, 1.0]
-emission_texture = "quarters.png"
-[[light]]
-type = "point"
-position = [-0.5, 1.5, 2.0]
-intensity = [2.0, 2.0, 1.5]
-[[light]]
-type = "directional"
-direction = [0.3, -0.5, -1.0]
-irradiance = [0.5, 0.4, 0.3]
-[[light]]
-type = "spot"
-position = [-1.0, 0.2, 1.5]
-look_at = [-0.6, 0.0, 0.0]
-intensity = [3.0, 2.0, 2.5]
-cutoff_angle = 25
-[[light]]
-type = "projector"
-position = [-0.4, 0.4, 2.0]
-look_at = [-0.7, 0.2, 0.1]
-irradiance = [0.2, 0.3, 0.4]
-fov = 30
-[[shape]]
-type = "quad"
-material = "paper"
-points = [[-1.2, -0.8, 0], [-0.1, -0.8, 0.3], [-0.1, 0.8, 0.3], [-1.2, 0.8, 0]]
-[[shape]]
-type = "quad"
-material = "screen"
-points = [[0.1, -0.8, 0.3], [1.2, -0.8, 0], [1.2, 0.8, 0], [0.1, 0.8, 0]]
-""")
+    (tmp_path / "textured.toml").write_text(TEXTURED_SCENE.read_text())
     ours, theirs, variance = render_both(load_scene(tmp_path / "textured.toml"), tmp_path, device, spp=64)
     a, _ = assert_regions_agree(ours, theirs, variance)
     assert a.max() > 0.2
@@ -222,72 +186,7 @@ def test_runner_records_the_counts_a_stratifying_sampler_renders(tmp_path):
 # participating media (issue 25): a camera in a haze bounded by an index-matched sphere, a chromatic fog
 # slab in an index-matched box, a glass sphere holding a dense forward-scattering medium, and a
 # chromatic grid puff in an index-matched box, lit by a constant sky and a directional light
-MEDIA_SCENE = harness.toml_tables(
-    camera=dict(eye=[0, 0.3, 3.2], look_at=[0, -0.1, 0], fov=50, medium="haze"), render=dict(max_depth=6)) + """
-[environment]
-radiance = [0.15, 0.2, 0.25]
-[[light]]
-type = "directional"
-direction = [0.2, -0.6, 0.8]
-irradiance = [3.0, 2.8, 2.4]
-[materials.floor]
-albedo = 0.7
-[materials.glass]
-type = "dielectric"
-ior = 1.5
-[media.haze]
-sigma_t = 0.15
-albedo = 0.9
-[media.fog]
-sigma_t = [0.5, 0.9, 1.4]
-albedo = 0.85
-phase = "hg"
-g = 0.6
-[media.marble]
-sigma_t = 1.5
-albedo = 0.95
-phase = "hg"
-g = 0.7
-[media.smoke]
-type = "grid"
-bounds = [[-1.4, -0.2, 0.2], [-0.2, 1.0, 1.4]]
-sigma_t = [8.0, 2.0, 0.5]
-albedo = 0.8
-density = [[[0.0, 0.2, 1.0], [0.0, 0.3, 1.0], [0.0, 0.2, 0.8]],
-           [[0.0, 0.3, 1.0], [0.0, 0.4, 1.0], [0.0, 0.3, 0.9]],
-           [[0.0, 0.2, 0.8], [0.0, 0.3, 0.9], [0.0, 0.2, 0.7]]]
-[[shape]]
-type = "sphere"
-center = [0, 0, 0]
-radius = 8
-index_matched = true
-interior = "haze"
-[[shape]]
-type = "quad"
-material = "floor"
-points = [[-3, -1, 3], [3, -1, 3], [3, -1, -3], [-3, -1, -3]]
-[[shape]]
-type = "box"
-center = [0, -0.6, 0]
-size = [3, 0.7, 3]
-index_matched = true
-interior = "fog"
-exterior = "haze"
-[[shape]]
-type = "sphere"
-center = [0.6, 0.35, 0.2]
-radius = 0.5
-material = "glass"
-interior = "marble"
-exterior = "haze"
-[[shape]]
-type = "box"
-center = [-0.8, 0.4, 0.8]
-size = 1.2
-index_matched = true
-interior = "smoke"
-exterior = "haze"
-"""
+MEDIA_SCENE = HERE / "media_scene.toml"
 
 
 def test_media_export_maps_every_part(tmp_path):
@@ -296,8 +195,7 @@ def test_media_export_maps_every_part(tmp_path):
     a trilinear grid fading to 0 outside its box is refused."""
     import dataclasses
 
-    (tmp_path / "media.toml").write_text(MEDIA_SCENE)
-    scene = load_scene(tmp_path / "media.toml")
+    scene = load_scene(MEDIA_SCENE)
     arrays = scene_arrays(scene, ImageSettings.resolve(scene, width=8, height=8))
     s = json.loads(arrays["settings"])["media"]
     names = [m.name for m in scene.media]
@@ -336,8 +234,7 @@ def test_media_scene_renders_the_same(tmp_path, device):
     x 1.5-3.0, the chromatic grid made grey 1.9-3.3, Henyey-Greenstein's g negated 1.2-1.6; as
     exported 0.5-0.7.  (``volpath`` for ``volpathmis`` is 0.6: both are unbiased, only their noise
     differs.)"""
-    (tmp_path / "media.toml").write_text(MEDIA_SCENE)
-    ours, theirs, variance = render_both(load_scene(tmp_path / "media.toml"), tmp_path, device, spp=64, size=16)
+    ours, theirs, variance = render_both(load_scene(MEDIA_SCENE), tmp_path, device, spp=64, size=16)
     a, _ = assert_regions_agree(ours, theirs, variance, block=16)
     assert a.min() > 0.1
     for block in (8, 4):

@@ -11,6 +11,7 @@ import pyopencl_rt as rt
 from pyopencl_rt.scene.loaders import load_scene
 
 import harness
+from harness import mitsuba_rect
 
 W, H, TILE = 48, 32, 8
 
@@ -19,11 +20,6 @@ def _write_png(path, a, mode):
     from PIL import Image
 
     Image.fromarray(np.asarray(a, np.uint8), mode).save(path)
-
-
-def _rect(x, y, bsdf, angle=0.0, axis="y", size=0.9):
-    return (f'<shape type="rectangle"><transform name="to_world"><scale value="{size}"/>'
-            f'<rotate {axis}="1" angle="{angle}"/><translate x="{x}" y="{y}"/></transform>{bsdf}</shape>')
 
 
 def _scene(tmp_path, max_depth=3, variant=False) -> str:
@@ -60,23 +56,17 @@ def _scene(tmp_path, max_depth=3, variant=False) -> str:
                 f'<string name="filter_type" value="nearest"/></texture>{nested}</bsdf>')
 
     panels = [
-        _rect(-2.0, 1.0, bitmap("mirror", "bilinear")),
-        _rect(0.0, 1.0, bitmap("clamp", "nearest")),
-        _rect(2.0, 1.0, checker),
-        _rect(-2.0, -1.0, mask(leaf), angle=160),  # one-sided, seen from behind
-        _rect(0.0, -1.0, mask(f'<bsdf type="twosided">{leaf}</bsdf>'), angle=160),
-        _rect(2.0, -1.0, bitmap("repeat", "nearest", "" if variant else '<rotate z="1" angle="30"/><scale value="1.5"/>')),
+        mitsuba_rect(-2.0, 1.0, bitmap("mirror", "bilinear")),
+        mitsuba_rect(0.0, 1.0, bitmap("clamp", "nearest")),
+        mitsuba_rect(2.0, 1.0, checker),
+        mitsuba_rect(-2.0, -1.0, mask(leaf), angle=160),  # one-sided, seen from behind
+        mitsuba_rect(0.0, -1.0, mask(f'<bsdf type="twosided">{leaf}</bsdf>'), angle=160),
+        mitsuba_rect(2.0, -1.0, bitmap("repeat", "nearest",
+                                       "" if variant else '<rotate z="1" angle="30"/><scale value="1.5"/>')),
     ]
-    body = f"""{harness.mitsuba_sensor("0.3, 0.4, 6", 55, W, H, max_depth=max_depth, spp=64)}
-<emitter type="point"><point name="position" x="1" y="2" z="5"/><rgb name="intensity" value="20"/></emitter>
-<emitter type="constant"><rgb name="radiance" value="0.3"/></emitter>
-{''.join(panels)}
-<shape type="rectangle"><transform name="to_world"><scale value="6"/><translate z="-1.5"/></transform>
-  <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf></shape>
-"""
-    path = tmp_path / f"cutouts{'_variant' if variant else ''}{max_depth}.xml"
-    path.write_text(f'<scene version="3.0.0">{body}</scene>\n')
-    return str(path)
+    body = harness.mitsuba_stage(harness.mitsuba_sensor("0.3, 0.4, 6", 55, W, H, max_depth=max_depth, spp=64),
+                                 "".join(panels), '<bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>')
+    return harness.write_mitsuba_scene(tmp_path / f"cutouts{'_variant' if variant else ''}{max_depth}.xml", body)
 
 
 

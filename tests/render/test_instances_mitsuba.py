@@ -41,17 +41,12 @@ def _scene(tmp_path, variant=False) -> str:
     instances = ['<translate x="-2.1"/>',
                  ("" if variant else '<scale x="1" y="1.6" z="0.6"/>') + '<rotate x="1" angle="-30"/>',
                  '<rotate y="1" angle="50"/><rotate z="1" angle="35"/><translate x="2.1" y="0.1"/>']
-    body = f"""{harness.mitsuba_sensor("0.2, 0.3, 4.5", 60, W, H, max_depth=3, spp=16)}
-<emitter type="point"><point name="position" x="1" y="2" z="4"/><rgb name="intensity" value="15"/></emitter>
-<emitter type="constant"><rgb name="radiance" value="0.3"/></emitter>
-<shape type="shapegroup" id="g">{shapes}</shape>
-{''.join(f'<shape type="instance"><ref id="g"/><transform name="to_world">{t}</transform></shape>' for t in instances)}
-<shape type="rectangle"><transform name="to_world"><scale value="6"/><translate z="-1.5"/></transform>
-  <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf></shape>
-"""
-    path = tmp_path / f"instancing{'_variant' if variant else ''}.xml"
-    path.write_text(f'<scene version="3.0.0">{body}</scene>\n')
-    return str(path)
+    content = f'<shape type="shapegroup" id="g">{shapes}</shape>\n' + "".join(
+        f'<shape type="instance"><ref id="g"/><transform name="to_world">{t}</transform></shape>' for t in instances)
+    wall = '<bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>'
+    body = harness.mitsuba_stage(harness.mitsuba_sensor("0.2, 0.3, 4.5", 60, W, H, max_depth=3, spp=16), content, wall,
+                                 light_z=4, intensity=15)
+    return harness.write_mitsuba_scene(tmp_path / f"instancing{'_variant' if variant else ''}.xml", body)
 
 
 

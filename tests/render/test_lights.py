@@ -921,9 +921,7 @@ def _spot_xml(tmp_path, flip=False) -> str:
   <transform name="to_world"><lookat origin="1.5, -1.8, 3" target="1.5, -1.8, 0" up="0, 1, 0"/></transform>
 </emitter>
 """
-    path = tmp_path / ("flipped.xml" if flip else "lights.xml")
-    path.write_text(f'<scene version="3.0.0">{body}</scene>\n')
-    return str(path)
+    return harness.write_mitsuba_scene(tmp_path / ("flipped.xml" if flip else "lights.xml"), body)
 
 
 def test_spot_and_projector_match_mitsuba(tmp_path):

@@ -12,13 +12,9 @@ from pyopencl_rt.device import abi
 from pyopencl_rt.scene.loaders import load_scene
 
 import harness
+from harness import mitsuba_rect
 
 W, H, TILE = 48, 32, 8
-
-
-def _rect(x, y, bsdf, angle=0.0):
-    return (f'<shape type="rectangle"><transform name="to_world"><scale value="0.9"/>'
-            f'<rotate y="1" angle="{angle}"/><translate x="{x}" y="{y}"/></transform>{bsdf}</shape>')
 
 
 def _scene(tmp_path, variant=False) -> str:
@@ -47,24 +43,17 @@ def _scene(tmp_path, variant=False) -> str:
     bitmap = ('<texture type="bitmap" name="weight"><string name="filename" value="weight.png"/>'
               '<boolean name="raw" value="true"/><string name="filter_type" value="nearest"/></texture>')
     panels = [
-        _rect(-2.0, 1.0, blend('<float name="weight" value="0.3"/>', red, ggx), angle=20),
-        _rect(0.0, 1.0, blend(bitmap, blue, beckmann), angle=-15),
-        _rect(2.0, 1.0, mask(blend('<float name="weight" value="0.6"/>', red, blue))),
-        _rect(-2.0, -1.0, blend('<float name="weight" value="0.5"/>',
+        mitsuba_rect(-2.0, 1.0, blend('<float name="weight" value="0.3"/>', red, ggx), angle=20),
+        mitsuba_rect(0.0, 1.0, blend(bitmap, blue, beckmann), angle=-15),
+        mitsuba_rect(2.0, 1.0, mask(blend('<float name="weight" value="0.6"/>', red, blue))),
+        mitsuba_rect(-2.0, -1.0, blend('<float name="weight" value="0.5"/>',
                                 blend('<float name="weight" value="0.25"/>', red, blue), ggx), angle=-25),
-        _rect(0.0, -1.0, blend('<float name="weight" value="0.8"/>', beckmann, red), angle=10),
-        _rect(2.0, -1.0, blend(bitmap, ggx, blue), angle=30),
+        mitsuba_rect(0.0, -1.0, blend('<float name="weight" value="0.8"/>', beckmann, red), angle=10),
+        mitsuba_rect(2.0, -1.0, blend(bitmap, ggx, blue), angle=30),
     ]
-    body = f"""{harness.mitsuba_sensor("0.3, 0.4, 6", 55, W, H, max_depth=3, spp=64)}
-<emitter type="point"><point name="position" x="1" y="2" z="5"/><rgb name="intensity" value="20"/></emitter>
-<emitter type="constant"><rgb name="radiance" value="0.3"/></emitter>
-{''.join(panels)}
-<shape type="rectangle"><transform name="to_world"><scale value="6"/><translate z="-1.5"/></transform>
-  <bsdf type="twosided"><bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf></bsdf></shape>
-"""
-    path = tmp_path / f"mix{'_variant' if variant else ''}.xml"
-    path.write_text(f'<scene version="3.0.0">{body}</scene>\n')
-    return str(path)
+    wall = '<bsdf type="twosided"><bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf></bsdf>'
+    body = harness.mitsuba_stage(harness.mitsuba_sensor("0.3, 0.4, 6", 55, W, H, max_depth=3, spp=64), "".join(panels), wall)
+    return harness.write_mitsuba_scene(tmp_path / f"mix{'_variant' if variant else ''}.xml", body)
 
 
 def test_blends_match_mitsuba(tmp_path):
@@ -114,25 +103,20 @@ def _picks_scene(tmp_path, picks) -> str:
             a = f'<bsdf type="blendbsdf"><float name="weight" value="0"/>{a}{a}</bsdf>'
         return f'<bsdf type="blendbsdf"><float name="weight" value="{w}"/>{a}{b}</bsdf>'
 
-    panels = [_rect(-2.0, 1.0, blend(0.5, red, mirror), angle=20), _rect(0.0, 1.0, blend(0.3, mirror, red), angle=-20),
-              _rect(2.0, 1.0, blend(0.5, red, glass)), _rect(-2.0, -1.0, blend(0.5, red, rough), angle=-30),
-              _rect(0.0, -1.0, blend(0.8, red, mirror)), _rect(2.0, -1.0, blend(0.5, glass, red), angle=30)]
-    body = f"""
+    panels = [mitsuba_rect(-2.0, 1.0, blend(0.5, red, mirror), angle=20),
+              mitsuba_rect(0.0, 1.0, blend(0.3, mirror, red), angle=-20), mitsuba_rect(2.0, 1.0, blend(0.5, red, glass)),
+              mitsuba_rect(-2.0, -1.0, blend(0.5, red, rough), angle=-30), mitsuba_rect(0.0, -1.0, blend(0.8, red, mirror)),
+              mitsuba_rect(2.0, -1.0, blend(0.5, glass, red), angle=30)]
+    sensor = f"""
 <integrator type="path"><integer name="max_depth" value="3"/></integrator>
 <sensor type="perspective"><float name="fov" value="55"/>
   <transform name="to_world"><lookat origin="0.3, 0.4, 6" target="0, 0, 0" up="0, 1, 0"/></transform>
   <film type="hdrfilm"><integer name="width" value="{W}"/><integer name="height" value="{H}"/><rfilter type="box"/></film>
-</sensor>
-<emitter type="point"><point name="position" x="1" y="2" z="5"/><rgb name="intensity" value="20"/></emitter>
-<emitter type="constant"><rgb name="radiance" value="0.3"/></emitter>
-{''.join(panels)}
-<shape type="rectangle"><transform name="to_world"><scale value="6"/><translate z="-1.5"/></transform>
-  <bsdf type="twosided"><bsdf type="diffuse"><texture type="checkerboard" name="reflectance">
-  <transform name="to_uv"><scale value="8"/></transform></texture></bsdf></bsdf></shape>
-"""
-    path = tmp_path / f"picks{int(picks)}.xml"
-    path.write_text(f'<scene version="3.0.0">{body}</scene>\n')
-    return str(path)
+</sensor>"""
+    wall = ('<bsdf type="twosided"><bsdf type="diffuse"><texture type="checkerboard" name="reflectance">\n'
+            '  <transform name="to_uv"><scale value="8"/></transform></texture></bsdf></bsdf>')
+    body = harness.mitsuba_stage(sensor, "".join(panels), wall)
+    return harness.write_mitsuba_scene(tmp_path / f"picks{int(picks)}.xml", body)
 
 
 def test_blended_evaluation_agrees_with_picks(tmp_path):

@@ -171,9 +171,7 @@ def _mitsuba_scene(tmp_path, maps=True) -> str:
 <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="-90"/><scale value="4"/>
   <translate y="-0.5"/></transform><bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf></shape>
 """
-    path = tmp_path / ("maps.xml" if maps else "plain.xml")
-    path.write_text(f'<scene version="3.0.0">{body}</scene>\n')
-    return str(path)
+    return harness.write_mitsuba_scene(tmp_path / ("maps.xml" if maps else "plain.xml"), body)
 
 
 
@@ -206,13 +204,6 @@ def test_smooth_normals_maps_and_vertex_colors_match_mitsuba(tmp_path):
 
 
 # ----------------------------------------------------------------------------- the loaders
-def _quiet_load(path):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        scene = load_scene(path)
-    return scene, [str(w.message) for w in caught]
-
-
 def test_obj_vertex_normals_per_corner(tmp_path):
     """vn by index (also relative), made unit length; a triangle of a polygon that names no vn at
     one corner is shaded flat (0); an OBJ without vn has no normals (flat, not computed), nor has
@@ -221,15 +212,15 @@ def test_obj_vertex_normals_per_corner(tmp_path):
     (tmp_path / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\n"
                                     "vn 0 0 2\nvn 0 0.6 0.8\n"
                                     "f 1//1 2//2 3//-1\nf 1//1 3//1 4\nf 2 5 3\n")
-    scene, warned = _quiet_load(tmp_path / "m.obj")
+    scene, warned = harness.load_warned(tmp_path / "m.obj")
     assert warned == []
     n = scene.face_normals()
     assert np.allclose(n[0], [[0, 0, 1], [0, 0.6, 0.8], [0, 0.6, 0.8]]) and not n[1:].any()
     assert scene.has_shading_normals()
     (tmp_path / "flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n")
-    assert not _quiet_load(tmp_path / "flat.obj")[0].has_shading_normals()
+    assert not harness.load_warned(tmp_path / "flat.obj")[0].has_shading_normals()
     (tmp_path / "planar.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n")
-    planar = _quiet_load(tmp_path / "planar.obj")[0]
+    planar = harness.load_warned(tmp_path / "planar.obj")[0]
     assert planar.normals is None and "HAS_SHADING_NORMALS" not in planar.material_defines()
 
 
@@ -276,11 +267,11 @@ def test_mitsuba_mesh_normals_as_mitsuba_has_them(tmp_path):
     v = np.asarray(v, np.float32)
     _mi_ply(tmp_path, v, f)
     to_world = '<transform name="to_world"><scale x="2" y="1" z="0.5"/><rotate x="1" angle="30"/></transform>'
-    scene, warned = _quiet_load(_xml(tmp_path, to_world))
+    scene, warned = harness.load_warned(_xml(tmp_path, to_world))
     assert warned == [] and scene.has_shading_normals()
     ours = scene.face_normals()
     assert np.allclose(ours, angle_weighted_normals(scene.vertices, scene.faces), atol=1e-6)
-    flat, warned = _quiet_load(_xml(tmp_path, to_world + '<boolean name="face_normals" value="true"/>', "flat.xml"))
+    flat, warned = harness.load_warned(_xml(tmp_path, to_world + '<boolean name="face_normals" value="true"/>', "flat.xml"))
     assert warned == [] and flat.normals is None and not flat.has_shading_normals()
     try:
         import mitsuba as mi
@@ -294,10 +285,10 @@ def test_mitsuba_mesh_normals_as_mitsuba_has_them(tmp_path):
         assert np.array_equal(faces, np.asarray(f)) and np.abs(ours - theirs).max() < 1e-5
     n = (v / np.linalg.norm(v, axis=1, keepdims=True))
     _mi_ply(tmp_path, v, f, normals=n)
-    scaled, _ = _quiet_load(_xml(tmp_path, '<transform name="to_world"><scale x="2" y="1" z="1"/></transform>', "n.xml"))
+    scaled, _ = harness.load_warned(_xml(tmp_path, '<transform name="to_world"><scale x="2" y="1" z="1"/></transform>', "n.xml"))
     want = n[f] * [0.5, 1, 1]
     assert np.allclose(scaled.face_normals(), want / np.linalg.norm(want, axis=-1, keepdims=True), atol=1e-6)
-    flipped, _ = _quiet_load(_xml(tmp_path, '<boolean name="flip_normals" value="true"/>', "flip.xml"))
+    flipped, _ = harness.load_warned(_xml(tmp_path, '<boolean name="flip_normals" value="true"/>', "flip.xml"))
     assert np.allclose(flipped.face_normals(), -n[f][:, ::-1], atol=1e-6)  # the corners reversed with the faces
 
 
@@ -314,10 +305,10 @@ def test_mesh_attribute_colors(tmp_path):
         return (f'<bsdf type="diffuse"><texture type="mesh_attribute" name="reflectance"><string name="name" '
                 f'value="{attr}"/><float name="scale" value="{scale}"/></texture></bsdf>')
 
-    scene, warned = _quiet_load(_xml(tmp_path, bsdf("vertex_color", 0.5)))
+    scene, warned = harness.load_warned(_xml(tmp_path, bsdf("vertex_color", 0.5)))
     assert warned == [] and scene.materials[0].vertex_colors and scene.materials[0].albedo == (0.5, 0.5, 0.5)
     assert np.allclose(scene.face_colors(), rgb[None]) and "HAS_VERTEX_COLORS" in scene.material_defines()
-    scene, warned = _quiet_load(_xml(tmp_path, bsdf("face_color"), "missing.xml"))
+    scene, warned = harness.load_warned(_xml(tmp_path, bsdf("face_color"), "missing.xml"))
     assert len(warned) == 1 and 'mesh attribute "face_color"' in warned[0]
     assert np.allclose(scene.face_colors(), 1.0)
 
@@ -331,7 +322,7 @@ def test_serialized_normals(tmp_path):
     write_serialized(tmp_path / "m.serialized", [(v, np.array([[0, 1, 2]]), None, n)])
     (tmp_path / "s.xml").write_text('<scene version="3.0.0"><shape type="serialized">'
                                     '<string name="filename" value="m.serialized"/></shape></scene>')
-    scene, warned = _quiet_load(tmp_path / "s.xml")
+    scene, warned = harness.load_warned(tmp_path / "s.xml")
     assert warned == [] and np.allclose(scene.face_normals()[0], n)
 
 
@@ -345,7 +336,7 @@ def test_pbrt_normals(tmp_path):
         'AttributeBegin\nReverseOrientation\nShape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0] '
         '"integer indices" [0 1 2] "normal N" [0 0.6 0.8  0 0.6 0.8  0 0 1]\nAttributeEnd\n'
         'Shape "sphere" "float radius" 2 "float zmax" 1\n')
-    scene, warned = _quiet_load(tmp_path / "s.pbrt")
+    scene, warned = harness.load_warned(tmp_path / "s.pbrt")
     assert warned == []
     n = scene.face_normals()
     assert np.allclose(n[0], np.array([0.5, 0, 1]) / math.hypot(0.5, 1), atol=1e-6)
@@ -384,7 +375,7 @@ def test_gltf_normals_colors_and_normal_texture(tmp_path):
         "accessors": [{"bufferView": k, "componentType": 5126, "count": 3, "type": "VEC3"} for k in range(3)],
     }
     (tmp_path / "t.gltf").write_text(json.dumps(doc))
-    scene, warned = _quiet_load(tmp_path / "t.gltf")
+    scene, warned = harness.load_warned(tmp_path / "t.gltf")
     assert warned == []
     want = nrm * [1, 0.5, 1]
     assert np.allclose(scene.face_normals()[0], want / np.linalg.norm(want, axis=1, keepdims=True), atol=1e-6)

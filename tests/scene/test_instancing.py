@@ -6,13 +6,14 @@ records, and the errors and warnings Mitsuba's and pbrt's rules call for."""
 from __future__ import annotations
 
 import re
-import warnings
 
 import numpy as np
 import pytest
 
-from pyopencl_rt.scene.loaders import SceneError, load_scene
+from pyopencl_rt.scene.loaders import SceneError
 from pyopencl_rt.scene.loaders.builder import sphere_mesh
+
+import harness
 
 OBJ = """v 0 0 0
 v 1 0 0
@@ -44,13 +45,6 @@ def _matrix(m) -> str:
     return '<transform name="to_world"><matrix value="' + " ".join(f"{x:.17g}" for x in m.ravel()) + '"/></transform>'
 
 
-def _load(path):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        scene = load_scene(path)
-    return scene, [str(w.message) for w in caught]
-
-
 def _xml(tmp_path, body, name="s.xml"):
     (tmp_path / "tri.obj").write_text(OBJ)
     path = tmp_path / name
@@ -76,7 +70,7 @@ def test_mitsuba_instances_closed_form(tmp_path):
     and the mirroring similarity and the ellipsoid's triangles under the uneven scale; the group
     alone draws nothing; one Instance record each."""
     body = GROUP + "".join(f'<shape type="instance"><ref id="g"/>{_matrix(m)}</shape>' for m in INSTANCES)
-    scene, warned = _load(_xml(tmp_path, body))
+    scene, warned = harness.load_warned(_xml(tmp_path, body))
     assert warned == [] and scene.normals_as_given  # the uneven instance's normals keep their lengths
     n_ellipsoid = len(sphere_mesh(0.25)[1])
     assert len(scene.faces) == 3 + n_ellipsoid and len(scene.spheres) == 2
@@ -98,7 +92,7 @@ def test_mitsuba_instances_closed_form(tmp_path):
         got = scene.normals[face].astype(np.float64)
         assert np.allclose(got / np.linalg.norm(got[0]), want_n[order] / np.linalg.norm(want_n[order][0]),
                            atol=1e-6), k
-        direct, _ = _load(_xml(tmp_path, f'<shape type="obj"><string name="filename" value="tri.obj"/>{_matrix(full)}'
+        direct, _ = harness.load_warned(_xml(tmp_path, f'<shape type="obj"><string name="filename" value="tri.obj"/>{_matrix(full)}'
                                          "</shape>", name=f"direct{k}.xml"))
         assert np.array_equal(scene.uvs[face], direct.uvs[0]), k
         assert np.allclose(scene.vertices[scene.faces[face]], direct.vertices[direct.faces[0]]), k
@@ -113,7 +107,7 @@ def test_mitsuba_instances_closed_form(tmp_path):
     local = (tris.reshape(-1, 3).astype(np.float64) - m[:3, 3]) @ np.linalg.inv(m[:3, :3]).T
     assert np.allclose(np.linalg.norm(local - [1.0, 0.0, 0.0], axis=1), 0.5, atol=1e-5)
     with pytest.raises(SceneError, match="the scene has no shapes that we can render"):
-        _load(_xml(tmp_path, GROUP, name="alone.xml"))
+        harness.load_warned(_xml(tmp_path, GROUP, name="alone.xml"))
 
 
 def test_mitsuba_instance_errors_and_emitters(tmp_path):
@@ -131,13 +125,13 @@ def test_mitsuba_instance_errors_and_emitters(tmp_path):
     ]
     for k, (text, message) in enumerate(cases):
         with pytest.raises(SceneError) as info:
-            _load(_xml(tmp_path, GROUP + text + '<shape type="sphere"/>', name=f"bad{k}.xml"))
+            harness.load_warned(_xml(tmp_path, GROUP + text + '<shape type="sphere"/>', name=f"bad{k}.xml"))
         assert "\n" not in str(info.value) and re.search(message, str(info.value)), (k, str(info.value))
     lit = ('<shape type="shapegroup" id="lamp"><shape type="rectangle"><emitter type="area">'
            '<rgb name="radiance" value="2"/></emitter></shape></shape>'
            '<shape type="instance"><ref id="lamp"/></shape>'
            '<shape type="instance"><ref id="lamp"/><transform name="to_world"><translate z="3"/></transform></shape>')
-    scene, warned = _load(_xml(tmp_path, lit, name="lamp.xml"))
+    scene, warned = harness.load_warned(_xml(tmp_path, lit, name="lamp.xml"))
     assert len(warned) == 1 and "instancing of emitters is not supported" in warned[0]
     assert len(scene.faces) == 4 and all(scene.materials[i].emission == (2.0, 2.0, 2.0) for i in scene.face_materials)
 
@@ -152,7 +146,7 @@ def test_pbrt_objects_share_the_instancing(tmp_path):
                     'Shape "sphere" "float radius" 0.5\nObjectEnd\n'
                     'AttributeBegin Translate 5 0 0 ObjectInstance "o" AttributeEnd\n'
                     'AttributeBegin Scale 1 1 3 ObjectInstance "o" AttributeEnd\n')
-    scene, warned = _load(path)
+    scene, warned = harness.load_warned(path)
     assert len(warned) == 1 and "area lights are not supported with object instancing" in warned[0]
     assert np.allclose(scene.spheres, [[5.0, 0.0, 0.0, 1.0]])
     assert len(scene.faces) == len(sphere_mesh(0.5)[1]) and not any(m.is_emissive for m in scene.materials)
@@ -161,4 +155,4 @@ def test_pbrt_objects_share_the_instancing(tmp_path):
     assert [(r.group, r.n_faces, r.n_spheres) for r in scene.instances] == [("o", 0, 1), ("o", len(scene.faces), 0)]
     path.write_text('WorldBegin\nObjectBegin "o"\nObjectEnd\nObjectBegin "o"\nObjectEnd\n')
     with pytest.raises(SceneError, match=r":4: ObjectBegin: object 'o' is already defined"):
-        _load(path)
+        harness.load_warned(path)

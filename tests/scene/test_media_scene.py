@@ -17,16 +17,9 @@ from pyopencl_rt.scene.loaders import SceneError, load_scene
 from pyopencl_rt.scene.loaders.mitsuba_vol import read_vol, write_vol
 from pyopencl_rt.scene.media import Grid, Medium, MediumInterface, PhaseFunction, pack_media
 from pyopencl_rt.scene.validate import SceneValueError, check_scene
-from harness import mitsuba
+from harness import load_warned as load, mitsuba
 
 SPHERE_LIGHT = '<shape type="sphere"><point name="center" x="0" y="5" z="0"/><emitter type="area"/></shape>'
-
-
-def load(path):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        scene = load_scene(path)
-    return scene, [str(w.message) for w in caught]
 
 
 # ----------------------------------------------------------------------------- .vol files

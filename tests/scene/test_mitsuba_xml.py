@@ -19,7 +19,7 @@ from pyopencl_rt.scene.loaders.mitsuba_serialized import write_serialized
 from pyopencl_rt.scene.model import PixelFilter
 
 from scene_compare import render_pair_z, triangle_records, triangles_equal, write_exr_image, write_png_image
-from harness import mitsuba
+from harness import load_warned as load, mitsuba
 from pyopencl_rt.render.lights import environment_radiance
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
@@ -37,14 +37,6 @@ def write(tmp_path, body, name="s.xml", version="3.0.0") -> Path:
 def line_of(path, text) -> int:
     """The line of the first occurrence of ``text`` in the file."""
     return next(i for i, line in enumerate(Path(path).read_text().splitlines(), 1) if text in line)
-
-
-def load(path, defines=None):
-    """(scene, warnings) of a Mitsuba XML file."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        scene = load_scene(path, defines=defines)
-    return scene, [str(w.message) for w in caught]
 
 
 SPHERE = '<shape type="sphere"><float name="radius" value="0.5"/></shape>'

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import re
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +16,7 @@ from pyopencl_rt.scene.model import PixelFilter
 from pyopencl_rt.scene.loaders.pbrt import tokenize
 from pyopencl_rt.scene.loaders.pbrt_materials import equal_area_sphere_to_square, equal_area_square_to_sphere
 
+from harness import load_warned as load
 from scene_compare import render_pair_z, triangle_records, triangles_equal, write_exr_image, write_png_image
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
@@ -29,13 +29,6 @@ def write(tmp_path, text, name="s.pbrt") -> Path:
     path = tmp_path / name
     path.write_text(text)
     return path
-
-
-def load(path):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        scene = load_scene(path)
-    return scene, [str(w.message) for w in caught]
 
 
 def world(tmp_path, body, options=""):

@@ -10,6 +10,8 @@ from pyopencl_rt.errors import UserError
 from pyopencl_rt.scene.loaders import load_scene
 from pyopencl_rt.scene.model import PixelFilter
 
+import harness
+
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 BOX_CENTRE = np.array([278.0, 274.4, 279.6])
 
@@ -510,7 +512,9 @@ def test_error_broken_obj(tmp_path):
 # material types
 
 
-def _materials(tmp_path, text):
+def _materials(tmp_path, **tables):
+    """The materials, by name, of a scene of a sphere and the tables ``[materials.NAME]`` of ``tables``."""
+    text = harness.toml_tables(**{f"materials.{name}": table for name, table in tables.items()})
     (tmp_path / "m.toml").write_text(text + '[[shape]]\ntype = "sphere"\ncenter = [0,0,0]\nradius = 1\n')
     return {m.name: m for m in load_scene(tmp_path / "m.toml").materials}
 
@@ -518,34 +522,13 @@ def _materials(tmp_path, text):
 def test_material_types_parse(tmp_path):
     from pyopencl_rt.scene.materials.conductor import METALS as CONDUCTORS
 
-    m = _materials(tmp_path, """
-[materials.mirror]
-type = "conductor"
-[materials.gold]
-type = "conductor"
-metal = "gold"
-roughness = 0.5
-emission = 2
-[materials.custom]
-type = "conductor"
-eta = [0.2, 0.9, 1.1]
-k = 3
-alpha = 0.1
-[materials.schlick]
-type = "conductor"
-f0 = [0.9, 0.6, 0.3]
-[materials.glass]
-type = "dielectric"
-ior = 1.33
-roughness = 0.2
-[materials.plastic]
-type = "gltf"
-base_color = [0.8, 0.1, 0.1]
-metallic = 0
-roughness = 0.4
-[materials.defaults]
-type = "gltf"
-""")
+    m = _materials(tmp_path, mirror=dict(type="conductor"),
+                   gold=dict(type="conductor", metal="gold", roughness=0.5, emission=2),
+                   custom=dict(type="conductor", eta=[0.2, 0.9, 1.1], k=3, alpha=0.1),
+                   schlick=dict(type="conductor", f0=[0.9, 0.6, 0.3]),
+                   glass=dict(type="dielectric", ior=1.33, roughness=0.2),
+                   plastic=dict(type="gltf", base_color=[0.8, 0.1, 0.1], metallic=0, roughness=0.4),
+                   defaults=dict(type="gltf"))
     assert m["mirror"].type == "conductor" and m["mirror"].eta is None and m["mirror"].f0 == (1, 1, 1)
     assert m["mirror"].alpha == 0.0
     assert m["gold"].eta == CONDUCTORS["gold"][0] and m["gold"].k == CONDUCTORS["gold"][1]

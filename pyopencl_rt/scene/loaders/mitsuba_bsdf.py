@@ -209,14 +209,8 @@ class BsdfMapper:
         if fname is None:
             raise error_at(obj.node.pos, f'{obj.label()} needs <string name="filename">')
         path = imp.resolve(fname, obj)
-        filt = obj.string("filter_type", "bilinear")
-        if filt not in ("bilinear", "nearest"):
-            raise error_at(obj.props["filter_type"].node.pos, f'{obj.label()}: filter_type must be "bilinear" or '
-                                                              f'"nearest", got "{filt}" (as Mitsuba)')
-        wrap = obj.string("wrap_mode", "repeat")
-        if wrap not in ("repeat", "mirror", "clamp"):
-            raise error_at(obj.props["wrap_mode"].node.pos, f'{obj.label()}: wrap_mode must be "repeat", "mirror" '
-                                                            f'or "clamp", got "{wrap}" (as Mitsuba)')
+        filt = obj.choice("filter_type", ("bilinear", "nearest"), " (as Mitsuba)")
+        wrap = obj.choice("wrap_mode", ("repeat", "mirror", "clamp"), " (as Mitsuba)")
         raw = bool(obj.boolean("raw", False))
         imp.unused(obj)
         where = f"{obj.node.pos}: {obj.label()}"

@@ -122,14 +122,8 @@ class MediaMapper:
         data, box = read_vol(imp.resolve(fname, vol), f"{vol.node.pos}: {vol.label()}")
         if data.shape[3] == 6:
             raise error_at(vol.node.pos, f"{vol.label()}: '{fname}' has 6 channels (an SGGX grid): not supported")
-        filt = vol.string("filter_type", "trilinear")
-        if filt not in ("trilinear", "nearest"):
-            raise error_at(vol.props["filter_type"].node.pos, f'{vol.label()}: filter_type must be "trilinear" or '
-                                                               f'"nearest", got "{filt}"')
-        wrap = vol.string("wrap_mode", "clamp")
-        if wrap not in ("clamp", "repeat", "mirror"):
-            raise error_at(vol.props["wrap_mode"].node.pos, f'{vol.label()}: wrap_mode must be "clamp", "repeat" or '
-                                                             f'"mirror", got "{wrap}"')
+        filt = vol.choice("filter_type", ("trilinear", "nearest"))
+        wrap = vol.choice("wrap_mode", ("clamp", "repeat", "mirror"))
         if wrap != "clamp":
             imp.warn(vol.props["wrap_mode"].node.pos, f'{vol.label()}: wrap_mode "{wrap}" is read as "clamp" (they '
                                                        "differ only in the outer half texel)")

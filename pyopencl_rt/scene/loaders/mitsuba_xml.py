@@ -160,6 +160,15 @@ class MiObject:
     def string(self, name, default=None):
         return self._typed(name, ("string",), default, "a <string>")
 
+    def choice(self, name, choices, note=""):
+        """The <string> ``name``, one of ``choices`` (the first is the default); another is an error,
+        its message ended by ``note``."""
+        value = self.string(name, choices[0])
+        if value not in choices:
+            listed = ", ".join(f'"{c}"' for c in choices[:-1]) + f' or "{choices[-1]}"'
+            raise error_at(self.props[name].node.pos, f'{self.label()}: {name} must be {listed}, got "{value}"{note}')
+        return value
+
     def point(self, name, default=None):
         value = self._typed(name, ("point", "vector"), default, "a <point> or <vector>")
         return None if value is None else np.asarray(value, np.float64)

@@ -154,6 +154,24 @@ class Directive:
     pos: str
 
 
+def pbrt_path(pos: str, folder: Path, fname: str, what: str) -> Path:
+    """``folder / fname`` (``folder``: the scene file's), which must be a file: otherwise an error at
+    ``pos`` that ``what`` (the directive, such as 'Shape "plymesh"') names."""
+    path = folder / fname
+    if not path.is_file():
+        raise error_at(pos, f"{what}: file '{fname}' not found (looked for {path})")
+    return path
+
+
+def pbrt_file(d: Directive, folder: Path, what: str, needs: str | None = None) -> tuple[str, Path]:
+    """The directive ``d``'s "string filename" and its :func:`pbrt_path`; without the parameter, an
+    error that ``needs`` (``what`` if not given) needs it."""
+    fname = d.params.string("filename")
+    if fname is None:
+        raise error_at(d.pos, f'{needs or what} needs "string filename"')
+    return fname, pbrt_path(d.pos, folder, fname, what)
+
+
 class Parser:
     """Directives of a pbrt file and the files it includes, in order (:meth:`directives`)."""
 

@@ -6,6 +6,7 @@ import numpy as np
 
 from ..model import DirectionalLight, Environment, PointLight, ProjectorLight, SpotLight, look_at_frame
 from .builder import EnvMap, error_at, transform_points, transform_vector
+from .pbrt import pbrt_file, pbrt_path
 from .pbrt_materials import spectrum_rgb
 
 
@@ -63,12 +64,7 @@ def projection(imp, d, s, m) -> None:
     from ..textures import texture_from_array, texture_from_image
 
     p = d.params
-    fname = p.string("filename")
-    if fname is None:
-        raise error_at(d.pos, 'LightSource "projection" needs "string filename"')
-    path = imp.path.parent / fname
-    if not path.is_file():
-        raise error_at(d.pos, f"LightSource \"projection\": file '{fname}' not found (looked for {path})")
+    fname, path = pbrt_file(d, imp.path.parent, 'LightSource "projection"')
     where = f'{d.pos}: LightSource "projection"'
     if path.suffix.lower() in (".exr", ".pfm"):
         from .images import read_hdr_image
@@ -104,9 +100,7 @@ def infinite(imp, d, s) -> None:
     from .images import read_hdr_image
     from .pbrt_materials import equal_area_sphere_to_square
 
-    path = imp.path.parent / fname
-    if not path.is_file():
-        raise error_at(d.pos, f"LightSource \"infinite\": file '{fname}' not found (looked for {path})")
+    path = pbrt_path(d.pos, imp.path.parent, fname, 'LightSource "infinite"')
     image = read_hdr_image(path, f'{d.pos}: LightSource "infinite"')
     h, w = image.shape[:2]
     wrap = h != w

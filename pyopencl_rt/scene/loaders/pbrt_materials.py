@@ -23,6 +23,7 @@ import numpy as np
 
 from ..model import Material
 from .builder import blackbody_rgb, error_at
+from .pbrt import pbrt_file
 
 METALS = {"Au": "gold", "Ag": "silver", "Cu": "copper", "Al": "aluminium"}
 GLASSES = {"glass-BK7": 1.5168, "glass-BAF10": 1.6700, "glass-FK51A": 1.4866, "glass-LASF9": 1.8503,
@@ -157,12 +158,8 @@ class MaterialMapper:
         from ..textures import texture_from_array, texture_from_image
 
         p = d.params
-        fname = p.string("filename")
-        if fname is None:
-            raise error_at(d.pos, f'Texture "{d.args[0]}" "imagemap" needs "string filename"')
-        path = self.imp.path.parent / fname
-        if not path.is_file():
-            raise error_at(d.pos, f"Texture \"{d.args[0]}\": file '{fname}' not found (looked for {path})")
+        fname, path = pbrt_file(d, self.imp.path.parent, f'Texture "{d.args[0]}"',
+                                needs=f'Texture "{d.args[0]}" "imagemap"')
         us, vs, ud, vd = self._mapping(d)
         # pbrt-v4's UVMapping (s, t) = (us u + ud, vs v + vd), looked up at (s, 1 - t); our v is 1 - pbrt's
         lookup = dict(to_uv=(us, 0.0, ud, 0.0, vs, 1.0 - vs - vd))

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from .builder import cylinder_mesh, disk_mesh, error_at, grid_mesh, sphere_mesh
+from .pbrt import pbrt_file
 
 
 def _flip_v(uv):
@@ -154,12 +155,7 @@ def _plymesh(imp, d):
     from .meshfile import ply_extras, trimesh_uvs
 
     p = d.params
-    fname = p.string("filename")
-    if fname is None:
-        raise error_at(d.pos, 'Shape "plymesh" needs "string filename"')
-    path = imp.path.parent / fname
-    if not path.is_file():
-        raise error_at(d.pos, f"Shape \"plymesh\": file '{fname}' not found (looked for {path})")
+    fname, path = pbrt_file(d, imp.path.parent, 'Shape "plymesh"')
     if path.suffix.lower() == ".gz":
         raise error_at(d.pos, f"Shape \"plymesh\": '{fname}': compressed PLY files are not supported (gunzip it)")
     for key in ("displacement", "edgelength"):
