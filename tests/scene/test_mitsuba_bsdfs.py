@@ -89,9 +89,9 @@ def _dirs(rng, n, below=0.0):
 
 
 def _ours(tmp_path, xml):
-    scene, warned = load(write(tmp_path, f'<shape type="sphere">{xml}</shape>'))
+    scene, warned = load(write(tmp_path, f'<shape type="rectangle">{xml}</shape>'))
     assert warned == [], warned
-    return scene.materials[scene.sphere_materials[0]]
+    return scene.materials[scene.face_materials[0]]
 
 
 def _assert_close(ours, theirs, what):

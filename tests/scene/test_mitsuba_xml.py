@@ -546,11 +546,11 @@ def test_serialized_reads_what_mitsuba_reads(tmp_path):
 # -- BSDFs and textures ------------------------------------------------------------------------------
 
 def _materials(tmp_path, bsdfs: str):
-    """The material of each sphere, one sphere per BSDF, and the warnings."""
-    body = "".join(f'<shape type="sphere"><point name="center" x="{3 * i}"/>{b}</shape>'
+    """The material of each rectangle (two triangles), one rectangle per BSDF, and the warnings."""
+    body = "".join(f'<shape type="rectangle"><transform name="to_world"><translate x="{3 * i}"/></transform>{b}</shape>'
                    for i, b in enumerate(bsdfs.strip().split("\n")))
     scene, warned = load(write(tmp_path, body))
-    return [scene.materials[i] for i in scene.sphere_materials], warned
+    return [scene.materials[i] for i in scene.face_materials[::2]], warned
 
 
 def test_bsdfs(tmp_path):

@@ -7,7 +7,7 @@
 | ``dielectric``, ``roughdielectric``, ``thindielectric`` (a thin sheet) | ``dielectric`` of IOR ``int_ior / ext_ior``, tint ``specular_transmittance`` |
 | ``plastic``, ``roughplastic`` | ``plastic``, ``roughplastic`` (Mitsuba's parameters; a texture of ``diffuse_reflectance``) |
 | ``principled``, ``principledthin`` | ``principled``, ``principledthin`` (Mitsuba's parameters; textures of ``base_color`` and of up to 6 scalar parameters) |
-| ``twosided`` | its nested BSDF (ours reflect on both sides) |
+| ``twosided`` | its nested BSDF, reflecting on both sides (diffuse, conductors and plastics alone reflect on the front side only, as Mitsuba's) |
 | ``normalmap``, ``bumpmap`` | its nested BSDF with the map (``normal_texture``; ``scale``, ``flip_invalid_normals``, ``use_shadowing_function`` as Mitsuba reads them: cl/scene/shading.h) |
 | ``mask`` | its nested BSDF as an alpha cut-out (``opacity``: a float or a texture; Material.masked), the nested BSDF one-sided unless a ``twosided`` |
 | ``blendbsdf`` | ``mix`` of its two nested BSDFs (``weight``: a float, a texture's luminance or a ``mesh_attribute``) |
@@ -45,8 +45,9 @@ IOR = {
     "pyrex": 1.470, "acrylic glass": 1.49, "polypropylene": 1.49, "bk7": 1.5046, "sodium chloride": 1.544,
     "amber": 1.55, "pet": 1.5750, "diamond": 2.419,
 }
-# Mitsuba's BSDFs that reflect on their front side only (outside a twosided): Material.one_sided
-# where that changes the image (around a mask: its back can be seen through the cut-out's holes)
+# Mitsuba's BSDFs that reflect on their front side only (outside a twosided): Material.one_sided,
+# black seen from behind the shading normal (the inside of an open cylinder, the back of a disk;
+# around a mask its back can be seen through the cut-out's holes)
 ONE_SIDED = {"diffuse", "conductor", "roughconductor", "plastic", "roughplastic"}
 # parameters that Mitsuba's plugins read with get_unbounded_texture (not clamped to [0, 1])
 UNBOUNDED = {"eta", "k", "alpha", "alpha_u", "alpha_v"}
@@ -139,6 +140,11 @@ def _checker(c0, c1) -> np.ndarray:
     to_uv goes to the lookup; src/textures/checkerboard.cpp)."""
     c0, c1 = np.asarray(c0, np.float64), np.asarray(c1, np.float64)
     return np.array([[c0, c1], [c1, c0]])
+
+
+def _two_sided(mat: Material) -> Material:
+    """``mat`` reflecting on both sides (inside a twosided), a blend's materials too."""
+    return dataclasses.replace(mat, one_sided=False, blend=tuple(_two_sided(m) for m in mat.blend))
 
 
 class BsdfMapper:
@@ -305,7 +311,10 @@ class BsdfMapper:
             if len(nested) > 1 and nested[1] is not nested[0]:
                 imp.warn(nested[1].node.pos, f"{obj.label()}: a different back-side BSDF is not supported; "
                                              "both sides use the first")
-            mat = self._nested(obj, "")
+            nested_mat = self._nested(obj, "")
+            mat = _two_sided(nested_mat)
+            if id(nested_mat) in self.attributes:
+                self.attributes[id(mat)] = self.attributes[id(nested_mat)]
             if obj.id and "@" in mat.name:  # an anonymous nested BSDF takes the twosided's id
                 mat.name = obj.id
             imp.unused(obj)
@@ -336,6 +345,7 @@ class BsdfMapper:
             mat.albedo = (0.5, 0.5, 0.5)
             return mat
         mat.albedo = _clamp01(imp, obj, mat.albedo, "reflectance")
+        mat.one_sided = t in ONE_SIDED  # black seen from behind, unless a twosided wraps it
         imp.unused(obj)
         return mat
 

@@ -7,14 +7,15 @@ and its file position (except those that do not change the image: ``pixel_format
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from ..model import (DirectionalLight, Environment, PixelFilter, PointLight, ProjectorLight, RenderSettings,
                      SpotLight)
-from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cube_mesh, cylinder_mesh, disk_mesh, error_at,
-                      rectangle_mesh, transform_points, transform_vector, vertical_fov)
+from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cube_mesh, cylinder_mesh, error_at, mitsuba_disk_mesh,
+                      mitsuba_sphere_mesh, rectangle_mesh, transform_points, transform_vector, vertical_fov)
 from ..media import MediumInterface
 from .mitsuba_bsdf import BsdfMapper, color_value
 from .mitsuba_instances import instance, shapegroup
@@ -28,6 +29,26 @@ SILENT = {"pixel_format", "component_format", "near_clip", "far_clip", "sample_b
 
 # hdrfilm's filter when it names none (and the film's when there is no film)
 MITSUBA_DEFAULT_FILTER = PixelFilter("gaussian", (2.0, 2.0), sigma=0.5)
+# segments in a full turn of the cylinder's and the disk's polygon (and of a textured sphere's):
+# its edges then lie within 1e-4 of a radius of Mitsuba's exact shape
+CURVED_SEGMENTS = 256
+
+
+def coordinate_system(n) -> tuple:
+    """Mitsuba's coordinate_system (include/mitsuba/core/vector.h, Duff et al. 2017): two unit
+    vectors s, t that make (s, t, n) a right-handed orthonormal frame; (x, y) for n = +z."""
+    n = np.asarray(n, np.float64)
+    sign = math.copysign(1.0, n[2])
+    a = -1.0 / (sign + n[2])
+    b = n[0] * n[1] * a
+    return (np.array([n[0] * n[0] * a * sign + 1.0, b * sign, -n[0] * sign]),
+            np.array([b, n[1] * n[1] * a + sign, -n[1]]))
+
+
+def reads_uv(material) -> bool:
+    """Whether shading ``material`` reads the surface's uv or dp/du: a texture (reflectance,
+    roughness, emission, a normal or bump map) or an anisotropic frame, its own or a blended one's."""
+    return bool(material.textures()) or material.is_anisotropic or any(reads_uv(m) for m in material.blend)
 
 
 def load_mitsuba_xml(path, name: str | None = None, defines: dict | None = None):
@@ -297,7 +318,7 @@ class _Importer:
         elif t == "cube":
             v, f, uv = cube_mesh()
         elif t == "disk":
-            v, f, uv = disk_mesh()
+            v, f, uv = mitsuba_disk_mesh()
         elif t == "cylinder":
             v, f, uv, normals = self.cylinder(obj)
         else:
@@ -314,6 +335,9 @@ class _Importer:
         self.unused(obj)
 
     def cylinder(self, obj: MiObject):
+        """Mitsuba's cylinder (src/shapes/cylinder.cpp): an open tube from p0 to p1, its uv (phi / 2 pi,
+        the height's fraction) with phi from the first axis of Mitsuba's frame about p1 - p0
+        (coordinate_system: +x for the default +z axis), shaded with its exact radial normal."""
         p0 = obj.point("p0", np.zeros(3))
         p1 = obj.point("p1", np.array([0.0, 0.0, 1.0]))
         radius = obj.float("radius", 1.0, positive=True)
@@ -321,23 +345,37 @@ class _Importer:
         length = float(np.linalg.norm(axis))
         if not length > 0:
             raise error_at(obj.node.pos, f"{obj.label()}: p0 and p1 are the same point")
-        v, f, uv = cylinder_mesh(radius, 0.0, length)
+        v, f, uv = cylinder_mesh(radius, 0.0, length, n_full=CURVED_SEGMENTS)
         z = axis / length
-        x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
-        x /= np.linalg.norm(x)
-        frame = np.stack([x, np.cross(z, x), z], 1)
+        x, y = coordinate_system(z)
+        frame = np.stack([x, y, z], 1)
         radial = v * [1.0, 1.0, 0.0]  # Mitsuba's cylinder shades with its exact (radial) normal
         radial /= np.linalg.norm(radial, axis=1, keepdims=True)
         return v @ frame.T + p0, f, uv, (radial @ frame.T)[f]
 
     def sphere(self, obj, material, m, flip, emitters, interface=None) -> None:
+        """Mitsuba's sphere: one of our spheres, or, where its material reads the uv (a texture, a
+        normal or bump map, an anisotropic frame along dp/du), triangles with Mitsuba's uv and
+        exact normals (mitsuba_sphere_mesh), for ours have no uv: Mitsuba's uv is that of the
+        object-space direction, so it turns with to_world's rotation."""
         centre = obj.point("center", np.zeros(3))
         radius = obj.float("radius", 1.0, positive=True)
+        uneven = False
         if m is not None:
             s = np.linalg.svd(m[:3, :3], compute_uv=False)
-            if s.max() - s.min() > 1e-6 * s.max():
+            uneven = s.max() - s.min() > 1e-6 * s.max()
+            if uneven:
                 self.warn(obj.props["to_world"].node.pos, f"{obj.label()}: to_world scales unevenly "
                                                           "(Mitsuba does not allow it); using the mean scale")
+        if reads_uv(material) and not uneven:
+            v, f, uv, normals = mitsuba_sphere_mesh()
+            local = np.diag([radius, radius, radius, 1.0])
+            local[:3, 3] = centre
+            self.b.add_mesh(v, f, material, uvs=uv, matrix=local if m is None else m @ local, flip=flip,
+                            normals=normals, interface=interface)
+            self.unused(obj)
+            return
+        if m is not None:
             centre = transform_points(m, centre)[0]
             radius *= float(s.mean())
         if flip and emitters:
