@@ -462,9 +462,13 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, mitsuba_variant, spp, j
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="PNG plot (default: the JSON path with .png).")
 @click.option("--denoise", is_flag=True, help="Beside each of our curves, its Open Image Denoise curve (needs the "
               "denoise extra): where denoising stops helping.")
+@click.option("--seeds", default=1, show_default=True, type=click.IntRange(min=1),
+              help="Renders of each curve, a seed each, sharing its budget; its points are their mean.")
+@click.option("--first-seed", default=0, show_default=True, type=click.IntRange(0, 2**31),
+              help="Seeds from this one on (ours 1 + it + k, Mitsuba's offset it + k).")
 def bench_convergence(scene_path, device, integrator, intersector, sampler, adaptive, reference, reference_spp, no_cache, budget,
                       width, height, max_depth, compare, mitsuba_python, llvm_path, mitsuba_variant, mitsuba_sampler,
-                      json_path, plot_path, denoise):
+                      json_path, plot_path, denoise, seeds, first_seed):
     """Error (RMSE, relMSE, MAE) against a reference as a function of render time, per device x
     integrator x intersector, optionally beside Mitsuba 3: JSON, a log-log plot and a table."""
     from .bench.convergence import MITSUBA_SAMPLERS, run_convergence
@@ -485,7 +489,8 @@ def bench_convergence(scene_path, device, integrator, intersector, sampler, adap
                     max_depth=max_depth, compare=[c.strip() for c in compare.split(",") if c.strip()],
                     mitsuba_python=mitsuba_python, mitsuba_variant=mitsuba_variant, llvm_path=llvm_path,
                     json_path=json_path, plot_path=plot_path, use_cache=not no_cache, denoise=denoise,
-                    samplers=samplers, mitsuba_samplers=mitsuba_samplers, adaptive=adaptive, echo=click.echo)
+                    samplers=samplers, mitsuba_samplers=mitsuba_samplers, adaptive=adaptive, seeds=seeds,
+                    first_seed=first_seed, echo=click.echo)
 
 
 @bench.command("samplers")
@@ -528,11 +533,21 @@ def bench_samplers(device, sampler, compare, mitsuba_sampler, json_path, no_cach
 @click.option("--reference-spp", default=16384, show_default=True, type=click.IntRange(min=2))
 @click.option("--mitsuba-sampler", "mitsuba_samplers", default="independent,stratified,multijitter,ldsampler,orthogonal",
               show_default=True, help="Mitsuba's samplers, a curve each: the best counts.")
+@click.option("--seeds", default=4, show_default=True, type=click.IntRange(min=1),
+              help="Renders of each curve, a seed each, sharing its budget: the relMSE is their mean.")
+@click.option("--first-seed", default=0, show_default=True, type=click.IntRange(0, 2**31),
+              help="Seeds from this one on (ours 1 + it + k, Mitsuba's offset it + k): another run, other seeds.")
 @mitsuba_options
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
 def bench_set(scene_paths, device, json_path, **options):
     """The benchmark set against Mitsuba 3, rendering the same SCENEs [default: the four of docs/BENCHMARKS.md]:
-    samples/s in turns, time to relMSE 1e-3 against Mitsuba's best sampler, and our lane width."""
+    samples/s in turns, time to relMSE 1e-3 against Mitsuba's best sampler, and our lane width.
+
+    Each curve (ours, and one per Mitsuba sampler) is rendered with --seeds seeds (Mitsuba's:
+    the seed of mi.render; ours: the seed of the render), and the time to 1e-3 is that of the mean
+    over the seeds of the relMSE at each spp: interpolated where that mean crosses 1e-3, otherwise
+    extrapolated with relMSE = c/N + the reference's own noise (marked *).  Each time and ratio has
+    its standard error over the seeds (+-), so that a difference within it reads as noise."""
     from .bench.bench_set import DEFAULT_SCENES, run_bench_set
 
     _check_json(json_path)

@@ -23,14 +23,15 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from .convergence_analysis import (EPS, FLOOR_FACTOR, SCHEMA, TARGETS, analyse, fit_slope, metrics, print_table,
-                                   reference_floor, spp_schedule, time_to_reach, validate, write_plot)
+from .convergence_analysis import (EPS, FLOOR_FACTOR, SCHEMA, TARGETS, analyse, fit_slope, mean_points, metrics,
+                                   print_table, reference_floor, seed_estimate, spp_schedule, time_to_reach, validate,
+                                   write_plot)
 from .mitsuba_host import DEFAULT_VARIANT, find_mitsuba_python, mitsuba_env, run_mitsuba_curve
 
 # the names the tests and other callers reach through this module, the benchmark's public face
 __all__ = ["EPS", "FLOOR_FACTOR", "MITSUBA_SAMPLERS", "SCHEMA", "TARGETS", "analyse", "fit_slope",
-           "find_mitsuba_python", "metrics", "mitsuba_env", "print_table", "reference_floor", "run_convergence",
-           "spp_schedule", "time_to_reach", "validate", "write_plot"]
+           "find_mitsuba_python", "mean_points", "metrics", "mitsuba_env", "print_table", "reference_floor",
+           "run_convergence", "seed_estimate", "spp_schedule", "time_to_reach", "validate", "write_plot"]
 
 # Mitsuba's sampler plugins a curve can use (those other than independent round a sample count up:
 # each point then records the count rendered, see mitsuba_runner.py)
@@ -113,24 +114,29 @@ def short_device(device) -> str:
 
 
 def run_curve(scene, *, device, integrator, intersector, width, height, max_depth, rr_depth, reference, seconds,
-              seed=1, denoise=False, sampler=None, adaptive=False, echo=print) -> dict:
+              seed=1, seeds=None, denoise=False, sampler=None, adaptive=False, echo=print) -> dict:
     """One curve: a growing film, metrics after each step of :func:`spp_schedule`, until ``seconds``.
     ``denoise``: the film also sums the albedo and normal AOVs, and each point is Open Image
     Denoise's image of the film so far (its time: the passes so far plus that one denoising),
     with the raw image's errors beside it (``raw_rmse``, ``raw_relmse``).  ``sampler``: ours
     (docs/SAMPLING.md; default the scene's).  ``adaptive``: one adaptive render of ``seconds``
     without a target (it refines the pixels of largest estimated error, render/adaptive.py), a
-    point each time its pass count reaches a step of the schedule; its spp is the mean per pixel."""
+    point each time its pass count reaches a step of the schedule; its spp is the mean per pixel.
+    ``seeds`` (default ``[seed]``): one film per seed, rendered with that seed, the films taking
+    turns at each step, ``seconds`` for them all (adaptive: one after the other, each for its
+    share); with more than one, the curve's ``points`` are their mean
+    (:func:`.convergence_analysis.mean_points`) and ``seed_curves`` has each seed's own."""
     from ..device.devices import device_label, select_device
-    from ..render.aovs import GUIDES, aov_layers
+    from ..render.aovs import GUIDES
     from ..render.film import Film
     from ..render.wavefront import Wavefront
 
+    seeds = [int(s) for s in seeds] if seeds else [seed]
     device = select_device(device)
     start = time.perf_counter()
     wavefront = Wavefront(scene, device, width=width, height=height, integrator=integrator, max_depth=max_depth,
-                          rr_depth=rr_depth, seed=seed, intersector=intersector, aovs=GUIDES if denoise else (),
-                          sampler=sampler)
+                          rr_depth=rr_depth, seed=seeds[0], intersector=intersector,
+                          aovs=GUIDES if denoise else (), sampler=sampler)
     setup = time.perf_counter() - start
     start = time.perf_counter()
     # warm-up, not timed: PoCL compiles its work-group functions at the first launches, and again
@@ -141,38 +147,68 @@ def run_curve(scene, *, device, integrator, intersector, width, height, max_dept
         wavefront.run(Film.new(width, height), passes=wave_passes, first_pass=1 << 20,
                       pixels=np.arange(0, width * height, 2))
     warmup = time.perf_counter() - start
-    film = Film.new(width, height, denoise)
-    points, elapsed, done, denoise_seconds = [], 0.0, 0, 0.0
-    if adaptive:
-        elapsed, done = _adaptive_points(wavefront, film, reference, seconds, points)
-    for target in ([] if adaptive else spp_schedule()):
-        if done and elapsed * target / done + denoise_seconds > seconds:  # the next step would overrun the share
-            break
-        stats = wavefront.run(film, passes=target - done, first_pass=done)
-        elapsed += stats.seconds
-        done = target
-        point = {"spp": done, "seconds": elapsed, **metrics(film.image(), reference),
-                 "samples_per_second": done * width * height / elapsed if elapsed > 0 else None}
-        if denoise:
-            from ..render.denoise import denoise as oidn
-
-            t0 = time.perf_counter()
-            guides = aov_layers(film, GUIDES)
-            image = oidn(film.image(), guides["albedo"], guides["normal"])[0]
-            denoise_seconds = time.perf_counter() - t0
-            point = {**point, "seconds": elapsed + denoise_seconds, **metrics(image, reference),
-                     "raw_rmse": point["rmse"], "raw_relmse": point["relmse"], "denoise_seconds": denoise_seconds}
-        points.append(point)
+    if adaptive:  # an adaptive render of its share of the time per seed, one after the other
+        runs, total = [], 0.0
+        for render_seed in seeds:
+            wavefront.reseed(render_seed)
+            points = []
+            elapsed, _ = _adaptive_points(wavefront, Film.new(width, height), reference, seconds / len(seeds), points)
+            runs.append({"seed": render_seed, "points": points})
+            total += elapsed
+    else:
+        runs, total = _film_points(wavefront, seeds, reference, seconds, denoise)
+    points = mean_points([r["points"] for r in runs], width * height)
     sampler = wavefront.settings.sampler
     label = (f"{short_device(device)} / {integrator} / {sampler}" + (" / embree" if intersector == "embree" else "")
              + (" + OIDN" if denoise else "") + (" / adaptive" if adaptive else ""))
-    echo(f"  {label}: {done} spp in {elapsed:.2f} s (build {wavefront.timings.get('build_seconds', 0):.2f} s, "
+    spp_done = points[-1]["spp"] if points else 0
+    echo(f"  {label}: " + (f"{len(seeds)} seeds x " if len(seeds) > 1 else "")
+         + f"{spp_done} spp in {total:.2f} s (build {wavefront.timings.get('build_seconds', 0):.2f} s, "
          f"warm-up {warmup:.2f} s)")
-    return {"label": label, "renderer": "pyopencl_rt", "device": device_label(device), "integrator": integrator,
-            "intersector": intersector, "sampler": sampler, "denoised": denoise, "adaptive": adaptive,
-            "build_seconds": wavefront.timings.get("build_seconds"),
-            "bvh_seconds": wavefront.timings.get("bvh_seconds"), "setup_seconds": setup, "warmup_seconds": warmup,
-            "points": points}
+    curve = {"label": label, "renderer": "pyopencl_rt", "device": device_label(device), "integrator": integrator,
+             "intersector": intersector, "sampler": sampler, "denoised": denoise, "adaptive": adaptive,
+             "build_seconds": wavefront.timings.get("build_seconds"),
+             "bvh_seconds": wavefront.timings.get("bvh_seconds"), "setup_seconds": setup, "warmup_seconds": warmup,
+             "seeds": seeds, "points": points}
+    if len(seeds) > 1:
+        curve["seed_curves"] = runs
+    return curve
+
+
+def _film_points(wavefront, seeds, reference, seconds, denoise) -> tuple[list[dict], float]:
+    """A film per seed, rendered along :func:`spp_schedule` with that seed, the films taking turns
+    at each step (so that they have the same points, and load that changes falls on all alike),
+    a point per film after each step, until the next step would overrun ``seconds`` for them all;
+    returns ([{"seed", "points"} per seed], seconds)."""
+    from ..render.aovs import GUIDES, aov_layers
+    from ..render.film import Film
+
+    width, height = wavefront.width, wavefront.height
+    films = [Film.new(width, height, denoise) for _ in seeds]
+    runs = [{"seed": s, "points": []} for s in seeds]
+    elapsed = [0.0] * len(seeds)
+    done, denoise_seconds = 0, 0.0
+    for target in spp_schedule():
+        if done and (sum(elapsed) * target / done + len(seeds) * denoise_seconds > seconds):
+            break  # the next step would overrun the share
+        for k, (render_seed, film, run) in enumerate(zip(seeds, films, runs)):
+            wavefront.reseed(render_seed)  # the sample keys are (seed, pixel, pass): each film its seed
+            stats = wavefront.run(film, passes=target - done, first_pass=done)
+            elapsed[k] += stats.seconds
+            point = {"spp": target, "seconds": elapsed[k], **metrics(film.image(), reference),
+                     "samples_per_second": target * width * height / elapsed[k] if elapsed[k] > 0 else None}
+            if denoise:
+                from ..render.denoise import denoise as oidn
+
+                t0 = time.perf_counter()
+                guides = aov_layers(film, GUIDES)
+                image = oidn(film.image(), guides["albedo"], guides["normal"])[0]
+                denoise_seconds = time.perf_counter() - t0
+                point = {**point, "seconds": elapsed[k] + denoise_seconds, **metrics(image, reference),
+                         "raw_rmse": point["rmse"], "raw_relmse": point["relmse"], "denoise_seconds": denoise_seconds}
+            run["points"].append(point)
+        done = target
+    return runs, sum(elapsed)
 
 
 def _adaptive_points(wavefront, film, reference, seconds, points) -> tuple[float, int]:
@@ -198,16 +234,23 @@ def run_convergence(scene_path, *, devices=None, integrators=("path",), intersec
                     reference_spp=None, budget=60.0, width=None, height=None, max_depth=None, compare=(),
                     mitsuba_python=None, mitsuba_variant=DEFAULT_VARIANT, llvm_path=None,
                     json_path="out/convergence.json", plot_path=None, use_cache=True, denoise=False,
-                    samplers=(None,), mitsuba_samplers=("independent",), adaptive=False, echo=print) -> dict:
+                    samplers=(None,), mitsuba_samplers=("independent",), adaptive=False, seeds=1, first_seed=0,
+                    echo=print) -> dict:
     """The benchmark.  ``samplers``: one curve of ours per sampler (None: the scene's), and with
     ``adaptive`` an adaptive one beside each (docs/SAMPLING.md, "Adaptive sampling"); with
     ``compare=("mitsuba",)``, one Mitsuba curve per entry of ``mitsuba_samplers`` (its sampler
-    plugins, :data:`MITSUBA_SAMPLERS`)."""
+    plugins, :data:`MITSUBA_SAMPLERS`).  ``seeds``: each curve is rendered with that many seeds
+    (ours: render seeds 1 + ``first_seed`` + k; Mitsuba's: ``mitsuba_runner.py --seed-offset
+    first_seed --seeds``), its share of the budget split between them, and its points are their
+    mean (each seed's in ``seed_curves``): see :func:`.convergence_analysis.seed_estimate`."""
     from ..device.devices import resolve
     from ..imageio import read_exr, write_json
     from ..scene.loaders import load_scene
 
     start = time.perf_counter()
+    seeds, first_seed = int(seeds), int(first_seed)
+    if seeds < 1 or first_seed < 0:
+        raise UserError(f"seeds {seeds}, first seed {first_seed}: expected at least 1 seed, from 0 up")
     if denoise:
         from ..render.denoise import _pyoidn
 
@@ -264,20 +307,23 @@ def run_convergence(scene_path, *, devices=None, integrators=("path",), intersec
         if renderer == "ours":
             curves.append(run_curve(scene, device=device, integrator=integrator, intersector=intersector, width=width,
                                     height=height, max_depth=max_depth, rr_depth=rr_depth, reference=ref["image"],
-                                    seconds=share, denoise=den, sampler=sampler, adaptive=ad, echo=echo))
+                                    seconds=share, denoise=den, sampler=sampler, adaptive=ad,
+                                    seeds=[1 + first_seed + k for k in range(seeds)], echo=echo))
         else:
             workdir = tempfile.mkdtemp(prefix="pyopencl_rt_mitsuba_")
             try:
                 curves.append(run_mitsuba_curve(scene, mitsuba_python_found, width=width, height=height,
                                                 max_depth=max_depth, rr_depth=rr_depth, reference=ref["image"],
                                                 seconds=share, variant=mitsuba_variant, workdir=workdir,
-                                                llvm_path=llvm_path, sampler=sampler, echo=echo))
+                                                llvm_path=llvm_path, sampler=sampler, seeds=seeds,
+                                                first_seed=first_seed, echo=echo))
             finally:
                 shutil.rmtree(workdir, ignore_errors=True)
     analyse(curves, floor)
     result = {
         "schema": SCHEMA, "scene": str(scene_path), "width": width, "height": height, "max_depth": max_depth,
         "rr_depth": rr_depth, "eps": EPS, "budget_seconds": None if budget is None else float(budget),
+        "seeds": seeds, "first_seed": first_seed,
         "host": platform.node(), "cpu_count": os.cpu_count(), "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
         "reference": {**ref["info"], "floor": floor}, "curves": curves, "skipped": skipped, "notes": notes,
         "total_seconds": 0.0,

@@ -8,6 +8,10 @@ fits, times to a target error, the JSON schema, the plot and the table.
 Monte Carlo error falls as t^(-1/2) (RMSE) and t^(-1) (relMSE).  The reference has noise of its
 own, which puts a floor under every curve, so slopes are fitted only on points whose MSE is above
 :data:`FLOOR_FACTOR` times that floor.
+
+A curve rendered with several seeds (``--seeds``) has the mean of its seeds' points as its own
+(:func:`mean_points`), and its spp and time to a target come with their spread over the seeds
+(:func:`seed_estimate`: on the mean relMSE, a bootstrap standard error over the seeds).
 """
 from __future__ import annotations
 
@@ -71,6 +75,144 @@ def time_to_reach(times, errors, target, fit=None) -> dict:
     return {"seconds": None, "extrapolated": False}
 
 
+# --------------------------------------------------------------------------------------------
+# a curve rendered with several seeds: its mean error, and the spp to a target with a spread
+
+BOOTSTRAP = 1000  # resamples of a curve's seeds, for the standard error of its spp to a target
+TAIL = 4  # the 1/N model is fitted on the points of at least 1/TAIL of the last spp (two octaves)
+
+
+def seed_runs(curve) -> list[list[dict]]:
+    """A curve's renders, one list of points per seed: its ``seed_curves`` (a curve rendered with
+    several seeds), else its own points (one seed, as every curve was before seeds)."""
+    runs = curve.get("seed_curves")
+    return [run["points"] for run in runs] if runs else [curve["points"]]
+
+
+def common_spp(runs) -> list:
+    """The spp at which every run has a point, in order."""
+    return sorted(set.intersection(*({p["spp"] for p in run} for run in runs))) if runs else []
+
+
+def mean_points(runs, pixels) -> list[dict]:
+    """The points of a curve rendered with several seeds (``runs``: a list of points per seed), at
+    each spp that every seed reached: the mean over seeds of the relMSE and MAE (and of any other
+    number a point has), RMSE as the root of the mean MSE, the median of the times (a time, not an
+    error: the first render of a Mitsuba stratifying sampler at a new sample count also pays
+    Dr.Jit's compilation of its kernels, which the median of three seeds or more leaves out, as
+    the untimed warm-up leaves out the first), samples/s as the samples over that time;
+    ``relmse_sd``: the standard deviation of the seeds' relMSE; ``seeds``: how many.  One run: its
+    points as they are."""
+    if len(runs) == 1:
+        return list(runs[0])
+    points = []
+    for spp in common_spp(runs):
+        at = [next(p for p in run if p["spp"] == spp) for run in runs]
+        point = {"spp": int(spp)}
+        for key, value in at[0].items():
+            values = [p.get(key) for p in at]
+            if key == "spp" or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+                continue
+            values = np.asarray(values, np.float64)
+            if key in ("rmse", "raw_rmse"):
+                point[key] = float(np.sqrt(np.mean(values ** 2)))
+            else:
+                point[key] = float(np.median(values) if key == "seconds" else values.mean())
+        if point.get("seconds"):
+            point["samples_per_second"] = spp * pixels / point["seconds"]
+        point["relmse_sd"] = float(np.std([p["relmse"] for p in at], ddof=1))
+        point["seeds"] = len(at)
+        points.append(point)
+    return points
+
+
+def reach(spp, relmse, seconds, target, floor=None) -> dict:
+    """The spp and time at which a curve's relMSE (its mean over seeds) falls to ``target``.
+
+    Measured where the curve crosses it: log-log interpolation between the two points that bracket
+    it, as :func:`time_to_reach` does.  Otherwise (``extrapolated``) the Monte Carlo model
+    relMSE(N) = c / N + floor, ``floor`` the relMSE that the reference's own noise adds to every
+    measurement (it is part of the error measured, as in the curves' own times to the target):
+    c, the error per sample (``relmse_x_spp``), is the mean of (relMSE - floor) x N over the points
+    of the last two octaves (N >= last N / :data:`TAIL`) that stand above :data:`FLOOR_FACTOR`
+    times the floor (all of those points when none does), and N = c / (target - floor), its time
+    N times the seconds per spp of the last point.  None when the target is not above the floor.
+    ``relmse_x_spp`` is given either way (the per-sample error beyond the reference's)."""
+    n, e, t = (np.asarray(a, np.float64) for a in (spp, relmse, seconds))
+    out = {"spp": None, "seconds": None, "extrapolated": False, "relmse_x_spp": None}
+    if len(n) == 0:
+        return out
+    f = float(floor or 0.0)
+    tail = n * TAIL >= n[-1]
+    above = tail & (e > FLOOR_FACTOR * f)
+    use = above if above.any() else tail
+    c = float(np.mean((e[use] - f) * n[use]))
+    out["relmse_x_spp"] = c if c > 0 else None
+    for i in range(len(n)):
+        if e[i] <= target:
+            if i == 0:  # reached before the first point: only the model can say where
+                break
+            if e[i - 1] > e[i] > 0:
+                w = (math.log10(target) - math.log10(e[i - 1])) / (math.log10(e[i]) - math.log10(e[i - 1]))
+            else:
+                w = 1.0
+            log_n = math.log10(n[i - 1]) + w * (math.log10(n[i]) - math.log10(n[i - 1]))
+            log_t = math.log10(t[i - 1]) + w * (math.log10(t[i]) - math.log10(t[i - 1]))
+            return {**out, "spp": 10 ** log_n, "seconds": 10 ** log_t}
+    if c > 0 and target > f and n[-1] > 0:
+        needed = c / (target - f)
+        return {**out, "spp": needed, "seconds": needed * t[-1] / n[-1], "extrapolated": True}
+    return out
+
+
+def seed_estimate(runs, target, floor=None, bootstrap: int = BOOTSTRAP) -> dict:
+    """The spp and time to relMSE ``target`` of a curve rendered with several seeds (``runs``: a
+    list of points per seed), with their spread over the seeds.
+
+    The estimate is :func:`reach` on the mean over seeds of the relMSE at each spp that every seed
+    reached (and the median of their times there, as in :func:`mean_points`): the mean of
+    independent renders' relMSE is an unbiased estimate of the renderer's expected relMSE at that
+    spp, where one render's is that plus its luck.  The spread is that of the error over the
+    seeds, the times at each spp held at their median: ``spp_se`` and ``seconds_se``, the standard
+    deviation of the estimate over ``bootstrap`` resamples of the seeds with replacement (the
+    standard error of the estimate; none with one seed), and ``spp_range``, ``seconds_range``: the
+    lowest and highest estimate of a seed alone (``per_seed``), as wide as single renders' luck.
+    The resampling is seeded, so the same runs give the same spread.  (Timing noise is another
+    matter: the ratio "in turns" of ``bench set`` is the one that load does not move.)"""
+    k = len(runs)
+    spp = common_spp(runs)
+    out = {"seeds": k, "spp": None, "seconds": None, "extrapolated": False, "relmse_x_spp": None,
+           "spp_se": None, "seconds_se": None, "spp_range": None, "seconds_range": None, "per_seed": []}
+    if not spp:
+        return out
+    at = [{p["spp"]: p for p in run} for run in runs]
+    e = np.array([[a[n]["relmse"] for n in spp] for a in at], np.float64)
+    t = np.array([[a[n]["seconds"] for n in spp] for a in at], np.float64)
+    times = np.median(t, 0)
+    out.update(reach(spp, e.mean(0), times, target, floor))
+    per_seed = [reach(spp, e[i], times, target, floor) for i in range(k)]
+    out["per_seed"] = per_seed
+    for key in ("spp", "seconds"):
+        values = [r[key] for r in per_seed if r[key] is not None]
+        out[f"{key}_range"] = [min(values), max(values)] if values else None
+    if k > 1 and bootstrap:
+        draws = np.random.default_rng(0).integers(0, k, (bootstrap, k))
+        boot = [reach(spp, e[d].mean(0), times, target, floor) for d in draws]
+        for key in ("spp", "seconds"):
+            values = np.array([r[key] for r in boot if r[key] is not None], np.float64)
+            out[f"{key}_se"] = float(values.std(ddof=1)) if len(values) > 1 else None
+        out["bootstrap"] = {"resamples": int(bootstrap), "without_estimate": sum(r["spp"] is None for r in boot)}
+    return out
+
+
+def ratio_se(a, a_se, b, b_se):
+    """The standard error of a / b from those of two independent estimates a and b (the delta
+    method: relative errors add in quadrature); None when either is missing."""
+    if not a or not b or a_se is None or b_se is None:
+        return None
+    return a / b * math.sqrt((a_se / a) ** 2 + (b_se / b) ** 2)
+
+
 def spp_schedule(limit: int = 1 << 20):
     """1, 2, 3, 4, 6, 8, 12, 16, ...: about half an octave apart."""
     schedule, k = [], 0
@@ -102,6 +244,8 @@ def analyse(curves, floor) -> None:
                 reached["below_reference_floor"] = True
         if curve.get("denoised"):
             curve["denoise"] = denoise_gain(points)
+        if curve.get("seed_curves"):  # the spp and time to each target over the seeds, with their spread
+            curve["seed_estimate"] = {f"{x:g}": seed_estimate(seed_runs(curve), x, floor_relmse) for x in TARGETS}
     baselines = {}
     for curve in curves:
         if curve.get("denoised") or curve.get("adaptive"):
@@ -246,6 +390,15 @@ def print_table(result, echo=print) -> None:
              f"{slope_cell('slope_rmse'):>10} {slope_cell('slope_relmse'):>12} {time_cell('0.01'):>10} "
              f"{time_cell('0.001'):>10} {(('%.2fx' % speedup['speedup']) if speedup else '-'):>7}")
     echo("* extrapolated along the fitted line")
+    for curve in result["curves"]:
+        for target, est in (curve.get("seed_estimate") or {}).items():
+            if est["spp"] is None:
+                continue
+            se = f" +- {est['spp_se']:.3g}" if est["spp_se"] is not None else ""
+            low, high = est["spp_range"] or (None, None)
+            echo(f"{curve['label']}: relMSE {target} at {est['spp']:.4g}{se} spp, {est['seconds']:.3g} s "
+                 f"({'extrapolated with c/N + floor, ' if est['extrapolated'] else ''}the mean of {est['seeds']} "
+                 f"seeds; a seed alone {low:.4g} to {high:.4g} spp)")
     for curve in result["curves"]:
         gain = curve.get("adaptive_gain")
         if gain:

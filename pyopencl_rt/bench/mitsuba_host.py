@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from .convergence_analysis import metrics, spp_schedule
+from .convergence_analysis import mean_points, metrics, spp_schedule
 
 PYTHON_ENV = "PYOPENCL_RT_MITSUBA_PYTHON"
 LLVM_ENV = "DRJIT_LIBLLVM_PATH"  # Dr.Jit's own variable
@@ -141,10 +141,13 @@ def require_mitsuba_python(mitsuba_python=None, variant=DEFAULT_VARIANT, llvm_pa
 
 
 def run_mitsuba_curve(scene, python, *, width, height, max_depth, rr_depth, reference, seconds, variant,
-                      workdir, llvm_path=None, sampler="independent", echo=print) -> dict:
+                      workdir, llvm_path=None, sampler="independent", seeds=1, first_seed=0, echo=print) -> dict:
     """One convergence curve of Mitsuba on ``scene`` (exported by :mod:`.mitsuba_export`), rendered
     progressively by :mod:`.mitsuba_runner` for about ``seconds`` with Mitsuba's ``sampler``
-    plugin (other than independent, each point is a render of its own: see the runner)."""
+    plugin (other than independent, each point is a render of its own: see the runner).
+    ``seeds``: the runner renders it with that many seeds (``--seed-offset first_seed``, the next
+    offsets after it), ``seconds`` for all; the points are then their mean
+    (:func:`.convergence_analysis.mean_points`) and ``seed_curves`` has each seed's own."""
     from ..render.settings import ImageSettings
     from .mitsuba_export import save_scene_npz, scene_arrays
 
@@ -153,28 +156,37 @@ def run_mitsuba_curve(scene, python, *, width, height, max_depth, rr_depth, refe
     save_scene_npz(scene_file, scene_arrays(scene, settings, spp=1))
     command = [python, str(HERE / "mitsuba_runner.py"), str(scene_file), str(workdir), "--variant", variant,
                "--budget", f"{seconds:.3f}", "--checkpoints", ",".join(str(s) for s in spp_schedule()),
-               "--sampler", sampler]
+               "--sampler", sampler, "--seeds", str(int(seeds)), "--seed-offset", str(int(first_seed))]
     start = time.perf_counter()
     run = subprocess.run(command, capture_output=True, text=True, env=mitsuba_env(llvm_path))
     wall = time.perf_counter() - start
     if run.returncode != 0:
         raise UserError(failure_reason(run.stdout + run.stderr, variant))
     info = json.loads((Path(workdir) / "mitsuba.json").read_text())
-    points = []
-    for checkpoint in info["points"]:
-        image = np.load(checkpoint["image"]).astype(np.float64)
-        seconds_so_far = checkpoint["seconds"]
-        points.append({"spp": checkpoint["spp"], "seconds": seconds_so_far, **metrics(image, reference),
-                       "samples_per_second": checkpoint["spp"] * width * height / seconds_so_far
-                       if seconds_so_far > 0 else None})
+    runs = []
+    for k, checkpoints in enumerate(info.get("seed_points") or [info["points"]]):
+        points = []
+        for checkpoint in checkpoints:
+            image = np.load(checkpoint["image"]).astype(np.float64)
+            seconds_so_far = checkpoint["seconds"]
+            points.append({"spp": checkpoint["spp"], "seconds": seconds_so_far, **metrics(image, reference),
+                           "samples_per_second": checkpoint["spp"] * width * height / seconds_so_far
+                           if seconds_so_far > 0 else None})
+        runs.append({"seed_offset": int(first_seed) + k, "points": points})
+    points = mean_points([r["points"] for r in runs], width * height)
     last = points[-1] if points else {"spp": 0, "seconds": 0.0}
-    echo(f"  mitsuba {info['version']} {variant} {sampler}: {last['spp']} spp in {last['seconds']:.2f} s "
+    echo(f"  mitsuba {info['version']} {variant} {sampler}: " + (f"{len(runs)} seeds x " if len(runs) > 1 else "")
+         + f"{last['spp']} spp in {sum(r['points'][-1]['seconds'] for r in runs if r['points']):.2f} s "
          f"(JIT warm-up {info['warmup_seconds']:.2f} s)")
-    return {"label": f"Mitsuba {info['version']} {variant} / path / {sampler}", "renderer": "mitsuba",
-            "device": variant, "integrator": "path", "intersector": "mitsuba", "sampler": sampler,
-            "build_seconds": info["warmup_seconds"],
-            "warmup_seconds": info["warmup_seconds"], "setup_seconds": info["load_seconds"] + info["import_seconds"],
-            "process_seconds": wall, "version": info["version"], "points": points}
+    curve = {"label": f"Mitsuba {info['version']} {variant} / path / {sampler}", "renderer": "mitsuba",
+             "device": variant, "integrator": "path", "intersector": "mitsuba", "sampler": sampler,
+             "build_seconds": info["warmup_seconds"],
+             "warmup_seconds": info["warmup_seconds"], "setup_seconds": info["load_seconds"] + info["import_seconds"],
+             "process_seconds": wall, "version": info["version"], "seed_offsets": [r["seed_offset"] for r in runs],
+             "points": points}
+    if len(runs) > 1:
+        curve["seed_curves"] = runs
+    return curve
 
 
 def parse_spps(text: str) -> list[int]:

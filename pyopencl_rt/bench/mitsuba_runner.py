@@ -16,7 +16,10 @@ samplers would not be stratified together; as those samplers round a sample coun
 a power of two, a prime's square), a checkpoint records the count rendered.  Such a curve renders
 only the checkpoints of at least twice the samples of the one before (so that its renders add up
 to twice its last at most), and ``--budget`` bounds all of its renders together, as it bounds an
-independent curve's batches.  The result is ``OUTDIR/mitsuba.json``.
+independent curve's batches.  ``--seeds K``: K such curves, with batch seeds of their own
+(``(--seed-offset + k) x 1000003`` up), taking turns at each checkpoint (so that they have the
+same points and ``--budget`` bounds them together; ``OUTDIR/mitsuba_s<k>_<spp>.npy``).  The result is
+``OUTDIR/mitsuba.json`` (``points``: the first curve's, ``seed_points``: every curve's).
 
     python pyopencl_rt/bench/mitsuba_runner.py SCENE.npz OUTDIR --serve --warmup-spp 64 [--variant ...]
 
@@ -57,7 +60,8 @@ def main(argv=None):
     parser.add_argument("--variant", default="llvm_ad_rgb")
     parser.add_argument("--budget", type=float, default=None, help="stop before a batch that would start after this")
     parser.add_argument("--max-samples-per-call", type=int, default=1 << 22)
-    parser.add_argument("--seed-offset", type=int, default=0)
+    parser.add_argument("--seed-offset", type=int, default=0, help="the first curve's batch seeds: this x 1000003 up")
+    parser.add_argument("--seeds", type=int, default=1, help="curves, each with seeds of its own (the next offset)")
     parser.add_argument("--sampler", default="independent", help="Mitsuba's sampler plugin")
     parser.add_argument("--serve", action="store_true", help="time a render of each stdin line's spp")
     parser.add_argument("--warmup-spp", type=int, default=1, help="with --serve: the untimed first render's spp")
@@ -88,52 +92,16 @@ def main(argv=None):
                                    "load_seconds": load_seconds, "import_seconds": t_loaded - t_import})
 
     start = time.perf_counter()
-    image = mi.render(scene, spp=1, seed=0xFFFF0000 + args.seed_offset)
+    image = mi.render(scene, spp=1, seed=(0xFFFF0000 + args.seed_offset) & 0xFFFFFFFF)
     np.asarray(image)
     warmup = time.perf_counter() - start
 
     checkpoints = sorted({int(value) for value in args.checkpoints.split(",") if value.strip()})
     per_call = max(1, args.max_samples_per_call // pixels)
-    accumulated = np.zeros((int(settings["height"]), int(settings["width"]), 3), np.float64)
-    done = 0
-    seconds = 0.0
-    seed = args.seed_offset * 1000003
-    results = []
-    sampler = scene.sensors()[0].sampler()
-    spent = 0.0  # every render of a stratifying sampler so far: the budget bounds them together
-    for target in checkpoints:
-        stop = False
-        if args.sampler != "independent":  # one stratified render per checkpoint
-            sampler.set_sample_count(target)
-            target = int(sampler.sample_count())  # what the sampler renders: it may round up
-            if target < 2 * done:  # twice the samples of the render before, at least
-                continue
-            if args.budget is not None and done and spent + seconds * target / done > args.budget:
-                break
-            if target * pixels > STRATIFIED_CALL_FACTOR * args.max_samples_per_call:
-                break  # one call holds every sample of the render in memory
-            start = time.perf_counter()
-            accumulated = np.asarray(mi.render(scene, spp=target, seed=seed), np.float64)[..., :3] * target
-            seconds = time.perf_counter() - start
-            spent += seconds
-            done, seed = target, seed + 1
-        while done < target:
-            if args.budget is not None and seconds >= args.budget:
-                stop = True
-                break
-            batch = min(per_call, target - done)
-            start = time.perf_counter()
-            image = mi.render(scene, spp=batch, seed=seed)
-            batch_image = np.asarray(image, np.float64)[..., :3]
-            seconds += time.perf_counter() - start
-            accumulated += batch_image * batch
-            done += batch
-            seed += 1
-        if stop:
-            break
-        path = os.path.join(args.outdir, f"mitsuba_{target}.npy")
-        np.save(path, (accumulated / done).astype(np.float32))
-        results.append({"spp": target, "seconds": seconds, "image": path})
+    shape = (int(settings["height"]), int(settings["width"]), 3)
+    seeds = max(1, args.seeds)
+    seed_points = curves(scene, mi, np, args, checkpoints, seeds, per_call, pixels, shape)
+    results = seed_points[0]
     info = {
         "renderer": "mitsuba", "version": mi.__version__, "drjit_version": dr.__version__,
         "variant": args.variant, "import_seconds": t_loaded - t_import,
@@ -141,11 +109,72 @@ def main(argv=None):
         "max_depth": settings["max_depth"], "rr_depth": settings["rr_depth"], "width": settings["width"],
         "height": settings["height"],
         "samples_per_call": per_call, "sampler": args.sampler,
+        "seeds": seeds, "seed_offset": args.seed_offset,
+        "seed_points": seed_points,
     }
     with open(os.path.join(args.outdir, "mitsuba.json"), "w") as fh:
         json.dump(info, fh, indent=2)
     print(json.dumps({"ok": True, "points": len(results)}))
     return 0
+
+
+def curves(scene, mi, np, args, checkpoints, seeds, per_call, pixels, shape) -> list[list[dict]]:
+    """``seeds`` curves taking turns: at each checkpoint every curve renders up to it (curve k with
+    the batch seeds ``(--seed-offset + k) x 1000003`` up), so that they have the same points and
+    ``--budget`` bounds all their renders together.  A point per curve and checkpoint: the image
+    ``OUTDIR/mitsuba_<spp>.npy`` (the first curve's, named as before seeds) or
+    ``mitsuba_s<k>_<spp>.npy``, and the curve's render time so far (a stratifying sampler's: that
+    render's alone)."""
+    stratified = args.sampler != "independent"
+    accumulated = [np.zeros(shape, np.float64) for _ in range(seeds)]
+    seed = [(args.seed_offset + k) * 1000003 for k in range(seeds)]
+    seconds = [0.0] * seeds  # independent: each curve's render time so far; stratifying: its last render's
+    spent = 0.0  # every render of every curve so far: what the budget bounds
+    done = 0
+    points = [[] for _ in range(seeds)]
+    sampler = scene.sensors()[0].sampler()
+    for checkpoint in checkpoints:
+        target = checkpoint
+        if stratified:  # one render per checkpoint and curve
+            sampler.set_sample_count(target)
+            target = int(sampler.sample_count())  # what the sampler renders: it may round up
+            if target < 2 * done:  # twice the samples of the render before, at least
+                continue
+            if target * pixels > STRATIFIED_CALL_FACTOR * args.max_samples_per_call:
+                break  # one call holds every sample of the render in memory
+            # the next renders from the last ones' median: the first render of a new sample count
+            # also pays Dr.Jit's compilation of its kernels
+            projected = spent + seeds * sorted(seconds)[seeds // 2] * target / done if done else 0.0
+        else:
+            projected = spent * target / done if done else 0.0
+        if args.budget is not None and projected > args.budget:
+            break
+        for k in range(seeds):
+            if stratified:
+                start = time.perf_counter()
+                image = mi.render(scene, spp=target, seed=seed[k] & 0xFFFFFFFF)  # Mitsuba's seed: 32 bits
+                accumulated[k] = np.asarray(image, np.float64)[..., :3] * target
+                seconds[k] = time.perf_counter() - start
+                spent += seconds[k]
+                seed[k] += 1
+            else:
+                have = done
+                while have < target:
+                    batch = min(per_call, target - have)
+                    start = time.perf_counter()
+                    image = mi.render(scene, spp=batch, seed=seed[k] & 0xFFFFFFFF)
+                    batch_image = np.asarray(image, np.float64)[..., :3]
+                    elapsed = time.perf_counter() - start
+                    seconds[k] += elapsed
+                    spent += elapsed
+                    accumulated[k] += batch_image * batch
+                    have += batch
+                    seed[k] += 1
+            path = os.path.join(args.outdir, f"mitsuba_{target}.npy" if k == 0 else f"mitsuba_s{k}_{target}.npy")
+            np.save(path, (accumulated[k] / target).astype(np.float32))
+            points[k].append({"spp": target, "seconds": seconds[k], "image": path})
+        done = target
+    return points
 
 
 def serve(scene, args, info) -> int:

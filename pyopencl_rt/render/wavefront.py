@@ -191,6 +191,15 @@ class Wavefront:
         self.next_sample = 0  # linear index pass * P + pixel of the next sample to start
         self.oldest_pass = 0  # the first pass not yet added to the film
 
+    def reseed(self, seed: int) -> None:
+        """Render the following passes with ``seed`` (the 32-bit key of the samplers and RNG): the
+        images of a Wavefront built with that seed, without building one (the convergence
+        benchmark averages its curves over seeds).  Between runs only: every run returns drained."""
+        from dataclasses import replace
+
+        self.settings = replace(self.settings, seed=validate.seed(seed))
+        self.args.bind(seed=self.settings.seed)
+
     def description(self) -> dict:
         """What the sidecar records of this engine (a Dask worker sends the same back)."""
         return {

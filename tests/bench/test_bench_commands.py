@@ -276,40 +276,73 @@ def test_bench_render_mitsuba_that_fails_is_one_line(tmp_path, capsys):
 def test_bench_set_best_mitsuba_sampler_and_rows():
     """Mitsuba's best sampler is the one that reached the target soonest (a measured time before
     any extrapolated one); each row joins the render bench's summary with its scene's times, and
-    the time ratio from each curve's spp to the target and the ratio of samples/s in turns."""
+    the time ratio from each curve's spp to the target and the ratio of samples/s in turns.  The
+    curves are exact, relMSE = c / N, so each time is c / 1e-3 spp times the seconds per spp; a
+    curve of two seeds is estimated on their mean, with a standard error and the seeds' range."""
     from pyopencl_rt.bench.bench_set import convergence_summary, set_rows
+    from pyopencl_rt.bench.convergence_analysis import spp_schedule
 
-    def curve(renderer, sampler, seconds, extrapolated=False, rate=100.0):
-        return {"label": f"{renderer} {sampler}", "renderer": renderer, "sampler": sampler,
-                "points": [{"spp": 4, "seconds": 1.0, "samples_per_second": rate}],
-                "time_to_relmse": {"0.001": {"seconds": seconds, "extrapolated": extrapolated}}}
+    def points(c, per_spp, max_spp):
+        return [{"spp": n, "seconds": n * per_spp, "relmse": c / n, "samples_per_second": 10 / per_spp}
+                for n in spp_schedule(max_spp)]
 
-    result = {"scene": "s.toml", "width": 2, "height": 5, "reference": {"spp": 64, "floor": {"relmse": 1e-5}},
-              "curves": [curve("pyopencl_rt", "sobol", 3.0), curve("mitsuba", "independent", 5.0),
-                         curve("mitsuba", "multijitter", 4.0, rate=50.0), curve("mitsuba", "ldsampler", 0.5, True),
-                         curve("mitsuba", "stratified", 4.5, rate=20.0), curve("mitsuba", "orthogonal", None)]}
+    def curve(renderer, sampler, c, per_spp=0.01, max_spp=1024, seeds=None):
+        out = {"label": f"{renderer} {sampler}", "renderer": renderer, "sampler": sampler,
+               "points": points(c, per_spp, max_spp) if c else []}
+        if seeds:
+            out["seed_curves"] = [{"seed": k, "points": points(ck, per_spp, max_spp)} for k, ck in enumerate(seeds)]
+        return out
+
+    # a reference floor small enough to change none of the times (its part: tests/bench/test_seed_estimate.py)
+    result = {"scene": "s.toml", "width": 2, "height": 5, "reference": {"spp": 64, "floor": {"relmse": 1e-9}},
+              "curves": [curve("pyopencl_rt", "sobol", 0.3), curve("mitsuba", "independent", 0.5),
+                         curve("mitsuba", "multijitter", 0.2, per_spp=0.02),
+                         curve("mitsuba", "ldsampler", 0.05, max_spp=16),  # 50 spp, beyond its 16: extrapolated
+                         curve("mitsuba", "stratified", 0.09, per_spp=0.05), curve("mitsuba", "orthogonal", None)]}
     summary = convergence_summary(result, "s.json")
     assert summary["ours"]["sampler"] == "sobol" and summary["mitsuba_best"]["sampler"] == "multijitter"
-    assert summary["ours"]["spp_to_target"] == 30.0 and summary["mitsuba_best"]["spp_to_target"] == 20.0
-    assert summary["mitsuba_fewest_spp"]["sampler"] == "stratified"  # 9 spp; ldsampler's 5 are extrapolated
+    assert summary["ours"]["spp_to_target"] == pytest.approx(300, rel=1e-3)
+    assert summary["mitsuba_best"]["spp_to_target"] == pytest.approx(200, rel=1e-3)
+    assert summary["mitsuba_fewest_spp"]["sampler"] == "stratified"  # 90 spp; ldsampler's 50 are extrapolated
+    assert summary["ours"]["seeds"] == 1 and summary["ours"]["time_to_target_se"] is None
+    ld = next(c for c in summary["curves"] if c["sampler"] == "ldsampler")
+    assert ld["extrapolated"] and ld["spp_to_target"] == pytest.approx(50, rel=1e-3)
     summary_only_guesses = convergence_summary({**result, "curves": result["curves"][:1] + [
-        curve("mitsuba", "independent", 9.0, True), curve("mitsuba", "stratified", 7.0, True)]}, "s.json")
+        curve("mitsuba", "independent", 9.0, max_spp=64), curve("mitsuba", "stratified", 7.0, max_spp=64)]}, "s.json")
     assert summary_only_guesses["mitsuba_best"]["sampler"] == "stratified"
     render_row = {"scene": "s.toml", "variant": "cpu", "samples_per_second": 2e6, "mitsuba_samples_per_second": 1e6,
                   "ratio_to_mitsuba": 2.1, "lanes": 8, "lanes_reason": "8 lanes"}
     (row,) = set_rows([render_row], [summary])
     assert row["ratio_to_mitsuba"] == 2.1 and row["lanes"] == 8
-    assert (row["time_to_target"], row["mitsuba_time_to_target"]) == (3.0, 4.0)
+    assert (row["time_to_target"], row["mitsuba_time_to_target"]) == (pytest.approx(3.0, rel=1e-3),
+                                                                      pytest.approx(4.0, rel=1e-3))
     assert row["mitsuba_best_sampler"] == "multijitter" and row["mitsuba_time_over_ours"] == pytest.approx(4 / 3)
-    # in turns: the sampler that needed fewest spp (stratified, 9) against our 30, times our 2.1x speed
+    # in turns: the sampler that needed fewest spp (stratified, 90) against our 300, times our 2.1x speed
     assert row["mitsuba_fewest_spp_sampler"] == "stratified"
-    assert row["mitsuba_time_over_ours_interleaved"] == pytest.approx(9 / 30 * 2.1)
+    assert row["mitsuba_time_over_ours_interleaved"] == pytest.approx(90 / 300 * 2.1, rel=1e-3)
+    assert row["mitsuba_time_over_ours_se"] is None  # one seed: no spread to tell
+    # seeds: ours from two seeds of c 0.2 and 0.4 (mean 0.3), Mitsuba's multijitter from 0.1 and 0.3
+    seeded = {**result, "seeds": 2, "curves": [curve("pyopencl_rt", "sobol", 0.3, seeds=[0.2, 0.4]),
+                                               curve("mitsuba", "multijitter", 0.2, per_spp=0.02, seeds=[0.1, 0.3])]}
+    summary = convergence_summary(seeded, "s.json")
+    ours = summary["ours"]
+    assert ours["seeds"] == 2 and ours["spp_to_target"] == pytest.approx(300, rel=1e-3)
+    assert ours["spp_to_target_range"] == [pytest.approx(200, rel=1e-3), pytest.approx(400, rel=1e-3)]
+    assert ours["relmse_x_spp_per_seed"] == [pytest.approx(0.2, rel=1e-3), pytest.approx(0.4, rel=1e-3)]
+    assert 0 < ours["spp_to_target_se"] < 200 and ours["time_to_target_se"] == pytest.approx(ours["spp_to_target_se"]
+                                                                                             * 0.01, rel=1e-6)
+    (row,) = set_rows([render_row], [summary])
+    assert row["seeds"] == 2 and row["mitsuba_time_over_ours"] == pytest.approx(4 / 3, rel=1e-3)
+    theirs = summary["mitsuba_best"]
+    assert row["mitsuba_time_over_ours_se"] == pytest.approx(4 / 3 * math.hypot(
+        theirs["time_to_target_se"] / 4.0, ours["time_to_target_se"] / 3.0), rel=1e-3)
+    assert row["mitsuba_time_over_ours_interleaved_se"] > 0
 
 
 def test_bench_set_end_to_end(tmp_path, monkeypatch, capsys):
-    """One tiny scene through the whole set (Mitsuba's scalar variant, two of its samplers): the
-    row has our and Mitsuba's samples/s, the ratio, the lanes and the times, and the scene's
-    convergence JSON is written beside the set's."""
+    """One tiny scene through the whole set (Mitsuba's scalar variant, two of its samplers, two
+    seeds): the row has our and Mitsuba's samples/s, the ratio, the lanes and the times, and the
+    scene's convergence JSON is written beside the set's, with each seed's curve."""
     pytest.importorskip("mitsuba")
     from pyopencl_rt.bench import render
 
@@ -318,16 +351,28 @@ def test_bench_set_end_to_end(tmp_path, monkeypatch, capsys):
     out = tmp_path / "set.json"
     main(["bench", "set", "scenes/mitsuba-cbox.toml", "--device", "cpu", "--size", "8", "--spp", "1", "--repeat", "2",
           "--error-size", "8", "--budget", "4", "--reference-spp", "64", "--mitsuba-sampler", "independent,stratified",
-          "--mitsuba-variant", "scalar_rgb", "--json", str(out)])
+          "--seeds", "2", "--mitsuba-variant", "scalar_rgb", "--json", str(out)])
     data = json.loads(out.read_text())
     assert data["schema"] == "pyopencl_rt.bench_set/1" and data["target_relmse"] == 1e-3
     (row,) = data["rows"]
     assert row["scene"] == "scenes/mitsuba-cbox.toml" and row["lanes"] >= 1
     assert finite_positive(row["samples_per_second"]) and finite_positive(row["mitsuba_samples_per_second"])
     assert finite_positive(row["ratio_to_mitsuba"])
+    assert row["seeds"] == 2 and data["settings"]["seeds"] == 2
     (conv,) = data["convergence"]
     assert {c["sampler"] for c in conv["curves"] if c["renderer"] == "mitsuba"} == {"independent", "stratified"}
-    assert json.loads((tmp_path / "set-mitsuba-cbox.json").read_text())["scene"] == "scenes/mitsuba-cbox.toml"
+    curves = json.loads((tmp_path / "set-mitsuba-cbox.json").read_text())
+    assert curves["scene"] == "scenes/mitsuba-cbox.toml" and curves["seeds"] == 2
+    # every curve, ours and each of Mitsuba's samplers, rendered twice with different seeds: the
+    # renders differ at every spp they share, and the curve's points are their mean
+    assert {c["renderer"] for c in curves["curves"]} == {"pyopencl_rt", "mitsuba"}
+    for curve in curves["curves"]:
+        first, second = (run["points"] for run in curve["seed_curves"])
+        assert curve["points"], curve["label"]
+        for i, point in enumerate(curve["points"]):
+            assert first[i]["spp"] == second[i]["spp"] == point["spp"]
+            assert first[i]["relmse"] != second[i]["relmse"], (curve["label"], point["spp"])
+            assert point["relmse"] == pytest.approx((first[i]["relmse"] + second[i]["relmse"]) / 2)
     lines = capsys.readouterr().out.splitlines()
     header = max(i for i, line in enumerate(lines) if line.startswith("scene ") and "t Mitsuba s" in line)
     assert lines[header + 1].split()[0] == "scenes/mitsuba-cbox.toml"
