@@ -6,18 +6,10 @@ import sys
 
 import click
 
+from .cli_options import check_json, comma_list, device_option, mitsuba_options, parse_intersectors, seed_options
 from .errors import LOGGER, UsageError, UserError
 
 CONTEXT_SETTINGS = {"help_option_names": ["-h", "--help"]}
-
-
-def device_option(f):
-    """``--device``, shared by every command (repeatable, or comma-separated)."""
-    return click.option(
-        "--device", "-d", "device", multiple=True, metavar="SPEC",
-        help="cpu, gpu, all, P:D (index or name substring, as in PYOPENCL_CTX), or a name substring; "
-        "repeatable. Default: $PYOPENCL_CTX, else the first GPU, else the PoCL CPU device.",
-    )(f)
 
 
 @click.group(context_settings=CONTEXT_SETTINGS)
@@ -306,23 +298,12 @@ def bench_rays(device, sizes, n_rays, repeat, no_embree, json_path, layout, embr
 
     groups = {"both": ("binary", "wide"), "all": ("binary", "wide", "wide8")}
     sizes = parse_sizes(sizes)
-    _check_json(json_path)
+    check_json(json_path)
     run_ray_bench(
         devices=list(device) or None, sizes=sizes, n_rays=n_rays, repeat=repeat,
         embree=not no_embree, json_path=json_path, echo=click.echo,
         layouts=None if layout is None else groups.get(layout, (layout,)), embree_threads=embree_threads,
     )
-
-
-def mitsuba_options(f):
-    """Where Mitsuba 3 and the libLLVM of its llvm_* variants are (nothing is guessed), and the variant."""
-    f = click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)(f)
-    f = click.option("--llvm-path", type=click.Path(dir_okay=False),
-                     help="libLLVM shared library for the llvm_* variants [default: $DRJIT_LIBLLVM_PATH, "
-                     "else Dr.Jit's own search].")(f)
-    f = click.option("--mitsuba-python", type=click.Path(dir_okay=False),
-                     help="Interpreter that imports mitsuba [default: $PYOPENCL_RT_MITSUBA_PYTHON, else this one].")(f)
-    return f
 
 
 @bench.command("render")
@@ -353,35 +334,12 @@ def bench_render(scene_paths, device, width, height, spp, max_depth, repeat, wav
     intersectors = parse_intersectors(intersector)
     kernel_modes = comma_list(kernel_mode, ("auto", "wavefront", "megakernel"), "kernel mode")
     samplers = comma_list(sampler, SAMPLERS, "sampler") if sampler is not None else [None]
-    _check_json(json_path)
+    check_json(json_path)
     options = dict(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=mitsuba_variant) if mitsuba else None
     run_render_bench(list(scene_paths) or ["scenes/cornell-box.toml"], devices=list(device) or None, width=width,
                      height=height, spp=spp, max_depth=max_depth, repeat=repeat, wave_size=wave_size, intersectors=intersectors,
                      kernel_modes=kernel_modes, mitsuba=options, json_path=json_path, samplers=samplers,
                      echo=click.echo)
-
-
-def _check_json(json_path) -> None:
-    """A benchmark's --json file must be writable before the benchmark runs (minutes of it)."""
-    from . import validate
-
-    if json_path is not None:
-        validate.writable_file(json_path, "JSON file")
-
-
-def comma_list(text, allowed, what):
-    """'a,b' -> ["a", "b"], refusing a name not in ``allowed`` with one line that lists them."""
-    names = [name.strip() for name in text.split(",") if name.strip()]
-    for name in names:
-        if name not in allowed:
-            raise UsageError(f"unknown {what} {name!r}: use one or more of {', '.join(allowed)}")
-    return names
-
-
-def parse_intersectors(text):
-    from .render.intersectors import INTERSECTORS
-
-    return comma_list(text, INTERSECTORS, "intersector")
 
 
 @bench.command("bvh")
@@ -399,7 +357,7 @@ def bench_bvh(sizes, kinds, sweep_size, repeat, check, json_path):
     from .bench.workloads import MESH_KINDS, parse_sizes
 
     sizes, kinds = parse_sizes(sizes), comma_list(kinds, MESH_KINDS, "mesh kind")
-    _check_json(json_path)
+    check_json(json_path)
     run_bvh_bench(sizes=sizes, kinds=kinds, sweep_size=sweep_size, repeat=repeat, check=check,
                   json_path=json_path, echo=click.echo)
 
@@ -421,7 +379,7 @@ def bench_materials(device, scenes_dir, pairs, width, height, spp, repeat, json_
     from .bench.materials import PAIRS, run_materials_bench
 
     pairs = comma_list(pairs, PAIRS, "pair")
-    _check_json(json_path)
+    check_json(json_path)
     run_materials_bench(devices=list(device) or None, scenes_dir=scenes_dir, pairs=pairs,
                         width=width, height=height, spp=spp, repeat=repeat, json_path=json_path, echo=click.echo)
 
@@ -434,7 +392,7 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, mitsuba_variant, spp, j
     """Samples/s of Mitsuba 3 on its own Cornell box (mi.cornell_box()), for scale beside ours."""
     from .bench.mitsuba_host import parse_spps, run_mitsuba_cornell_box
 
-    _check_json(json_path)
+    check_json(json_path)
     run_mitsuba_cornell_box(mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=mitsuba_variant,
                             spps=parse_spps(spp), json_path=json_path, echo=click.echo)
 
@@ -462,10 +420,7 @@ def bench_mitsuba_cornell_box(mitsuba_python, llvm_path, mitsuba_variant, spp, j
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="PNG plot (default: the JSON path with .png).")
 @click.option("--denoise", is_flag=True, help="Beside each of our curves, its Open Image Denoise curve (needs the "
               "denoise extra): where denoising stops helping.")
-@click.option("--seeds", default=1, show_default=True, type=click.IntRange(min=1),
-              help="Renders of each curve, a seed each, sharing its budget; its points are their mean.")
-@click.option("--first-seed", default=0, show_default=True, type=click.IntRange(0, 2**31),
-              help="Seeds from this one on (ours 1 + it + k, Mitsuba's offset it + k).")
+@seed_options(1)
 def bench_convergence(scene_path, device, integrator, intersector, sampler, adaptive, reference, reference_spp, no_cache, budget,
                       width, height, max_depth, compare, mitsuba_python, llvm_path, mitsuba_variant, mitsuba_sampler,
                       json_path, plot_path, denoise, seeds, first_seed):
@@ -481,7 +436,7 @@ def bench_convergence(scene_path, device, integrator, intersector, sampler, adap
     from . import validate
 
     validate.number(budget, "--budget", positive=True)
-    _check_json(json_path)
+    check_json(json_path)
     if plot_path is not None:
         validate.writable_file(plot_path, "plot")
     run_convergence(scene_path, devices=list(device) or None, integrators=integrators, intersectors=intersectors,
@@ -513,7 +468,7 @@ def bench_samplers(device, sampler, compare, mitsuba_sampler, json_path, no_cach
     from .bench.samplers import MITSUBA_SAMPLERS, run_samplers
     from .scene.model import SAMPLERS
 
-    _check_json(json_path)
+    check_json(json_path)
     if len(device) > 1:
         raise UsageError("bench samplers renders on one device")
     run_samplers(samplers=comma_list(sampler, SAMPLERS, "sampler"), device=device[0] if device else None,
@@ -533,10 +488,7 @@ def bench_samplers(device, sampler, compare, mitsuba_sampler, json_path, no_cach
 @click.option("--reference-spp", default=16384, show_default=True, type=click.IntRange(min=2))
 @click.option("--mitsuba-sampler", "mitsuba_samplers", default="independent,stratified,multijitter,ldsampler,orthogonal",
               show_default=True, help="Mitsuba's samplers, a curve each: the best counts.")
-@click.option("--seeds", default=4, show_default=True, type=click.IntRange(min=1),
-              help="Renders of each curve, a seed each, sharing its budget: the relMSE is their mean.")
-@click.option("--first-seed", default=0, show_default=True, type=click.IntRange(0, 2**31),
-              help="Seeds from this one on (ours 1 + it + k, Mitsuba's offset it + k): another run, other seeds.")
+@seed_options(4)
 @mitsuba_options
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
 def bench_set(scene_paths, device, json_path, **options):
@@ -550,7 +502,7 @@ def bench_set(scene_paths, device, json_path, **options):
     its standard error over the seeds (+-), so that a difference within it reads as noise."""
     from .bench.bench_set import DEFAULT_SCENES, run_bench_set
 
-    _check_json(json_path)
+    check_json(json_path)
     run_bench_set(list(scene_paths) or DEFAULT_SCENES, devices=list(device) or None, json_path=json_path,
                   echo=click.echo, **options)
 

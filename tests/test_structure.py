@@ -15,7 +15,7 @@ LAYERS = [
     {"scene"},
     {"render", "trace"},  # trace: the ray-casting API (accel + device), which bench times
     {"bench"},
-    {"cli", "__init__"},
+    {"cli", "cli_options", "__init__"},
 ]
 MAX_LINES = 600
 

@@ -14,8 +14,9 @@ import numpy as np
 
 from ..model import (DirectionalLight, Environment, PixelFilter, PointLight, ProjectorLight, RenderSettings,
                      SpotLight)
-from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cube_mesh, cylinder_mesh, error_at, mitsuba_disk_mesh,
-                      mitsuba_sphere_mesh, rectangle_mesh, transform_points, transform_vector, vertical_fov)
+from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cylinder_mesh, error_at, rectangle_mesh,
+                      transform_points, transform_vector, vertical_fov)
+from .mitsuba_meshes import mitsuba_cube_mesh, mitsuba_disk_mesh, mitsuba_sphere_mesh
 from ..media import MediumInterface
 from .mitsuba_bsdf import BsdfMapper, color_value
 from .mitsuba_instances import instance, shapegroup
@@ -316,7 +317,7 @@ class _Importer:
         elif t == "rectangle":
             v, f, uv = rectangle_mesh()
         elif t == "cube":
-            v, f, uv = cube_mesh()
+            v, f, uv = mitsuba_cube_mesh()
         elif t == "disk":
             v, f, uv = mitsuba_disk_mesh()
         elif t == "cylinder":
