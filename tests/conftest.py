@@ -11,6 +11,7 @@ through the ``measured`` fixture) to PATH, and as markdown next to it (``make st
 docs/bench/stress.json and stress.md).
 """
 import json
+import os
 import shlex
 import time
 from collections import Counter
@@ -20,6 +21,13 @@ import numpy as np
 import pytest
 
 from pyopencl_rt.device import devices as dv
+from pyopencl_rt.render.settings import FEATURES_ENV
+
+# Every feature compiled into each kernel (render/settings.py, EVERY_FEATURE): the suite's scenes
+# then share a few dozen programs instead of building one per feature set (most of its CPU time
+# on a fresh machine).  tests/render/test_features.py checks that this changes no image bit;
+# ``PYOPENCL_RT_KERNEL_FEATURES=scene make test`` runs the suite with each scene's own kernel.
+os.environ.setdefault(FEATURES_ENV, "all")
 
 
 def pytest_generate_tests(metafunc):
@@ -38,6 +46,12 @@ def runtime(device):
     from pyopencl_rt.device.kernels import runtime as rt
 
     return rt(device)
+
+
+@pytest.fixture
+def own_features(monkeypatch):
+    """Kernels with only what each scene uses, as users get them (the suite's default: every feature)."""
+    monkeypatch.setenv(FEATURES_ENV, "scene")
 
 
 @pytest.fixture

@@ -149,7 +149,7 @@ __kernel void mk_path(WAVE_PARAMS)
         hit &= pnot(scattered | crossed) & (pv3_max3(s.beta) > 0.0f);
 #endif
 #ifdef HAS_ENVIRONMENT
-        path_escape(lights, env_map, env_cdf, integrator, escaped, &s);
+        path_escape(lights, env_light, env_map, env_cdf, integrator, escaped, &s);
 #endif
         pint goes_on, with_shadow;
         ShadowRay shadow;

@@ -51,7 +51,7 @@
  *                pyopencl_rt/render/lights.py weighs a cell by the interpolated luminance over it,
  *                never 0 where the radiance is not), pdf_solid_angle = p(u, v) / (2 pi^2 sin t).
  *                There is one environment light: every lane whose light is LIGHT_ENVIRONMENT
- *                names the same record (lights + ENV_LIGHT).
+ *                names the same record (lights + env_light).
  *
  * Infinitely distant lights (directional, environment) set ls->far > 0: ls->n is then the unit
  * direction toward the light and the shadow ray runs far enough along it to leave the scene's

@@ -143,10 +143,11 @@ RT_INLINE void path_start(PathState *s, pint m, pvec3 o, pvec3 d)
 
 #ifdef HAS_ENVIRONMENT
 /* The environment seen by the lanes of `missed`, whose rays left the scene. */
-RT_INLINE void path_escape(__global const Light *lights, __global const float *env_map,
+RT_INLINE void path_escape(__global const Light *lights, int env_light, __global const float *env_map,
                            __global const float *env_cdf, int integrator, pint missed, PathState *s)
 {
-    __global const Light *lt = lights + ENV_LIGHT;
+    if (env_light < 0) return; /* compiled in, but this scene has no environment */
+    __global const Light *lt = lights + env_light;
     const pvec3 Le = env_radiance(lt, env_map, s->d);
     const pint seen = missed & (pv3_max3(Le) > 0.0f);
     if (!pany(seen)) return;

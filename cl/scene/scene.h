@@ -147,7 +147,7 @@ RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const f
         *v = again ? v2 : *v;
         again = cutout_lanes(tri_material, materials, tri_uv, textures, tex_data, again, *prim, *u, *v, o, d);
     }
-    *t = live & (*prim == PRIM_MISS) ? PFLOAT(INFINITY) : *t;
+    *t = (live & (*prim == PRIM_MISS)) ? PFLOAT(INFINITY) : *t;
 #endif
 #endif
 #endif

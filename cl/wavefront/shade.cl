@@ -53,7 +53,7 @@ __kernel void wf_shade(WAVE_PARAMS)
         }
 #ifdef HAS_ENVIRONMENT
         else {
-            path_escape(lights, env_map, env_cdf, integrator, PTRUE, &s);
+            path_escape(lights, env_light, env_map, env_cdf, integrator, PTRUE, &s);
         }
 #endif
         store3(radiance, slot, pv3_lane(s.L, 0));

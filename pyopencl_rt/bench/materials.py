@@ -75,6 +75,10 @@ def run_materials_bench(devices=None, scenes_dir="scenes", pairs=tuple(PAIRS), w
     from ..errors import UserError
     from ..scene.loaders import load_scene
 
+    from ..render.settings import FEATURES_ENV, every_feature
+
+    if every_feature():  # both variants would run one and the same program
+        raise UserError(f"bench materials times the kernels of each variant's own features: unset ${FEATURES_ENV}")
     chosen = device_registry.resolve(devices)
     if len(chosen) != 1:
         raise UserError(f"bench materials times one device, and --device selected {len(chosen)}: pick one")

@@ -539,6 +539,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("max_depth", "scalar", "int", "path segments, < 0 for no limit"),
     Param("rr_depth", "scalar", "int", "segments before Russian roulette"),
     Param("integrator", "scalar", "int", "INTEGRATOR_MIS, _BSDF (BSDF sampling only) or _NEE (light sampling only)"),
+    Param("env_light", "scalar", "int", "the environment light's row in the light table, -1 if none"),
     Param("seed", "scalar", "uint"),
     # per-stage scalars (each stage reads the ones its .cl file names)
     Param("n_items", "scalar", "int", "work-items with work: new paths, or active paths", launch=True),

@@ -144,8 +144,40 @@ def check_run(spp=None, time_limit=None) -> None:
         validate.number(time_limit, "--time-limit", positive=True)
 
 
+# $PYOPENCL_RT_KERNEL_FEATURES=all: one program for every scene of a schedule, width, sampler and
+# integrator (EVERY_FEATURE below compiled in, whether the scene uses it or not): no new build
+# when a scene gains a texture or a light type, at the price of a longer first build.  The image
+# is the same bit for bit (tests/render/test_features.py); the test suite runs so.
+FEATURES_ENV = "PYOPENCL_RT_KERNEL_FEATURES"
+# The defines that only gate code the scene's data selects at run time (a material's type and
+# flags, a light's kind, n_spheres, env_light).  HAS_TRIANGLES (the BVH), HAS_LIGHTS (next-event
+# estimation), HAS_MEDIA (the volumetric integrator) and HAS_AOVS (a setting) stay the scene's.
+EVERY_FEATURE = ("HAS_SPHERES", "HAS_TEXTURES", "HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS",
+                 "HAS_CUTOUTS", "HAS_ANISOTROPY", "HAS_DELTA_LIGHTS", "HAS_ENVIRONMENT", "HAS_INFINITE_LIGHTS")
+
+
+def every_feature() -> bool:
+    """Whether $PYOPENCL_RT_KERNEL_FEATURES asks for every feature ("all"; "scene", the default:
+    only what the scene uses)."""
+    import os
+
+    value = os.environ.get(FEATURES_ENV, "scene").strip().lower() or "scene"
+    if value not in ("all", "scene"):
+        raise UsageError(f"${FEATURES_ENV} must be 'scene' or 'all', not {value!r}")
+    return value == "all"
+
+
+def environment_row(lights: np.ndarray) -> int:
+    """The environment light's row in the light table (the kernels' env_light), -1 if none."""
+    rows = np.flatnonzero(lights["kind"] == abi.LIGHT_ENVIRONMENT) if len(lights) else ()
+    if len(rows) > 1:
+        raise ValueError("at most one environment light")
+    return int(rows[0]) if len(rows) else -1
+
+
 def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layout: str) -> dict:
-    """Every preprocessor define of the wavefront program: only what the scene uses is compiled.
+    """Every preprocessor define of the wavefront program: only what the scene uses is compiled
+    (or, with $PYOPENCL_RT_KERNEL_FEATURES=all, :data:`EVERY_FEATURE` too).
 
     ``lights`` is the light table of :func:`pyopencl_rt.render.lights.build_lights`,
     ``bvh_layout`` the node format the device traverses (:mod:`pyopencl_rt.accel.device_bvh`).
@@ -163,12 +195,8 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
         defines["HAS_LIGHTS"] = True  # next-event estimation
     if np.isin(kinds, (abi.LIGHT_POINT, abi.LIGHT_DIRECTIONAL, abi.LIGHT_SPOT, abi.LIGHT_PROJECTOR)).any():
         defines["HAS_DELTA_LIGHTS"] = True
-    environment = np.flatnonzero(kinds == abi.LIGHT_ENVIRONMENT)
-    if len(environment) > 1:
-        raise ValueError("at most one environment light")
-    if len(environment):
+    if environment_row(lights) >= 0:
         defines["HAS_ENVIRONMENT"] = True
-        defines["ENV_LIGHT"] = int(environment[0])  # its index in the light table
     if np.isin(kinds, (abi.LIGHT_DIRECTIONAL, abi.LIGHT_ENVIRONMENT)).any():
         defines["HAS_INFINITE_LIGHTS"] = True
     defines.update(layout_defines(bvh_layout))
@@ -178,6 +206,9 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
         defines["HAS_MEDIA"] = True  # the volumetric integrator (cl/render/volpath.h)
         if getattr(scene.settings, "spectral_mis", True) and any(m.chromatic() for m in scene.media):
             defines["SPECTRAL_MIS"] = True  # chromatic sigma_t: the balance heuristic over the channels
+    if every_feature():
+        defines = {k: v for k, v in defines.items() if not k.startswith("HAS_MATERIAL_") and k != "MATERIALS_SELECTED"}
+        defines.update(dict.fromkeys(EVERY_FEATURE, True))  # and every material type (no MATERIALS_SELECTED)
     return defines
 
 

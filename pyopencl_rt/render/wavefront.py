@@ -20,7 +20,7 @@ from ..accel.bvh import build_bvh
 from . import filters
 from .film import Film, RunStats
 from .lights import build_lights, environment_buffers
-from .settings import ImageSettings, feature_names, kernel_features
+from .settings import ImageSettings, environment_row, feature_names, kernel_features
 from ..scene.model import INTEGRATORS, Scene
 
 STAGES = ("generate", "extend", "shade", "shadow", "accumulate")  # cl/wavefront/<stage>.cl, kernel wf_<stage>
@@ -173,7 +173,7 @@ class Wavefront:
             pixel_list=scratch(4 * P),  # filled by run(pixels=) (adaptive sampling)
             n_spheres=len(scene.spheres), n_lights=self.n_lights, n_pixels=P, ring_size=self.ring_size,
             max_depth=self.settings.max_depth, rr_depth=self.settings.rr_depth, seed=self.settings.seed,
-            integrator=INTEGRATORS.index(self.settings.integrator),
+            integrator=INTEGRATORS.index(self.settings.integrator), env_light=environment_row(lights),
         )
         # the rest of the path state and queues, sized by the table, written by the kernels first
         # (the megakernel keeps them in registers: it gets placeholders)

@@ -48,7 +48,7 @@ def test_bench_bvh_without_sweep_and_unknown_kind(tmp_path, capsys):
     assert "unknown mesh kind 'cube'" in capsys.readouterr().err
 
 
-def test_bench_materials_tiny(tmp_path):
+def test_bench_materials_tiny(tmp_path, own_features):
     """Two pairs at 16x16, 1 spp: the ratio is the ratio of the medians, and variant b of the
     texture pair is compiled without textures (else it would time the same kernel twice)."""
     out = tmp_path / "materials.json"

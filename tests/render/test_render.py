@@ -152,7 +152,7 @@ def test_wave_size_does_not_change_the_image(device, cornell):
     assert np.array_equal(a, b)
 
 
-def test_only_used_features_are_compiled(device, cornell):
+def test_only_used_features_are_compiled(device, cornell, own_features):
     r = render_full(cornell, spp=1, device=device, width=8, height=8)
     assert "HAS_TRIANGLES" in r.info["features"] and "HAS_LIGHTS" in r.info["features"]
     assert "HAS_SPHERES" not in r.info["features"]
