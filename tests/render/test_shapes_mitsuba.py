@@ -40,14 +40,9 @@ def _uv_scene(tmp_path) -> str:
     body = "".join(f'<shape type="{t}">{params}{CHECKER}<transform name="to_world">{m}</transform></shape>'
                    for t, params, m in shapes)
     path = tmp_path / "shapes_uv.xml"
-    path.write_text(f"""<scene version="3.0.0">
-<integrator type="aov"><string name="aovs" value="a:albedo"/></integrator>
-<sensor type="perspective"><float name="fov" value="50"/>
-  <transform name="to_world"><lookat origin="0, 0, 9" target="0, 0, 0" up="0, 1, 0"/></transform>
-  <sampler type="independent"><integer name="sample_count" value="32"/></sampler>
-  <film type="hdrfilm"><integer name="width" value="{UV_W}"/><integer name="height" value="{UV_H}"/>
-    <rfilter type="box"/></film>
-</sensor>
+    sensor = harness.mitsuba_sensor("0, 0, 9", 50, UV_W, UV_H, spp=32,
+                                    integrator='<integrator type="aov"><string name="aovs" value="a:albedo"/></integrator>')
+    path.write_text(f"""<scene version="3.0.0">{sensor}
 <emitter type="constant"/>
 {body}</scene>
 """)
