@@ -350,7 +350,7 @@ def test_bench_set_end_to_end(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("PYOPENCL_RT_CACHE", str(tmp_path / "cache"))
     out = tmp_path / "set.json"
     main(["bench", "set", "scenes/mitsuba-cbox.toml", "--device", "cpu", "--size", "8", "--spp", "1", "--repeat", "2",
-          "--error-size", "8", "--budget", "4", "--reference-spp", "64", "--mitsuba-sampler", "independent,stratified",
+          "--error-size", "8", "--budget", "1", "--reference-spp", "64", "--mitsuba-sampler", "independent,stratified",
           "--seeds", "2", "--mitsuba-variant", "scalar_rgb", "--json", str(out)])
     data = json.loads(out.read_text())
     assert data["schema"] == "pyopencl_rt.bench_set/1" and data["target_relmse"] == 1e-3

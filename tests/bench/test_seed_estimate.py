@@ -155,7 +155,7 @@ def test_our_curve_over_seeds_renders_each_seed(device):
     scene = load_scene("scenes/cornell-box.toml")
     reference = render_full(scene, spp=64, device=device, seed=99, width=8, height=8, max_depth=3).image
     curve = run_curve(scene, device=device, integrator="path", intersector="opencl", width=8, height=8, max_depth=3,
-                      rr_depth=scene.settings.rr_depth, reference=reference, seconds=60.0, seeds=[1, 2, 3], echo=print)
+                      rr_depth=scene.settings.rr_depth, reference=reference, seconds=2.0, seeds=[1, 2, 3], echo=print)
     runs = curve["seed_curves"]
     assert [r["seed"] for r in runs] == [1, 2, 3] and curve["seeds"] == [1, 2, 3]
     spp = [p["spp"] for p in curve["points"]]
