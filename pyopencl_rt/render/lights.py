@@ -1,7 +1,10 @@
-"""The emitter table for next-event estimation: every emissive triangle and sphere, picked in
-proportion to its power (emitted radiance luminance x area x pi, x2 when two-sided), and the
-point, spot, projector, directional and environment lights.  Infinitely distant lights are
-picked as pbrt-v4's BVH light sampler picks them (:func:`selection_weights`)."""
+"""The emitter table for next-event estimation: every emissive triangle and sphere, and the point,
+spot, projector, directional and environment lights.  RenderSettings.light_sampler chooses how a
+light is picked: "power" in proportion to its power (emitted radiance luminance x area x pi, x2
+when two-sided), infinitely distant lights as pbrt-v4's BVH light sampler picks them
+(:func:`selection_weights`); "uniform" each emitter with probability sampling_weight / sum, split
+over its triangles by area (:func:`uniform_weights`: Mitsuba 3's rule).  The table's pmf is what
+the kernels divide by and weigh MIS with (cl/render/path.h), so either choice is unbiased."""
 from __future__ import annotations
 
 import math
@@ -10,6 +13,7 @@ import warnings
 import numpy as np
 
 from ..device import abi
+from ..scene.model import LIGHT_SAMPLERS
 from .sampling import fill_light_table
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 / sRGB primaries
@@ -74,8 +78,64 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return lights, tri_light, sphere_light
     if not (power > 0).any():  # only black lights (an environment map of zeros): any valid table
         power = np.ones(len(lights))
-    fill_light_table(lights, selection_weights(lights["kind"], power))
+    sampler = getattr(getattr(scene, "settings", None), "light_sampler", "power")
+    if sampler not in LIGHT_SAMPLERS:
+        raise ValueError(f"unknown light sampler {sampler!r}: use one of {', '.join(LIGHT_SAMPLERS)}")
+    if sampler == "uniform":
+        weights = uniform_weights(scene, bvh, lights, power)
+    else:
+        weights = selection_weights(lights["kind"], power)
+    fill_light_table(lights, weights)
     return lights, tri_light, sphere_light
+
+
+def uniform_weights(scene, bvh, lights, power) -> np.ndarray:
+    """Mitsuba 3's light picking (scene.cpp: an emitter by its sampling_weight; area.cpp and the
+    shape's sample_position: a point uniformly by area): each emitter gets weight sampling_weight,
+    shared by its triangles in proportion to their area.  An emitter is a Scene.face_emitters /
+    sphere_emitters index (a Mitsuba shape with an area emitter; weight Scene.emitter_weights), an
+    emissive triangle or sphere without one (each is an emitter, weight 1: pbrt-v4's "uniform"
+    sampler, whose triangles are lights one by one), or a point, spot, projector, directional or
+    environment light (its sampling_weight).  Lights that emit nothing (power 0) get weight 0:
+    unlike Mitsuba, no pick is spent on them (the estimate is the same, its variance lower)."""
+    n = len(lights)
+    kind = lights["kind"]
+    prim = lights["prim"].astype(np.int64)
+    group = np.full(n, -1, np.int64)  # the emitter index of each row (-1: a row by itself)
+    tri = np.nonzero(kind == abi.LIGHT_TRIANGLE)[0]
+    sph = np.nonzero(kind == abi.LIGHT_SPHERE)[0]
+    face_emitters = getattr(scene, "face_emitters", None)
+    if face_emitters is not None and len(tri):
+        group[tri] = np.asarray(face_emitters, np.int64)[np.asarray(bvh.prim_ids, np.int64)[prim[tri]]]
+    sphere_emitters = getattr(scene, "sphere_emitters", None)
+    if sphere_emitters is not None and len(sph):
+        group[sph] = np.asarray(sphere_emitters, np.int64)[prim[sph]]
+    table = np.asarray(list(getattr(scene, "emitter_weights", []) or []), np.float64)
+    weight = np.ones(n)
+    grouped = group >= 0
+    if grouped.any():
+        if group[grouped].max() >= len(table):
+            raise ValueError(f"an emitter index {int(group[grouped].max())} beyond the scene's "
+                             f"{len(table)} emitter weights")
+        weight[grouped] = table[group[grouped]]
+    n_area = len(tri) + len(sph)
+    others = [*(getattr(scene, "lights", []) or [])]
+    if getattr(scene, "environment", None) is not None:
+        others.append(scene.environment)
+    weight[n_area:] = [float(getattr(spec, "sampling_weight", 1.0)) for spec in others]
+    if not np.all(np.isfinite(weight)) or (weight < 0).any():
+        raise ValueError("light sampling weights must be finite and >= 0")
+    # an emitter's weight split over its rows by area (rows by themselves: their whole weight)
+    area = lights["area"].astype(np.float64)
+    share = np.ones(n)
+    if grouped.any():
+        ids, inverse = np.unique(group[grouped], return_inverse=True)
+        total = np.bincount(inverse, weights=area[grouped], minlength=len(ids))
+        share[grouped] = area[grouped] / total[inverse]
+    weights = np.where(np.asarray(power) > 0, weight * share, 0.0)
+    if not (weights > 0).any():  # every weight 0 (sampling_weight 0 everywhere): any valid table
+        weights = (np.asarray(power) > 0) * 1.0
+    return weights
 
 
 INFINITE_LIGHTS = (abi.LIGHT_DIRECTIONAL, abi.LIGHT_ENVIRONMENT)

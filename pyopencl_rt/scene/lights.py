@@ -13,6 +13,7 @@ class PointLight:
 
     position: tuple = (0.0, 0.0, 0.0)
     intensity: tuple = (1.0, 1.0, 1.0)
+    sampling_weight: float = 1.0  # its share of the picks with RenderSettings.light_sampler "uniform"
 
 
 @dataclass
@@ -22,6 +23,7 @@ class DirectionalLight:
 
     direction: tuple = (0.0, -1.0, 0.0)
     irradiance: tuple = (1.0, 1.0, 1.0)
+    sampling_weight: float = 1.0
 
 
 def look_at_frame(origin, target, up) -> np.ndarray:
@@ -63,6 +65,7 @@ class SpotLight:
     falloff: str = "mitsuba"
     texture: object = None
     to_world: np.ndarray | None = None
+    sampling_weight: float = 1.0
 
     def frame(self) -> np.ndarray:
         return _frame(self.to_world)
@@ -87,6 +90,7 @@ class ProjectorLight:
     fov: float = 45.0
     convention: str = "mitsuba"
     to_world: np.ndarray | None = None
+    sampling_weight: float = 1.0
 
     def frame(self) -> np.ndarray:
         return _frame(self.to_world)
@@ -110,3 +114,4 @@ class Environment:
     # at v = i / (H - 1), Mitsuba's envmap); texels are interpolated bilinearly
     rotation: np.ndarray | None = None
     rows: str = "centred"
+    sampling_weight: float = 1.0

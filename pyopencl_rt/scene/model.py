@@ -20,6 +20,7 @@ assert [INTEGRATORS.index(k) for k in ("path", "bsdf", "nee")] == [abi.INTEGRATO
                                                              abi.INTEGRATOR_NEE]  # the kernel argument
 # where the random numbers come from (cl/render/sampler.h), the default first
 SAMPLERS = ("sobol", "stratified", "independent")
+LIGHT_SAMPLERS = ("power", "uniform")  # RenderSettings.light_sampler (render/lights.py)
 assert set(SAMPLERS) == set(abi.SAMPLERS)
 # AOV layers a render can write beside the beauty (pyopencl_rt/render/aovs.py documents them)
 AOVS = ("albedo", "normal", "depth", "position", "variance", "spp")
@@ -328,6 +329,11 @@ class RenderSettings:
     # balance heuristic over the channels (Mitsuba's volpathmis, pbrt-v4) or by the hero channel's
     # pdf alone (Mitsuba's volpath)
     spectral_mis: bool = True
+    # how next-event estimation picks a light (render/lights.py, one of LIGHT_SAMPLERS): "power" in
+    # proportion to its power (pbrt-v4's "power"; its "bvh" maps here), "uniform" each emitter with
+    # probability sampling_weight / sum (Mitsuba 3's rule, pbrt-v4's "uniform"), an emitter's share
+    # split over its triangles by area
+    light_sampler: str = "power"
 
 
 @dataclass
@@ -385,6 +391,13 @@ class Scene:
     # True: the corner normals are used as given, not each made unit length: their lengths weigh the
     # interpolation (which the kernels normalise), as an unevenly scaled instance's normals need
     normals_as_given: bool = False
+    # emitters made of several primitives (a Mitsuba shape with an area emitter): per face and per
+    # sphere the index of its emitter (-1: none; None: all -1), and each emitter's sampling_weight
+    # (Mitsuba's).  With light_sampler "uniform" an emitter's faces share its pick probability by
+    # area; an emissive face or sphere without an emitter index is an emitter by itself, weight 1
+    face_emitters: np.ndarray | None = None
+    sphere_emitters: np.ndarray | None = None
+    emitter_weights: list = field(default_factory=list)
 
     def __post_init__(self):
         self.add_blended_materials()

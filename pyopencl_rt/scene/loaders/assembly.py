@@ -46,7 +46,7 @@ def checked_triangles(vertices, faces, face_materials, name):
 
 
 def triangle_scene(vertices, faces, face_materials, materials, name, uvs=None, normals=None, colors=None,
-                   face_interfaces=None, **scene_fields) -> Scene:
+                   face_interfaces=None, face_emitters=None, **scene_fields) -> Scene:
     """The Scene of these triangles (checked) with their materials (the default one if there are
     none), per-corner UVs, shading normals and colours, and medium interfaces (per face, or None);
     no camera yet."""
@@ -56,10 +56,13 @@ def triangle_scene(vertices, faces, face_materials, materials, name, uvs=None, n
     if face_interfaces is not None:
         keep = _finite_faces(vertices, np.asarray(faces, np.int64))
         face_interfaces = np.ascontiguousarray(np.asarray(face_interfaces, np.int32)[keep])
+    if face_emitters is not None:
+        keep = _finite_faces(vertices, np.asarray(faces, np.int64))
+        face_emitters = np.ascontiguousarray(np.asarray(face_emitters, np.int32)[keep])
     v32, f32, face_materials = checked_triangles(vertices, faces, face_materials, name)
     return Scene(vertices=v32, faces=f32, face_materials=face_materials, materials=materials or [Material()],
                  source=name, uvs=uvs, normals=flat_where_planar(v32, f32, normals), colors=colors,
-                 face_interfaces=face_interfaces, **scene_fields)
+                 face_interfaces=face_interfaces, face_emitters=face_emitters, **scene_fields)
 
 
 def flat_where_planar(vertices, faces, normals, tolerance: float = 1e-5):

@@ -267,12 +267,14 @@ class EnvMap:
     # equirectangular map the kernel reads as it is (u = atan2(x, -z) / 2 pi, v = acos(y) / pi, in
     # the map's frame); None: resampled into our layout
     rows: str | None = None
+    sampling_weight: float = 1.0  # Environment.sampling_weight
 
     def resample(self, mirror=None) -> Environment:
         rotation = self.kernel_rotation(mirror)
         if rotation is not None:
             return Environment(radiance=self.scale, image=np.asarray(self.image, np.float32)[:, :, :3],
-                               source=self.source, rotation=rotation, rows=self.rows)
+                               source=self.source, rotation=rotation, rows=self.rows,
+                               sampling_weight=self.sampling_weight)
         h, w = self.out_shape
         d = our_env_directions(h, w)
         if mirror is not None:
@@ -283,7 +285,8 @@ class EnvMap:
         if not self.wrap_u:
             u = np.clip(u, 0.5 / self.image.shape[1], 1 - 0.5 / self.image.shape[1])
         texels = bilinear_wrap(np.nan_to_num(np.asarray(self.image, np.float64)), u, v)
-        return Environment(radiance=self.scale, image=texels.reshape(h, w, 3).astype(np.float32), source=self.source)
+        return Environment(radiance=self.scale, image=texels.reshape(h, w, 3).astype(np.float32), source=self.source,
+                           sampling_weight=self.sampling_weight)
 
     def kernel_rotation(self, mirror=None) -> np.ndarray | None:
         """The world-to-map rotation of our layout that reads this map as it is: (-x, y, -z) of
@@ -339,6 +342,16 @@ class SceneBuilder:
         self.instances: list = []
         self.n_faces = 0
         self.normals_as_given = False  # an unevenly scaled instance's normals (Scene.normals_as_given)
+        # emitters of several primitives (Scene.face_emitters): per mesh and per sphere its emitter
+        # index (-1: none), and each emitter's sampling weight
+        self.face_emitters: list = []
+        self.sphere_emitters: list = []
+        self.emitter_weights: list = []
+
+    def new_emitter(self, sampling_weight: float = 1.0) -> int:
+        """The index of a new emitter (a shape's area emitter) to pass to add_mesh / add_sphere."""
+        self.emitter_weights.append(float(sampling_weight))
+        return len(self.emitter_weights) - 1
 
     def begin_group(self, name: str):
         """Record the shapes added from now on in a new group ``name`` (until :meth:`end_group`)."""
@@ -381,14 +394,15 @@ class SceneBuilder:
         return -1 if interface is None else first_use_index(self.interfaces, self._interface_index, interface)
 
     def add_mesh(self, vertices, faces, material: Material, uvs=None, matrix=None, flip=False, normals=None,
-                 colors=None, compute_normals=None, interface=None) -> None:
+                 colors=None, compute_normals=None, interface=None, emitter: int = -1) -> None:
         """Triangles in object space, moved by the 4x4 ``matrix``; ``flip`` swaps their front (and
         turns their shading normals around, as Mitsuba's flip_normals and pbrt's
         ReverseOrientation do).  ``normals`` and ``colors``: per corner, (F, 3, 3) or None.
         ``compute_normals`` (without ``normals``): True or (F, 3) keys of the corners that are one
         vertex: the angle-weighted vertex normals Mitsuba computes for a mesh file without normals,
         in world space, on the front side.  ``interface``: the medium interface of every face (its
-        sides stay with the faces' fronts: flipping them swaps what is inside)."""
+        sides stay with the faces' fronts: flipping them swaps what is inside).  ``emitter``: the
+        index (new_emitter) of the emitter the faces make up, -1: none (each emissive face its own)."""
         v = np.asarray(vertices, np.float64).reshape(-1, 3)
         f = np.asarray(faces, np.int64).reshape(-1, 3)
         uv = None if uvs is None else np.asarray(uvs, np.float32).reshape(-1, 3, 2)
@@ -417,9 +431,9 @@ class SceneBuilder:
         if self.recording is not None:
             self.recording.meshes.append((v, f, uv, nrm, col, material, interface))
             return
-        self.append_mesh(v, f, uv, nrm, col, material, interface)
+        self.append_mesh(v, f, uv, nrm, col, material, interface, emitter)
 
-    def append_mesh(self, v, f, uv, nrm, col, material: Material, interface) -> None:
+    def append_mesh(self, v, f, uv, nrm, col, material: Material, interface, emitter: int = -1) -> None:
         """Triangles already in world space, their fronts set (what add_mesh leaves)."""
         self.vertices.append(v)
         self.faces.append(f + self.n_vertices)
@@ -428,12 +442,13 @@ class SceneBuilder:
         self.colors.append(col if col is not None else np.ones((len(f), 3, 3), np.float32))
         self.face_materials.append(np.full(len(f), self.material_index(material), np.int32))
         self.face_interfaces.append(np.full(len(f), self.interface_index(interface), np.int32))
+        self.face_emitters.append(np.full(len(f), int(emitter), np.int32))
         self.n_vertices += len(v)
         self.n_faces += len(f)
         self.any_normals |= nrm is not None
         self.any_colors |= col is not None
 
-    def add_sphere(self, centre, radius: float, material: Material, interface=None) -> None:
+    def add_sphere(self, centre, radius: float, material: Material, interface=None, emitter: int = -1) -> None:
         """A sphere, its front outside (an interface given for an inward-facing one must be flipped)."""
         if self.recording is not None:
             self.recording.spheres.append((np.asarray(centre, np.float64).reshape(3), float(radius), material,
@@ -442,6 +457,7 @@ class SceneBuilder:
         self.spheres.append([*map(float, centre), float(radius)])
         self.sphere_materials.append(self.material_index(material))
         self.sphere_interfaces.append(self.interface_index(interface))
+        self.sphere_emitters.append(int(emitter))
 
     def add_light(self, light) -> None:
         self.lights.append(light)
@@ -498,12 +514,17 @@ class SceneBuilder:
                                spheres=spheres.astype(np.float32),
                                sphere_materials=np.asarray(self.sphere_materials, np.int32),
                                settings=self.settings,
-                               face_interfaces=face_interfaces if self.interfaces else None)
+                               face_interfaces=face_interfaces if self.interfaces else None,
+                               face_emitters=(np.concatenate(self.face_emitters)
+                                              if self.emitter_weights and self.faces else None))
         scene.normals_as_given = bool(self.normals_as_given)
         if self.interfaces or media:
             scene.media, scene.interfaces, scene.camera_medium = media, list(self.interfaces), int(self.camera_medium)
             scene.sphere_interfaces = np.asarray(self.sphere_interfaces, np.int32)
         scene.lights = lights
+        if self.emitter_weights:
+            scene.sphere_emitters = np.asarray(self.sphere_emitters, np.int32)
+            scene.emitter_weights = list(self.emitter_weights)
         if instances:
             from .assembly import _finite_faces
             from .instancing import remap_instances

@@ -89,7 +89,9 @@ class _Importer:
         sensors = [o for o in self.doc.objects if o.tag == "sensor"]
         integrators = [o for o in self.doc.objects if o.tag == "integrator"]
         settings = RenderSettings(width=768, height=576, spp=4, max_depth=-1, rr_depth=5,
-                                  filter=MITSUBA_DEFAULT_FILTER)
+                                  filter=MITSUBA_DEFAULT_FILTER, light_sampler="uniform")
+        # light_sampler: Mitsuba picks an emitter by its sampling_weight (scene.cpp), then a point on
+        # its shape uniformly by area (an area emitter on a mesh: Mesh::sample_position)
         self.b.settings = settings
         for extra in sensors[1:] + integrators[1:]:
             self.warn(extra.node.pos, f"{extra.label()}: only the first {extra.tag} is used; ignored")
@@ -280,6 +282,7 @@ class _Importer:
         emitters = obj.children_of("emitter")
         # Mitsuba's shape without a BSDF: diffuse, reflectance 0.5, or 0 for an emitter (shape.cpp)
         emitting = any(em.type == "area" for em in emitters)
+        emitter = -1  # our index of its area emitter (Scene.face_emitters), with its sampling_weight
         attribute = None
         if interface is not None and interface.null:  # index-matched: no scattering (scene/media.py)
             material = self.null_material()
@@ -296,6 +299,10 @@ class _Importer:
                 continue
             radiance, texture = color_value(self, em, "radiance", (1.0, 1.0, 1.0), texture_ok=True)
             material = self.b.emissive(material, radiance, False, texture)
+            if emitter < 0:
+                emitter = self.b.new_emitter(sampling_weight(em))
+            else:
+                self.b.emitter_weights[emitter] = sampling_weight(em)
             self.unused(em)
         for extra in obj.children:
             if extra.tag not in ("bsdf", "emitter", "medium"):
@@ -306,7 +313,7 @@ class _Importer:
             raise error_at(obj.props["to_world"].node.pos, f"{obj.label()}: to_world is singular")
         t = obj.type
         if t == "sphere":
-            return self.sphere(obj, material, m, flip, emitters, interface)
+            return self.sphere(obj, material, m, flip, emitters, interface, emitter)
         normals = compute = extras = None
         if t in ("obj", "ply", "serialized"):
             v, f, uv, normals, keys, extras = self.mesh_file(obj)
@@ -332,7 +339,7 @@ class _Importer:
                 self.warn(obj.node.pos, f'{obj.label()}: its BSDF reads the mesh attribute "{attribute}", which '
                                         "the shape does not have; using 1")
         self.b.add_mesh(v, f, material, uvs=uv, matrix=m, flip=flip, normals=normals, colors=colors,
-                        compute_normals=compute, interface=interface)
+                        compute_normals=compute, interface=interface, emitter=emitter)
         self.unused(obj)
 
     def cylinder(self, obj: MiObject):
@@ -354,7 +361,7 @@ class _Importer:
         radial /= np.linalg.norm(radial, axis=1, keepdims=True)
         return v @ frame.T + p0, f, uv, (radial @ frame.T)[f]
 
-    def sphere(self, obj, material, m, flip, emitters, interface=None) -> None:
+    def sphere(self, obj, material, m, flip, emitters, interface=None, emitter: int = -1) -> None:
         """Mitsuba's sphere: one of our spheres, or, where its material reads the uv (a texture, a
         normal or bump map, an anisotropic frame along dp/du), triangles with Mitsuba's uv and
         exact normals (mitsuba_sphere_mesh), for ours have no uv: Mitsuba's uv is that of the
@@ -373,7 +380,7 @@ class _Importer:
             local = np.diag([radius, radius, radius, 1.0])
             local[:3, 3] = centre
             self.b.add_mesh(v, f, material, uvs=uv, matrix=local if m is None else m @ local, flip=flip,
-                            normals=normals, interface=interface)
+                            normals=normals, interface=interface, emitter=emitter)
             self.unused(obj)
             return
         if m is not None:
@@ -383,7 +390,7 @@ class _Importer:
             self.warn(obj.node.pos, f"{obj.label()}: flip_normals: our spheres emit outwards only")
         if flip and interface is not None:  # its normal points inwards: interior and exterior trade places
             interface = interface.flipped()
-        self.b.add_sphere(centre, radius, material, interface=interface)
+        self.b.add_sphere(centre, radius, material, interface=interface, emitter=emitter)
         self.unused(obj)
 
     def mesh_file(self, obj: MiObject):
@@ -429,7 +436,8 @@ class _Importer:
             if pos is None:
                 pos = m[:3, 3] if m is not None else np.zeros(3)
             intensity, _ = color_value(self, obj, "intensity", (1.0, 1.0, 1.0))
-            self.b.add_light(PointLight(position=tuple(map(float, pos)), intensity=intensity))
+            self.b.add_light(PointLight(position=tuple(map(float, pos)), intensity=intensity,
+                                        sampling_weight=sampling_weight(obj)))
         elif t == "directional":
             d = obj.point("direction", None)
             if d is None:
@@ -438,14 +446,14 @@ class _Importer:
                 raise error_at(obj.node.pos, f"{obj.label()}: the direction is zero")
             irradiance, _ = color_value(self, obj, "irradiance", (1.0, 1.0, 1.0))
             self.b.add_light(DirectionalLight(direction=tuple(map(float, d / np.linalg.norm(d))),
-                                              irradiance=irradiance))
+                                              irradiance=irradiance, sampling_weight=sampling_weight(obj)))
         elif t == "spot":
             return self.spot(obj, m)
         elif t == "projector":
             return self.projector(obj, m)
         elif t == "constant":
             radiance, _ = color_value(self, obj, "radiance", (1.0, 1.0, 1.0))
-            self.b.set_environment(Environment(radiance=radiance), obj.node.pos)
+            self.b.set_environment(Environment(radiance=radiance, sampling_weight=sampling_weight(obj)), obj.node.pos)
         elif t == "envmap":
             self.envmap(obj, m)
         else:
@@ -471,7 +479,8 @@ class _Importer:
                                          f"{beam:g} and {cutoff:g}")
         position, frame = self._light_frame(obj, m)
         self.b.add_light(SpotLight(position=position, intensity=tuple(a * b for a, b in zip(intensity, tint)),
-                                   cutoff_angle=cutoff, beam_width=beam, texture=texture, to_world=frame))
+                                   cutoff_angle=cutoff, beam_width=beam, texture=texture, to_world=frame,
+                                   sampling_weight=sampling_weight(obj)))
         self.unused(obj)
 
     def projector(self, obj: MiObject, m) -> None:
@@ -481,7 +490,7 @@ class _Importer:
         fov = _mitsuba_fov_x(obj, aspect)
         position, frame = self._light_frame(obj, m)
         self.b.add_light(ProjectorLight(position=position, irradiance=irradiance, texture=texture, scale=scale,
-                                        fov=fov, to_world=frame))
+                                        fov=fov, to_world=frame, sampling_weight=sampling_weight(obj)))
         self.unused(obj)
 
     def envmap(self, obj: MiObject, m) -> None:
@@ -495,7 +504,13 @@ class _Importer:
         rot = np.eye(3) if m is None else m[:3, :3]
         h, w = image.shape[:2]
         self.b.set_environment(EnvMap(image=image, lookup=_mitsuba_env_uv, to_world=rot, scale=(s, s, s),
-                                      source=str(fname), out_shape=(h, w), rows="poles"), obj.node.pos)
+                                      source=str(fname), out_shape=(h, w), rows="poles",
+                                      sampling_weight=sampling_weight(obj)), obj.node.pos)
+
+
+def sampling_weight(emitter: MiObject) -> float:
+    """An emitter's sampling_weight (emitter.cpp: default 1): its share of the light picks."""
+    return emitter.float("sampling_weight", 1.0, minimum=0.0)
 
 
 def _mitsuba_env_uv(d):

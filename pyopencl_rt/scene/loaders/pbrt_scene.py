@@ -24,7 +24,7 @@ from .pbrt import Directive, Parser
 from .pbrt_lights import light_source
 from .pbrt_materials import MaterialMapper, spectrum_rgb
 
-SILENT = {("Film", "filename"), ("Integrator", "lightsampler"), ("Sampler", "seed"), ("Film", "diagonal"),
+SILENT = {("Film", "filename"), ("Sampler", "seed"), ("Film", "diagonal"),
           ("Film", "savefp16"), ("Integrator", "regularize"), ("Shape", "S"),
           ("Shape", "faceIndices"), ("Shape", "emissionfilename")}
 
@@ -265,6 +265,14 @@ class _Importer:
             if depth < 0:
                 raise error_at(integ.pos, f"Integrator: maxdepth must be >= 0, got {depth}")
             st.max_depth = depth + 1  # pbrt counts bounces, we count path segments
+            sampler_name = integ.params.string("lightsampler", "bvh")
+            # pbrt-v4's light samplers: "uniform" (each light alike: a triangle of a mesh is a light),
+            # "power", and "bvh" (its default; by power, weighed by distance and orientation), read
+            # as our "power"; "exhaustive" (every light, by power) likewise
+            if sampler_name not in ("bvh", "power", "uniform"):
+                self.warn(integ.params.items["lightsampler"].pos,
+                          f'Integrator "string lightsampler" "{sampler_name}": read as "power"')
+            st.light_sampler = "uniform" if sampler_name == "uniform" else "power"
             if integ.params.boolean("regularize", False):
                 self.warn(integ.params.items["regularize"].pos, "Integrator: regularize is not supported; ignored")
             self.unused(integ)

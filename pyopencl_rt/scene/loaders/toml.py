@@ -22,6 +22,7 @@
     sampler = "sobol"             # "sobol" | "stratified" | "independent", default "sobol"
     adaptive = false              # adaptive sampling (spp: a pixel's maximum, or the mean), default false
     target_error = 0.02           # with adaptive: a pixel stops at this relative error, default none
+    light_sampler = "power"       # how lights are picked: "power" | "uniform", default "power"
 
     [materials.white]             # one table per material, referred to by NAME
     type = "diffuse"              # a type of pyopencl_rt.scene.materials (default "diffuse"),
@@ -71,8 +72,8 @@ from ...errors import UserError
 from ...imageio import read_exr
 from ..materials import REGISTRY
 from ..mesh import MeshError, flatten, load_trimesh
-from ..model import (AOVS, FILTERS, INTEGRATORS, SAMPLERS, Camera, Environment, Material, PixelFilter, PROJECTIONS,
-                     RenderSettings, Scene)
+from ..model import (AOVS, FILTERS, INTEGRATORS, LIGHT_SAMPLERS, SAMPLERS, Camera, Environment, Material, PixelFilter,
+                     PROJECTIONS, RenderSettings, Scene)
 from .assembly import DEFAULT_FOV, frame_scene, transform_normals, triangle_scene
 from .gltf import read_gltf
 from .meshfile import ply_extras, trimesh_uvs
@@ -100,7 +101,8 @@ _FILM_KEYS = {"width", "height", "aovs", "filter"}
 # each pixel filter's keys, and its radius when none is given (Mitsuba 3's: gaussian 4 sigma, lanczos tau)
 _FILTER_KEYS = {"box": {"type", "radius"}, "tent": {"type", "radius"}, "gaussian": {"type", "radius", "sigma"},
                 "mitchell": {"type", "radius", "b", "c"}, "lanczos": {"type", "radius", "tau"}}
-_RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth", "sampler", "adaptive", "target_error"}
+_RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth", "sampler", "adaptive", "target_error",
+                "light_sampler"}
 # the keys of every [materials.NAME]; each type adds its own (MaterialType.toml_keys)
 MATERIAL_COMMON_KEYS = frozenset({"type", "emission", "two_sided", "emission_texture", "opacity", "opacity_texture"})
 _TRANSFORM_KEYS = {"translate", "scale", "rotate", "matrix", "flip_normals"}
@@ -394,6 +396,8 @@ def _read_settings(ctx, film, render) -> RenderSettings:
         s.integrator = check_choice(ctx, "[render]", "integrator", render["integrator"], INTEGRATORS)
     if "sampler" in render:
         s.sampler = check_choice(ctx, "[render]", "sampler", render["sampler"], SAMPLERS)
+    if "light_sampler" in render:
+        s.light_sampler = check_choice(ctx, "[render]", "light_sampler", render["light_sampler"], LIGHT_SAMPLERS)
     if "adaptive" in render:
         s.adaptive = check_boolean(ctx, "[render]", "adaptive", render["adaptive"])
     if "target_error" in render:
