@@ -174,6 +174,28 @@ def check_lights(scene) -> None:
             img = np.asarray(env.image)
             if img.ndim != 3 or img.shape[2] != 3 or img.dtype.kind not in "fiu" or 0 in img.shape:
                 _fail(scene, f"environment image must be an H x W x 3 array of numbers, got shape {img.shape}")
+    check_emitters(scene)
+
+
+def check_emitters(scene) -> None:
+    """Light picking (render/lights.py): the emitter indices of faces and spheres, the weights."""
+    weights = list(getattr(scene, "emitter_weights", None) or [])
+    lights = list(scene.lights or []) + ([scene.environment] if scene.environment is not None else [])
+    for what, w in [*((f"emitter_weights[{i}]", w) for i, w in enumerate(weights)),
+                    *((f"the sampling_weight of {type(lt).__name__}", getattr(lt, "sampling_weight", 1.0))
+                      for lt in lights)]:
+        if not isinstance(w, (int, float, np.number)) or not (math.isfinite(float(w)) and float(w) >= 0):
+            _fail(scene, f"{what} must be a finite number >= 0, got {w!r}")
+    for what, arr, count in (("face_emitters", getattr(scene, "face_emitters", None), len(scene.faces)),
+                             ("sphere_emitters", getattr(scene, "sphere_emitters", None), len(scene.spheres))):
+        if arr is None:
+            continue
+        a = _array(scene, arr, what, 0, "iu")
+        if len(a) != count:
+            _fail(scene, f"{what} has {len(a)} entries for {count} shapes")
+        if a.size and (a.min() < -1 or a.max() >= len(weights)):
+            _fail(scene, f"{what} must lie in -1 .. {len(weights) - 1} (indices of emitter_weights), "
+                         f"got {a.min()} .. {a.max()}")
 
 
 def check_settings(scene) -> None:
@@ -187,6 +209,10 @@ def check_settings(scene) -> None:
                     maximum={"seed": 2**32 - 1, "spp": abi.MAX_PASSES}.get(name))
         except UserError as exc:
             _fail(scene, f"settings: {exc}")
+    from .model import LIGHT_SAMPLERS
+
+    if getattr(st, "light_sampler", "power") not in LIGHT_SAMPLERS:
+        _fail(scene, f"settings: light_sampler must be one of {', '.join(LIGHT_SAMPLERS)}, got {st.light_sampler!r}")
 
 
 def check_media(scene) -> None:

@@ -131,3 +131,24 @@ def test_uniform_and_power_picking_render_the_same_image(device):
     va, vb = rp.film.variance_of_mean()[..., 0], ru.film.variance_of_mean()[..., 0]  # grey: one channel
     z_mean = abs(a[..., 0].mean() - b[..., 0].mean()) / np.sqrt((va.mean() + vb.mean()) / va.size)
     assert z_mean < 4.5, (a.mean(), b.mean(), z_mean)
+
+
+def test_bad_light_picking_fields_are_refused():
+    """check_scene names a light_sampler we do not have, an emitter index beyond the weights and a
+    negative sampling_weight."""
+    import dataclasses
+
+    import pytest
+
+    from pyopencl_rt.scene.validate import SceneValueError, check_scene
+
+    check_scene(two_lamps_scene("uniform"))
+    for change, message in (
+            (lambda s: setattr(s, "settings", dataclasses.replace(s.settings, light_sampler="bvh")), "light_sampler"),
+            (lambda s: setattr(s, "face_emitters", np.array([-1, -1, 0, 0, 1, 1], np.int32)), "face_emitters"),
+            (lambda s: setattr(s, "lights", [PointLight(sampling_weight=-1.0)]), "sampling_weight")):
+        scene = two_lamps_scene("uniform")
+        scene.emitter_weights = [1.0]
+        change(scene)
+        with pytest.raises(SceneValueError, match=message):
+            check_scene(scene)
