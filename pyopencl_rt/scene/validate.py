@@ -186,16 +186,7 @@ def check_emitters(scene) -> None:
                       for lt in lights)]:
         if not isinstance(w, (int, float, np.number)) or not (math.isfinite(float(w)) and float(w) >= 0):
             _fail(scene, f"{what} must be a finite number >= 0, got {w!r}")
-    for what, arr, count in (("face_emitters", getattr(scene, "face_emitters", None), len(scene.faces)),
-                             ("sphere_emitters", getattr(scene, "sphere_emitters", None), len(scene.spheres))):
-        if arr is None:
-            continue
-        a = _array(scene, arr, what, 0, "iu")
-        if len(a) != count:
-            _fail(scene, f"{what} has {len(a)} entries for {count} shapes")
-        if a.size and (a.min() < -1 or a.max() >= len(weights)):
-            _fail(scene, f"{what} must lie in -1 .. {len(weights) - 1} (indices of emitter_weights), "
-                         f"got {a.min()} .. {a.max()}")
+    _shape_indices(scene, "emitters", len(weights), " (indices of emitter_weights)")
 
 
 def check_settings(scene) -> None:
@@ -252,15 +243,7 @@ def check_media(scene) -> None:
                 _fail(scene, f"medium interface #{i}: {side} {k} is not a medium index (-1 .. {len(media) - 1})")
     if not -1 <= int(getattr(scene, "camera_medium", -1)) < len(media):
         _fail(scene, f"camera_medium {scene.camera_medium} is not a medium index (-1 .. {len(media) - 1})")
-    for what, arr, count in (("face_interfaces", getattr(scene, "face_interfaces", None), len(scene.faces)),
-                             ("sphere_interfaces", getattr(scene, "sphere_interfaces", None), len(scene.spheres))):
-        if arr is None:
-            continue
-        a = _array(scene, arr, what, 0, "iu")
-        if len(a) != count:
-            _fail(scene, f"{what} has {len(a)} entries for {count} shapes")
-        if a.size and (a.min() < -1 or a.max() >= len(interfaces)):
-            _fail(scene, f"{what} must lie in -1 .. {len(interfaces) - 1}, got {a.min()} .. {a.max()}")
+    _shape_indices(scene, "interfaces", len(interfaces))
 
 
 def check_scene(scene) -> None:
@@ -277,3 +260,17 @@ def check_scene(scene) -> None:
         check_lights(scene)
         check_media(scene)
     check_settings(scene)
+
+
+def _shape_indices(scene, kind: str, n: int, of: str = "") -> None:
+    """face_<kind> and sphere_<kind> (where the scene has them): one index per shape, -1 or an
+    index below n."""
+    for what, count in ((f"face_{kind}", len(scene.faces)), (f"sphere_{kind}", len(scene.spheres))):
+        arr = getattr(scene, what, None)
+        if arr is None:
+            continue
+        a = _array(scene, arr, what, 0, "iu")
+        if len(a) != count:
+            _fail(scene, f"{what} has {len(a)} entries for {count} shapes")
+        if a.size and (a.min() < -1 or a.max() >= n):
+            _fail(scene, f"{what} must lie in -1 .. {n - 1}{of}, got {a.min()} .. {a.max()}")
