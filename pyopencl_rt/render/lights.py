@@ -98,6 +98,9 @@ def uniform_weights(scene, bvh, lights, power) -> np.ndarray:
     sampler, whose triangles are lights one by one), or a point, spot, projector, directional or
     environment light (its sampling_weight).  Lights that emit nothing (power 0) get weight 0:
     unlike Mitsuba, no pick is spent on them (the estimate is the same, its variance lower)."""
+    from ..scene.validate import check_emitters
+
+    check_emitters(scene)  # the indices and weights below (an engine built without check_scene)
     n = len(lights)
     kind = lights["kind"]
     prim = lights["prim"].astype(np.int64)
@@ -114,17 +117,12 @@ def uniform_weights(scene, bvh, lights, power) -> np.ndarray:
     weight = np.ones(n)
     grouped = group >= 0
     if grouped.any():
-        if group[grouped].max() >= len(table):
-            raise ValueError(f"an emitter index {int(group[grouped].max())} beyond the scene's "
-                             f"{len(table)} emitter weights")
         weight[grouped] = table[group[grouped]]
     n_area = len(tri) + len(sph)
     others = [*(getattr(scene, "lights", []) or [])]
     if getattr(scene, "environment", None) is not None:
         others.append(scene.environment)
     weight[n_area:] = [float(getattr(spec, "sampling_weight", 1.0)) for spec in others]
-    if not np.all(np.isfinite(weight)) or (weight < 0).any():
-        raise ValueError("light sampling weights must be finite and >= 0")
     # an emitter's weight split over its rows by area (rows by themselves: their whole weight)
     area = lights["area"].astype(np.float64)
     share = np.ones(n)
