@@ -22,13 +22,12 @@ def _finite_faces(vertices, faces) -> np.ndarray:
     return finite[faces].all(axis=1) if len(faces) else np.zeros(0, bool)
 
 
-def kept_uvs(vertices, faces, uvs, width: int = 2):
-    """uvs (F, 3, width) (or normals, colours: width 3) of the faces that checked_triangles
-    keeps, or None."""
-    if uvs is None:
+def kept_per_face(values, keep, dtype, shape=()):
+    """``values`` per face (each of ``shape``: (3, 2) uvs, (3, 3) normals or colours, () an index)
+    of the faces that checked_triangles keeps (the mask ``keep``), or None."""
+    if values is None:
         return None
-    keep = _finite_faces(vertices, np.asarray(faces, np.int64))
-    return np.ascontiguousarray(np.asarray(uvs, np.float32).reshape(-1, 3, width)[keep])
+    return np.ascontiguousarray(np.asarray(values, dtype).reshape(-1, *shape)[keep])
 
 
 def checked_triangles(vertices, faces, face_materials, name):
@@ -50,15 +49,12 @@ def triangle_scene(vertices, faces, face_materials, materials, name, uvs=None, n
     """The Scene of these triangles (checked) with their materials (the default one if there are
     none), per-corner UVs, shading normals and colours, and medium interfaces (per face, or None);
     no camera yet."""
-    uvs = kept_uvs(vertices, faces, uvs)
-    normals = kept_uvs(vertices, faces, normals, 3)
-    colors = kept_uvs(vertices, faces, colors, 3)
-    if face_interfaces is not None:
-        keep = _finite_faces(vertices, np.asarray(faces, np.int64))
-        face_interfaces = np.ascontiguousarray(np.asarray(face_interfaces, np.int32)[keep])
-    if face_emitters is not None:
-        keep = _finite_faces(vertices, np.asarray(faces, np.int64))
-        face_emitters = np.ascontiguousarray(np.asarray(face_emitters, np.int32)[keep])
+    keep = _finite_faces(vertices, np.asarray(faces, np.int64))
+    uvs = kept_per_face(uvs, keep, np.float32, (3, 2))
+    normals = kept_per_face(normals, keep, np.float32, (3, 3))
+    colors = kept_per_face(colors, keep, np.float32, (3, 3))
+    face_interfaces = kept_per_face(face_interfaces, keep, np.int32)
+    face_emitters = kept_per_face(face_emitters, keep, np.int32)
     v32, f32, face_materials = checked_triangles(vertices, faces, face_materials, name)
     return Scene(vertices=v32, faces=f32, face_materials=face_materials, materials=materials or [Material()],
                  source=name, uvs=uvs, normals=flat_where_planar(v32, f32, normals), colors=colors,

@@ -9,6 +9,9 @@ import numpy as np
 
 from .builder import grid_mesh, sphere_mesh
 
+# segments in a full turn of the cylinder's, the disk's and a textured sphere's polygon: its edges
+# then lie within 1e-4 of a radius of Mitsuba's exact shape
+CURVED_SEGMENTS = 256
 
 def mitsuba_cube_mesh() -> tuple:
     """Mitsuba's cube (src/shapes/cube.cpp): [-1, 1]^3, every face's front outwards, its four
@@ -25,7 +28,7 @@ def mitsuba_cube_mesh() -> tuple:
     return v, f, uv
 
 
-def mitsuba_disk_mesh(n_full: int = 256, rings: int = 32) -> tuple:
+def mitsuba_disk_mesh(n_full: int = CURVED_SEGMENTS, rings: int = 32) -> tuple:
     """Mitsuba's disk (src/shapes/disk.cpp): the unit disk in the plane z = 0, front +z, uv = (r,
     phi / 2 pi), phi counter-clockwise from +x; ``n_full`` segments and ``rings`` rings (the
     uv interpolated across a triangle then stays within a thousandth of a radius of Mitsuba's),
@@ -42,7 +45,7 @@ def mitsuba_disk_mesh(n_full: int = 256, rings: int = 32) -> tuple:
     return v, f, np.stack([1.0 - uv[..., 1], uv[..., 0]], -1).astype(np.float32)
 
 
-def mitsuba_sphere_mesh(n_phi: int = 256, n_theta: int = 128) -> tuple:
+def mitsuba_sphere_mesh(n_phi: int = CURVED_SEGMENTS, n_theta: int = CURVED_SEGMENTS // 2) -> tuple:
     """Mitsuba's sphere (src/shapes/sphere.cpp) as triangles: the unit sphere, front outwards,
     uv = (phi / 2 pi, theta / pi) of the object-space direction, theta from +z and phi
     counter-clockwise from +x (so to_world's rotation turns the texture with the sphere), and

@@ -16,7 +16,7 @@ from ..model import (DirectionalLight, Environment, PixelFilter, PointLight, Pro
                      SpotLight)
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cylinder_mesh, error_at, rectangle_mesh,
                       transform_points, transform_vector, vertical_fov)
-from .mitsuba_meshes import mitsuba_cube_mesh, mitsuba_disk_mesh, mitsuba_sphere_mesh
+from .mitsuba_meshes import CURVED_SEGMENTS, mitsuba_cube_mesh, mitsuba_disk_mesh, mitsuba_sphere_mesh
 from ..media import MediumInterface
 from .mitsuba_bsdf import BsdfMapper, color_value
 from .mitsuba_instances import instance, shapegroup
@@ -30,9 +30,6 @@ SILENT = {"pixel_format", "component_format", "near_clip", "far_clip", "sample_b
 
 # hdrfilm's filter when it names none (and the film's when there is no film)
 MITSUBA_DEFAULT_FILTER = PixelFilter("gaussian", (2.0, 2.0), sigma=0.5)
-# segments in a full turn of the cylinder's and the disk's polygon (and of a textured sphere's):
-# its edges then lie within 1e-4 of a radius of Mitsuba's exact shape
-CURVED_SEGMENTS = 256
 
 
 def coordinate_system(n) -> tuple:
