@@ -44,8 +44,9 @@ LANE_BLOCK = 16           # samples per work-item, in units of the lane width, t
 LANE_GROUP = 1
 
 
-def kernel_mode(device, intersector: str, film_aovs, requested: str | None = None) -> str:
-    """The schedule for a render on ``device`` (see the module docstring)."""
+def kernel_mode(device, intersector: str, film_aovs, requested: str | None = None, media: bool = False) -> str:
+    """The schedule for a render on ``device`` (see the module docstring).  ``media``: the scene has
+    participating media or index-matched shapes, which take no film AOVs in either schedule."""
     import pyopencl as cl
 
     requested = requested or os.environ.get(KERNEL_MODE_ENV) or "auto"
@@ -56,6 +57,10 @@ def kernel_mode(device, intersector: str, film_aovs, requested: str | None = Non
     if requested == "megakernel" and not can_megakernel:
         raise UserError("--kernel-mode megakernel traces in OpenCL and has no AOVs: it cannot be combined with "
                         "--intersector embree or film AOVs")
+    if media and film_aovs:
+        # the wavefront would record the first hit behind a null boundary with the depth of the ray from it
+        raise UserError("film AOVs (albedo, normal, depth, position; the guides of --denoise) are not recorded in "
+                        "scenes with participating media or index-matched shapes: render them without")
     if requested == "auto":
         return "megakernel" if can_megakernel and device.type & cl.device_type.CPU else "wavefront"
     return requested

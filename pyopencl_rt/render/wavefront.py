@@ -107,7 +107,7 @@ class Wavefront:
         self.bvh_layout = bvh_layout(device)  # wide (cl/accel/bvh_wide.h) on CPUs; $PYOPENCL_RT_BVH_LAYOUT overrides
         self.features = kernel_features(scene, settings, lights, self.bvh_layout)
         self.kernel_mode = megakernel.kernel_mode(device, self.intersector.name, getattr(settings, "film_aovs", None),
-                                                  kernel_mode)
+                                                  kernel_mode, media="HAS_MEDIA" in self.features)
         self.wave_size = int(wave_size or default_wave_size(device, self.kernel_mode))
 
         self.rt = runtime(device)
@@ -251,11 +251,12 @@ class Wavefront:
         return {"tri_normal": normals, "tri_color": colors}
 
     def _media_buffers(self, const) -> dict:
-        """abi.MEDIA_PARAMS (scene/media.py:pack_media, tri_interface in the BVH's triangle order); 16-byte
-        dummies and camera_medium -1 when the scene has no media."""
+        """abi.MEDIA_PARAMS' scene buffers (scene/media.py:pack_media, tri_interface in the BVH's triangle
+        order); 16-byte dummies and camera_medium -1 when the scene has no media."""
         if "HAS_MEDIA" not in self.features:
             dummy = const(np.zeros(0, np.uint8))
-            return {**{p.name: dummy for p in abi.MEDIA_PARAMS if p.kind != "scalar"}, "camera_medium": -1}
+            return {**{p.name: dummy for p in abi.MEDIA_PARAMS if p.kind != "scalar" and not p.per_slot},
+                    "camera_medium": -1}
         from ..scene.media import pack_media
 
         packed = pack_media(self.scene)
