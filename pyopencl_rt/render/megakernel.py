@@ -60,7 +60,8 @@ def kernel_mode(device, intersector: str, film_aovs, requested: str | None = Non
     if media and film_aovs:
         # the wavefront would record the first hit behind a null boundary with the depth of the ray from it
         raise UserError("film AOVs (albedo, normal, depth, position; the guides of --denoise) are not recorded in "
-                        "scenes with participating media or index-matched shapes: render them without")
+                        "scenes with participating media or index-matched shapes: render without those AOVs and "
+                        "--denoise")
     if requested == "auto":
         return "megakernel" if can_megakernel and device.type & cl.device_type.CPU else "wavefront"
     return requested
