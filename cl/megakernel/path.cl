@@ -137,18 +137,19 @@ __kernel void mk_path(WAVE_PARAMS)
         pint prim;
         scene_closest_hit(nodes, tris, spheres, n_spheres, s.o, s.d, live_lanes, &t, &prim, &u, &v CUTOUT_ARGS);
         n_extend += popcount(live);
-        pint goes_on, with_shadow;
-        ShadowRay shadow;
 #ifdef HAS_MEDIA
         /* -- the media along the rays, then the surfaces or the environment (render/volpath.h) */
-        pint shadow_medium;
+        pint shadow_medium, goes_on, with_shadow;
+        ShadowRay shadow;
         volpath_vertex(PATH_ARGS, MEDIA_PATH_ARGS, env_light, PINT(0), key, live_lanes, prim, t, u, v, &s, &goes_on,
                        &with_shadow, &shadow, &shadow_medium);
 #else
-        const pint hit = live_lanes & (prim != PRIM_MISS), escaped = live_lanes & pnot(hit);
+        pint hit = live_lanes & (prim != PRIM_MISS), escaped = live_lanes & pnot(hit);
 #ifdef HAS_ENVIRONMENT
         path_escape(lights, env_light, env_map, env_cdf, integrator, escaped, &s);
 #endif
+        pint goes_on, with_shadow;
+        ShadowRay shadow;
         path_shade(PATH_ARGS, PINT(0), key, hit, prim, t, u, v, &s, &goes_on, &with_shadow, &shadow);
 #endif
         /* -- shadow: the lanes with a light sample (after the emission of this hit, as the
