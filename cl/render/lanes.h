@@ -13,11 +13,10 @@
  * cpu_builtins.h's builtins (sqrt correctly rounded; fmin/fmax as minnum/maxnum, so NaN operands
  * behave alike; dot, cross, length and normalize as defined, products summed left to right;
  * length and normalize of a lane whose squared length could over- or underflow fall back to the
- * scalar function, which rescales), so every width renders the same image.  sin, cos, atan2 and
- * acos are inline polynomials (render/lanes_math.h); library functions with no inline form (exp,
- * log, pow, erf, ...) are called lane by lane (plib1): a vector of
- * 32 bytes or more never crosses into PoCL's built-in library (issue 22).  FP_CONTRACT is off
- * (common.h). */
+ * scalar function, which rescales), so every width renders the same image.  sin, cos, atan2,
+ * acos, exp and log are inline polynomials (render/lanes_math.h); library functions with no
+ * inline form (pow, erf) are called lane by lane (PLIB1): a vector of 32 bytes or more never
+ * crosses into PoCL's built-in library (issue 22).  FP_CONTRACT is off (common.h). */
 #ifndef PYOPENCL_RT_LANES_H
 #define PYOPENCL_RT_LANES_H
 
@@ -218,15 +217,13 @@ RT_INLINE pfloat psqrt(pfloat x)
 #define PLIB1(f, x) ({ const pfloat x_ = (x); pfloat r_; for (int k_ = 0; k_ < PACKET_WIDTH; ++k_) PLANE(r_, k_) = f(PLANE(x_, k_)); r_; })
 #define PLIB2(f, x, y) ({ const pfloat x_ = (x), y_ = (y); pfloat r_; for (int k_ = 0; k_ < PACKET_WIDTH; ++k_) PLANE(r_, k_) = f(PLANE(x_, k_), PLANE(y_, k_)); r_; })
 #endif
-/* psin, pcos, psincos, patan2, pacos: inline polynomials, the same at every width */
+/* psin, pcos, psincos, patan2, pacos, pexp, plog: inline polynomials, the same at every width */
 #include "render/lanes_math.h"
 #if PACKET_WIDTH == 1
 RT_INLINE pfloat pfloor(pfloat x) { return floor(x); }
 #else /* exact, and an LLVM intrinsic (vrndscaleps, vroundps), not a call into the built-in library */
 RT_INLINE pfloat pfloor(pfloat x) { return __builtin_elementwise_floor(x); }
 #endif
-RT_INLINE pfloat pexp(pfloat x) { return PLIB1(exp, x); }
-RT_INLINE pfloat plog(pfloat x) { return PLIB1(log, x); }
 RT_INLINE pfloat perf(pfloat x) { return PLIB1(erf, x); }
 RT_INLINE pfloat ppow(pfloat x, pfloat y) { return PLIB2(pow, x, y); }
 RT_INLINE pint pisfinite(pfloat x) { return (as_puint(x) & PUINT(0x7f800000u)) != PUINT(0x7f800000u); }

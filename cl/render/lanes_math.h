@@ -1,4 +1,4 @@
-/* sin, cos, atan2 and acos over lanes, inline (included by cl/render/lanes.h, which declares the
+/* sin, cos, atan2, acos, exp and log over lanes, inline (included by cl/render/lanes.h, which declares the
  * lane types): the same additions, products and selects at every width, so each lane computes the
  * bits the width-1 build computes, and a vector never becomes PACKET_WIDTH calls of PoCL's scalar
  * library (out of line, with its own argument reduction: in the textured scene under the sky
@@ -97,6 +97,61 @@ RT_INLINE pfloat pacos(pfloat x)
     const pfloat r_small = neg ? LM_PIO2_F + asin_a : LM_PIO2_F - asin_a;
     const pfloat r_large = neg ? LM_PI_F - 2.0f * asin_a : 2.0f * asin_a;
     return small ? r_small : r_large;
+}
+
+/* ln 2 in two parts, the first of 15 significant bits: its products with integers below 2^8 are exact */
+#define LM_LN2_A 0.693145751953125f
+#define LM_LN2_B 1.428606765330187e-06f
+
+/* e^x (the media's transmittance, the Beckmann distribution): x = n ln2 + r, |r| <= ln2 / 2, e^r by
+ * its Taylor polynomial of degree 7 (the remainder below 0.15 ulp), times 2^n in two factors of
+ * 2^(n/2), so that results in the denormals are rounded once; x clamped to [-104, 89] first,
+ * beyond which the result is 0 or +inf anyway (the factors underflow or overflow). */
+RT_INLINE pfloat pexp(pfloat x)
+{
+    const pfloat xc = pfmin(pfmax(x, PFLOAT(-104.0f)), PFLOAT(89.0f));
+    const pfloat q = (xc * 1.44269504088896341f + 12582912.0f) - 12582912.0f; /* rint(x / ln2) */
+    const pint n = convert_pint(q);
+    pfloat r = xc - q * LM_LN2_A;
+    r = r - q * LM_LN2_B;
+    pfloat p = PFLOAT(1.0f / 5040.0f);
+    p = p * r + (1.0f / 720.0f);
+    p = p * r + (1.0f / 120.0f);
+    p = p * r + (1.0f / 24.0f);
+    p = p * r + (1.0f / 6.0f);
+    p = p * r + 0.5f;
+    p = p * r + 1.0f;
+    p = p * r + 1.0f;
+    const pint n1 = n >> 1, n2 = n - n1; /* each in [-75, 64]: a normal power of two */
+    const pfloat e = (p * as_pfloat((n1 + 127) << 23)) * as_pfloat((n2 + 127) << 23);
+    return x != x ? x : e; /* NaN stays NaN */
+}
+
+/* log(x) (free-flight distances, the Beckmann sampler's erfinv): x = 2^e m, m in [sqrt(1/2),
+ * sqrt(2)), log m = 2 atanh(f) with f = (m - 1) / (m + 1), |f| < 0.172, by its series up to f^9
+ * (the remainder below 0.05 ulp), plus e ln2 in two parts; denormals scaled by 2^23 first.
+ * log(0) = -inf, log(x < 0) = NaN, log(+inf) = +inf. */
+RT_INLINE pfloat plog(pfloat x)
+{
+    const pint tiny = x < 1.17549435e-38f;
+    const pint bits = as_pint(tiny ? x * 8388608.0f : x);
+    pint e = ((bits >> 23) & 0xff) - (tiny ? 150 : 127);
+    pfloat m = as_pfloat((bits & 0x007fffff) | 0x3f800000);
+    const pint high = m > 1.41421356f;
+    m = high ? m * 0.5f : m;
+    e = high ? e + 1 : e;
+    const pfloat f = (m - 1.0f) / (m + 1.0f), f2 = f * f;
+    pfloat s = PFLOAT(1.0f / 9.0f);
+    s = s * f2 + (1.0f / 7.0f);
+    s = s * f2 + 0.2f;
+    s = s * f2 + (1.0f / 3.0f);
+    const pfloat lm = 2.0f * f + (2.0f * f) * (f2 * s);
+    const pfloat ef = convert_pfloat(e);
+    pfloat r = ef * LM_LN2_A + (ef * LM_LN2_B + lm);
+    r = x == 0.0f ? PFLOAT(-INFINITY) : r;
+    r = x < 0.0f ? PFLOAT(NAN) : r;
+    r = x == INFINITY ? x : r;
+    return x != x ? x : r;
 }
 
 #endif

@@ -1,6 +1,6 @@
-"""sin, cos, atan2 and acos over lanes (cl/render/lanes_math.h): within their documented error of
-the double-precision functions, IEEE signs at the zeros of atan2, the library beyond the
-reduction's range, and at 8 and 16 lanes the bits of width 1."""
+"""sin, cos, atan2, acos, exp and log over lanes (cl/render/lanes_math.h): within their documented
+error of the double-precision functions, IEEE signs at the zeros of atan2, the library beyond the
+reduction's range, exp's and log's special values, and at 8 and 16 lanes the bits of width 1."""
 import numpy as np
 import pytest
 
@@ -23,6 +23,18 @@ __kernel void h_math(__global const float *a, __global const float *b, __global 
         out[4 * (base + k) + 2] = PLANE(t, k);
         out[4 * (base + k) + 3] = PLANE(ac, k);
         if (as_uint(PLANE(s1, k)) != as_uint(PLANE(s, k)) || as_uint(PLANE(c1, k)) != as_uint(PLANE(c, k))) out[4 * (base + k)] = 99.0f;
+    }
+}
+/* items as h_math's; out: exp(a), log(b) */
+__kernel void h_explog(__global const float *a, __global const float *b, __global float *out)
+{
+    const int base = get_global_id(0) * PACKET_WIDTH;
+    pfloat x, y;
+    for (int k = 0; k < PACKET_WIDTH; ++k) { PLANE(x, k) = a[base + k]; PLANE(y, k) = b[base + k]; }
+    const pfloat e = pexp(x), l = plog(y);
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        out[2 * (base + k)] = PLANE(e, k);
+        out[2 * (base + k) + 1] = PLANE(l, k);
     }
 }
 """
@@ -75,6 +87,40 @@ def test_special_values(runtime):
     assert np.allclose(out[:4, 1], np.cos(big[:4].astype(np.float64)), atol=2e-7)
 
 
+def explog_inputs(rng, n=1 << 16):
+    """exp's arguments over its whole range (results from the denormals to overflow) and log's over
+    every binade, the denormals included, and near 1."""
+    a = np.concatenate([rng.uniform(-104, 89, n // 2), rng.uniform(-2, 2, n // 4), rng.uniform(-0.35, 0.35, n // 4)])
+    b = np.concatenate([2.0 ** rng.uniform(-149, 128, n // 2), rng.uniform(0.5, 2, n // 4),
+                        1 + rng.uniform(-1e-3, 1e-3, n // 4)])
+    return a.astype(np.float32), b.astype(np.float32)
+
+
+def test_exp_log_within_error_and_special_values(runtime, rng):
+    """exp within 2 ulp of the double-precision value where it is normal (and within one step of
+    the denormals below), overflowing to +inf exactly where the float result does; log within 2
+    ulp everywhere; the special values of IEEE exp and log."""
+    a, b = explog_inputs(rng)
+    a = a[np.isfinite(b)]
+    b = b[np.isfinite(b)]
+    out = ONE(runtime, "h_explog", len(a), a, b, (len(a), 2))
+    want_e = np.exp(a.astype(np.float64))
+    normal = (want_e >= np.finfo(np.float32).tiny) & (want_e <= np.finfo(np.float32).max)
+    assert ulps(out[normal, 0], want_e[normal]).max() <= 2.0
+    assert np.abs(out[~normal & (want_e < 1), 0] - want_e[~normal & (want_e < 1)]).max() <= 2.0 ** -149
+    assert np.all(np.isinf(out[want_e > np.finfo(np.float32).max * (1 + 2**-25), 0]))
+    want_l = np.log(b.astype(np.float64))
+    assert ulps(out[:, 1], want_l).max() <= 2.0
+    special = np.array([0.0, -0.0, -1.0, np.inf, -np.inf, np.nan, 1.0, 88.72283, 88.7229, -103.0, -110.0, 2.0**-149],
+                       np.float32)
+    out = ONE(runtime, "h_explog", len(special), special, special, (len(special), 2))
+    e, lg = out[:, 0], out[:, 1]
+    assert e[0] == 1.0 and e[1] == 1.0 and e[3] == np.inf and e[4] == 0.0 and np.isnan(e[5]) and e[6] == np.float32(np.e)
+    assert np.isfinite(e[7]) and e[8] == np.inf and 0 < e[9] < 1e-44 and e[10] == 0.0
+    assert lg[0] == -np.inf and lg[1] == -np.inf and np.isnan(lg[2]) and lg[3] == np.inf and np.isnan(lg[4])
+    assert np.isnan(lg[5]) and lg[6] == 0.0 and abs(lg[11] - np.log(2.0**-149)) <= 2 * np.spacing(np.float32(103.3))
+
+
 @pytest.mark.parametrize("width", [8, 16])
 def test_lanes_give_the_one_lane_bits(device, runtime, rng, width):
     harness.require_lane_kernels(device, width)
@@ -86,3 +132,10 @@ def test_lanes_give_the_one_lane_bits(device, runtime, rng, width):
     lanes = wide(runtime, "h_math", len(x) // width, x, y, (len(x), 4))
     assert np.array_equal(one.view(np.uint32), lanes.view(np.uint32))
     assert not (one[:, 0] == 99.0).any()
+    a, b = explog_inputs(rng, n=1 << 14)
+    a = np.concatenate([a, np.array([np.nan, np.inf, -np.inf, 0.0, -0.0, 89.5, -120.0, 1.0] * 32, np.float32)])
+    b = np.concatenate([b, np.array([np.nan, np.inf, -np.inf, 0.0, -0.0, -3.0, 1e-45, 1.0] * 32, np.float32)])
+    assert len(a) % (16 * width) == 0  # whole groups of 16 work-items: none beyond the arrays
+    one = ONE(runtime, "h_explog", len(a), a, b, (len(a), 2))
+    lanes = wide(runtime, "h_explog", len(a) // width, a, b, (len(a), 2))
+    assert np.array_equal(one.view(np.uint32), lanes.view(np.uint32))
