@@ -8,6 +8,6 @@ __kernel void wf_shadow(WAVE_PARAMS)
     if (i >= counters[COUNTER_SHADOW]) return;
     const int slot = shadow_q[i];
     if (!scene_occluded(nodes, tris, spheres, n_spheres, pv3_from(load3(sh_o, slot)), pv3_from(load3(sh_d, slot)), PTRUE,
-                        1.0f CUTOUT_ARGS))
+                        1.0f CUTOUT_ARGS INSTANCE_ARGS))
         store3(radiance, slot, load3(radiance, slot) + load3(sh_contrib, slot));
 }
