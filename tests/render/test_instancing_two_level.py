@@ -1,0 +1,149 @@
+"""Two-level instancing (cl/accel/instances.h, pyopencl_rt/accel/instances.py): the TLAS over
+instances and one BLAS per shape group give the hits and the image of the flattened scene
+(pyopencl_rt/scene/instances.py:flattened, the copies the loaders made before), at width 1 and in
+lanes; device memory grows with the instances, not their triangles; Mitsuba and pbrt-v4 files take
+this path."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import pyopencl_rt as rt
+from pyopencl_rt.accel.device_bvh import layout_defines, node_buffer
+from pyopencl_rt.device import abi
+from pyopencl_rt.scene.instances import flattened, scene_bvh
+from pyopencl_rt.scene.loaders import load_scene
+from pyopencl_rt.scene.loaders.instancing import INSTANCING_ENV
+from pyopencl_rt.scene.model import BlasGroup, Instance, Material, Scene
+
+import harness
+
+OCTAHEDRON = ("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
+              "vn 1 0 0\nvn -1 0 0\nvn 0 1 0\nvn 0 -1 0\nvn 0 0 1\nvn 0 0 -1\n"
+              + "".join(f"f {a}//{a} {b}//{b} {c}//{c}\n" for a, b, c in
+                        [(1, 3, 5), (3, 2, 5), (2, 4, 5), (4, 1, 5), (3, 1, 6), (2, 3, 6), (4, 2, 6), (1, 4, 6)]))
+# moved; scaled unevenly and turned; mirrored, turned about two axes and moved
+TRANSFORMS = ['<translate x="-2.1"/>', '<scale x="1" y="1.6" z="0.6"/><rotate x="1" angle="-30"/>',
+              '<scale x="-1" y="1" z="1"/><rotate y="1" angle="50"/><rotate z="1" angle="35"/><translate x="2.1" y="0.1"/>']
+
+
+def mitsuba_file(tmp_path) -> str:
+    """A group (a smooth octahedron scaled by its own to_world, a panel) in three instances
+    (TRANSFORMS) before a wall, under a point light."""
+    (tmp_path / "octa.obj").write_text(OCTAHEDRON)
+    shapes = ('<shape type="obj"><string name="filename" value="octa.obj"/>'
+              '<transform name="to_world"><scale value="0.5"/></transform>'
+              '<bsdf type="diffuse"><rgb name="reflectance" value="0.8, 0.3, 0.2"/></bsdf></shape>'
+              '<shape type="rectangle"><transform name="to_world"><scale x="0.6" y="0.3"/><translate y="-0.7" '
+              'z="-0.4"/></transform><bsdf type="diffuse"><rgb name="reflectance" value="0.2, 0.3, 0.9"/></bsdf>'
+              '</shape>')
+    content = f'<shape type="shapegroup" id="g">{shapes}</shape>' + "".join(
+        f'<shape type="instance"><ref id="g"/><transform name="to_world">{t}</transform></shape>' for t in TRANSFORMS)
+    wall = '<bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>'
+    body = harness.mitsuba_stage(harness.mitsuba_sensor("0.2, 0.3, 4.5", 60, 24, 16, max_depth=3, spp=4), content,
+                                 wall, light_z=4, intensity=15)
+    return harness.write_mitsuba_scene(tmp_path / "instancing.xml", body)
+
+
+@pytest.fixture
+def two_level_scene(tmp_path, monkeypatch):
+    monkeypatch.setenv(INSTANCING_ENV, "two-level")
+    scene = load_scene(mitsuba_file(tmp_path))
+    assert [i.blas for i in scene.instances] == [0, 0, 0] and len(scene.blas_groups) == 1
+    return scene
+
+
+SOURCE = r"""
+#include "scene/scene.h"
+__kernel void hits(__global const BVHNode *nodes, __global const float4 *tris, __global const Sphere *spheres,
+                   __global const BVHNode *tlas, __global const Instance *instances,
+                   __global const BVHNode *blas_nodes, __global const float *ro, __global const float *rd,
+                   __global const float *rmax, __global float *t_out, __global int *prim_out,
+                   __global int *inst_out, __global int *occ_out)
+{
+    const int i0 = get_global_id(0) * PACKET_WIDTH;
+    pvec3 o, d;
+    pfloat tmax;
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        PLANE(o.x, k) = ro[3 * (i0 + k)]; PLANE(o.y, k) = ro[3 * (i0 + k) + 1]; PLANE(o.z, k) = ro[3 * (i0 + k) + 2];
+        PLANE(d.x, k) = rd[3 * (i0 + k)]; PLANE(d.y, k) = rd[3 * (i0 + k) + 1]; PLANE(d.z, k) = rd[3 * (i0 + k) + 2];
+        PLANE(tmax, k) = rmax[i0 + k];
+    }
+    pfloat t, u, v;
+    pint prim, inst = PINT(-1);
+    scene_closest_hit(nodes, tris, spheres, 0, o, d, PTRUE, &t, &prim, &u, &v INSTANCE_HIT_ARGS(&inst));
+    const pint occ = scene_occluded(nodes, tris, spheres, 0, o, d, PTRUE, tmax INSTANCE_ARGS);
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        t_out[i0 + k] = PLANE(t, k); prim_out[i0 + k] = PLANE_I(prim, k);
+        inst_out[i0 + k] = PLANE_I(inst, k); occ_out[i0 + k] = PLANE_I(occ, k) != 0;
+    }
+}
+"""
+
+
+def trace(runtime, scene, width, layout, o, d, tmax):
+    bvh = scene_bvh(scene)
+    two = hasattr(bvh, "world")
+    defines = {"HAS_TRIANGLES": True, "PACKET_WIDTH": width, **layout_defines(layout)}
+    if two:
+        defines["HAS_INSTANCES"] = True
+        extra = bvh.buffers(layout)
+    else:
+        extra = {"tlas": np.zeros(1, abi.BVH_NODE), "blas_nodes": np.zeros(1, abi.BVH_NODE),
+                 "instances": np.zeros(1, abi.INSTANCE)}
+    k = harness.Kernels(SOURCE, defines=defines, local_size=1)
+    nodes = node_buffer(getattr(bvh, "world", bvh), layout)
+    blas = extra["blas_nodes"]
+    n = len(o)
+    t, prim, inst, occ = k(runtime, "hits", n // width, nodes=np.frombuffer(nodes.tobytes(), abi.BVH_NODE),
+                           tris=bvh.triangles.view(np.float32).reshape(-1, 4), spheres=np.zeros(1, abi.SPHERE),
+                           tlas=extra["tlas"], instances=extra["instances"],
+                           blas_nodes=np.frombuffer(blas.tobytes() + bytes(-len(blas.tobytes()) % 64 or 64), abi.BVH_NODE),
+                           ro=o, rd=d, rmax=tmax, t_out=n, prim_out=n, inst_out=n, occ_out=n)
+    # the face each hit is of, in the flattened scene's numbering
+    face = np.where(prim >= 0, bvh.prim_ids[np.maximum(prim, 0)], -1)
+    if two:
+        g = scene.blas_groups[0]
+        flat_first = {j: r.first_face for j, r in enumerate(flattened(scene).instances)}
+        idx = np.asarray(bvh.order)[np.maximum(inst, 0)]
+        moved = np.array([flat_first[j] for j in idx]) + face - g.first_face
+        face = np.where(inst >= 0, moved, face)
+    return t, face, occ
+
+
+def random_rays(scene, rng, n):
+    """Rays from points around the scene toward points on its instances and everywhere."""
+    flat = flattened(scene)
+    v = np.asarray(flat.vertices, np.float64)
+    lo, hi = v.min(0) - 0.5, v.max(0) + 0.5
+    o = rng.uniform(lo, hi, (n, 3))
+    target = np.where(rng.random((n, 1)) < 0.7, v[rng.integers(0, len(v), n)] + rng.normal(0, 0.2, (n, 3)),
+                      rng.uniform(lo, hi, (n, 3)))
+    d = target - o
+    tmax = rng.uniform(0.2, 1.2, n)  # shadow segments ending before or past the target
+    return o.astype(np.float32), d.astype(np.float32), tmax.astype(np.float32)
+
+
+@pytest.mark.parametrize("width,layout", [(1, "binary"), (1, "wide8"), (8, "wide8")])
+def test_two_level_hits_match_flattened(device, runtime, rng, two_level_scene, width, layout):
+    """4096 random rays through a group under a translation, an uneven scale with a turn, and a
+    mirror with two turns: closest-hit t within 2e-5 max(t, 1) of the flattened scene's (the ray's
+    move into the group rounds relative to the coordinates), the same face where no two faces are within that of each other,
+    and the same any-hit answer but for segments ending within 1e-4 of a surface; binary and 8-wide
+    BLAS layouts, one ray per work-item and 8 lanes (each lane enters its instances alone)."""
+    if width > 1:
+        harness.require_lane_kernels(device, width)
+    o, d, tmax = random_rays(two_level_scene, rng, 4096)
+    t2, f2, occ2 = trace(runtime, two_level_scene, width, layout, o, d, tmax)
+    t1, f1, occ1 = trace(runtime, flattened(two_level_scene), width, layout, o, d, tmax)
+    hit = np.isfinite(t1)
+    assert hit.mean() > 0.4 and (f1[hit] >= 0).all()
+    assert np.array_equal(np.isfinite(t2), hit)
+    # the move into the group rounds relative to the coordinates (about 1 here), not to t
+    err = np.abs(t2[hit] - t1[hit]) / np.maximum(t1[hit], 1.0)
+    assert err.max() < 2e-5, err.max()
+    # the same face but at ties (edges where two faces meet within the rounding)
+    assert (f2[hit] == f1[hit]).mean() > 0.995
+    near = np.abs(t1 - tmax) <= 1e-4 * np.maximum(t1, 1)
+    assert np.array_equal(occ2[~near], occ1[~near])
+    assert occ1.any() and (~occ1).any()
