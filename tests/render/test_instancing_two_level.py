@@ -226,6 +226,6 @@ def test_pbrt_object_instances_take_the_two_level_path(tmp_path, monkeypatch):
     flat = flattened(scene)
     v = np.asarray(flat.vertices, np.float64)[flat.faces[flat.instances[1].first_face]]
     # (2, 0, 0), (3, 0, 0), (2, 2, 0); x negated: a plain LookAt mirrors pbrt's scene (docs/SCENE_FORMAT.md)
-    assert np.allclose(sorted(map(tuple, np.abs(v))), [(2, 0, 0), (2, 2, 0), (3, 0, 0)], atol=1e-6), v
+    assert np.allclose(np.array(sorted(map(tuple, np.abs(v)))), [(2, 0, 0), (2, 2, 0), (3, 0, 0)], atol=1e-6), v
     monkeypatch.setenv(INSTANCING_ENV, "auto")
     assert not load_scene(str(path)).blas_groups

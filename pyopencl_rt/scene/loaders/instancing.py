@@ -119,7 +119,7 @@ def place(builder) -> list:
         (waiting if two_level else groups).append((group, insts))
     for group, insts in groups:  # flattened after all (their faces follow the world's)
         for inst in insts:
-            k = builder.instances.index(inst)
+            k = next(j for j, other in enumerate(builder.instances) if other is inst)
             builder.instances[k] = flatten_instance(builder, group, inst.to_world, record=False)
     blas = []
     for group, insts in waiting:
