@@ -39,9 +39,9 @@ from ..model import BlasGroup, Instance
 from .assembly import transform_normals
 
 INSTANCING_ENV = "PYOPENCL_RT_INSTANCING"
-# auto: two-level once flattening would copy more triangles than this.  Below it the flattened
-# scene renders faster (no transform per instance entered) at a memory cost of at most ~10 MB
-# (48-byte triangles plus per-face data); docs/BENCHMARKS.md, "Instancing", measures both.
+# auto: two-level once flattening would copy more triangles than this: a memory bound (about 10 MB
+# of 48-byte triangles and per-face data), not a measured speed crossover; docs/BENCHMARKS.md,
+# "Instancing", has the build time and memory of both.
 FLATTEN_MAX_TRIANGLES = 1 << 16
 
 
