@@ -46,12 +46,14 @@ class TwoLevelBVH:
         self.to_world = np.asarray([m for m, _ in instances], np.float64).reshape(-1, 4, 4)
         self.group = np.asarray([g for _, g in instances], np.int64)
         group_boxes = np.array([b_bounds(b) for b in self.blas]).reshape(-1, 2, 3)
-        boxes = world_boxes(group_boxes[self.group], self.to_world)
+        # an instance of a group without faces draws nothing: no record (no TLAS, even, without any)
+        drawn = np.flatnonzero([len(self.blas[g].prim_ids) > 0 for g in self.group])
+        boxes = world_boxes(group_boxes[self.group[drawn]], self.to_world[drawn])
         # the TLAS: a BVH over one degenerate triangle per instance (lo, hi, centre): its box is the
         # instance's box, its centroid the box's centre
         corners = np.stack([boxes[:, 0], boxes[:, 1], boxes.mean(axis=1)], axis=1).reshape(-1, 3)
         self.tlas = build_bvh(corners, np.arange(len(corners)).reshape(-1, 3), threads=threads)
-        self.order = self.tlas.prim_ids.astype(np.int64)  # the instance of each record
+        self.order = drawn[self.tlas.prim_ids]  # the instance of each record
         self.build_seconds = time.perf_counter() - t0
 
     @property
@@ -92,6 +94,8 @@ class TwoLevelBVH:
 def b_bounds(bvh: BVH) -> np.ndarray:
     """(2, 3) float64 box of a BVH's triangles."""
     t = bvh.triangles
+    if not len(t):
+        return np.zeros((2, 3))  # (its instances get no record)
     p = np.concatenate([t[f"v{k}"][:, :3] for k in range(3)]).astype(np.float64)
     return np.stack([p.min(axis=0), p.max(axis=0)])
 

@@ -2,7 +2,13 @@
 instances and one BLAS per shape group give the hits and the image of the flattened scene
 (pyopencl_rt/scene/instances.py:flattened, the copies the loaders made before), at width 1 and in
 lanes; device memory grows with the instances, not their triangles; Mitsuba and pbrt-v4 files take
-this path."""
+this path.
+
+Build cost (CI runs the suite on 2 cores): the flattened references are compiled as the two-level
+scenes are, with HAS_INSTANCES and an empty TLAS (:func:`as_two_level`), and the renders with the
+scenes' own features (one small program shared by every render here; the suite's every-feature
+program with HAS_INSTANCES would be built for this file alone), so each width and layout is one
+build.  That an empty TLAS changes no hit is asserted bit for bit against the plain program."""
 from __future__ import annotations
 
 import numpy as np
@@ -11,10 +17,10 @@ import pytest
 import pyopencl_rt as rt
 from pyopencl_rt.accel.device_bvh import layout_defines, node_buffer
 from pyopencl_rt.device import abi
-from pyopencl_rt.scene.instances import flattened, scene_bvh
+from pyopencl_rt.scene.instances import flattened, scene_bvh, two_level
 from pyopencl_rt.scene.loaders import load_scene
 from pyopencl_rt.scene.loaders.instancing import INSTANCING_ENV
-from pyopencl_rt.scene.lights import PointLight
+from pyopencl_rt.scene.lights import Environment, PointLight
 from pyopencl_rt.scene.model import BlasGroup, Instance, Material, Scene
 
 import harness
@@ -54,6 +60,15 @@ def two_level_scene(tmp_path, monkeypatch):
     return scene
 
 
+def as_two_level(scene):
+    """``scene`` (without two-level instances) with an empty shape group (no faces, no instance):
+    drawn the same, by the two-level scenes' program (HAS_INSTANCES, a TLAS with no instance)."""
+    assert not two_level(scene)
+    s = flattened(scene)
+    s.blas_groups = [BlasGroup("empty", len(s.faces), 0)]
+    return s
+
+
 SOURCE = r"""
 #include "scene/scene.h"
 __kernel void hits(__global const BVHNode *nodes, __global const float4 *tris, __global const Sphere *spheres,
@@ -83,10 +98,11 @@ __kernel void hits(__global const BVHNode *nodes, __global const float4 *tris, _
 
 
 def trace(runtime, scene, width, layout, o, d, tmax):
+    """Closest hits (t, the face in the flattened scene's numbering, -1: none) and any-hit answers
+    of the rays, by a harness kernel compiled with HAS_INSTANCES where the scene has shape groups."""
     bvh = scene_bvh(scene)
-    two = hasattr(bvh, "world")
     defines = {"HAS_TRIANGLES": True, "PACKET_WIDTH": width, **layout_defines(layout)}
-    if two:
+    if scene.blas_groups:
         defines["HAS_INSTANCES"] = True
         extra = bvh.buffers(layout)
     else:
@@ -103,12 +119,14 @@ def trace(runtime, scene, width, layout, o, d, tmax):
                            ro=o, rd=d, rmax=tmax, t_out=n, prim_out=n, inst_out=n, occ_out=n)
     # the face each hit is of, in the flattened scene's numbering
     face = np.where(prim >= 0, bvh.prim_ids[np.maximum(prim, 0)], -1)
-    if two:
+    if two_level(scene):
         g = scene.blas_groups[0]
         flat_first = {j: r.first_face for j, r in enumerate(flattened(scene).instances)}
         idx = np.asarray(bvh.order)[np.maximum(inst, 0)]
         moved = np.array([flat_first[j] for j in idx]) + face - g.first_face
         face = np.where(inst >= 0, moved, face)
+    else:
+        assert (inst == -1).all()
     return t, face, occ
 
 
@@ -131,12 +149,18 @@ def test_two_level_hits_match_flattened(device, runtime, rng, two_level_scene, w
     mirror with two turns: closest-hit t within 2e-5 max(t, 1) of the flattened scene's (the ray's
     move into the group rounds relative to the coordinates), the same face where no two faces are within that of each other,
     and the same any-hit answer but for segments ending within 1e-4 of a surface; binary and 8-wide
-    BLAS layouts, one ray per work-item and 8 lanes (each lane enters its instances alone)."""
+    BLAS layouts, one ray per work-item and 8 lanes (each lane enters its instances alone).  The
+    flattened scene is traced by the same program (an empty TLAS); at 8 lanes (the lane loop over
+    the TLAS) also by the program without HAS_INSTANCES, bit for bit the same."""
     if width > 1:
         harness.require_lane_kernels(device, width)
     o, d, tmax = random_rays(two_level_scene, rng, 4096)
     t2, f2, occ2 = trace(runtime, two_level_scene, width, layout, o, d, tmax)
-    t1, f1, occ1 = trace(runtime, flattened(two_level_scene), width, layout, o, d, tmax)
+    flat = flattened(two_level_scene)
+    t1, f1, occ1 = trace(runtime, as_two_level(flat), width, layout, o, d, tmax)
+    if width > 1:
+        for a, b in zip(trace(runtime, flat, width, layout, o, d, tmax), (t1, f1, occ1)):
+            assert np.array_equal(a, b)
     hit = np.isfinite(t1)
     assert hit.mean() > 0.4 and (f1[hit] >= 0).all()
     assert np.array_equal(np.isfinite(t2), hit)
@@ -150,26 +174,28 @@ def test_two_level_hits_match_flattened(device, runtime, rng, two_level_scene, w
     assert occ1.any() and (~occ1).any()
 
 
-def test_two_level_renders_the_flattened_image(device, two_level_scene):
+def test_two_level_renders_the_flattened_image(device, own_features, two_level_scene):
     """24 x 16, 4 spp, the same seed, the CPU's default schedule (the megakernel in lanes where
     PoCL's x86 device builds them, each lane walking its instances alone; else one path per
     work-item): the two-level scene's image is the flattened scene's up to the transform's rounding
     (measured: max 5e-7 absolute on pixel values about 0.2, in the wavefront and the lanes alike;
-    asserted 1e-5).  The wavefront stages and 8 lanes against width 1 are covered hit by hit above."""
-    flat = flattened(two_level_scene)
+    asserted 1e-5).  Both are one program (the flattened scene with an empty TLAS, its world hits
+    checked bit for bit above).  The wavefront stages and 8 lanes against width 1 are covered hit
+    by hit above."""
     a = rt.render_full(two_level_scene, spp=4, device=device, seed=5)
-    b = rt.render_full(flat, spp=4, device=device, seed=5)
-    assert "HAS_INSTANCES" in a.info["features"] and "HAS_INSTANCES" not in b.info["features"]
+    b = rt.render_full(as_two_level(flattened(two_level_scene)), spp=4, device=device, seed=5)
+    assert "HAS_INSTANCES" in a.info["features"] and a.info["features"] == b.info["features"]
     assert a.info["lanes"] == b.info["lanes"]
     assert a.image.mean() > 0.05
     assert np.abs(a.image - b.image).max() < 1e-5
 
 
-def test_memory_grows_with_instances_not_triangles(device):
-    """10^5 instances of a 128-triangle group (a subdivided octahedron) on a grid, each turned:
-    the device buffers hold the group's triangles once (tris: 128 x 48 bytes), 112 bytes a record
-    and at most 64 bytes of TLAS per instance, where flattening would take 1.28e7 triangles (610 MB
-    of triangles alone); a 16 x 16 image renders with hits on the instances."""
+def test_memory_grows_with_instances_not_triangles(device, own_features):
+    """10^5 instances of a 128-triangle group (a subdivided octahedron, smooth) on a grid, each
+    turned: the device buffers hold the group's triangles once (tris: 128 x 48 bytes), 112 bytes a
+    record and at most 64 bytes of TLAS per instance, where flattening would take 1.28e7 triangles
+    (610 MB of triangles alone); a 16 x 16 image renders with hits on the instances (under the
+    image test's program: the same features)."""
     n = 100_000
     v, f = subdivided_octahedron(2)
     side = int(np.ceil(np.sqrt(n)))
@@ -182,7 +208,9 @@ def test_memory_grows_with_instances_not_triangles(device):
                   materials=[Material(albedo=(0.7, 0.7, 0.7))])
     scene.blas_groups = [BlasGroup("o", 0, len(f))]
     scene.instances = [Instance("o", mk, blas=0) for mk in m]
+    scene.normals = v[f].astype(np.float32)  # the unit sphere's
     scene.lights = [PointLight(position=(0.0, 20.0, 0.0), intensity=(400.0, 400.0, 400.0))]
+    scene.environment = Environment(radiance=(0.0, 0.0, 0.0))  # none, as the image test's program has one
     scene.camera = rt.Camera(eye=(0.0, 6.0, 8.0), look_at=(0.0, 0.0, -20.0), fov=50.0)
     scene.settings.width = scene.settings.height = 16
     bvh = scene_bvh(scene)
@@ -192,8 +220,10 @@ def test_memory_grows_with_instances_not_triangles(device):
     assert bufs["tlas"].nbytes <= 64 * n
     assert bufs["blas_nodes"].nbytes < 64 * 1024  # the group's BVH once
     r = rt.render_full(scene, spp=1, device=device, seed=1)
-    assert r.image.shape == (16, 16, 3) and np.isfinite(r.image).all() and r.image.mean() > 0
+    assert r.image.shape == (16, 16, 3) and np.isfinite(r.image).all()
     assert "HAS_INSTANCES" in r.info["features"]
+    # lit only where the instances are: the light on them, nothing from the (black) sky
+    assert (r.image.max(axis=2) > 0).mean() > 0.3
 
 
 def subdivided_octahedron(levels):
