@@ -30,6 +30,30 @@ def group_vertices(scene) -> np.ndarray:
     return np.unique(np.asarray(scene.faces[n_world_faces(scene):], np.int64))
 
 
+def instance_bounds(scene):
+    """(lo, hi) float64 corners of the box around the two-level instances' moved group vertices
+    (each group's used vertices through each of its instances' M, exactly, a chunk of instances at
+    a time: 10^6 instances of a small group never make 10^6 copies at once); None without any."""
+    insts = two_level(scene)
+    if not insts:
+        return None
+    v64 = np.asarray(scene.vertices, np.float64)
+    m_all = np.asarray([i.to_world for i in insts], np.float64)
+    g_all = np.asarray([i.blas for i in insts])
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for k, g in enumerate(scene.blas_groups):
+        faces = np.asarray(scene.faces[g.first_face:g.first_face + g.n_faces])
+        m = m_all[g_all == k]
+        if not len(faces) or not len(m):
+            continue
+        p = v64[np.unique(faces)]
+        step = max(1, (1 << 20) // len(p))
+        for c in range(0, len(m), step):
+            w = np.einsum("nij,kj->nki", m[c:c + step, :3, :3], p) + m[c:c + step, None, :3, 3]
+            lo, hi = np.minimum(lo, w.min(axis=(0, 1))), np.maximum(hi, w.max(axis=(0, 1)))
+    return (lo, hi) if np.isfinite(lo).all() else None
+
+
 def camera_shifted(scene, eye) -> list:
     """The instance records with the world moved by -eye (the groups' own spaces stay)."""
     shift = np.eye(4)
