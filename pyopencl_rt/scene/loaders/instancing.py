@@ -39,10 +39,11 @@ from ..model import BlasGroup, Instance
 from .assembly import transform_normals
 
 INSTANCING_ENV = "PYOPENCL_RT_INSTANCING"
-# auto: two-level once flattening would copy more triangles than this: a memory bound (about 10 MB
-# of 48-byte triangles and per-face data), not a measured speed crossover; docs/BENCHMARKS.md,
-# "Instancing", has the build time and memory of both.
-FLATTEN_MAX_TRIANGLES = 1 << 16
+# auto: two-level once flattening would copy more triangles than this, the measured speed
+# crossover on a CPU (docs/BENCHMARKS.md, "Instancing": the two-level render 0.6x-0.8x the flattened
+# one's samples/s at 8k-65k copied triangles, even at 262k, ahead at 524k); the copies below it
+# take at most about 40 MB.
+FLATTEN_MAX_TRIANGLES = 1 << 18
 
 
 @dataclass(eq=False)
