@@ -52,8 +52,9 @@ isa-check: $(STAMP)
 		$$s apt-get update -qq && $$s apt-get install -y -qq qemu-user; }
 	$(PY) -m pytest -m isa tests -q -rA -p no:cacheprovider
 
-# On a machine with an NVIDIA GPU (docs/DEVICES.md): make its OpenCL driver visible, then the suite on
-# the GPU device and the ray and render benchmarks on every device, all results in $(OUT)/gpu/.
+# On a machine with an NVIDIA GPU (docs/DEVICES.md): make its OpenCL driver visible, then the media tests
+# (the wavefront stages against the megakernel) and the suite on the GPU device, and the ray and render
+# benchmarks (cornell-box, and cornell-fog for media) on every device, all results in $(OUT)/gpu/.
 # On the lent GPU machine (no network, Python 3.12): run `make gpu-wheels` here first, then there
 # `tools/gpu_check.sh` with .whl carried (it installs the wheels itself; no venv).
 gpu-check: $(STAMP)

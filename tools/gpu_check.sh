@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
-# The GPU check (docs/DEVICES.md): the test suite on the GPU, then the ray and render benchmarks on
-# every device, results as files in $OUT/gpu/ (at most 8 files: what the device tool brings back).
+# The GPU check (docs/DEVICES.md): participating media by the wavefront stages on the GPU (the media
+# tests: the wavefront's film against the megakernel's bit for bit, closed forms), the test suite on the
+# GPU, then the ray and render benchmarks on every device (a media scene by both schedules too),
+# results as files in $OUT/gpu/ (at most 8 files: what the device tool brings back; the media tests'
+# results go to log.txt).
 #
 #   tools/gpu_check.sh [PYTHON]        # PYTHON: default python3
 #
@@ -37,8 +40,14 @@ cli() { "$py" -m pyopencl_rt.cli "$@"; }
 say "devices"
 cli devices --json > "$out/devices.json" 2>> "$log"
 cli devices >> "$log" 2>&1
+# first, so that the media are covered whatever the suite's time limit leaves (issue 25: the wavefront
+# with media had never run on a GPU)
+say "media by the wavefront stages on the GPU (tests/render/test_volpath.py)"
+PYOPENCL_TEST=gpu PYTHONUNBUFFERED=1 timeout 90 "$py" -m pytest -q -p no:cacheprovider -rfE \
+    tests/render/test_volpath.py -k "megakernel_bits or furnace or slab" >> "$log" 2>&1
+say "media tests exit $?"
 say "test suite on the GPU (PYOPENCL_TEST=gpu)"
-PYOPENCL_TEST=gpu PYTHONUNBUFFERED=1 timeout 330 "$py" -m pytest -q -p no:cacheprovider --maxfail=25 -rfE tests \
+PYOPENCL_TEST=gpu PYTHONUNBUFFERED=1 timeout 300 "$py" -m pytest -q -p no:cacheprovider --maxfail=25 -rfE tests \
     --report-json "$out/tests.json" >> "$log" 2>&1
 say "pytest exit $?"
 say "bench rays"
@@ -48,3 +57,7 @@ say "bench render"
 timeout 90 cli bench render scenes/cornell-box.toml --device all --width 512 --height 512 --spp 64 --max-depth 8 \
     --kernel-mode wavefront,megakernel --json "$out/render.json" >> "$log" 2>&1
 say "bench render exit $?"
+say "bench render, media (scenes/cornell-fog.toml)"
+timeout 60 cli bench render scenes/cornell-fog.toml --device all --width 256 --height 256 --spp 16 --max-depth 8 \
+    --kernel-mode wavefront,megakernel --json "$out/render-media.json" >> "$log" 2>&1
+say "bench render media exit $?"

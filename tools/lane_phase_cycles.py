@@ -28,15 +28,15 @@ from pathlib import Path
 PATCHES = [
     ('#include "megakernel/ray_counts.h"\n', "#define CYC ((ulong)__builtin_readcyclecounter())\n"),
     ("    pint out = PINT(0);\n", "    ulong cy[5] = {0, 0, 0, 0, 0}, c0 = CYC;\n"),
-    ("ring_size, seed, &s, &key, &out, &weight); /* bit k: lane k holds a path */\n",
+    ("ring_size, seed, camera_medium, &s, &key, &out, &weight); /* bit k: lane k holds a path */\n",
      "    cy[0] += CYC - c0;\n"),
     ("    while (live) {\n", "        c0 = CYC;\n"),
     ("        n_extend += popcount(live);\n", "        cy[1] += CYC - c0; c0 = CYC;\n"),
     ("        pint goes_on, with_shadow;\n", "        cy[2] += CYC - c0; c0 = CYC;\n"),
-    ("&s, &goes_on, &with_shadow, &shadow);\n", "        cy[3] += CYC - c0; c0 = CYC;\n"),
-    ("            s.L = pv3_sel(s.L, pv3_add(s.L, shadow.contribution), with_shadow & pnot(occluded));\n        }\n",
+    ("INSTANCE_SHADE_ARGS(inst));\n", "        cy[3] += CYC - c0; c0 = CYC;\n"),
+    ("            s.L = pv3_sel(s.L, pv3_add(s.L, shadow.contribution), with_shadow & pnot(occluded));\n#endif\n        }\n",
      "        cy[4] += CYC - c0; c0 = CYC;\n"),
-    ("                                seed, &s, &key, &out, &weight);\n", "        cy[0] += CYC - c0;\n"),
+    ("                                seed, camera_medium, &s, &key, &out, &weight);\n", "        cy[0] += CYC - c0;\n"),
     ("    add_group_ray_counts(group_rays, LANE_GROUP, n_extend, n_shadow, counters);\n",
      "    atomic_add(&counters[0], (int)(cy[0] >> 8)); atomic_add(&counters[1], (int)(cy[1] >> 8));\n"
      "    atomic_add(&counters[2], (int)(cy[2] >> 8)); atomic_add(&counters[6], (int)(cy[3] >> 8));\n"

@@ -138,17 +138,14 @@ __kernel void mk_path(WAVE_PARAMS)
         scene_closest_hit(nodes, tris, spheres, n_spheres, s.o, s.d, live_lanes, &t, &prim, &u, &v CUTOUT_ARGS
                           INSTANCE_HIT_ARGS(&inst));
         n_extend += popcount(live);
-        pint hit = live_lanes & (prim != PRIM_MISS), escaped = live_lanes & pnot(hit);
 #ifdef HAS_MEDIA
-        /* -- the media along the rays: free flights, scattering, null boundaries (render/volpath.h) */
-        pint scattered, crossed, medium_on, medium_shadow, iface, shadow_medium;
-        pvec3 ng;
-        ShadowRay mshadow;
-        path_medium(PATH_ARGS, MEDIA_PATH_ARGS, key, live_lanes, hit, prim, t, u, v, &s, &scattered, &crossed,
-                    &medium_on, &medium_shadow, &mshadow, &shadow_medium, &iface, &ng);
-        escaped &= pnot(scattered);
-        hit &= pnot(scattered | crossed) & (pv3_max3(s.beta) > 0.0f);
-#endif
+        /* -- the media along the rays, then the surfaces or the environment (render/volpath.h) */
+        pint shadow_medium, goes_on, with_shadow;
+        ShadowRay shadow;
+        volpath_vertex(PATH_ARGS, MEDIA_PATH_ARGS, env_light, PINT(0), key, live_lanes, prim, t, u, v, &s, &goes_on,
+                       &with_shadow, &shadow, &shadow_medium);
+#else
+        pint hit = live_lanes & (prim != PRIM_MISS), escaped = live_lanes & pnot(hit);
 #ifdef HAS_ENVIRONMENT
         path_escape(lights, env_light, env_map, env_cdf, integrator, escaped, &s);
 #endif
@@ -156,13 +153,6 @@ __kernel void mk_path(WAVE_PARAMS)
         ShadowRay shadow;
         path_shade(PATH_ARGS, PINT(0), key, hit, prim, t, u, v, &s, &goes_on, &with_shadow, &shadow
                    INSTANCE_SHADE_ARGS(inst));
-#ifdef HAS_MEDIA
-        path_surface_media(medium_interfaces, hit, iface, ng, goes_on, with_shadow, &shadow, &s, &shadow_medium);
-        goes_on |= medium_on;
-        shadow.o = pv3_sel(shadow.o, mshadow.o, medium_shadow);
-        shadow.d = pv3_sel(shadow.d, mshadow.d, medium_shadow);
-        shadow.contribution = pv3_sel(shadow.contribution, mshadow.contribution, medium_shadow);
-        with_shadow |= medium_shadow;
 #endif
         /* -- shadow: the lanes with a light sample (after the emission of this hit, as the
          * wavefront's shadow stage adds it) ---------------------------------------------------- */

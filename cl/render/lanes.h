@@ -220,7 +220,11 @@ RT_INLINE pfloat psqrt(pfloat x)
 #endif
 /* psin, pcos, psincos, patan2, pacos: inline polynomials, the same at every width */
 #include "render/lanes_math.h"
-RT_INLINE pfloat pfloor(pfloat x) { return PLIB1(floor, x); }
+#if PACKET_WIDTH == 1
+RT_INLINE pfloat pfloor(pfloat x) { return floor(x); }
+#else /* exact, and an LLVM intrinsic (vrndscaleps, vroundps), not a call into the built-in library */
+RT_INLINE pfloat pfloor(pfloat x) { return __builtin_elementwise_floor(x); }
+#endif
 RT_INLINE pfloat pexp(pfloat x) { return PLIB1(exp, x); }
 RT_INLINE pfloat plog(pfloat x) { return PLIB1(log, x); }
 RT_INLINE pfloat perf(pfloat x) { return PLIB1(erf, x); }

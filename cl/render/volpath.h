@@ -14,6 +14,8 @@
  *   path_surface_media after path_shade at ordinary surfaces: a surface with a MediumInterface that
  *                      is a transition (a dielectric, any shape bounding a medium) puts the BSDF sample
  *                      and the shadow ray in the medium on the side they leave to.
+ *   volpath_vertex     the whole step at a path's next vertex, as every schedule takes it: path_medium,
+ *                      then the environment or path_shade, then path_surface_media
  *   shadow_transmittance  a shadow ray's transmittance: through media (closed form in a homogeneous
  *                      one, ratio tracking in a grid) and through null surfaces; 0 if another surface
  *                      blocks it.
@@ -349,6 +351,41 @@ RT_INLINE void path_surface_media(__global const MediumInterface *medium_interfa
         s->medium = on ? m : s->medium;
     }
     s->ref = pv3_sel(s->ref, s->o, on);
+}
+
+/* One vertex of the volumetric path for the lanes of `live` after their closest hits (prim, t, u, v),
+ * the step every schedule takes (the megakernel's lanes, the wavefront's shade stage): the medium step
+ * (path_medium), the environment for the rays that left the scene unscattered, path_shade at the
+ * surfaces neither scattered before nor crossed (null), then path_surface_media.  *goes_on: the lanes
+ * whose paths go on; *with_shadow, *shadow, *shadow_medium: their light samples (a medium's or a
+ * surface's: a vertex has one), whose shadow_transmittance the caller adds after this vertex's emission.
+ * `slot`: each lane's AOV entry (path_shade). */
+RT_INLINE void volpath_vertex(PATH_PARAMS, MEDIA_PATH_PARAMS, int env_light, pint slot, SampleKey key, pint live,
+                              pint prim, pfloat t, pfloat u, pfloat v, PathState *s, pint *goes_on,
+                              pint *with_shadow, ShadowRay *shadow, pint *shadow_medium)
+{
+    pint hit = live & (prim != PRIM_MISS), escaped = live & pnot(hit);
+    pint scattered, crossed, medium_on, medium_shadow, iface;
+    pvec3 ng;
+    ShadowRay mshadow;
+    path_medium(PATH_ARGS, MEDIA_PATH_ARGS, key, live, hit, prim, t, u, v, s, &scattered, &crossed, &medium_on,
+                &medium_shadow, &mshadow, shadow_medium, &iface, &ng);
+    escaped &= pnot(scattered);
+    hit &= pnot(scattered | crossed) & (pv3_max3(s->beta) > 0.0f);
+#ifdef HAS_ENVIRONMENT
+    path_escape(lights, env_light, env_map, env_cdf, integrator, escaped, s);
+#endif
+    /* path_shade leaves lanes outside `hit` as they are: none to shade, nothing to call (a path
+     * that scattered or crossed skips the material's gathers) */
+    *goes_on = *with_shadow = PINT(0);
+    shadow->o = shadow->d = shadow->contribution = pv3_zero();
+    if (pany(hit)) path_shade(PATH_ARGS, slot, key, hit, prim, t, u, v, s, goes_on, with_shadow, shadow);
+    path_surface_media(medium_interfaces, hit, iface, ng, *goes_on, *with_shadow, shadow, s, shadow_medium);
+    *goes_on |= medium_on;
+    shadow->o = pv3_sel(shadow->o, mshadow.o, medium_shadow);
+    shadow->d = pv3_sel(shadow->d, mshadow.d, medium_shadow);
+    shadow->contribution = pv3_sel(shadow->contribution, mshadow.contribution, medium_shadow);
+    *with_shadow |= medium_shadow;
 }
 
 #endif

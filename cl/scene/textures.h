@@ -35,77 +35,48 @@
 
 #include "materials/dispatch.h"
 
-RT_INLINE float4 tex_fetch(__global const float4 *data, __global const Texture *t, int x, int y)
+/* tex_wrap1, tex_coord1, TexelQuad1, tex_quad1, tex_channel1: one lookup */
+#define TL_LANES 0
+#include "scene/texture_lookup.tpl.h"
+#undef TL_LANES
+/* the same over the lanes: tex_wrap_lanes, ..., tex_channel_lanes */
+#define TL_LANES 1
+#include "scene/texture_lookup.tpl.h"
+#undef TL_LANES
+
+RT_INLINE __global const float *tex_texels(__global const float4 *data, __global const Texture *t)
 {
-    return data[t->offset + y * t->width + x];
+    return (__global const float *)(data + t->offset);
 }
 
-/* A texel index wrapped into [0, n) by the record's mode; i lies in [-1, 2n] for repeat and
- * mirror (the coordinate was reduced to one period), anywhere for clamp. */
-RT_INLINE int tex_wrap(int i, int n, int wrap)
-{
-    if (wrap == TEXTURE_WRAP_CLAMP) return clamp(i, 0, n - 1);
-    if (wrap == TEXTURE_WRAP_MIRROR) {
-        const int m = i < 0 ? i + 2 * n : (i >= 2 * n ? i - 2 * n : i);
-        return m >= n ? 2 * n - 1 - m : m;
-    }
-    return i < 0 ? i + n : (i >= n ? i - n : i);
-}
-
-/* One coordinate in texels of a lookup (before the half-texel shift): c reduced to one period
- * (repeat: [0, 1), mirror: [0, 2)) or, for clamp, to [-1, 2] (beyond that every texel index clamps
- * the same way), times n. */
-RT_INLINE float tex_coord(float c, int n, int wrap)
-{
-    c = isfinite(c) ? c : 0.0f;
-    if (wrap == TEXTURE_WRAP_CLAMP) c = clamp(c, -1.0f, 2.0f);
-    else if (wrap == TEXTURE_WRAP_MIRROR) c -= 2.0f * floor(0.5f * c);
-    else c -= floor(c);
-    return c * (float)n;
-}
-
-/* The lookup's coordinates: uv through the record's affine to_uv (non-finite parts read as 0). */
-RT_INLINE float2 tex_transform(__global const Texture *t, float2 uv)
-{
-    uv = (float2)(isfinite(uv.x) ? uv.x : 0.0f, isfinite(uv.y) ? uv.y : 0.0f);
-    return (float2)(t->to_uv[0] * uv.x + t->to_uv[1] * uv.y + t->to_uv[2],
-                    t->to_uv[3] * uv.x + t->to_uv[4] * uv.y + t->to_uv[5]);
-}
-
-/* The four texels around uv (wrapped) and the bilinear weights ax, ay of the right and bottom
- * ones. */
-typedef struct { int x0, y0, x1, y1; float ax, ay; } TexelQuad;
-
-RT_INLINE TexelQuad tex_quad(__global const Texture *t, float2 uv)
-{
-    const int w = t->width, h = t->height, wrap = t->wrap;
-    const float2 c = tex_transform(t, uv);
-    const float fx = tex_coord(c.x, w, wrap) - 0.5f, fy = tex_coord(c.y, h, wrap) - 0.5f;
-    const float x0f = floor(fx), y0f = floor(fy);
-    TexelQuad q;
-    q.ax = fx - x0f;
-    q.ay = fy - y0f;
-    const int x0 = (int)x0f, y0 = (int)y0f;
-    q.x0 = tex_wrap(x0, w, wrap);
-    q.y0 = tex_wrap(y0, h, wrap);
-    q.x1 = tex_wrap(x0 + 1, w, wrap);
-    q.y1 = tex_wrap(y0 + 1, h, wrap);
-    return q;
-}
-
-/* Texture `index` at uv, filtered and wrapped as its record says. */
+/* Texture `index` at uv, filtered and wrapped as its record says (RGBA). */
 RT_INLINE float4 tex_sample(__global const Texture *textures, __global const float4 *data, int index, float2 uv)
 {
     __global const Texture *t = textures + index;
-    if (t->filter == TEXTURE_FILTER_NEAREST) {
-        const float2 c = tex_transform(t, uv);
-        const int x = (int)floor(tex_coord(c.x, t->width, t->wrap)), y = (int)floor(tex_coord(c.y, t->height, t->wrap));
-        return tex_fetch(data, t, tex_wrap(x, t->width, t->wrap), tex_wrap(y, t->height, t->wrap));
+    const TexelQuad1 q = tex_quad1(t, uv.x, uv.y);
+    __global const float *texels = tex_texels(data, t);
+    return (float4)(tex_channel1(texels, &q, 0), tex_channel1(texels, &q, 1), tex_channel1(texels, &q, 2),
+                    tex_channel1(texels, &q, 3));
+}
+
+/* The RGB of texture index[k] at (u[k], v[k]) in the lanes k of `on` (0 in the others): the lanes
+ * are taken a texture at a time (usually all of them at once), each group in vectors with its
+ * record's fields shared; tex_sample's texels, bit for bit. */
+RT_INLINE pvec3 tex_sample_lanes(__global const Texture *textures, __global const float4 *data, pint index,
+                                 pfloat u, pfloat v, pint on)
+{
+    pvec3 out = pv3_zero();
+    for (int todo = pbits(on); todo;) {
+        const int ti = PLANE_I(index, lowest_bit(todo));
+        const pint group = on & (index == ti);
+        __global const Texture *t = textures + ti;
+        const TexelQuad_lanes q = tex_quad_lanes(t, u, v);
+        __global const float *texels = tex_texels(data, t);
+        out = pv3_sel(out, pv3(tex_channel_lanes(texels, &q, 0), tex_channel_lanes(texels, &q, 1),
+                               tex_channel_lanes(texels, &q, 2)), group);
+        todo &= ~pbits(group);
     }
-    const TexelQuad q = tex_quad(t, uv);
-    const float4 top = mix(tex_fetch(data, t, q.x0, q.y0), tex_fetch(data, t, q.x1, q.y0), q.ax);
-    const float4 bot = mix(tex_fetch(data, t, q.x0, q.y1), tex_fetch(data, t, q.x1, q.y1), q.ax);
-    return mix(top, bot, q.ay);
+    return out;
 }
 
 /* The gradient (d/du, d/dv) of the bilinear lookup's luminance (Rec. 709 weights) at uv, as
@@ -116,10 +87,11 @@ RT_INLINE float2 tex_gradient(__global const Texture *textures, __global const f
 {
     __global const Texture *t = textures + index;
     if (t->filter == TEXTURE_FILTER_NEAREST) return (float2)(0.0f, 0.0f);
-    const TexelQuad q = tex_quad(t, uv);
+    const TexelQuad1 q = tex_quad1(t, uv.x, uv.y);
+    __global const float4 *texels = (__global const float4 *)tex_texels(data, t);
     const float3 lum = (float3)(0.212671f, 0.715160f, 0.072169f);
-    const float f00 = dot(tex_fetch(data, t, q.x0, q.y0).xyz, lum), f10 = dot(tex_fetch(data, t, q.x1, q.y0).xyz, lum);
-    const float f01 = dot(tex_fetch(data, t, q.x0, q.y1).xyz, lum), f11 = dot(tex_fetch(data, t, q.x1, q.y1).xyz, lum);
+    const float f00 = dot(texels[q.i00 / 4].xyz, lum), f10 = dot(texels[q.i10 / 4].xyz, lum);
+    const float f01 = dot(texels[q.i01 / 4].xyz, lum), f11 = dot(texels[q.i11 / 4].xyz, lum);
     const float dx = (1.0f - q.ay) * (f10 - f00) + q.ay * (f11 - f01);
     const float dy = (1.0f - q.ax) * (f01 - f00) + q.ax * (f11 - f10);
     /* Mitsuba's order: the transpose first, then the resolution (the same for an axis-aligned to_uv) */
@@ -148,8 +120,18 @@ RT_INLINE float tex_scalar_times(float x, __global const int *rec, int kind, __g
     return x;
 }
 
+/* The uv of the lanes' triangle hits (prim valid in every lane), as triangle_uv interpolates. */
+RT_INLINE void triangle_uv_lanes(__global const float2 *tri_uv, pint prim, pfloat u, pfloat v, pfloat *tu, pfloat *tv)
+{
+    __global const float *f = (__global const float *)tri_uv;
+    const pint i = 6 * prim;
+    const pfloat w = 1.0f - u - v;
+    *tu = w * pgather(f, i) + u * pgather(f, i + 2) + v * pgather(f, i + 4);
+    *tv = w * pgather(f, i + 1) + u * pgather(f, i + 3) + v * pgather(f, i + 5);
+}
+
 /* The textures of the lanes' materials applied at their hits (lanes of `tri_hit`: hits on
- * triangles, prim a triangle there), lane by lane: a texture lookup is a gather of its own. */
+ * triangles, prim a triangle there), in vectors over the lanes that read each texture. */
 RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Texture *textures,
                                 __global const float4 *data, pint tri_hit, pint prim, pfloat u, pfloat v,
                                 MaterialLanes *m)
@@ -158,49 +140,51 @@ RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Te
     const pint scalar = pgather_int(recs, m->rec + FIELD_INDEX(Material, tex_scalar)) >= 0;
     const pint textured = tri_hit & ((m->tex_base >= 0) | (m->tex_mr >= 0) | (m->tex_emission >= 0) | scalar);
     if (!pany(textured)) return;
-    for (int k = 0; k < PACKET_WIDTH; ++k) {
-        if (!PLANE_I(textured, k)) continue;
-        const float2 uv = triangle_uv(tri_uv, PLANE_I(prim, k), PLANE(u, k), PLANE(v, k));
-        const int base = PLANE_I(m->tex_base, k), mr = PLANE_I(m->tex_mr, k), emission = PLANE_I(m->tex_emission, k);
-        if (base >= 0) {
-            const float3 c = tex_sample(textures, data, base, uv).xyz;
-            pvec3 *tinted = PLANE_I(m->type, k) == MATERIAL_DIELECTRIC ? &m->specular : &m->albedo;
-            pv3_set_lane(tinted, k, pv3_lane(*tinted, k) * c);
-        }
-        if (mr >= 0) {
-            const float4 c = tex_sample(textures, data, mr, uv);
-            PLANE(m->metallic, k) *= c.z;
-            PLANE(m->alpha, k) *= c.y * c.y;
-        }
-        if (emission >= 0) {
-            const float3 c = tex_sample(textures, data, emission, uv).xyz;
-            pv3_set_lane(&m->emission, k, pv3_lane(m->emission, k) * c);
-        }
-        __global const int *rec = recs + PLANE_I(m->rec, k);
-        const int params = rec[FIELD_INDEX(Material, tex_params)];
-        for (int slot = 0; slot < TEX_SLOTS; ++slot) {
-            const int t = rec[FIELD_INDEX(Material, tex_scalar) + slot];
-            if (t < 0) break;
-            const float c = tex_sample(textures, data, t, uv).x;
-            switch ((params >> (4 * slot)) & 15) {
-            case TEXP_ALPHA: PLANE(m->alpha, k) *= c; break;
-            case TEXP_ROUGHNESS: PLANE(m->roughness, k) *= c; break;
-            case TEXP_METALLIC: PLANE(m->metallic, k) *= c; break;
-            case TEXP_ANISOTROPIC: PLANE(m->anisotropic, k) *= c; break;
-            case TEXP_SPEC_TRANS: PLANE(m->spec_trans, k) *= c; break;
-            case TEXP_SPEC_TINT: PLANE(m->spec_tint, k) *= c; break;
-            case TEXP_SHEEN: PLANE(m->sheen, k) *= c; break;
-            case TEXP_SHEEN_TINT: PLANE(m->sheen_tint, k) *= c; break;
-            case TEXP_CLEARCOAT: PLANE(m->clearcoat, k) *= c; break;
-            case TEXP_CLEARCOAT_GLOSS: PLANE(m->clearcoat_gloss, k) *= c; break;
-            case TEXP_FLATNESS: PLANE(m->flatness, k) *= c; break;
-            case TEXP_DIFF_TRANS: PLANE(m->diff_trans, k) *= c; break;
-            case TEXP_ETA: PLANE(m->ior, k) *= c; break;
-            case TEXP_OPACITY: PLANE(m->opacity, k) *= c; break;
-            case TEXP_ALPHA_V: PLANE(m->alpha_v, k) *= c; break;
-            default: break;
-            }
-        }
+    pfloat tu, tv;
+    triangle_uv_lanes(tri_uv, textured ? prim : PINT(0), u, v, &tu, &tv);
+    const pint base = textured & (m->tex_base >= 0);
+    if (pany(base)) {
+        const pvec3 c = tex_sample_lanes(textures, data, m->tex_base, tu, tv, base);
+        const pint tint = base & (m->type == MATERIAL_DIELECTRIC);
+        m->specular = pv3_sel(m->specular, pv3_mul(m->specular, c), tint);
+        m->albedo = pv3_sel(m->albedo, pv3_mul(m->albedo, c), base & pnot(tint));
+    }
+    const pint mr = textured & (m->tex_mr >= 0);
+    if (pany(mr)) {
+        const pvec3 c = tex_sample_lanes(textures, data, m->tex_mr, tu, tv, mr);
+        m->metallic = mr ? m->metallic * c.z : m->metallic;
+        m->alpha = mr ? m->alpha * (c.y * c.y) : m->alpha;
+    }
+    const pint emission = textured & (m->tex_emission >= 0);
+    if (pany(emission)) {
+        const pvec3 c = tex_sample_lanes(textures, data, m->tex_emission, tu, tv, emission);
+        m->emission = pv3_sel(m->emission, pv3_mul(m->emission, c), emission);
+    }
+    pint on = textured & scalar;
+    const pint params = on ? pgather_int(recs, m->rec + FIELD_INDEX(Material, tex_params)) : PINT(0);
+    for (int slot = 0; slot < TEX_SLOTS && pany(on); ++slot) {
+        const pint t = on ? pgather_int(recs, m->rec + (FIELD_INDEX(Material, tex_scalar) + slot)) : PINT(-1);
+        on &= t >= 0;
+        if (!pany(on)) break;
+        const pfloat c = tex_sample_lanes(textures, data, t, tu, tv, on).x;
+        const pint kind = on ? (params >> (4 * slot)) & 15 : PINT(-1);
+#define TEXP_TIMES(K, field) m->field = kind == K ? m->field * c : m->field
+        TEXP_TIMES(TEXP_ALPHA, alpha);
+        TEXP_TIMES(TEXP_ROUGHNESS, roughness);
+        TEXP_TIMES(TEXP_METALLIC, metallic);
+        TEXP_TIMES(TEXP_ANISOTROPIC, anisotropic);
+        TEXP_TIMES(TEXP_SPEC_TRANS, spec_trans);
+        TEXP_TIMES(TEXP_SPEC_TINT, spec_tint);
+        TEXP_TIMES(TEXP_SHEEN, sheen);
+        TEXP_TIMES(TEXP_SHEEN_TINT, sheen_tint);
+        TEXP_TIMES(TEXP_CLEARCOAT, clearcoat);
+        TEXP_TIMES(TEXP_CLEARCOAT_GLOSS, clearcoat_gloss);
+        TEXP_TIMES(TEXP_FLATNESS, flatness);
+        TEXP_TIMES(TEXP_DIFF_TRANS, diff_trans);
+        TEXP_TIMES(TEXP_ETA, ior);
+        TEXP_TIMES(TEXP_OPACITY, opacity);
+        TEXP_TIMES(TEXP_ALPHA_V, alpha_v);
+#undef TEXP_TIMES
     }
 }
 

@@ -3,8 +3,12 @@
  * (first_pass, first_pixel); later ones take the following pixels, wrapping into the next pass.
  * With n_listed > 0 (adaptive sampling) a pass covers only the pixels pixel_list[0..n_listed),
  * and first_pixel counts entries of that list.
- * The camera ray: camera_ray() of cl/render/path.h; its filter weight waits in path_weight. */
+ * The camera ray: camera_ray() of cl/render/path.h; its filter weight waits in path_weight.  With
+ * HAS_MEDIA the path also starts in the camera's medium (path_start_media of cl/render/volpath.h). */
 #include "render/path.h"
+#ifdef HAS_MEDIA
+#include "render/volpath.h"
+#endif
 
 __kernel void wf_generate(WAVE_PARAMS)
 {
@@ -33,5 +37,16 @@ __kernel void wf_generate(WAVE_PARAMS)
     path_eta_scale[slot] = 1.0f;
 #ifdef HAS_AOVS
     aov_start(aov_path, slot);
+#endif
+#ifdef HAS_MEDIA
+    /* the path's medium state as the megakernel starts it (path_start_media) */
+    PathState s;
+    path_start(&s, PTRUE, o, d);
+    path_start_media(&s, PTRUE, camera_medium, key);
+    vol_medium[slot] = s.medium;
+    vol_channel[slot] = s.channel;
+    vol_rng[slot] = s.rng;
+    store3(vol_r, slot, pv3_lane(s.r, 0));
+    store3(vol_ref, slot, pv3_lane(s.ref, 0));
 #endif
 }

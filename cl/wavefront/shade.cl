@@ -1,8 +1,14 @@
 /* Stage 3: every active path at its new hit point (n_items = active-queue length): the shared
  * integrator step of cl/render/path.h (emission with MIS, one light sample, one BSDF sample with
  * Russian roulette) on the state this path keeps in the structure-of-arrays buffers; the light
- * sample goes to the shadow queue, the path to the next active queue or the termination queue. */
+ * sample goes to the shadow queue, the path to the next active queue or the termination queue.
+ * With HAS_MEDIA the step is volpath_vertex (cl/render/volpath.h), the megakernel's: the free flight
+ * to the hit of the extend stage, a scattering vertex (its light sample through the shadow queue, a
+ * phase sample) or a null crossing, else the surface or the environment as without media. */
 #include "render/path.h"
+#ifdef HAS_MEDIA
+#include "render/volpath.h"
+#endif
 
 __kernel void wf_shade(WAVE_PARAMS)
 {
@@ -31,6 +37,43 @@ __kernel void wf_shade(WAVE_PARAMS)
         s.pdf = path_pdf[slot];
         s.eta_scale = path_eta_scale[slot];
         s.depth = path_depth[slot];
+#ifdef HAS_MEDIA
+        /* the medium step first: volpath_vertex, the megakernel's step; the ray's hit (a miss
+         * too) bounds its free flight */
+        s.medium = vol_medium[slot];
+        s.channel = vol_channel[slot];
+        s.rng = vol_rng[slot];
+        s.r = pv3_from(load3(vol_r, slot));
+        s.ref = pv3_from(load3(vol_ref, slot));
+        {
+            ShadowRay shadow;
+            pint shadow_medium;
+            volpath_vertex(PATH_ARGS, MEDIA_PATH_ARGS, env_light, slot, key, PTRUE, prim, hit_t[slot], hit_u[slot],
+                           hit_v[slot], &s, &alive, &queued_shadow, &shadow, &shadow_medium);
+            alive = alive != 0;
+            queued_shadow = queued_shadow != 0;
+            if (queued_shadow) {
+                store3(sh_o, slot, pv3_lane(shadow.o, 0));
+                store3(sh_d, slot, pv3_lane(shadow.d, 0));
+                store3(sh_contrib, slot, pv3_lane(shadow.contribution, 0));
+                sh_medium[slot] = shadow_medium;
+            }
+            /* the shadow stage's ratio tracking draws from the stream and weighs with r after this
+             * vertex, ended path or not */
+            vol_rng[slot] = s.rng;
+            store3(vol_r, slot, pv3_lane(s.r, 0));
+            if (alive) {
+                store3(ray_o, slot, pv3_lane(s.o, 0));
+                store3(ray_d, slot, pv3_lane(s.d, 0));
+                store3(throughput, slot, pv3_lane(s.beta, 0));
+                path_pdf[slot] = s.pdf;
+                path_eta_scale[slot] = s.eta_scale;
+                path_depth[slot] = s.depth;
+                vol_medium[slot] = s.medium;
+                store3(vol_ref, slot, pv3_lane(s.ref, 0));
+            }
+        }
+#else
         if (prim != PRIM_MISS) {
             ShadowRay shadow;
             path_shade(PATH_ARGS, slot, key, PTRUE, prim, hit_t[slot], hit_u[slot], hit_v[slot], &s, &alive,
@@ -56,6 +99,7 @@ __kernel void wf_shade(WAVE_PARAMS)
             path_escape(lights, env_light, env_map, env_cdf, integrator, PTRUE, &s);
         }
 #endif
+#endif /* HAS_MEDIA */
         store3(radiance, slot, pv3_lane(s.L, 0));
     } /* active */
 

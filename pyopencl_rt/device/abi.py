@@ -569,6 +569,14 @@ MEDIA_PARAMS: tuple[Param, ...] = (
     Param("tri_interface", "const", "int", "medium interface per reordered triangle, -1 if none"),
     Param("sphere_interface", "const", "int", "medium interface per sphere, -1 if none"),
     Param("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none"),
+    # the wavefront's per-path media state (PathState's HAS_MEDIA fields): allocated with HAS_MEDIA in the
+    # wavefront schedule only, 16-byte dummies otherwise (the megakernel keeps them in registers)
+    _path("vol_medium", "int", 1, "the medium the path's ray is in, MEDIUM_VACUUM if none"),
+    _path("vol_channel", "int", 1, "its hero channel"),
+    _path("vol_rng", "uint", 1, "its tracking stream (media.h medium_uniform; the shadow stage draws from it too)"),
+    _path("vol_r", "float", 3, "its spectral-MIS ratios, mean 1"),
+    _path("vol_ref", "float", 3, "its last scattering vertex (light_pdf's reference point)"),
+    _path("sh_medium", "int", 1, "the medium the shadow ray starts in (shade -> shadow)"),
 )
 # Two-level instances (cl/accel/instances.h, compiled with HAS_INSTANCES): 16-byte dummies without.
 INSTANCE_PARAMS: tuple[Param, ...] = (

@@ -13,7 +13,8 @@ integrator: the two ray-casting stages behind one interface, so that the rest of
   render; the transfers are included on purpose (on PoCL they are memcpys, on a GPU they would
   dominate).  Embree returns original face ids, and the kernels expect BVH-reordered triangle
   indices, so hits are mapped through the inverse of ``bvh.prim_ids``.  Spheres are not in the
-  Embree scene: scenes with spheres are refused.
+  Embree scene: scenes with spheres are refused, and so are scenes with participating media (their
+  shadow rays need transmittance, cl/render/volpath.h, not an any-hit test).
 
 Each intersector keeps ``host_seconds`` per stage (time spent on the host, transfers included);
 :meth:`Wavefront.run` adds it to the stage profile, where a device stage has its event times.
@@ -71,6 +72,10 @@ class EmbreeIntersector(Intersector):
     def check(self, scene) -> None:
         if len(scene.spheres):
             raise UserError("--intersector embree: scenes with spheres are not supported (Embree gets triangles only)")
+        if scene.has_media():
+            raise UserError("--intersector embree: scenes with participating media or index-matched shapes are not "
+                            "supported (their shadow rays need the transmittance through media and null boundaries, "
+                            "which the OpenCL shadow stage computes)")
 
     def _attach(self, wf) -> None:
         """Host copies of the wave's rays and hits, and Embree's scene (once per wavefront)."""

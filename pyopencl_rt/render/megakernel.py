@@ -11,8 +11,9 @@ Which schedule a render uses (:func:`kernel_mode`): ``"megakernel"`` on CPU devi
 on the others, when the Embree intersector traces on the host (it needs the wavefront's ray
 queues) and when film AOVs are requested (their per-path state lives in the wavefront's buffers).
 ``$PYOPENCL_RT_KERNEL_MODE`` or the ``kernel_mode`` argument overrides the choice.  Scenes with
-participating media always render with the megakernel (on GPUs too, one path per work-item): the
-wavefront stages have no medium step (issue 25).
+participating media follow the same rule: both schedules take the one volumetric step
+(cl/render/volpath.h, ``volpath_vertex``), so the image is the same bit for bit, and on a CPU the lane
+megakernel is the faster (docs/BENCHMARKS.md, "Participating media: wavefront against megakernel").
 
 Paths in SIMD lanes (:func:`lane_choice`): on PoCL's CPU device of an x86 host, each work-item
 follows 16 or 8 paths at once in the lanes of its vectors (cl/megakernel/path.cl compiled with
@@ -44,8 +45,8 @@ LANE_GROUP = 1
 
 
 def kernel_mode(device, intersector: str, film_aovs, requested: str | None = None, media: bool = False) -> str:
-    """The schedule for a render on ``device`` (see the module docstring).  A scene with participating
-    media renders with the megakernel on every device: the wavefront stages have no medium step yet."""
+    """The schedule for a render on ``device`` (see the module docstring).  ``media``: the scene has
+    participating media or index-matched shapes, which take no film AOVs in either schedule."""
     import pyopencl as cl
 
     requested = requested or os.environ.get(KERNEL_MODE_ENV) or "auto"
@@ -56,11 +57,11 @@ def kernel_mode(device, intersector: str, film_aovs, requested: str | None = Non
     if requested == "megakernel" and not can_megakernel:
         raise UserError("--kernel-mode megakernel traces in OpenCL and has no AOVs: it cannot be combined with "
                         "--intersector embree or film AOVs")
-    if media:
-        if not can_megakernel:
-            raise UserError("participating media render with the megakernel, which traces in OpenCL and has no AOVs: "
-                            "no --intersector embree or film AOVs with media")
-        return "megakernel"
+    if media and film_aovs:
+        # the wavefront would record the first hit behind a null boundary with the depth of the ray from it
+        raise UserError("film AOVs (albedo, normal, depth, position; the guides of --denoise) are not recorded in "
+                        "scenes with participating media or index-matched shapes: render without those AOVs and "
+                        "--denoise")
     if requested == "auto":
         return "megakernel" if can_megakernel and device.type & cl.device_type.CPU else "wavefront"
     return requested

@@ -83,10 +83,11 @@ class Wavefront:
             raise TypeError(f"give either settings or overrides, not both ({', '.join(overrides)})")
         self.settings = settings
         self.intersector = make_intersector(intersector)
-        if self.intersector.name != "opencl" and bvh is None:
+        if (self.intersector.name != "opencl" or scene.has_media()) and bvh is None:
             from ..scene.instances import flattened
 
-            scene = flattened(scene)  # Embree traces the flattened instances (one copy each)
+            # Embree, and the volumetric integrator (no instance step), trace one copy per instance
+            scene = flattened(scene)
         self.intersector.check(scene)
         self.scene = scene
         self.device = device
@@ -170,7 +171,7 @@ class Wavefront:
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
             **self._texture_buffers(const), **self._shading_buffers(const), **self._aov_buffers(scratch, W, P),
-            **self._media_buffers(const),
+            **self._media_buffers(const), **self._media_path_buffers(const),
             free_q=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32)),
             counters=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host),
             pass_ring=scratch(3 * 4 * P * self.ring_size), env_map=const(env_map), env_cdf=const(env_cdf),
@@ -262,16 +263,26 @@ class Wavefront:
         return {"tri_normal": normals, "tri_color": colors}
 
     def _media_buffers(self, const) -> dict:
-        """abi.MEDIA_PARAMS (scene/media.py:pack_media, tri_interface in the BVH's triangle order); 16-byte
-        dummies and camera_medium -1 when the scene has no media."""
+        """abi.MEDIA_PARAMS' scene buffers (scene/media.py:pack_media, tri_interface in the BVH's triangle
+        order); 16-byte dummies and camera_medium -1 when the scene has no media."""
         if "HAS_MEDIA" not in self.features:
             dummy = const(np.zeros(0, np.uint8))
-            return {**{p.name: dummy for p in abi.MEDIA_PARAMS if p.kind != "scalar"}, "camera_medium": -1}
+            return {**{p.name: dummy for p in abi.MEDIA_PARAMS if p.kind != "scalar" and not p.per_slot},
+                    "camera_medium": -1}
         from ..scene.media import pack_media
 
         packed = pack_media(self.scene)
         packed["tri_interface"] = packed["tri_interface"][self.bvh.prim_ids]
         return {k: v if k == "camera_medium" else const(v) for k, v in packed.items()}
+
+    def _media_path_buffers(self, const) -> dict:
+        """Dummies for the per-path media state (abi.MEDIA_PARAMS' per-slot buffers) where no kernel keeps it
+        in memory: a scene without media, or the megakernel; the wavefront with media gets them sized by the
+        table, as the rest of the path state."""
+        if "HAS_MEDIA" in self.features and self.kernel_mode == "wavefront":
+            return {}
+        dummy = const(np.zeros(0, np.uint8))
+        return {p.name: dummy for p in abi.MEDIA_PARAMS if p.per_slot}
 
     def _aov_buffers(self, scratch, W, P) -> dict:
         """aov_path and aov_ring (cl/render/aov.h) when the settings ask for AOVs, else dummies."""

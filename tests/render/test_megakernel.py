@@ -95,3 +95,10 @@ def test_schedule_choice(device):
         kernel_mode(device, "embree", None, "megakernel")
     with pytest.raises(UserError, match="unknown kernel mode"):
         kernel_mode(device, "opencl", None, "fast")
+    # participating media choose no schedule (both have the medium step), but take no film AOVs
+    for requested in (None, "wavefront", "megakernel"):
+        assert kernel_mode(device, "opencl", None, requested, media=True) == kernel_mode(device, "opencl", None,
+                                                                                          requested)
+    with pytest.raises(UserError, match="AOVs .* participating media"):
+        kernel_mode(device, "opencl", ["albedo"], media=True)
+

@@ -10,7 +10,12 @@ renders against closed forms, on every device:
   integral of sigma_s E p(cos) exp(-sigma_t x (1 + 1 / cos alpha)) over the slab's depth;
 - 8 (and 16) lanes render the bits of one lane on scenes/cornell-fog.toml (null boxes, a grid, a
   dielectric boundary, chromatic fog);
-- a scene without media compiles no media code (the preprocessed megakernel), and binds dummies.
+- the wavefront stages render the megakernel's bits (the one volumetric step, volpath_vertex, in both
+  schedules; the same samples and tracking streams) on scenes/cornell-fog.toml (null boxes, a grid, a
+  dielectric boundary, chromatic fog) and on the furnace (the camera inside a chromatic HG medium), and
+  the closed forms above hold for them too;
+- a scene without media compiles no media code (the preprocessed megakernel and wavefront stages), and
+  binds dummies.
 
 Estimates are pixel means over independent pixels: |z| < Z_MAX with the pixels' spread as the error."""
 import shutil
@@ -89,14 +94,17 @@ interior = "slab"
 """
 
 
-@pytest.mark.parametrize("sigma, spectral_mis", [((1.0, 1.0, 1.0), True), ((0.5, 1.5, 3.0), True),
-                                                 ((0.5, 1.5, 3.0), False)])
-def test_slab_transmittance(device, tmp_path, sigma, spectral_mis):
-    """Radiance through an absorbing slab of depth d: Le exp(-sigma_t d), channel by channel."""
+@pytest.mark.parametrize("sigma, spectral_mis, mode", [((1.0, 1.0, 1.0), True, "auto"), ((0.5, 1.5, 3.0), True, "auto"),
+                                                       ((0.5, 1.5, 3.0), False, "auto"),
+                                                       ((0.5, 1.5, 3.0), True, "wavefront")])
+def test_slab_transmittance(device, tmp_path, sigma, spectral_mis, mode):
+    """Radiance through an absorbing slab of depth d: Le exp(-sigma_t d), channel by channel (by the
+    device's schedule, and by the wavefront stages)."""
     d = 0.8
     scene = load(tmp_path, SLAB.format(spp=64, sigma=list(sigma), d=d, half=d / 2))
     scene.settings.spectral_mis = spectral_mis
-    r = rt.render_full(scene, device=device)
+    r = rt.render_full(scene, device=device, kernel_mode=mode)
+    assert mode == "auto" or r.info["kernel_mode"] == mode
     assert "HAS_MEDIA" in r.info["features"]
     assert ("SPECTRAL_MIS" in r.info["features"]) == (spectral_mis and len(set(sigma)) > 1)
     expected = np.array([2.0, 1.0, 0.5]) * np.exp(-np.array(sigma) * d)
@@ -145,10 +153,13 @@ interior = "fog"
 """
 
 
-def test_furnace(device, tmp_path):
-    """An albedo-1 medium in a white furnace neither adds nor takes light: Le / (1 - albedo) = 2."""
-    r = rt.render_full(load(tmp_path, FURNACE), device=device)
+@pytest.mark.parametrize("mode", ["auto", "wavefront"])
+def test_furnace(device, tmp_path, mode):
+    """An albedo-1 medium in a white furnace neither adds nor takes light: Le / (1 - albedo) = 2; by
+    the device's own schedule and by the wavefront stages."""
+    r = rt.render_full(load(tmp_path, FURNACE), device=device, kernel_mode=mode, spp=48 if mode == "auto" else 16)
     assert "SPECTRAL_MIS" in r.info["features"]
+    assert mode == "auto" or r.info["kernel_mode"] == "wavefront"
     assert_mean(r, np.full(3, 2.0), rel=0.05)
 
 
@@ -226,10 +237,40 @@ def test_lanes_render_the_same_bits(device, monkeypatch):
     harness.assert_same_lanes(results)
 
 
-def preprocessed(features) -> str:
+@pytest.mark.parametrize("name", ["cornell-fog", "furnace"])
+def test_wavefront_renders_the_megakernel_bits(device, tmp_path, monkeypatch, name):
+    """The wavefront stages (the medium step in shade, the transmittance in shadow, the path's medium,
+    hero channel, ratios and tracking stream kept per slot) against the megakernel at the lane width
+    the device gets: the same film bit for bit, and the same rays traced.  cornell-fog: chromatic fog
+    and a grid in null boxes, a medium inside a glass sphere; the furnace: the camera inside a
+    chromatic Henyey-Greenstein medium, long paths."""
+    monkeypatch.delenv(megakernel.LANES_ENV, raising=False)
+    scene = rt.load_scene(SCENES / "cornell-fog.toml") if name == "cornell-fog" else load(tmp_path, FURNACE)
+    options = dict(device=device, spp=2, seed=4, width=16, height=16, max_depth=8 if name == "furnace" else 6)
+    wavefront = rt.render_full(scene, kernel_mode="wavefront", **options)
+    mega = rt.render_full(scene, kernel_mode="megakernel", **options)
+    assert {"HAS_MEDIA", "SPECTRAL_MIS"} <= set(wavefront.info["features"])
+    assert wavefront.info["kernel_mode"] == "wavefront" and mega.info["kernel_mode"] == "megakernel"
+    assert wavefront.film.sum.max() > 0
+    assert np.array_equal(wavefront.film.sum, mega.film.sum)
+    assert np.array_equal(wavefront.film.sum_sq, mega.film.sum_sq)
+    assert (wavefront.stats.rays_extend, wavefront.stats.rays_shadow) == (mega.stats.rays_extend, mega.stats.rays_shadow)
+
+
+def test_embree_refuses_media(device, tmp_path):
+    """Embree's shadow stage is an any-hit test: a scene with media (which needs the transmittance) is
+    refused in one line, before anything is built."""
+    from pyopencl_rt.errors import UserError
+    from pyopencl_rt.render.wavefront import Wavefront
+
+    with pytest.raises(UserError, match="embree: scenes with participating media"):
+        Wavefront(load(tmp_path, FURNACE), device, width=8, height=8, intersector="embree")
+
+
+def preprocessed(features, sources=megakernel.SOURCES) -> str:
     from pyopencl_rt.device.kernels import assemble, define_options
 
-    src = assemble(*megakernel.SOURCES)
+    src = assemble(*sources)
     features = {k: v for k, v in features.items() if k not in megakernel.lane_features(8)}  # one lane: plain C
     out = subprocess.run([shutil.which("cpp"), "-P", *define_options(features)], input=src, capture_output=True,
                          text=True, check=True)
@@ -239,20 +280,31 @@ def preprocessed(features) -> str:
 @pytest.mark.skipif(shutil.which("cpp") is None, reason="needs the C preprocessor")
 def test_no_media_no_media_code(device, tmp_path):
     """A scene without media compiles none of the volumetric code (no HAS_MEDIA, and the preprocessed
-    megakernel has no medium step, no media fields in the path state); with media it does."""
+    megakernel and wavefront stages have no medium step, no media fields in the path state, and never
+    touch the per-slot media buffers, bound to dummies); with media they do."""
+    from pyopencl_rt.render import wavefront
     from pyopencl_rt.render.wavefront import Wavefront
 
-    plain = Wavefront(rt.load_scene(SCENES / "cornell-box.toml"), device, width=8, height=8)
+    plain = Wavefront(rt.load_scene(SCENES / "cornell-box.toml"), device, width=8, height=8, kernel_mode="wavefront",
+                      wave_size=256)
     assert "HAS_MEDIA" not in plain.features and "SPECTRAL_MIS" not in plain.features
-    src = preprocessed(plain.features)
-    assert "mk_path" in src
-    for name in ("path_medium", "shadow_transmittance", "medium_sample_free_flight", "puint rng;"):
-        assert name not in src, name
-    fog = Wavefront(rt.load_scene(SCENES / "cornell-fog.toml"), device, width=8, height=8)
-    assert {"HAS_MEDIA", "SPECTRAL_MIS"} <= set(fog.features) and fog.kernel_mode == "megakernel"
-    src = preprocessed(fog.features)
-    for name in ("path_medium", "shadow_transmittance", "medium_sample_free_flight"):
-        assert name in src, name
+    assert plain.buffer("vol_rng").size == plain.buffer("vol_r").size == 16  # dummies
+    code = ("path_medium(", "volpath_vertex", "shadow_transmittance", "medium_sample_free_flight", "puint rng;",
+            "vol_rng[", "sh_medium[")
+    for sources, kernel in ((megakernel.SOURCES, "mk_path"), (wavefront.SOURCES, "wf_shade")):
+        src = preprocessed(plain.features, sources)
+        assert kernel in src
+        for name in code:
+            assert name not in src, (kernel, name)
+    fog = Wavefront(rt.load_scene(SCENES / "cornell-fog.toml"), device, width=8, height=8, kernel_mode="wavefront",
+                    wave_size=256)
+    assert {"HAS_MEDIA", "SPECTRAL_MIS"} <= set(fog.features)
+    assert fog.buffer("vol_rng").size == 4 * 256 and fog.buffer("vol_r").size == 12 * 256
+    for sources in (megakernel.SOURCES, wavefront.SOURCES):
+        src = preprocessed(fog.features, sources)
+        for name in ("path_medium(", "volpath_vertex", "shadow_transmittance", "medium_sample_free_flight"):
+            assert name in src, name
+    assert "vol_rng[" in preprocessed(fog.features, wavefront.SOURCES)
 
 
 THIN = ortho_header(spp=64, max_depth=4, seed=9) + """

@@ -47,6 +47,9 @@ def test_vol_round_trip_and_mitsuba(tmp_path, rng):
     (lambda b: b[:20] + (2).to_bytes(4, "little") + b[24:], "impossible grid"),
     (lambda b: b[:-4], "truncated"),
     (lambda b: b[:30], "shorter than its header"),
+    # an OpenVDB file (its int32 magic 0x56444220) and a NanoVDB one: named as such, not "not a .vol"
+    (lambda b: (0x56444220).to_bytes(4, "little") + b[4:], "OpenVDB / NanoVDB grid, which we do not read"),
+    (lambda b: b"NanoVDB2" + b[8:], "OpenVDB / NanoVDB grid, which we do not read"),
 ])
 def test_vol_errors(tmp_path, patch, message):
     write_vol(tmp_path / "a.vol", np.ones((2, 2, 2)))

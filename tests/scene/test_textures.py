@@ -84,6 +84,61 @@ def test_wrap_filter_and_to_uv_match_reference(runtime, rng):
         assert bad.mean() < (0.002 if t.filter == "nearest" else 0.0005), (t.wrap, t.filter, err.max())
 
 
+LANES = r"""
+#include "scene/textures.h"
+/* items i * PACKET_WIDTH .. + PACKET_WIDTH in the lanes of work-item i: texture index[k] at uv[k]
+ * in the lanes where on[k]; out: tex_sample_lanes' RGB, then tex_sample's RGBA (one lookup) */
+__kernel void h_tex_lanes(__global const Texture *textures, __global const float4 *data, __global const int *index,
+                          __global const float2 *uv, __global const int *on, __global float *out)
+{
+    const int base = get_global_id(0) * PACKET_WIDTH;
+    pint ti = PINT(0), live = PINT(0);
+    pfloat u, v;
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        PLANE_I(ti, k) = index[base + k];
+        PLANE(u, k) = uv[base + k].x;
+        PLANE(v, k) = uv[base + k].y;
+        PLANE_I(live, k) = on[base + k] ? -1 : 0;
+    }
+    const pvec3 c = tex_sample_lanes(textures, data, ti, u, v, live);
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        const float4 one = tex_sample(textures, data, index[base + k], uv[base + k]);
+        vstore3(pv3_lane(c, k), 0, out + 7 * (base + k));
+        vstore4(one, 0, out + 7 * (base + k) + 3);
+    }
+}
+"""
+
+
+@pytest.mark.parametrize("width", [8, 16])
+def test_lanes_lookup_is_the_one_lookup(runtime, rng, width):
+    """tex_sample_lanes (texture_material's lookup over the lanes, a texture at a time) gives in
+    every lane of `on` the bits of tex_sample (the one lookup, which the reference tests above
+    check), and 0 in the others: lanes reading different textures of every wrap mode and filter,
+    with an affine to_uv, inside, outside and far outside [0, 1), and non-finite uv."""
+    base = texture_from_array(rng.random((5, 7, 4)).astype(np.float32))
+    texs = [base.with_lookup(wrap=w, filter=f, to_uv=(2.0, 0.3, -0.5, -0.2, 1.5, 0.25))
+            for w in ("repeat", "mirror", "clamp") for f in ("bilinear", "nearest")]
+    texs.append(texture_from_array(rng.random((3, 11, 4)).astype(np.float32)))
+    table, data = pack_textures(texs)
+    n = 64 * width
+    uv = np.concatenate([rng.uniform(0, 1, (n // 2, 2)), rng.uniform(-4, 4, (n // 4, 2)),
+                         rng.uniform(-300, 300, (n // 4, 2))]).astype(np.float32)
+    uv[::97] = np.nan
+    uv[1::89, 0] = np.inf
+    # runs of one texture (the usual packet) and lanes of mixed textures
+    index = np.where(np.arange(n) < n // 2, (np.arange(n) // width) % len(texs),
+                     rng.integers(0, len(texs), n)).astype(np.int32)
+    on = (rng.random(n) < 0.8).astype(np.int32)
+    wide = harness.Kernels(LANES, defines={"PACKET_WIDTH": width}, local_size=16)
+    out = wide(runtime, "h_tex_lanes", n // width, table, data, index, uv, on, (n, 7))
+    lanes, one = out[:, :3], out[:, 3:6]
+    assert np.all(np.isfinite(one))
+    live = on.astype(bool)
+    assert np.array_equal(lanes[live].view(np.uint32), one[live].view(np.uint32))
+    assert np.all(lanes[~live] == 0)
+
+
 def test_wrap_modes_closed_form():
     """The reference's wrap modes on a 1 x 4 ramp (texel x holds x), Dr.Jit's definitions: mirror
     repeats the edge texel once at each border, clamp continues it, repeat tiles; bilinear halfway

@@ -25,6 +25,12 @@ from .builder import error_at
 HEADER = struct.Struct("<3sBi3ii6f")  # 48 bytes
 
 
+# the first bytes of OpenVDB files (the int32 0x56444220, little endian) and NanoVDB ones ("NanoVDB0",
+# "NanoVDB1", "NanoVDB2" by version)
+OPENVDB_MAGIC = b" BDV"
+NANOVDB_MAGIC = b"NanoVDB"
+
+
 def read_vol(path, where: str = "") -> tuple[np.ndarray, np.ndarray]:
     """(values (nz, ny, nx, channels) float32, box (2, 3) float64) of a .vol file; a
     SceneFormatError naming ``where`` (or the file) if it is not one we can read."""
@@ -34,6 +40,9 @@ def read_vol(path, where: str = "") -> tuple[np.ndarray, np.ndarray]:
         raw = path.read_bytes()
     except OSError as exc:
         raise error_at(where, f"cannot read '{path}' ({exc.strerror or exc})") from None
+    if raw[:4] == OPENVDB_MAGIC or raw[:7] == NANOVDB_MAGIC or path.suffix.lower() in (".vdb", ".nvdb"):
+        raise error_at(where, f"'{path.name}' is an OpenVDB / NanoVDB grid, which we do not read (no maintained reader "
+                              "installs from pip); convert it to Mitsuba's .vol (docs/SCENE_FORMAT.md, media)")
     if len(raw) < HEADER.size:
         raise error_at(where, f"'{path.name}' is not a volume grid (.vol): {len(raw)} bytes, shorter than its header")
     magic, version, encoding, nx, ny, nz, channels, *box = HEADER.unpack_from(raw)
