@@ -6,7 +6,9 @@
 Each ``--variant`` is ImageSettings overrides (kernel_mode, sampler, max_depth, ...) and
 optionally ``defines``: extra kernel defines (switches such as RT_PORTABLE_BUILTINS in
 cl/cpu_builtins.h), and ``env``: environment variables set while the variant is built (such as
-``{"PYOPENCL_RT_LANES": "0"}``, the megakernel with one path per work-item), and ``cl``: the
+``{"PYOPENCL_RT_LANES": "0"}``, the megakernel with one path per work-item) and, where it names a
+variable the loaders read (``PYOPENCL_RT_INSTANCING``: flattened or two-level instances), while
+its own copy of the scene is loaded, and ``cl``: the
 kernel sources of another tree for that variant (a folder holding ``accel/``, ``render/``, ...,
 as ``/tmp/wt-x/cl``), or ``rev``: a git revision of this repository whose ``cl/`` is taken
 (``git archive``), so that kernel changes are compared in one process:
@@ -54,6 +56,9 @@ def main(argv=None):
     from pyopencl_rt.render import wavefront as wavefront_module
     from pyopencl_rt.render.film import Film
     from pyopencl_rt.scene.loaders import load_scene
+    from pyopencl_rt.scene.loaders.instancing import INSTANCING_ENV
+
+    loader_env = {INSTANCING_ENV}  # read when a file is loaded, not when the kernels are built
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scene")
@@ -86,9 +91,10 @@ def main(argv=None):
                 defines = {**defines, "RT_KERNEL_AB_TREE": index + 1}
             saved = {k: os.environ.get(k) for k in env}
             os.environ.update(env)
+            own_scene = load_scene(args.scene) if loader_env & set(env) else scene
             # the features are read when the kernels are built, in the constructor
             wavefront_module.kernel_features = lambda *a, _d=defines, **k: {**features(*a, **k), **_d}
-            wf = wavefront_module.Wavefront(scene, device, width=args.width, height=args.width, **config)
+            wf = wavefront_module.Wavefront(own_scene, device, width=args.width, height=args.width, **config)
             for k, v in saved.items():
                 if v is None:
                     os.environ.pop(k, None)

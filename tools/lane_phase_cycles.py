@@ -33,7 +33,7 @@ PATCHES = [
     ("    while (live) {\n", "        c0 = CYC;\n"),
     ("        n_extend += popcount(live);\n", "        cy[1] += CYC - c0; c0 = CYC;\n"),
     ("        pint goes_on, with_shadow;\n", "        cy[2] += CYC - c0; c0 = CYC;\n"),
-    ("&s, &goes_on, &with_shadow, &shadow);\n", "        cy[3] += CYC - c0; c0 = CYC;\n"),
+    ("INSTANCE_SHADE_ARGS(inst));\n", "        cy[3] += CYC - c0; c0 = CYC;\n"),
     ("            s.L = pv3_sel(s.L, pv3_add(s.L, shadow.contribution), with_shadow & pnot(occluded));\n#endif\n        }\n",
      "        cy[4] += CYC - c0; c0 = CYC;\n"),
     ("                                seed, camera_medium, &s, &key, &out, &weight);\n", "        cy[0] += CYC - c0;\n"),

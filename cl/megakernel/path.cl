@@ -134,8 +134,9 @@ __kernel void mk_path(WAVE_PARAMS)
         const pint live_lanes = pmask(live);
         /* -- extend: the live lanes' rays ------------------------------------------------------ */
         pfloat t, u, v;
-        pint prim;
-        scene_closest_hit(nodes, tris, spheres, n_spheres, s.o, s.d, live_lanes, &t, &prim, &u, &v CUTOUT_ARGS);
+        pint prim, inst = PINT(-1);
+        scene_closest_hit(nodes, tris, spheres, n_spheres, s.o, s.d, live_lanes, &t, &prim, &u, &v CUTOUT_ARGS
+                          INSTANCE_HIT_ARGS(&inst));
         n_extend += popcount(live);
 #ifdef HAS_MEDIA
         /* -- the media along the rays, then the surfaces or the environment (render/volpath.h) */
@@ -150,7 +151,8 @@ __kernel void mk_path(WAVE_PARAMS)
 #endif
         pint goes_on, with_shadow;
         ShadowRay shadow;
-        path_shade(PATH_ARGS, PINT(0), key, hit, prim, t, u, v, &s, &goes_on, &with_shadow, &shadow);
+        path_shade(PATH_ARGS, PINT(0), key, hit, prim, t, u, v, &s, &goes_on, &with_shadow, &shadow
+                   INSTANCE_SHADE_ARGS(inst));
 #endif
         /* -- shadow: the lanes with a light sample (after the emission of this hit, as the
          * wavefront's shadow stage adds it) ---------------------------------------------------- */
@@ -164,7 +166,7 @@ __kernel void mk_path(WAVE_PARAMS)
             s.L = pv3_sel(s.L, pv3_add(s.L, pv3_mul(shadow.contribution, tr)), with_shadow);
 #else
             const pint occluded = scene_occluded(nodes, tris, spheres, n_spheres, shadow.o, shadow.d, with_shadow,
-                                                 PFLOAT(1.0f) CUTOUT_ARGS);
+                                                 PFLOAT(1.0f) CUTOUT_ARGS INSTANCE_ARGS);
             s.L = pv3_sel(s.L, pv3_add(s.L, shadow.contribution), with_shadow & pnot(occluded));
 #endif
         }

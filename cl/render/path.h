@@ -81,11 +81,18 @@ typedef struct {
     __global const Light *lights, const int n_lights, __global const float *env_map,                 \
     __global const float *env_cdf, __global const float2 *tri_uv, __global const Texture *textures,  \
     __global const float4 *tex_data, __global const float *tri_normal, __global const float *tri_color, \
-    __global float *aov_path, const int max_depth, const int rr_depth, const int integrator
+    __global float *aov_path, const int max_depth, const int rr_depth, const int integrator PATH_INSTANCES
 #define PATH_ARGS                                                                                     \
     tris, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,          \
     n_lights, env_map, env_cdf, tri_uv, textures, tex_data, tri_normal, tri_color, aov_path, max_depth, \
-    rr_depth, integrator
+    rr_depth, integrator PATH_INSTANCES_ARGS
+#ifdef HAS_INSTANCES
+#define PATH_INSTANCES , __global const Instance *instances
+#define PATH_INSTANCES_ARGS , instances
+#else
+#define PATH_INSTANCES
+#define PATH_INSTANCES_ARGS
+#endif
 
 /* The camera rays through pixels (x, y) of the lanes, and the weight each sample carries (the
  * pixel filter's sign and normalisation, cl/render/filter.h; 1 for filters without negative
@@ -231,7 +238,8 @@ RT_INLINE pint nee_light_sample(PATH_PARAMS, SampleKey key, puint dim, pint acti
  * paths go on (s then holds their next rays) and *with_shadow to those with a light sample to
  * test (*shadow).  Lanes outside `hit` keep their state.  `slot`: each lane's AOV entry. */
 RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint prim, pfloat t, pfloat u,
-                          pfloat v, PathState *s, pint *goes_on, pint *with_shadow, ShadowRay *shadow)
+                          pfloat v, PathState *s, pint *goes_on, pint *with_shadow, ShadowRay *shadow
+                          INSTANCE_SHADE_PARAMS)
 {
     *goes_on = PINT(0);
     *with_shadow = PINT(0);
@@ -239,9 +247,24 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     prim = hit ? prim : PINT(ANY_PRIM);
     const pvec3 o = s->o, d = s->d;
     pvec3 p_err;
-    const pvec3 p = hit_point(tris, spheres, prim, o, d, t, u, v, &p_err);
-    const pvec3 ng = hit_normal(tris, spheres, prim, p, hit);
+    pvec3 p = hit_point(tris, spheres, prim, o, d, t, u, v, &p_err);
+    pvec3 ng = hit_normal(tris, spheres, prim, p, hit);
     const pvec3 wo = pv3_neg(d);
+#ifdef HAS_INSTANCES
+    /* a hit in an instance was found in its group's space: p (its error bound grown) and ng move
+     * to the world here; the shading frame is found in the group's space (with wo moved there)
+     * and its normal moved after, by M^-T (cl/accel/instances.h) */
+    const pint in_inst = hit & (inst >= 0);
+    const pint xi = in_inst ? inst : PINT(0);
+    const pvec3 ng_obj = ng;
+    pvec3 wo_obj = wo;
+    if (pany(in_inst)) {
+        wo_obj = pv3_sel(wo, xf_lanes(instances, xi, FIELD_INDEX(Instance, world_to_object), wo, PFLOAT(0.0f)),
+                         in_inst);
+        instance_point_to_world(instances, xi, in_inst, &p, &p_err);
+        ng = pv3_sel(ng, pv3_normalize(xf_normal_lanes(instances, xi, ng), in_inst), in_inst);
+    }
+#endif
     const pint front = pv3_dot(ng, wo) >= 0.0f; /* the viewer is outside (dielectrics) */
     const pvec3 n = pv3_sel(pv3_neg(ng), ng, front); /* normal on the viewer's side */
     pint mat_index, light_index;
@@ -270,9 +293,23 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
 #endif
     /* the BSDF's frame: the shading normal (interpolated, normal- or bump-mapped) on wo's side,
      * or n (cl/scene/shading.h) */
+#ifdef HAS_INSTANCES
+    ShadingLanes sh = shading_lanes(tris, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit, prim, u,
+                                    v, pv3_sel(ng, ng_obj, in_inst),
+                                    pv3_sel(n, pv3_sel(pv3_neg(ng_obj), ng_obj, front), in_inst), front,
+                                    pv3_sel(wo, wo_obj, in_inst), hit & ((m.flags & MATERIAL_FLAG_ANISOTROPIC) != 0));
+    if (pany(in_inst)) { /* no maps nor anisotropy in instances (loaders/instancing.py): n alone moves */
+        sh.n = pv3_sel(sh.n, pv3_normalize(xf_normal_lanes(instances, xi, sh.n), in_inst), in_inst);
+#ifdef HAS_NORMAL_MAPS
+        sh.base = pv3_sel(sh.base, sh.n, in_inst);
+        sh.tilt = pv3_sel(sh.tilt, sh.n, in_inst);
+#endif
+    }
+#else
     const ShadingLanes sh = shading_lanes(tris, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit,
                                           prim, u, v, ng, n, front, wo,
                                           hit & ((m.flags & MATERIAL_FLAG_ANISOTROPIC) != 0));
+#endif
     /* alpha cut-outs (MATERIAL_FLAG_MASK, Mitsuba's mask): the surface is met with probability
      * `opacity`; one-sided BSDFs (MATERIAL_FLAG_ONE_SIDED) reflect nothing seen from behind */
     const pint masked = hit & ((m.flags & MATERIAL_FLAG_MASK) != 0);

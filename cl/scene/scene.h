@@ -17,6 +17,9 @@
 #if PACKET_WIDTH > 1 && defined(HAS_TRIANGLES)
 #include "accel/bvh_packet.h"
 #endif
+#ifdef HAS_INSTANCES
+#include "accel/instances.h"
+#endif
 #include "render/spawn.h"
 #include "materials/dispatch.h"
 #include "render/sampler.h"
@@ -105,12 +108,78 @@ RT_INLINE pint cutout_lanes(__global const int *tri_material, __global const Mat
 #define CUTOUT_ARGS
 #endif
 
+/* Two-level instances (HAS_INSTANCES, cl/accel/instances.h): scene_closest_hit and scene_occluded
+ * also take the TLAS, the instance records and the groups' BVHs (INSTANCE_PARAMS), and the
+ * closest hit reports the instance of each lane's hit (*inst, -1: none) after the world's BVH has
+ * set the lane's tmax.  One ray at a time at every width: in lanes each lane walks the TLAS and
+ * its instances by itself (the wide single-ray traversal inside), after the packet's world pass. */
+#ifdef HAS_INSTANCES
+#define INSTANCE_PARAMS_NOCOMMA __global const BVHNode *tlas, __global const Instance *instances, \
+    __global const BVHNode *blas_nodes
+#define INSTANCE_PARAMS , __global const BVHNode *tlas, __global const Instance *instances, \
+    __global const BVHNode *blas_nodes
+#define INSTANCE_ARGS , tlas, instances, blas_nodes
+#define INSTANCE_HIT_PARAMS INSTANCE_PARAMS, pint *inst
+#define INSTANCE_HIT_ARGS(inst) INSTANCE_ARGS, inst
+/* path_shade's: the instance records (through PATH_PARAMS) and the lanes' instances */
+#define INSTANCE_SHADE_PARAMS , pint inst
+#define INSTANCE_SHADE_ARGS(inst) , inst
+
+/* the lanes of `live`: a closer hit among the instances than *t (updated with the rest) */
+RT_INLINE void instance_lanes_hit(INSTANCE_PARAMS_NOCOMMA, __global const float4 *tris, pvec3 o, pvec3 d,
+                                  pint live, pfloat *t, pint *prim, pfloat *u, pfloat *v, pint *inst)
+{
+    *inst = PINT(-1);
+#if PACKET_WIDTH == 1
+    if (live) {
+        Hit h; h.t = *t; h.u = *u; h.v = *v; h.prim = *prim;
+        instances_closest_hit(tlas, instances, blas_nodes, tris, (float3)(o.x, o.y, o.z), (float3)(d.x, d.y, d.z),
+                              0.0f, &h, inst);
+        *t = h.t; *prim = h.prim; *u = h.u; *v = h.v;
+    }
+#else
+    for (int k = 0; k < PACKET_WIDTH; ++k) {
+        if (!PLANE_I(live, k)) continue;
+        Hit h; h.t = PLANE(*t, k); h.u = PLANE(*u, k); h.v = PLANE(*v, k); h.prim = PLANE_I(*prim, k);
+        int in = -1;
+        instances_closest_hit(tlas, instances, blas_nodes, tris, pv3_lane(o, k), pv3_lane(d, k), 0.0f, &h, &in);
+        PLANE(*t, k) = h.t; PLANE_I(*prim, k) = h.prim; PLANE(*u, k) = h.u; PLANE(*v, k) = h.v;
+        PLANE_I(*inst, k) = in;
+    }
+#endif
+}
+
+/* the lanes of `live` that an instance blocks in (0, tmax) */
+RT_INLINE pint instance_lanes_occluded(INSTANCE_PARAMS_NOCOMMA, __global const float4 *tris, pvec3 o, pvec3 d,
+                                       pint live, pfloat tmax)
+{
+#if PACKET_WIDTH == 1
+    return live && instances_any_hit(tlas, instances, blas_nodes, tris, (float3)(o.x, o.y, o.z),
+                                     (float3)(d.x, d.y, d.z), 0.0f, tmax);
+#else
+    int bits = 0;
+    for (int k = 0; k < PACKET_WIDTH; ++k)
+        if (PLANE_I(live, k) && instances_any_hit(tlas, instances, blas_nodes, tris, pv3_lane(o, k), pv3_lane(d, k),
+                                                  0.0f, PLANE(tmax, k)))
+            bits |= 1 << k;
+    return pmask(bits);
+#endif
+}
+#else
+#define INSTANCE_PARAMS
+#define INSTANCE_ARGS
+#define INSTANCE_HIT_PARAMS
+#define INSTANCE_HIT_ARGS(inst)
+#define INSTANCE_SHADE_PARAMS
+#define INSTANCE_SHADE_ARGS(inst)
+#endif
+
 /* The closest hits of the lanes of `live` (t in (0, inf)): *prim (PRIM_MISS for none), *t, and
  * the barycentrics *u, *v of a triangle.  One ray through the BVH layout of traverse.h at width 1,
  * a packet (cl/accel/bvh_packet.h) in lanes; spheres one after the other, over the lanes. */
 RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
                                  __global const Sphere *spheres, int n_spheres, pvec3 o, pvec3 d, pint live,
-                                 pfloat *t, pint *prim, pfloat *u, pfloat *v CUTOUT_PARAMS)
+                                 pfloat *t, pint *prim, pfloat *u, pfloat *v CUTOUT_PARAMS INSTANCE_HIT_PARAMS)
 {
     *prim = PINT(PRIM_MISS);
     *u = *v = PFLOAT(0.0f);
@@ -151,10 +220,16 @@ RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const f
 #endif
 #endif
 #endif
+#ifdef HAS_INSTANCES
+    instance_lanes_hit(tlas, instances, blas_nodes, tris, o, d, live, t, prim, u, v, inst);
+#endif
 #ifdef HAS_SPHERES
     for (int s = 0; s < n_spheres; ++s) {
         const pint h = intersect_sphere(o, d, pv3_splat(vload3(0, spheres[s].center)), PFLOAT(spheres[s].radius),
                                         PFLOAT(0.0f), *t, t, live);
+#ifdef HAS_INSTANCES
+        *inst = h ? PINT(-1) : *inst;
+#endif
         *prim = h ? PINT(SPHERE_PRIM(s)) : *prim;
         *u = h ? PFLOAT(0.0f) : *u;
         *v = h ? PFLOAT(0.0f) : *v;
@@ -165,7 +240,7 @@ RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const f
 /* The lanes of `live` whose segment o + t d, t in (0, tmax), is blocked. */
 RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const float4 *tris,
                               __global const Sphere *spheres, int n_spheres, pvec3 o, pvec3 d, pint live,
-                              pfloat tmax CUTOUT_PARAMS)
+                              pfloat tmax CUTOUT_PARAMS INSTANCE_PARAMS)
 {
     pint blocked = PINT(0);
 #ifdef HAS_SPHERES
@@ -216,6 +291,9 @@ RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const floa
     }
 #endif
 #endif
+#endif
+#ifdef HAS_INSTANCES
+    blocked |= instance_lanes_occluded(tlas, instances, blas_nodes, tris, o, d, live & pnot(blocked), tmax);
 #endif
     return blocked & live;
 }

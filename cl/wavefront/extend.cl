@@ -7,9 +7,10 @@ __kernel void wf_extend(WAVE_PARAMS)
     if (i >= n_items) return;
     const int slot = queue_in[i];
     float t, u, v;
-    int prim;
+    int prim, inst = -1;
     scene_closest_hit(nodes, tris, spheres, n_spheres, pv3_from(load3(ray_o, slot)), pv3_from(load3(ray_d, slot)),
-                      PTRUE, &t, &prim, &u, &v CUTOUT_ARGS);
+                      PTRUE, &t, &prim, &u, &v CUTOUT_ARGS INSTANCE_HIT_ARGS(&inst));
+    hit_inst[slot] = inst;
     hit_t[slot] = t;
     hit_prim[slot] = prim;
     hit_u[slot] = u;

@@ -77,7 +77,7 @@ __kernel void wf_shade(WAVE_PARAMS)
         if (prim != PRIM_MISS) {
             ShadowRay shadow;
             path_shade(PATH_ARGS, slot, key, PTRUE, prim, hit_t[slot], hit_u[slot], hit_v[slot], &s, &alive,
-                       &queued_shadow, &shadow);
+                       &queued_shadow, &shadow INSTANCE_SHADE_ARGS(hit_inst[slot]));
             alive = alive != 0; /* masks: any non-zero value is true */
             queued_shadow = queued_shadow != 0;
             if (queued_shadow) {

@@ -25,7 +25,7 @@ __kernel void wf_shadow(WAVE_PARAMS)
            pv3_lane(pv3_add(pv3_from(load3(radiance, slot)), pv3_mul(pv3_from(load3(sh_contrib, slot)), tr)), 0));
 #else
     if (!scene_occluded(nodes, tris, spheres, n_spheres, pv3_from(load3(sh_o, slot)), pv3_from(load3(sh_d, slot)), PTRUE,
-                        1.0f CUTOUT_ARGS))
+                        1.0f CUTOUT_ARGS INSTANCE_ARGS))
         store3(radiance, slot, load3(radiance, slot) + load3(sh_contrib, slot));
 #endif
 }

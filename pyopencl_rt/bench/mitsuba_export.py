@@ -16,8 +16,9 @@ Correspondence (checked against our renderer by tests/bench/test_convergence.py 
 environments, participating media and the scenes of ``bench set``, tests/bench/test_mitsuba_export.py):
 
 * triangles: one PLY mesh per material and medium interface (``face_normals = true``: flat shading
-  on the geometric normal, as ours), BSDF from the material type's ``to_mitsuba`` (pyopencl_rt/scene/materials/;
-  a type without one is refused);
+  on the geometric normal, as ours); a two-level instance (``Scene.blas_groups``) as its own moved
+  copy of its group (pyopencl_rt/scene/instances.py:flattened), what our kernels draw; BSDF from
+  the material type's ``to_mitsuba`` (pyopencl_rt/scene/materials/; a type without one is refused);
 * emitters: ``area`` emitter with our radiance.  Ours is one-sided along the geometric normal
   (v1 - v0) x (v2 - v0); Mitsuba's area emitter emits on the side of the mesh normal, which for
   a PLY without normals is the same cross product (same winding): verified with a one-quad
@@ -92,8 +93,10 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
     """Plain arrays and numbers describing ``scene`` rendered with ``settings`` (default: the
     scene's own) and ``spp`` samples per pixel, for :func:`dict_from_arrays`."""
     from ..render.settings import ImageSettings  # here, not at the top: see the module docstring
+    from ..scene.instances import flattened
 
     settings = settings or ImageSettings.resolve(scene)
+    scene = flattened(scene)  # two-level instances: the moved copies the kernels draw
     for m in scene.materials:
         if m.is_emissive and m.two_sided:
             raise ValueError(f"material {m.name!r}: Mitsuba 3 has no two-sided area emitter")

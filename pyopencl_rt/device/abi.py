@@ -334,11 +334,19 @@ assert WIDE8_NODE.itemsize == 256
 TRI8 = _tri_packet(8)
 assert TRI8.itemsize == 320
 
+# An instance of a shape group in the two-level BVH (112 bytes; cl/accel/instances.h): its
+# world-to-object and object-to-world transforms as 3x4 row-major matrices, where its group's BVH
+# starts in the blas_nodes buffer (bytes) and its group's first triangle in tris.
+INSTANCE = np.dtype([("world_to_object", np.float32, 12), ("object_to_world", np.float32, 12),
+                     ("blas_offset", np.int32), ("tri_offset", np.int32), ("pad", np.int32, 2)])
+assert INSTANCE.itemsize == 112
+
 # Registry of every shared struct: name -> dtype.  Add new shared structs here.
 STRUCTS: dict[str, np.dtype] = {
     "BVHNode": BVH_NODE,
     "Material": MATERIAL,
     "Sphere": SPHERE,
+    "Instance": INSTANCE,
     "Light": LIGHT,
     "Camera": CAMERA,
     "WideNode": WIDE_NODE,
@@ -502,6 +510,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _path("hit_prim", "int", 1, "its primitive (PRIM_MISS, triangle or SPHERE_PRIM)"),
     _path("hit_u", "float", 1, "its barycentrics"),
     _path("hit_v", "float", 1),
+    _path("hit_inst", "int", 1, "the instance of a triangle hit in a two-level group (reordered), -1 if none"),
     _path("sh_o", "float", 3, "shadow ray origin (shade -> shadow)"),
     _path("sh_d", "float", 3, "shadow ray, t in (0, 1)"),
     _path("sh_contrib", "float", 3, "radiance the light sample adds if unoccluded"),
@@ -569,7 +578,13 @@ MEDIA_PARAMS: tuple[Param, ...] = (
     _path("vol_ref", "float", 3, "its last scattering vertex (light_pdf's reference point)"),
     _path("sh_medium", "int", 1, "the medium the shadow ray starts in (shade -> shadow)"),
 )
-WAVE_PARAMS = WAVE_PARAMS + MEDIA_PARAMS
+# Two-level instances (cl/accel/instances.h, compiled with HAS_INSTANCES): 16-byte dummies without.
+INSTANCE_PARAMS: tuple[Param, ...] = (
+    Param("tlas", "const", "BVHNode", "binary BVH over the instances' world boxes (leaves: ranges of instances)"),
+    Param("instances", "const", "Instance", "the instances in the TLAS's leaf order"),
+    Param("blas_nodes", "const", "BVHNode", "every two-level group's BVH in the device's layout, one after another"),
+)
+WAVE_PARAMS = WAVE_PARAMS + MEDIA_PARAMS + INSTANCE_PARAMS
 WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
 assert len(WAVE_PARAM) == len(WAVE_PARAMS)
 

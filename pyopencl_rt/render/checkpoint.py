@@ -3,9 +3,9 @@
 A checkpoint is one ``.npz`` file: the film (float64 ``sum`` and ``sum_sq``, ``passes``, and
 ``aov_sum`` when the settings have ``film_aovs``, so that a resumed render keeps its AOVs), the
 ``key`` it belongs to and a JSON ``meta`` record.  The key is a SHA-256 of the scene's arrays
-(geometry, materials, camera) and of every setting that changes the image (width, height,
-max_depth, rr_depth, integrator, seed), so a checkpoint of another scene or of other settings is
-refused.  Settings that do not change the image (device, wave size, number of devices) are free
+(geometry with its two-level instances' transforms and groups, materials, camera) and of every
+setting that changes the image (width, height, max_depth, rr_depth, integrator, seed), so a
+checkpoint of another scene or of other settings is refused.  Settings that do not change the image (device, wave size, number of devices) are free
 to change between the interrupted render and its resumption.
 
 Passes are whole and keyed by (seed, pixel, pass, dimension): a film holding passes [0, n) that
@@ -56,6 +56,13 @@ def scene_hash(scene) -> str:
         add("normals", scene.face_normals())
     if getattr(scene, "colors", None) is not None:
         add("colors", scene.face_colors())
+    if getattr(scene, "blas_groups", None):  # two-level instances draw what no array above holds
+        from ..scene.instances import two_level
+
+        insts = two_level(scene)
+        add("instance_to_world", np.asarray([i.to_world for i in insts], np.float64).reshape(-1, 4, 4))
+        add("instance_blas", np.asarray([i.blas for i in insts], np.int64))
+        add("blas_groups", np.asarray([(g.first_face, g.n_faces) for g in scene.blas_groups], np.int64))
     if getattr(scene, "lights", None) or getattr(scene, "environment", None) is not None:
         from .lights import environment_buffers, other_lights
 

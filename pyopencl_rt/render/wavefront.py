@@ -16,7 +16,7 @@ import numpy as np
 
 from .. import validate
 from ..device import abi
-from ..accel.bvh import build_bvh
+from ..scene.instances import scene_bvh
 from . import filters
 from .film import Film, RunStats
 from .lights import build_lights, environment_buffers
@@ -83,6 +83,11 @@ class Wavefront:
             raise TypeError(f"give either settings or overrides, not both ({', '.join(overrides)})")
         self.settings = settings
         self.intersector = make_intersector(intersector)
+        if (self.intersector.name != "opencl" or scene.has_media()) and bvh is None:
+            from ..scene.instances import flattened
+
+            # Embree, and the volumetric integrator (no instance step), trace one copy per instance
+            scene = flattened(scene)
         self.intersector.check(scene)
         self.scene = scene
         self.device = device
@@ -96,7 +101,7 @@ class Wavefront:
         if bvh is None:  # a BVH passed in was built by the caller from scene.camera_relative()
             scene = scene.camera_relative()
             self.scene = scene
-        self.bvh = bvh if bvh is not None else build_bvh(scene.vertices, scene.faces)
+        self.bvh = bvh if bvh is not None else scene_bvh(scene)  # two-level with blas_groups
         self.timings["bvh_seconds"] = time.perf_counter() - t0
         lights, tri_light, sphere_light = build_lights(scene, self.bvh)
         self.n_lights = len(lights)
@@ -160,7 +165,8 @@ class Wavefront:
         # arguments by parameter name (abi.WAVE_PARAMS), set once on every stage
         self.args = KernelArgs(self.kernels)
         self.args.bind(
-            nodes=const(node_buffer(self.bvh, self.bvh_layout)), tris=const(self.bvh.triangles),
+            nodes=const(node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout)),
+            tris=const(self.bvh.triangles), **self._instance_buffers(const),
             tri_material=const(tri_material), tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
@@ -225,6 +231,12 @@ class Wavefront:
     @property
     def n_pixels(self) -> int:
         return self.settings.n_pixels
+
+    def _instance_buffers(self, const) -> dict:
+        """tlas, instances, blas_nodes (cl/accel/instances.h); 16-byte dummies without two-level instances."""
+        if not hasattr(self.bvh, "world"):
+            return dict.fromkeys(("tlas", "instances", "blas_nodes"), const(np.zeros(16, np.uint8)))
+        return {k: const(a) for k, a in self.bvh.buffers(self.bvh_layout).items()}
 
     def _texture_buffers(self, const) -> dict:
         """tri_uv, textures and tex_data (cl/scene/textures.h); 16-byte dummies when the scene has

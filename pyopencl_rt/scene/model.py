@@ -339,10 +339,11 @@ class RenderSettings:
 @dataclass
 class Instance:
     """One instance of a shape group (Mitsuba's shapegroup / instance, pbrt-v4's ObjectBegin /
-    ObjectInstance): the group's name, its 4x4 to_world, and where its copy of the group's shapes
-    lies in the Scene's arrays (faces[first_face:first_face + n_faces], spheres likewise).  The
-    loaders flatten instances (each adds its own moved copy); these records are what a two-level
-    BVH (instances sharing one BLAS) would build from."""
+    ObjectInstance): the group's name and its 4x4 to_world.  A flattened instance (blas -1) added
+    its own moved copy of the group's shapes to the Scene's arrays (faces[first_face:first_face +
+    n_faces], spheres likewise); a two-level one (blas >= 0) adds nothing: it draws
+    Scene.blas_groups[blas], whose faces are in the group's own space, moved by to_world at
+    render time (pyopencl_rt/accel/instances.py)."""
 
     group: str
     to_world: np.ndarray
@@ -350,6 +351,18 @@ class Instance:
     n_faces: int = 0
     first_sphere: int = 0
     n_spheres: int = 0
+    blas: int = -1
+
+
+@dataclass
+class BlasGroup:
+    """A shape group that two-level instances share: its faces, in the group's own space, are
+    faces[first_face:first_face + n_faces] of the Scene (after every world face), each drawn
+    only through the instances that name it; one bottom-level BVH is built over them."""
+
+    name: str
+    first_face: int
+    n_faces: int
 
 
 @dataclass
@@ -386,8 +399,11 @@ class Scene:
     interfaces: list = field(default_factory=list)
     face_interfaces: np.ndarray | None = None
     sphere_interfaces: np.ndarray | None = None
-    # the shape-group instances the file had (Instance records; already flattened into the arrays above)
+    # the shape-group instances the file had (Instance records): flattened ones are in the arrays
+    # above; two-level ones draw the blas_groups (BlasGroup records: faces at the end of the arrays,
+    # in their group's own space)
     instances: list = field(default_factory=list)
+    blas_groups: list = field(default_factory=list)
     # True: the corner normals are used as given, not each made unit length: their lengths weigh the
     # interpolation (which the kernels normalise), as an unevenly scaled instance's normals need
     normals_as_given: bool = False
@@ -463,6 +479,11 @@ class Scene:
             return self
         s = copy.copy(self)
         s.vertices = (np.asarray(self.vertices, np.float64) - eye).astype(np.float32)
+        if self.blas_groups:  # two-level groups stay in their own space; their instances move
+            from .instances import camera_shifted, group_vertices
+
+            g = group_vertices(self)
+            s.vertices[g], s.instances = self.vertices[g], camera_shifted(self, eye)
         if len(self.spheres):
             spheres = np.asarray(self.spheres, np.float64).copy()
             spheres[:, :3] -= eye

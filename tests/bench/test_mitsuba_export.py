@@ -239,3 +239,44 @@ def test_media_scene_renders_the_same(tmp_path, device):
     assert a.min() > 0.1
     for block in (8, 4):
         assert_regions_agree(ours, theirs, variance, block=block)
+
+
+def test_two_level_instances_export_as_their_moved_copies():
+    """A scene drawn through the two-level BVH (a world quad; a two-triangle group of two
+    materials in three instances: turned and moved, scaled unevenly, mirrored) is exported as
+    what it renders: the world's faces and, per instance, each group triangle's corners moved by
+    its to_world with the front on the side of M^-T n (corners reversed under the mirror), its
+    material kept; the group's own-space faces are not exported."""
+    from pyopencl_rt.scene.model import BlasGroup, Instance, Material, Scene
+
+    v = np.array([[-3, -1, -3], [3, -1, -3], [3, -1, 3], [-3, -1, 3],  # world quad
+                  [0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], np.float32)  # the group's corners
+    faces = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 7, 5]], np.int32)
+    scene = Scene(vertices=v, faces=faces, face_materials=np.array([0, 0, 1, 2], np.int32),
+                  materials=[Material(albedo=(0.5, 0.5, 0.5)), Material(albedo=(0.8, 0.2, 0.2)),
+                             Material(albedo=(0.2, 0.2, 0.8))])
+    c, s = np.cos(0.7), np.sin(0.7)
+    turned = np.array([[c, 0, s, 1.5], [0, 1, 0, 0.2], [-s, 0, c, -0.5], [0, 0, 0, 1]])
+    uneven = np.diag([2.0, 0.5, 1.0, 1.0])
+    mirror = np.diag([-1.0, 1.0, 1.0, 1.0]) @ turned
+    scene.blas_groups = [BlasGroup("g", 2, 2)]
+    scene.instances = [Instance("g", m, blas=0) for m in (turned, uneven, mirror)]
+    scene.camera.eye, scene.camera.look_at = (0.0, 1.0, 8.0), (0.0, 0.0, 0.0)
+
+    arrays = scene_arrays(scene, ImageSettings.resolve(scene, width=8, height=8), spp=1)
+    tri = np.asarray(arrays["vertices"], np.float64)[arrays["faces"]]
+    mats = arrays["face_materials"]
+    assert len(tri) == 2 + 3 * 2
+    assert np.allclose(tri[:2], v[faces[:2]]) and (mats[:2] == 0).all()
+    exported = [(t, m) for t, m in zip(tri[2:], mats[2:])]
+    for m in (turned, uneven, mirror):
+        for f, mat in zip(faces[2:], (1, 2)):
+            p = v[f].astype(np.float64)
+            moved = p @ m[:3, :3].T + m[:3, 3]
+            n = np.linalg.inv(m[:3, :3]).T @ np.cross(p[1] - p[0], p[2] - p[0])
+            match = [(t, k) for t, k in exported
+                     if np.allclose(np.sort(t, axis=0), np.sort(moved, axis=0), atol=1e-5)]
+            assert len(match) == 1, (m, f)
+            t, k = match[0]
+            assert k == mat
+            assert np.dot(np.cross(t[1] - t[0], t[2] - t[0]), n) > 0

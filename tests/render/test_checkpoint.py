@@ -197,3 +197,38 @@ def test_cli_sigterm_writes_outputs_and_resume_matches(tmp_path):
     out, err = bad.communicate(timeout=120)
     assert bad.returncode == 1
     assert err.strip().count("\n") == 0 and "other settings" in err and "width 40 -> 41" in err
+
+
+def two_level_scene(moves, groups=(0, 0)):
+    """Two one-triangle shape groups (the second turned) and an instance of group ``groups[k]``
+    moved by x = ``moves[k]``, drawn through the two-level BVH: no array of vertices or faces
+    changes with the instances."""
+    from pyopencl_rt.scene.model import BlasGroup, Instance, Material, Scene
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 0], [0, 1, 0], [0, 0, 1]], np.float32)
+    scene = Scene(vertices=v, faces=np.arange(6, dtype=np.int32).reshape(2, 3), face_materials=np.zeros(2, np.int32),
+                  materials=[Material()])
+    scene.blas_groups = [BlasGroup("a", 0, 1), BlasGroup("b", 1, 1)]
+    m = [np.eye(4) for _ in moves]
+    for mk, x in zip(m, moves):
+        mk[0, 3] = x
+    scene.instances = [Instance("ab"[g], mk, blas=g) for mk, g in zip(m, groups)]
+    return scene
+
+
+def test_checkpoint_key_covers_two_level_instances(tmp_path):
+    """Scenes that differ only in an instance's transform (by 1e-6) or in the group an instance
+    draws never share a key (their arrays are the same), so a checkpoint of one is refused for the
+    other; the same instances give the same key (the key is not merely new each time)."""
+    settings = ImageSettings(width=4, height=4, max_depth=3, rr_depth=3, integrator="path", seed=1)
+    base = two_level_scene([0.0, 2.0])
+    assert ckp.scene_hash(two_level_scene([0.0, 2.0])) == ckp.scene_hash(base)
+    others = [two_level_scene([0.0, 2.0 + 1e-6]), two_level_scene([0.0, 2.0], groups=(0, 1)),
+              two_level_scene([0.0])]
+    keys = {ckp.render_key(s, settings) for s in [base] + others}
+    assert len(keys) == 4
+    path = ckp.save(tmp_path / "r.ckpt.npz", Film.new(4, 4), base, settings)
+    assert ckp.load(path, two_level_scene([0.0, 2.0]), settings)[0].passes == 0
+    for other in others:
+        with pytest.raises(ckp.CheckpointError, match="another scene"):
+            ckp.load(path, other, settings)

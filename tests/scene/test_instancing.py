@@ -156,3 +156,31 @@ def test_pbrt_objects_share_the_instancing(tmp_path):
     path.write_text('WorldBegin\nObjectBegin "o"\nObjectEnd\nObjectBegin "o"\nObjectEnd\n')
     with pytest.raises(SceneError, match=r":4: ObjectBegin: object 'o' is already defined"):
         harness.load_warned(path)
+
+
+@pytest.mark.parametrize("mode", ["two-level", "flatten"])
+def test_framing_camera_sees_the_instances_in_the_world(tmp_path, monkeypatch, mode):
+    """A file without a sensor is framed around its world-space geometry: a two-level scene
+    (its group's faces kept in the group's space, near the origin) gets the camera of the same
+    file flattened, around the instances (moved far along +x and up, turned, scaled unevenly) and
+    the world quad; not a box that holds the group's own-space vertices."""
+    from pyopencl_rt.scene.loaders import load_scene
+    from pyopencl_rt.scene.loaders.instancing import INSTANCING_ENV
+
+    group = (f'<shape type="shapegroup" id="m"><shape type="obj"><string name="filename" value="tri.obj"/>'
+             f'{_matrix(SHAPE)}<bsdf type="diffuse"/></shape></shape>')
+    moves = [_m(ROT * 2.0, (40.0, 0.0, 0.0)), _m(np.diag([1.0, 3.0, 1.0]), (60.0, 10.0, -5.0))]
+    body = group + "".join(f'<shape type="instance"><ref id="m"/>{_matrix(m)}</shape>' for m in moves)
+    body += ('<shape type="rectangle"><transform name="to_world"><translate x="30" z="-2"/></transform>'
+             '<bsdf type="diffuse"/></shape>')
+    path = _xml(tmp_path, body)
+    monkeypatch.setenv(INSTANCING_ENV, "flatten")
+    flat = load_scene(path)
+    monkeypatch.setenv(INSTANCING_ENV, mode)
+    scene = load_scene(path)
+    assert bool(scene.blas_groups) == (mode == "two-level")
+    assert np.allclose(scene.camera.eye, flat.camera.eye) and np.allclose(scene.camera.look_at, flat.camera.look_at)
+    # the flattened copies' box: every moved corner of the group, and the quad
+    v = np.asarray(flat.vertices, np.float64)[np.unique(flat.faces)]
+    assert np.allclose(flat.camera.look_at, (v.min(0) + v.max(0)) / 2, atol=1e-4)
+    assert 30 < flat.camera.look_at[0] < 50

@@ -9,6 +9,7 @@ import warnings
 
 import numpy as np
 
+from ..instances import instance_bounds, n_world_faces
 from ..mesh import check_triangles
 from ..model import Camera, Material, Scene
 
@@ -125,13 +126,18 @@ def angle_weighted_normals(vertices, faces, keys=None) -> np.ndarray:
 
 
 def scene_bounds(scene: Scene):
-    """(lo, hi) corners of the box around the scene's used vertices and its spheres."""
+    """(lo, hi) corners of the box around the scene's used vertices and its spheres, in world
+    space: a two-level group's vertices where its instances move them (scene/instances.py)."""
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
-    if len(scene.faces):
-        used = scene.vertices[np.unique(scene.faces)].astype(np.float64)
+    world = np.asarray(scene.faces)[:n_world_faces(scene)]
+    if len(world):
+        used = scene.vertices[np.unique(world)].astype(np.float64)
         lo = np.minimum(lo, used.min(axis=0))
         hi = np.maximum(hi, used.max(axis=0))
+    moved = instance_bounds(scene)
+    if moved is not None:
+        lo, hi = np.minimum(lo, moved[0]), np.maximum(hi, moved[1])
     if len(scene.spheres):
         s = scene.spheres.astype(np.float64)
         lo = np.minimum(lo, (s[:, :3] - s[:, 3:4]).min(axis=0))

@@ -340,6 +340,7 @@ class SceneBuilder:
         self.recording = None
         self.groups: dict = {}
         self.instances: list = []
+        self.pending: dict = {}  # group name -> (group, its instances) that place() decides on
         self.n_faces = 0
         self.normals_as_given = False  # an unevenly scaled instance's normals (Scene.normals_as_given)
         # emitters of several primitives (Scene.face_emitters): per mesh and per sphere its emitter
@@ -470,7 +471,10 @@ class SceneBuilder:
 
     def build(self) -> Scene:
         """The Scene (the framing camera when the file had none)."""
+        from .instancing import place
+
         mirror = self.mirror
+        blas = place(self)  # two-level groups: their faces last, in their own space
         normals = colors = None
         if self.faces:
             vertices = np.concatenate(self.vertices)
@@ -506,7 +510,11 @@ class SceneBuilder:
             media = [m.transformed(mirror) for m in media]
         instances = self.instances
         if instances and mirror is not None:
-            instances = [dataclasses.replace(i, to_world=mirror @ i.to_world) for i in instances]
+            # a two-level group's own space was mirrored with the rest: its instances are
+            # conjugated (mirror M mirror^-1 of the mirrored group is mirror M of the group)
+            inverse = np.linalg.inv(mirror)
+            instances = [dataclasses.replace(i, to_world=mirror @ i.to_world @ (inverse if i.blas >= 0 else np.eye(4)))
+                         for i in instances]
         if not self.faces and not self.spheres:
             raise SceneFormatError(f"{self.name}: the scene has no shapes that we can render")
         scene = triangle_scene(vertices, faces, face_materials, self.materials, self.name, uvs=uvs, normals=normals,
@@ -529,7 +537,8 @@ class SceneBuilder:
             from .assembly import _finite_faces
             from .instancing import remap_instances
 
-            scene.instances = remap_instances(instances, _finite_faces(vertices, faces) if self.faces else None)
+            scene.instances, scene.blas_groups = remap_instances(instances, blas, _finite_faces(vertices, faces)
+                                                                 if self.faces else None)
         env = self.environment
         scene.environment = env.resample(mirror) if isinstance(env, EnvMap) else env
         if self.camera is None:

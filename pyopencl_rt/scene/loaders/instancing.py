@@ -14,18 +14,36 @@ by its ``to_world`` M, so a shape lands at M @ (its own to_world), as in Mitsuba
 * a sphere stays a sphere (centre moved, radius scaled) when M is a similarity; otherwise it is the
   ellipsoid M makes of it, as triangles with its exact normals.
 
-This flattens the instances at load time: the image is exact, but memory grows with the number of
-instances.  Each instance is also kept as a record (``Scene.instances``: the group, M, and where its
-copy lies in the scene's arrays) for a two-level BVH, instances sharing one BLAS, to build from.
+Flattening is exact but its memory grows with the instances.  So a group whose instances would
+flatten to more than :data:`FLATTEN_MAX_TRIANGLES` triangles is drawn through a two-level BVH
+instead (:func:`place`, at the end of loading): its faces are added once, in its own space, after
+every world face (a ``BlasGroup``), and each instance is only a record (``Instance.blas``) that
+the renderer moves at render time (pyopencl_rt/accel/instances.py).  A group stays flattened
+whatever its size where the renderer's instances do not reach (:func:`why_flattened`): spheres
+(stay spheres under a similarity), emitters (Mitsuba and pbrt-v4 allow none in instances; we
+warn and let each copy emit), medium interfaces, normal or bump maps, anisotropy (their frames
+need the world dp/du), intersection cut-outs and mixes; so does every group of a scene with
+participating media.  ``$PYOPENCL_RT_INSTANCING``: ``auto`` (the default), ``flatten`` (every
+group) or ``two-level`` (every group that can).  Every instance is kept as a record
+(``Scene.instances``: the group, M, and its copy's faces when flattened).
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..model import Instance
+from ...errors import UserError
+from ..model import BlasGroup, Instance
 from .assembly import transform_normals
+
+INSTANCING_ENV = "PYOPENCL_RT_INSTANCING"
+# auto: two-level once flattening would copy more triangles than this, the measured speed
+# crossover on a CPU (docs/BENCHMARKS.md, "Instancing": the two-level render 0.6x-0.8x the flattened
+# one's samples/s at 8k-65k copied triangles, even at 262k, ahead at 524k); the copies below it
+# take at most about 40 MB.
+FLATTEN_MAX_TRIANGLES = 1 << 18
 
 
 @dataclass(eq=False)
@@ -49,10 +67,31 @@ def is_similarity(m, rtol: float = 1e-6) -> tuple:
     return bool(s.max() - s.min() <= rtol * s.max()), float(s.mean())
 
 
+def instancing_mode() -> str:
+    """$PYOPENCL_RT_INSTANCING: auto, flatten or two-level (a UserError, one line, otherwise)."""
+    value = os.environ.get(INSTANCING_ENV, "auto").strip().lower() or "auto"
+    if value not in ("auto", "flatten", "two-level"):
+        raise UserError(f"${INSTANCING_ENV} must be auto, flatten or two-level, not {value!r}")
+    return value
+
+
+def why_flattened(group: ShapeGroup) -> str | None:
+    """Why ``group`` cannot be drawn through the two-level BVH (None: it can)."""
+    if group.spheres:
+        return "spheres"
+    for v, f, uv, nrm, col, material, interface in group.meshes:
+        if material.is_emissive or interface is not None:
+            return "an emitter" if material.is_emissive else "a medium interface"
+        if material.normal_texture is not None or material.is_anisotropic or material.cutout or material.blend:
+            return "a material whose frame or intersection needs world-space data"
+    return None
+
+
 def add_instance(builder, group: ShapeGroup, matrix, position: str) -> Instance:
-    """Add ``group``'s shapes to ``builder``'s scene moved by the 4x4 ``matrix`` (None: the
-    identity); returns (and records in ``builder.instances``) the Instance."""
-    from .builder import error_at, sphere_mesh, transform_points
+    """Add an instance of ``group`` moved by the 4x4 ``matrix`` (None: the identity) to
+    ``builder``'s scene: flattened now, or (a group that may go two-level) once :func:`place`
+    decides; returns (and records in ``builder.instances``) the Instance."""
+    from .builder import error_at
 
     if builder.recording is not None:
         raise error_at(position, "an instance inside a shape group: nested instancing is not supported")
@@ -60,6 +99,47 @@ def add_instance(builder, group: ShapeGroup, matrix, position: str) -> Instance:
     det = float(np.linalg.det(m[:3, :3]))
     if not abs(det) > 1e-300 or not np.isfinite(m).all():
         raise error_at(position, f"the instance of '{group.name}': its to_world is singular")
+    if group.meshes and why_flattened(group) is None and instancing_mode() != "flatten":
+        inst = Instance(group.name, m.copy(), blas=-2)  # -2: placed at the end (place)
+        builder.instances.append(inst)
+        builder.pending.setdefault(group.name, (group, []))[1].append(inst)
+        return inst
+    return flatten_instance(builder, group, m)
+
+
+def place(builder) -> list:
+    """At the end of loading: each group whose instances wait (add_instance) is flattened or, if
+    its copies would exceed FLATTEN_MAX_TRIANGLES (or $PYOPENCL_RT_INSTANCING=two-level),
+    added once in its own space after every world face, its instances pointing at it.  Returns
+    the BlasGroup records (their face ranges in the builder's faces)."""
+    mode = instancing_mode()
+    groups, waiting = [], []
+    for name, (group, insts) in builder.pending.items():
+        copies = len(insts) * sum(len(mesh[1]) for mesh in group.meshes)
+        two_level = not (builder.media or builder.interfaces) and (mode == "two-level" or copies > FLATTEN_MAX_TRIANGLES)
+        (waiting if two_level else groups).append((group, insts))
+    for group, insts in groups:  # flattened after all (their faces follow the world's)
+        for inst in insts:
+            k = next(j for j, other in enumerate(builder.instances) if other is inst)
+            builder.instances[k] = flatten_instance(builder, group, inst.to_world, record=False)
+    blas = []
+    for group, insts in waiting:
+        first = builder.n_faces
+        for v, f, uv, nrm, col, material, interface in group.meshes:
+            builder.append_mesh(v, f, uv, nrm, col, material, interface)
+        for inst in insts:
+            inst.blas = len(blas)
+        blas.append(BlasGroup(group.name, first, builder.n_faces - first))
+    builder.pending = {}
+    return blas
+
+
+def flatten_instance(builder, group: ShapeGroup, m, record: bool = True) -> Instance:
+    """Add ``group``'s shapes moved by ``m`` to the builder's arrays (recorded in
+    builder.instances with ``record``); the Instance."""
+    from .builder import sphere_mesh, transform_points
+
+    det = float(np.linalg.det(m[:3, :3]))
     first_face, first_sphere = builder.n_faces, len(builder.spheres)
     # shading normals by the inverse transpose, not made unit length again, all divided by its
     # largest stretch: the kernels' normalised interpolation then gives normalize(M^-T (the group's
@@ -82,20 +162,24 @@ def add_instance(builder, group: ShapeGroup, matrix, position: str) -> Instance:
         builder.add_mesh(v, f, material, uvs=uv, matrix=moved, normals=(v / radius)[f], interface=interface)
     inst = Instance(group.name, m.copy(), first_face, builder.n_faces - first_face, first_sphere,
                     len(builder.spheres) - first_sphere)
-    builder.instances.append(inst)
+    if record:
+        builder.instances.append(inst)
     return inst
 
 
-def remap_instances(instances: list, keep: np.ndarray | None) -> list:
-    """The instance records with their face ranges in the Scene's faces once the faces that
-    ``keep`` (a mask over the builder's faces, None: all kept) leaves out are dropped."""
+def remap_instances(instances: list, blas: list, keep: np.ndarray | None) -> tuple:
+    """The instance and BlasGroup records with their face ranges in the Scene's faces once the
+    faces that ``keep`` (a mask over the builder's faces, None: all kept) leaves out are dropped."""
     if keep is None or keep.all():
-        return list(instances)
+        return list(instances), list(blas)
     before = np.concatenate([[0], np.cumsum(keep, dtype=np.int64)])
+
+    def span(lo, n):
+        return int(before[lo]), int(before[lo + n] - before[lo])
+
     out = []
     for inst in instances:
-        lo, hi = inst.first_face, inst.first_face + inst.n_faces
-        out.append(Instance(inst.group, inst.to_world, int(before[lo]), int(before[hi] - before[lo]),
-                            inst.first_sphere, inst.n_spheres))
-    return out
+        first, n = span(inst.first_face, inst.n_faces)
+        out.append(Instance(inst.group, inst.to_world, first, n, inst.first_sphere, inst.n_spheres, inst.blas))
+    return out, [BlasGroup(g.name, *span(g.first_face, g.n_faces)) for g in blas]
 
