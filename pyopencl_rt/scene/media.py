@@ -244,9 +244,10 @@ def pack_grids(media) -> tuple[np.ndarray, np.ndarray, dict]:
 
 
 def pack_media(scene) -> dict:
-    """The kernel buffers of the scene's media, by their abi.MEDIA_PARAMS names (not the per-path state): media, medium_grids,
-    grid_data, medium_interfaces (one record at least each), tri_interface (per face, in the scene's
-    face order: the renderer reorders it as tri_material), sphere_interface, and camera_medium."""
+    """The kernel buffers of the scene's media, by their abi.MEDIA_PARAMS names (not the per-path
+    state): media, medium_grids, grid_data, medium_interfaces (one record at least each),
+    tri_interface (per face, in the scene's face order: the renderer reorders it as tri_material),
+    sphere_interface, and camera_medium."""
     table, data, index = pack_grids(scene.media)
     media = np.zeros(max(1, len(scene.media)), abi.MEDIUM)
     for i, m in enumerate(scene.media):
