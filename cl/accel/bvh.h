@@ -80,42 +80,76 @@ RT_INLINE void intersect_children(__global const float4 *node, float8 o8, float8
     *tr = (as_int(q3.w) >= 0 && enter_r <= FAST_MIN(leave_r, tmax)) ? enter_r : INFINITY;
 }
 
+/* A ray's constants for the binary traversal: the watertight test's shear, and the slab test's
+ * origin and inverse direction for both children at once (intersect_children) */
+typedef struct {
+    RayShear sh;
+    float8 o8, inv8;
+} BinaryRay;
+
+RT_INLINE BinaryRay binary_ray(float3 o, float3 d)
+{
+    BinaryRay r;
+    r.sh = ray_shear(d);
+    const float3 inv_d = safe_rcp3(d);
+    r.o8 = (float8)(o, o.z, o, o.z);
+    r.inv8 = (float8)(inv_d, inv_d.z, inv_d, inv_d.z);
+    return r;
+}
+
+/* The next node of a closest-hit traversal (this file's, and the instances' top level,
+ * accel/instances.h) once a node's children are tested: tl, tr their entry distances (INFINITY
+ * where not entered, or where a leaf is done).  The nearer entered child, the farther one pushed
+ * with its distance; with neither, the next node popped, skipping the nodes entered beyond the
+ * closest hit t found since they were pushed.  Returns 0 when the stack is empty: the end. */
+RT_INLINE int bvh_next_closest(int left, int right, float tl, float tr, float t, int *stack_node, float *stack_t,
+                               int *sp, int *idx)
+{
+    if (tl != INFINITY && tr != INFINITY) {
+        if (tl <= tr) { stack_node[*sp] = right; stack_t[*sp] = tr; *idx = left; }
+        else          { stack_node[*sp] = left;  stack_t[*sp] = tl; *idx = right; }
+        ++*sp;
+        return 1;
+    }
+    if (tl != INFINITY) { *idx = left; return 1; }
+    if (tr != INFINITY) { *idx = right; return 1; }
+    while (*sp > 0) {
+        --*sp;
+        if (stack_t[*sp] <= t) { *idx = stack_node[*sp]; return 1; }
+    }
+    return 0;
+}
+
+/* The same for an any-hit traversal: the children to enter in any order, no distances. */
+RT_INLINE int bvh_next_any(int left, int right, int go_left, int go_right, int *stack_node, int *sp, int *idx)
+{
+    if (go_left && go_right) { stack_node[(*sp)++] = right; *idx = left; return 1; }
+    if (go_left) { *idx = left; return 1; }
+    if (go_right) { *idx = right; return 1; }
+    if (*sp == 0) return 0;
+    *idx = stack_node[--*sp];
+    return 1;
+}
+
 /* Closest hit in (tmin, tmax).  hit.prim = PRIM_MISS when nothing is hit. */
 RT_INLINE Hit bvh_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
                            float3 o, float3 d, float tmin, float tmax)
 {
     Hit hit; hit.t = tmax; hit.u = 0.0f; hit.v = 0.0f; hit.prim = PRIM_MISS;
-    const RayShear sh = ray_shear(d);
-    const float3 inv_d = safe_rcp3(d);
-    const float8 o8 = (float8)(o, o.z, o, o.z), inv8 = (float8)(inv_d, inv_d.z, inv_d, inv_d.z);
-    int stack_node[BVH_STACK_SIZE];
+    const BinaryRay r = binary_ray(o, d);
+    int stack_node[BVH_STACK_SIZE], sp = 0, idx = 0;
     float stack_t[BVH_STACK_SIZE];
-    int sp = 0;
-    int idx = 0;
     for (;;) {
         __global const BVHNode *n = nodes + idx;
         const int cl = n->count_left, cr = n->count_right;
         /* an absent child (count -1) has an empty box, min=+inf > max=-inf, which the slab
          * test's fmin/fmax would turn into an infinite interval: intersect_children skips it */
         float tl, tr;
-        intersect_children((__global const float4 *)n, o8, inv8, tmin, hit.t, &tl, &tr);
-        if (tl != INFINITY && cl > 0) { intersect_leaf(o, d, sh, tris, n->child_left, cl, tmin, &hit); tl = INFINITY; }
-        if (tr != INFINITY && cr > 0) { intersect_leaf(o, d, sh, tris, n->child_right, cr, tmin, &hit); tr = INFINITY; }
-        const int left = n->child_left, right = n->child_right;
-        if (tl != INFINITY && tr != INFINITY) {
-            if (tl <= tr) { stack_node[sp] = right; stack_t[sp] = tr; idx = left; }
-            else          { stack_node[sp] = left;  stack_t[sp] = tl; idx = right; }
-            ++sp;
-            continue;
-        }
-        if (tl != INFINITY) { idx = left; continue; }
-        if (tr != INFINITY) { idx = right; continue; }
-        /* pop, skipping nodes entered beyond the closest hit found since they were pushed */
-        for (;;) {
-            if (sp == 0) return hit;
-            --sp;
-            if (stack_t[sp] <= hit.t) { idx = stack_node[sp]; break; }
-        }
+        intersect_children((__global const float4 *)n, r.o8, r.inv8, tmin, hit.t, &tl, &tr);
+        if (tl != INFINITY && cl > 0) { intersect_leaf(o, d, r.sh, tris, n->child_left, cl, tmin, &hit); tl = INFINITY; }
+        if (tr != INFINITY && cr > 0) { intersect_leaf(o, d, r.sh, tris, n->child_right, cr, tmin, &hit); tr = INFINITY; }
+        if (!bvh_next_closest(n->child_left, n->child_right, tl, tr, hit.t, stack_node, stack_t, &sp, &idx))
+            return hit;
     }
 }
 
@@ -123,31 +157,22 @@ RT_INLINE Hit bvh_closest_hit(__global const BVHNode *nodes, __global const floa
 RT_INLINE int bvh_any_hit(__global const BVHNode *nodes, __global const float4 *tris,
                        float3 o, float3 d, float tmin, float tmax)
 {
-    const RayShear sh = ray_shear(d);
-    const float3 inv_d = safe_rcp3(d);
-    const float8 o8 = (float8)(o, o.z, o, o.z), inv8 = (float8)(inv_d, inv_d.z, inv_d, inv_d.z);
-    int stack_node[BVH_STACK_SIZE];
-    int sp = 0;
-    int idx = 0;
+    const BinaryRay r = binary_ray(o, d);
+    int stack_node[BVH_STACK_SIZE], sp = 0, idx = 0;
     for (;;) {
         __global const BVHNode *n = nodes + idx;
-        const int cl = n->count_left, cr = n->count_right;
         float tl, tr;
-        intersect_children((__global const float4 *)n, o8, inv8, tmin, tmax, &tl, &tr);
+        intersect_children((__global const float4 *)n, r.o8, r.inv8, tmin, tmax, &tl, &tr);
         int go_left = tl != INFINITY, go_right = tr != INFINITY;
-        if (go_left && cl > 0) {
-            if (occluded_leaf(o, d, sh, tris, n->child_left, cl, tmin, tmax)) return 1;
+        if (go_left && n->count_left > 0) {
+            if (occluded_leaf(o, d, r.sh, tris, n->child_left, n->count_left, tmin, tmax)) return 1;
             go_left = 0;
         }
-        if (go_right && cr > 0) {
-            if (occluded_leaf(o, d, sh, tris, n->child_right, cr, tmin, tmax)) return 1;
+        if (go_right && n->count_right > 0) {
+            if (occluded_leaf(o, d, r.sh, tris, n->child_right, n->count_right, tmin, tmax)) return 1;
             go_right = 0;
         }
-        if (go_left && go_right) { stack_node[sp++] = n->child_right; idx = n->child_left; continue; }
-        if (go_left) { idx = n->child_left; continue; }
-        if (go_right) { idx = n->child_right; continue; }
-        if (sp == 0) return 0;
-        idx = stack_node[--sp];
+        if (!bvh_next_any(n->child_left, n->child_right, go_left, go_right, stack_node, &sp, &idx)) return 0;
     }
 }
 

@@ -34,8 +34,7 @@ RT_INLINE void instances_closest_hit(__global const BVHNode *tlas, __global cons
                                      __global const BVHNode *blas, __global const float4 *tris, float3 o, float3 d,
                                      float tmin, Hit *hit, int *inst)
 {
-    const float3 inv_d = safe_rcp3(d);
-    const float8 o8 = (float8)(o, o.z, o, o.z), inv8 = (float8)(inv_d, inv_d.z, inv_d, inv_d.z);
+    const BinaryRay r = binary_ray(o, d); /* the slab test's part: each instance's BLAS shears its own ray */
     int stack_node[BVH_STACK_SIZE];
     float stack_t[BVH_STACK_SIZE];
     int sp = 0, idx = 0;
@@ -43,7 +42,7 @@ RT_INLINE void instances_closest_hit(__global const BVHNode *tlas, __global cons
         __global const BVHNode *n = tlas + idx;
         const int cl = n->count_left, cr = n->count_right;
         float tl, tr;
-        intersect_children((__global const float4 *)n, o8, inv8, tmin, hit->t, &tl, &tr);
+        intersect_children((__global const float4 *)n, r.o8, r.inv8, tmin, hit->t, &tl, &tr);
         for (int side = 0; side < 2; ++side) {
             const int cnt = side ? cr : cl;
             if ((side ? tr : tl) == INFINITY || cnt <= 0) continue;
@@ -61,20 +60,7 @@ RT_INLINE void instances_closest_hit(__global const BVHNode *tlas, __global cons
             }
             if (side) tr = INFINITY; else tl = INFINITY;
         }
-        const int left = n->child_left, right = n->child_right;
-        if (tl != INFINITY && tr != INFINITY) {
-            if (tl <= tr) { stack_node[sp] = right; stack_t[sp] = tr; idx = left; }
-            else          { stack_node[sp] = left;  stack_t[sp] = tl; idx = right; }
-            ++sp;
-            continue;
-        }
-        if (tl != INFINITY) { idx = left; continue; }
-        if (tr != INFINITY) { idx = right; continue; }
-        for (;;) {
-            if (sp == 0) return;
-            --sp;
-            if (stack_t[sp] <= hit->t) { idx = stack_node[sp]; break; }
-        }
+        if (!bvh_next_closest(n->child_left, n->child_right, tl, tr, hit->t, stack_node, stack_t, &sp, &idx)) return;
     }
 }
 
@@ -83,14 +69,13 @@ RT_INLINE int instances_any_hit(__global const BVHNode *tlas, __global const Ins
                                 __global const BVHNode *blas, __global const float4 *tris, float3 o, float3 d,
                                 float tmin, float tmax)
 {
-    const float3 inv_d = safe_rcp3(d);
-    const float8 o8 = (float8)(o, o.z, o, o.z), inv8 = (float8)(inv_d, inv_d.z, inv_d, inv_d.z);
+    const BinaryRay r = binary_ray(o, d); /* the slab test's part: each instance's BLAS shears its own ray */
     int stack_node[BVH_STACK_SIZE];
     int sp = 0, idx = 0;
     for (;;) {
         __global const BVHNode *n = tlas + idx;
         float tl, tr;
-        intersect_children((__global const float4 *)n, o8, inv8, tmin, tmax, &tl, &tr);
+        intersect_children((__global const float4 *)n, r.o8, r.inv8, tmin, tmax, &tl, &tr);
         int go[2] = {tl != INFINITY, tr != INFINITY};
         for (int side = 0; side < 2; ++side) {
             const int cnt = side ? n->count_right : n->count_left;
@@ -104,11 +89,7 @@ RT_INLINE int instances_any_hit(__global const BVHNode *tlas, __global const Ins
             }
             go[side] = 0;
         }
-        if (go[0] && go[1]) { stack_node[sp++] = n->child_right; idx = n->child_left; continue; }
-        if (go[0]) { idx = n->child_left; continue; }
-        if (go[1]) { idx = n->child_right; continue; }
-        if (sp == 0) return 0;
-        idx = stack_node[--sp];
+        if (!bvh_next_any(n->child_left, n->child_right, go[0], go[1], stack_node, &sp, &idx)) return 0;
     }
 }
 

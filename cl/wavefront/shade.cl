@@ -10,6 +10,24 @@
 #include "render/volpath.h"
 #endif
 
+/* What the shadow stage reads of a slot's light sample, and what the next stages read of a path
+ * that goes on (the names of WAVE_PARAMS, `slot` and the step's results in scope) */
+#define STORE_SHADOW_RAY()                                                                          \
+    do {                                                                                            \
+        store3(sh_o, slot, pv3_lane(shadow.o, 0));                                                  \
+        store3(sh_d, slot, pv3_lane(shadow.d, 0));                                                  \
+        store3(sh_contrib, slot, pv3_lane(shadow.contribution, 0));                                 \
+    } while (0)
+#define STORE_PATH()                                                                                \
+    do {                                                                                            \
+        store3(ray_o, slot, pv3_lane(s.o, 0));                                                      \
+        store3(ray_d, slot, pv3_lane(s.d, 0));                                                      \
+        store3(throughput, slot, pv3_lane(s.beta, 0));                                              \
+        path_pdf[slot] = s.pdf;                                                                     \
+        path_eta_scale[slot] = s.eta_scale;                                                         \
+        path_depth[slot] = s.depth;                                                                 \
+    } while (0)
+
 __kernel void wf_shade(WAVE_PARAMS)
 {
     /* Queue pushes are gathered per work-group: each work-item leaves a flag in local memory,
@@ -53,9 +71,7 @@ __kernel void wf_shade(WAVE_PARAMS)
             alive = alive != 0;
             queued_shadow = queued_shadow != 0;
             if (queued_shadow) {
-                store3(sh_o, slot, pv3_lane(shadow.o, 0));
-                store3(sh_d, slot, pv3_lane(shadow.d, 0));
-                store3(sh_contrib, slot, pv3_lane(shadow.contribution, 0));
+                STORE_SHADOW_RAY();
                 sh_medium[slot] = shadow_medium;
             }
             /* the shadow stage's ratio tracking draws from the stream and weighs with r after this
@@ -63,12 +79,7 @@ __kernel void wf_shade(WAVE_PARAMS)
             vol_rng[slot] = s.rng;
             store3(vol_r, slot, pv3_lane(s.r, 0));
             if (alive) {
-                store3(ray_o, slot, pv3_lane(s.o, 0));
-                store3(ray_d, slot, pv3_lane(s.d, 0));
-                store3(throughput, slot, pv3_lane(s.beta, 0));
-                path_pdf[slot] = s.pdf;
-                path_eta_scale[slot] = s.eta_scale;
-                path_depth[slot] = s.depth;
+                STORE_PATH();
                 vol_medium[slot] = s.medium;
                 store3(vol_ref, slot, pv3_lane(s.ref, 0));
             }
@@ -80,19 +91,8 @@ __kernel void wf_shade(WAVE_PARAMS)
                        &queued_shadow, &shadow INSTANCE_SHADE_ARGS(hit_inst[slot]));
             alive = alive != 0; /* masks: any non-zero value is true */
             queued_shadow = queued_shadow != 0;
-            if (queued_shadow) {
-                store3(sh_o, slot, pv3_lane(shadow.o, 0));
-                store3(sh_d, slot, pv3_lane(shadow.d, 0));
-                store3(sh_contrib, slot, pv3_lane(shadow.contribution, 0));
-            }
-            if (alive) {
-                store3(ray_o, slot, pv3_lane(s.o, 0));
-                store3(ray_d, slot, pv3_lane(s.d, 0));
-                store3(throughput, slot, pv3_lane(s.beta, 0));
-                path_pdf[slot] = s.pdf;
-                path_eta_scale[slot] = s.eta_scale;
-                path_depth[slot] = s.depth;
-            }
+            if (queued_shadow) STORE_SHADOW_RAY();
+            if (alive) STORE_PATH();
         }
 #ifdef HAS_ENVIRONMENT
         else {
