@@ -118,10 +118,12 @@ def place(builder) -> list:
         copies = len(insts) * sum(len(mesh[1]) for mesh in group.meshes)
         two_level = not (builder.media or builder.interfaces) and (mode == "two-level" or copies > FLATTEN_MAX_TRIANGLES)
         (waiting if two_level else groups).append((group, insts))
+    # each waiting record's place in builder.instances, found once (by identity: records compare
+    # by value), not searched for per instance: tens of thousands of small copies stay linear
+    where = {id(inst): k for k, inst in enumerate(builder.instances)}
     for group, insts in groups:  # flattened after all (their faces follow the world's)
         for inst in insts:
-            k = next(j for j, other in enumerate(builder.instances) if other is inst)
-            builder.instances[k] = flatten_instance(builder, group, inst.to_world, record=False)
+            builder.instances[where[id(inst)]] = flatten_instance(builder, group, inst.to_world, record=False)
     blas = []
     for group, insts in waiting:
         first = builder.n_faces
