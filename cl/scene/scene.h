@@ -116,8 +116,7 @@ RT_INLINE pint cutout_lanes(__global const int *tri_material, __global const Mat
 #ifdef HAS_INSTANCES
 #define INSTANCE_PARAMS_NOCOMMA __global const BVHNode *tlas, __global const Instance *instances, \
     __global const BVHNode *blas_nodes
-#define INSTANCE_PARAMS , __global const BVHNode *tlas, __global const Instance *instances, \
-    __global const BVHNode *blas_nodes
+#define INSTANCE_PARAMS , INSTANCE_PARAMS_NOCOMMA
 #define INSTANCE_ARGS , tlas, instances, blas_nodes
 #define INSTANCE_HIT_PARAMS INSTANCE_PARAMS, pint *inst
 #define INSTANCE_HIT_ARGS(inst) INSTANCE_ARGS, inst

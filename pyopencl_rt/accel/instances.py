@@ -45,7 +45,9 @@ class TwoLevelBVH:
         self.tri_offsets = first_tri[:-1]
         self.to_world = np.asarray([m for m, _ in instances], np.float64).reshape(-1, 4, 4)
         self.group = np.asarray([g for _, g in instances], np.int64)
-        group_boxes = np.array([b_bounds(b) for b in self.blas]).reshape(-1, 2, 3)
+        # a group without faces gets a zero box (its instances get no record below)
+        group_boxes = np.array([b.bounds if len(b.prim_ids) else np.zeros((2, 3)) for b in self.blas],
+                               np.float64).reshape(-1, 2, 3)
         # an instance of a group without faces draws nothing: no record (no TLAS, even, without any)
         drawn = np.flatnonzero([len(self.blas[g].prim_ids) > 0 for g in self.group])
         boxes = world_boxes(group_boxes[self.group[drawn]], self.to_world[drawn])
@@ -89,15 +91,6 @@ class TwoLevelBVH:
             raise UserError(f"the instanced groups' BVHs take {at / 2**30:.1f} GiB: at most 2 GiB in all")
         blas_nodes = np.concatenate(blobs) if blobs else np.zeros(0, np.uint8)
         return {"tlas": padded_nodes(self.tlas), "instances": self.records(offsets), "blas_nodes": blas_nodes}
-
-
-def b_bounds(bvh: BVH) -> np.ndarray:
-    """(2, 3) float64 box of a BVH's triangles."""
-    t = bvh.triangles
-    if not len(t):
-        return np.zeros((2, 3))  # (its instances get no record)
-    p = np.concatenate([t[f"v{k}"][:, :3] for k in range(3)]).astype(np.float64)
-    return np.stack([p.min(axis=0), p.max(axis=0)])
 
 
 def world_boxes(boxes, m) -> np.ndarray:
