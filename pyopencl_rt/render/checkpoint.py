@@ -5,8 +5,9 @@ A checkpoint is one ``.npz`` file: the film (float64 ``sum`` and ``sum_sq``, ``p
 ``key`` it belongs to and a JSON ``meta`` record.  The key is a SHA-256 of the scene's arrays
 (geometry with its two-level instances' transforms and groups, materials, camera) and of every
 setting that changes the image (width, height, max_depth, rr_depth, integrator, seed), so a
-checkpoint of another scene or of other settings is refused.  Settings that do not change the image (device, wave size, number of devices) are free
-to change between the interrupted render and its resumption.
+checkpoint of another scene or of other settings is refused.  Settings that do not change the
+image (device, wave size, number of devices) are free to change between the interrupted render
+and its resumption.
 
 Passes are whole and keyed by (seed, pixel, pass, dimension): a film holding passes [0, n) that
 is resumed with ``Wavefront.run(film, first_pass=n)`` adds passes n, n+1, ... to the very same
