@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from ..device import abi
-from .bvh import BVH, build_bvh
+from .bvh import build_bvh
 
 BLAS_ALIGN = 64  # bytes: every group's node buffer starts on a cache line (a float8 node's alignment)
 TLAS_PAD_RELATIVE = 2.0**-16  # an instance's world box is grown by this share of its extent and position
