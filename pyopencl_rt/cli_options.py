@@ -1,6 +1,8 @@
 """The click options and argument checks that several ``pyopencl-rt`` commands share."""
 from __future__ import annotations
 
+import os
+
 import click
 
 from .errors import UsageError
@@ -15,8 +17,24 @@ def device_option(f):
     )(f)
 
 
+def _mitsuba_lanes(ctx, param, value):
+    """--mitsuba-lanes reaches the Mitsuba processes through their environment, as our own width
+    ($PYOPENCL_RT_LANES) reaches our kernels."""
+    from .bench.mitsuba_runner import LANES_ENV
+
+    if value:
+        os.environ[LANES_ENV] = value
+    return value
+
+
 def mitsuba_options(f):
-    """Where Mitsuba 3 and the libLLVM of its llvm_* variants are (nothing is guessed), and the variant."""
+    """Where Mitsuba 3 and the libLLVM of its llvm_* variants are (nothing is guessed), the variant
+    and its vector width."""
+    f = click.option("--mitsuba-lanes", type=click.Choice(["4", "8", "16", "avx2"]), expose_value=False,
+                     callback=_mitsuba_lanes,
+                     help="Vector width of Mitsuba's llvm_* variants on the host's instruction set, or avx2: 8 lanes "
+                     "compiled for Haswell [default: $PYOPENCL_RT_MITSUBA_LANES, else Dr.Jit's choice, the "
+                     "widest]. With PYOPENCL_RT_LANES=8 they stand in for an AVX2 machine.")(f)
     f = click.option("--mitsuba-variant", default="llvm_ad_rgb", show_default=True)(f)
     f = click.option("--llvm-path", type=click.Path(dir_okay=False),
                      help="libLLVM shared library for the llvm_* variants [default: $DRJIT_LIBLLVM_PATH, "

@@ -216,6 +216,8 @@ def rows_again(json_path, echo=print) -> dict:
 
 
 def print_set_table(rows, echo=print) -> None:
+    from .render import lanes_text
+
     def seconds(value, se, extrapolated, floor):
         if value is None:
             return "-"
@@ -226,7 +228,7 @@ def print_set_table(rows, echo=print) -> None:
         return f"{value:.2f}x" + (f"+-{se:.2f}" if se is not None else "") if value else "-"
 
     width = max([len("scene")] + [len(r["scene"]) for r in rows])
-    echo(f"{'scene':<{width}} {'ours Ms/s':>9} {'Mitsuba':>8} {'ratio':>6} {'lanes':>5} {'seeds':>5} "
+    echo(f"{'scene':<{width}} {'ours Ms/s':>9} {'Mitsuba':>8} {'ratio':>6} {'lanes':>7} {'seeds':>5} "
          f"{'t ours s':>14} {'t Mitsuba s':>14} {'(sampler)':<13} {'Mi/ours t':>11} {'(turns)':>11} {'(sampler)':<13}")
     for r in rows:
         ours_t = seconds(r["time_to_target"], r.get("time_to_target_se"), r["time_to_target_extrapolated"],
@@ -235,7 +237,7 @@ def print_set_table(rows, echo=print) -> None:
                            r["mitsuba_time_to_target_extrapolated"], r["near_floor"])
         theirs = r["mitsuba_samples_per_second"]
         echo(f"{r['scene']:<{width}} {r['samples_per_second'] / 1e6:9.3f} "
-             f"{f'{theirs / 1e6:.3f}' if theirs else '-':>8} {times(r['ratio_to_mitsuba']):>6} {r['lanes']:5d} "
+             f"{f'{theirs / 1e6:.3f}' if theirs else '-':>8} {times(r['ratio_to_mitsuba']):>6} {lanes_text(r):>7} "
              f"{r.get('seeds', 1):5d} {ours_t:>14} {theirs_t:>14} {'(' + (r['mitsuba_best_sampler'] or '-') + ')':<13} "
              f"{times(r['mitsuba_time_over_ours'], r.get('mitsuba_time_over_ours_se')):>11} "
              f"{times(r['mitsuba_time_over_ours_interleaved'], r.get('mitsuba_time_over_ours_interleaved_se')):>11} "

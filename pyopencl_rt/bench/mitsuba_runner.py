@@ -52,6 +52,46 @@ def _export_module():
     return module
 
 
+# Mitsuba's LLVM vector width for this process: Dr.Jit compiles for the host's widest vectors (16
+# lanes with AVX-512).  "8" gives the width of our AVX2 lanes with the host's instruction set, as
+# our PoCL build at 8 lanes has on the same host; "avx2" 8 lanes compiled for Haswell (AVX2, FMA,
+# no AVX-512), the code Mitsuba runs on an AVX2 machine (docs/BENCHMARKS.md)
+LANES_ENV = "PYOPENCL_RT_MITSUBA_LANES"
+LANES_CHOICES = ("4", "8", "16", "avx2")
+AVX2_FEATURES = (b"+sse,+sse2,+sse3,+ssse3,+sse4.1,+sse4.2,+popcnt,+avx,+avx2,+fma,+f16c,+bmi,+bmi2,+lzcnt,"
+                 b"+movbe,+cx16,+xsave,-avx512f,-avx512vl,-avx512bw,-avx512dq,-avx512cd,-evex512")
+
+
+def set_llvm_lanes(dr, variant):
+    """Dr.Jit's LLVM target from ``$PYOPENCL_RT_MITSUBA_LANES`` (:data:`LANES_CHOICES`); returns
+    the vector width its kernels use and the CPU they are compiled for (Nones outside llvm_*
+    variants).  The setter is Dr.Jit's C
+    function ``jit_llvm_set_target``, which its Python bindings do not expose, so it is called
+    through ctypes on libdrjit-core; a Dr.Jit without it is reported, not ignored."""
+    if not variant.startswith("llvm"):
+        return None, None
+    import ctypes
+
+    wanted = os.environ.get(LANES_ENV, "").strip()
+    if wanted and wanted not in LANES_CHOICES:
+        raise SystemExit(f"${LANES_ENV}={wanted}: use one of {', '.join(LANES_CHOICES)}")
+    core = ctypes.CDLL(os.path.join(os.path.dirname(dr.__file__), "libdrjit-core.so"))
+    try:
+        cpu, features = core._Z19jit_llvm_target_cpuv, core._Z24jit_llvm_target_featuresv
+        width, set_target = core._Z21jit_llvm_vector_widthv, core._Z19jit_llvm_set_targetPKcS0_j
+    except AttributeError:
+        if wanted:
+            raise SystemExit(f"${LANES_ENV}: this Dr.Jit ({dr.__version__}) has no jit_llvm_set_target")
+        return None, None
+    cpu.restype = features.restype = ctypes.c_char_p
+    width.restype = ctypes.c_uint32
+    if wanted == "avx2":
+        set_target(b"haswell", AVX2_FEATURES, 8)
+    elif wanted:
+        set_target(cpu(), features(), int(wanted))
+    return int(width()), cpu().decode()
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scene")
@@ -74,6 +114,7 @@ def main(argv=None):
     import mitsuba as mi
 
     mi.set_variant(args.variant)
+    lanes, target_cpu = set_llvm_lanes(dr, args.variant)
     t_loaded = time.perf_counter()
     export = _export_module()
     arrays = export.load_scene_npz(args.scene)
@@ -87,7 +128,9 @@ def main(argv=None):
     pixels = int(settings["width"]) * int(settings["height"])
     if args.serve:
         return serve(scene, args, {"renderer": "mitsuba", "version": mi.__version__, "drjit_version": dr.__version__,
-                                   "variant": args.variant, "sampler": args.sampler, "width": int(settings["width"]),
+                                   "variant": args.variant, "lanes": lanes, "target_cpu": target_cpu,
+                                   "sampler": args.sampler,
+                                   "width": int(settings["width"]),
                                    "height": int(settings["height"]), "max_depth": settings["max_depth"],
                                    "load_seconds": load_seconds, "import_seconds": t_loaded - t_import})
 
@@ -104,7 +147,7 @@ def main(argv=None):
     results = seed_points[0]
     info = {
         "renderer": "mitsuba", "version": mi.__version__, "drjit_version": dr.__version__,
-        "variant": args.variant, "import_seconds": t_loaded - t_import,
+        "variant": args.variant, "lanes": lanes, "target_cpu": target_cpu, "import_seconds": t_loaded - t_import,
         "load_seconds": load_seconds, "warmup_seconds": warmup, "points": results,
         "max_depth": settings["max_depth"], "rr_depth": settings["rr_depth"], "width": settings["width"],
         "height": settings["height"],

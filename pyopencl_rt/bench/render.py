@@ -151,7 +151,8 @@ def bench_scene(scene_path, scene, settings, *, devices, spp, repeat, wave_size,
         theirs = {**server.info, "scene": "the export of mitsuba_export.py", "renders": server.renders,
                   "samples_per_second_all": theirs_rates, "samples_per_second_median": statistics.median(theirs_rates)}
         results["mitsuba"] = theirs
-        echo(f"{'Mitsuba ' + theirs['version'] + ' ' + theirs['variant'] + ' (the same scene)':<60} "
+        lanes = f", {theirs['lanes']} lanes for {theirs['target_cpu']}" if theirs.get("lanes") else ""
+        echo(f"{'Mitsuba ' + theirs['version'] + ' ' + theirs['variant'] + lanes + ' (the same scene)':<60} "
              f"{theirs['samples_per_second_median'] / 1e6:10.3f}")
         for label, row in results["devices"].items():
             row["ratio_to_mitsuba"] = row["samples_per_second_median"] / theirs["samples_per_second_median"]
@@ -170,7 +171,8 @@ def summary_rows(result: dict) -> list[dict]:
     return [{"scene": result["scene"], "variant": label, "samples_per_second": row["samples_per_second_median"],
              "mitsuba_samples_per_second": theirs["samples_per_second_median"] if theirs else None,
              "ratio_to_mitsuba": row.get("ratio_to_mitsuba_per_round_median"),
-             "lanes": row["lanes"] or 1, "lanes_reason": row["lanes_reason"]}
+             "lanes": row["lanes"] or 1, "lanes_reason": row["lanes_reason"],
+             "mitsuba_lanes": theirs.get("lanes") if theirs else None}
             for label, row in result["devices"].items()]
 
 
@@ -180,11 +182,18 @@ def print_summary(rows, echo=print) -> None:
     several = len(rows) > len({row["scene"] for row in rows})
     scene_width = max([len("scene")] + [len(row["scene"]) for row in rows])
     echo(f"{'scene':<{scene_width}} " + (f"{'variant':<40} " if several else "")
-         + f"{'ours Ms/s':>10} {'Mitsuba Ms/s':>12} {'ratio':>6} {'lanes':>5}")
+         + f"{'ours Ms/s':>10} {'Mitsuba Ms/s':>12} {'ratio':>6} {'lanes':>7}")
     for row in rows:
         theirs, ratio = row["mitsuba_samples_per_second"], row["ratio_to_mitsuba"]
         echo(f"{row['scene']:<{scene_width}} " + (f"{row['variant'][:40]:<40} " if several else "")
              + f"{row['samples_per_second'] / 1e6:10.3f} " + (f"{theirs / 1e6:12.3f} " if theirs else f"{'-':>12} ")
-             + (f"{ratio:5.2f}x " if ratio else f"{'-':>6} ") + f"{row['lanes']:5d}")
+             + (f"{ratio:5.2f}x " if ratio else f"{'-':>6} ") + f"{lanes_text(row):>7}")
     if any(row["ratio_to_mitsuba"] for row in rows):
-        echo("ratio: ours / Mitsuba's samples/s, the median of the rounds' ratios (renders back to back)")
+        echo("ratio: ours / Mitsuba's samples/s, the median of the rounds' ratios (renders back to back); "
+             "lanes: ours/Mitsuba's")
+
+
+def lanes_text(row) -> str:
+    """Our lane width, and Mitsuba's LLVM vector width where it is known: "16/16"."""
+    theirs = row.get("mitsuba_lanes")
+    return f"{row['lanes']}/{theirs}" if theirs else str(row["lanes"])
