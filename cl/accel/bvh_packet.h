@@ -113,6 +113,16 @@ RT_INLINE pint packet_box(const PacketRay *r, float bx0, float by0, float bz0, f
 }
 
 #ifdef cl_khr_fp64
+/* the lanes as doubles (an fpext of each lane: no call into the built-in library) */
+#if PACKET_WIDTH == 16
+typedef double16 pdouble;
+#elif PACKET_WIDTH == 8
+typedef double8 pdouble;
+#endif
+#if PACKET_WIDTH > 1
+#define PDOUBLE(x) __builtin_convertvector((x), pdouble)
+#endif
+
 RT_INLINE float edge_double(float a, float b, float c, float d)
 {
     return (float)((double)a * (double)b - (double)c * (double)d);
@@ -177,6 +187,21 @@ RT_INLINE pint packet_triangle_lanes(const PacketRay *r, pvec3 p0, pvec3 p1, pve
     const pint inside = maybe & ~mixed & ((det < 0.0f) | (det > 0.0f));
 #ifdef cl_khr_fp64
     const pint refine = inside & may_move;
+#if PACKET_WIDTH > 1
+    if (pany(refine)) {
+        /* over the lanes in double vectors: every lane's origin next to the plane (a ray spawned
+         * from a triangle, against that triangle and its coplanar neighbours) is in doubt, so
+         * most packets refine several lanes; the scalar form's operations in its order */
+        const pdouble q0x = PDOUBLE(p0.x), q0y = PDOUBLE(p0.y), q0z = PDOUBLE(p0.z);
+        const pdouble f1x = PDOUBLE(p1.x) - q0x, f1y = PDOUBLE(p1.y) - q0y, f1z = PDOUBLE(p1.z) - q0z;
+        const pdouble f2x = PDOUBLE(p2.x) - q0x, f2y = PDOUBLE(p2.y) - q0y, f2z = PDOUBLE(p2.z) - q0z;
+        const pdouble mx = f1y * f2z - f1z * f2y, my = f1z * f2x - f1x * f2z, mz = f1x * f2y - f1y * f2x;
+        const pdouble dden = mx * PDOUBLE(r->dx) + my * PDOUBLE(r->dy) + mz * PDOUBLE(r->dz);
+        const pdouble dnum = mx * (q0x - PDOUBLE(r->ox)) + my * (q0y - PDOUBLE(r->oy)) + mz * (q0z - PDOUBLE(r->oz));
+        ok = refine ? __builtin_convertvector(dden != 0.0, pint) : ok;
+        tt = refine ? __builtin_convertvector(dnum / dden, pfloat) : tt;
+    }
+#else
     if (pany(refine)) {
         for (int bits = pbits(refine); bits; bits &= bits - 1) {
             const int k = lowest_bit(bits);
@@ -190,6 +215,7 @@ RT_INLINE pint packet_triangle_lanes(const PacketRay *r, pvec3 p0, pvec3 p1, pve
             PLANE(tt, k) = (float)(dnum / dden);
         }
     }
+#endif
 #endif
     *t_out = tt; *U_out = U; *V_out = V; *W_out = W;
     return inside & ok & (tt > tmin) & (tt < tmax);
