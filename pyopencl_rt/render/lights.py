@@ -193,7 +193,8 @@ ENV_ROWS = {"centred": lambda h: (float(h), -0.5), "poles": lambda h: (float(max
 ENV_SAMPLING_CELLS = 1 << 22  # a map gets 2 x 2 to 4 x 4 sampling cells per texel while they stay below this
 
 
-def environment_tables(image, rows: str = "centred", rotation=None) -> tuple[np.ndarray, np.ndarray, float, int]:
+def environment_tables(image, rows: str = "centred", rotation=None,
+                       compensated: bool = False) -> tuple[np.ndarray, np.ndarray, float, int]:
     """(env_map, env_cdf, mean radiance luminance over the sphere, cells) of an equirectangular map:
     env_map is the kernel's buffer (abi.ENV_MAP_HEADER floats: the world-to-map ``rotation`` and the
     ``rows`` layout, then the texels; negative and non-finite texels become 0).  The sampling
@@ -203,7 +204,15 @@ def environment_tables(image, rows: str = "centred", rotation=None) -> tuple[np.
     conditional CDF of each row (S W + 1 values): a cell's weight is the bilinearly interpolated
     luminance averaged over it (4 x 4 points) times sin(theta) at the row centre, plus 1e-3 of the
     largest luminance of the texels around it, so that no cell where the radiance is positive has
-    density 0; a row (or map) with nothing in it is uniform."""
+    density 0; a row (or map) with nothing in it is uniform.
+
+    ``compensated``: MIS compensation (Karlik et al. 2019, as pbrt-v4's image infinite lights with
+    ``allowIncompletePDF``): a cell's weight is how far its luminance exceeds the map's mean over
+    the sphere, so that light sampling spends no samples on the dim part of a sky, which BSDF
+    sampling finds as well; cells at or below the mean get density 0, and BSDF samples toward them
+    MIS weight 1 (their light pdf is 0).  For estimators that combine the two techniques by MIS
+    only: light sampling alone needs the complete density.  A map without such excess (constant,
+    or black) keeps the complete tables."""
     img = np.asarray(image, np.float64)
     if img.ndim != 3 or img.shape[2] < 3 or img.shape[0] < 1 or img.shape[1] < 1:
         raise ValueError(f"an environment map must be H x W x 3, got shape {img.shape}")
@@ -223,6 +232,11 @@ def environment_tables(image, rows: str = "centred", rotation=None) -> tuple[np.
     h, w = sub * h, sub * w  # the cells from here on
     sin_t = np.sin(np.pi * (np.arange(h) + 0.5) / h)
     f = (np.maximum(cells, 0.0) + 1e-3 * near) * sin_t[:, None]
+    if compensated:
+        lum_cells = np.maximum(cells, 0.0)
+        excess = np.maximum(lum_cells - (lum_cells * sin_t[:, None]).sum() / (sin_t.sum() * w), 0.0) * sin_t[:, None]
+        if excess.sum() > 0:
+            f = excess
 
     def cdf_rows(weights):  # (R, N) -> (R, N + 1), each row from 0 to 1
         total = weights.sum(1, keepdims=True)
@@ -282,22 +296,26 @@ def _cell_means(n_cells: int, n: int, scale: float, offset: float, wrap: bool):
     return csr_matrix((data, (rows, cols)), shape=(n_cells, n))
 
 
-def _env_tables(env):
-    """environment_tables of env.image (its rows and rotation), computed once per Environment."""
+def _env_tables(env, compensated=False):
+    """environment_tables of env.image (its rows and rotation), computed once per Environment and
+    kind of tables."""
     if env.image is None:
         return None
     key = (id(env.image), getattr(env, "rows", "centred"), None if env.rotation is None else env.rotation.tobytes())
     cached = getattr(env, "_tables", None)
     if cached is None or cached[0] != key:
-        cached = (key, environment_tables(env.image, env.rows, env.rotation))
+        cached = (key, {})
         env._tables = cached
-    return cached[1]
+    if compensated not in cached[1]:
+        cached[1][compensated] = environment_tables(env.image, env.rows, env.rotation, compensated)
+    return cached[1][compensated]
 
 
-def environment_buffers(scene) -> tuple[np.ndarray, np.ndarray]:
-    """The env_map and env_cdf kernel arguments (dummies without a map)."""
+def environment_buffers(scene, compensated=False) -> tuple[np.ndarray, np.ndarray]:
+    """The env_map and env_cdf kernel arguments (dummies without a map); ``compensated``: the
+    sampling tables of MIS compensation (environment_tables), for the MIS estimator."""
     env = getattr(scene, "environment", None)
-    tables = _env_tables(env) if env is not None else None
+    tables = _env_tables(env, compensated) if env is not None else None
     if tables is None:
         return np.zeros(abi.ENV_MAP_HEADER, np.float32), np.zeros(4, np.float32)
     return tables[0], tables[1]

@@ -161,7 +161,9 @@ class Wavefront:
         # enough ring slots for every pass a full wave can span, plus the one draining
         self.ring_size = int(min(max(2, math.ceil(W / P) + 2), 1 << 12))
         self.counters_host = np.zeros(abi.COUNTER_PASS_DONE + self.ring_size, np.int32)
-        env_map, env_cdf = environment_buffers(scene)
+        # MIS compensation of the environment's light sampling where MIS combines it with BSDF
+        # sampling: light sampling alone ("nee") needs the complete density
+        env_map, env_cdf = environment_buffers(scene, compensated=self.settings.integrator == "path")
         # arguments by parameter name (abi.WAVE_PARAMS), set once on every stage
         self.args = KernelArgs(self.kernels)
         self.args.bind(

@@ -174,15 +174,19 @@ def uv_of(w):
     return u, v
 
 
-def test_env_map_sampling_chi2(runtime):
+@pytest.mark.parametrize("compensated", [False, True], ids=["complete", "compensated"])
+def test_env_map_sampling_chi2(runtime, compensated):
     """1M samples of the environment map on the device: their cells (each split 2 x 2, to see
     uniformity inside cells too) follow the density the tables give (chi-square, p > 1e-4); the
     sample's pdf equals env_pdf() of its direction; Le is the bilinearly interpolated map there (the
-    float64 reference of environment_radiance); the estimate of the map's integral over the sphere
-    from Le / pdf agrees with quadrature (no direction of positive radiance has density 0: else
-    the estimate falls short); env_pdf integrates to 1 over the sphere."""
+    float64 reference of environment_radiance); env_pdf integrates to 1 over the sphere.  Complete
+    tables: the estimate of the map's integral over the sphere from Le / pdf agrees with quadrature
+    (no direction of positive radiance has density 0: else the estimate falls short).  The tables
+    of MIS compensation: no sample falls where the map is at or below its mean over the sphere, the
+    brightest texel is sampled more often than with complete tables, and env_pdf is 0 in every
+    direction whose cell is below the mean (BSDF sampling alone covers them)."""
     img = env_map_image()
-    tm, cdf, _, cells = environment_tables(img)
+    tm, cdf, mean, cells = environment_tables(img, compensated=compensated)
     sc, light = _env_light(img)
     assert cells == 4 and light[0]["cells"] == cells  # a small map: 4 x 4 cells per texel
     h, w = cells * img.shape[0], cells * img.shape[1]  # the sampling cells
@@ -215,6 +219,24 @@ def test_env_map_sampling_chi2(runtime):
     harness.assert_chi2(observed[nz], expected[nz], ALPHA, "environment map")
     # unbiased: E[Le / pdf] = the integral of the map over the sphere (Gauss-Legendre in theta, a
     # fine midpoint rule in phi, the map being piecewise bilinear in (u, v))
+    if compensated:
+        # the samples' radiance exceeds the mean (cells straddling it aside: their average does),
+        # and the bright spot's texel (row 1, column 10) takes more of them than complete tables give
+        lum = le.astype(np.float64) @ LUMINANCE
+        assert np.mean(lum > mean) > 0.97
+        complete = np.diff(environment_tables(img)[1][: h + 1].astype(np.float64))
+        rows = slice(cells * 1, cells * 2)
+        assert np.diff(marg)[rows].sum() > 1.2 * complete[rows].sum()
+        d = rng.normal(size=(n // 10, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        ev = HARNESS(runtime, "h_env_eval", len(d), light, tm, cdf, d.astype(np.float32), (len(d), 2))
+        du, dv = uv_of(d)
+        cell_p = p_cell[np.minimum((dv * h).astype(int), h - 1), np.minimum((du * w).astype(int), w - 1)]
+        inner = (np.abs(du * w - np.round(du * w)) > 1e-3) & (np.abs(dv * h - np.round(dv * h)) > 1e-3)
+        assert np.all(ev[inner & (cell_p == 0), 0] == 0) and (inner & (cell_p == 0)).mean() > 0.3
+        vals = ev[:, 0].astype(np.float64) * 4 * np.pi
+        assert abs(vals.mean() - 1) < 5 * vals.std() / np.sqrt(len(vals)) + 1e-4
+        return
     est = (le.astype(np.float64) @ LUMINANCE) / pdf * ok.mean()
     x, wq = np.polynomial.legendre.leggauss(8)
     t, tw = harness.gauss_legendre_cells(np.linspace(0, np.pi, 2 * h + 1), x, wq)
@@ -660,8 +682,8 @@ def test_directional_light_over_plane(device):
     assert np.allclose(r.image, rho / np.pi * irr * cos, rtol=1e-4)
 
 
-def sphere_under(env, integrator, albedo=1.0, size=16, max_depth=4):
-    return Scene(**empty_mesh(), materials=[Material("ball", albedo=(albedo,) * 3)],
+def sphere_under(env, integrator, albedo=1.0, size=16, max_depth=4, material=None):
+    return Scene(**empty_mesh(), materials=[material or Material("ball", albedo=(albedo,) * 3)],
                  camera=Camera(eye=(0, 0, 5), look_at=(0, 0, 0), fov=30),
                  spheres=np.array([[0, 0, 0, 1]], np.float32), sphere_materials=np.array([0], np.int32),
                  settings=RenderSettings(width=size, height=size, max_depth=max_depth, integrator=integrator),
@@ -678,15 +700,20 @@ def test_constant_environment_furnace(device, integrator):
     assert abs(m - 1.0) <= 4 * se + 1e-5, f"{integrator}: mean {m} (se {se:.2g})"
 
 
-def test_environment_map_light_vs_bsdf_sampling(device):
-    """A diffuse sphere under an environment map: MIS, BSDF sampling alone and light sampling
-    alone agree (4 x 4-pixel tiles, 3 channels, 3 pairs: |z| < 4.5); MIS has less variance than
-    either technique alone (here 0.002 against 0.005-0.01: which of the two is better depends on
-    the map's bright spot, sharper with nearest-texel lookups than with bilinear ones)."""
+@pytest.mark.parametrize("material", [None, Material("gold", type="conductor", eta=(0.18, 0.42, 1.37),
+                                                     k=(3.42, 2.35, 1.77), alpha=0.2)], ids=["diffuse", "rough gold"])
+def test_environment_map_light_vs_bsdf_sampling(device, material):
+    """A diffuse sphere, and a rough conductor, under an environment map: MIS (with the tables of
+    MIS compensation, where BSDF sampling alone covers the map below its mean), BSDF sampling
+    alone and light sampling alone (complete tables) agree (4 x 4-pixel tiles, 3 channels, 3
+    pairs: |z| < 4.5); MIS has less variance than either technique alone (diffuse: 0.002 against
+    0.005-0.01: which of the two is better depends on the map's bright spot, sharper with
+    nearest-texel lookups than with bilinear ones)."""
     env = Environment(radiance=(1.0, 1.0, 1.0), image=env_map_image())
     res = {}
     for i, integ in enumerate(("path", "bsdf", "nee")):
-        r = render_full(sphere_under(env, integ, albedo=0.8, max_depth=3), spp=64, device=device, seed=30 + i)
+        r = render_full(sphere_under(env, integ, albedo=0.8, max_depth=3, material=material), spp=64, device=device,
+                        seed=30 + i)
         assert r.info["nonfinite_samples"] == 0
         var = r.film.variance_of_mean()
         k = 4
