@@ -34,7 +34,7 @@
  *                   around the geometric normal, as Mitsuba does).  T points along -dp/dv with
  *                   our top-down v, which is +y of Mitsuba's, pbrt-v4's and glTF's maps.
  *   bump map        (MATERIAL_FLAG_BUMP_MAP) Mitsuba's bumpmap: g = normal_scale times the
- *                   gradient of the height's luminance in uv (tex_gradient: the bilinear
+ *                   gradient of the height's luminance in uv (tex_gradient_lanes: the bilinear
  *                   lookup's derivative); dp/du' = dp/du + N (g.u - N.dp/du), likewise dp/dv';
  *                   the normal is dp/du' x dp/dv' turned to the geometric normal's side.
  *                   A constant height map gives N.
@@ -120,82 +120,85 @@ RT_INLINE void vertex_color_material(__global const float *tri_color, pint hit, 
 #endif
 
 #ifdef HAS_NORMAL_MAPS
-/* Duff et al.'s basis around the unit n, as make_onb (Mitsuba's coordinate_system), one lane */
-RT_INLINE void onb1(float3 n, float3 *t, float3 *b)
+/* dp/du and dp/dv of the lanes' triangles (prim valid in every lane) from their vertices and UVs
+ * (Mitsuba's Mesh::compute_surface_interaction); a degenerate parameterisation: the basis around
+ * ng (make_onb, Mitsuba's coordinate_system). */
+RT_INLINE void triangle_dpduv(__global const float4 *tris, __global const float2 *tri_uv, pint prim, pvec3 ng,
+                              pvec3 *dpdu, pvec3 *dpdv)
 {
-    const float sign = copysign(1.0f, n.z);
-    const float a = -1.0f / (sign + n.z);
-    const float c = n.x * n.y * a;
-    *t = (float3)(1.0f + sign * n.x * n.x * a, sign * c, -sign * n.x);
-    *b = (float3)(c, sign + n.y * n.y * a, -n.y);
+    __global const float *P = (__global const float *)tris;
+    __global const float *T = (__global const float *)tri_uv;
+    const pint i = prim * 12, j = prim * 6;
+    const pvec3 p0 = pv3_gather(P, i);
+    const pvec3 dp0 = pv3_sub(pv3_gather(P, i + 4), p0), dp1 = pv3_sub(pv3_gather(P, i + 8), p0);
+    const pfloat u0 = pgather(T, j), v0 = pgather(T, j + 1);
+    const pfloat du0 = pgather(T, j + 2) - u0, dv0 = pgather(T, j + 3) - v0;
+    const pfloat du1 = pgather(T, j + 4) - u0, dv1 = pgather(T, j + 5) - v0;
+    const pfloat det = du0 * dv1 - dv0 * du1;
+    const pfloat inv = 1.0f / det;
+    make_onb(ng, dpdu, dpdv);
+    const pvec3 du = pv3_scale(pv3_sub(pv3_scale(dp0, dv1), pv3_scale(dp1, dv0)), inv);
+    const pvec3 dv = pv3_scale(pv3_sub(pv3_scale(dp1, du0), pv3_scale(dp0, du1)), inv);
+    const pint ok = (det != 0.0f) & pisfinite(inv) & pisfinite(du.x) & pisfinite(du.y) & pisfinite(du.z) &
+                    pisfinite(dv.x) & pisfinite(dv.y) & pisfinite(dv.z);
+    *dpdu = pv3_sel(*dpdu, du, ok);
+    *dpdv = pv3_sel(*dpdv, dv, ok);
 }
 
-RT_INLINE int finite3(float3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
+RT_INLINE pint pv3_isfinite(pvec3 a) { return pisfinite(a.x) & pisfinite(a.y) & pisfinite(a.z); }
 
-/* dp/du and dp/dv of triangle `prim` from its vertices and UVs (Mitsuba's
- * Mesh::compute_surface_interaction); a degenerate parameterisation: the basis around ng. */
-RT_INLINE void triangle_dpduv(__global const float4 *tris, __global const float2 *tri_uv, int prim, float3 ng,
-                              float3 *dpdu, float3 *dpdv)
+/* The lanes of `mapped` (triangle hits whose material has a map, mat_index): the normal the map
+ * tilts N (the shading normal, its own orientation) to, for the viewer at wo; *a2: the shadowing
+ * term's alpha^2 (0 without it); each texture looked up over the lanes that read it.  Returns the
+ * lanes with a direction (a zero texel gives none: the lane keeps N). */
+RT_INLINE pint map_normal_lanes(__global const float4 *tris, __global const float2 *tri_uv,
+                                __global const Texture *textures, __global const float4 *tex_data,
+                                __global const Material *materials, pint mat_index, pint tex_normal, pint mapped,
+                                pint prim, pfloat u, pfloat v, pvec3 N, pvec3 ng, pvec3 wo, pvec3 *tilt, pfloat *a2)
 {
-    const float3 p0 = tris[3 * prim].xyz, dp0 = tris[3 * prim + 1].xyz - p0, dp1 = tris[3 * prim + 2].xyz - p0;
-    const float2 uv0 = tri_uv[3 * prim], duv0 = tri_uv[3 * prim + 1] - uv0, duv1 = tri_uv[3 * prim + 2] - uv0;
-    const float det = duv0.x * duv1.y - duv0.y * duv1.x;
-    const float inv = 1.0f / det;
-    onb1(ng, dpdu, dpdv);
-    if (det != 0.0f && isfinite(inv)) {
-        const float3 du = (duv1.y * dp0 - duv0.y * dp1) * inv, dv = (duv0.x * dp1 - duv1.x * dp0) * inv;
-        if (finite3(du) && finite3(dv)) {
-            *dpdu = du;
-            *dpdv = dv;
-        }
+    const pint rec = mat_index * STRIDE_INDEX(Material);
+    const pint flags = pgather_int((__global const int *)materials, rec + FIELD_INDEX(Material, flags));
+    const pfloat scale = pgather((__global const float *)materials, rec + FIELD_INDEX(Material, normal_scale));
+    const pint safe_prim = mapped ? prim : PINT(0);
+    pvec3 dpdu, dpdv, S, B;
+    triangle_dpduv(tris, tri_uv, safe_prim, ng, &dpdu, &dpdv);
+    S = pv3_normalize(pv3_sub(dpdu, pv3_scale(N, pv3_dot(N, dpdu))), mapped);
+    make_onb(N, tilt, &B); /* *tilt: scratch */
+    S = pv3_sel(*tilt, S, pv3_isfinite(S));
+    const pvec3 T = pv3_cross(N, S);
+    pfloat tu, tv;
+    triangle_uv_lanes(tri_uv, safe_prim, u, v, &tu, &tv);
+    const pint bump = mapped & ((flags & MATERIAL_FLAG_BUMP_MAP) != 0), normal_map = mapped & pnot(bump);
+    pvec3 tn = pv3_zero();
+    if (pany(bump)) {
+        pfloat gu, gv;
+        tex_gradient_lanes(textures, tex_data, tex_normal, tu, tv, bump, &gu, &gv);
+        gu = scale * gu;
+        gv = scale * gv;
+        const pvec3 du = pv3_add(dpdu, pv3_scale(N, gu - pv3_dot(N, dpdu)));
+        const pvec3 dv = pv3_add(dpdv, pv3_scale(N, gv - pv3_dot(N, dpdv)));
+        pvec3 nb = pv3_normalize(pv3_cross(du, dv), bump);
+        nb = pv3_sel(nb, pv3_neg(nb), pv3_dot(ng, nb) < 0.0f);
+        tn = pv3_sel(tn, pv3(pv3_dot(nb, S), pv3_dot(nb, T), pv3_dot(nb, N)), bump);
     }
-}
-
-/* One lane: the normal a map tilts N (the shading normal, its own orientation) to, for the
- * viewer at wo; *a2: the shadowing term's alpha^2 (0 without it).  Returns 0 where the map gives
- * no direction (a zero texel): the lane keeps N. */
-RT_INLINE int map_normal1(__global const float4 *tris, __global const float2 *tri_uv,
-                          __global const Texture *textures, __global const float4 *tex_data,
-                          __global const Material *mat, int prim, float u, float v, float3 N, float3 ng, float3 wo,
-                          float3 *tilt, float *a2)
-{
-    const int flags = mat->flags;
-    float3 dpdu, dpdv, S;
-    triangle_dpduv(tris, tri_uv, prim, ng, &dpdu, &dpdv);
-    S = normalize(dpdu - N * dot(N, dpdu));
-    if (!finite3(S)) {
-        float3 b;
-        onb1(N, &S, &b);
-    }
-    const float3 T = cross(N, S);
-    const float2 uv = triangle_uv(tri_uv, prim, u, v);
-    float3 tn;
-    if (flags & MATERIAL_FLAG_BUMP_MAP) {
-        const float2 g = mat->normal_scale * tex_gradient(textures, tex_data, mat->tex_normal, uv);
-        const float3 du = dpdu + N * (g.x - dot(N, dpdu)), dv = dpdv + N * (g.y - dot(N, dpdv));
-        float3 nb = normalize(cross(du, dv));
-        nb = dot(ng, nb) < 0.0f ? -nb : nb;
-        tn = (float3)(dot(nb, S), dot(nb, T), dot(nb, N));
-    } else {
-        tn = 2.0f * tex_sample(textures, tex_data, mat->tex_normal, uv).xyz - 1.0f;
-        tn.x *= mat->normal_scale;
-        tn.y *= mat->normal_scale;
+    if (pany(normal_map)) {
+        const pvec3 c = tex_sample_lanes(textures, tex_data, tex_normal, tu, tv, normal_map);
+        tn = pv3_sel(tn, pv3((2.0f * c.x - 1.0f) * scale, (2.0f * c.y - 1.0f) * scale, 2.0f * c.z - 1.0f), normal_map);
     }
     /* a viewer behind N sees the map mirrored through the tangent plane (Mitsuba's twosided) */
-    const float cos_o = dot(wo, N);
-    const float3 Nv = cos_o >= 0.0f ? N : -N;
-    float3 n = S * tn.x + T * tn.y + Nv * tn.z;
-    if ((flags & MATERIAL_FLAG_MAP_FLIP) && fabs(cos_o) * dot(wo, n) <= 0.0f)
-        n = Nv * tn.z - S * tn.x - T * tn.y;
-    n = normalize(n);
-    if (!finite3(n)) return 0;
-    *a2 = 0.0f;
-    if (flags & MATERIAL_FLAG_MAP_TERMINATOR) {
-        const float c = dot(n, Nv), c2 = c * c;
-        *a2 = fmin(0.125f * (fmax(1.0f - c2, 0.0f) / c2), 1.0f);
-    }
+    const pfloat cos_o = pv3_dot(wo, N);
+    const pvec3 Nv = pv3_sel(pv3_neg(N), N, cos_o >= 0.0f);
+    pvec3 n = pv3_add(pv3_add(pv3_scale(S, tn.x), pv3_scale(T, tn.y)), pv3_scale(Nv, tn.z));
+    const pint flip = ((flags & MATERIAL_FLAG_MAP_FLIP) != 0) & (pabs(cos_o) * pv3_dot(wo, n) <= 0.0f);
+    n = pv3_sel(n, pv3_sub(pv3_sub(pv3_scale(Nv, tn.z), pv3_scale(S, tn.x)), pv3_scale(T, tn.y)), flip);
+    n = pv3_normalize(n, mapped);
+    const pint ok = mapped & pv3_isfinite(n);
+    const pfloat c = pv3_dot(n, Nv), c2 = c * c;
+    *a2 = ((flags & MATERIAL_FLAG_MAP_TERMINATOR) != 0) ? pfmin(0.125f * (pfmax(1.0f - c2, PFLOAT(0.0f)) / c2),
+                                                                 PFLOAT(1.0f))
+                                                          : PFLOAT(0.0f);
     *tilt = n;
-    return 1;
+    return ok;
 }
 #endif
 
@@ -269,24 +272,17 @@ RT_INLINE ShadingLanes shading_lanes(__global const float4 *tris, __global const
                                         mat_index * STRIDE_INDEX(Material) + FIELD_INDEX(Material, tex_normal));
     const pint mapped = hit & (prim >= 0) & (tex_normal >= 0);
     if (pany(mapped)) {
-        int mapped_bits = 0, side_bits = 0;
-        for (int k = 0; k < PACKET_WIDTH; ++k) {
-            if (!PLANE_I(mapped, k)) continue;
-            __global const Material *mat = materials + PLANE_I(mat_index, k);
-            const float3 wo1 = pv3_lane(wo, k);
-            float3 tilt;
-            float a2;
-            if (!map_normal1(tris, tri_uv, textures, tex_data, mat, PLANE_I(prim, k), PLANE(u, k), PLANE(v, k),
-                             pv3_lane(ns, k), pv3_lane(ng, k), wo1, &tilt, &a2))
-                continue;
-            pv3_set_lane(&sh.tilt, k, tilt);
-            pv3_set_lane(&sh.n, k, dot(wo1, tilt) >= 0.0f ? tilt : -tilt);
-            PLANE(sh.a2, k) = a2;
-            mapped_bits |= 1 << k;
-            side_bits |= (mat->flags & MATERIAL_FLAG_MAP_SIDE) ? 1 << k : 0;
-        }
-        sh.mapped = pmask(mapped_bits);
-        sh.side = pmask(side_bits);
+        pvec3 tilt;
+        pfloat a2;
+        const pint ok = map_normal_lanes(tris, tri_uv, textures, tex_data, materials, mat_index, tex_normal, mapped,
+                                         prim, u, v, ns, ng, wo, &tilt, &a2);
+        sh.tilt = pv3_sel(sh.tilt, tilt, ok);
+        sh.n = pv3_sel(sh.n, pv3_sel(pv3_neg(tilt), tilt, pv3_dot(wo, tilt) >= 0.0f), ok);
+        sh.a2 = ok ? a2 : sh.a2;
+        sh.mapped = ok;
+        const pint flags = pgather_int((__global const int *)materials,
+                                       mat_index * STRIDE_INDEX(Material) + FIELD_INDEX(Material, flags));
+        sh.side = ok & ((flags & MATERIAL_FLAG_MAP_SIDE) != 0);
     }
 #endif
 #ifdef HAS_ANISOTROPY

@@ -102,6 +102,24 @@ RT_INLINE TL_F TL_(tex_channel)(__global const float *texels, const TL_(TexelQua
     return top + (bottom - top) * q->ay;
 }
 
+/* The gradient (d/du, d/dv) of a bilinear lookup's luminance (Rec. 709 weights), as Mitsuba 3's
+ * bitmap texture computes it for bump maps (eval_1_grad): the derivative of the bilinear
+ * interpolation within the four texels q reads, times the resolution, taken back through to_uv
+ * (its transpose, then the resolution, in Mitsuba's order).  A nearest lookup has none (the
+ * caller's 0). */
+#define TL_LUM(i) (TL_FETCH(texels, (i)) * 0.212671f + TL_FETCH(texels, (i) + 1) * 0.715160f + \
+                   TL_FETCH(texels, (i) + 2) * 0.072169f)
+RT_INLINE void TL_(tex_gradient_of)(__global const Texture *t, __global const float *texels, const TL_(TexelQuad) *q,
+                                 TL_F *gu, TL_F *gv)
+{
+    const TL_F f00 = TL_LUM(q->i00), f10 = TL_LUM(q->i10), f01 = TL_LUM(q->i01), f11 = TL_LUM(q->i11);
+    const TL_F dx = (1.0f - q->ay) * (f10 - f00) + q->ay * (f11 - f01);
+    const TL_F dy = (1.0f - q->ax) * (f01 - f00) + q->ax * (f11 - f10);
+    *gu = (float)t->width * (t->to_uv[0] * dx + t->to_uv[3] * dy);
+    *gv = (float)t->height * (t->to_uv[1] * dx + t->to_uv[4] * dy);
+}
+#undef TL_LUM
+
 #undef TL_F
 #undef TL_I
 #undef TL_

@@ -23,7 +23,7 @@
  *   tex_scalar    slot k (used slots first, -1 after them): the parameter TEXP_* named by bits
  *                 4k..4k+3 of tex_params *= r (alpha, alpha_v, roughness, metallic, anisotropic, ...: the
  *                 Mitsuba types' textured parameters; the host stores the value in R)
- *   tex_normal    a normal map (tex_sample) or bump map (tex_gradient: the derivative of the
+ *   tex_normal    a normal map (tex_sample) or bump map (tex_gradient_lanes: the derivative of the
  *                 bilinear lookup, as Mitsuba's bump maps take it), read by cl/scene/shading.h
  * texture_material() applies them to the lanes' gathered materials (MaterialLanes) before
  * shading, so the BSDF and emission code is unchanged.  For next-event estimation
@@ -79,24 +79,25 @@ RT_INLINE pvec3 tex_sample_lanes(__global const Texture *textures, __global cons
     return out;
 }
 
-/* The gradient (d/du, d/dv) of the bilinear lookup's luminance (Rec. 709 weights) at uv, as
- * Mitsuba 3's bitmap texture computes it for bump maps (eval_1_grad): the derivative of the
- * bilinear interpolation within the four texels around uv, times the resolution, taken back
- * through to_uv (its transpose, then the resolution, in Mitsuba's order); 0 for a nearest lookup. */
-RT_INLINE float2 tex_gradient(__global const Texture *textures, __global const float4 *data, int index, float2 uv)
+/* The gradient (tex_gradient_lanes: d/du, d/dv of its luminance) of texture index[k] at (u[k],
+ * v[k]) in the lanes k of `on` (0 in the others and for nearest lookups), a texture at a time as
+ * tex_sample_lanes. */
+RT_INLINE void tex_gradient_lanes(__global const Texture *textures, __global const float4 *data, pint index,
+                                  pfloat u, pfloat v, pint on, pfloat *gu, pfloat *gv)
 {
-    __global const Texture *t = textures + index;
-    if (t->filter == TEXTURE_FILTER_NEAREST) return (float2)(0.0f, 0.0f);
-    const TexelQuad1 q = tex_quad1(t, uv.x, uv.y);
-    __global const float4 *texels = (__global const float4 *)tex_texels(data, t);
-    const float3 lum = (float3)(0.212671f, 0.715160f, 0.072169f);
-    const float f00 = dot(texels[q.i00 / 4].xyz, lum), f10 = dot(texels[q.i10 / 4].xyz, lum);
-    const float f01 = dot(texels[q.i01 / 4].xyz, lum), f11 = dot(texels[q.i11 / 4].xyz, lum);
-    const float dx = (1.0f - q.ay) * (f10 - f00) + q.ay * (f11 - f01);
-    const float dy = (1.0f - q.ax) * (f01 - f00) + q.ax * (f11 - f10);
-    /* Mitsuba's order: the transpose first, then the resolution (the same for an axis-aligned to_uv) */
-    return (float2)((float)t->width * (t->to_uv[0] * dx + t->to_uv[3] * dy),
-                    (float)t->height * (t->to_uv[1] * dx + t->to_uv[4] * dy));
+    *gu = *gv = PFLOAT(0.0f);
+    for (int todo = pbits(on); todo;) {
+        const int ti = PLANE_I(index, lowest_bit(todo));
+        const pint group = on & (index == ti);
+        todo &= ~pbits(group);
+        __global const Texture *t = textures + ti;
+        if (t->filter == TEXTURE_FILTER_NEAREST) continue;
+        const TexelQuad_lanes q = tex_quad_lanes(t, u, v);
+        pfloat x, y;
+        tex_gradient_of_lanes(t, tex_texels(data, t), &q, &x, &y);
+        *gu = group ? x : *gu;
+        *gv = group ? y : *gv;
+    }
 }
 
 RT_INLINE float2 triangle_uv(__global const float2 *tri_uv, int prim, float u, float v)

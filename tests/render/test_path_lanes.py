@@ -112,7 +112,7 @@ def test_same_image_on_the_scenes(device, monkeypatch, name):
 
 def test_shading_normals_maps_and_vertex_colors(device, monkeypatch):
     """Interpolated vertex normals (and flat faces beside them), a normal map and a bump map
-    (lane by lane, under Mitsuba's rules and under none) and vertex colours, on every material
+    (over the lanes, under Mitsuba's rules and under none) and vertex colours, on every material
     type, anisotropic rough ones under the maps (their tangent frames; cl/scene/shading.h): the same
     bits at every width."""
     from scenes_small import shading_scene
