@@ -99,8 +99,10 @@ RT_INLINE void sample_triangle_barycentrics(pfloat ux, pfloat uy, pfloat *b1, pf
 
 /* Picks light i with probability lights[i].pmf from the alias table built on the host
  * (pyopencl_rt/render/sampling.py): column floor(u n) is kept with probability alias_prob, else its
- * alias is taken, the fractional part of u n deciding.  Sets *pmf = lights[i].pmf. */
-RT_INLINE pint sample_alias(__global const Light *lights, int n, pfloat u, pfloat *pmf)
+ * alias is taken, the fractional part of u n deciding.  Sets *pmf = lights[i].pmf, and *u_reused to
+ * that fractional part rescaled to [0, 1) within the branch taken (pbrt-v4's uRemapped): uniform
+ * and independent of the pick, with about 24 - log2(n) bits. */
+RT_INLINE pint sample_alias(__global const Light *lights, int n, pfloat u, pfloat *pmf, pfloat *u_reused)
 {
     const pfloat x = u * (float)n;
     pint i = convert_pint(x);
@@ -109,9 +111,11 @@ RT_INLINE pint sample_alias(__global const Light *lights, int n, pfloat u, pfloa
     __global const float *light_f = (__global const float *)lights;
     __global const int *light_i = (__global const int *)lights;
     const pint column = i * STRIDE_INDEX(Light);
-    const pint pick = (frac >= pgather(light_f, column + FIELD_INDEX(Light, alias_prob)))
-                          ? pgather_int(light_i, column + FIELD_INDEX(Light, alias)) : i;
+    const pfloat prob = pgather(light_f, column + FIELD_INDEX(Light, alias_prob));
+    const pint kept = frac < prob;
+    const pint pick = kept ? i : pgather_int(light_i, column + FIELD_INDEX(Light, alias));
     *pmf = pgather(light_f, pick * STRIDE_INDEX(Light) + FIELD_INDEX(Light, pmf));
+    *u_reused = pclamp(kept ? frac / prob : (frac - prob) / (1.0f - prob), 0.0f, 0x1.fffffep-1f);
     return pick;
 }
 
