@@ -36,7 +36,8 @@ PATCHES = [
     ("INSTANCE_SHADE_ARGS(inst));\n", "        cy[3] += CYC - c0; c0 = CYC;\n"),
     ("            s.L = pv3_sel(s.L, pv3_add(s.L, shadow.contribution), with_shadow & pnot(occluded));\n#endif\n        }\n",
      "        cy[4] += CYC - c0; c0 = CYC;\n"),
-    ("                                seed, camera_medium, &s, &key, &out, &weight);\n", "        cy[0] += CYC - c0;\n"),
+    ("                                ring_size, seed, camera_medium, &s, &key, &out, &weight);\n",
+     "        cy[0] += CYC - c0;\n"),
     ("    add_group_ray_counts(group_rays, LANE_GROUP, n_extend, n_shadow, counters);\n",
      "    atomic_add(&counters[0], (int)(cy[0] >> 8)); atomic_add(&counters[1], (int)(cy[1] >> 8));\n"
      "    atomic_add(&counters[2], (int)(cy[2] >> 8)); atomic_add(&counters[6], (int)(cy[3] >> 8));\n"

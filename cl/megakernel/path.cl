@@ -63,49 +63,87 @@ RT_INLINE void cursor_step(SampleCursor *c, int n_take, int ring_size, int width
     }
 }
 
-/* Starts the block's next samples in the lanes of `starting` (bit k: lane k), in lane order:
- * each sample's pixel and ring entry as the wavefront numbers them, then on the lanes its
- * SampleKey (sampler_key) and its camera ray (camera_ray).  Returns the lanes started (all of
- * `starting`, or fewer when the block runs out). */
-RT_INLINE int start_lanes(__global const Camera *camera, __global const float *filter_cdf, int starting,
-                          SampleCursor *cur, int last, int n_pixels, __global const int *pixel_list, int n_listed,
-                          int ring_size, uint seed, int camera_medium, PathState *s, SampleKey *key, pint *out,
-                          pfloat *weight)
+/* The block's next samples, computed a vector at a time (lane k: the k-th sample after the cursor)
+ * and handed out to the lanes whose paths end, a few at a time: the key and the camera ray of a
+ * sample cost as much for one lane as for all of them, and two or three lanes end at a time. */
+typedef struct {
+    SampleKey key;
+    pvec3 o, d;
+    pfloat weight; /* the camera sample's filter weight */
+    pint out;      /* its pass_ring entry */
+    int count;     /* samples held, in lanes 0 .. count - 1 */
+    int next;      /* the first not handed out yet */
+} ReadySamples;
+
+/* Fills r with the block's next samples (up to PACKET_WIDTH): each sample's pixel and ring entry
+ * as the wavefront numbers them, then on the lanes its SampleKey (sampler_key) and its camera
+ * ray (camera_ray). */
+RT_INLINE void ready_fill(__global const Camera *camera, __global const float *filter_cdf, SampleCursor *cur,
+                          int last, int n_pixels, __global const int *pixel_list, int n_listed, int ring_size,
+                          uint seed, ReadySamples *r)
 {
     const int width = camera->width;
     const int n_take = n_listed > 0 ? n_listed : n_pixels;
-    int started = 0;
-    pint px = PINT(0), py = PINT(0), pixels = PINT(0), passes = PINT(0);
-    for (int k = 0; k < PACKET_WIDTH && cur->j < last; ++k) {
-        if (!((starting >> k) & 1)) continue;
+    pint px = PINT(0), py = PINT(0), pixels = PINT(0), passes = PINT(0), out = PINT(0);
+    int n = 0;
+    for (; n < PACKET_WIDTH && cur->j < last; ++n) {
         int pixel = cur->index, x = cur->x, y = cur->y;
         if (n_listed > 0) { /* adaptive sampling: a pixel of the list */
             pixel = pixel_list[cur->index];
             x = pixel % width;
             y = pixel / width;
         }
-        PLANE_I(*out, k) = n_listed > 0 ? cur->j : cur->slot * n_pixels + pixel;
-        PLANE_I(pixels, k) = pixel;
-        PLANE_I(passes, k) = cur->pass;
-        PLANE_I(px, k) = x;
-        PLANE_I(py, k) = y;
-        started |= 1 << k;
+        PLANE_I(out, n) = n_listed > 0 ? cur->j : cur->slot * n_pixels + pixel;
+        PLANE_I(pixels, n) = pixel;
+        PLANE_I(passes, n) = cur->pass;
+        PLANE_I(px, n) = x;
+        PLANE_I(py, n) = y;
         cursor_step(cur, n_take, ring_size, width);
     }
-    if (!started) return 0;
-    const pint on = pmask(started);
-    const SampleKey fresh = sampler_key_xy(seed, as_puint(pixels), as_puint(px), as_puint(py), as_puint(passes));
-    key->a = on ? fresh.a : key->a;
-    key->b = on ? fresh.b : key->b;
-    key->c = on ? fresh.c : key->c;
-    pvec3 o, d;
-    pfloat w;
-    camera_ray(camera, filter_cdf, *key, px, py, on, &o, &d, &w);
-    path_start(s, on, o, d);
+    r->count = n;
+    r->next = 0;
+    if (!n) return;
+    r->key = sampler_key_xy(seed, as_puint(pixels), as_puint(px), as_puint(py), as_puint(passes));
+    camera_ray(camera, filter_cdf, r->key, px, py, pmask((int)((1u << n) - 1u)), &r->o, &r->d, &r->weight);
+    r->out = out;
+}
+
+/* Starts the block's next samples in the lanes of `starting` (bit k: lane k), in lane order, from
+ * r (refilled when it runs out).  Returns the lanes started (all of `starting`, or fewer when the
+ * block runs out). */
+RT_INLINE int start_lanes(__global const Camera *camera, __global const float *filter_cdf, int starting,
+                          ReadySamples *r, SampleCursor *cur, int last, int n_pixels, __global const int *pixel_list,
+                          int n_listed, int ring_size, uint seed, int camera_medium, PathState *s, SampleKey *key,
+                          pint *out, pfloat *weight)
+{
+    int started = 0;
+    while (starting) {
+        if (r->next == r->count) {
+            ready_fill(camera, filter_cdf, cur, last, n_pixels, pixel_list, n_listed, ring_size, seed, r);
+            if (!r->count) break;
+        }
+        pint from = PINT(0); /* each starting lane's entry of r */
+        int bits = 0;
+        for (int b = starting; b && r->next < r->count; b &= b - 1) {
+            const int k = lowest_bit(b);
+            PLANE_I(from, k) = r->next++;
+            bits |= 1 << k;
+        }
+        starting &= ~bits;
+        started |= bits;
+        const pint on = pmask(bits);
+        key->a = on ? as_puint(ppermute_int(as_pint(r->key.a), from)) : key->a;
+        key->b = on ? as_puint(ppermute_int(as_pint(r->key.b), from)) : key->b;
+        key->c = on ? as_puint(ppermute_int(as_pint(r->key.c), from)) : key->c;
+        const pvec3 o = pv3(ppermute(r->o.x, from), ppermute(r->o.y, from), ppermute(r->o.z, from));
+        const pvec3 d = pv3(ppermute(r->d.x, from), ppermute(r->d.y, from), ppermute(r->d.z, from));
+        path_start(s, on, o, d);
 #ifdef HAS_MEDIA
-    path_start_media(s, on, camera_medium, *key);
+        path_start_media(s, on, camera_medium, *key);
 #endif
-    *weight = on ? w : *weight;
+        *weight = on ? ppermute(r->weight, from) : *weight;
+        *out = on ? ppermute_int(r->out, from) : *out;
+    }
     return started;
 }
 
@@ -128,8 +166,10 @@ __kernel void mk_path(WAVE_PARAMS)
 #endif
     pint out = PINT(0);
     pfloat weight = PFLOAT(1.0f); /* the camera samples' filter weights */
-    int live = start_lanes(camera, filter_cdf, (1 << PACKET_WIDTH) - 1, &cur, last, n_pixels, pixel_list, n_listed,
-                           ring_size, seed, camera_medium, &s, &key, &out, &weight); /* bit k: lane k holds a path */
+    ReadySamples ready;
+    ready.count = ready.next = 0;
+    int live = start_lanes(camera, filter_cdf, (1 << PACKET_WIDTH) - 1, &ready, &cur, last, n_pixels, pixel_list,
+                           n_listed, ring_size, seed, camera_medium, &s, &key, &out, &weight); /* bit k: lane k holds a path */
     while (live) {
         const pint live_lanes = pmask(live);
         /* -- extend: the live lanes' rays ------------------------------------------------------ */
@@ -182,9 +222,9 @@ __kernel void mk_path(WAVE_PARAMS)
             store3(pass_ring, PLANE_I(out, k), L);
         }
         live &= ~ended;
-        if (ended && cur.j < last)
-            live |= start_lanes(camera, filter_cdf, ended, &cur, last, n_pixels, pixel_list, n_listed, ring_size,
-                                seed, camera_medium, &s, &key, &out, &weight);
+        if (ended && (ready.next < ready.count || cur.j < last))
+            live |= start_lanes(camera, filter_cdf, ended, &ready, &cur, last, n_pixels, pixel_list, n_listed,
+                                ring_size, seed, camera_medium, &s, &key, &out, &weight);
     }
     add_group_ray_counts(group_rays, LANE_GROUP, n_extend, n_shadow, counters);
 }

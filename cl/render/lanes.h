@@ -136,7 +136,7 @@ RT_INLINE pfloat pgather(__global const float *base, pint index)
 /* the same for ints (the loads move bits only) */
 RT_INLINE pint pgather_int(__global const int *base, pint index) { return as_pint(pgather((__global const float *)base, index)); }
 
-#if PACKET_WIDTH > 1 /* the packet traversal's (cl/accel/bvh_packet.h) */
+#if PACKET_WIDTH > 1 /* the packet traversal's (cl/accel/bvh_packet.h) and the megakernel's */
 /* v[index[k]] in lane k (index < PACKET_WIDTH): one vpermps / vpermd where the lanes are one register
  * (16 with AVX-512, 8 with AVX2: PERMUTE_IN_REGISTER), else lane by lane */
 #if (PACKET_WIDTH == 16 && defined(__AVX512F__)) || (PACKET_WIDTH == 8 && defined(__AVX2__))
@@ -172,6 +172,9 @@ RT_INLINE pint pcompress_ids(int bits)
 #endif
 }
 
+#else /* one lane: index is 0 (the megakernel's ready samples, cl/megakernel/path.cl) */
+RT_INLINE pfloat ppermute(pfloat v, pint index) { return v; }
+RT_INLINE pint ppermute_int(pint v, pint index) { return v; }
 #endif
 
 RT_INLINE pfloat pabs(pfloat x) { return as_pfloat(as_puint(x) & PUINT(0x7fffffffu)); }
