@@ -119,33 +119,45 @@ RT_INLINE void vertex_color_material(__global const float *tri_color, pint hit, 
 }
 #endif
 
-#ifdef HAS_NORMAL_MAPS
+#if defined(HAS_NORMAL_MAPS) || defined(HAS_ANISOTROPY)
 /* dp/du and dp/dv of the lanes' triangles (prim valid in every lane) from their vertices and UVs
- * (Mitsuba's Mesh::compute_surface_interaction); a degenerate parameterisation: the basis around
- * ng (make_onb, Mitsuba's coordinate_system). */
-RT_INLINE void triangle_dpduv(__global const float4 *tris, __global const float2 *tri_uv, pint prim, pvec3 ng,
-                              pvec3 *dpdu, pvec3 *dpdv)
+ * (Mitsuba's Mesh::compute_surface_interaction), with the edge v1 - v0 (*dp0) and the UVs'
+ * determinant (*det) for the callers' fallbacks where the parameterisation is degenerate. */
+RT_INLINE void triangle_uv_derivatives(__global const float4 *tris, __global const float2 *tri_uv, pint prim,
+                                       pvec3 *dpdu, pvec3 *dpdv, pvec3 *dp0, pfloat *det)
 {
     __global const float *P = (__global const float *)tris;
     __global const float *T = (__global const float *)tri_uv;
     const pint i = prim * 12, j = prim * 6;
     const pvec3 p0 = pv3_gather(P, i);
-    const pvec3 dp0 = pv3_sub(pv3_gather(P, i + 4), p0), dp1 = pv3_sub(pv3_gather(P, i + 8), p0);
+    const pvec3 dp1 = pv3_sub(pv3_gather(P, i + 8), p0);
+    *dp0 = pv3_sub(pv3_gather(P, i + 4), p0);
     const pfloat u0 = pgather(T, j), v0 = pgather(T, j + 1);
     const pfloat du0 = pgather(T, j + 2) - u0, dv0 = pgather(T, j + 3) - v0;
     const pfloat du1 = pgather(T, j + 4) - u0, dv1 = pgather(T, j + 5) - v0;
-    const pfloat det = du0 * dv1 - dv0 * du1;
-    const pfloat inv = 1.0f / det;
+    *det = du0 * dv1 - dv0 * du1;
+    const pfloat inv = 1.0f / *det;
+    *dpdu = pv3_scale(pv3_sub(pv3_scale(*dp0, dv1), pv3_scale(dp1, dv0)), inv);
+    *dpdv = pv3_scale(pv3_sub(pv3_scale(dp1, du0), pv3_scale(*dp0, du1)), inv);
+}
+#endif
+
+#ifdef HAS_NORMAL_MAPS
+RT_INLINE pint pv3_isfinite(pvec3 a) { return pisfinite(a.x) & pisfinite(a.y) & pisfinite(a.z); }
+
+/* dp/du and dp/dv for the maps; a degenerate parameterisation: the basis around ng (make_onb,
+ * Mitsuba's coordinate_system). */
+RT_INLINE void triangle_dpduv(__global const float4 *tris, __global const float2 *tri_uv, pint prim, pvec3 ng,
+                              pvec3 *dpdu, pvec3 *dpdv)
+{
+    pvec3 du, dv, dp0;
+    pfloat det;
+    triangle_uv_derivatives(tris, tri_uv, prim, &du, &dv, &dp0, &det);
     make_onb(ng, dpdu, dpdv);
-    const pvec3 du = pv3_scale(pv3_sub(pv3_scale(dp0, dv1), pv3_scale(dp1, dv0)), inv);
-    const pvec3 dv = pv3_scale(pv3_sub(pv3_scale(dp1, du0), pv3_scale(dp0, du1)), inv);
-    const pint ok = (det != 0.0f) & pisfinite(inv) & pisfinite(du.x) & pisfinite(du.y) & pisfinite(du.z) &
-                    pisfinite(dv.x) & pisfinite(dv.y) & pisfinite(dv.z);
+    const pint ok = (det != 0.0f) & pisfinite(1.0f / det) & pv3_isfinite(du) & pv3_isfinite(dv);
     *dpdu = pv3_sel(*dpdu, du, ok);
     *dpdv = pv3_sel(*dpdv, dv, ok);
 }
-
-RT_INLINE pint pv3_isfinite(pvec3 a) { return pisfinite(a.x) & pisfinite(a.y) & pisfinite(a.z); }
 
 /* The lanes of `mapped` (triangle hits whose material has a map, mat_index): the normal the map
  * tilts N (the shading normal, its own orientation) to, for the viewer at wo; *a2: the shadowing
@@ -207,16 +219,9 @@ RT_INLINE pint map_normal_lanes(__global const float4 *tris, __global const floa
  * v1 - v0 where the UVs give none (all UVs equal: a mesh without them) */
 RT_INLINE pvec3 triangle_dpdu(__global const float4 *tris, __global const float2 *tri_uv, pint prim)
 {
-    __global const float *P = (__global const float *)tris;
-    __global const float *T = (__global const float *)tri_uv;
-    const pint i = prim * 12, j = prim * 6;
-    const pvec3 p0 = pv3_gather(P, i);
-    const pvec3 dp0 = pv3_sub(pv3_gather(P, i + 4), p0), dp1 = pv3_sub(pv3_gather(P, i + 8), p0);
-    const pfloat u0 = pgather(T, j), v0 = pgather(T, j + 1);
-    const pfloat du0 = pgather(T, j + 2) - u0, dv0 = pgather(T, j + 3) - v0;
-    const pfloat du1 = pgather(T, j + 4) - u0, dv1 = pgather(T, j + 5) - v0;
-    const pfloat det = du0 * dv1 - dv0 * du1;
-    const pvec3 dpdu = pv3_scale(pv3_sub(pv3_scale(dp0, dv1), pv3_scale(dp1, dv0)), 1.0f / det);
+    pvec3 dpdu, dpdv, dp0;
+    pfloat det;
+    triangle_uv_derivatives(tris, tri_uv, prim, &dpdu, &dpdv, &dp0, &det);
     const pint ok = (det != 0.0f) & pisfinite(dpdu.x + dpdu.y + dpdu.z);
     return pv3_sel(dp0, dpdu, ok);
 }
