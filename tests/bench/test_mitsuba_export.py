@@ -227,14 +227,18 @@ def test_media_export_maps_every_part(tmp_path):
 
 
 def test_media_scene_renders_the_same(tmp_path, device):
-    """Every part of the media export at once (the scene above, 16 x 16, 64 spp, ~3 s with the kernel
-    built): means of the whole image, of 8 x 8 and of 4 x 4 regions within 5 standard errors + 1%.
-    What this catches (measured by altering the export, worst region at |difference| / tolerance):
-    interior and exterior swapped 8.7-19, the camera's medium dropped 2.3-4.1, the grid mirrored in
-    x 1.5-3.0, the chromatic grid made grey 1.9-3.3, Henyey-Greenstein's g negated 1.2-1.6; as
-    exported 0.5-0.7.  (``volpath`` for ``volpathmis`` is 0.6: both are unbiased, only their noise
-    differs.)"""
-    ours, theirs, variance = render_both(load_scene(MEDIA_SCENE), tmp_path, device, spp=64, size=16)
+    """Every part of the media export at once (the scene above, 16 x 16, 256 spp, ~3 s with the
+    kernel built): means of the whole image, of 8 x 8 and of 4 x 4 regions within 5 standard errors
+    + 1%.  What this catches (measured at 64 spp by altering the export, worst region at
+    |difference| / tolerance; at 256 spp the tolerance is about half): interior and exterior
+    swapped 8.7-19, the camera's medium dropped 2.3-4.1, the grid mirrored in x 1.5-3.0, the
+    chromatic grid made grey 1.9-3.3, Henyey-Greenstein's g negated 1.2-1.6; as exported 0.5-0.7.
+    (``volpath`` for ``volpathmis`` is 0.6: both are unbiased, only their noise differs.)  At 64
+    spp a 4 x 4 region of Mitsuba's render carried a firefly (0.286 against 0.236, ours at 1024
+    spp and three seeds, the same before and after this stop's sampling changes), which the
+    tolerance, taken from our variance, did not allow for once our random numbers changed: 1.16;
+    at 256 spp the worst region is at 0.51."""
+    ours, theirs, variance = render_both(load_scene(MEDIA_SCENE), tmp_path, device, spp=256, size=16)
     a, _ = assert_regions_agree(ours, theirs, variance, block=16)
     assert a.min() > 0.1
     for block in (8, 4):

@@ -85,12 +85,13 @@ __kernel void h_onb(__global const float *n, __global const float *v, __global f
 }
 
 __kernel void h_alias(__global const Light *lights, int n, __global const float *u,
-                      __global int *idx, __global float *pmf)
+                      __global int *idx, __global float *pmf, __global float *reused)
 {
     const int i = get_global_id(0);
-    float p = -1.0f;
-    idx[i] = sample_alias(lights, n, u[i], &p);
+    float p = -1.0f, r = -1.0f;
+    idx[i] = sample_alias(lights, n, u[i], &p, &r);
     pmf[i] = p;
+    reused[i] = r;
 }
 
 /* every u = k 2^-24 in [0, 1): item g counts the draws of u in [g per, (g+1) per) in its own row */
@@ -98,8 +99,8 @@ __kernel void h_alias_all(__global const Light *lights, int n, int per, __global
 {
     const int g = get_global_id(0);
     for (int k = g * per; k < (g + 1) * per; ++k) {
-        float p;
-        const int i = sample_alias(lights, n, (float)k * 0x1.0p-24f, &p);
+        float p, r;
+        const int i = sample_alias(lights, n, (float)k * 0x1.0p-24f, &p, &r);
         counts[g * n + i] += 1;
     }
 }
@@ -426,12 +427,20 @@ def light_table(w):
 @pytest.mark.parametrize("case", list(ALIAS_CASES))
 def test_alias_device_chi2(runtime, rng, case):
     """1M uniform u through sample_alias on the device: frequencies match the pmf (chi-square,
-    p > ALPHA), zero-weight lights are never drawn, *pmf is the drawn light's pmf."""
+    p > ALPHA), zero-weight lights are never drawn, *pmf is the drawn light's pmf.  The reused
+    remainder (*u_reused, which places the light point) lies in [0, 1) and is uniform given the
+    light drawn: for each light drawn 20000 times or more, its 16 bins (chi-square)."""
     w = ALIAS_CASES[case](rng)
     lights = light_table(w)
     u = uniforms(rng, N)
     u[:5] = [0.0, 1 - 2.0 ** -24, 0.5, 1.0 / 3.0, 1 - 2.0 ** -23]
-    idx, pmf = HARNESS(runtime, "h_alias", N, lights=lights, n=len(lights), u=u, idx=N, pmf=N)
+    idx, pmf, reused = HARNESS(runtime, "h_alias", N, lights=lights, n=len(lights), u=u, idx=N, pmf=N, reused=N)
+    assert reused.min() >= 0 and reused.max() < 1
+    for light in np.unique(idx):
+        r = reused[idx == light]
+        if len(r) >= 20000:
+            bins = np.bincount(np.minimum((r * 16).astype(int), 15), minlength=16)
+            assert_chi2(bins, np.full(16, len(r) / 16), ALPHA, f"{case}: the reused u of light {light}")
     assert idx.min() >= 0 and idx.max() < len(w)
     assert not np.any(w[idx] == 0), "a zero-weight light was drawn"
     assert np.array_equal(pmf, lights["pmf"][idx])
