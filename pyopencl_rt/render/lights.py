@@ -213,6 +213,15 @@ def environment_tables(image, rows: str = "centred", rotation=None,
     MIS weight 1 (their light pdf is 0).  For estimators that combine the two techniques by MIS
     only: light sampling alone needs the complete density.  A map without such excess (constant,
     or black) keeps the complete tables."""
+    grid = _env_grid(image, rows)
+    env_map, mean = _env_map_buffer(grid, rotation)
+    return env_map, _env_cdf(grid, compensated), mean, grid["sub"]
+
+
+def _env_grid(image, rows):
+    """What both kinds of tables are made of: the map's texels made finite and non-negative, the
+    luminance of its sampling cells (averaged over each), the largest texel luminance around each,
+    sin(theta) of each row of cells, and the layout."""
     img = np.asarray(image, np.float64)
     if img.ndim != 3 or img.shape[2] < 3 or img.shape[0] < 1 or img.shape[1] < 1:
         raise ValueError(f"an environment map must be H x W x 3, got shape {img.shape}")
@@ -229,14 +238,32 @@ def environment_tables(image, rows: str = "centred", rotation=None,
     from scipy.ndimage import maximum_filter
 
     near = np.repeat(np.repeat(maximum_filter(lum, size=3, mode=("nearest", "wrap")), sub, 0), sub, 1)
-    h, w = sub * h, sub * w  # the cells from here on
-    sin_t = np.sin(np.pi * (np.arange(h) + 0.5) / h)
-    f = (np.maximum(cells, 0.0) + 1e-3 * near) * sin_t[:, None]
+    sin_t = np.sin(np.pi * (np.arange(sub * h) + 0.5) / (sub * h))
+    return {"img": img, "cells": np.maximum(cells, 0.0), "near": near, "sin_t": sin_t, "sub": sub,
+            "v_scale": v_scale, "v_offset": v_offset}
+
+
+def _env_map_buffer(grid, rotation) -> tuple[np.ndarray, float]:
+    """The kernel's env_map buffer (header and texels) and the mean luminance over the sphere."""
+    cells, sin_t = grid["cells"], grid["sin_t"]
+    h, w = cells.shape
+    mean = float((cells * sin_t[:, None]).sum() * (np.pi / h) * (2 * np.pi / w) / (4 * np.pi))
+    header = np.zeros(abi.ENV_MAP_HEADER, np.float32)
+    rot = np.eye(3) if rotation is None else np.asarray(rotation, np.float64)
+    header[[0, 1, 2, 4, 5, 6, 8, 9, 10]] = rot.reshape(-1)
+    header[3], header[7] = grid["v_scale"], grid["v_offset"]
+    return np.concatenate([header, grid["img"].astype(np.float32).reshape(-1)]), mean
+
+
+def _env_cdf(grid, compensated) -> np.ndarray:
+    """env_cdf (environment_tables) of the complete or the compensated cell weights."""
+    cells, sin_t = grid["cells"], grid["sin_t"]
+    f = None
     if compensated:
-        lum_cells = np.maximum(cells, 0.0)
-        excess = np.maximum(lum_cells - (lum_cells * sin_t[:, None]).sum() / (sin_t.sum() * w), 0.0) * sin_t[:, None]
-        if excess.sum() > 0:
-            f = excess
+        excess = np.maximum(cells - (cells * sin_t[:, None]).sum() / (sin_t.sum() * cells.shape[1]), 0.0)
+        f = excess * sin_t[:, None] if excess.any() else None
+    if f is None:
+        f = (cells + 1e-3 * grid["near"]) * sin_t[:, None]
 
     def cdf_rows(weights):  # (R, N) -> (R, N + 1), each row from 0 to 1
         total = weights.sum(1, keepdims=True)
@@ -248,13 +275,7 @@ def environment_tables(image, rows: str = "centred", rotation=None,
 
     cond = cdf_rows(f)
     marg = cdf_rows(f.sum(1)[None, :])[0]
-    cdf = np.concatenate([marg, cond.reshape(-1)]).astype(np.float32)
-    mean = float((np.maximum(cells, 0.0) * sin_t[:, None]).sum() * (np.pi / h) * (2 * np.pi / w) / (4 * np.pi))
-    header = np.zeros(abi.ENV_MAP_HEADER, np.float32)
-    rot = np.eye(3) if rotation is None else np.asarray(rotation, np.float64)
-    header[[0, 1, 2, 4, 5, 6, 8, 9, 10]] = rot.reshape(-1)
-    header[3], header[7] = v_scale, v_offset
-    return np.concatenate([header, img.astype(np.float32).reshape(-1)]), cdf, mean, sub
+    return np.concatenate([marg, cond.reshape(-1)]).astype(np.float32)
 
 
 def environment_radiance(env, directions) -> np.ndarray:
@@ -304,11 +325,13 @@ def _env_tables(env, compensated=False):
     key = (id(env.image), getattr(env, "rows", "centred"), None if env.rotation is None else env.rotation.tobytes())
     cached = getattr(env, "_tables", None)
     if cached is None or cached[0] != key:
-        cached = (key, {})
+        grid = _env_grid(env.image, env.rows)
+        cached = (key, grid, _env_map_buffer(grid, env.rotation), {})
         env._tables = cached
-    if compensated not in cached[1]:
-        cached[1][compensated] = environment_tables(env.image, env.rows, env.rotation, compensated)
-    return cached[1][compensated]
+    _, grid, (env_map, mean), cdfs = cached
+    if compensated not in cdfs:  # the grid is shared: the second kind costs only its CDFs
+        cdfs[compensated] = _env_cdf(grid, compensated)
+    return env_map, cdfs[compensated], mean, grid["sub"]
 
 
 def environment_buffers(scene, compensated=False) -> tuple[np.ndarray, np.ndarray]:
