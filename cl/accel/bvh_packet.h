@@ -113,15 +113,14 @@ RT_INLINE pint packet_box(const PacketRay *r, float bx0, float by0, float bz0, f
 }
 
 #ifdef cl_khr_fp64
-/* the lanes as doubles (an fpext of each lane: no call into the built-in library) */
+/* the lanes as doubles (an fpext of each lane: no call into the built-in library); this file is
+ * compiled at 8 and 16 lanes only */
 #if PACKET_WIDTH == 16
 typedef double16 pdouble;
-#elif PACKET_WIDTH == 8
+#else
 typedef double8 pdouble;
 #endif
-#if PACKET_WIDTH > 1
 #define PDOUBLE(x) __builtin_convertvector((x), pdouble)
-#endif
 
 RT_INLINE float edge_double(float a, float b, float c, float d)
 {
@@ -187,11 +186,10 @@ RT_INLINE pint packet_triangle_lanes(const PacketRay *r, pvec3 p0, pvec3 p1, pve
     const pint inside = maybe & ~mixed & ((det < 0.0f) | (det > 0.0f));
 #ifdef cl_khr_fp64
     const pint refine = inside & may_move;
-#if PACKET_WIDTH > 1
     if (pany(refine)) {
         /* over the lanes in double vectors: every lane's origin next to the plane (a ray spawned
          * from a triangle, against that triangle and its coplanar neighbours) is in doubt, so
-         * most packets refine several lanes; the scalar form's operations in its order */
+         * most packets refine several lanes; intersect_triangle's operations in its order */
         const pdouble q0x = PDOUBLE(p0.x), q0y = PDOUBLE(p0.y), q0z = PDOUBLE(p0.z);
         const pdouble f1x = PDOUBLE(p1.x) - q0x, f1y = PDOUBLE(p1.y) - q0y, f1z = PDOUBLE(p1.z) - q0z;
         const pdouble f2x = PDOUBLE(p2.x) - q0x, f2y = PDOUBLE(p2.y) - q0y, f2z = PDOUBLE(p2.z) - q0z;
@@ -201,21 +199,6 @@ RT_INLINE pint packet_triangle_lanes(const PacketRay *r, pvec3 p0, pvec3 p1, pve
         ok = refine ? __builtin_convertvector(dden != 0.0, pint) : ok;
         tt = refine ? __builtin_convertvector(dnum / dden, pfloat) : tt;
     }
-#else
-    if (pany(refine)) {
-        for (int bits = pbits(refine); bits; bits &= bits - 1) {
-            const int k = lowest_bit(bits);
-            const double3 q0 = convert_double3(pv3_lane(p0, k));
-            const double3 f1 = convert_double3(pv3_lane(p1, k)) - q0, f2 = convert_double3(pv3_lane(p2, k)) - q0;
-            const double mx = f1.y * f2.z - f1.z * f2.y, my = f1.z * f2.x - f1.x * f2.z, mz = f1.x * f2.y - f1.y * f2.x;
-            const double dden = mx * (double)PLANE(r->dx, k) + my * (double)PLANE(r->dy, k) + mz * (double)PLANE(r->dz, k);
-            const double dnum = mx * (q0.x - (double)PLANE(r->ox, k)) + my * (q0.y - (double)PLANE(r->oy, k)) +
-                                mz * (q0.z - (double)PLANE(r->oz, k));
-            PLANE_I(ok, k) = -(dden != 0.0);
-            PLANE(tt, k) = (float)(dnum / dden);
-        }
-    }
-#endif
 #endif
     *t_out = tt; *U_out = U; *V_out = V; *W_out = W;
     return inside & ok & (tt > tmin) & (tt < tmax);

@@ -47,8 +47,8 @@
 /* The samples of a path: their dimension ids.  The pixel jitter (2D) takes
  * 0 and 1, then each bounce DIMS_PER_BOUNCE ids from 2 + DIMS_PER_BOUNCE * depth on: a 1D light
  * pick (with more than ALIAS_REUSE_MAX_LIGHTS lights, cl/render/path.h; else the light point's
- * first coordinate picks too), a 2D light point, a 2D BSDF direction, 1D Russian roulette, a 1D BSDF lobe choice and a 1D
- * choice of a mix's material (cl/materials/mix.h).
+ * first coordinate picks too), a 2D light point, a 2D BSDF direction, 1D Russian roulette, a 1D
+ * BSDF lobe choice and a 1D choice of a mix's material (cl/materials/mix.h).
  * Every 1D or 2D sample is scrambled on its own, so the ids only need to differ. */
 #define DIM_PIXEL 0
 #define DIM_LENS 0xFFFFFFF0u /* and + 1: the thin lens, far from every bounce's dimensions */

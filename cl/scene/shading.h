@@ -159,24 +159,25 @@ RT_INLINE void triangle_dpduv(__global const float4 *tris, __global const float2
     *dpdv = pv3_sel(*dpdv, dv, ok);
 }
 
-/* The lanes of `mapped` (triangle hits whose material has a map, mat_index): the normal the map
- * tilts N (the shading normal, its own orientation) to, for the viewer at wo; *a2: the shadowing
- * term's alpha^2 (0 without it); each texture looked up over the lanes that read it.  Returns the
- * lanes with a direction (a zero texel gives none: the lane keeps N). */
+/* The lanes of `mapped` (triangle hits whose material, mat_index, has a map tex_normal and the
+ * flags `flags`): the normal the map tilts N (the shading normal, its own orientation) to, for the
+ * viewer at wo; *a2: the shadowing term's alpha^2 (0 without it); each texture looked up over the
+ * lanes that read it.  Returns the lanes with a direction (a zero texel gives none: the lane
+ * keeps N). */
 RT_INLINE pint map_normal_lanes(__global const float4 *tris, __global const float2 *tri_uv,
                                 __global const Texture *textures, __global const float4 *tex_data,
-                                __global const Material *materials, pint mat_index, pint tex_normal, pint mapped,
-                                pint prim, pfloat u, pfloat v, pvec3 N, pvec3 ng, pvec3 wo, pvec3 *tilt, pfloat *a2)
+                                __global const Material *materials, pint mat_index, pint tex_normal, pint flags,
+                                pint mapped, pint prim, pfloat u, pfloat v, pvec3 N, pvec3 ng, pvec3 wo, pvec3 *tilt,
+                                pfloat *a2)
 {
-    const pint rec = mat_index * STRIDE_INDEX(Material);
-    const pint flags = pgather_int((__global const int *)materials, rec + FIELD_INDEX(Material, flags));
-    const pfloat scale = pgather((__global const float *)materials, rec + FIELD_INDEX(Material, normal_scale));
+    const pfloat scale = pgather((__global const float *)materials,
+                                 mat_index * STRIDE_INDEX(Material) + FIELD_INDEX(Material, normal_scale));
     const pint safe_prim = mapped ? prim : PINT(0);
-    pvec3 dpdu, dpdv, S, B;
+    pvec3 dpdu, dpdv, S, S0, B;
     triangle_dpduv(tris, tri_uv, safe_prim, ng, &dpdu, &dpdv);
     S = pv3_normalize(pv3_sub(dpdu, pv3_scale(N, pv3_dot(N, dpdu))), mapped);
-    make_onb(N, tilt, &B); /* *tilt: scratch */
-    S = pv3_sel(*tilt, S, pv3_isfinite(S));
+    make_onb(N, &S0, &B); /* where dp/du lies along N */
+    S = pv3_sel(S0, S, pv3_isfinite(S));
     const pvec3 T = pv3_cross(N, S);
     pfloat tu, tv;
     triangle_uv_lanes(tri_uv, safe_prim, u, v, &tu, &tv);
@@ -279,14 +280,14 @@ RT_INLINE ShadingLanes shading_lanes(__global const float4 *tris, __global const
     if (pany(mapped)) {
         pvec3 tilt;
         pfloat a2;
-        const pint ok = map_normal_lanes(tris, tri_uv, textures, tex_data, materials, mat_index, tex_normal, mapped,
-                                         prim, u, v, ns, ng, wo, &tilt, &a2);
+        const pint flags = pgather_int((__global const int *)materials,
+                                       mat_index * STRIDE_INDEX(Material) + FIELD_INDEX(Material, flags));
+        const pint ok = map_normal_lanes(tris, tri_uv, textures, tex_data, materials, mat_index, tex_normal, flags,
+                                         mapped, prim, u, v, ns, ng, wo, &tilt, &a2);
         sh.tilt = pv3_sel(sh.tilt, tilt, ok);
         sh.n = pv3_sel(sh.n, pv3_sel(pv3_neg(tilt), tilt, pv3_dot(wo, tilt) >= 0.0f), ok);
         sh.a2 = ok ? a2 : sh.a2;
         sh.mapped = ok;
-        const pint flags = pgather_int((__global const int *)materials,
-                                       mat_index * STRIDE_INDEX(Material) + FIELD_INDEX(Material, flags));
         sh.side = ok & ((flags & MATERIAL_FLAG_MAP_SIDE) != 0);
     }
 #endif

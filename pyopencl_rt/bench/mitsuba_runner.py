@@ -65,9 +65,9 @@ AVX2_FEATURES = (b"+sse,+sse2,+sse3,+ssse3,+sse4.1,+sse4.2,+popcnt,+avx,+avx2,+f
 def set_llvm_lanes(dr, variant):
     """Dr.Jit's LLVM target from ``$PYOPENCL_RT_MITSUBA_LANES`` (:data:`LANES_CHOICES`); returns
     the vector width its kernels use and the CPU they are compiled for (Nones outside llvm_*
-    variants).  The setter is Dr.Jit's C
-    function ``jit_llvm_set_target``, which its Python bindings do not expose, so it is called
-    through ctypes on libdrjit-core; a Dr.Jit without it is reported, not ignored."""
+    variants).  The setter is Dr.Jit's C function ``jit_llvm_set_target``, which its Python
+    bindings do not expose, so it is called through ctypes on libdrjit-core; a Dr.Jit without it
+    is reported, not ignored."""
     if not variant.startswith("llvm"):
         return None, None
     import ctypes
@@ -129,8 +129,7 @@ def main(argv=None):
     if args.serve:
         return serve(scene, args, {"renderer": "mitsuba", "version": mi.__version__, "drjit_version": dr.__version__,
                                    "variant": args.variant, "lanes": lanes, "target_cpu": target_cpu,
-                                   "sampler": args.sampler,
-                                   "width": int(settings["width"]),
+                                   "sampler": args.sampler, "width": int(settings["width"]),
                                    "height": int(settings["height"]), "max_depth": settings["max_depth"],
                                    "load_seconds": load_seconds, "import_seconds": t_loaded - t_import})
 
