@@ -20,13 +20,21 @@
  * length fall back to the builtin, which rescales, when the squared length could over- or
  * underflow.
  *
- * Only for clang on x86 (PoCL's CPU device, Intel's CPU runtime), where the calls were measured;
- * GPU compilers inline their builtins already and keep them.  -DRT_PORTABLE_BUILTINS switches it
+ * Only for clang on x86 (PoCL's CPU device) and clang compiling SPIR (Intel's CPU runtime: its
+ * front end defines __SPIR__, not __x86_64__), where the calls were measured and where the packet
+ * and wide traversals, which spell dot and cross with operators, must give the scalar code's
+ * bits; other GPU compilers inline their builtins already and keep them.  -DRT_PORTABLE_BUILTINS switches it
  * off, to measure it (docs/BENCHMARKS.md) or to rule it out. */
 #ifndef PYOPENCL_RT_CPU_BUILTINS_H
 #define PYOPENCL_RT_CPU_BUILTINS_H
 
-#if defined(__clang__) && defined(__x86_64__) && !defined(RT_PORTABLE_BUILTINS)
+/* Squared lengths in [2^-100, 2^100] neither overflow nor lose bits to denormals; outside, the
+ * builtin (which rescales) decides.  Defined for every compiler: the lanes (render/lanes.h) test
+ * the same range on any OpenCL implementation. */
+#define RT_LENGTH_SQ_MIN 7.88860905e-31f
+#define RT_LENGTH_SQ_MAX 1.26765060e+30f
+
+#if defined(__clang__) && (defined(__x86_64__) || defined(__SPIR__)) && !defined(RT_PORTABLE_BUILTINS)
 #define RT_CPU_BUILTINS 1
 
 #define RT_OVL inline __attribute__((always_inline, overloadable))
@@ -127,10 +135,6 @@ RT_OVL double rt_length(double3 v)
     return m * __builtin_sqrt(rt_dot(u, u));
 }
 #endif
-/* Squared lengths in [2^-100, 2^100] neither overflow nor lose bits to denormals; outside, the
- * builtin (which rescales) decides. */
-#define RT_LENGTH_SQ_MIN 7.88860905e-31f
-#define RT_LENGTH_SQ_MAX 1.26765060e+30f
 RT_OVL float rt_length(float3 v)
 {
     const float d = rt_dot(v, v);

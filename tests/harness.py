@@ -229,52 +229,52 @@ def device_spec(device) -> str:
 
 
 def lane_kernels_build_on(device) -> bool:
-    """Whether the lane kernels (cl/megakernel/lanes.cl, cl/accel/bvh_packet.h) are meant for
-    ``device``: PoCL's CPU device on an x86 host (clang on x86).  Written here apart from
-    pyopencl_rt.render.megakernel.lane_width, which tests/render/test_path_lanes.py checks
-    against it."""
+    """Whether the lane kernels (cl/megakernel/path.cl at 8 or 16 lanes, cl/accel/bvh_packet.h) are
+    meant for ``device``: a CPU device of an x86 host, under any OpenCL implementation (the lane
+    code is portable OpenCL C).  Written here apart from pyopencl_rt.device.isa.x86_cpu, which
+    tests/render/test_path_lanes.py checks against it."""
     import platform
 
     import pyopencl as cl
 
-    return (bool(device.type & cl.device_type.CPU) and "Portable Computing Language" in device.platform.name
-            and platform.machine().lower() in ("x86_64", "amd64"))
+    return bool(device.type & cl.device_type.CPU) and platform.machine().lower() in ("x86_64", "amd64")
 
 
 def require_lane_kernels(device, width: int = 16) -> None:
     """Skip a test of the lane kernels' code at ``width`` lanes on a device they are never built
-    for: another than PoCL's CPU device on x86, or one whose compile and built-in library pass
-    vectors of that width differently (pyopencl_rt/device/isa.py refuses the width there)."""
+    for: not a CPU device of an x86 host, or one whose implementation does not build that width
+    alike (PoCL where its compile and built-in library pass vectors of that width differently:
+    pyopencl_rt/device/isa.py's LaneRule refuses the width there, as tests/device/test_isa.py checks)."""
     import pytest
 
     from pyopencl_rt.device import isa
 
     if not lane_kernels_build_on(device):
-        pytest.skip("the lane kernels are built for PoCL's CPU device on x86 only (never selected elsewhere)")
-    cpu = isa.probe(device)
-    if not cpu.passes_alike(4 * int(width)):
-        pytest.skip(f"{width} lanes are never built here: {cpu.describe()}")
+        pytest.skip("the lane kernels are built for CPU devices of x86 hosts only (never selected elsewhere)")
+    rule = isa.lane_rule(device)
+    if int(width) not in rule.widths:
+        pytest.skip(f"{width} lanes are never built here: {rule.describe}")
 
 
 def forced_lanes(device) -> str:
-    """The lane count a test forces on ``device``, as $PYOPENCL_RT_LANES gives it: the width the ISA
-    rule picks (what users get: 8 on AVX2, 16 on AVX-512), else the widest the device builds ("16",
-    else "8"); skips where neither is built.  Every width at once: :func:`lane_widths`."""
+    """The lane count a test forces on ``device``, as $PYOPENCL_RT_LANES gives it: the width the
+    rule picks (what users get), else the widest the device builds ("16", else "8"); skips where
+    neither is built.  Every width at once: :func:`lane_widths`."""
     from pyopencl_rt.device import isa
 
     require_lane_kernels(device, 8)
-    cpu = isa.probe(device)
-    return str(isa.simd_width(cpu)[0] or (16 if cpu.passes_alike(64) else 8))
+    rule = isa.lane_rule(device)
+    return str(rule.default or max(rule.widths))
 
 
 def lane_widths(device) -> tuple[str, ...]:
     """One path per work-item and every lane count the device builds alike ("0", "8", "16" where
-    16 passes alike): each is a kernel build of several seconds, so only the broadest tests take
+    16 builds alike): each is a kernel build of several seconds, so only the broadest tests take
     them all."""
     from pyopencl_rt.device import isa
 
     require_lane_kernels(device, 8)
-    return ("0", "8", "16") if isa.probe(device).passes_alike(64) else ("0", "8")
+    return ("0", *(str(w) for w in isa.lane_rule(device).widths))
 
 
 # ----------------------------------------------------------------------------- random numbers

@@ -6,7 +6,8 @@
 Each ``--variant`` is ImageSettings overrides (kernel_mode, sampler, max_depth, ...) and
 optionally ``defines``: extra kernel defines (switches such as RT_PORTABLE_BUILTINS in
 cl/cpu_builtins.h), and ``env``: environment variables set while the variant is built (such as
-``{"PYOPENCL_RT_LANES": "0"}``, the megakernel with one path per work-item) and, where it names a
+``{"PYOPENCL_RT_LANES": "0"}``, the megakernel with one path per work-item), ``device``: another
+device than ``--device`` for that variant (``"intel"``: two OpenCL implementations side by side), and, where it names a
 variable the loaders read (``PYOPENCL_RT_INSTANCING``: flattened or two-level instances), while
 its own copy of the scene is loaded, and ``cl``: the
 kernel sources of another tree for that variant (a folder holding ``accel/``, ``render/``, ...,
@@ -82,6 +83,7 @@ def main(argv=None):
             env = config.pop("env", {})
             tree = config.pop("cl", None)
             rev = config.pop("rev", None)
+            own_device = select_device(config.pop("device")) if "device" in config else device
             if rev is not None:
                 tree = revision_cl(rev, scratch)
             if tree is not None:
@@ -94,7 +96,7 @@ def main(argv=None):
             own_scene = load_scene(args.scene) if loader_env & set(env) else scene
             # the features are read when the kernels are built, in the constructor
             wavefront_module.kernel_features = lambda *a, _d=defines, **k: {**features(*a, **k), **_d}
-            wf = wavefront_module.Wavefront(own_scene, device, width=args.width, height=args.width, **config)
+            wf = wavefront_module.Wavefront(own_scene, own_device, width=args.width, height=args.width, **config)
             for k, v in saved.items():
                 if v is None:
                     os.environ.pop(k, None)

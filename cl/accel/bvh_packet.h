@@ -120,7 +120,19 @@ typedef double16 pdouble;
 #else
 typedef double8 pdouble;
 #endif
+#ifdef RT_CONVERTVECTOR
 #define PDOUBLE(x) __builtin_convertvector((x), pdouble)
+#define PINT_OF_PDOUBLE_MASK(m) __builtin_convertvector((m), pint)
+#define PFLOAT_OF_PDOUBLE(x) __builtin_convertvector((x), pfloat)
+#elif PACKET_WIDTH == 16
+#define PDOUBLE(x) convert_double16(x)
+#define PINT_OF_PDOUBLE_MASK(m) convert_int16(m)
+#define PFLOAT_OF_PDOUBLE(x) convert_float16(x)
+#else
+#define PDOUBLE(x) convert_double8(x)
+#define PINT_OF_PDOUBLE_MASK(m) convert_int8(m)
+#define PFLOAT_OF_PDOUBLE(x) convert_float8(x)
+#endif
 
 RT_INLINE float edge_double(float a, float b, float c, float d)
 {
@@ -196,8 +208,8 @@ RT_INLINE pint packet_triangle_lanes(const PacketRay *r, pvec3 p0, pvec3 p1, pve
         const pdouble mx = f1y * f2z - f1z * f2y, my = f1z * f2x - f1x * f2z, mz = f1x * f2y - f1y * f2x;
         const pdouble dden = mx * PDOUBLE(r->dx) + my * PDOUBLE(r->dy) + mz * PDOUBLE(r->dz);
         const pdouble dnum = mx * (q0x - PDOUBLE(r->ox)) + my * (q0y - PDOUBLE(r->oy)) + mz * (q0z - PDOUBLE(r->oz));
-        ok = refine ? __builtin_convertvector(dden != 0.0, pint) : ok;
-        tt = refine ? __builtin_convertvector(dnum / dden, pfloat) : tt;
+        ok = refine ? PINT_OF_PDOUBLE_MASK(dden != 0.0) : ok;
+        tt = refine ? PFLOAT_OF_PDOUBLE(dnum / dden) : tt;
     }
 #endif
     *t_out = tt; *U_out = U; *V_out = V; *W_out = W;

@@ -15,11 +15,16 @@
 #define VMAX(a, b) SEL((b), (a), (a) > (b))
 RT_INLINE float4 abs4(float4 x) { return as_float4(as_uint4(x) & (uint4)(0x7fffffffu)); }
 RT_INLINE int any4(int4 m) { const int2 p = m.lo | m.hi; return (p.x | p.y) < 0; }
-/* Bit i set where lane i of the mask is set: movmskps where the compiler has it. */
+/* Bit i set where lane i's sign bit is (a mask's set lanes): movmskps where the compiler has it. */
 #if defined(__SSE__) && defined(__clang__)
 RT_INLINE int mask_bits4(int4 m) { return __builtin_ia32_movmskps(as_float4(m)); }
-#else
-RT_INLINE int mask_bits4(int4 m) { return (m.s0 & 1) | (m.s1 & 2) | (m.s2 & 4) | (m.s3 & 8); }
+#else /* movmskps reads each lane's sign bit: so does this, for masks and for other ints alike
+       * (a Tri8's slot ids: -1 where empty) */
+RT_INLINE int mask_bits4(int4 m)
+{
+    const uint4 s = as_uint4(m) >> 31;
+    return (int)(s.s0 | (s.s1 << 1) | (s.s2 << 2) | (s.s3 << 3));
+}
 #endif
 #if defined(__has_builtin)
 #if __has_builtin(__builtin_ctz) && __has_builtin(__builtin_popcount)

@@ -1,6 +1,8 @@
 /* Lanes: PACKET_WIDTH values of one kind (one per path) side by side, and the arithmetic the
  * integrator (cl/render/path.h), the materials, lights and samplers, and the packet traversal
- * (cl/accel/bvh_packet.h) do on them.  The integrator is written once over these types, as
+ * (cl/accel/bvh_packet.h) do on them.  Portable OpenCL C: x86 builtins only where the compile's
+ * macros (__AVX2__, __AVX512F__, ...) say they exist, each beside a portable spelling that any
+ * OpenCL C compiler with vector types builds (Intel's CPU runtime defines none of those macros).  The integrator is written once over these types, as
  * Mitsuba 3 writes its integrators over DrJit arrays: PACKET_WIDTH 1 (the default: GPUs, the
  * wavefront stages, the one-path megakernel) makes them float, int and uint; 8 or 16 (x86 CPUs
  * under PoCL, pyopencl_rt/device/isa.py picks the width) makes them OpenCL vectors.
@@ -29,8 +31,27 @@
  * host expands each header once, where it first appears, whatever #if surrounds it: no header is
  * included under a condition) */
 #include "accel/masks.h"
-#if PACKET_WIDTH > 1 && !defined(RT_CPU_BUILTINS)
-#error "lanes wider than 1 are for clang on x86 (cpu_builtins.h)"
+/* clang's element-wise builtins compile to one instruction (an LLVM intrinsic); elsewhere the
+ * OpenCL built-ins of the same definition stand in (minnum/maxnum, floor, a vector conversion). */
+#if defined(__has_builtin)
+#if __has_builtin(__builtin_elementwise_minnum) && __has_builtin(__builtin_elementwise_floor)
+#define RT_ELEMENTWISE 1 /* clang 21 on: min/max of floats are minnum/maxnum by name */
+#define RT_EW_MIN __builtin_elementwise_minnum
+#define RT_EW_MAX __builtin_elementwise_maxnum
+#elif __has_builtin(__builtin_elementwise_min) && __has_builtin(__builtin_elementwise_floor)
+#define RT_ELEMENTWISE 1
+#define RT_EW_MIN __builtin_elementwise_min
+#define RT_EW_MAX __builtin_elementwise_max
+#endif
+#if __has_builtin(__builtin_convertvector)
+#define RT_CONVERTVECTOR 1
+#endif
+#if __has_builtin(__builtin_sqrtf)
+#define RT_SQRTF __builtin_sqrtf
+#endif
+#endif
+#ifndef RT_SQRTF
+#define RT_SQRTF sqrt
 #endif
 
 #if PACKET_WIDTH == 1
@@ -181,9 +202,12 @@ RT_INLINE pfloat pabs(pfloat x) { return as_pfloat(as_puint(x) & PUINT(0x7ffffff
 #if PACKET_WIDTH == 1
 RT_INLINE pfloat pfmin(pfloat a, pfloat b) { return fmin(a, b); }
 RT_INLINE pfloat pfmax(pfloat a, pfloat b) { return fmax(a, b); }
+#elif defined(RT_ELEMENTWISE)
+RT_INLINE pfloat pfmin(pfloat a, pfloat b) { return RT_EW_MIN(a, b); }
+RT_INLINE pfloat pfmax(pfloat a, pfloat b) { return RT_EW_MAX(a, b); }
 #else
-RT_INLINE pfloat pfmin(pfloat a, pfloat b) { return __builtin_elementwise_min(a, b); }
-RT_INLINE pfloat pfmax(pfloat a, pfloat b) { return __builtin_elementwise_max(a, b); }
+RT_INLINE pfloat pfmin(pfloat a, pfloat b) { return fmin(a, b); }
+RT_INLINE pfloat pfmax(pfloat a, pfloat b) { return fmax(a, b); }
 #endif
 RT_INLINE pfloat pclamp(pfloat x, float lo, float hi) { return pfmin(pfmax(x, PFLOAT(lo)), PFLOAT(hi)); }
 RT_INLINE pfloat pcopysign(pfloat x, pfloat y)
@@ -207,7 +231,7 @@ RT_INLINE pfloat psqrt(pfloat x)
 #endif
 #else
     pfloat r;
-    for (int k = 0; k < PACKET_WIDTH; ++k) PLANE(r, k) = __builtin_sqrtf(PLANE(x, k));
+    for (int k = 0; k < PACKET_WIDTH; ++k) PLANE(r, k) = RT_SQRTF(PLANE(x, k));
     return r;
 #endif
 }
@@ -224,8 +248,10 @@ RT_INLINE pfloat psqrt(pfloat x)
 #include "render/lanes_math.h"
 #if PACKET_WIDTH == 1
 RT_INLINE pfloat pfloor(pfloat x) { return floor(x); }
-#else /* exact, and an LLVM intrinsic (vrndscaleps, vroundps), not a call into the built-in library */
+#elif defined(RT_ELEMENTWISE) /* exact, and an LLVM intrinsic (vrndscaleps, vroundps), not a call into the built-in library */
 RT_INLINE pfloat pfloor(pfloat x) { return __builtin_elementwise_floor(x); }
+#else
+RT_INLINE pfloat pfloor(pfloat x) { return floor(x); }
 #endif
 RT_INLINE pfloat perf(pfloat x) { return PLIB1(erf, x); }
 RT_INLINE pfloat ppow(pfloat x, pfloat y) { return PLIB2(pow, x, y); }

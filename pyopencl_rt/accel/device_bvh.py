@@ -73,13 +73,11 @@ def lanes_setting(requested=None) -> str:
 
 
 def packet_choice(device, requested=None) -> tuple[int, str]:
-    """Rays per work-item of cl/accel/bvh_packet.h's packet traversal on ``device``, and why: on
-    PoCL's CPU device of an x86 host (the lane code is written for clang on x86: cl/render/lanes.h)
-    the width :func:`pyopencl_rt.device.isa.simd_width` gives for what PoCL compiles for, else 0
-    (one ray per work-item).  ``requested`` or ``$PYOPENCL_RT_LANES`` overrides: 0 (off), 8 or 16,
-    the latter two only where their vectors cross PoCL's built-in library alike (else one warning
-    line and the rule's width)."""
-    import platform
+    """Rays (paths) per work-item of the lane kernels on ``device`` and why: on an x86 CPU device the
+    width :func:`pyopencl_rt.device.isa.lane_rule` gives for its OpenCL implementation (PoCL: from
+    what it compiles for; Intel's CPU runtime: as measured), elsewhere 0 (one ray per work-item).
+    ``requested`` or ``$PYOPENCL_RT_LANES`` overrides: 0 (off), 8 or 16, the latter two only where
+    the implementation builds that width alike (else one warning line and the rule's width)."""
     import warnings
 
     import pyopencl as cl
@@ -87,25 +85,23 @@ def packet_choice(device, requested=None) -> tuple[int, str]:
     from ..device import isa as isa_module
 
     text = lanes_setting(requested)
-    pocl_cpu = (bool(device.type & cl.device_type.CPU) and "Portable Computing Language" in device.platform.name
-                and platform.machine().lower() in ("x86_64", "amd64"))
-    if not pocl_cpu:
-        return 0, "one path per work-item: the lane kernels are for PoCL's CPU device on x86"
+    if not isa_module.x86_cpu(device):
+        return 0, "one path per work-item: the lane kernels are for CPU devices on x86"
     if text == "0":
         return 0, f"one path per work-item: ${LANES_ENV}=0"
     try:
-        isa = isa_module.probe(device)
+        rule = isa_module.lane_rule(device)
     except cl.Error as exc:  # a device that cannot build the probe cannot be trusted with lanes
         return 0, f"one path per work-item: the instruction-set probe failed ({str(exc).splitlines()[0]})"
     if not text:
-        return isa_module.simd_width(isa)
-    width, refusal = isa_module.checked_width(isa, int(text))
+        return rule.default, rule.reason
+    width, refusal = rule.checked(int(text))
     if refusal:
         if refusal not in _REFUSALS_SAID:
             _REFUSALS_SAID.add(refusal)
             warnings.warn(f"${LANES_ENV}={text}: {refusal}", stacklevel=3)
         return width, refusal
-    return width, f"{width} lanes: ${LANES_ENV}={text} ({isa.describe()})"
+    return width, f"{width} lanes: ${LANES_ENV}={text} ({rule.describe})"
 
 
 def packet_width(device, requested=None) -> int:

@@ -4,6 +4,8 @@ Device specifications (``--device``, ``PYOPENCL_CTX``, the ``device=`` argument 
 
 ``cpu`` / ``gpu`` / ``accelerator``
     the first device of that type (PoCL first among CPUs);
+``pocl`` / ``intel``
+    the first device of that implementation (PoCL; Intel's CPU runtime, pip's ``intel`` extra);
 ``all``
     every device of every platform;
 ``P:D``
@@ -100,8 +102,26 @@ def list_devices() -> list[DeviceInfo]:
     return [describe(e) for e in all_devices()]
 
 
+def implementation(device) -> str:
+    """Which OpenCL implementation runs ``device``: ``"pocl"`` (Portable Computing Language, the
+    one ``pyopencl[pocl]`` ships), ``"intel"`` (Intel's CPU runtime: platform "Intel(R) OpenCL", or
+    "Intel(R) CPU Runtime for OpenCL(TM) Applications" before 2023; its GPU driver is another
+    platform and not this one), else ``"other"``."""
+    cl = _cl()
+    platform = device.platform.name.lower()
+    if "portable computing language" in platform or "pocl" in device.version.lower():
+        return "pocl"
+    if "intel" in platform and device.type & cl.device_type.CPU and "graphics" not in platform:
+        return "intel"
+    return "other"
+
+
 def _is_pocl(device) -> bool:
-    return "portable computing language" in device.platform.name.lower() or "pocl" in device.version.lower()
+    return implementation(device) == "pocl"
+
+
+# --device names of implementations: every device of it ("pocl", "intel")
+IMPLEMENTATION_NAMES = ("pocl", "intel")
 
 
 def _match_part(text: str, index: int, names: list[str]) -> list[int]:
@@ -120,6 +140,8 @@ def _resolve_one(spec: str, entries) -> list:
     cl = _cl()
     if low == "all":
         return list(entries)
+    if low in IMPLEMENTATION_NAMES:
+        return [e for e in entries if implementation(e[2]) == low][:1]
     if low in ("cpu", "gpu", "accelerator"):
         flag = {"cpu": cl.device_type.CPU, "gpu": cl.device_type.GPU, "accelerator": cl.device_type.ACCELERATOR}[low]
         typed = [e for e in entries if e[2].type & flag]

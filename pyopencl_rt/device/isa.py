@@ -114,15 +114,14 @@ def probe(device) -> CpuISA:
 
 
 def simd_width(isa: CpuISA) -> tuple[int, str]:
-    """Lanes of the packet kernels for ``isa`` and why (see the module docstring)."""
+    """Lanes of the packet kernels for ``isa`` (a PoCL CPU device) and why (see the module docstring)."""
     lib = isa.library_vector_bytes
     if "avx512f" in isa.features and lib == 64:
         return 16, f"16 lanes: {isa.describe()}"
-    if "avx2" in isa.features and lib == 32:
+    if "avx2" in isa.features and isa.passes_alike(32):
+        # Zen 4 under PoCL 3.0 (AVX2 compile, AVX-512 library) too: 8 lanes measured 2x one path
+        # there once no wide vector crossed a built-in (docs/DEVICES.md)
         return 8, f"8 lanes: {isa.describe()}"
-    if lib > isa.compile_vector_bytes:
-        return 0, (f"one path per work-item: {isa.describe()}, so its built-ins stay out of line "
-                   "(8 lanes measured slower than one path there)")
     return 0, f"one path per work-item: {isa.describe()} (no AVX2)"
 
 
@@ -193,3 +192,66 @@ def program_crossings(program, device, isa: CpuISA | None = None) -> list[tuple[
     log = program.get_build_info(device, cl.program_build_info.LOG)
     source = program.get_info(cl.program_info.SOURCE)
     return builtin_abi_crossings(log, source) if isa is None else unsafe_crossings(log, source, isa)
+
+
+# ----------------------------------------------------------------------------- every implementation
+def x86_cpu(device) -> bool:
+    """Whether ``device`` is a CPU device of an x86-64 host (where the lane kernels are measured)."""
+    import platform
+
+    import pyopencl as cl
+
+    return bool(device.type & cl.device_type.CPU) and platform.machine().lower() in ("x86_64", "amd64")
+
+
+# Intel's CPU runtime: its compiler packs work-items into SIMD lanes itself (implicit vectorisation,
+# also of the lane kernel's work-items) and builds its built-ins with the kernel, so every width
+# builds alike; the default is the width tools/lane_widths.py measured fastest (docs/DEVICES.md
+# records each host), by the device's vector register bytes (native float vector width x 4).
+# 64: Xeon (Ice Lake, AVX-512), runtime 2026.2: 16 lanes 2.2x, 8 lanes 1.45x one path per work-item.
+INTEL_CPU_WIDTH = {64: 16}
+
+
+@dataclass(frozen=True)
+class LaneRule:
+    """What one CPU device does with lanes: the widths it builds alike (8, 16), the default width
+    (0: one path per work-item), why, and a description of the implementation's target."""
+    implementation: str
+    widths: tuple
+    default: int
+    reason: str
+    describe: str
+
+    def checked(self, requested: int) -> tuple[int, str | None]:
+        """``requested`` lanes where they build alike, else the default and a one-line refusal."""
+        if requested in self.widths:
+            return requested, None
+        return self.default, (f"{requested} lanes refused: {self.describe}, which passes {4 * requested}-byte "
+                              f"vectors differently; using {self.default or 'one path per work-item'}"
+                              f"{' lanes' if self.default else ''}")
+
+
+def lane_rule(device) -> LaneRule:
+    """The :class:`LaneRule` of an x86 CPU device, by implementation: PoCL by its probed compile
+    and library (:func:`simd_width`, :meth:`CpuISA.passes_alike`); Intel's CPU runtime by
+    measurement (:data:`INTEL_CPU_WIDTH`); another implementation one path per work-item by
+    default, 8 and 16 lanes when asked (the lane code is portable OpenCL C)."""
+    from .devices import implementation
+
+    impl = implementation(device)
+    if impl == "pocl":
+        isa = probe(device)
+        default, reason = simd_width(isa)
+        widths = tuple(w for w in (8, 16) if isa.passes_alike(4 * w))
+        return LaneRule(impl, widths, default, reason, isa.describe())
+    register = 4 * int(device.native_vector_width_float or 4)
+    name = f"{device.platform.name.strip()} {device.driver_version.strip()} ({register * 8}-bit vectors)"
+    if impl == "intel" and register in INTEL_CPU_WIDTH:
+        default, why = INTEL_CPU_WIDTH[register], "measured fastest there (tools/lane_widths.py)"
+    elif impl == "intel":  # not measured: a register's width of floats, as PoCL's rule gives
+        default = register // 4 if register // 4 in (8, 16) else 0
+        why = "not measured at this register width: run tools/lane_widths.py"
+    else:
+        default, why = 0, "lanes not measured on this implementation"
+    reason = f"{default} lanes: {name}, {why}" if default else f"one path per work-item: {name}, {why}"
+    return LaneRule(impl, (8, 16), default, reason, name)

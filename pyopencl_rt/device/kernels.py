@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import re
 import threading
+import warnings
 from functools import lru_cache
 from pathlib import Path
 
@@ -112,7 +113,9 @@ class DeviceRuntime:
                 source = assemble(*names, extra=extra)
                 options = []  # no fast-relaxed-math: watertightness relies on IEEE rounding
                 options += define_options(defines)
-                prog = cl.Program(self.context, source).build(options=options)
+                with warnings.catch_warnings():  # a compiler's remarks (Intel's runtime logs its
+                    warnings.simplefilter("ignore", cl.CompilerWarning)  # vectoriser's) are not the user's
+                    prog = cl.Program(self.context, source).build(options=options)
                 self._programs[key] = prog
             return prog
 
@@ -121,8 +124,6 @@ class DeviceRuntime:
         :meth:`program` builds.  A program whose kernels cannot be created, as when PoCL serves a
         cache entry that a crash left half written (``INVALID_KERNEL_NAME``), is built once more
         under another cache key (:data:`CACHE_RETRY_DEFINE`), with one warning line."""
-        import warnings
-
         import pyopencl as cl
 
         prog = self.program(names, defines, extra)

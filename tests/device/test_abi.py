@@ -117,6 +117,13 @@ _ADDRESS = {cl.kernel_arg_address_qualifier.GLOBAL: "global", cl.kernel_arg_addr
             cl.kernel_arg_address_qualifier.CONSTANT: "constant", cl.kernel_arg_address_qualifier.LOCAL: "local"}
 
 
+def with_arg_info(context, source):
+    """``source`` built from source with -cl-kernel-arg-info: not through pyopencl's binary cache,
+    which serves the implementations without a cache of their own (Intel's CPU runtime) a program
+    made from a binary, and such a program has no argument information."""
+    return cl.Program(cl._cl._Program(context, source)).build(options=["-cl-kernel-arg-info"])
+
+
 def kernel_signature(kernel) -> list[tuple]:
     """(name, type, address space, const pointee) of each argument (needs -cl-kernel-arg-info)."""
     info = cl.kernel_arg_info
@@ -144,7 +151,7 @@ def signature_mismatches(measured: list, expected: list) -> list[str]:
 def probe_signature(runtime) -> list[tuple]:
     """The signature of a kernel declared with the generated WAVE_PARAMS (quick to build)."""
     src = assemble(extra="__kernel void wave_probe(WAVE_PARAMS) {}\n")
-    return kernel_signature(cl.Program(runtime.context, src).build(options=["-cl-kernel-arg-info"]).wave_probe)
+    return kernel_signature(with_arg_info(runtime.context, src).wave_probe)
 
 
 # ----------------------------------------------------------------------------- the checks
@@ -155,7 +162,7 @@ def test_layout_and_defines_match_tables(runtime):
 
 def test_wavefront_kernels_take_the_table(runtime):
     """Every stage, built as the renderer builds it, takes exactly abi.WAVE_PARAMS, in order."""
-    prog = cl.Program(runtime.context, assemble(*SOURCES)).build(options=["-cl-kernel-arg-info"])
+    prog = with_arg_info(runtime.context, assemble(*SOURCES))
     expected = expected_signature(abi.WAVE_PARAMS)
     for stage in STAGES:
         assert signature_mismatches(kernel_signature(getattr(prog, f"wf_{stage}")), expected) == [], stage

@@ -28,18 +28,19 @@ SCENES = Path(__file__).resolve().parents[2] / "scenes"
 
 # ----------------------------------------------------------------------------- which kernel
 def test_selection(device, monkeypatch):
-    """On PoCL's CPU device (of an x86 host: the lane code is clang-on-x86 C) the megakernel runs
-    every scene in lanes (spheres, every material, textures, every light), not the wavefront; at
-    the width pyopencl_rt/device/isa.py's rule gives for what PoCL compiles for
+    """On a CPU device of an x86 host (PoCL, Intel's CPU runtime: the lane code is portable OpenCL C)
+    the megakernel runs every scene in lanes (spheres, every material, textures, every light), not
+    the wavefront; at the width pyopencl_rt/device/isa.py's rule gives for the implementation
     (tests/device/test_isa.py); $PYOPENCL_RT_LANES = 0 turns it off, 8 or 16 sets the width where
-    its vectors cross PoCL's library alike, anything else is one clear error.  Other devices
-    never get it."""
+    the implementation builds it alike, anything else is one clear error.  Other devices never
+    get it."""
     from pyopencl_rt.device import isa
 
     monkeypatch.delenv(megakernel.LANES_ENV, raising=False)
     builds = harness.lane_kernels_build_on(device)
-    cpu = isa.probe(device) if builds else None
-    expected = isa.simd_width(cpu)[0] if builds else 0
+    assert isa.x86_cpu(device) == builds
+    rule = isa.lane_rule(device) if builds else None
+    expected = rule.default if builds else 0
     for name, lanes in (("mitsuba-cbox", expected), ("cornell-box", expected), ("cornell-spheres", expected),
                         ("veach-mis", expected), ("textured", expected), ("cornell-jensen", expected)):
         wf = Wavefront(rt.load_scene(SCENES / f"{name}.toml"), device, width=8, height=8, kernel_mode="megakernel")
@@ -50,7 +51,7 @@ def test_selection(device, monkeypatch):
     assert Wavefront(scene, device, width=8, height=8, kernel_mode="wavefront").lane_width == 0
     for value in ("0", "8", "16"):
         monkeypatch.setenv(megakernel.LANES_ENV, value)
-        lanes = 0 if value == "0" or not builds else int(value) if cpu.passes_alike(4 * int(value)) else expected
+        lanes = 0 if value == "0" or not builds else int(value) if int(value) in rule.widths else expected
         assert Wavefront(scene, device, width=8, height=8, kernel_mode="megakernel").lane_width == lanes, value
     monkeypatch.setenv(megakernel.LANES_ENV, "4")
     with pytest.raises(UserError, match="PYOPENCL_RT_LANES"):
