@@ -41,6 +41,8 @@ def devices(as_json, device):
             f"      platform: {i.platform}\n"
             f"      type: {i.type}   compute units: {i.compute_units}   memory: {i.global_mem_bytes / 2**30:.1f} GiB\n"
             f"      {i.opencl_version} / {i.opencl_c_version} / driver {i.driver_version}"
+            + (f"\n      implementation: {i.implementation} (--device {i.implementation})"
+               if i.implementation != "other" else "")
         )
 
 

@@ -30,9 +30,39 @@ from pyopencl_rt.render.settings import FEATURES_ENV
 os.environ.setdefault(FEATURES_ENV, "all")
 
 
+# The device tests of these run on every device, so on every OpenCL implementation present (the
+# kernels' arithmetic, their ABI, the materials and textures, traversal, lanes, the sampler,
+# several implementations in one render).  The others run on every device but the CPU devices
+# beyond the one `--device cpu` picks (PoCL): with Intel's CPU runtime installed (the dev extra)
+# they would take twice the time for what the modules above already cover.  ``PYOPENCL_TEST``
+# set (``PYOPENCL_TEST=all``) runs every device test on the devices it names.
+EVERY_IMPLEMENTATION = ("tests/accel/", "tests/device/", "tests/scene/test_materials.py",
+                        "tests/scene/test_mitsuba_bsdfs.py", "tests/scene/test_textures.py",
+                        "tests/render/test_path_lanes.py", "tests/render/test_lanes_math.py",
+                        "tests/render/test_sampler.py", "tests/render/test_shading.py",
+                        "tests/render/test_multidevice.py")
+_ROOT = Path(__file__).resolve().parents[1]
+
+
+def device_specs_for(path: Path) -> list[str]:
+    specs = dv.device_test_specs()
+    if os.environ.get("PYOPENCL_TEST", "").strip():
+        return specs
+    relative = path.resolve().relative_to(_ROOT).as_posix()
+    if relative.startswith(EVERY_IMPLEMENTATION):
+        return specs
+    import pyopencl as cl
+
+    first_cpu = {d.int_ptr for d in dv.resolve("cpu")} if any(
+        e[2].type & cl.device_type.CPU for e in dv.all_devices()) else set()
+    chosen = [e for e in dv.all_devices() if dv.describe(e).index in specs
+              and (not e[2].type & cl.device_type.CPU or e[2].int_ptr in first_cpu)]
+    return [dv.describe(e).index for e in chosen]
+
+
 def pytest_generate_tests(metafunc):
     if "device" in metafunc.fixturenames:
-        specs = dv.device_test_specs()
+        specs = device_specs_for(Path(metafunc.definition.fspath))
         metafunc.parametrize("device", specs, ids=[f"dev{s}" for s in specs], indirect=True)
 
 

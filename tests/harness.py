@@ -56,7 +56,7 @@ _SCALARS = {
     "half": np.float16,
 }
 _QUALIFIERS = {"__global", "global", "__constant", "constant", "const", "restrict", "volatile", "__restrict"}
-_KERNEL = re.compile(r"\b(?:__kernel|kernel)\s+void\s+(\w+)\s*\(([^)]*)\)", re.S)
+_KERNEL = re.compile(r"\b(?:__kernel|kernel)\s+(?:LANE_KERNEL\s+)?void\s+(\w+)\s*\(([^)]*)\)", re.S)
 
 
 def _c_dtype(ctype: str):

@@ -99,7 +99,7 @@ RT_INLINE TracePacket load_trace_packet(__global const float *origins, __global 
     return p;
 }
 
-__kernel void trace_closest_packets(__global const float8 *nodes, __global const float4 *tris,
+__kernel LANE_KERNEL void trace_closest_packets(__global const float8 *nodes, __global const float4 *tris,
                                     __global const int *prim_ids,
                                     __global const float *origins, __global const float *directions,
                                     __global const float *tmin, __global const float *tmax,
@@ -128,7 +128,7 @@ __kernel void trace_closest_packets(__global const float8 *nodes, __global const
     }
 }
 
-__kernel void trace_any_packets(__global const float8 *nodes, __global const float4 *tris,
+__kernel LANE_KERNEL void trace_any_packets(__global const float8 *nodes, __global const float4 *tris,
                                 __global const float *origins, __global const float *directions,
                                 __global const float *tmin, __global const float *tmax,
                                 const int n_rays, const float origin_spread, __global uchar *out_hit)

@@ -147,7 +147,7 @@ RT_INLINE int start_lanes(__global const Camera *camera, __global const float *f
     return started;
 }
 
-__kernel void mk_path(WAVE_PARAMS)
+__kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
 {
     /* small groups (LANE_GROUP work-items of PACKET_BLOCK samples each): a launch of the CPU
      * wave size still has enough groups for every core */

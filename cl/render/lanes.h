@@ -100,6 +100,18 @@ typedef uint8 puint;
 #error "PACKET_WIDTH must be 1, 8 or 16"
 #endif
 
+/* On a kernel that runs PACKET_WIDTH paths per work-item: the OpenCL C hint that it works on
+ * vectors already, so Intel's CPU runtime does not also pack work-items into SIMD lanes (its
+ * implicit vectoriser made a 16-lane megakernel 16 x 16 wide: builds of minutes, 256k
+ * instructions); other compilers ignore it. */
+#if PACKET_WIDTH == 16
+#define LANE_KERNEL __attribute__((vec_type_hint(float16)))
+#elif PACKET_WIDTH == 8
+#define LANE_KERNEL __attribute__((vec_type_hint(float8)))
+#else
+#define LANE_KERNEL
+#endif
+
 /* lane k of a vector (in memory: used to gather and scatter one lane at a time) */
 #define PLANE(v, k) (((float *)&(v))[k])
 #define PLANE_I(v, k) (((int *)&(v))[k])
@@ -241,8 +253,10 @@ RT_INLINE pfloat psqrt(pfloat x)
 #define PLIB1(f, x) f(x)
 #define PLIB2(f, x, y) f(x, y)
 #else
-#define PLIB1(f, x) ({ const pfloat x_ = (x); pfloat r_; for (int k_ = 0; k_ < PACKET_WIDTH; ++k_) PLANE(r_, k_) = f(PLANE(x_, k_)); r_; })
-#define PLIB2(f, x, y) ({ const pfloat x_ = (x), y_ = (y); pfloat r_; for (int k_ = 0; k_ < PACKET_WIDTH; ++k_) PLANE(r_, k_) = f(PLANE(x_, k_), PLANE(y_, k_)); r_; })
+/* the loop kept scalar: a compiler that vectorises it (Intel's, with its vector library) may
+ * give some call sites other bits than the scalar function, and than one path per work-item */
+#define PLIB1(f, x) ({ const pfloat x_ = (x); pfloat r_; _Pragma("clang loop vectorize(disable) interleave(disable)") for (int k_ = 0; k_ < PACKET_WIDTH; ++k_) PLANE(r_, k_) = f(PLANE(x_, k_)); r_; })
+#define PLIB2(f, x, y) ({ const pfloat x_ = (x), y_ = (y); pfloat r_; _Pragma("clang loop vectorize(disable) interleave(disable)") for (int k_ = 0; k_ < PACKET_WIDTH; ++k_) PLANE(r_, k_) = f(PLANE(x_, k_), PLANE(y_, k_)); r_; })
 #endif
 /* psin, pcos, psincos, patan2, pacos, pexp, plog: inline polynomials, the same at every width */
 #include "render/lanes_math.h"

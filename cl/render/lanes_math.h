@@ -45,11 +45,17 @@ RT_INLINE void psincos(pfloat x, pfloat *sin_x, pfloat *cos_x)
     pfloat sv = odd ? cs : sn, cv = odd ? sn : cs;
     sv = ((qi & 2) != 0) ? -sv : sv;
     cv = (((qi + 1) & 2) != 0) ? -cv : cv;
-    const pint big = pnot(pabs(x) <= 6433.0f); /* and NaN: |q| < 4096 below */
-    if (pany(big)) {
-        sv = big ? PLIB1(sin, x) : sv;
-        cv = big ? PLIB1(cos, x) : cv;
-    }
+    /* beyond the reduction's range (and NaN: |q| < 4096 below) the library's sincos: one call for
+     * both, as a compiler may fuse a sin and a cos of the same argument into a sincos of other bits
+     * (Intel's does where both are used), so psin alone gives psincos's sine */
+    const pint big = pnot(pabs(x) <= 6433.0f);
+#if PACKET_WIDTH == 1
+    if (big) { float c; sv = sincos(x, &c); cv = c; }
+#else
+    if (pany(big))
+        for (int k = 0; k < PACKET_WIDTH; ++k)
+            if (PLANE_I(big, k)) { float c; PLANE(sv, k) = sincos(PLANE(x, k), &c); PLANE(cv, k) = c; }
+#endif
     *sin_x = sv;
     *cos_x = cv;
 }

@@ -46,6 +46,7 @@ class DeviceInfo:
     opencl_version: str
     opencl_c_version: str
     driver_version: str
+    implementation: str = "other"  # "pocl", "intel" (the --device names), "other"
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
@@ -95,6 +96,7 @@ def describe(entry) -> DeviceInfo:
         opencl_version=device.version.strip(),
         opencl_c_version=device.opencl_c_version.strip(),
         driver_version=device.driver_version.strip(),
+        implementation=implementation(device),
     )
 
 

@@ -65,8 +65,8 @@ def _names_library(icd: Path, library: str) -> bool:
         return False
 
 
-def icd_folder() -> Path:
-    base = os.environ.get("PYOPENCL_RT_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "pyopencl_rt")
+def icd_folder(environ=os.environ) -> Path:
+    base = environ.get("PYOPENCL_RT_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "pyopencl_rt")
     return Path(base) / "icd"
 
 
@@ -96,7 +96,7 @@ def _register(environ) -> str | None:
     if not wanted:
         return None
     files = [(p.name, p.read_text(errors="replace")) for p in existing] + wanted
-    folder = icd_folder() / hashlib.sha256(repr(files).encode()).hexdigest()[:16]
+    folder = icd_folder(environ) / hashlib.sha256(repr(files).encode()).hexdigest()[:16]
     try:
         folder.mkdir(parents=True, exist_ok=True)
         for name, text in files:

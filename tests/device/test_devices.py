@@ -3,6 +3,8 @@
 PoCL's CPU device is always present (it is a dependency); a GPU may be present too, so every
 expectation is derived from the actual list rather than assuming PoCL is device 0:0.
 """
+from pathlib import Path
+
 import pyopencl as cl
 import pytest
 
@@ -168,3 +170,91 @@ def test_pyopencl_test_env_selects_test_devices(monkeypatch, entries):
     # "all" means every device (it used to give only the first one)
     monkeypatch.setenv("PYOPENCL_TEST", "all")
     assert dv.device_test_specs() == [index_of(e) for e in entries]
+
+
+# ----------------------------------------------------------------------------- implementations
+def test_implementation_names_select_their_devices(entries):
+    """``pocl`` and ``intel`` select the first device of that implementation (PoCL's platform
+    "Portable Computing Language"; Intel's CPU runtime), whatever the platform order; an
+    implementation that is not installed is one error line naming what is available."""
+    for name in dv.IMPLEMENTATION_NAMES:
+        own = [e for e in entries if dv.implementation(e[2]) == name]
+        if own:
+            assert dv.resolve(name) == [own[0][2]]
+            assert dv.describe(own[0]).implementation == name
+        else:
+            with pytest.raises(DeviceSelectionError, match=f"no OpenCL device matches '{name}'; available: "):
+                dv.resolve(name)
+    pocl = [e for e in entries if "portable computing language" in e[2].platform.name.lower()]
+    assert pocl and all(dv.implementation(e[2]) == "pocl" for e in pocl)
+    assert dv.resolve("cpu")[0] == pocl[0][2] and dv.resolve(None)[0] in [e[2] for e in entries]
+
+
+def fake_runtime(tmp_path):
+    """A folder standing for an environment's lib/ with Intel's library in it (its contents are
+    never loaded here), and a system ICD folder holding a GPU driver's ICD file."""
+    lib = tmp_path / "prefix" / "lib"
+    lib.mkdir(parents=True)
+    (lib / "libintelocl.so").write_bytes(b"\x7fELF")
+    vendors = tmp_path / "vendors"
+    vendors.mkdir()
+    (vendors / "nvidia.icd").write_text("libnvidia-opencl.so.1\n")
+    return lib, vendors
+
+
+def test_a_pip_installed_runtime_is_registered_beside_the_system_icds(tmp_path, monkeypatch):
+    """The folder $OCL_ICD_VENDORS is pointed at holds every ICD file of the folder the loader
+    would have read (a GPU driver stays visible) and one naming the installed library by its
+    absolute path; the same files give the same folder (a second process reuses it)."""
+    from pyopencl_rt.device import icd
+
+    lib, vendors = fake_runtime(tmp_path)
+    monkeypatch.setattr(icd, "_library_dirs", lambda: [tmp_path / "nowhere", lib])
+    env = {icd.ENV: str(vendors), "PYOPENCL_RT_CACHE": str(tmp_path / "cache")}
+    folder = icd.register(env)
+    assert folder and env[icd.ENV] == folder and folder.startswith(str(tmp_path / "cache"))
+    files = {p.name: p.read_text() for p in Path(folder).iterdir()}
+    assert files == {"nvidia.icd": "libnvidia-opencl.so.1\n",
+                     "pyopencl-rt-intel-cpu.icd": f"{(lib / 'libintelocl.so').resolve()}\n"}
+    again = {icd.ENV: str(vendors), "PYOPENCL_RT_CACHE": str(tmp_path / "cache")}
+    assert icd.register(again) == folder
+
+
+def test_a_registered_runtime_or_the_switch_leaves_the_environment_alone(tmp_path, monkeypatch):
+    """A system that already names Intel's library (an ICD installed by root), no packaged
+    library, or $PYOPENCL_RT_PACKAGED_ICDS=0: nothing is written and the variable is unchanged."""
+    from pyopencl_rt.device import icd
+
+    lib, vendors = fake_runtime(tmp_path)
+    monkeypatch.setattr(icd, "_library_dirs", lambda: [lib])
+    cache = str(tmp_path / "cache")
+    off = {icd.ENV: str(vendors), "PYOPENCL_RT_CACHE": cache, icd.SWITCH_ENV: "0"}
+    assert icd.register(off) is None and off[icd.ENV] == str(vendors)
+    monkeypatch.setattr(icd, "_library_dirs", lambda: [tmp_path / "nowhere"])
+    bare = {icd.ENV: str(vendors), "PYOPENCL_RT_CACHE": cache}
+    assert icd.register(bare) is None and bare[icd.ENV] == str(vendors)
+    monkeypatch.setattr(icd, "_library_dirs", lambda: [lib])
+    (vendors / "intel.icd").write_text("/opt/intel/oclcpu/x64/libintelocl.so\n")
+    registered = {icd.ENV: str(vendors), "PYOPENCL_RT_CACHE": cache}
+    assert icd.register(registered) is None and registered[icd.ENV] == str(vendors)
+    assert not (tmp_path / "cache").exists()
+
+
+def test_intel_extra_is_visible_to_a_fresh_process():
+    """Where the intel extra is installed in this environment, a fresh `pyopencl-rt devices`
+    lists Intel's CPU runtime with no ICD step by hand (the dev extra installs it)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    from pyopencl_rt.device import icd
+
+    if not icd.packaged_libraries():
+        pytest.skip("Intel's CPU runtime (pip's intel extra) is not installed in this environment")
+    env = {k: v for k, v in os.environ.items() if k not in (icd.ENV, "PYOPENCL_CTX")}
+    out = subprocess.run([sys.executable, "-m", "pyopencl_rt.cli", "devices", "--json"], env=env,
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    listed = json.loads(out.stdout)
+    assert {"pocl", "intel"} <= {d["implementation"] for d in listed}

@@ -9,7 +9,7 @@ import harness
 SOURCE = r"""
 #include "render/lanes.h"
 /* items i * PACKET_WIDTH .. + PACKET_WIDTH in the lanes of work-item i; out: sin, cos, atan2, acos */
-__kernel void h_math(__global const float *a, __global const float *b, __global float *out)
+__kernel LANE_KERNEL void h_math(__global const float *a, __global const float *b, __global float *out)
 {
     const int base = get_global_id(0) * PACKET_WIDTH;
     pfloat x, y;
@@ -26,7 +26,7 @@ __kernel void h_math(__global const float *a, __global const float *b, __global 
     }
 }
 /* items as h_math's; out: exp(a), log(b) */
-__kernel void h_explog(__global const float *a, __global const float *b, __global float *out)
+__kernel LANE_KERNEL void h_explog(__global const float *a, __global const float *b, __global float *out)
 {
     const int base = get_global_id(0) * PACKET_WIDTH;
     pfloat x, y;
