@@ -111,3 +111,112 @@ def test_errors_in_streamed_includes_name_the_right_file_and_line(tmp_path):
     write(tmp_path, 'Include "a.pbrt"\n', name="b.pbrt")
     with pytest.raises(SceneError, match=r"b\.pbrt:1: Include 'a\.pbrt': the file includes itself$"):
         load_scene(write(tmp_path, 'WorldBegin\nInclude "a.pbrt"\n' + TRIANGLE))
+
+
+# -- (b) singular transforms ------------------------------------------------------------------------------
+
+# a unit cube as 12 triangles, with outward shading normals per vertex (not the faces')
+_CUBE_P = "0 0 0  1 0 0  1 1 0  0 1 0  0 0 1  1 0 1  1 1 1  0 1 1"
+_CUBE_I = "0 2 1  0 3 2  4 5 6  4 6 7  0 1 5  0 5 4  3 7 6  3 6 2  0 4 7  0 7 3  1 2 6  1 6 5"
+CUBE = (f'Shape "trianglemesh" "point3 P" [{_CUBE_P}] "integer indices" [{_CUBE_I}] '
+        '"normal N" [-1 -1 -1  1 -1 -1  1 1 -1  -1 1 -1  -1 -1 1  1 -1 1  1 1 1  -1 1 1]')
+FLAT_Z = "ConcatTransform [2 0 0 0  0 3 0 0  0 0 0 0  0 0 5 1]"  # x 2, y 3, z to 0, then z = 5: rank 2
+ZERO = "ConcatTransform [0 0 0 0  0 0 0 0  0 0 0 0  1 2 3 1]"  # everything to (1, 2, 3)
+
+
+def test_singular_transforms_are_kept_as_pbrt_keeps_them(tmp_path):
+    """pbrt-v4 keeps a singular Transform / ConcatTransform (its inverse NaN): triangles land where
+    the matrix puts them (those left without area are never hit), while the quadrics (sphere, disk,
+    cylinder), which it intersects through the inverse, and the instances, whose rays it moves by the
+    inverse, are never hit."""
+    s, warned = load(write(tmp_path, f"""WorldBegin
+AttributeBegin
+  {FLAT_Z}
+  {CUBE}
+  Shape "sphere" "float radius" 2
+  Shape "disk"
+  Shape "cylinder"
+AttributeEnd
+AttributeBegin
+  Transform [0 0 0 0  0 0 0 0  0 0 0 0  0 0 0 1]
+  Shape "sphere"
+  {TRIANGLE}
+AttributeEnd
+ObjectBegin "tri"
+  {TRIANGLE}
+ObjectEnd
+AttributeBegin
+  {ZERO}
+  ObjectInstance "tri"
+AttributeEnd
+AttributeBegin
+  Translate 0 0 9
+  ObjectInstance "tri"
+AttributeEnd
+"""))
+    assert warned == []
+    assert len(s.spheres) == 0
+    v = s.vertices.astype(np.float64)[s.faces]
+    # the cube's bottom and top (4 triangles) flattened onto z = 5, x in [0, 2], y in [0, 3]; its
+    # 8 side triangles have no area left; then the regular instance's triangle at z = 9
+    assert v.shape == (5, 3, 3)
+    flat, inst = v[:4], v[4]
+    assert np.allclose(flat[..., 2], 5) and np.allclose(np.sort(np.unique(flat[..., 0])), [0, 2])
+    assert np.allclose(np.sort(np.unique(flat[..., 1])), [0, 3])
+    assert np.isclose(0.5 * np.linalg.norm(np.cross(flat[:, 1] - flat[:, 0], flat[:, 2] - flat[:, 0]), axis=1).sum(), 12)
+    assert np.allclose(inst, [[0, 0, 9], [1, 0, 9], [0, 1, 9]])
+    # no shading normals came through pbrt's NaN inverse: flat, finite
+    assert s.normals is None or (np.isfinite(s.normals).all() and not np.abs(s.normals[:4]).any())
+
+
+def test_a_scene_with_singular_transforms_renders_without_nan(tmp_path):
+    """A flattened emissive cube (its top and bottom: a 2 x 3 quad facing both ways at z = 5, the
+    cube's outward normals lost), a zero-scaled sphere and a zero-scaled instance in front of the
+    camera: every pixel is finite, and the quad lights a diffuse floor."""
+    import pyopencl_rt as rt
+
+    path = write(tmp_path, f"""LookAt 1 1.5 -4  1 1.5 5  0 1 0
+Camera "perspective" "float fov" 60
+Film "rgb" "integer xresolution" 16 "integer yresolution" 16
+Sampler "independent" "integer pixelsamples" 16
+WorldBegin
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [4 4 4] "bool twosided" true
+  {FLAT_Z}
+  {CUBE}
+AttributeEnd
+AttributeBegin
+  {ZERO}
+  Shape "sphere"
+  {CUBE}
+AttributeEnd
+ObjectBegin "cube"
+  {CUBE}
+ObjectEnd
+AttributeBegin
+  {ZERO}
+  ObjectInstance "cube"
+AttributeEnd
+Shape "trianglemesh" "point3 P" [-10 -10 7  10 -10 7  10 10 7  -10 10 7] "integer indices" [0 1 2  0 2 3]
+""")
+    scene, warned = load(path)
+    assert warned == []
+    r = rt.render_full(scene, spp=16, width=16, height=16, device="cpu", seed=1)
+    assert np.isfinite(r.image).all() and np.isfinite(r.film.variance_of_mean()).all()
+    # the camera looks at the quad's centre (1, 1.5, 5): the light, 4 where it is seen
+    assert np.allclose(r.image[7:9, 7:9], 4, rtol=1e-3)
+
+
+@pytest.mark.parametrize("text,message", [
+    (f"{ZERO}\nCamera \"perspective\"\nWorldBegin\n{TRIANGLE}", r":2: Camera: the transform is singular"),
+    (f"WorldBegin\n{ZERO}\nLightSource \"distant\"\n{TRIANGLE}",
+     r":3: LightSource \"distant\": the transform is singular"),
+    (f"WorldBegin\n{ZERO}\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"float density\" [1]\n{TRIANGLE}",
+     r":3: MakeNamedMedium \"m\": the transform is singular"),
+])
+def test_what_needs_the_inverse_of_a_singular_transform_is_one_error_line(tmp_path, text, message):
+    path = write(tmp_path, text)
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    msg = str(info.value)
+    assert "\n" not in msg and msg.startswith(f"{path}:") and re.search(message, msg), msg

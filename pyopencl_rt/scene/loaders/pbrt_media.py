@@ -116,6 +116,9 @@ def make_medium(imp, d, ctm) -> Medium | None:
         p1 = np.asarray(p.numbers("p1", ("point3", "point"), 3, [1.0, 1.0, 1.0]), np.float64)
         if not (p1 > p0).all():
             raise error_at(d.pos, f'MakeNamedMedium "{name}": the box p0 {p0.tolist()} .. p1 {p1.tolist()} is empty')
+        if not abs(np.linalg.det(ctm[:3, :3])) > 1e-300:
+            raise error_at(d.pos, f'MakeNamedMedium "{name}": the transform is singular (a grid medium needs '
+                                  "its inverse)")
         data = np.asarray(density, np.float32).reshape(nz, ny, nx)
         if (data < 0).any():
             raise error_at(d.pos, f'MakeNamedMedium "{name}": negative density values')

@@ -29,6 +29,33 @@ SILENT = {("Film", "filename"), ("Sampler", "seed"), ("Film", "diagonal"),
           ("Shape", "faceIndices"), ("Shape", "emissionfilename")}
 
 
+# pbrt-v4's quadrics: intersected in object space, the ray moved by the shape's inverse transform
+QUADRICS = {"sphere", "disk", "cylinder"}
+
+
+def singular(m) -> bool:
+    """Whether the 4x4 transform ``m`` has no inverse (pbrt-v4 keeps it, its inverse NaN)."""
+    return not abs(np.linalg.det(np.asarray(m, np.float64)[:3, :3])) > 1e-300 or not np.isfinite(m).all()
+
+
+def _flattened(geometry, m):
+    """Triangles under a singular transform, as pbrt-v4 keeps them: their vertices moved by ``m``
+    (they are intersected where they land); those left without area are dropped (no ray hits
+    them), and the shading normals, which pbrt moves by the NaN inverse, are left out: every
+    triangle that keeps an area lies in m's plane, flat shaded by its own normal.  None: nothing is
+    left."""
+    v, f, uv = geometry[:3]
+    v = transform_points(m, np.asarray(v, np.float64))
+    f = np.asarray(f, np.int64)
+    corners = v[f]
+    twice_area = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    scale = max(float(np.abs(v).max()) if len(v) else 0.0, 1e-30)
+    keep = twice_area > 1e-12 * scale * scale
+    if not keep.any():
+        return None
+    return v, f[keep], None if uv is None else np.asarray(uv)[keep]
+
+
 # read at the end (a Film may follow the Camera whose field of view depends on it)
 DEFERRED = {"Camera", "Film", "Sampler", "Integrator", "PixelFilter"}
 
@@ -125,11 +152,9 @@ class _Importer:
         self._apply(np.linalg.inv(world_from_camera))
 
     def _matrix(self, d):
-        # pbrt's Transform lists the matrix column by column (the transpose of its rows)
-        m = np.asarray(d.args[0], np.float64).reshape(4, 4).T
-        if abs(np.linalg.det(m)) < 1e-300:
-            raise error_at(d.pos, f"{d.name}: the matrix is singular")
-        return m
+        # pbrt's Transform lists the matrix column by column (the transpose of its rows); a singular
+        # one is kept, as pbrt-v4 keeps it (its inverse NaN): see singular() for what it draws
+        return np.asarray(d.args[0], np.float64).reshape(4, 4).T
 
     def d_Transform(self, d):
         self.state.ctm = self._matrix(d)
@@ -205,11 +230,15 @@ class _Importer:
             raise error_at(d.pos, "ObjectInstance inside ObjectBegin")
         if d.args[0] not in self.b.groups:
             raise error_at(d.pos, f"ObjectInstance: no object named '{d.args[0]}' (ObjectBegin)")
+        if singular(self.state.ctm):  # pbrt-v4 moves rays into the instance by the inverse: NaN, no hit
+            return
         add_instance(self.b, self.b.groups[d.args[0]], self.state.ctm, d.pos)
 
     # -- options ---------------------------------------------------------------------------------
 
     def d_Camera(self, d):
+        if singular(self.state.ctm):
+            raise error_at(d.pos, "Camera: the transform is singular (the camera needs its inverse)")
         self.camera = (d, self.state.ctm.copy(), self.state.outside)
         self.coords["camera"] = np.linalg.inv(self.state.ctm)
 
@@ -492,6 +521,13 @@ class _Importer:
         if geometry is None:
             return
         m, flip = self.state.ctm, self.state.reverse
+        if singular(m):
+            if d.args[0] in QUADRICS:  # intersected in object space through the inverse: never hit
+                return
+            geometry = _flattened(geometry, m)  # moved by m as pbrt-v4 moves them
+            if geometry is None:
+                return
+            m = None
         if isinstance(geometry[0], str):  # ("sphere", radius)
             _, radius = geometry
             self._sphere(transform_points(m, [0, 0, 0])[0], radius, m, mat, d.pos, flip, interface)
