@@ -220,3 +220,94 @@ def test_what_needs_the_inverse_of_a_singular_transform_is_one_error_line(tmp_pa
         load_scene(path)
     msg = str(info.value)
     assert "\n" not in msg and msg.startswith(f"{path}:") and re.search(message, msg), msg
+
+
+# -- (d) .spd spectrum files --------------------------------------------------------------------------------
+
+def test_spd_conductor_spectra_are_gold(tmp_path):
+    """pbrt-v4's "spectrum eta" "spds/Au.eta.spd": Mitsuba's own gold tables (its data/ior/Au.*.spd),
+    read as wavelength-value pairs and made RGB as the loaders make named conductors (no illuminant,
+    clamped at 0): exactly Mitsuba's "Au" (its scalar_rgb's eta and k, float32), red-yellow (eta
+    rising from red to blue, k falling), not the aluminium that an unknown name gives."""
+    import shutil
+
+    from harness import mitsuba
+
+    mi = mitsuba()
+    data = Path(mi.__file__).parent / "data" / "ior"
+    (tmp_path / "spds").mkdir()
+    for part in ("eta", "k"):
+        shutil.copy(data / f"Au.{part}.spd", tmp_path / "spds" / f"Au.{part}.spd")
+    s, warned = load(write(tmp_path, 'WorldBegin\nMaterial "conductor" "spectrum eta" "spds/Au.eta.spd" '
+                                     '"spectrum k" "spds/Au.k.spd"\n' + TRIANGLE))
+    assert warned == []
+    mat = s.materials[s.face_materials[0]]
+    params = mi.traverse(mi.load_dict({"type": "conductor", "material": "Au"}))
+    assert np.allclose(mat.eta, [float(x) for x in params["eta.value"]], rtol=1e-5)
+    assert np.allclose(mat.k, [float(x) for x in params["k.value"]], rtol=1e-5)
+    assert mat.eta[0] < mat.eta[1] < mat.eta[2] and mat.k[0] > mat.k[1] > mat.k[2]
+    # coatedconductor's conductor.eta / conductor.k read the same files the same way
+    s2, _ = load(write(tmp_path, 'WorldBegin\nMaterial "coatedconductor" "spectrum conductor.eta" "spds/Au.eta.spd" '
+                                 '"spectrum conductor.k" "spds/Au.k.spd"\n' + TRIANGLE, name="c.pbrt"))
+    inner = s2.materials[s2.face_materials[0]]
+    inner = next((m for m in inner.blend if m.type == "conductor"), inner) if inner.blend else inner
+    assert np.allclose(inner.eta, mat.eta) and np.allclose(inner.k, mat.k)
+
+
+def test_spd_reflectance_and_emission(tmp_path):
+    """A reflectance .spd under D65, clamped to [0, 1] (a flat 0.5 is 0.5 grey; a spectrum that is 0.8
+    above 600 nm and 0 below is red: Mitsuba's reflectance of the same file), the same numbers inline
+    give the same colour, and an emission .spd is its colour at luminance 1 times scale (pbrt-v4
+    divides a light's scale by the spectrum's photometric value): CIE D65 itself is sRGB's white."""
+    from harness import mitsuba
+    from pyopencl_rt.scene.loaders.mitsuba_spectrum import CIE_D65, CIE_WAVELENGTHS
+
+    mi = mitsuba()
+    (tmp_path / "flat.spd").write_text("# a flat spectrum\n360 0.5\n830 0.5\n")
+    (tmp_path / "red.spd").write_text("380 0  599 0\n600 0.8  830 0.8\n")  # pbrt: pairs on any line
+    (tmp_path / "red-mitsuba.spd").write_text("380 0\n599 0\n600 0.8\n830 0.8\n")  # Mitsuba: one a line
+    (tmp_path / "d65.spd").write_text("\n".join(f"{w} {v}" for w, v in zip(CIE_WAVELENGTHS, CIE_D65 * 3.7)))
+    s, warned = load(write(tmp_path, f"""WorldBegin
+Material "diffuse" "spectrum reflectance" "flat.spd"
+{TRIANGLE}
+Material "diffuse" "spectrum reflectance" "red.spd"
+Translate 0 0 1
+{TRIANGLE}
+Material "diffuse" "spectrum reflectance" [380 0  599 0  600 0.8  830 0.8]
+Translate 0 0 1
+{TRIANGLE}
+AttributeBegin
+AreaLightSource "diffuse" "spectrum L" "d65.spd" "float scale" 2
+Translate 0 0 1
+{TRIANGLE}
+AttributeEnd
+"""))
+    assert warned == []
+    albedo = [s.materials[i].albedo for i in s.face_materials]
+    def theirs(fname):
+        value = mi.traverse(mi.load_dict({"type": "diffuse", "reflectance": {
+            "type": "spectrum", "filename": str(tmp_path / fname)}}))["reflectance.value"]
+        return [float(x) for x in value]
+
+    # (Mitsuba's sum over 1000 wavelengths gives a flat 0.5 as 0.4994)
+    assert np.allclose(albedo[0], 0.5, atol=1e-3) and np.allclose(albedo[0], theirs("flat.spd"), atol=1e-5)
+    assert np.allclose(albedo[1], theirs("red-mitsuba.spd"), atol=1e-5) and albedo[1][0] > 0.5 > albedo[1][2]
+    assert albedo[2] == albedo[1]
+    assert np.allclose(s.materials[s.face_materials[3]].emission, 2.0, atol=2e-3)
+
+
+@pytest.mark.parametrize("text,message", [
+    ('Material "conductor" "spectrum eta" "spds/none.spd"', r"\"spectrum eta\": spectrum file 'spds/none\.spd' not found"),
+    ('Material "diffuse" "spectrum reflectance" "odd.spd"', r"\"spectrum reflectance\": 'odd\.spd': needs wavelength-value "
+                                                             r"pairs, at least two \(got 3 numbers\)"),
+    ('Material "diffuse" "spectrum reflectance" "word.spd"', r"'word\.spd' line 2: 'x' is not a number"),
+    ('Material "diffuse" "spectrum reflectance" [500 1 400 1]', r"the wavelengths must increase"),
+])
+def test_bad_spectrum_files_are_one_error_line(tmp_path, text, message):
+    (tmp_path / "odd.spd").write_text("400 1\n500\n")
+    (tmp_path / "word.spd").write_text("400 1\n500 x\n")
+    path = write(tmp_path, f"WorldBegin\n{text}\n{TRIANGLE}")
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    msg = str(info.value)
+    assert "\n" not in msg and msg.startswith(f"{path}:2: ") and re.search(message, msg), msg
