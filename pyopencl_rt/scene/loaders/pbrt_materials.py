@@ -6,7 +6,7 @@
 | ``conductor`` | ``conductor``: ``eta``/``k`` (the named spectra ``metal-Au/Ag/Cu/Al-eta/k`` as our metals; RGB as given; sampled spectra and ``.spd`` files: :func:`sampled_rgb`) or ``reflectance`` (as F0, Schlick); default copper |
 | ``dielectric`` (``thindielectric`` with a warning) | ``dielectric``: ``eta`` (default 1.5; the named glasses at their d-line index) |
 | ``coateddiffuse`` | ``gltf`` with metallic 0: base colour ``reflectance``, IOR ``eta``, the coating's roughness (documented approximation) |
-| ``coatedconductor`` | ``conductor`` of its conductor layer, with a warning |
+| ``coatedconductor`` | ``conductor``: the metal under the coating (``conductor.eta``/``conductor.k`` or ``reflectance``, divided by ``interface.eta``), alpha combining ``conductor.*`` and ``interface.*`` roughness; a documented approximation, with a warning |
 | ``interface`` | no surface: its shapes only bound media (index-matched: pbrt_media.py) |
 | ``mix`` | ``mix`` of the two named ``materials``, weight ``amount`` (a float or a texture; 1 is the second) |
 | others (``diffusetransmission``, ``hair``, ``measured``, ``subsurface``) | ``diffuse`` 0.5, with a warning |
@@ -288,24 +288,32 @@ class MaterialMapper:
 
     # -- materials -------------------------------------------------------------------------------
 
-    def _alpha(self, p, what, mat=None) -> float:
-        """The alpha of `roughness`, or of `uroughness` (along dp/du); a `vroughness` that differs sets
-        mat.alpha_v (pbrt-v4's anisotropic Trowbridge-Reitz; without mat: their mean, with a warning)."""
+    def _alphas(self, p, prefix="") -> tuple:
+        """(alpha along dp/du, alpha along the bitangent) of ``prefix``'s `roughness`, or of its
+        `uroughness` and `vroughness` (pbrt-v4: each defaults to `roughness`, default 0), remapped
+        as pbrt-v4's RoughnessToAlpha (sqrt) when `remaproughness` is true (the default)."""
         remap = p.boolean("remaproughness", True)
 
         def alpha(r):
             return min(math.sqrt(max(r, 0.0)) if remap else max(r, 0.0), 1.0)
 
-        if "roughness" in p:
-            return alpha(p.float("roughness", 0.0))
-        ru, rv = p.float("uroughness", 0.0), p.float("vroughness", 0.0)
-        if ru != rv and mat is not None:
-            mat.alpha_v = alpha(rv)
-            return alpha(ru)
-        if ru != rv:
-            self.imp.warn(p.items.get("uroughness", p.items.get("vroughness")).pos,
-                          f"{what}: anisotropic roughness rendered isotropic")
-        return alpha(0.5 * (ru + rv))
+        r = p.float(prefix + "roughness", 0.0)
+        return alpha(p.float(prefix + "uroughness", r)), alpha(p.float(prefix + "vroughness", r))
+
+    def _alpha(self, p, what, mat=None, prefix="") -> float:
+        """The alpha of `roughness`, or of `uroughness` (along dp/du); a `vroughness` that differs sets
+        mat.alpha_v (pbrt-v4's anisotropic Trowbridge-Reitz; without mat: their mean, with a warning)."""
+        au, av = self._alphas(p, prefix)
+        if au != av and mat is not None:
+            mat.alpha_v = av
+            return au
+        if au != av:
+            q = p.items.get(prefix + "uroughness", p.items.get(prefix + "vroughness"))
+            self.imp.warn(q.pos, f"{what}: anisotropic roughness rendered isotropic")
+            remap = p.boolean("remaproughness", True)
+            ru, rv = (a * a if remap else a for a in (au, av))
+            return min(math.sqrt(0.5 * (ru + rv)) if remap else 0.5 * (ru + rv), 1.0)
+        return au
 
     def make(self, mtype: str, p, pos: str, what: str, name: str | None = None) -> Material | None:
         imp = self.imp
@@ -318,13 +326,10 @@ class MaterialMapper:
                 del p.items[q.name]
         if mtype == "diffuse":
             mat.albedo, mat.base_texture = self.color(p, "reflectance", (0.5, 0.5, 0.5))
-        elif mtype in ("conductor", "coatedconductor"):
-            prefix = "conductor." if mtype == "coatedconductor" else ""
-            if mtype == "coatedconductor":
-                imp.warn(pos, f"{what}: rendered as its conductor layer without the coating")
-                for q in p.items.values():
-                    q.used = q.used or q.name.startswith("interface.")
-            self._conductor(mat, p, pos, what, prefix)
+        elif mtype == "conductor":
+            self._conductor(mat, p, pos, what, "")
+        elif mtype == "coatedconductor":
+            self._coated_conductor(mat, p, pos, what)
         elif mtype in ("dielectric", "thindielectric"):
             mat.type = "dielectric"
             if mtype == "thindielectric":
@@ -398,8 +403,8 @@ class MaterialMapper:
             mat.metallic = min(max(mat.metallic, 0.0), 1.0)
         return mat
 
-    def _eta(self, p, what) -> float:
-        q = p.get("eta")
+    def _eta(self, p, what, key="eta") -> float:
+        q = p.get(key)
         if q is None:
             return 1.5
         if q.type == "spectrum" and len(q.values) == 1 and isinstance(q.values[0], str) and \
@@ -409,20 +414,54 @@ class MaterialMapper:
                 raise error_at(q.pos, f'{what}: unknown spectrum "{named}" (one of: {", ".join(GLASSES)})')
             self.imp.warn(q.pos, f"{what}: {named} rendered without dispersion, at its d-line index {GLASSES[named]}")
             return GLASSES[named]
-        eta = p.float("eta") if q.type in ("float", "integer") else spectrum_rgb(self.imp, p, "eta", (1.5,) * 3)[1]
+        eta = p.float(key) if q.type in ("float", "integer") else spectrum_rgb(self.imp, p, key, (1.5,) * 3)[1]
         if not eta > 0:
             raise error_at(q.pos, f"{what}: eta must be > 0, got {eta:g}")
         return float(eta)
 
-    def _conductor(self, mat, p, pos, what, prefix) -> None:
+    def _coated_conductor(self, mat, p, pos, what) -> None:
+        """pbrt-v4's coatedconductor (a dielectric coating over a conductor, its stochastic layered
+        BSDF) approximated by our conductor: the metal as pbrt-v4 puts it under the coating (its
+        `conductor.eta` and `conductor.k`, or the k that gives `reflectance`, divided by
+        `interface.eta`), its GGX alpha the root sum of squares of the conductor's and the
+        interface's (each pbrt's RoughnessToAlpha of its `*.roughness` / `*.uroughness` /
+        `*.vroughness`).  Not rendered (docs/SCENE_FORMAT.md): the coating's own reflection, the
+        inter-reflections between the layers, `thickness`, `albedo`, `g`, `maxdepth`, `nsamples`."""
+        ieta = self._eta(p, what, "interface.eta")
+        if "reflectance" in p and ("conductor.eta" in p or "conductor.k" in p):
+            raise error_at(p.items["reflectance"].pos, f'{what}: give "reflectance" or "conductor.eta" / '
+                                                       '"conductor.k", not both (as pbrt-v4)')
+        self._conductor(mat, p, pos, what, "conductor.", reflectance_key="reflectance")
+        if mat.eta is None:  # reflectance r: pbrt-v4's eta 1 and the k whose normal reflectance is r
+            r = np.clip(np.asarray(mat.f0, np.float64), 0.0, 0.9999)
+            mat.eta, mat.k = (1.0,) * 3, tuple(float(x) for x in 2 * np.sqrt(r) / np.sqrt(1 - r))
+            mat.f0 = (1.0, 1.0, 1.0)
+        mat.eta = tuple(float(e) / ieta for e in mat.eta)
+        mat.k = tuple(float(k) / ieta for k in mat.k)
+        cu, cv = self._alphas(p, "conductor.")
+        iu, iv = self._alphas(p, "interface.")
+        au, av = min(math.hypot(cu, iu), 1.0), min(math.hypot(cv, iv), 1.0)
+        mat.alpha, mat.alpha_v = au, (av if av != au else None)
+        albedo = spectrum_rgb(self.imp, p, "albedo", (0.0, 0.0, 0.0))
+        self.imp.warn(pos, f"{what}: approximated by its conductor under the coating (eta and k divided by "
+                           f"interface.eta {ieta:g}, the two roughnesses combined); the coating's own reflection "
+                           "and the inter-reflections are not rendered" +
+                      ("; nor is its scattering albedo" if max(albedo) > 0 else ""))
+        for key in ("thickness", "g", "maxdepth", "nsamples"):
+            if key in p:
+                p.items[key].used = True
+
+    def _conductor(self, mat, p, pos, what, prefix, reflectance_key=None) -> None:
         mat.type = "conductor"
-        mat.alpha = self._alpha(p, what, mat)
-        if prefix + "reflectance" in p:
-            rgb, tex = self.color(p, prefix + "reflectance", (1.0,) * 3)
+        if not prefix:
+            mat.alpha = self._alpha(p, what, mat)
+        reflectance_key = reflectance_key or prefix + "reflectance"
+        if reflectance_key in p:
+            rgb, tex = self.color(p, reflectance_key, (1.0,) * 3)
             if tex is not None:
                 rgb = tuple(float(c) for c in tex.mean_rgb())
-                self.imp.warn(p.items[prefix + "reflectance"].pos, f"{what}: a reflectance texture is not supported "
-                                                                    f"here; using its mean")
+                self.imp.warn(p.items[reflectance_key].pos, f"{what}: a reflectance texture is not supported "
+                                                             f"here; using its mean")
             mat.f0 = tuple(min(max(c, 0.0), 1.0) for c in rgb)
             return
         metals = _metals()
