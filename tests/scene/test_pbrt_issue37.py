@@ -359,3 +359,77 @@ def test_coatedconductor_with_reflectance_and_eta_is_one_error_line(tmp_path):
     msg = str(info.value)
     assert "\n" not in msg and re.search(r's\.pbrt:2: Material "coatedconductor": give "reflectance" or '
                                          r'"conductor\.eta" / "conductor\.k", not both', msg), msg
+
+
+# -- (f) the scale and mix textures ---------------------------------------------------------------------------
+
+def _png(path, rgb8):
+    from PIL import Image
+
+    Image.fromarray(np.asarray(rgb8, np.uint8), "RGB").save(path)
+
+
+def test_scale_and_mix_textures(tmp_path):
+    """pbrt-v4's "scale" (tex x scale, defaults 1) and "mix" ((1 - amount) tex1 + amount tex2, defaults
+    0, 1, 0.5; amount a float texture: an image's first channel): of constants, the constant; with
+    images, the image baked texel by texel (linear in each image input, so the bilinear lookup of the
+    bake is the combination of the lookups), keeping the image's uv mapping."""
+    from pyopencl_rt.scene.textures import lookup
+
+    rng = np.random.default_rng(5)
+    a8, b8, w8 = (rng.integers(0, 256, (4, 6, 3)) for _ in range(3))
+    for name, img in (("a.png", a8), ("b.png", b8), ("w.png", w8)):
+        _png(tmp_path / name, img)
+    a, b, w = (x / 255.0 for x in (a8, b8, w8))  # "encoding" "linear": the texels as stored
+    lin = '"string encoding" "linear"'
+    s, warned = load(write(tmp_path, f"""WorldBegin
+Texture "A" "spectrum" "imagemap" "string filename" "a.png" {lin} "float uscale" 2
+Texture "B" "spectrum" "imagemap" "string filename" "b.png" {lin} "float uscale" 2
+Texture "W" "float" "imagemap" "string filename" "w.png" {lin} "float uscale" 2
+Texture "half" "spectrum" "scale" "texture tex" "A" "float scale" 0.5
+Texture "sA" "spectrum" "scale" "rgb tex" [0.2 0.4 0.6] "texture scale" "W"
+Texture "consts" "spectrum" "mix" "rgb tex1" [0.2 0.4 0.6] "rgb tex2" [1 0 0.5] "float amount" 0.25
+Texture "AB" "spectrum" "mix" "texture tex1" "A" "texture tex2" "B" "float amount" 0.3
+Texture "byW" "spectrum" "mix" "rgb tex1" [0.1 0.2 0.3] "rgb tex2" [0.9 0.8 0.7] "texture amount" "W"
+Texture "dflt" "spectrum" "mix"
+Texture "one" "float" "scale"
+""" + "\n".join(f'Material "diffuse" "texture reflectance" "{t}"\nTranslate 0 0 1\n{TRIANGLE}'
+                for t in ("half", "sA", "consts", "AB", "byW", "dflt", "one"))))
+    assert warned == []
+    mats = [s.materials[i] for i in s.face_materials]
+    uv = rng.random((40, 2)) * 1.4 - 0.2
+
+    def look(texture):
+        return lookup(texture.texels, uv, texture.wrap, texture.filter, texture.to_uv)[:, :3]
+
+    def ref(img):  # the image as pbrt's imagemap "A" looks it up (uscale 2)
+        t = np.ones(img.shape[:2] + (4,))
+        t[..., :3] = img
+        return lookup(t, uv, "repeat", "bilinear", mats[0].base_texture.to_uv)[:, :3]
+
+    assert mats[0].base_texture.to_uv[0] == 2.0  # the image's mapping kept
+    assert np.allclose(look(mats[0].base_texture), 0.5 * ref(a), atol=1e-6)
+    grey_w = np.repeat(w[..., :1], 3, axis=-1)  # a float texture: the image's first channel
+    assert np.allclose(look(mats[1].base_texture), ref(grey_w) * [0.2, 0.4, 0.6], atol=1e-6)
+    assert mats[2].base_texture is None and np.allclose(mats[2].albedo, [0.4, 0.3, 0.575])
+    assert np.allclose(look(mats[3].base_texture), 0.7 * ref(a) + 0.3 * ref(b), atol=1e-6)
+    wl = ref(grey_w)
+    assert np.allclose(look(mats[4].base_texture), (1 - wl) * [0.1, 0.2, 0.3] + wl * [0.9, 0.8, 0.7], atol=1e-6)
+    assert mats[5].base_texture is None and mats[5].albedo == (0.5, 0.5, 0.5)
+    assert mats[6].base_texture is None and mats[6].albedo == (1.0, 1.0, 1.0)
+
+
+def test_a_mix_of_images_that_do_not_line_up_warns(tmp_path):
+    _png(tmp_path / "a.png", np.full((4, 4, 3), 200))
+    _png(tmp_path / "b.png", np.full((2, 2, 3), 100))
+    path = write(tmp_path, """WorldBegin
+Texture "A" "spectrum" "imagemap" "string filename" "a.png" "string encoding" "linear"
+Texture "B" "spectrum" "imagemap" "string filename" "b.png" "string encoding" "linear"
+Texture "AB" "spectrum" "mix" "texture tex1" "A" "texture tex2" "B"
+Material "diffuse" "texture reflectance" "AB"
+""" + TRIANGLE)
+    s, warned = load(path)
+    assert warned == [f"{path}:4: Texture \"AB\": its image inputs differ in size or mapping; '{tmp_path / 'b.png'}' "
+                      "is read at its mean"]
+    tex = s.materials[s.face_materials[0]].base_texture
+    assert tex.texels.shape[:2] == (4, 4) and np.allclose(tex.texels[..., :3], 0.5 * 200 / 255 + 0.5 * 100 / 255)

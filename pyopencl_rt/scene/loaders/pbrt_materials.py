@@ -219,12 +219,60 @@ class MaterialMapper:
             value = ((1.0, 1.0, 1.0), self._imagemap(d))
         elif cls == "checkerboard":
             value = ((1.0, 1.0, 1.0), self._checkerboard(d))
+        elif cls == "scale":  # pbrt-v4's ScaleTexture: tex (default 1) times scale (default 1)
+            value = self._compose(d, [self.color(p, "tex", (1.0,) * 3), self.color(p, "scale", (1.0,) * 3)],
+                                  lambda t, s: t * s, floats=(1,))
+        elif cls == "mix":  # pbrt-v4's MixTexture: (1 - amount) tex1 + amount tex2 (0, 1, 0.5 by default)
+            amount = self.color(p, "amount", (0.5,) * 3)
+            value = self._compose(d, [self.color(p, "tex1", (0.0,) * 3), self.color(p, "tex2", (1.0,) * 3), amount],
+                                  lambda a, b, w: (1.0 - w) * a + w * b, floats=(2,))
         else:
             self.imp.warn(d.pos, f'Texture "{tname}" "{cls}": texture class not supported; using white')
             for q in p.items.values():
                 q.used = True
             value = ((1.0, 1.0, 1.0), None)
         self.textures[tname] = value
+
+    def _compose(self, d, inputs, fn, floats=()) -> tuple:
+        """A texture made of others by ``fn`` (pbrt-v4's scale and mix textures), as the pair
+        (rgb, Texture or None) textures are here: of constants, the constant; otherwise baked
+        texel by texel into an image with the lookup of the image inputs, which must share their
+        size, wrap, filter and uv mapping (the first image's is used; another image is read at its
+        mean, with a warning).  ``fn`` is linear in each input where the others are constant, so a
+        bake with one image is exact; two images are combined texel by texel before the bilinear
+        lookup (exact with point filtering).  A "float" texture, and the inputs at ``floats`` (scale's
+        scale and mix's amount: float textures), read an image's first channel, as pbrt-v4's float textures do."""
+        from ..textures import Texture
+
+        tname, kind = d.args[0], d.args[1]
+        images = [t for _, t in inputs if t is not None]
+        if not images:
+            out = fn(*(np.asarray(rgb, np.float64) for rgb, _ in inputs))
+            return tuple(float(x) for x in out), None
+        base = images[0]
+        lookup = (base.texels.shape, base.wrap, base.filter, base.to_uv)
+        arrays = []
+        for k, (rgb, tex) in enumerate(inputs):
+            grey = kind == "float" or k in floats
+            if tex is None:
+                value = np.asarray(rgb, np.float64)
+                arrays.append(np.full(3, value[0]) if grey and kind == "float" else value)
+                continue
+            texels = tex.texels[..., :3].astype(np.float64)
+            if grey:
+                texels = np.repeat(texels[..., :1], 3, axis=-1)
+            texels = texels * np.asarray(rgb, np.float64)
+            if (tex.texels.shape, tex.wrap, tex.filter, tex.to_uv) != lookup:
+                self.imp.warn(d.pos, f'Texture "{tname}": its image inputs differ in size or mapping; '
+                                     f"'{tex.name}' is read at its mean")
+                texels = texels.reshape(-1, 3).mean(0)
+            arrays.append(texels)
+        out = np.broadcast_to(fn(*arrays), base.texels.shape[:2] + (3,))
+        texels = np.ones(base.texels.shape, np.float32)
+        texels[..., :3] = out
+        channels = 1 if kind == "float" else 3
+        return (1.0, 1.0, 1.0), Texture(np.ascontiguousarray(texels), srgb=False, channels=channels, name=tname,
+                                        wrap=base.wrap, filter=base.filter, to_uv=base.to_uv)
 
     def _mapping(self, d) -> tuple:
         p = d.params
