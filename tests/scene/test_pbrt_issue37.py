@@ -433,3 +433,70 @@ Material "diffuse" "texture reflectance" "AB"
                       "is read at its mean"]
     tex = s.materials[s.face_materials[0]].base_texture
     assert tex.texels.shape[:2] == (4, 4) and np.allclose(tex.texels[..., :3], 0.5 * 200 / 255 + 0.5 * 100 / 255)
+
+
+# -- (g) the film's iso and exposure time --------------------------------------------------------------------
+
+LIT = """LookAt 0 0 -3  0 0 0  0 1 0
+Camera "perspective" "float fov" 50 {camera}
+Film "rgb" "integer xresolution" 16 "integer yresolution" 16 {film}
+Sampler "independent" "integer pixelsamples" 8
+WorldBegin
+LightSource "point" "point3 from" [0 2 -2] "rgb I" [3 3 3]
+LightSource "distant" "point3 from" [0 0 -1] "point3 to" [0 0 0] "rgb L" [0.5 0.5 0.5]
+LightSource "infinite" "rgb L" [0.2 0.3 0.4]
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [2 1 0.5]
+  Translate -1 0 1
+  Shape "sphere" "float radius" 0.3
+AttributeEnd
+Shape "trianglemesh" "point3 P" [-2 -1 0  2 -1 0  2 1 0  -2 1 0] "integer indices" [0 1 2  0 2 3]
+"""
+
+
+def _lights(scene):
+    from pyopencl_rt.scene.lights import DirectionalLight, PointLight
+
+    emissive = [m.emission for m in scene.materials if m.is_emissive]
+    point = next(lt.intensity for lt in scene.lights if isinstance(lt, PointLight))
+    distant = next(lt.irradiance for lt in scene.lights if isinstance(lt, DirectionalLight))
+    return np.array([*emissive, point, distant, scene.environment.radiance], np.float64)
+
+
+@pytest.mark.parametrize("camera,film,ratio", [
+    ("", "", 1.0),
+    ("", '"float iso" 400', 4.0),  # pbrt-v4: exposure time x ISO / 100
+    ('"float shutteropen" 0.25 "float shutterclose" 0.75', '"float iso" 50', 0.25),  # the shutter's 0.5
+    ('"float shutterclose" 3', '"float exposuretime" 0.2 "float iso" 200', 0.4),  # exposuretime given: it
+])
+def test_iso_and_exposure_time_scale_what_the_film_records(tmp_path, camera, film, ratio):
+    base, warned0 = load(write(tmp_path, LIT.format(camera="", film=""), name="base.pbrt"))
+    s, warned = load(write(tmp_path, LIT.format(camera=camera, film=film)))
+    assert warned == [] and warned0 == []
+    assert np.allclose(_lights(s), ratio * _lights(base), rtol=1e-12)
+
+
+def test_iso_scales_the_rendered_image_exactly(tmp_path):
+    """The same seed at ISO 100 and 250: every pixel 2.5 times (the renderer is linear in emission)."""
+    import pyopencl_rt as rt
+
+    a, _ = load(write(tmp_path, LIT.format(camera="", film=""), name="a.pbrt"))
+    b, _ = load(write(tmp_path, LIT.format(camera="", film='"float iso" 250'), name="b.pbrt"))
+    ra = rt.render_full(a, spp=8, width=16, height=16, device="cpu", seed=4)
+    rb = rt.render_full(b, spp=8, width=16, height=16, device="cpu", seed=4)
+    assert ra.image.mean() > 0.05
+    assert np.allclose(rb.image, 2.5 * ra.image, rtol=1e-4, atol=1e-6)
+
+
+@pytest.mark.parametrize("camera,film,message", [
+    ('"float shutteropen" 1 "float shutterclose" 1', "", r":2: Camera: shutteropen 1 and shutterclose 1: the shutter "
+                                                        r"does not open"),
+    ("", '"float iso" 0', r':3: Film "float iso" must be > 0, got 0'),
+    ("", '"float exposuretime" -1', r':3: Film "float exposuretime" must be > 0, got -1'),
+])
+def test_impossible_exposures_are_one_error_line(tmp_path, camera, film, message):
+    path = write(tmp_path, LIT.format(camera=camera, film=film))
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    msg = str(info.value)
+    assert "\n" not in msg and msg.startswith(f"{path}:") and re.search(message, msg), msg

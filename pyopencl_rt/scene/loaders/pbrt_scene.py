@@ -17,8 +17,8 @@ import numpy as np
 
 from ..media import MediumInterface
 from ..model import Material, PixelFilter, RenderSettings
-from .builder import (SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh, transform_points,
-                      translate)
+from .builder import (EnvMap, SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh,
+                      transform_points, translate)
 from .instancing import add_instance
 from .pbrt import Directive, Parser
 from .pbrt_lights import light_source
@@ -264,6 +264,7 @@ class _Importer:
         st = RenderSettings(width=1280, height=720, spp=16, max_depth=6, rr_depth=2)
         self.b.settings = st
         film = self.options.get("Film")
+        ratio = self.imaging_ratio(film)
         if film is not None:
             if film.args[0] != "rgb":
                 self.warn(film.pos, f'Film "{film.args[0]}": read as an "rgb" film')
@@ -271,10 +272,10 @@ class _Importer:
             st.height = film.params.integer("yresolution", 720)
             if st.width < 1 or st.height < 1:
                 raise error_at(film.pos, f"Film: impossible resolution {st.width}x{st.height}")
-            for key, neutral in (("iso", 100.0), ("exposuretime", 1.0), ("whitebalance", 0.0)):
-                value = film.params.float(key, neutral)
-                if value != neutral:
-                    self.warn(film.params.items[key].pos, f'Film "float {key}" {value:g}: not supported; ignored')
+            whitebalance = film.params.float("whitebalance", 0.0)
+            if whitebalance != 0.0:
+                self.warn(film.params.items["whitebalance"].pos,
+                          f'Film "float whitebalance" {whitebalance:g}: not supported; ignored')
             sensor = film.params.string("sensor", "cie1931")
             if sensor != "cie1931":
                 self.warn(film.params.items["sensor"].pos, f"Film sensor '{sensor}': rendered as cie1931")
@@ -306,8 +307,52 @@ class _Importer:
                 self.warn(integ.params.items["regularize"].pos, "Integrator: regularize is not supported; ignored")
             self.unused(integ)
         st.filter = self.pixel_filter(self.options.get("PixelFilter"))
+        self.expose(ratio)
         if self.camera is not None:
             self.finish_camera(*self.camera)
+
+    def imaging_ratio(self, film: Directive | None) -> float:
+        """pbrt-v4's PixelSensor imaging ratio, exposure time x ISO / 100 (film.cpp), by which its RGB
+        film scales what it records: the exposure time is the camera's shutterclose - shutteropen
+        (defaults 1 and 0; scene.cpp), or the Film's "exposuretime" where one is given."""
+        exposure = 1.0
+        if self.camera is not None:
+            cam = self.camera[0]
+            opened, closed = cam.params.float("shutteropen", 0.0), cam.params.float("shutterclose", 1.0)
+            exposure = closed - opened
+            if not exposure > 0:
+                raise error_at(cam.pos, f"Camera: shutteropen {opened:g} and shutterclose {closed:g}: the shutter "
+                                        "does not open (as pbrt-v4, an error)")
+        if film is None:
+            return exposure
+        exposure = film.params.float("exposuretime", exposure)
+        iso = film.params.float("iso", 100.0)
+        for key, value in (("exposuretime", exposure), ("iso", iso)):
+            if key in film.params and not value > 0:
+                raise error_at(film.params.items[key].pos, f'Film "float {key}" must be > 0, got {value:g}')
+        return exposure * iso / 100.0
+
+    def expose(self, ratio: float) -> None:
+        """Every emitter's radiance (area lights, lights, the environment) times ``ratio``: for our
+        linear renderer, the image of pbrt's film scaled by its imaging ratio."""
+        if ratio == 1.0:
+            return
+        seen = set()
+        for mat in self.b.materials:
+            if id(mat) not in seen and mat.is_emissive:
+                seen.add(id(mat))
+                mat.emission = tuple(float(c) * ratio for c in mat.emission)
+        for light in self.b.lights:
+            for key in ("intensity", "irradiance"):
+                if hasattr(light, key) and not (key == "irradiance" and hasattr(light, "scale")):
+                    setattr(light, key, tuple(float(c) * ratio for c in getattr(light, key)))
+            if hasattr(light, "scale"):  # the projector: scale x the texel
+                light.scale = float(light.scale) * ratio
+        env = self.b.environment
+        if isinstance(env, EnvMap):
+            self.b.environment = dataclasses.replace(env, scale=tuple(float(c) * ratio for c in env.scale))
+        elif env is not None:
+            self.b.environment = dataclasses.replace(env, radiance=tuple(float(c) * ratio for c in env.radiance))
 
     def pixel_filter(self, pf: Directive | None) -> PixelFilter:
         """pbrt-v4's filters and defaults (a gaussian of radius 1.5 and sigma 0.5 without PixelFilter)."""
