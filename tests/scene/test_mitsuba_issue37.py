@@ -94,6 +94,26 @@ def test_forward_references_render_as_mitsuba_does(tmp_path):
     assert np.abs(whole).max() < 4.0, f"image-mean z {whole}"
 
 
+def test_forward_references_into_a_later_include(tmp_path):
+    """A <ref> to an object that an <include> further down declares (Mitsuba reads the includes
+    before it resolves references), by name and by class."""
+    (tmp_path / "parts").mkdir()
+    write(tmp_path, '<bsdf type="diffuse" id="grey"><ref name="reflectance" id="checks"/></bsdf>\n'
+                    '<texture type="checkerboard" id="checks"><rgb name="color0" value="0.1, 0.2, 0.3"/></texture>\n'
+                    '<emitter type="area" id="glow"><rgb name="radiance" value="5"/></emitter>',
+          name="parts/later.xml")
+    path = write(tmp_path, '<shape type="rectangle"><ref id="grey"/><ref id="glow"/></shape>\n'
+                           '<shape type="rectangle"><transform name="to_world"><translate x="3"/></transform>'
+                           '<ref name="bsdf" id="grey"/></shape>\n'
+                           '<include filename="parts/later.xml"/>')
+    scene, warned = load(path)
+    assert warned == [] and len(scene.faces) == 4
+    first, second = scene.materials[scene.face_materials[0]], scene.materials[scene.face_materials[-1]]
+    assert first.emission == (5.0, 5.0, 5.0) and second.emission == (0.0, 0.0, 0.0)
+    assert first.base_texture is not None and second.base_texture is not None
+    assert np.allclose(second.base_texture.texels[0, 0, :3], [0.1, 0.2, 0.3])
+
+
 @pytest.mark.parametrize("body,message", [
     # an id nothing declares, in the file or in its includes: one line, at the <ref>
     ('<shape type="sphere"><ref id="later"/></shape>\n<bsdf type="diffuse" id="sooner"/>',
