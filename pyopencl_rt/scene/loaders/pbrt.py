@@ -6,7 +6,10 @@ string (with ``\\"`` escapes), ``[`` or ``]``, or a run of other non-blank chara
 arguments (numbers, strings or a bracketed list) and, for most, a parameter list of
 ``"type name" value`` pairs, where the value is one token or a bracketed list.  ``Include`` and
 ``Import`` read another file in place (relative to the including file's folder, then the main
-file's).  :mod:`.pbrt_scene` gives the directives their meaning.
+file's): as pbrt-v4's parser streams the tokens of its files, the included file's tokens take the
+place of the two, so a parameter list may go on after the included file ends.  A file compressed
+with gzip (``.pbrt.gz``) is read through it.  :mod:`.pbrt_scene` gives the directives their
+meaning.
 
 Every malformed input raises a :class:`~.builder.SceneFormatError` naming the file and line.
 """

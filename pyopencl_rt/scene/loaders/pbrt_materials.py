@@ -77,8 +77,6 @@ def read_spectrum_file(path, pos: str, what: str) -> tuple:
     """(wavelengths, values) of a pbrt spectrum file: numbers separated by blanks (``#`` starts a
     comment), taken in wavelength-value pairs, as pbrt-v4's ReadFloatFile and
     PiecewiseLinearSpectrum::FromInterleaved read it."""
-    import re
-
     numbers = []
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
