@@ -139,8 +139,8 @@ def test_dangling_references_are_one_clear_error(tmp_path, body, message):
 # -- blendbsdf with a bitmap weight ---------------------------------------------------------------------
 
 def _weight_images(tmp_path):
-    """An RGB JPEG (4:4:4, quality 100: no chroma subsampling), a grey JPEG and an RGB PNG of
-    random texels whose luminance differs from their channels' mean."""
+    """RGB JPEGs (4:4:4 at quality 100, and Pillow's default 4:2:0 chroma subsampling at 75), a grey
+    JPEG and an RGB PNG of random texels whose luminance differs from their channels' mean."""
     from PIL import Image
 
     rng = np.random.default_rng(7)
@@ -148,7 +148,8 @@ def _weight_images(tmp_path):
     Image.fromarray(rgb, "RGB").save(tmp_path / "w.jpg", quality=100, subsampling=0)
     Image.fromarray(rgb[..., 1], "L").save(tmp_path / "g.jpg", quality=100)
     Image.fromarray(rgb, "RGB").save(tmp_path / "w.png")
-    return ["w.jpg", "g.jpg", "w.png"]
+    Image.fromarray(rgb, "RGB").save(tmp_path / "w420.jpg", quality=75)
+    return ["w.jpg", "w420.jpg", "g.jpg", "w.png"]
 
 
 def _blend(weight, second='<bsdf type="roughconductor"><string name="material" value="Au"/>'
