@@ -7,9 +7,9 @@
 | ``dielectric`` (``thindielectric`` with a warning) | ``dielectric``: ``eta`` (default 1.5; the named glasses at their d-line index) |
 | ``coateddiffuse`` | ``gltf`` with metallic 0: base colour ``reflectance``, IOR ``eta``, the coating's roughness (documented approximation) |
 | ``coatedconductor`` | ``conductor``: the metal under the coating (``conductor.eta``/``conductor.k`` or ``reflectance``, divided by ``interface.eta``), alpha combining ``conductor.*`` and ``interface.*`` roughness; a documented approximation, with a warning |
-| ``interface`` | no surface: its shapes only bound media (index-matched: pbrt_media.py) |
+| ``interface`` (and ``""``, ``none``: pbrt-v4's old names) | no surface: its shapes only bound media (index-matched: pbrt_media.py) |
 | ``mix`` | ``mix`` of the two named ``materials``, weight ``amount`` (a float or a texture; 1 is the second) |
-| others (``diffusetransmission``, ``hair``, ``measured``, ``subsurface``) | ``diffuse`` 0.5, with a warning |
+| others (``diffusetransmission``, ``hair``, ``measured``, ``subsurface``) | an error naming the type (never replaced) |
 
 Roughness: ``roughness`` (or the mean of ``uroughness`` and ``vroughness``, with a warning when they
 differ) becomes GGX alpha = sqrt(roughness) when ``remaproughness`` is true (the default), as
@@ -394,16 +394,12 @@ class MaterialMapper:
             for key in ("thickness", "g", "maxdepth", "nsamples"):
                 if key in p:
                     p.items[key].used = True
-        elif mtype == "interface":
+        elif mtype in ("interface", "", "none"):  # pbrt-v4's Material::Create: "" and "none" are "interface"
             return None
         elif mtype == "mix":
             return self._mix(mat, p, pos, what)
         else:
-            imp.warn(pos, f"{what}: material type not supported; using diffuse 0.5")
-            for q in p.items.values():
-                q.used = True
-            mat.albedo = (0.5, 0.5, 0.5)
-            return mat
+            raise error_at(pos, f'{what}: material type "{mtype}" is not supported')
         clipped = tuple(min(max(c, 0.0), 1.0) for c in mat.albedo)
         if clipped != tuple(mat.albedo):
             imp.warn(pos, f"{what}: reflectance {tuple(mat.albedo)} clamped to [0, 1]")

@@ -1,5 +1,5 @@
 """pbrt-v4 shapes in object space: ``trianglemesh``, ``bilinearmesh`` (as triangles), ``plymesh``,
-``loopsubdiv`` (its control mesh, with a warning), ``sphere`` (ours when whole and evenly scaled,
+``loopsubdiv`` (Loop subdivision: subdivision.py), ``sphere`` (ours when whole and evenly scaled,
 else triangles), ``disk`` and ``cylinder`` (triangles).
 
 Texture coordinates become ours as (u, 1 - v): pbrt-v4's image textures look up (s, 1 - t) with
@@ -84,10 +84,7 @@ def shape_geometry(imp, d):
     if t == "bilinearmesh":
         return _bilinear(d)
     if t == "loopsubdiv":
-        imp.warn(d.pos, 'Shape "loopsubdiv": rendered as its control mesh (not subdivided)')
-        p.integer("levels", 3)
-        v = _points(d)
-        return v, _indices(d, len(v), 3, 3), None
+        return _loopsubdiv(d)
     if t == "plymesh":
         return _plymesh(imp, d)
     if t == "sphere":
@@ -107,10 +104,29 @@ def shape_geometry(imp, d):
         v, f, uv = cylinder_mesh(p.float("radius", 1.0), p.float("zmin", -1.0), p.float("zmax", 1.0),
                                  min(p.float("phimax", 360.0), 360.0))
         return v, f, uv, _unit(np.asarray(v, np.float64) * [1.0, 1.0, 0.0])[f]
-    imp.warn(d.pos, f'Shape "{t}": not supported; ignored')
-    for q in p.items.values():
-        q.used = True
-    return None
+    raise error_at(d.pos, f'Shape "{t}": shape type "{t}" is not supported')
+
+
+def _loopsubdiv(d):
+    """``levels`` (default 3, as pbrt-v4) of Loop subdivision of the control mesh ``P`` /
+    ``indices``, its vertices on the limit surface (subdivision.py); shading normals: the vertex
+    normals of the subdivided mesh (pbrt's are the limit surface's, which they approach as the
+    levels grow)."""
+    from .subdivision import SubdivisionError, loop_subdivide, vertex_normals
+
+    levels = d.params.integer("levels", 3)
+    if levels < 0:
+        raise error_at(d.params.items["levels"].pos, f'Shape "loopsubdiv": levels must be >= 0, got {levels}')
+    if levels > 8:  # 4^levels triangles per control triangle
+        raise error_at(d.params.items["levels"].pos, f'Shape "loopsubdiv": {levels} levels would make '
+                       f'{4 ** levels} triangles of each control triangle (at most 8 levels)')
+    v = _points(d)
+    f = _indices(d, len(v), 3, 3)
+    try:
+        v, f = loop_subdivide(v, f, levels)
+    except SubdivisionError as exc:
+        raise error_at(d.pos, f'Shape "loopsubdiv": {exc}') from None
+    return v, f, None, vertex_normals(v, f).astype(np.float32)[f]
 
 
 def _unit(n) -> np.ndarray:
