@@ -17,6 +17,14 @@ rendered small (``--width``/``--height``/``--spp``, default 160 x 120 at 4 spp) 
   line, or our error line for a failure of the device or of memory;
 * ``timeout``: killed after ``--timeout`` seconds.
 
+A ``missing`` scene is then *probed*: loaded (not rendered) in another subprocess with the
+missing files skipped (``python -m pyopencl_rt.bench.pbrt_scenes probe SCENE``: an ``Include``
+or a directive whose file is not there is left out, with a warning), so that the features the rest
+of the scene asks for are seen: the row's ``probe`` holds that load's verdict, its defects and the
+files skipped.  What a probe finds is counted apart (``behind_missing``): the scene is blocked by
+its missing files first, and a later error may come of what was skipped (a material defined in a
+missing file, say).
+
 Each row also has the seconds the subprocess ran, its peak resident memory (``ru_maxrss`` of the
 child, from ``os.wait4``) and the warnings it printed.  A warning that says a feature was
 dropped or replaced (:data:`DEFECT_WORDS`: "not supported", "ignored", "using ...",
@@ -170,6 +178,10 @@ def render_command(scene: Path, output: Path, width: int, height: int, spp: int)
             "--height", str(height), "--spp", str(spp), "--quiet"]
 
 
+def probe_command(scene: Path) -> list[str]:
+    return [sys.executable, "-m", "pyopencl_rt.bench.pbrt_scenes", "probe", str(scene)]
+
+
 def run_scene(scene: Path, width=160, height=120, spp=4, timeout=300.0, command=None) -> dict:
     """Render one scene in a subprocess; its row (:func:`classify`'s verdict, seconds, peak RSS).
     ``command`` (for tests): the argument list to run instead of :func:`render_command`."""
@@ -206,25 +218,70 @@ def run_scene(scene: Path, width=160, height=120, spp=4, timeout=300.0, command=
     return row
 
 
+def probe_scene(scene: Path, timeout=300.0) -> dict:
+    """The load of a scene with its missing files skipped: :func:`classify`'s verdict, with the
+    files skipped apart (``skipped``) from the warnings."""
+    from ..scene.loaders.pbrt import MISSING_SKIPPED
+
+    row = run_scene(scene, timeout=timeout, command=probe_command(scene))
+    skipped = [w[len(MISSING_SKIPPED):] for w in row["defects"] + row["warnings"] if w.startswith(MISSING_SKIPPED)]
+    return {"status": row["status"], "reason": row["reason"], "feature": row["feature"], "skipped": skipped,
+            "defects": [w for w in row["defects"] if not w.startswith(MISSING_SKIPPED)],
+            "warnings": [w for w in row["warnings"] if not w.startswith(MISSING_SKIPPED)]}
+
+
+def _probe_main(scene) -> int:
+    """``python -m pyopencl_rt.bench.pbrt_scenes probe SCENE``: load SCENE with missing files
+    skipped; warnings and the error as the CLI prints them; exit status 1 on an error."""
+    from ..errors import LOGGER, UserError, report_to_stderr
+    from ..scene.loaders import load_scene
+    from ..scene.loaders import pbrt
+
+    report_to_stderr()
+    pbrt.SKIP_MISSING_FILES = True
+    try:
+        load_scene(scene)
+    except UserError as exc:
+        LOGGER.error("%s", exc)
+        return 1
+    return 0
+
+
 # -- the bench ---------------------------------------------------------------------------------------
 
 def feature_counts(rows) -> dict:
     """{feature: {"blocks": scenes refused for it, "spoils": scenes with a defect warning about it}},
     most scenes first."""
     counts: dict = {}
+
+    def add(feature, column, scene):
+        counts.setdefault(feature, {"blocks": set(), "spoils": set(), "behind_missing": set()})[column].add(scene)
+
     for row in rows:
         if row["status"] == "refused" and row["feature"]:
-            counts.setdefault(row["feature"], {"blocks": set(), "spoils": set()})["blocks"].add(row["scene"])
+            add(row["feature"], "blocks", row["scene"])
         for defect in row["defects"]:
-            counts.setdefault(feature_of(defect), {"blocks": set(), "spoils": set()})["spoils"].add(row["scene"])
-    table = {k: {"blocks": len(v["blocks"]), "spoils": len(v["spoils"])} for k, v in counts.items()}
-    return dict(sorted(table.items(), key=lambda kv: (-kv[1]["blocks"] - kv[1]["spoils"], kv[0])))
+            add(feature_of(defect), "spoils", row["scene"])
+        probe = row.get("probe")
+        if probe:
+            if probe["status"] == "refused" and probe["feature"]:
+                add(probe["feature"], "behind_missing", row["scene"])
+            for defect in probe["defects"]:
+                add(feature_of(defect), "behind_missing", row["scene"])
+    table = {k: {c: len(v[c]) for c in ("blocks", "spoils", "behind_missing")} for k, v in counts.items()}
+    return dict(sorted(table.items(), key=lambda kv: (-sum(kv[1].values()), kv[0])))
 
 
 def format_row(row, root: Path, width: int) -> str:
     name = _name(row["scene"], root)
     note = row["reason"] or ""
-    if row["status"] == "ok" and row["defects"]:
+    probe = row.get("probe")
+    if probe:
+        found = ([f"refused: {probe['feature'] or probe['reason']}"] if probe["status"] != "ok" else []) + [
+            f"defect: {feature_of(d)}" for d in probe["defects"]]
+        note = (f"{len(probe['skipped'])} file(s) missing, e.g. {strip_position(note)}; behind them: "
+                + ("; ".join(found) if found else "nothing refused"))
+    elif row["status"] == "ok" and row["defects"]:
         note = f"{len(row['defects'])} defect(s): " + "; ".join(strip_position(d) for d in row["defects"][:3])
     return (f"{name:<{width}} {row['status']:<8} {row['seconds']:7.1f} {row['peak_rss_mib']:8.0f} "
             f"{len(row['defects']):>3} {len(row['warnings']):>3}  {note[:200]}").rstrip()
@@ -254,15 +311,17 @@ def run_bench(path, width=160, height=120, spp=4, timeout=300.0, json_path=None,
     rows = []
     for scene in scenes:
         rows.append(run_scene(scene, width, height, spp, timeout))
+        if rows[-1]["status"] == "missing":
+            rows[-1]["probe"] = probe_scene(scene, timeout)
         echo(format_row(rows[-1], root, width_col))
     verdicts = {v: sum(r["status"] == v for r in rows) for v in ("ok", "refused", "missing", "error", "timeout")}
     clean = sum(r["status"] == "ok" and not r["defects"] for r in rows)
     echo(", ".join(f"{n} {v}" for v, n in verdicts.items()) + f" (of {len(rows)}; {clean} ok without a defect)")
     counts = feature_counts(rows)
     if counts:
-        echo("features (scenes each blocks / spoils with a defect warning):")
+        echo("features (scenes each blocks / spoils with a defect warning / is found behind missing files):")
         for feature, c in counts.items():
-            echo(f"  {c['blocks']:3d} {c['spoils']:3d}  {feature}")
+            echo(f"  {c['blocks']:3d} {c['spoils']:3d} {c['behind_missing']:3d}  {feature}")
     if json_path:
         results = {"path": str(root), "width": width, "height": height, "spp": spp, "timeout": timeout,
                    "date": time.strftime("%Y-%m-%d"), "verdicts": verdicts, "ok_without_defects": clean,
@@ -273,3 +332,9 @@ def run_bench(path, width=160, height=120, spp=4, timeout=300.0, json_path=None,
             raise UserError(f"{json_path}: cannot write ({exc.strerror or exc})") from None
         echo(f"wrote {json_path}")
     return rows
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 3 or sys.argv[1] != "probe":
+        sys.exit("usage: python -m pyopencl_rt.bench.pbrt_scenes probe SCENE")
+    sys.exit(_probe_main(sys.argv[2]))

@@ -24,7 +24,8 @@ def scenes(tmp_path):
         'Shape "trianglemesh" "point3 P" [-1 -1 0 1 -1 0 0 1 0] "integer indices" [0 1 2]\n')
     (tmp_path / "fine.pbrt").write_text(CAMERA + 'Material "diffuse"\nInclude "geometry/tri.pbrt"\n')
     (tmp_path / "refused.pbrt").write_text(CAMERA + 'Material "hair"\nInclude "geometry/tri.pbrt"\n')
-    (tmp_path / "missing.pbrt").write_text(CAMERA + 'Include "geometry/not-here.pbrt"\n')
+    (tmp_path / "missing.pbrt").write_text(CAMERA + 'Include "geometry/not-here.pbrt"\n'
+                                           'Material "measured"\nInclude "geometry/tri.pbrt"\n')
     return tmp_path
 
 
@@ -39,10 +40,15 @@ def test_three_verdicts(scenes, capsys):
     assert rows["refused.pbrt"]["reason"].startswith(f"{scenes / 'refused.pbrt'}:6: ")
     missing = rows["missing.pbrt"]
     assert missing["status"] == "missing" and "not-here.pbrt" in missing["reason"] and "\n" not in missing["reason"]
+    # the probe skips the missing file and finds what the rest of the scene asks for
+    probe = missing["probe"]
+    assert probe["status"] == "refused" and probe["feature"] == 'Material "measured"'
+    assert len(probe["skipped"]) == 1 and "not-here.pbrt" in probe["skipped"][0]
     for row in rows.values():
         assert row["seconds"] > 0 and row["peak_rss_mib"] > 10  # a Python process at least
     assert results["verdicts"] == {"ok": 1, "refused": 1, "missing": 1, "error": 0, "timeout": 0}
-    assert results["features"] == {'Material "hair"': {"blocks": 1, "spoils": 0}}
+    assert results["features"] == {'Material "hair"': {"blocks": 1, "spoils": 0, "behind_missing": 0},
+                                   'Material "measured"': {"blocks": 0, "spoils": 0, "behind_missing": 1}}
     table = capsys.readouterr().out
     assert "1 ok, 1 refused, 1 missing, 0 error, 0 timeout" in table
 

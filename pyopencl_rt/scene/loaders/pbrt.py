@@ -19,7 +19,26 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .builder import error_at
+from .builder import SceneFormatError, error_at
+
+# ``pyopencl-rt bench pbrt-scenes``'s probe of a scene whose files are not all there: when True, a
+# missing file skips what names it (an Include, a directive) with a warning that starts with
+# MISSING_SKIPPED, so that what the rest of the scene asks for can be seen.  Never set by a render.
+SKIP_MISSING_FILES = False
+MISSING_SKIPPED = "missing file skipped: "
+
+
+class MissingFile(SceneFormatError):
+    """A file the scene names that is not there (one error line, as any SceneFormatError)."""
+
+
+def skipped_missing(exc) -> None:
+    """The probe's warning for a missing file it skips (:data:`SKIP_MISSING_FILES`)."""
+    import warnings
+
+    from ...errors import one_line
+
+    warnings.warn(MISSING_SKIPPED + one_line(exc), stacklevel=2)
 
 _TOKEN = re.compile(r'[ \t\r\f\v]+|\n|#[^\n]*|"(?:[^"\\\n]|\\.)*"|\[|\]|[^\s\[\]"#]+|"')
 _ESCAPES = {"n": "\n", "t": "\t", "b": "\b", "f": "\f", "r": "\r", "\\": "\\", "'": "'", '"': '"'}
@@ -149,6 +168,10 @@ class Params:
         return [p for p in self.items.values() if not p.used]
 
 
+def one_line_at(pos, what) -> str:
+    return str(error_at(pos, what))
+
+
 @dataclass
 class Directive:
     name: str
@@ -162,7 +185,7 @@ def pbrt_path(pos: str, folder: Path, fname: str, what: str) -> Path:
     ``pos`` that ``what`` (the directive, such as 'Shape "plymesh"') names."""
     path = folder / fname
     if not path.is_file():
-        raise error_at(pos, f"{what}: file '{fname}' not found (looked for {path})")
+        raise MissingFile(one_line_at(pos, f"{what}: file '{fname}' not found (looked for {path})"))
     return path
 
 
@@ -238,7 +261,14 @@ class Parser:
                     got = _show(tokens[i + 1]) if i + 1 < len(tokens) else "the end of the file"
                     raise error_at(tok.pos, f"{tok.text} needs a quoted string, got {got}")
                 fname = tokens[i + 1].text
-                target = self._locate(fname, path, tok.pos)
+                try:
+                    target = self._locate(fname, path, tok.pos)
+                except MissingFile as exc:
+                    if not SKIP_MISSING_FILES:
+                        raise
+                    skipped_missing(exc)
+                    i += 2
+                    continue
                 if target.resolve() in stack + [path.resolve()]:
                     raise error_at(tok.pos, f"{tok.text} '{fname}': the file includes itself")
                 yield from self._tokens(target, str(target), stack + [path.resolve()])
@@ -252,7 +282,7 @@ class Parser:
             candidate = base / fname
             if candidate.is_file():
                 return candidate
-        raise error_at(pos, f"file '{fname}' not found (looked for {path.parent / fname})")
+        raise MissingFile(one_line_at(pos, f"file '{fname}' not found (looked for {path.parent / fname})"))
 
     def _directive(self, tokens, i):
         head = tokens[i]

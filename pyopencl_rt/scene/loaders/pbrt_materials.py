@@ -23,7 +23,7 @@ import numpy as np
 
 from ..model import Material
 from .builder import blackbody_rgb, error_at
-from .pbrt import pbrt_file
+from .pbrt import MissingFile, one_line_at, pbrt_file
 
 METALS = {"Au": "gold", "Ag": "silver", "Cu": "copper", "Al": "aluminium"}
 GLASSES = {"glass-BK7": 1.5168, "glass-BAF10": 1.6700, "glass-FK51A": 1.4866, "glass-LASF9": 1.8503,
@@ -110,7 +110,8 @@ def spectrum_file(imp, p):
     if path.is_file():
         return path
     if "/" in fname or "\\" in fname or fname.lower().endswith((".spd", ".txt", ".csv")):
-        raise error_at(p.pos, f'"spectrum {p.name}": spectrum file \'{fname}\' not found (looked for {path})')
+        raise MissingFile(one_line_at(p.pos, f'"spectrum {p.name}": spectrum file \'{fname}\' not found '
+                                      f'(looked for {path})'))
     return None
 
 

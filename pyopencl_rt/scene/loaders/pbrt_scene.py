@@ -20,7 +20,8 @@ from ..model import Material, PixelFilter, RenderSettings
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh,
                       transform_points, translate)
 from .instancing import add_instance
-from .pbrt import Directive, Parser
+from . import pbrt as _pbrt
+from .pbrt import Directive, MissingFile, Parser
 from .pbrt_lights import light_source
 from .pbrt_materials import MaterialMapper, spectrum_rgb
 
@@ -101,7 +102,13 @@ class _Importer:
             if handler is None:
                 self.warn(d.pos, f"{d.name}: not supported; ignored")
                 continue
-            handler(d)
+            try:
+                handler(d)
+            except MissingFile as exc:
+                if not _pbrt.SKIP_MISSING_FILES:
+                    raise
+                _pbrt.skipped_missing(exc)
+                continue
             if d.name not in DEFERRED:
                 self.unused(d)
         if self.stack:
