@@ -334,6 +334,9 @@ class RenderSettings:
     # probability sampling_weight / sum (Mitsuba 3's rule, pbrt-v4's "uniform"), an emitter's share
     # split over its triangles by area
     light_sampler: str = "power"
+    # pbrt-v4's Film "maxcomponentvalue": each camera sample's radiance scaled down so that its
+    # largest CIE XYZ component (pbrt's cie1931 sensor RGB) is at most this; None: no clamp
+    max_component_value: float | None = None
 
 
 @dataclass

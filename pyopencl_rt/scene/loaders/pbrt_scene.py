@@ -283,6 +283,13 @@ class _Importer:
             if whitebalance != 0.0:
                 self.warn(film.params.items["whitebalance"].pos,
                           f'Film "float whitebalance" {whitebalance:g}: not supported; ignored')
+            if "maxcomponentvalue" in film.params:
+                limit = film.params.float("maxcomponentvalue")
+                if not limit > 0:
+                    raise error_at(film.params.items["maxcomponentvalue"].pos,
+                                   f'Film "float maxcomponentvalue" must be > 0, got {limit:g}')
+                if math.isfinite(limit):  # pbrt's default is infinity: no clamp
+                    st.max_component_value = limit
             sensor = film.params.string("sensor", "cie1931")
             if sensor != "cie1931":
                 self.warn(film.params.items["sensor"].pos, f"Film sensor '{sensor}': rendered as cie1931")

@@ -1,0 +1,79 @@
+"""pbrt-v4 Film parameters of issue 37: maxcomponentvalue (a per-sample clamp in pbrt's sensor
+space) and whitebalance."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pyopencl_rt.scene.loaders import SceneError, load_scene
+
+# Rec. 709 linear RGB -> CIE XYZ (D65), for pbrt's cie1931 sensor
+RGB_TO_XYZ = np.array([[0.412453, 0.357580, 0.180423],
+                       [0.212671, 0.715160, 0.072169],
+                       [0.019334, 0.119193, 0.950227]])
+
+# an orthographic view of 9 x 9 pixels over [-1, 1]^2; an emitter covers x < 0 (4.5 columns): the
+# middle column is half covered
+SCENE = """LookAt 0 0 -1  0 0 0  0 1 0
+Camera "orthographic"
+Film "rgb" "integer xresolution" 9 "integer yresolution" 9 {film}
+PixelFilter "box"
+Sampler "independent" "integer pixelsamples" 64
+Integrator "path" "integer maxdepth" 1
+WorldBegin
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [{L}] "bool twosided" true
+  Material "diffuse" "rgb reflectance" [0 0 0]
+  Shape "trianglemesh" "point3 P" [-10 -10 1  0 -10 1  0 10 1  -10 10 1] "integer indices" [0 1 2 0 2 3]
+AttributeEnd
+"""
+
+
+def render(tmp_path, film="", L="100 100 100", name="s.pbrt"):
+    import pyopencl_rt as rt
+
+    path = tmp_path / name
+    path.write_text(SCENE.format(film=film, L=L))
+    scene = load_scene(path)
+    return rt.render_full(scene, spp=64, width=9, height=9, device="cpu", seed=3).image.astype(np.float64)
+
+
+def lit_columns(image):
+    """The four columns wholly on the emitter (mirroring aside: the brighter side), the half
+    covered middle one, and the four dark ones."""
+    left, right = image[:, :4].mean(), image[:, 5:].mean()
+    lit, dark = (slice(0, 4), slice(5, 9)) if left > right else (slice(5, 9), slice(0, 4))
+    return image[:, lit], image[:, 4], image[:, dark]
+
+
+@pytest.mark.parametrize("L", ["100 100 100", "100 10 1"])
+def test_maxcomponentvalue_clamps_each_sample_in_xyz(tmp_path, L):
+    free = render(tmp_path, L=L, name="free.pbrt")
+    clamped = render(tmp_path, film='"float maxcomponentvalue" 20', L=L, name="clamped.pbrt")
+    lit_free, _, dark = lit_columns(free)
+    rgb = lit_free.reshape(-1, 3).mean(0)  # the emitter's radiance as we render it
+    assert np.allclose(lit_free, rgb, rtol=1e-5)
+    m = (RGB_TO_XYZ @ rgb).max()
+    assert m > 20
+    expect = rgb * 20 / m  # scaled, hue kept: the largest of X, Y, Z becomes 20
+    lit, middle, dark = lit_columns(clamped)
+    assert np.allclose(lit, expect, rtol=1e-4)
+    assert np.allclose((RGB_TO_XYZ @ lit.reshape(-1, 3).T).max(0), 20, rtol=1e-4)
+    assert np.all(dark == 0)
+    # per sample, not per pixel: the half-covered column averages clamped samples with black ones,
+    # about half of expect (a clamp of the pixel's mean would give expect itself)
+    assert np.all(np.abs(middle.mean(0) / expect - 0.5) < 0.2)
+
+
+def test_maxcomponentvalue_leaves_dim_samples_alone(tmp_path):
+    free = render(tmp_path, L="1 1 1", name="free.pbrt")
+    clamped = render(tmp_path, film='"float maxcomponentvalue" 20', L="1 1 1", name="clamped.pbrt")
+    assert np.array_equal(free, clamped)
+
+
+@pytest.mark.parametrize("value", ["0", "-1"])
+def test_bad_maxcomponentvalue_is_one_error_line(tmp_path, value):
+    path = tmp_path / "s.pbrt"
+    path.write_text(SCENE.format(film=f'"float maxcomponentvalue" {value}', L="1 1 1"))
+    with pytest.raises(SceneError, match=rf':3: Film "float maxcomponentvalue" must be > 0, got {value}$'):
+        load_scene(path)
