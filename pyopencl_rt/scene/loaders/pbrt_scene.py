@@ -97,23 +97,43 @@ class _Importer:
         self.b.warn(pos, what)
 
     def run(self) -> None:
+        # pbrt-v4 creates the named materials once the whole file is read, so a shape may name one
+        # that a MakeNamedMaterial further down defines: such shapes wait, with their graphics
+        # state, until the end (outside ObjectBegin; inside, the name must be defined first)
+        waiting = []
         for d in Parser(self.path, self.name).directives():
             handler = getattr(self, "d_" + d.name, None)
             if handler is None:
                 self.warn(d.pos, f"{d.name}: not supported; ignored")
                 continue
-            try:
-                handler(d)
-            except MissingFile as exc:
-                if not _pbrt.SKIP_MISSING_FILES:
-                    raise
-                _pbrt.skipped_missing(exc)
+            if d.name == "Shape" and self._named_later() and self.b.recording is None:
+                waiting.append((d, dataclasses.replace(self.state, ctm=self.state.ctm.copy())))
                 continue
-            if d.name not in DEFERRED:
-                self.unused(d)
+            self._handle(handler, d)
+        current = self.state
+        for d, state in waiting:
+            self.state = state
+            self._handle(self.d_Shape, d)
+        self.state = current
         if self.stack:
             self.warn(self.name, f"{len(self.stack)} AttributeBegin without AttributeEnd")
         self.finish_options()
+
+    def _handle(self, handler, d) -> None:
+        try:
+            handler(d)
+        except MissingFile as exc:
+            if not _pbrt.SKIP_MISSING_FILES:
+                raise
+            _pbrt.skipped_missing(exc)
+            return
+        if d.name not in DEFERRED:
+            self.unused(d)
+
+    def _named_later(self) -> bool:
+        """Whether the material in effect is a NamedMaterial not (yet) defined."""
+        mat = self.state.material
+        return isinstance(mat, tuple) and mat[1] not in self.materials.named
 
     def unused(self, d: Directive) -> None:
         for p in d.params.unused():

@@ -1,0 +1,49 @@
+"""pbrt-v4 loader behaviour that the public scenes (issue 37) need: named materials defined after
+the shapes that use them."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pyopencl_rt.scene.loaders import SceneError
+
+from harness import load_warned as load
+
+TRIANGLE = 'Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0]'
+
+
+def world(tmp_path, body):
+    path = tmp_path / "s.pbrt"
+    path.write_text(f"WorldBegin\n{body}\n")
+    return load(path)
+
+
+def test_a_named_material_defined_after_its_shapes(tmp_path):
+    """pbrt-v4 creates named materials after the whole file is read (contemporary-bathroom names
+    "light" before Include "materials.pbrt"): the shape gets the material, with the transform
+    and area light in effect where it stood."""
+    s, w = world(tmp_path, f"""
+AttributeBegin
+  NamedMaterial "later"
+  Translate 5 0 0
+  AreaLightSource "diffuse" "rgb L" [2 3 4]
+  {TRIANGLE}
+AttributeEnd
+Material "diffuse" "rgb reflectance" [0.1 0.1 0.1]
+Translate 0 7 0
+{TRIANGLE}
+MakeNamedMaterial "later" "string type" "conductor" "rgb reflectance" [0.9 0.8 0.7]""")
+    assert w == [] and len(s.faces) == 2
+    mats = [s.materials[i] for i in s.face_materials]
+    xs = s.vertices.astype(np.float64).reshape(-1, 3, 3)[:, 0]
+    named = int(np.argmin(np.abs(xs[:, 0] - 5)))  # the waiting shape, at x = 5
+    other = 1 - named
+    assert np.allclose(xs[named], [5, 0, 0]) and np.allclose(xs[other], [0, 7, 0])
+    assert mats[named].type == "conductor" and mats[named].f0 == (0.9, 0.8, 0.7)
+    assert mats[named].is_emissive and tuple(mats[named].emission) != (0, 0, 0)
+    assert mats[other].type == "diffuse" and not mats[other].is_emissive
+
+
+def test_a_named_material_never_defined_is_still_an_error(tmp_path):
+    with pytest.raises(SceneError, match=r":2: NamedMaterial: no material named 'nothing'"):
+        world(tmp_path, f'NamedMaterial "nothing"\n{TRIANGLE}\nMakeNamedMaterial "other" "string type" "diffuse"')
