@@ -77,3 +77,54 @@ def test_bad_maxcomponentvalue_is_one_error_line(tmp_path, value):
     path.write_text(SCENE.format(film=f'"float maxcomponentvalue" {value}', L="1 1 1"))
     with pytest.raises(SceneError, match=rf':3: Film "float maxcomponentvalue" must be > 0, got {value}$'):
         load_scene(path)
+
+
+# -- whitebalance ------------------------------------------------------------------------------------
+
+def neutral_error(rgb):
+    rgb = np.asarray(rgb, np.float64)
+    return float(np.abs(rgb / rgb.mean() - 1).max())
+
+
+def test_white_balance_maps_the_illuminant_to_white():
+    """Balanced for T, a white lit by the CIE daylight of T comes out neutral: D50 (x, y) =
+    (0.3457, 0.3585), the D series at 5003 K, which pbrt-v4 asks for as 5000 (its cct is
+    T x 1.4388 / 1.4380)."""
+    from pyopencl_rt.scene.loaders.pbrt_film import white_balance_matrix
+
+    x, y = 0.3457, 0.3585
+    d50 = np.linalg.inv(RGB_TO_XYZ) @ np.array([x / y, 1.0, (1 - x - y) / y])
+    assert neutral_error(d50) > 0.1  # warm before
+    assert neutral_error(white_balance_matrix(5000) @ d50) < 2e-3
+    # balanced for D65 (6504 K) nothing changes; a warmer balance makes a white bluer
+    assert np.allclose(white_balance_matrix(6500), np.eye(3), atol=2e-3)
+    cool = white_balance_matrix(3200) @ np.ones(3)
+    assert cool[2] > cool[1] > cool[0]
+
+
+def test_below_4000_kelvin_the_source_is_a_black_body():
+    """pbrt-v4's D(T) is a black body below a cct of 4000 K: the Planckian locus at 3000 K is
+    (0.4369, 0.4041) (CIE 15)."""
+    from pyopencl_rt.scene.loaders.pbrt_film import daylight_xy
+
+    x, y = daylight_xy(3000 * 1.4380 / 1.4388)
+    assert abs(x - 0.4369) < 1e-3 and abs(y - 0.4041) < 1e-3
+    x, y = daylight_xy(6504 * 1.4380 / 1.4388)  # D65, the D series at 6504 K: (0.3127, 0.3290)
+    assert abs(x - 0.3127) < 1e-3 and abs(y - 0.3290) < 1e-3
+
+
+def test_white_balance_is_applied_to_the_rendered_image(tmp_path):
+    from pyopencl_rt.scene.loaders.pbrt_film import white_balance_matrix
+
+    free = render(tmp_path, L="3 2 1", name="free.pbrt")
+    balanced = render(tmp_path, film='"float whitebalance" 4000', L="3 2 1", name="wb.pbrt")
+    expect = free @ white_balance_matrix(4000).T
+    assert free.max() > 1 and np.allclose(balanced, expect, rtol=1e-5, atol=1e-6)
+    assert not np.allclose(balanced, free, rtol=1e-2)
+
+
+def test_negative_white_balance_is_one_error_line(tmp_path):
+    path = tmp_path / "s.pbrt"
+    path.write_text(SCENE.format(film='"float whitebalance" -5', L="1 1 1"))
+    with pytest.raises(SceneError, match=r':3: Film "float whitebalance" must be 0 \(none\) or a temperature > 0'):
+        load_scene(path)

@@ -300,9 +300,13 @@ class _Importer:
             if st.width < 1 or st.height < 1:
                 raise error_at(film.pos, f"Film: impossible resolution {st.width}x{st.height}")
             whitebalance = film.params.float("whitebalance", 0.0)
-            if whitebalance != 0.0:
-                self.warn(film.params.items["whitebalance"].pos,
-                          f'Film "float whitebalance" {whitebalance:g}: not supported; ignored')
+            if whitebalance < 0.0 or not math.isfinite(whitebalance):
+                raise error_at(film.params.items["whitebalance"].pos,
+                               f'Film "float whitebalance" must be 0 (none) or a temperature > 0, got {whitebalance:g}')
+            if whitebalance > 0.0:  # pbrt-v4: the cie1931 sensor's white balance (pbrt_film.py)
+                from .pbrt_film import white_balance_matrix
+
+                st.color_matrix = tuple(float(v) for v in white_balance_matrix(whitebalance).ravel())
             if "maxcomponentvalue" in film.params:
                 limit = film.params.float("maxcomponentvalue")
                 if not limit > 0:
