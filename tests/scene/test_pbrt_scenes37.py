@@ -47,3 +47,13 @@ MakeNamedMaterial "later" "string type" "conductor" "rgb reflectance" [0.9 0.8 0
 def test_a_named_material_never_defined_is_still_an_error(tmp_path):
     with pytest.raises(SceneError, match=r":2: NamedMaterial: no material named 'nothing'"):
         world(tmp_path, f'NamedMaterial "nothing"\n{TRIANGLE}\nMakeNamedMaterial "other" "string type" "diffuse"')
+
+
+def test_a_missing_normal_map_is_a_missing_file(tmp_path):
+    """One error line that says the file is not there (the bench's "missing" verdict and its
+    probe rely on it), as for the other files a scene names."""
+    from pyopencl_rt.scene.loaders.pbrt import MissingFile
+
+    with pytest.raises(MissingFile, match=r":2: Material \"diffuse\": normal map: file 'bump.png' not found "
+                                          r"\(looked for .*bump.png\)$"):
+        world(tmp_path, f'Material "diffuse" "string normalmap" "bump.png"\n{TRIANGLE}')

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..model import Material
 from .builder import blackbody_rgb, error_at
-from .pbrt import MissingFile, one_line_at, pbrt_file
+from .pbrt import MissingFile, one_line_at, pbrt_file, pbrt_path
 
 METALS = {"Au": "gold", "Ag": "silver", "Cu": "copper", "Al": "aluminium"}
 GLASSES = {"glass-BK7": 1.5168, "glass-BAF10": 1.6700, "glass-FK51A": 1.4866, "glass-LASF9": 1.8503,
@@ -412,7 +412,7 @@ class MaterialMapper:
         if fname:  # pbrt-v4's NormalMap(): linear RGB, the shading frame of dp/du, no other rule
             from ..textures import texture_from_image
 
-            path = imp.path.parent / fname
+            path = pbrt_path(p.items["normalmap"].pos, imp.path.parent, fname, f"{what}: normal map")
             try:
                 mat.normal_texture = texture_from_image(path, srgb=False)
             except Exception as exc:
