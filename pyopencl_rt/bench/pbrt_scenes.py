@@ -113,7 +113,7 @@ def feature_of(message: str) -> str:
     if typed:
         kind = text[typed.start():].split(" ", 1)[0].capitalize()
         return f'{kind} "{typed.group(1)}"'
-    texture = re.match(r'Texture "[^"]*" "([^"]*)": texture class', text)
+    texture = re.search(r'texture class "([^"]*)"', text)
     if texture:
         return f'Texture "{texture.group(1)}"'
     param = _FEATURES[1].search(text)
@@ -277,7 +277,7 @@ def format_row(row, root: Path, width: int) -> str:
     note = row["reason"] or ""
     probe = row.get("probe")
     if probe:
-        found = ([f"refused: {probe['feature'] or probe['reason']}"] if probe["status"] != "ok" else []) + [
+        found = ([f"{probe['status']}: {probe['feature'] or probe['reason']}"] if probe["status"] != "ok" else []) + [
             f"defect: {feature_of(d)}" for d in probe["defects"]]
         note = (f"{len(probe['skipped'])} file(s) missing, e.g. {strip_position(note)}; behind them: "
                 + ("; ".join(found) if found else "nothing refused"))

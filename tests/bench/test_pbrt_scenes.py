@@ -88,7 +88,7 @@ def test_classify():
     ('"float whitebalance" of Film "rgb": not supported; ignored', '"float whitebalance" of Film "rgb"'),
     ('LightSource "goniometric": not supported; ignored', 'LightSource "goniometric"'),
     ('MakeNamedMedium "smoke": medium type "nanovdb" is not supported; rendered as vacuum', 'Medium "nanovdb"'),
-    ('Texture "t" "ptex": texture class not supported; using white', 'Texture "ptex"'),
+    ('Texture "t" "ptex": texture class "ptex" is not supported', 'Texture "ptex"'),
 ])
 def test_feature_names(message, feature):
     assert ps.feature_of(f"a/b.pbrt:12: {message}") == feature

@@ -57,3 +57,41 @@ def test_a_missing_normal_map_is_a_missing_file(tmp_path):
     with pytest.raises(MissingFile, match=r":2: Material \"diffuse\": normal map: file 'bump.png' not found "
                                           r"\(looked for .*bump.png\)$"):
         world(tmp_path, f'Material "diffuse" "string normalmap" "bump.png"\n{TRIANGLE}')
+
+
+@pytest.mark.parametrize("cls", ["ptex", "wrinkled", "marble"])
+def test_an_unsupported_texture_class_is_one_error_line(tmp_path, cls):
+    with pytest.raises(SceneError, match=rf':2: Texture "t" "{cls}": texture class "{cls}" is not supported$'):
+        world(tmp_path, f'Texture "t" "spectrum" "{cls}"\nMaterial "diffuse" "texture reflectance" "t"\n{TRIANGLE}')
+
+
+def test_the_bench_probe_skips_missing_files_and_keeps_going(tmp_path, monkeypatch):
+    """The bench's probe (SKIP_MISSING_FILES, never a render's): an Include, an image texture and
+    a plymesh that are not there are skipped with a warning each, a texture becomes a grey stand-in
+    so the materials naming it resolve, and a named material never defined (it was in a missing
+    file) leaves its shape out; what the rest of the file asks for is still read."""
+    import warnings
+
+    from pyopencl_rt.scene.loaders import load_scene, pbrt
+
+    monkeypatch.setattr(pbrt, "SKIP_MISSING_FILES", True)
+    path = tmp_path / "s.pbrt"
+    path.write_text(f"""WorldBegin
+Include "materials.pbrt"
+Texture "t" "spectrum" "imagemap" "string filename" "gone.png"
+Material "diffuse" "texture reflectance" "t"
+Shape "plymesh" "string filename" "gone.ply"
+{TRIANGLE}
+NamedMaterial "from-the-missing-file"
+{TRIANGLE}
+""")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        scene = load_scene(path)
+    skipped = [str(w.message) for w in caught if str(w.message).startswith(pbrt.MISSING_SKIPPED)]
+    assert len(skipped) == 4 and all(n in " ".join(skipped) for n in ("materials.pbrt", "gone.png", "gone.ply",
+                                                                           "from-the-missing-file"))
+    assert len(scene.faces) == 1 and scene.materials[scene.face_materials[0]].albedo == (0.5, 0.5, 0.5)
+    monkeypatch.setattr(pbrt, "SKIP_MISSING_FILES", False)
+    with pytest.raises(pbrt.MissingFile, match="materials.pbrt"):  # a render never skips
+        load_scene(path)
