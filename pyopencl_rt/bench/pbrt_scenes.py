@@ -225,6 +225,8 @@ def probe_scene(scene: Path, timeout=300.0) -> dict:
 
     row = run_scene(scene, timeout=timeout, command=probe_command(scene))
     skipped = [w[len(MISSING_SKIPPED):] for w in row["defects"] + row["warnings"] if w.startswith(MISSING_SKIPPED)]
+    if skipped and row["status"] == "refused" and "has no shapes that we can render" in row["reason"]:
+        row.update(status="ok", feature=None, reason="nothing left to render without the missing files")
     return {"status": row["status"], "reason": row["reason"], "feature": row["feature"], "skipped": skipped,
             "defects": [w for w in row["defects"] if not w.startswith(MISSING_SKIPPED)],
             "warnings": [w for w in row["warnings"] if not w.startswith(MISSING_SKIPPED)]}
