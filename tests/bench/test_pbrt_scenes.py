@@ -87,7 +87,7 @@ def test_classify():
     ('Material "measured": material type "measured" is not supported', 'Material "measured"'),
     ('"float whitebalance" of Film "rgb": not supported; ignored', '"float whitebalance" of Film "rgb"'),
     ('LightSource "goniometric": not supported; ignored', 'LightSource "goniometric"'),
-    ('MakeNamedMedium "smoke": medium type "nanovdb" is not supported; rendered as vacuum', 'Medium "nanovdb"'),
+    ('MakeNamedMedium "smoke": medium type "nanovdb" is not supported', 'Medium "nanovdb"'),
     ('Texture "t" "ptex": texture class "ptex" is not supported', 'Texture "ptex"'),
 ])
 def test_feature_names(message, feature):

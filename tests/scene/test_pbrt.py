@@ -421,7 +421,6 @@ def test_unsupported_directives_and_parameters_warn(tmp_path):
 ColorSpace "aces2065-1"
 Camera "realistic"
 WorldBegin
-MakeNamedMedium "fog" "string type" "nanovdb"
 Attribute "shape" "float radius" 2
 Material "diffuse" "float sigma" 20
 Shape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0]
@@ -432,7 +431,6 @@ TransformTimes 0 1
     assert len(s.faces) == 1
     expect = [("Option", 'Option "bool disablepixeljitter": not supported; ignored'),
               ("ColorSpace", "ColorSpace 'aces2065-1': colours are read as linear sRGB"),
-              ("MakeNamedMedium", 'MakeNamedMedium "fog": medium type "nanovdb" is not supported; rendered as vacuum'),
               ("Attribute", 'Attribute "shape": default parameters are not supported; ignored'),
               ("sigma", '"float sigma" of Material "diffuse": not supported; ignored'),
               ("goniometric", 'LightSource "goniometric": not supported; ignored'),

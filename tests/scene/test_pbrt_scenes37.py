@@ -95,3 +95,10 @@ NamedMaterial "from-the-missing-file"
     monkeypatch.setattr(pbrt, "SKIP_MISSING_FILES", False)
     with pytest.raises(pbrt.MissingFile, match="materials.pbrt"):  # a render never skips
         load_scene(path)
+
+
+@pytest.mark.parametrize("mtype", ["nanovdb", "cloud", "rgbgrid"])
+def test_an_unsupported_medium_type_is_one_error_line(tmp_path, mtype):
+    """Never vacuum in its place (disney-cloud rendered an empty sky so)."""
+    with pytest.raises(SceneError, match=rf':2: MakeNamedMedium "m": medium type "{mtype}" is not supported$'):
+        world(tmp_path, f'MakeNamedMedium "m" "string type" "{mtype}"\n{TRIANGLE}')
