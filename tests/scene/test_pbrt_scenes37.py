@@ -102,3 +102,18 @@ def test_an_unsupported_medium_type_is_one_error_line(tmp_path, mtype):
     """Never vacuum in its place (disney-cloud rendered an empty sky so)."""
     with pytest.raises(SceneError, match=rf':2: MakeNamedMedium "m": medium type "{mtype}" is not supported$'):
         world(tmp_path, f'MakeNamedMedium "m" "string type" "{mtype}"\n{TRIANGLE}')
+
+
+def test_imagemap_invert_after_scale(tmp_path):
+    """pbrt-v4's ImageTexture: v = scale x lookup, then max(0, 1 - v) when inverted (kroken's
+    roughness maps).  Linear 8-bit texels 0, 128, 255 at scale 0.5 become 1, 1 - 64/255, 0.5."""
+    from PIL import Image
+
+    Image.fromarray(np.array([[[0, 0, 0], [128, 128, 128], [255, 255, 255]]], np.uint8)).save(tmp_path / "t.png")
+    s, w = world(tmp_path, f"""Texture "t" "spectrum" "imagemap" "string filename" "t.png" "string encoding" "linear"
+    "float scale" 0.5 "bool invert" true
+Material "diffuse" "texture reflectance" "t"
+{TRIANGLE}""")
+    assert w == []
+    texels = s.materials[s.face_materials[0]].base_texture.texels[0, :, :3]
+    assert np.allclose(texels, np.array([1.0, 1.0 - 0.5 * 128 / 255, 0.5])[:, None], atol=1e-6)

@@ -181,6 +181,15 @@ def equal_area_sphere_to_square(d):
     return (u + 1) / 2, (v + 1) / 2
 
 
+def _inverted(tex, invert: bool):
+    """pbrt-v4's imagemap "invert": max(0, 1 - v) of the scaled value.  Applied to the linear
+    texels, which filtering then mixes: the same as pbrt's inversion of the filtered value where the
+    texels are at most 1 (above, pbrt clamps the filtered value and we each texel)."""
+    if invert:
+        tex.texels[..., :3] = np.maximum(0.0, 1.0 - tex.texels[..., :3])
+    return tex
+
+
 class MaterialMapper:
     def __init__(self, importer):
         self.imp = importer
@@ -306,15 +315,14 @@ class MaterialMapper:
         if wrap not in ("repeat", "clamp"):
             self.imp.warn(p.items["wrap"].pos, f'Texture "{d.args[0]}": wrap "{wrap}": we repeat')
         lookup["wrap"] = "clamp" if wrap == "clamp" else "repeat"
-        if p.boolean("invert", False):
-            self.imp.warn(p.items["invert"].pos, f'Texture "{d.args[0]}": invert is not supported; ignored')
+        invert = bool(p.boolean("invert", False))
         encoding = p.string("encoding", "sRGB")
         s = p.float("scale", 1.0)
         where = f'{d.pos}: Texture "{d.args[0]}"'
         if path.suffix.lower() in (".exr", ".pfm"):
             from .images import read_hdr_image
 
-            return texture_from_array(read_hdr_image(path, where) * s, name=fname).with_lookup(**lookup)
+            return _inverted(texture_from_array(read_hdr_image(path, where) * s, name=fname), invert).with_lookup(**lookup)
         if encoding not in ("sRGB", "linear"):
             self.imp.warn(p.items["encoding"].pos, f'Texture "{d.args[0]}": encoding "{encoding}" read as sRGB')
         try:
@@ -323,7 +331,7 @@ class MaterialMapper:
             raise error_at(where, f"cannot read '{fname}' ({type(exc).__name__}: {exc})") from None
         if s != 1.0:
             tex.texels[..., :3] *= s
-        return tex.with_lookup(**lookup)
+        return _inverted(tex, invert).with_lookup(**lookup)
 
     def _checkerboard(self, d):
         from ..textures import texture_from_array
