@@ -1,4 +1,7 @@
-"""pbrt-v4's Film "whitebalance": the colour matrix by which pbrt's film turns what its sensor
+"""pbrt-v4's Film directive (:func:`film_settings`: resolution, maxcomponentvalue, whitebalance,
+sensor) and its imaging ratio (:func:`imaging_ratio`).
+
+Film "whitebalance" is the colour matrix by which pbrt's film turns what its sensor
 recorded into the output colour space, as a 3 x 3 matrix on our linear sRGB image.
 
 pbrt-v4's default sensor (``cie1931``) records CIE XYZ.  With ``whitebalance`` T > 0 its film maps
@@ -20,7 +23,11 @@ from its D65 spectrum.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from .builder import error_at
 
 # linear sRGB (Rec. 709 primaries, D65) -> CIE XYZ, and back
 XYZ_FROM_RGB = np.array([[0.412453, 0.357580, 0.180423],
@@ -82,3 +89,54 @@ def white_balance_matrix(temperature: float) -> np.ndarray:
     """The 3 x 3 matrix M with which pbrt-v4's image is M . (our linear sRGB image) for Film
     "whitebalance" ``temperature`` and the cie1931 sensor."""
     return RGB_FROM_XYZ @ white_balance_xyz(daylight_xy(temperature), d65_xy()) @ XYZ_FROM_RGB
+
+
+def film_settings(imp, film, st) -> None:
+    """The Film directive's resolution, white balance (st.color_matrix), maxcomponentvalue
+    (st.max_component_value) and sensor into the RenderSettings ``st``; ``imp``: the importer
+    (warnings, unused parameters)."""
+    if film.args[0] != "rgb":
+        imp.warn(film.pos, f'Film "{film.args[0]}": read as an "rgb" film')
+    st.width = film.params.integer("xresolution", 1280)
+    st.height = film.params.integer("yresolution", 720)
+    if st.width < 1 or st.height < 1:
+        raise error_at(film.pos, f"Film: impossible resolution {st.width}x{st.height}")
+    whitebalance = film.params.float("whitebalance", 0.0)
+    if whitebalance < 0.0 or not math.isfinite(whitebalance):
+        raise error_at(film.params.items["whitebalance"].pos,
+                       f'Film "float whitebalance" must be 0 (none) or a temperature > 0, got {whitebalance:g}')
+    if whitebalance > 0.0:  # pbrt-v4: the cie1931 sensor's white balance (pbrt_film.py)
+        st.color_matrix = tuple(float(v) for v in white_balance_matrix(whitebalance).ravel())
+    if "maxcomponentvalue" in film.params:
+        limit = film.params.float("maxcomponentvalue")
+        if not limit > 0:
+            raise error_at(film.params.items["maxcomponentvalue"].pos,
+                           f'Film "float maxcomponentvalue" must be > 0, got {limit:g}')
+        if math.isfinite(limit):  # pbrt's default is infinity: no clamp
+            st.max_component_value = limit
+    sensor = film.params.string("sensor", "cie1931")
+    if sensor != "cie1931":
+        imp.warn(film.params.items["sensor"].pos, f"Film sensor '{sensor}': rendered as cie1931")
+    imp.unused(film)
+
+
+def imaging_ratio(cam, film) -> float:
+    """pbrt-v4's PixelSensor imaging ratio, exposure time x ISO / 100 (film.cpp), by which its RGB
+    film scales what it records: the exposure time is the camera's shutterclose - shutteropen
+    (defaults 1 and 0; scene.cpp), or the Film's "exposuretime" where one is given.  ``cam``: the
+    Camera directive (or None), ``film``: the Film directive (or None)."""
+    exposure = 1.0
+    if cam is not None:
+        opened, closed = cam.params.float("shutteropen", 0.0), cam.params.float("shutterclose", 1.0)
+        exposure = closed - opened
+        if not exposure > 0:
+            raise error_at(cam.pos, f"Camera: shutteropen {opened:g} and shutterclose {closed:g}: the shutter "
+                                    "does not open (as pbrt-v4, an error)")
+    if film is None:
+        return exposure
+    exposure = film.params.float("exposuretime", exposure)
+    iso = film.params.float("iso", 100.0)
+    for key, value in (("exposuretime", exposure), ("iso", iso)):
+        if key in film.params and not value > 0:
+            raise error_at(film.params.items[key].pos, f'Film "float {key}" must be > 0, got {value:g}')
+    return exposure * iso / 100.0

@@ -22,6 +22,7 @@ from .builder import (EnvMap, SceneBuilder, camera_from_matrix, error_at, rotate
 from .instancing import add_instance
 from . import pbrt as _pbrt
 from .pbrt import Directive, MissingFile, Parser
+from .pbrt_film import film_settings, imaging_ratio
 from .pbrt_lights import light_source
 from .pbrt_materials import MaterialMapper, spectrum_rgb
 
@@ -295,33 +296,9 @@ class _Importer:
         st = RenderSettings(width=1280, height=720, spp=16, max_depth=6, rr_depth=2)
         self.b.settings = st
         film = self.options.get("Film")
-        ratio = self.imaging_ratio(film)
+        ratio = imaging_ratio(self.camera[0] if self.camera is not None else None, film)
         if film is not None:
-            if film.args[0] != "rgb":
-                self.warn(film.pos, f'Film "{film.args[0]}": read as an "rgb" film')
-            st.width = film.params.integer("xresolution", 1280)
-            st.height = film.params.integer("yresolution", 720)
-            if st.width < 1 or st.height < 1:
-                raise error_at(film.pos, f"Film: impossible resolution {st.width}x{st.height}")
-            whitebalance = film.params.float("whitebalance", 0.0)
-            if whitebalance < 0.0 or not math.isfinite(whitebalance):
-                raise error_at(film.params.items["whitebalance"].pos,
-                               f'Film "float whitebalance" must be 0 (none) or a temperature > 0, got {whitebalance:g}')
-            if whitebalance > 0.0:  # pbrt-v4: the cie1931 sensor's white balance (pbrt_film.py)
-                from .pbrt_film import white_balance_matrix
-
-                st.color_matrix = tuple(float(v) for v in white_balance_matrix(whitebalance).ravel())
-            if "maxcomponentvalue" in film.params:
-                limit = film.params.float("maxcomponentvalue")
-                if not limit > 0:
-                    raise error_at(film.params.items["maxcomponentvalue"].pos,
-                                   f'Film "float maxcomponentvalue" must be > 0, got {limit:g}')
-                if math.isfinite(limit):  # pbrt's default is infinity: no clamp
-                    st.max_component_value = limit
-            sensor = film.params.string("sensor", "cie1931")
-            if sensor != "cie1931":
-                self.warn(film.params.items["sensor"].pos, f"Film sensor '{sensor}': rendered as cie1931")
-            self.unused(film)
+            film_settings(self, film, st)
         sampler = self.options.get("Sampler")
         if sampler is not None:
             st.spp = sampler.params.integer("pixelsamples", 16)
@@ -352,27 +329,6 @@ class _Importer:
         self.expose(ratio)
         if self.camera is not None:
             self.finish_camera(*self.camera)
-
-    def imaging_ratio(self, film: Directive | None) -> float:
-        """pbrt-v4's PixelSensor imaging ratio, exposure time x ISO / 100 (film.cpp), by which its RGB
-        film scales what it records: the exposure time is the camera's shutterclose - shutteropen
-        (defaults 1 and 0; scene.cpp), or the Film's "exposuretime" where one is given."""
-        exposure = 1.0
-        if self.camera is not None:
-            cam = self.camera[0]
-            opened, closed = cam.params.float("shutteropen", 0.0), cam.params.float("shutterclose", 1.0)
-            exposure = closed - opened
-            if not exposure > 0:
-                raise error_at(cam.pos, f"Camera: shutteropen {opened:g} and shutterclose {closed:g}: the shutter "
-                                        "does not open (as pbrt-v4, an error)")
-        if film is None:
-            return exposure
-        exposure = film.params.float("exposuretime", exposure)
-        iso = film.params.float("iso", 100.0)
-        for key, value in (("exposuretime", exposure), ("iso", iso)):
-            if key in film.params and not value > 0:
-                raise error_at(film.params.items[key].pos, f'Film "float {key}" must be > 0, got {value:g}')
-        return exposure * iso / 100.0
 
     def expose(self, ratio: float) -> None:
         """Every emitter's radiance (area lights, lights, the environment) times ``ratio``: for our
