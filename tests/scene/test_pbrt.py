@@ -151,9 +151,11 @@ def test_camera_film_sampler_integrator(tmp_path):
     assert (s.camera.aperture_radius, s.camera.focus_distance) == (0.1, 3)
     s, _ = options("")
     assert (s.settings.width, s.settings.height, s.settings.spp, s.settings.max_depth) == (1280, 720, 16, 6)
-    s, w = options('PixelFilter "gaussian" Integrator "bdpt" Film "gbuffer"')
-    assert [x.split(": ", 1)[1] for x in w] == ['Film "gbuffer": read as an "rgb" film',
+    s, w = options('PixelFilter "gaussian" Integrator "bdpt" Film "spectral"')
+    assert [x.split(": ", 1)[1] for x in w] == ['Film "spectral": read as an "rgb" film',
                                                  'Integrator "bdpt": rendered with our path tracer (MIS)']
+    s, w = options('Film "gbuffer" "integer xresolution" 20')  # its image is the rgb film's: silently
+    assert w == [] and s.settings.width == 20
     assert s.settings.filter == PixelFilter("gaussian", (1.5, 1.5), sigma=0.5)
 
 

@@ -95,8 +95,8 @@ def film_settings(imp, film, st) -> None:
     """The Film directive's resolution, white balance (st.color_matrix), maxcomponentvalue
     (st.max_component_value) and sensor into the RenderSettings ``st``; ``imp``: the importer
     (warnings, unused parameters)."""
-    if film.args[0] != "rgb":
-        imp.warn(film.pos, f'Film "{film.args[0]}": read as an "rgb" film')
+    if film.args[0] not in ("rgb", "gbuffer"):  # a gbuffer film's image is the rgb film's (its other
+        imp.warn(film.pos, f'Film "{film.args[0]}": read as an "rgb" film')  # layers: our --aov)
     st.width = film.params.integer("xresolution", 1280)
     st.height = film.params.integer("yresolution", 720)
     if st.width < 1 or st.height < 1:
