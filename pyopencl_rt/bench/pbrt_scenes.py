@@ -116,6 +116,13 @@ def feature_of(message: str) -> str:
     texture = re.search(r'texture class "([^"]*)"', text)
     if texture:
         return f'Texture "{texture.group(1)}"'
+    texture_param = re.match(r'(?:material "[^"]*"|Material "([^"]*)"): "texture (\w+)": textures are not', text)
+    if texture_param:
+        return f'"texture {texture_param.group(2)}" of Material'
+    named = re.match(r'material "[^"]*": (.*)', text)  # a named material's: by what it asks for
+    if named:
+        rest = feature_of(named.group(1))
+        return rest if rest.startswith(("Material", '"')) else f"Material {rest}"
     param = _FEATURES[1].search(text)
     if param:
         return param.group(1)
@@ -123,7 +130,9 @@ def feature_of(message: str) -> str:
     if head:
         word, _, name = head.group(1).partition(" ")
         return f"{word[0].upper()}{word[1:]} {name.strip()}".strip()
-    return " ".join(re.sub(r"'[^']*'", "", text.split(":")[0]).split()[:4])
+    head = re.sub(r"'[^']*'", "", text.split(";")[0])
+    head = re.split(r"(?:\s+(?:is |are )?not supported|: rendered as|: read as|: using|: ignored)", head)[0]
+    return " ".join(head.split()[:6]).rstrip(":")
 
 
 def is_defect(warning: str) -> bool:

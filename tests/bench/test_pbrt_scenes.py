@@ -110,3 +110,18 @@ def test_listing(tmp_path):
     assert ps.list_scenes(tmp_path) == [tmp_path / "a" / "s.pbrt", tmp_path / "z.pbrt.gz"]
     with pytest.raises(ps.UserError, match="no pbrt-v4 scene"):
         ps.run_bench(tmp_path / "a", only=("nothing",), echo=lambda *_: None)
+
+
+@pytest.mark.parametrize("message, feature", [
+    ('material "saphire": displacement is not supported; ignored', "Material displacement"),
+    ('material "m": "texture roughness": textures are not supported here; using the default',
+     '"texture roughness" of Material'),
+    ('Material "conductor": "texture roughness": textures are not supported here; using the default',
+     '"texture roughness" of Material'),
+    ("Integrator: regularize is not supported; ignored", "Integrator: regularize"),
+    ("ActiveTransform StartTime: motion blur is not supported; ignored", "ActiveTransform StartTime: motion blur"),
+    ("Film sensor 'canon_eos_100d': rendered as cie1931", "Film sensor"),
+])
+def test_feature_names_are_the_same_from_scene_to_scene(message, feature):
+    """Keys without the names a scene gives its materials or values, so counts add up."""
+    assert ps.feature_of(f"x.pbrt:3: {message}") == feature

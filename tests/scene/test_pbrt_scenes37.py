@@ -117,3 +117,19 @@ Material "diffuse" "texture reflectance" "t"
     assert w == []
     texels = s.materials[s.face_materials[0]].base_texture.texels[0, :, :3]
     assert np.allclose(texels, np.array([1.0, 1.0 - 0.5 * 128 / 255, 0.5])[:, None], atol=1e-6)
+
+
+def test_the_probe_skips_the_parameters_after_a_missing_include(tmp_path, monkeypatch):
+    """smoke-plume's Include "geometry/density_big_0084.pbrt" ends in a MakeNamedMedium whose
+    parameter list goes on after the Include: skipping the file skips them too."""
+    import warnings
+
+    from pyopencl_rt.scene.loaders import load_scene, pbrt
+
+    monkeypatch.setattr(pbrt, "SKIP_MISSING_FILES", True)
+    path = tmp_path / "s.pbrt"
+    path.write_text(f'WorldBegin\nInclude "gone.pbrt"\n  "spectrum sigma_a" [300 20 830 20] "bool x" true\n{TRIANGLE}\n')
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always")
+        scene = load_scene(path)
+    assert len(scene.faces) == 1

@@ -267,7 +267,10 @@ class Parser:
                     if not SKIP_MISSING_FILES:
                         raise
                     skipped_missing(exc)
-                    i += 2
+                    i += 2  # and the parameters that went on after the missing file's last directive
+                    while i < len(tokens) and not (tokens[i].kind == "word" and tokens[i].text[:1].isalpha()
+                                                   and tokens[i].text not in ("true", "false")):
+                        i += 1
                     continue
                 if target.resolve() in stack + [path.resolve()]:
                     raise error_at(tok.pos, f"{tok.text} '{fname}': the file includes itself")
