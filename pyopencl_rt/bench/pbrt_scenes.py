@@ -119,13 +119,16 @@ def feature_of(message: str) -> str:
     texture_param = re.match(r'(?:material "[^"]*"|Material "([^"]*)"): "texture (\w+)": textures are not', text)
     if texture_param:
         return f'"texture {texture_param.group(2)}" of Material'
+    texture = re.match(r'Texture "[^"]*": (\w+)(?: "([^"]*)")?', text)  # a named texture's: by its parameter
+    if texture:
+        return f'Texture {texture.group(1)}' + (f' "{texture.group(2)}"' if texture.group(2) else "")
     named = re.match(r'material "[^"]*": (.*)', text)  # a named material's: by what it asks for
     if named:
         rest = feature_of(named.group(1))
         return rest if rest.startswith(("Material", '"')) else f"Material {rest}"
     param = _FEATURES[1].search(text)
     if param:
-        return param.group(1)
+        return re.sub(r' of Texture "[^"]*"$', " of Texture", param.group(1))  # a texture's name is no type
     head = _FEATURES[0].search(text)
     if head:
         word, _, name = head.group(1).partition(" ")

@@ -125,3 +125,12 @@ def test_listing(tmp_path):
 def test_feature_names_are_the_same_from_scene_to_scene(message, feature):
     """Keys without the names a scene gives its materials or values, so counts add up."""
     assert ps.feature_of(f"x.pbrt:3: {message}") == feature
+
+
+@pytest.mark.parametrize("message, feature", [
+    ('Texture "book31-proj": mapping "planar" read as "uv"', 'Texture mapping "planar"'),
+    ('"vector3 v1" of Texture "book31-proj": not supported; ignored', '"vector3 v1" of Texture'),
+    ('Texture "t": filter "ewa": we filter bilinearly (no mipmaps)', 'Texture filter "ewa"'),
+])
+def test_texture_features_without_the_texture_names(message, feature):
+    assert ps.feature_of(f"m.pbrt:7: {message}") == feature
