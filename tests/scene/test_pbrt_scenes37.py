@@ -128,8 +128,10 @@ def test_the_probe_skips_the_parameters_after_a_missing_include(tmp_path, monkey
 
     monkeypatch.setattr(pbrt, "SKIP_MISSING_FILES", True)
     path = tmp_path / "s.pbrt"
-    path.write_text(f'WorldBegin\nInclude "gone.pbrt"\n  "spectrum sigma_a" [300 20 830 20] "bool x" true\n{TRIANGLE}\n')
-    with warnings.catch_warnings(record=True):
+    path.write_text(f'WorldBegin\nInclude "gone.pbrt"\n  "spectrum sigma_a" [300 20 830 20] "bool x" true\n'
+                    f'MediumInterface "smoke" ""\nMaterial "interface"\n{TRIANGLE}\n')
+    with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         scene = load_scene(path)
-    assert len(scene.faces) == 1
+    assert len(scene.faces) == 1  # its medium, defined in the missing file, is skipped too
+    assert sum(str(w.message).startswith(pbrt.MISSING_SKIPPED) for w in caught) == 2
