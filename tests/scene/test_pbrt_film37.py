@@ -29,13 +29,14 @@ AttributeEnd
 """
 
 
-def render(tmp_path, film="", L="100 100 100", name="s.pbrt"):
+def render(tmp_path, film="", L="100 100 100", name="s.pbrt", kernel_mode=None):
     import pyopencl_rt as rt
 
     path = tmp_path / name
     path.write_text(SCENE.format(film=film, L=L))
     scene = load_scene(path)
-    return rt.render_full(scene, spp=64, width=9, height=9, device="cpu", seed=3).image.astype(np.float64)
+    return rt.render_full(scene, spp=64, width=9, height=9, device="cpu", seed=3,
+                          kernel_mode=kernel_mode).image.astype(np.float64)
 
 
 def lit_columns(image):
@@ -63,6 +64,16 @@ def test_maxcomponentvalue_clamps_each_sample_in_xyz(tmp_path, L):
     # per sample, not per pixel: the half-covered column averages clamped samples with black ones,
     # about half of expect (a clamp of the pixel's mean would give expect itself)
     assert np.all(np.abs(middle.mean(0) / expect - 0.5) < 0.2)
+
+
+def test_maxcomponentvalue_in_the_wavefront_kernels(tmp_path):
+    """The wavefront's accumulate stage clamps as the megakernel does: the same image."""
+    film = '"float maxcomponentvalue" 20'
+    mega = render(tmp_path, film=film, name="m.pbrt", kernel_mode="megakernel")
+    wave = render(tmp_path, film=film, name="w.pbrt", kernel_mode="wavefront")
+    lit, _, _ = lit_columns(wave)
+    assert (RGB_TO_XYZ @ lit.reshape(-1, 3).T).max() <= 20 * (1 + 1e-5)
+    assert np.allclose(wave, mega, rtol=1e-5, atol=1e-6)
 
 
 def test_maxcomponentvalue_leaves_dim_samples_alone(tmp_path):
