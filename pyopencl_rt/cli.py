@@ -524,6 +524,24 @@ def bench_mitsuba_suite(path, device, **options):
     if run_suite(path, device=list(device) or None, echo=click.echo, **options):
         sys.exit(1)
 
+@bench.command("pbrt-scenes")
+@click.argument("path", type=click.Path(exists=True))
+@click.option("--width", default=160, show_default=True, type=click.IntRange(min=1))
+@click.option("--height", default=120, show_default=True, type=click.IntRange(min=1))
+@click.option("--spp", default=4, show_default=True, type=click.IntRange(min=1))
+@click.option("--timeout", default=300.0, show_default=True, type=click.FloatRange(0, min_open=True), metavar="S",
+              help="Kill a scene's render after S seconds.")
+@click.option("--only", multiple=True, metavar="TEXT", help="Scenes whose path contains TEXT (repeatable).")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
+def bench_pbrt_scenes(path, **options):
+    """pbrt-v4 scene files under PATH (e.g. a copy of mmp/pbrt-v4-scenes), each rendered small in a
+    subprocess: ok, refused (the feature named), missing (a file not there), error or timeout,
+    with seconds, peak RSS and the warnings (those that drop or replace a feature: defects)."""
+    from .bench.pbrt_scenes import run_bench
+
+    run_bench(path, echo=click.echo, **options)
+
+
 def main(argv=None):
     """Entry point: user errors become one line on stderr and a non-zero exit code (1 for bad
     input, 2 for a wrong command line, 130 when interrupted); warnings (e.g. a scene file's

@@ -214,7 +214,7 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
         const int ended = live & ~pbits(goes_on);
         for (int k = 0; k < PACKET_WIDTH; ++k) {
             if (!((ended >> k) & 1)) continue;
-            float3 L = pv3_lane(s.L, k) * PLANE(weight, k);
+            float3 L = clamp_sample(pv3_lane(s.L, k)) * PLANE(weight, k);
             if (!(isfinite(L.x) && isfinite(L.y) && isfinite(L.z))) {
                 atomic_inc(&counters[COUNTER_NONFINITE]);
                 L = (float3)(0.0f);

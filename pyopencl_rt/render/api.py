@@ -156,7 +156,7 @@ def render_full(scene: Scene, *, spp=None, time_limit=None, device=None, seed=No
     info = sidecar(scene, settings, film, run, spp=spp, time_limit=time_limit, intersector=intersector,
                    profile=profile)
     info.update(extra)
-    image = film.image()
+    image = color_matrixed(film.image(), getattr(scene.settings, "color_matrix", None))
     layers = aov_layers(film, names, scene.camera.eye) if film.passes else {}
     info["aovs"] = list(names)
     if denoise and film.passes:
@@ -332,3 +332,12 @@ def render(scene: Scene, spp=None, device=None, seed=None, **kwargs) -> np.ndarr
     the scene file.  The same seed on the same device gives the same image, bit for bit.
     """
     return render_full(scene, spp=spp, device=device, seed=seed, **kwargs).image
+
+
+def color_matrixed(image, matrix):
+    """The image with the scene's colour matrix applied to each pixel (rgb -> M . rgb; pbrt-v4's
+    white balance: RenderSettings.color_matrix), or itself without one."""
+    if matrix is None:
+        return image
+    m = np.asarray(matrix, np.float64).reshape(3, 3)
+    return (np.asarray(image, np.float64) @ m.T).astype(np.float32)

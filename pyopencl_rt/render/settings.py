@@ -12,6 +12,8 @@ with, so that a scene compiles only the code it uses.
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import MISSING, asdict, dataclass, fields
 
 import numpy as np
@@ -204,6 +206,9 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
     defines.update(layout_defines(bvh_layout))
     if settings.film_aovs:
         defines["HAS_AOVS"] = True  # cl/render/aov.h
+    max_component = getattr(scene.settings, "max_component_value", None)
+    if max_component is not None and math.isfinite(max_component):
+        defines["MAX_COMPONENT_VALUE"] = f"{float(max_component)!r}f"  # cl/common.h clamp_sample
     if scene.has_media():
         defines["HAS_MEDIA"] = True  # the volumetric integrator (cl/render/volpath.h)
         if getattr(scene.settings, "spectral_mis", True) and any(m.chromatic() for m in scene.media):

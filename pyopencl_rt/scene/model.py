@@ -334,6 +334,12 @@ class RenderSettings:
     # probability sampling_weight / sum (Mitsuba 3's rule, pbrt-v4's "uniform"), an emitter's share
     # split over its triangles by area
     light_sampler: str = "power"
+    # pbrt-v4's Film "maxcomponentvalue": each camera sample's radiance scaled down so that its
+    # largest CIE XYZ component (pbrt's cie1931 sensor RGB) is at most this; None: no clamp
+    max_component_value: float | None = None
+    # a 3 x 3 colour matrix (9 floats, row-major) applied to the finished image, rgb -> M . rgb:
+    # pbrt-v4's Film "whitebalance" (scene/loaders/pbrt_film.py); None: the identity
+    color_matrix: tuple | None = None
 
 
 @dataclass

@@ -151,9 +151,11 @@ def test_camera_film_sampler_integrator(tmp_path):
     assert (s.camera.aperture_radius, s.camera.focus_distance) == (0.1, 3)
     s, _ = options("")
     assert (s.settings.width, s.settings.height, s.settings.spp, s.settings.max_depth) == (1280, 720, 16, 6)
-    s, w = options('PixelFilter "gaussian" Integrator "bdpt" Film "gbuffer"')
-    assert [x.split(": ", 1)[1] for x in w] == ['Film "gbuffer": read as an "rgb" film',
+    s, w = options('PixelFilter "gaussian" Integrator "bdpt" Film "spectral"')
+    assert [x.split(": ", 1)[1] for x in w] == ['Film "spectral": read as an "rgb" film',
                                                  'Integrator "bdpt": rendered with our path tracer (MIS)']
+    s, w = options('Film "gbuffer" "integer xresolution" 20')  # its image is the rgb film's: silently
+    assert w == [] and s.settings.width == 20
     assert s.settings.filter == PixelFilter("gaussian", (1.5, 1.5), sigma=0.5)
 
 
@@ -230,10 +232,11 @@ def test_shapes(tmp_path):
     assert np.allclose(s.vertices[:, 2], 1)
     s, w = world(tmp_path, 'Shape "cylinder" "float radius" 0.5 "float zmin" 0 "float zmax" 2')
     assert np.isclose(area(s), 2 * math.pi * 0.5 * 2)
-    s, w = world(tmp_path, 'Shape "loopsubdiv" "point3 P" [0 0 0 1 0 0 0 1 0] "integer indices" [0 1 2]\n'
-                           'Shape "curve" "point3 P" [0 0 0 1 0 0 2 0 0 3 0 0]\n' + TRIANGLE)
-    assert len(s.faces) == 2 and [x.split(": ", 1)[1] for x in w] == [
-        'Shape "loopsubdiv": rendered as its control mesh (not subdivided)', 'Shape "curve": not supported; ignored']
+    s, w = world(tmp_path, 'Shape "loopsubdiv" "integer levels" 2 "point3 P" [0 0 0 1 0 0 0 1 0] '
+                           '"integer indices" [0 1 2]\n' + TRIANGLE)
+    assert w == [] and len(s.faces) == 16 + 1  # 4^2 triangles of the subdivided one
+    with pytest.raises(SceneError, match=r':3: Shape "curve": shape type "curve" is not supported$'):
+        world(tmp_path, 'Shape "curve" "point3 P" [0 0 0 1 0 0 2 0 0 3 0 0]\n' + TRIANGLE)
 
 
 def test_object_instances(tmp_path):
@@ -264,15 +267,16 @@ def test_materials(tmp_path):
         'Material "conductor" "float uroughness" 0.04 "float vroughness" 0.25',
         'Material "coateddiffuse" "rgb reflectance" [0.6 0.5 0.4] "float roughness" 0.09 "float thickness" 0.1',
         'MakeNamedMaterial "thin" "string type" "thindielectric" NamedMaterial "thin"',
-        'Material "hair"',
         'Material "interface"',
+        'Material ""',  # pbrt-v4: "" and "none" are "interface"
+        'Material "none"',
     ]
     body = 'Texture "tex" "spectrum" "imagemap" "string filename" "t.png"\n' + "\n".join(
         f"{line} Translate 2 0 0 {TRIANGLE}" for line in lines)
     s, w = world(tmp_path, body)
     mats = [s.materials[i] for i in s.face_materials]
     assert len(mats) == len(lines)  # the interface's triangle bounds media only (index-matched)
-    assert [mi.null for mi in s.interfaces] == [True] and s.face_interfaces.tolist() == [-1] * (len(lines) - 1) + [0]
+    assert [mi.null for mi in s.interfaces] == [True] and s.face_interfaces.tolist() == [-1] * (len(lines) - 3) + [0] * 3
     expect = [
         dict(type="diffuse", albedo=(0.1, 0.2, 0.3)),
         dict(type="diffuse", albedo=(1, 1, 1)),
@@ -285,9 +289,8 @@ def test_materials(tmp_path):
         dict(type="conductor", alpha=pytest.approx(0.2), alpha_v=pytest.approx(0.5), is_anisotropic=True),
         dict(type="gltf", metallic=0.0, albedo=(0.6, 0.5, 0.4), ior=1.5, alpha=pytest.approx(0.3)),
         dict(type="dielectric", ior=1.5, name="thin"),
-        dict(type="diffuse", albedo=(0.5, 0.5, 0.5)),
         dict(type="diffuse", albedo=(0.0, 0.0, 0.0), emission=(0.0, 0.0, 0.0)),  # never scatters
-    ]
+    ] + [dict(name="pbrt-interface")] * 2
     for i, (mat, want) in enumerate(zip(mats, expect)):
         for key, value in want.items():
             assert getattr(mat, key) == value, (i, key, getattr(mat, key))
@@ -295,8 +298,12 @@ def test_materials(tmp_path):
     assert [x.split(": ", 1)[1] for x in w] == [
         'Material "dielectric": glass-BK7 rendered without dispersion, at its d-line index 1.5168',
         'material "thin": approximated by a dielectric interface (a thin sheet refracts instead of passing light '
-        'straight through)',
-        'Material "hair": material type not supported; using diffuse 0.5']
+        'straight through)']
+    for kind in ("hair", "measured", "subsurface", "diffusetransmission"):  # refused, never replaced
+        with pytest.raises(SceneError, match=f':3: Material "{kind}": material type "{kind}" is not supported$'):
+            world(tmp_path, f'Material "{kind}" {TRIANGLE}')
+    with pytest.raises(SceneError, match=r'material "skin": material type "subsurface" is not supported$'):
+        world(tmp_path, f'MakeNamedMaterial "skin" "string type" "subsurface" NamedMaterial "skin" {TRIANGLE}')
 
 
 def test_textures(tmp_path):
@@ -416,7 +423,6 @@ def test_unsupported_directives_and_parameters_warn(tmp_path):
 ColorSpace "aces2065-1"
 Camera "realistic"
 WorldBegin
-MakeNamedMedium "fog" "string type" "nanovdb"
 Attribute "shape" "float radius" 2
 Material "diffuse" "float sigma" 20
 Shape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0]
@@ -427,7 +433,6 @@ TransformTimes 0 1
     assert len(s.faces) == 1
     expect = [("Option", 'Option "bool disablepixeljitter": not supported; ignored'),
               ("ColorSpace", "ColorSpace 'aces2065-1': colours are read as linear sRGB"),
-              ("MakeNamedMedium", 'MakeNamedMedium "fog": medium type "nanovdb" is not supported; rendered as vacuum'),
               ("Attribute", 'Attribute "shape": default parameters are not supported; ignored'),
               ("sigma", '"float sigma" of Material "diffuse": not supported; ignored'),
               ("goniometric", 'LightSource "goniometric": not supported; ignored'),

@@ -5,7 +5,7 @@
   default settings;
 * a **glTF 2.0 file** (``.gltf`` / ``.glb``, :mod:`.gltf`) with its PBR materials, textures, UVs
   and camera (or the framing camera);
-* a **Mitsuba 3 XML** (``.xml``, :mod:`.mitsuba_scene`) or **pbrt-v4** (``.pbrt``, :mod:`.pbrt_scene`)
+* a **Mitsuba 3 XML** (``.xml``, :mod:`.mitsuba_scene`) or **pbrt-v4** (``.pbrt`` or ``.pbrt.gz``, :mod:`.pbrt_scene`)
   scene file, the subsets docs/SCENE_FORMAT.md describes (unsupported elements warn);
 * **any other mesh file** trimesh reads (PLY, STL, OFF, ...; :mod:`.meshfile`) with one default
   diffuse material (albedo 0.8) and the framing camera.
@@ -67,7 +67,7 @@ def _load_format(p: Path, name: str, suffix: str, defines):
         from .mitsuba_scene import load_mitsuba_xml
 
         return load_mitsuba_xml(p, name, defines)
-    if suffix == ".pbrt":  # pbrt-v4
+    if suffix == ".pbrt" or p.name.lower().endswith(".pbrt.gz"):  # pbrt-v4 (gzip-compressed: .pbrt.gz)
         from .pbrt_scene import load_pbrt
 
         return load_pbrt(p, name)

@@ -101,6 +101,8 @@ class _Importer:
                 (shapegroup if obj.type == "shapegroup" else instance)(self, obj)
             elif obj.tag == "shape":
                 self.shape(obj)
+            elif obj.tag == "emitter" and obj.type == "area" and obj in self.doc.referenced:
+                continue  # declared at the top level, used by the shapes that <ref> it
             elif obj.tag == "emitter":
                 self.emitter(obj)
             elif obj.tag == "medium":

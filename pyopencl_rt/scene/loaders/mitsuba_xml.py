@@ -13,10 +13,12 @@ of plugin objects; that module maps them onto our scene (docs/SCENE_FORMAT.md, "
   file's folder and then the current directory, and to whose front each ``<path value>`` adds its
   folder (the latest first); ``<include filename>`` splices the included ``<scene>``'s children
   in place;
-* ``<alias id as>`` names an object twice;
+* ``<alias id as>`` names an object twice (the object must come first, as in Mitsuba 3);
 * an object (``bsdf``, ``shape``, ``emitter``, ``texture``, ``sensor``, ``film``, ``rfilter``,
-  ``sampler``, ``integrator``, ``medium``, ...) with an ``id`` can be used later by ``<ref id>``
-  (with ``name``: as a named property), at the top level or nested;
+  ``sampler``, ``integrator``, ``medium``, ...) with an ``id`` can be used by ``<ref id>`` (with
+  ``name``: as a named property), at the top level or nested, before or after it is declared:
+  as Mitsuba 3 does, references are resolved once the whole file and its includes are read (an
+  id that no object has is then one error, at the ``<ref>``);
 * values: ``float``, ``integer``, ``boolean``, ``string``, ``rgb`` (one number or three, comma-
   or space-separated), ``spectrum`` (a constant, ``wavelength:value`` pairs or a ``.spd`` file: a
   :class:`~.mitsuba_spectrum.Spectrum`, made RGB where it is used, as Mitsuba's RGB variants do),
@@ -100,6 +102,15 @@ def _cwd() -> list[Path]:
         return [Path.cwd()]
     except OSError:  # the current directory was removed
         return []
+
+
+@dataclass(eq=False)
+class _Ref:
+    """A ``<ref id>`` read before the object it names is known."""
+
+    ident: str
+    node: Node
+    tag: str = "ref"
 
 
 @dataclass
@@ -198,7 +209,10 @@ class Document:
         if root.tag != "scene":
             raise error_at(root.pos, f"the root element must be <scene>, not <{root.tag}>")
         self._check_version(root)
+        self._pending: list = []  # (its owner, None: the scene; the <ref> placeholder), in document order
+        self.referenced: set = set()  # the objects some <ref> or <alias> names
         self._scene_children(root, path)
+        self._resolve_references()
         # plugins (meshes, bitmaps, envmaps, ...) resolve their files once the whole document is
         # read, through the main file's search path: an included file's own <path>s have gone
         self.file_search_path = list(self.search_path)
@@ -263,11 +277,11 @@ class Document:
             elif tag == "path":
                 self._add_path(child, path)
             elif tag == "alias":
-                self.ids[self._attr(child, "as")] = self._ref(child, self._attr(child, "id"))
+                self._alias(child)
             elif tag in OBJECT_TAGS and tag != "scene":
                 self.objects.append(self._object(child, path))
             elif tag == "ref":
-                self.objects.append(self._ref(child, self._attr(child, "id")))
+                self.objects.append(self._placeholder(None, child))
             elif tag in VALUE_TAGS:
                 self.warn(child.pos, f"{child.label()}: a property of the scene itself; ignored")
             else:
@@ -336,10 +350,53 @@ class Document:
         finally:
             self.search_path = outer
 
-    def _ref(self, node: Node, ident: str) -> MiObject:
+    # -- references: resolved once the whole document is read, as Mitsuba 3 resolves them ----------
+
+    def _alias(self, node: Node) -> None:
+        """``<alias id as>``: ``as`` names the object ``id`` names, which (as in Mitsuba 3) must come
+        before it."""
+        ident = self._attr(node, "id")
         if ident not in self.ids:
-            raise error_at(node.pos, f'{node.label()}: no object with id="{ident}" defined before it')
+            raise error_at(node.pos, f'{node.label()}: no object with id="{ident}" defined before it '
+                                     "(an alias must follow its object)")
+        self.ids[self._attr(node, "as")] = self.ids[ident]
+        self.referenced.add(self.ids[ident])
+
+    def _placeholder(self, owner, node: Node) -> "_Ref":
+        """A ``<ref>`` to fill in once every id is known (:meth:`_resolve_references`)."""
+        ref = _Ref(self._attr(node, "id"), node)
+        self._pending.append((owner, ref))
+        return ref
+
+    def _target(self, ident: str, node: Node) -> MiObject:
+        if ident not in self.ids:
+            raise error_at(node.pos, f'{node.label()}: no object with id="{ident}" defined in the file or its '
+                                     "includes")
         return self.ids[ident]
+
+    def _resolve_references(self) -> None:
+        """Every ``<ref>`` replaced by its object, at its place: a top-level one among the scene's
+        objects, a nested one as its owner's child or, for a texture, spectrum, volume or medium
+        with a ``name``, as that named property (as :meth:`_object` files a nested object)."""
+        targets = {}
+        for owner, ref in self._pending:
+            target = targets[id(ref)] = self._target(ref.ident, ref.node)
+            self.referenced.add(target)
+            if owner is None:
+                continue
+            pname = ref.node.attrs.get("name")
+            if target.tag not in ("texture", "spectrum", "volume", "medium"):
+                pname = None
+            k = next(i for i, c in enumerate(owner.children) if c is ref)
+            if pname is None:
+                owner.children[k] = target
+                continue
+            del owner.children[k]
+            if pname in owner.props:
+                raise error_at(ref.node.pos, f'{owner.label()}: property "{pname}" given twice '
+                                             f"(first at line {owner.props[pname].node.line})")
+            owner.props[pname] = Prop("object", target, ref.node)
+        self.objects = [targets[id(o)] if isinstance(o, _Ref) else o for o in self.objects]
 
     # -- objects -------------------------------------------------------------------------------
 
@@ -358,9 +415,9 @@ class Document:
             if tag == "default":
                 self.params.setdefault(self._attr(child, "name"), self._attr(child, "value"))
                 continue
-            if tag == "ref":
-                target = self._ref(child, self._attr(child, "id"))
-                value = Prop("object", target, child)
+            if tag == "ref":  # filed where it belongs once its object is known
+                obj.children.append(self._placeholder(obj, child))
+                continue
             elif tag in OBJECT_TAGS or (tag == "spectrum" and "type" in child.attrs):
                 value = Prop("object", self._object(child, path), child)
             elif tag in VALUE_TAGS:

@@ -6,7 +6,10 @@ string (with ``\\"`` escapes), ``[`` or ``]``, or a run of other non-blank chara
 arguments (numbers, strings or a bracketed list) and, for most, a parameter list of
 ``"type name" value`` pairs, where the value is one token or a bracketed list.  ``Include`` and
 ``Import`` read another file in place (relative to the including file's folder, then the main
-file's).  :mod:`.pbrt_scene` gives the directives their meaning.
+file's): as pbrt-v4's parser streams the tokens of its files, the included file's tokens take the
+place of the two, so a parameter list may go on after the included file ends.  A file compressed
+with gzip (``.pbrt.gz``) is read through it.  :mod:`.pbrt_scene` gives the directives their
+meaning.
 
 Every malformed input raises a :class:`~.builder.SceneFormatError` naming the file and line.
 """
@@ -16,7 +19,26 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .builder import error_at
+from .builder import SceneFormatError, error_at
+
+# ``pyopencl-rt bench pbrt-scenes``'s probe of a scene whose files are not all there: when True, a
+# missing file skips what names it (an Include, a directive) with a warning that starts with
+# MISSING_SKIPPED, so that what the rest of the scene asks for can be seen.  Never set by a render.
+SKIP_MISSING_FILES = False
+MISSING_SKIPPED = "missing file skipped: "
+
+
+class MissingFile(SceneFormatError):
+    """A file the scene names that is not there (one error line, as any SceneFormatError)."""
+
+
+def skipped_missing(exc) -> None:
+    """The probe's warning for a missing file it skips (:data:`SKIP_MISSING_FILES`)."""
+    import warnings
+
+    from ...errors import one_line
+
+    warnings.warn(MISSING_SKIPPED + one_line(exc), stacklevel=2)
 
 _TOKEN = re.compile(r'[ \t\r\f\v]+|\n|#[^\n]*|"(?:[^"\\\n]|\\.)*"|\[|\]|[^\s\[\]"#]+|"')
 _ESCAPES = {"n": "\n", "t": "\t", "b": "\b", "f": "\f", "r": "\r", "\\": "\\", "'": "'", '"': '"'}
@@ -146,6 +168,10 @@ class Params:
         return [p for p in self.items.values() if not p.used]
 
 
+def one_line_at(pos, what) -> str:
+    return str(error_at(pos, what))
+
+
 @dataclass
 class Directive:
     name: str
@@ -159,7 +185,7 @@ def pbrt_path(pos: str, folder: Path, fname: str, what: str) -> Path:
     ``pos`` that ``what`` (the directive, such as 'Shape "plymesh"') names."""
     path = folder / fname
     if not path.is_file():
-        raise error_at(pos, f"{what}: file '{fname}' not found (looked for {path})")
+        raise MissingFile(one_line_at(pos, f"{what}: file '{fname}' not found (looked for {path})"))
     return path
 
 
@@ -172,6 +198,28 @@ def pbrt_file(d: Directive, folder: Path, what: str, needs: str | None = None) -
     return fname, pbrt_path(d.pos, folder, fname, what)
 
 
+class _Stream:
+    """The tokens of a file and of the files it includes, as one stream (pbrt-v4's parser reads
+    them so: an ``Include``d file's tokens take the place of the directive, and a directive's
+    parameter list may go on after the included file ends).  Indexed from the start of the
+    directive being read (:meth:`drop` forgets what was read); ``None`` past the end."""
+
+    def __init__(self, tokens):
+        self._source = tokens
+        self._buffer: list[Token] = []
+
+    def __getitem__(self, i):
+        while len(self._buffer) <= i:
+            tok = next(self._source, None)
+            if tok is None:
+                return None
+            self._buffer.append(tok)
+        return self._buffer[i]
+
+    def drop(self, n: int) -> None:
+        del self._buffer[:n]
+
+
 class Parser:
     """Directives of a pbrt file and the files it includes, in order (:meth:`directives`)."""
 
@@ -180,41 +228,64 @@ class Parser:
         self.path, self.name = path, name
 
     def directives(self):
-        yield from self._file(self.path, self.name, [])
-
-    def _read(self, path: Path, name: str) -> list[Token]:
-        try:
-            text = path.read_text(encoding="utf-8", errors="replace")
-        except OSError as exc:
-            raise error_at(name, f"cannot read ({exc.strerror or exc})") from None
-        if path.suffix.lower() == ".gz" or text.startswith("\x1f"):
-            raise error_at(name, "compressed pbrt files are not supported (gunzip it first)")
-        return tokenize(text, name)
-
-    def _file(self, path: Path, name: str, stack: list):
-        tokens = self._read(path, name)
-        i = 0
-        while i < len(tokens):
-            tok = tokens[i]
+        stream = _Stream(self._tokens(self.path, self.name, []))
+        while stream[0] is not None:
+            tok = stream[0]
             if tok.kind != "word" or not tok.text[:1].isalpha():
                 raise error_at(tok.pos, f"expected a directive (such as Shape or AttributeBegin), got {_show(tok)}")
             if tok.text not in SIGNATURES:
                 raise error_at(tok.pos, f"unknown directive '{tok.text}'")
-            d, i = self._directive(tokens, i)
-            if d.name in ("Include", "Import"):
-                target = self._locate(d.args[0], path, d.pos)
-                if target.resolve() in stack:
-                    raise error_at(d.pos, f"{d.name} '{d.args[0]}': the file includes itself")
-                yield from self._file(target, str(target), stack + [path.resolve()])
-            else:
-                yield d
+            d, i = self._directive(stream, 0)
+            stream.drop(i)
+            yield d
+
+    def _read(self, path: Path, name: str) -> list[Token]:
+        """The tokens of one file; a gzip-compressed one (``.gz``, or the gzip magic number) is
+        read through gzip, as pbrt-v4 reads ``.pbrt.gz``."""
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            raise error_at(name, f"cannot read ({exc.strerror or exc})") from None
+        if data[:2] == b"\x1f\x8b" or path.suffix.lower() == ".gz":
+            data = gunzip(data, name)
+        return tokenize(data.decode("utf-8", errors="replace"), name)
+
+    def _tokens(self, path: Path, name: str, stack: list):
+        """The tokens of ``path`` with each ``Include``/``Import "file"`` replaced by that file's."""
+        tokens = self._read(path, name)
+        i = 0
+        while i < len(tokens):
+            tok = tokens[i]
+            if tok.kind == "word" and tok.text in ("Include", "Import"):
+                if i + 1 >= len(tokens) or tokens[i + 1].kind != "str":
+                    got = _show(tokens[i + 1]) if i + 1 < len(tokens) else "the end of the file"
+                    raise error_at(tok.pos, f"{tok.text} needs a quoted string, got {got}")
+                fname = tokens[i + 1].text
+                try:
+                    target = self._locate(fname, path, tok.pos)
+                except MissingFile as exc:
+                    if not SKIP_MISSING_FILES:
+                        raise
+                    skipped_missing(exc)
+                    i += 2  # and the parameters that went on after the missing file's last directive
+                    while i < len(tokens) and not (tokens[i].kind == "word" and tokens[i].text[:1].isalpha()
+                                                   and tokens[i].text not in ("true", "false")):
+                        i += 1
+                    continue
+                if target.resolve() in stack + [path.resolve()]:
+                    raise error_at(tok.pos, f"{tok.text} '{fname}': the file includes itself")
+                yield from self._tokens(target, str(target), stack + [path.resolve()])
+                i += 2
+                continue
+            yield tok
+            i += 1
 
     def _locate(self, fname: str, path: Path, pos: str) -> Path:
         for base in (path.parent, self.main_dir):
             candidate = base / fname
             if candidate.is_file():
                 return candidate
-        raise error_at(pos, f"file '{fname}' not found (looked for {path.parent / fname})")
+        raise MissingFile(one_line_at(pos, f"file '{fname}' not found (looked for {path.parent / fname})"))
 
     def _directive(self, tokens, i):
         head = tokens[i]
@@ -228,20 +299,20 @@ class Parser:
                 values, i = self._numbers(tokens, i, n, head)
                 args.append(values)
             elif spec in ("s", "s?"):
-                if i < len(tokens) and tokens[i].kind == "str" and not _is_decl(tokens, i):
+                if tokens[i] is not None and tokens[i].kind == "str" and not _is_decl(tokens, i):
                     args.append(tokens[i].text)
                     i += 1
                 elif spec == "s":
-                    got = _show(tokens[i]) if i < len(tokens) else "the end of the file"
+                    got = _show(tokens[i]) if tokens[i] is not None else "the end of the file"
                     raise error_at(head.pos, f"{head.text} needs a quoted string, got {got}")
             elif spec == "w":
-                if i >= len(tokens) or tokens[i].kind != "word":
+                if tokens[i] is None or tokens[i].kind != "word":
                     raise error_at(head.pos, f"{head.text} needs a word")
                 args.append(tokens[i].text)
                 i += 1
         params = Params()
         if SIGNATURES[head.text].endswith("p"):
-            while i < len(tokens) and tokens[i].kind == "str":
+            while tokens[i] is not None and tokens[i].kind == "str":
                 param, i = self._param(tokens, i)
                 if param.name in params.items:
                     raise error_at(param.pos, f'parameter "{param.name}" given twice')
@@ -249,17 +320,17 @@ class Parser:
         return Directive(head.text, args, params, head.pos), i
 
     def _numbers(self, tokens, i, n, head):
-        bracket = i < len(tokens) and tokens[i].kind == "["
+        bracket = tokens[i] is not None and tokens[i].kind == "["
         if bracket:
             i += 1
         values = []
-        while len(values) < n and i < len(tokens) and tokens[i].kind == "word" and tokens[i].text not in SIGNATURES:
+        while len(values) < n and tokens[i] is not None and tokens[i].kind == "word" and tokens[i].text not in SIGNATURES:
             values.append(_number(tokens[i], f"{head.text} needs {n} numbers"))
             i += 1
         if len(values) != n:
             raise error_at(head.pos, f"{head.text} needs {n} numbers, got {len(values)}")
         if bracket:
-            if i >= len(tokens) or tokens[i].kind != "]":
+            if tokens[i] is None or tokens[i].kind != "]":
                 raise error_at(head.pos, f"{head.text}: expected ']' after {n} numbers")
             i += 1
         return values, i
@@ -273,17 +344,17 @@ class Parser:
         if ptype not in PARAM_TYPES:
             raise error_at(decl.pos, f'unknown parameter type "{ptype}" in "{decl.text}"')
         i += 1
-        if i >= len(tokens):
+        if tokens[i] is None:
             raise error_at(decl.pos, f'"{decl.text}" has no value')
         raw = []
         if tokens[i].kind == "[":
             i += 1
-            while i < len(tokens) and tokens[i].kind != "]":
+            while tokens[i] is not None and tokens[i].kind != "]":
                 if tokens[i].kind == "[" or tokens[i].text in SIGNATURES:
                     raise error_at(decl.pos, f'"{decl.text}": a \'[\' without its \']\'')
                 raw.append(tokens[i])
                 i += 1
-            if i >= len(tokens):
+            if tokens[i] is None:
                 raise error_at(decl.pos, f'"{decl.text}": a \'[\' without its \']\'')
             i += 1
         elif tokens[i].kind in ("str", "word"):
@@ -300,6 +371,17 @@ class Parser:
             else:
                 values.append(_number(t, f'"{decl.text}": expected numbers'))
         return Param(ptype, pname, values, decl.pos), i
+
+
+def gunzip(data: bytes, name: str) -> bytes:
+    """The contents of gzip-compressed ``data`` (one error line naming ``name`` when it is not)."""
+    import gzip
+    import zlib
+
+    try:
+        return gzip.decompress(data)
+    except (OSError, EOFError, zlib.error) as exc:
+        raise error_at(name, f"not a valid gzip file ({exc})") from None
 
 
 def _is_decl(tokens, i) -> bool:

@@ -27,7 +27,9 @@ def light_source(imp, d):
         dst = np.asarray(p.numbers("to", ("point3", "point"), 3, [0.0, 0.0, 1.0]), np.float64)
         direction = transform_vector(m, dst - src)
         if not np.linalg.norm(direction) > 0:
-            raise error_at(d.pos, 'LightSource "distant": "from" and "to" are the same point')
+            raise error_at(d.pos, 'LightSource "distant": "from" and "to" are the same point' if not
+                           np.linalg.norm(dst - src) > 0 else
+                           'LightSource "distant": the transform is singular (it takes the direction to zero)')
         radiance = spectrum_rgb(imp, p, "L", (1.0, 1.0, 1.0))
         imp.b.add_light(DirectionalLight(direction=tuple(map(float, direction / np.linalg.norm(direction))),
                                           irradiance=tuple(c * s for c in radiance)))
@@ -111,6 +113,8 @@ def infinite(imp, d, s) -> None:
                          "octahedral map); read as pbrt-v3's latitude-longitude map")
         lookup, out = _latlong_uv, (h, w)
     rot = imp.state.ctm[:3, :3]
+    if not abs(np.linalg.det(rot)) > 1e-300:
+        raise error_at(d.pos, 'LightSource "infinite": the transform is singular (the map needs its inverse)')
     imp.b.set_environment(EnvMap(image=image, lookup=lookup, to_world=rot, scale=(s, s, s), source=fname,
                                   out_shape=out, wrap_u=wrap), d.pos)
 

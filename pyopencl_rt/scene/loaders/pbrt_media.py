@@ -6,8 +6,8 @@ docs/SCENE_FORMAT.md, "pbrt-v4"):
 | ``homogeneous``: ``sigma_a``, ``sigma_s`` (default 1 each), ``scale``, ``g``, ``preset`` | a homogeneous medium of sigma_t = (sigma_a + sigma_s) scale, albedo sigma_s / sigma_t, Henyey-Greenstein g |
 | ``uniformgrid``: ``density`` (nx ny nz values), ``p0``, ``p1`` (its box, default the unit cube), the same coefficients | a grid medium: the density grid on the box [p0, p1] in the medium's space (the transform in effect), 0 beyond its outer texels as pbrt's SampledGrid |
 
-Emission (``Le``, ``temperature``) and the other medium types (``rgbgrid``, ``cloud``,
-``nanovdb``) warn; an unsupported medium is vacuum.  pbrt clamps g to [-0.99, 0.99], as here.
+Emission (``Le``, ``temperature``) warns (ignored); the other medium types (``rgbgrid``, ``cloud``,
+``nanovdb``) are an error that names the type.  pbrt clamps g to [-0.99, 0.99], as here.
 """
 from __future__ import annotations
 
@@ -73,17 +73,14 @@ EMISSION = ("Le", "Lescale", "temperature", "temperaturescale", "temperatureoffs
 
 def make_medium(imp, d, ctm) -> Medium | None:
     """The Medium of ``MakeNamedMedium`` directive ``d`` (``ctm``: the transform in effect, pbrt's
-    render-from-medium), or None (vacuum) for a type we do not render."""
+    render-from-medium); a type we do not render is an error."""
     p = d.params
     name = d.args[0]
     mtype = p.string("type")
     if mtype is None:
         raise error_at(d.pos, f'MakeNamedMedium "{name}" needs "string type"')
     if mtype not in ("homogeneous", "uniformgrid"):
-        imp.warn(d.pos, f'MakeNamedMedium "{name}": medium type "{mtype}" is not supported; rendered as vacuum')
-        for q in p.items.values():
-            q.used = True
-        return None
+        raise error_at(d.pos, f'MakeNamedMedium "{name}": medium type "{mtype}" is not supported')
     sigma_a = sigma_s = None
     preset = p.string("preset", "")
     if preset and mtype == "homogeneous":
@@ -116,6 +113,9 @@ def make_medium(imp, d, ctm) -> Medium | None:
         p1 = np.asarray(p.numbers("p1", ("point3", "point"), 3, [1.0, 1.0, 1.0]), np.float64)
         if not (p1 > p0).all():
             raise error_at(d.pos, f'MakeNamedMedium "{name}": the box p0 {p0.tolist()} .. p1 {p1.tolist()} is empty')
+        if not abs(np.linalg.det(ctm[:3, :3])) > 1e-300:
+            raise error_at(d.pos, f'MakeNamedMedium "{name}": the transform is singular (a grid medium needs '
+                                  "its inverse)")
         data = np.asarray(density, np.float32).reshape(nz, ny, nx)
         if (data < 0).any():
             raise error_at(d.pos, f'MakeNamedMedium "{name}": negative density values')

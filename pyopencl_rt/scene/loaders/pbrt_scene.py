@@ -17,16 +17,45 @@ import numpy as np
 
 from ..media import MediumInterface
 from ..model import Material, PixelFilter, RenderSettings
-from .builder import (SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh, transform_points,
-                      translate)
+from .builder import (EnvMap, SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh,
+                      transform_points, translate)
 from .instancing import add_instance
-from .pbrt import Directive, Parser
+from . import pbrt as _pbrt
+from .pbrt import Directive, MissingFile, Parser
+from .pbrt_film import film_settings, imaging_ratio
 from .pbrt_lights import light_source
 from .pbrt_materials import MaterialMapper, spectrum_rgb
 
 SILENT = {("Film", "filename"), ("Sampler", "seed"), ("Film", "diagonal"),
           ("Film", "savefp16"), ("Integrator", "regularize"), ("Shape", "S"),
           ("Shape", "faceIndices"), ("Shape", "emissionfilename")}
+
+
+# pbrt-v4's quadrics: intersected in object space, the ray moved by the shape's inverse transform
+QUADRICS = {"sphere", "disk", "cylinder"}
+
+
+def singular(m) -> bool:
+    """Whether the 4x4 transform ``m`` has no inverse (pbrt-v4 keeps it, its inverse NaN)."""
+    return not abs(np.linalg.det(np.asarray(m, np.float64)[:3, :3])) > 1e-300 or not np.isfinite(m).all()
+
+
+def _flattened(geometry, m):
+    """Triangles under a singular transform, as pbrt-v4 keeps them: their vertices moved by ``m``
+    (they are intersected where they land); those left without area are dropped (no ray hits
+    them), and the shading normals, which pbrt moves by the NaN inverse, are left out: every
+    triangle that keeps an area lies in m's plane, flat shaded by its own normal.  None: nothing is
+    left."""
+    v, f, uv = geometry[:3]
+    v = transform_points(m, np.asarray(v, np.float64))
+    f = np.asarray(f, np.int64)
+    corners = v[f]
+    twice_area = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    scale = max(float(np.abs(v).max()) if len(v) else 0.0, 1e-30)
+    keep = twice_area > 1e-12 * scale * scale
+    if not keep.any():
+        return None
+    return v, f[keep], None if uv is None else np.asarray(uv)[keep]
 
 
 # read at the end (a Film may follow the Camera whose field of view depends on it)
@@ -69,17 +98,47 @@ class _Importer:
         self.b.warn(pos, what)
 
     def run(self) -> None:
+        # pbrt-v4 creates the named materials once the whole file is read, so a shape may name one
+        # that a MakeNamedMaterial further down defines: such shapes wait, with their graphics
+        # state, until the end (outside ObjectBegin; inside, the name must be defined first)
+        waiting = []
         for d in Parser(self.path, self.name).directives():
             handler = getattr(self, "d_" + d.name, None)
             if handler is None:
                 self.warn(d.pos, f"{d.name}: not supported; ignored")
                 continue
-            handler(d)
-            if d.name not in DEFERRED:
-                self.unused(d)
+            if d.name == "Shape" and self._named_later() and self.b.recording is None:
+                waiting.append((d, dataclasses.replace(self.state, ctm=self.state.ctm.copy())))
+                continue
+            self._handle(handler, d)
+        current = self.state
+        for d, state in waiting:
+            self.state = state
+            if _pbrt.SKIP_MISSING_FILES and self._named_later():  # the bench's probe: defined in a missing file?
+                _pbrt.skipped_missing(f"{d.pos}: NamedMaterial '{state.material[1]}' is never defined (in a missing "
+                                      "file?); its shape is left out")
+                continue
+            self._handle(self.d_Shape, d)
+        self.state = current
         if self.stack:
             self.warn(self.name, f"{len(self.stack)} AttributeBegin without AttributeEnd")
         self.finish_options()
+
+    def _handle(self, handler, d) -> None:
+        try:
+            handler(d)
+        except MissingFile as exc:
+            if not _pbrt.SKIP_MISSING_FILES:
+                raise
+            _pbrt.skipped_missing(exc)
+            return
+        if d.name not in DEFERRED:
+            self.unused(d)
+
+    def _named_later(self) -> bool:
+        """Whether the material in effect is a NamedMaterial not (yet) defined."""
+        mat = self.state.material
+        return isinstance(mat, tuple) and mat[1] not in self.materials.named
 
     def unused(self, d: Directive) -> None:
         for p in d.params.unused():
@@ -125,11 +184,9 @@ class _Importer:
         self._apply(np.linalg.inv(world_from_camera))
 
     def _matrix(self, d):
-        # pbrt's Transform lists the matrix column by column (the transpose of its rows)
-        m = np.asarray(d.args[0], np.float64).reshape(4, 4).T
-        if abs(np.linalg.det(m)) < 1e-300:
-            raise error_at(d.pos, f"{d.name}: the matrix is singular")
-        return m
+        # pbrt's Transform lists the matrix column by column (the transpose of its rows); a singular
+        # one is kept, as pbrt-v4 keeps it (its inverse NaN): see singular() for what it draws
+        return np.asarray(d.args[0], np.float64).reshape(4, 4).T
 
     def d_Transform(self, d):
         self.state.ctm = self._matrix(d)
@@ -205,11 +262,15 @@ class _Importer:
             raise error_at(d.pos, "ObjectInstance inside ObjectBegin")
         if d.args[0] not in self.b.groups:
             raise error_at(d.pos, f"ObjectInstance: no object named '{d.args[0]}' (ObjectBegin)")
+        if singular(self.state.ctm):  # pbrt-v4 moves rays into the instance by the inverse: NaN, no hit
+            return
         add_instance(self.b, self.b.groups[d.args[0]], self.state.ctm, d.pos)
 
     # -- options ---------------------------------------------------------------------------------
 
     def d_Camera(self, d):
+        if singular(self.state.ctm):
+            raise error_at(d.pos, "Camera: the transform is singular (the camera needs its inverse)")
         self.camera = (d, self.state.ctm.copy(), self.state.outside)
         self.coords["camera"] = np.linalg.inv(self.state.ctm)
 
@@ -235,21 +296,9 @@ class _Importer:
         st = RenderSettings(width=1280, height=720, spp=16, max_depth=6, rr_depth=2)
         self.b.settings = st
         film = self.options.get("Film")
+        ratio = imaging_ratio(self.camera[0] if self.camera is not None else None, film)
         if film is not None:
-            if film.args[0] != "rgb":
-                self.warn(film.pos, f'Film "{film.args[0]}": read as an "rgb" film')
-            st.width = film.params.integer("xresolution", 1280)
-            st.height = film.params.integer("yresolution", 720)
-            if st.width < 1 or st.height < 1:
-                raise error_at(film.pos, f"Film: impossible resolution {st.width}x{st.height}")
-            for key, neutral in (("iso", 100.0), ("exposuretime", 1.0), ("whitebalance", 0.0)):
-                value = film.params.float(key, neutral)
-                if value != neutral:
-                    self.warn(film.params.items[key].pos, f'Film "float {key}" {value:g}: not supported; ignored')
-            sensor = film.params.string("sensor", "cie1931")
-            if sensor != "cie1931":
-                self.warn(film.params.items["sensor"].pos, f"Film sensor '{sensor}': rendered as cie1931")
-            self.unused(film)
+            film_settings(self, film, st)
         sampler = self.options.get("Sampler")
         if sampler is not None:
             st.spp = sampler.params.integer("pixelsamples", 16)
@@ -277,8 +326,31 @@ class _Importer:
                 self.warn(integ.params.items["regularize"].pos, "Integrator: regularize is not supported; ignored")
             self.unused(integ)
         st.filter = self.pixel_filter(self.options.get("PixelFilter"))
+        self.expose(ratio)
         if self.camera is not None:
             self.finish_camera(*self.camera)
+
+    def expose(self, ratio: float) -> None:
+        """Every emitter's radiance (area lights, lights, the environment) times ``ratio``: for our
+        linear renderer, the image of pbrt's film scaled by its imaging ratio."""
+        if ratio == 1.0:
+            return
+        seen = set()
+        for mat in self.b.materials:
+            if id(mat) not in seen and mat.is_emissive:
+                seen.add(id(mat))
+                mat.emission = tuple(float(c) * ratio for c in mat.emission)
+        for light in self.b.lights:
+            for key in ("intensity", "irradiance"):
+                if hasattr(light, key) and not (key == "irradiance" and hasattr(light, "scale")):
+                    setattr(light, key, tuple(float(c) * ratio for c in getattr(light, key)))
+            if hasattr(light, "scale"):  # the projector: scale x the texel
+                light.scale = float(light.scale) * ratio
+        env = self.b.environment
+        if isinstance(env, EnvMap):
+            self.b.environment = dataclasses.replace(env, scale=tuple(float(c) * ratio for c in env.scale))
+        elif env is not None:
+            self.b.environment = dataclasses.replace(env, radiance=tuple(float(c) * ratio for c in env.radiance))
 
     def pixel_filter(self, pf: Directive | None) -> PixelFilter:
         """pbrt-v4's filters and defaults (a gaussian of radius 1.5 and sigma 0.5 without PixelFilter)."""
@@ -405,6 +477,9 @@ class _Importer:
         if not name:
             return -1
         if name not in self.named_media:
+            if _pbrt.SKIP_MISSING_FILES:  # the bench's probe: defined in a missing file? vacuum
+                _pbrt.skipped_missing(f"{pos}: medium '{name}' is never defined (in a missing file?); vacuum")
+                return -1
             raise error_at(pos, f'medium "{name}" is not defined (MakeNamedMedium before its use)')
         medium = self.named_media[name]
         return -1 if medium is None else self.b.medium_index(medium)
@@ -492,6 +567,13 @@ class _Importer:
         if geometry is None:
             return
         m, flip = self.state.ctm, self.state.reverse
+        if singular(m):
+            if d.args[0] in QUADRICS:  # intersected in object space through the inverse: never hit
+                return
+            geometry = _flattened(geometry, m)  # moved by m as pbrt-v4 moves them
+            if geometry is None:
+                return
+            m = None
         if isinstance(geometry[0], str):  # ("sphere", radius)
             _, radius = geometry
             self._sphere(transform_points(m, [0, 0, 0])[0], radius, m, mat, d.pos, flip, interface)

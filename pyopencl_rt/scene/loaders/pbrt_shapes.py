@@ -1,5 +1,5 @@
 """pbrt-v4 shapes in object space: ``trianglemesh``, ``bilinearmesh`` (as triangles), ``plymesh``,
-``loopsubdiv`` (its control mesh, with a warning), ``sphere`` (ours when whole and evenly scaled,
+``loopsubdiv`` (Loop subdivision: subdivision.py), ``sphere`` (ours when whole and evenly scaled,
 else triangles), ``disk`` and ``cylinder`` (triangles).
 
 Texture coordinates become ours as (u, 1 - v): pbrt-v4's image textures look up (s, 1 - t) with
@@ -84,10 +84,7 @@ def shape_geometry(imp, d):
     if t == "bilinearmesh":
         return _bilinear(d)
     if t == "loopsubdiv":
-        imp.warn(d.pos, 'Shape "loopsubdiv": rendered as its control mesh (not subdivided)')
-        p.integer("levels", 3)
-        v = _points(d)
-        return v, _indices(d, len(v), 3, 3), None
+        return _loopsubdiv(d)
     if t == "plymesh":
         return _plymesh(imp, d)
     if t == "sphere":
@@ -107,10 +104,29 @@ def shape_geometry(imp, d):
         v, f, uv = cylinder_mesh(p.float("radius", 1.0), p.float("zmin", -1.0), p.float("zmax", 1.0),
                                  min(p.float("phimax", 360.0), 360.0))
         return v, f, uv, _unit(np.asarray(v, np.float64) * [1.0, 1.0, 0.0])[f]
-    imp.warn(d.pos, f'Shape "{t}": not supported; ignored')
-    for q in p.items.values():
-        q.used = True
-    return None
+    raise error_at(d.pos, f'Shape "{t}": shape type "{t}" is not supported')
+
+
+def _loopsubdiv(d):
+    """``levels`` (default 3, as pbrt-v4) of Loop subdivision of the control mesh ``P`` /
+    ``indices``, its vertices on the limit surface (subdivision.py); shading normals: the vertex
+    normals of the subdivided mesh (pbrt's are the limit surface's, which they approach as the
+    levels grow)."""
+    from .subdivision import SubdivisionError, loop_subdivide, vertex_normals
+
+    levels = d.params.integer("levels", 3)
+    if levels < 0:
+        raise error_at(d.params.items["levels"].pos, f'Shape "loopsubdiv": levels must be >= 0, got {levels}')
+    if levels > 8:  # 4^levels triangles per control triangle
+        raise error_at(d.params.items["levels"].pos, f'Shape "loopsubdiv": {levels} levels would make '
+                       f'{4 ** levels} triangles of each control triangle (at most 8 levels)')
+    v = _points(d)
+    f = _indices(d, len(v), 3, 3)
+    try:
+        v, f = loop_subdivide(v, f, levels)
+    except SubdivisionError as exc:
+        raise error_at(d.pos, f'Shape "loopsubdiv": {exc}') from None
+    return v, f, None, vertex_normals(v, f).astype(np.float32)[f]
 
 
 def _unit(n) -> np.ndarray:
@@ -156,17 +172,38 @@ def _plymesh(imp, d):
 
     p = d.params
     fname, path = pbrt_file(d, imp.path.parent, 'Shape "plymesh"')
-    if path.suffix.lower() == ".gz":
-        raise error_at(d.pos, f"Shape \"plymesh\": '{fname}': compressed PLY files are not supported (gunzip it)")
     for key in ("displacement", "edgelength"):
         if key in p:
             imp.warn(p.items[key].pos, f'Shape "plymesh": {key} is not supported; ignored')
             p.items[key].used = True
     try:
-        loaded = load_trimesh(path)
+        if path.suffix.lower() == ".gz":  # pbrt-v4 reads .ply.gz through gzip
+            loaded = _gzipped_mesh(path, d.pos)
+        else:
+            loaded = load_trimesh(path)
         v, f = flatten(loaded, name=str(path))
     except MeshError as exc:
         raise error_at(d.pos, f'Shape "plymesh": {exc}') from None
     if len(f) == 0:
         raise error_at(d.pos, f"Shape \"plymesh\": '{fname}' contains no triangles")
     return np.asarray(v, np.float64), np.asarray(f, np.int64), trimesh_uvs(loaded, v, f), ply_extras(loaded, f).normals
+
+
+def _gzipped_mesh(path, pos):
+    """trimesh's reading of a gzip-compressed mesh (``x.ply.gz``), decompressed to a temporary
+    ``x.ply`` first."""
+    import tempfile
+    from pathlib import Path
+
+    from ..mesh import MeshError, load_trimesh
+    from .pbrt import gunzip
+
+    data = gunzip(path.read_bytes(), f'{pos}: Shape "plymesh": {path}')
+    with tempfile.TemporaryDirectory() as folder:
+        plain = Path(folder) / path.stem  # x.ply.gz -> x.ply
+        plain.write_bytes(data)
+        try:
+            loaded = load_trimesh(plain)
+        except MeshError as exc:  # named as the file the scene names
+            raise MeshError(str(exc).replace(str(plain), str(path))) from None
+    return loaded
