@@ -451,7 +451,11 @@ class Scene:
 
     def has_shading_normals(self) -> bool:
         """Some face has a (non-zero) vertex normal: the kernels interpolate them."""
-        return self.normals is not None and len(self.faces) > 0 and bool(np.any(self.face_normals()))
+        if self.normals is None or len(self.faces) == 0:
+            return False
+        from .meshops import any_nonzero
+
+        return any_nonzero(self.face_normals())
 
     def has_anisotropy(self) -> bool:
         """Some material has anisotropic roughness: the kernels compute the tangent (dp/du)."""
@@ -528,20 +532,21 @@ class Scene:
     def face_normals(self) -> np.ndarray:
         """(F, 3, 3) float32 unit shading normals per corner (zeros where the scene has none;
         a non-finite or zero normal becomes 0: that face is shaded flat); with normals_as_given,
-        the normals with their lengths."""
+        the normals with their lengths.  Computed once (one parallel pass, scene/meshops.py) and
+        kept while ``normals``, ``faces`` and ``normals_as_given`` are the same objects: an
+        array changed in place afterwards is not seen (assign a new one).  Read-only."""
         if self.normals is None:
             return np.zeros((len(self.faces), 3, 3), np.float32)
-        n = np.asarray(self.normals, np.float64).reshape(len(self.faces), 3, 3)
-        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            length = np.linalg.norm(n, axis=2, keepdims=True)
-            unit = n / length
-        good = np.isfinite(unit).all(axis=2, keepdims=True) & (length > 0)
-        if self.normals_as_given:
-            unit = n
-        unit = np.where(good, unit, 0.0)
-        flat = ~good.all(axis=(1, 2))  # a face with a missing corner normal is shaded flat
-        unit[flat] = 0.0
-        return unit.astype(np.float32)
+        key = (id(self.normals), id(self.faces), len(self.faces), bool(self.normals_as_given))
+        cached = self.__dict__.get("_face_normals_cache")
+        if cached is not None and cached[0] == key and cached[1] is self.normals:
+            return cached[2]
+        from .meshops import unit_corner_normals
+
+        unit = unit_corner_normals(self.normals, len(self.faces), self.normals_as_given)
+        unit.flags.writeable = False
+        self.__dict__["_face_normals_cache"] = (key, self.normals, unit)
+        return unit
 
     def face_colors(self) -> np.ndarray:
         """(F, 3, 3) float32 linear RGB per corner (1 where the scene has none; NaN as 0)."""
