@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import validate
 from ..device import abi
+from ..host_stages import host_stage
 from ..scene.instances import scene_bvh
 from . import filters
 from .film import Film, RunStats
@@ -101,9 +102,11 @@ class Wavefront:
         if bvh is None:  # a BVH passed in was built by the caller from scene.camera_relative()
             scene = scene.camera_relative()
             self.scene = scene
-        self.bvh = bvh if bvh is not None else scene_bvh(scene)  # two-level with blas_groups
+        with host_stage("bvh"):
+            self.bvh = bvh if bvh is not None else scene_bvh(scene)  # two-level with blas_groups
         self.timings["bvh_seconds"] = time.perf_counter() - t0
-        lights, tri_light, sphere_light = build_lights(scene, self.bvh)
+        with host_stage("lights"):
+            lights, tri_light, sphere_light = build_lights(scene, self.bvh)
         self.n_lights = len(lights)
         if self.n_lights == 0:
             import warnings
@@ -117,6 +120,8 @@ class Wavefront:
 
         self.rt = runtime(device)
         t0 = time.perf_counter()
+        build_stage = host_stage("kernel_build")
+        build_stage.__enter__()
         self.lane_width, self.lane_reason = megakernel.lane_choice(self.kernel_mode, device, self.features)
         if self.lane_width:
             try:
@@ -137,7 +142,14 @@ class Wavefront:
         elif not self.lane_width:
             kernels = self.rt.new_kernels(SOURCES, [f"wf_{s}" for s in STAGES], self.features)
             self.kernels = {s: kernels[f"wf_{s}"] for s in STAGES}
+        build_stage.__exit__(None, None, None)
         self.timings["build_seconds"] = time.perf_counter() - t0
+        from ..accel.device_bvh import node_buffer
+
+        with host_stage("bvh_collapse"):  # the device's node layout (8-wide on CPUs)
+            nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout)
+        upload_stage = host_stage("upload")  # every buffer made and copied (the scene's, the wave's)
+        upload_stage.__enter__()
 
         ctx = self.rt.context
         mf = cl.mem_flags
@@ -150,8 +162,6 @@ class Wavefront:
 
         def scratch(nbytes):
             return cl.Buffer(ctx, mf.READ_WRITE, max(int(nbytes), 16))
-
-        from ..accel.device_bvh import node_buffer
 
         prim = self.bvh.prim_ids
         tri_material = scene.face_materials[prim].astype(np.int32) if len(prim) else np.zeros(0, np.int32)
@@ -167,7 +177,7 @@ class Wavefront:
         # arguments by parameter name (abi.WAVE_PARAMS), set once on every stage
         self.args = KernelArgs(self.kernels)
         self.args.bind(
-            nodes=const(node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout)),
+            nodes=const(nodes),
             tris=const(self.bvh.triangles), **self._instance_buffers(const),
             tri_material=const(tri_material), tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
@@ -193,6 +203,8 @@ class Wavefront:
         unbound = set(self.args.unbound()) - {p.name for p in abi.WAVE_PARAMS if p.launch}
         if unbound:
             raise AssertionError(f"wavefront parameters never bound: {sorted(unbound)}")
+        del nodes
+        upload_stage.__exit__(None, None, None)
         # host-side state of the wave, carried across run() calls
         self.n_active = 0
         self.n_free = W

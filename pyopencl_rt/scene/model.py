@@ -543,7 +543,10 @@ class Scene:
             return cached[2]
         from .meshops import unit_corner_normals
 
-        unit = unit_corner_normals(self.normals, len(self.faces), self.normals_as_given)
+        from ..host_stages import host_stage
+
+        with host_stage("normals"):
+            unit = unit_corner_normals(self.normals, len(self.faces), self.normals_as_given)
         unit.flags.writeable = False
         self.__dict__["_face_normals_cache"] = (key, self.normals, unit)
         return unit

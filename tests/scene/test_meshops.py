@@ -186,3 +186,91 @@ def test_scene_bounds_of_used_vertices():
     lo, hi = scene_bounds(scene)
     used = v[np.unique(f)].astype(np.float64)
     assert np.array_equal(lo, used.min(axis=0)) and np.array_equal(hi, used.max(axis=0))
+
+
+# --- the binary PLY fast path (scene/mesh.py: read_binary_ply) against trimesh ----------------
+
+def _write_ply(path, vertex_fields, columns, faces, count="uchar", index="int", endian="<", counts=None):
+    """A binary PLY of these vertex properties ([(ply type, name)], their columns) and faces."""
+    import numpy as _np
+
+    kinds = {"float": "f4", "double": "f8", "uchar": "u1", "char": "i1", "int": "i4", "uint": "u4",
+             "ushort": "u2"}
+    fmt = "binary_little_endian" if endian == "<" else "binary_big_endian"
+    lines = ["ply", f"format {fmt} 1.0", f"element vertex {len(columns[0])}"]
+    lines += [f"property {t} {n}" for t, n in vertex_fields]
+    lines += [f"element face {len(faces)}", f"property list {count} {index} vertex_indices", "end_header"]
+    vd = _np.empty(len(columns[0]), [(n, endian + kinds[t]) for t, n in vertex_fields])
+    for (t, n), c in zip(vertex_fields, columns):
+        vd[n] = c
+    width = faces.shape[1]
+    fd = _np.empty(len(faces), [("n", endian + kinds[count]), ("i", endian + kinds[index], (width,))])
+    fd["n"] = width if counts is None else counts
+    fd["i"] = faces
+    path.write_bytes(("\n".join(lines) + "\n").encode() + vd.tobytes() + fd.tobytes())
+    return path
+
+
+def _ply_variants(tmp_path):
+    v, f = heightfield(12)
+    rng = np.random.default_rng(3)
+    n = rng.standard_normal((len(v), 3))
+    rgb = rng.integers(0, 256, (len(v), 3))
+    xyz = [("float", "x"), ("float", "y"), ("float", "z")]
+    out = {
+        "plain": _write_ply(tmp_path / "plain.ply", xyz, list(v.T), f),
+        "normals": _write_ply(tmp_path / "normals.ply", xyz + [("float", "nx"), ("float", "ny"), ("float", "nz")],
+                              list(v.T) + list(n.T), f),
+        "colours": _write_ply(tmp_path / "colours.ply", xyz + [("uchar", "red"), ("uchar", "green"), ("uchar", "blue")],
+                              list(v.T) + list(rgb.T), f),
+        "double_uint_big": _write_ply(tmp_path / "double.ply", [("double", "x"), ("double", "y"), ("double", "z")],
+                                      list(v.astype(np.float64).T), f, count="uchar", index="uint", endian=">"),
+        "char_count": _write_ply(tmp_path / "charcount.ply", xyz, list(v.T), f, count="char"),
+    }
+    # trimesh's cases, which the fast path leaves to it
+    out["uv"] = _write_ply(tmp_path / "uv.ply", xyz + [("float", "u"), ("float", "v")], list(v.T) + [v[:, 0], v[:, 1]], f)
+    quads = np.stack([f[0::2, 0], f[0::2, 1], f[0::2, 2], f[1::2, 2]], 1)
+    out["quads"] = _write_ply(tmp_path / "quads.ply", xyz, list(v.T), quads)
+    return out
+
+
+def test_binary_ply_fast_path_matches_trimesh(tmp_path):
+    import trimesh
+
+    from pyopencl_rt.scene.loaders.meshfile import ply_extras, trimesh_uvs
+    from pyopencl_rt.scene.mesh import PlyMesh, flatten, load_trimesh
+
+    for name, path in _ply_variants(tmp_path).items():
+        fast = load_trimesh(path)
+        assert isinstance(fast, PlyMesh) == (name not in ("uv", "quads")), name
+        ref = trimesh.load(str(path), process=False)
+        v, f = flatten(fast, name)
+        rv, rf = flatten(ref, name)
+        assert np.array_equal(v, rv) and v.dtype == rv.dtype and np.array_equal(f, rf) and f.dtype == rf.dtype, name
+        got, want = ply_extras(fast, f), ply_extras(ref, rf)
+        assert (got.normals is None) == (want.normals is None), name
+        if want.normals is not None:
+            _same(got.normals, want.normals)
+        assert sorted(got.attributes) == sorted(want.attributes), name
+        for key in want.attributes:
+            _same(got.attributes[key], want.attributes[key])
+        assert (trimesh_uvs(fast, v, f) is None) == (trimesh_uvs(ref, rv, rf) is None), name
+
+
+def test_binary_ply_fast_path_declines_what_it_does_not_read(tmp_path):
+    from pyopencl_rt.scene.mesh import read_binary_ply
+
+    v, f = heightfield(4)
+    xyz = [("float", "x"), ("float", "y"), ("float", "z")]
+    good = _write_ply(tmp_path / "good.ply", xyz, list(v.T), f)
+    assert read_binary_ply(good) is not None
+    short = tmp_path / "short.ply"
+    short.write_bytes(good.read_bytes()[:-5])
+    assert read_binary_ply(short) is None
+    mixed = _write_ply(tmp_path / "mixed.ply", xyz, list(v.T), np.concatenate([f, f[:, :1]], 1), counts=3)
+    assert read_binary_ply(mixed) is None  # the counts do not match the records
+    ascii_ply = tmp_path / "ascii.ply"
+    ascii_ply.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                         "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                         "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    assert read_binary_ply(ascii_ply) is None

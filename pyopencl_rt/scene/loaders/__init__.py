@@ -46,7 +46,10 @@ def load_scene(path, defines: dict | None = None) -> Scene:
     scene = _load(p, name, suffix, defines)
     from ..validate import check_scene
 
-    check_scene(scene)  # the kernels' float32 limits, whichever format the values came from
+    from ...host_stages import host_stage
+
+    with host_stage("validation"):
+        check_scene(scene)  # the kernels' float32 limits, whichever format the values came from
     return scene
 
 

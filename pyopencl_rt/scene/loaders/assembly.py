@@ -9,6 +9,7 @@ import warnings
 
 import numpy as np
 
+from ...host_stages import host_stage
 from .. import meshops
 from ..instances import instance_bounds, n_world_faces
 from ..meshops import finite_faces
@@ -72,7 +73,8 @@ def flat_where_planar(vertices, faces, normals, tolerance: float = 1e-5, inplace
     planar quads, whose vertex normals Mitsuba computes) compiles no shading normals.  None when
     no face is left with normals.  ``inplace``: a float32 C-contiguous ``normals`` is changed in
     place, not copied (one parallel pass: scene/meshops.py)."""
-    return meshops.flat_where_planar(vertices, faces, normals, tolerance, inplace=inplace)
+    with host_stage("normals"):
+        return meshops.flat_where_planar(vertices, faces, normals, tolerance, inplace=inplace)
 
 
 def transform_normals(matrix, normals, unit: bool = True):
@@ -99,7 +101,8 @@ def angle_weighted_normals(vertices, faces, keys=None) -> np.ndarray:
     one vertex (default: the face indices; Mitsuba's OBJ reader makes one vertex per distinct
     position and texture coordinate).  In float64, one parallel pass over the faces
     (scene/meshops.py; tests/scene/test_meshops.py holds the numpy reference it matches)."""
-    return meshops.angle_weighted_normals(vertices, faces, keys)
+    with host_stage("normals"):
+        return meshops.angle_weighted_normals(vertices, faces, keys)
 
 
 def scene_bounds(scene: Scene):
