@@ -224,9 +224,11 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
         total_s = sum(stages.values()) or 1.0
         host = info.get("host_seconds") or {}
         if host:
-            click.echo("host stage    seconds", err=True)
+            peak = info.get("host_peak_rss_mb") or {}
+            click.echo("host stage    seconds  peak RSS MB", err=True)
             for name, sec in host.items():
-                click.echo(f"{name:<12} {sec:8.3f}", err=True)
+                mb = peak.get(name)
+                click.echo(f"{name:<12} {sec:8.3f}  {'' if mb is None else f'{mb:11.0f}'}", err=True)
         click.echo(f"lanes: {info.get('lanes_reason')}\nstage         seconds   share", err=True)  # lanes: which ran, why
         for name, sec in stages.items():
             click.echo(f"{name:<12} {sec:8.3f}  {100 * sec / total_s:5.1f}%", err=True)

@@ -8,7 +8,9 @@ upload the buffers.
 
 Stages add up over a process (a stage met twice, such as validation, is their sum); ``load``
 (the scene file, in the CLI) holds ``mesh_read``, ``normals`` and a first ``validation``.
-:func:`reset` starts again; :func:`snapshot` is a copy, stages in order of first use.
+:func:`reset` starts again; :func:`snapshot` is a copy, stages in order of first use;
+:func:`peak_rss` the process's peak resident memory (MB) when each stage last ended, which says
+in which stage the peak was reached.
 """
 from __future__ import annotations
 
@@ -16,6 +18,16 @@ import time
 from contextlib import contextmanager
 
 _SECONDS: dict = {}
+_PEAK_MB: dict = {}
+
+
+def _max_rss_mb():
+    try:
+        import resource
+
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KB on Linux
+    except (ImportError, OSError):
+        return None
 
 
 @contextmanager
@@ -25,10 +37,16 @@ def host_stage(name: str):
         yield
     finally:
         _SECONDS[name] = _SECONDS.get(name, 0.0) + time.perf_counter() - start
+        _PEAK_MB[name] = _max_rss_mb()
 
 
 def reset() -> None:
     _SECONDS.clear()
+    _PEAK_MB.clear()
+
+
+def peak_rss() -> dict:
+    return dict(_PEAK_MB)
 
 
 def snapshot() -> dict:

@@ -204,6 +204,7 @@ class Wavefront:
         if unbound:
             raise AssertionError(f"wavefront parameters never bound: {sorted(unbound)}")
         del nodes
+        scene.release_caches()  # the per-corner normals are on the device now
         upload_stage.__exit__(None, None, None)
         # host-side state of the wave, carried across run() calls
         self.n_active = 0

@@ -551,6 +551,10 @@ class Scene:
         self.__dict__["_face_normals_cache"] = (key, self.normals, unit)
         return unit
 
+    def release_caches(self) -> None:
+        """Forget what face_normals keeps (a renderer calls it once the buffers are on the device)."""
+        self.__dict__.pop("_face_normals_cache", None)
+
     def face_colors(self) -> np.ndarray:
         """(F, 3, 3) float32 linear RGB per corner (1 where the scene has none; NaN as 0)."""
         return self._per_corner(self.colors, 3, 1.0)

@@ -317,7 +317,9 @@ class SceneBuilder:
         self._material_index: dict[int, int] = {}
         self._emissive: dict[tuple, Material] = {}
         self.vertices, self.faces, self.face_materials, self.uvs = [], [], [], []
-        self.normals, self.colors = [], []  # per mesh: (F, 3, 3), zeros (flat) / ones where it has none
+        # per mesh: (F, 3, 3) or None where it has none (zeros, flat / ones, and uvs zeros, filled in
+        # by build() only when some mesh has them: no placeholders for a mesh of millions of faces)
+        self.normals, self.colors = [], []
         self.any_normals = self.any_colors = False
         self.n_vertices = 0
         self.spheres, self.sphere_materials = [], []
@@ -438,9 +440,9 @@ class SceneBuilder:
         """Triangles already in world space, their fronts set (what add_mesh leaves)."""
         self.vertices.append(v)
         self.faces.append(f + self.n_vertices)
-        self.uvs.append(np.zeros((len(f), 3, 2), np.float32) if uv is None else uv)
-        self.normals.append(nrm if nrm is not None else np.zeros((len(f), 3, 3), np.float32))
-        self.colors.append(col if col is not None else np.ones((len(f), 3, 3), np.float32))
+        self.uvs.append(uv)
+        self.normals.append(nrm)
+        self.colors.append(col)
         self.face_materials.append(np.full(len(f), self.material_index(material), np.int32))
         self.face_interfaces.append(np.full(len(f), self.interface_index(interface), np.int32))
         self.face_emitters.append(np.full(len(f), int(emitter), np.int32))
@@ -479,12 +481,12 @@ class SceneBuilder:
         if self.faces:
             vertices = np.concatenate(self.vertices)
             faces = np.concatenate(self.faces)
-            uvs = np.concatenate(self.uvs)
+            uvs = _stacked(self.uvs, self.faces, (3, 2), 0.0)
             face_materials = np.concatenate(self.face_materials)
             if self.any_normals:
-                normals = np.concatenate(self.normals)
+                normals = _stacked(self.normals, self.faces, (3, 3), 0.0)
             if self.any_colors:
-                colors = np.concatenate(self.colors)
+                colors = _stacked(self.colors, self.faces, (3, 3), 1.0)
         else:
             vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
             uvs, face_materials = None, np.zeros(0, np.int32)
@@ -550,6 +552,21 @@ class SceneBuilder:
         if hasattr(scene, "warnings"):
             scene.warnings = list(self.warnings)
         return scene
+
+
+def _stacked(parts, faces, shape, fill) -> np.ndarray:
+    """The per-face arrays ``parts`` (one per mesh, None: ``fill`` for each of its faces) in one
+    float32 (F, *shape) array, written once (np.concatenate of the parts and placeholders)."""
+    out = np.empty((sum(len(f) for f in faces), *shape), np.float32)
+    at = 0
+    for part, f in zip(parts, faces):
+        n = len(f)
+        if part is None:
+            out[at:at + n] = fill
+        else:
+            out[at:at + n] = np.asarray(part).reshape(n, *shape)
+        at += n
+    return out
 
 
 # --------------------------------------------------------------------------------------------
