@@ -146,11 +146,6 @@ class Wavefront:
         self.timings["build_seconds"] = time.perf_counter() - t0
         from ..accel.device_bvh import node_buffer
 
-        with host_stage("bvh_collapse"):  # the device's node layout (8-wide on CPUs)
-            nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout)
-        upload_stage = host_stage("upload")  # every buffer made and copied (the scene's, the wave's)
-        upload_stage.__enter__()
-
         ctx = self.rt.context
         mf = cl.mem_flags
 
@@ -159,6 +154,16 @@ class Wavefront:
             if a.nbytes == 0:
                 a = np.zeros(16, np.uint8)
             return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
+
+        with host_stage("bvh_collapse"):  # the device's node layout (8-wide on CPUs)
+            nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout)
+        upload_stage = host_stage("upload")  # every buffer made and copied (the scene's, the wave's)
+        upload_stage.__enter__()
+        # the nodes first, and their host copies gone before the other buffers are made (the peak
+        # memory of a scene of millions of triangles): the wide BVH cached on a BVH of our own too
+        nodes = const(nodes)
+        if bvh is None:
+            getattr(self.bvh, "world", self.bvh).__dict__.pop("_wide", None)
 
         def scratch(nbytes):
             return cl.Buffer(ctx, mf.READ_WRITE, max(int(nbytes), 16))
@@ -177,7 +182,7 @@ class Wavefront:
         # arguments by parameter name (abi.WAVE_PARAMS), set once on every stage
         self.args = KernelArgs(self.kernels)
         self.args.bind(
-            nodes=const(nodes),
+            nodes=nodes,
             tris=const(self.bvh.triangles), **self._instance_buffers(const),
             tri_material=const(tri_material), tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
@@ -204,7 +209,6 @@ class Wavefront:
         if unbound:
             raise AssertionError(f"wavefront parameters never bound: {sorted(unbound)}")
         del nodes
-        scene.release_caches()  # the per-corner normals are on the device now
         upload_stage.__exit__(None, None, None)
         # host-side state of the wave, carried across run() calls
         self.n_active = 0
@@ -273,7 +277,7 @@ class Wavefront:
         normals and colours, 9 floats; 16-byte dummies when no kernel reads them."""
         dummy = const(np.zeros(0, np.uint8))
         prim = self.bvh.prim_ids
-        normals = const(self.scene.face_normals()[prim]) if "HAS_SHADING_NORMALS" in self.features else dummy
+        normals = const(self.scene.face_normals(prim)) if "HAS_SHADING_NORMALS" in self.features else dummy
         colors = const(self.scene.face_colors()[prim]) if "HAS_VERTEX_COLORS" in self.features else dummy
         return {"tri_normal": normals, "tri_color": colors}
 

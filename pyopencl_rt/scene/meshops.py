@@ -191,12 +191,69 @@ def flat_where_planar(vertices, faces, normals, tolerance: float = 1e-5, inplace
     return n if nonzero.any() else None
 
 
+@_jit(inline="always")
+def _unit_face(n, i, as_given, out, j):
+    """out[j] = Scene.face_normals of face i of n: each corner normal made unit length (kept as
+    given with ``as_given``), all 0 if a corner normal is non-finite or of zero length.  Returns
+    whether some component of out[j] is non-zero."""
+    good = True
+    for k in range(3):
+        x, y, z = np.float64(n[i, k, 0]), np.float64(n[i, k, 1]), np.float64(n[i, k, 2])
+        length = math.sqrt(x * x + y * y + z * z)
+        ux, uy, uz = x / length, y / length, z / length
+        if not (math.isfinite(ux) and math.isfinite(uy) and math.isfinite(uz) and length > 0):
+            good = False
+        if as_given:
+            ux, uy, uz = x, y, z
+        out[j, k, 0], out[j, k, 1], out[j, k, 2] = np.float32(ux), np.float32(uy), np.float32(uz)
+    nonzero = False
+    for k in range(3):
+        for c in range(3):
+            if not good:
+                out[j, k, c] = 0.0
+            elif out[j, k, c] != 0:
+                nonzero = True
+    return nonzero
+
+
 @_jit(parallel=True)
-def _unit_corner_normals(n, as_given, out):
-    """Scene.face_normals: each corner normal made unit length (kept as given with ``as_given``);
-    a face with a non-finite or zero-length corner normal all 0."""
+def _unit_corner_normals(n, prim, as_given, out, nonzero):
+    """out[j] = the unit corner normals of face prim[j] (of face j where prim is empty)."""
+    gather = prim.shape[0] > 0
+    for j in prange(out.shape[0]):
+        i = np.int64(prim[j]) if gather else np.int64(j)
+        nonzero[j] = _unit_face(n, i, as_given, out, j)
+
+
+def _as_normals(normals, n_faces):
+    n = np.asarray(normals).reshape(n_faces, 3, 3)
+    if n.dtype not in (np.float32, np.float64):
+        n = n.astype(np.float64)
+    return np.ascontiguousarray(n)
+
+
+def unit_corner_normals(normals, n_faces: int, as_given: bool = False, prim=None) -> np.ndarray:
+    """(F, 3, 3) float32: Scene.face_normals of per-corner ``normals`` (any real dtype); with
+    ``prim`` (int indices), its rows prim only, gathered (face_normals()[prim] in one pass)."""
+    n = _as_normals(normals, n_faces)
+    prim = np.zeros(0, np.int64) if prim is None else np.ascontiguousarray(prim)
+    rows = len(prim) if len(prim) else n_faces
+    if len(prim) and (prim.min() < 0 or prim.max() >= n_faces):
+        raise IndexError("prim out of range")
+    out = np.empty((rows, 3, 3), np.float32)
+    nonzero = np.empty(rows, np.bool_)
+    if rows:
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            _unit_corner_normals(n, prim, bool(as_given), out, nonzero)
+    return out
+
+
+@_jit(parallel=True)
+def _any_shading(n, as_given, flags):
+    """flags[i]: face i of n keeps a non-zero normal in Scene.face_normals (_unit_face's rule)."""
     for i in prange(n.shape[0]):
         good = True
+        nonzero = False
         for k in range(3):
             x, y, z = np.float64(n[i, k, 0]), np.float64(n[i, k, 1]), np.float64(n[i, k, 2])
             length = math.sqrt(x * x + y * y + z * z)
@@ -205,44 +262,19 @@ def _unit_corner_normals(n, as_given, out):
                 good = False
             if as_given:
                 ux, uy, uz = x, y, z
-            out[i, k, 0], out[i, k, 1], out[i, k, 2] = np.float32(ux), np.float32(uy), np.float32(uz)
-        if not good:
-            for k in range(3):
-                for c in range(3):
-                    out[i, k, c] = 0.0
+            if np.float32(ux) != 0 or np.float32(uy) != 0 or np.float32(uz) != 0:
+                nonzero = True
+        flags[i] = good and nonzero
 
 
-def unit_corner_normals(normals, n_faces: int, as_given: bool = False) -> np.ndarray:
-    """(F, 3, 3) float32: Scene.face_normals of per-corner ``normals`` (any real dtype)."""
-    n = np.asarray(normals).reshape(n_faces, 3, 3)
-    if n.dtype not in (np.float32, np.float64):
-        n = n.astype(np.float64)
-    n = np.ascontiguousarray(n)
-    out = np.empty((n_faces, 3, 3), np.float32)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        _unit_corner_normals(n, bool(as_given), out)
-    return out
-
-
-@_jit(parallel=True)
-def _any_nonzero(a, flags):
-    for i in prange(a.shape[0]):
-        found = False
-        for j in range(a.shape[1]):
-            if a[i, j] != 0:
-                found = True
-                break
-        flags[i] = found
-
-
-def any_nonzero(a) -> bool:
-    """np.any(a) of a big array, in parallel (False for an empty one)."""
-    a = np.ascontiguousarray(a)
-    if a.size == 0:
+def any_shading_normal(normals, n_faces: int, as_given: bool = False) -> bool:
+    """np.any(Scene.face_normals()) without the (F, 3, 3) array: some face keeps a non-zero normal."""
+    if n_faces == 0:
         return False
-    rows = a.reshape(len(a), -1) if a.ndim > 1 else a.reshape(-1, 1)
-    flags = np.empty(len(rows), np.bool_)
-    _any_nonzero(rows, flags)
+    n = _as_normals(normals, n_faces)
+    flags = np.empty(n_faces, np.bool_)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        _any_shading(n, bool(as_given), flags)
     return bool(flags.any())
 
 

@@ -453,9 +453,9 @@ class Scene:
         """Some face has a (non-zero) vertex normal: the kernels interpolate them."""
         if self.normals is None or len(self.faces) == 0:
             return False
-        from .meshops import any_nonzero
+        from .meshops import any_shading_normal
 
-        return any_nonzero(self.face_normals())
+        return any_shading_normal(self.normals, len(self.faces), self.normals_as_given)
 
     def has_anisotropy(self) -> bool:
         """Some material has anisotropic roughness: the kernels compute the tangent (dp/du)."""
@@ -529,31 +529,19 @@ class Scene:
         """(F, 3, 2) float32 texture coordinates (zeros where the scene has none)."""
         return self._per_corner(self.uvs, 2, 0.0)
 
-    def face_normals(self) -> np.ndarray:
+    def face_normals(self, prim=None) -> np.ndarray:
         """(F, 3, 3) float32 unit shading normals per corner (zeros where the scene has none;
         a non-finite or zero normal becomes 0: that face is shaded flat); with normals_as_given,
-        the normals with their lengths.  Computed once (one parallel pass, scene/meshops.py) and
-        kept while ``normals``, ``faces`` and ``normals_as_given`` are the same objects: an
-        array changed in place afterwards is not seen (assign a new one).  Read-only."""
+        the normals with their lengths.  ``prim`` (face indices): those faces' only, in that order
+        (face_normals()[prim] without the whole array; the renderer's BVH order).  One parallel
+        pass (scene/meshops.py)."""
         if self.normals is None:
-            return np.zeros((len(self.faces), 3, 3), np.float32)
-        key = (id(self.normals), id(self.faces), len(self.faces), bool(self.normals_as_given))
-        cached = self.__dict__.get("_face_normals_cache")
-        if cached is not None and cached[0] == key and cached[1] is self.normals:
-            return cached[2]
+            return np.zeros((len(self.faces) if prim is None else len(prim), 3, 3), np.float32)
+        from ..host_stages import host_stage
         from .meshops import unit_corner_normals
 
-        from ..host_stages import host_stage
-
         with host_stage("normals"):
-            unit = unit_corner_normals(self.normals, len(self.faces), self.normals_as_given)
-        unit.flags.writeable = False
-        self.__dict__["_face_normals_cache"] = (key, self.normals, unit)
-        return unit
-
-    def release_caches(self) -> None:
-        """Forget what face_normals keeps (a renderer calls it once the buffers are on the device)."""
-        self.__dict__.pop("_face_normals_cache", None)
+            return unit_corner_normals(self.normals, len(self.faces), self.normals_as_given, prim)
 
     def face_colors(self) -> np.ndarray:
         """(F, 3, 3) float32 linear RGB per corner (1 where the scene has none; NaN as 0)."""

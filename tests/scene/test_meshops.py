@@ -153,14 +153,21 @@ def test_face_normals_match_reference(as_given, dtype):
     _same(meshops.unit_corner_normals(n, len(n), as_given), ref_face_normals(n, len(n), as_given))
     scene = Scene(vertices=np.zeros((3, 3), np.float32), faces=np.zeros((500, 3), np.int32),
                   face_materials=np.zeros(500, np.int32), materials=[], normals=n, normals_as_given=as_given)
-    first = scene.face_normals()
-    _same(first, ref_face_normals(n, len(n), as_given))
-    assert scene.face_normals() is first  # computed once
-    scene.normals = -n  # a new array: computed again
-    _same(scene.face_normals(), ref_face_normals(-n, len(n), as_given))
-    assert scene.has_shading_normals()
+    want = ref_face_normals(n, len(n), as_given)
+    _same(scene.face_normals(), want)
+    prim = np.random.default_rng(8).permutation(500)[:400].astype(np.int32)
+    _same(scene.face_normals(prim), want[prim])  # the BVH's order, gathered in the same pass
+    assert scene.has_shading_normals() == bool(np.any(want))
+    only_bad = n.copy()
+    only_bad[:, 0, 0] = np.nan  # every face has a bad corner: all flat
+    scene.normals = only_bad
+    assert not scene.has_shading_normals() and not np.any(ref_face_normals(only_bad, len(n), as_given))
     scene.normals = np.zeros_like(n)
     assert not scene.has_shading_normals()
+    one = np.zeros_like(n)
+    one[123] = n[1]
+    scene.normals = one
+    assert scene.has_shading_normals() == bool(np.any(ref_face_normals(one, len(n), as_given)))
 
 
 @pytest.mark.parametrize("mesh", sorted(MESHES))

@@ -51,13 +51,14 @@ def checked_triangles(vertices, faces, face_materials, name):
 
 
 def triangle_scene(vertices, faces, face_materials, materials, name, uvs=None, normals=None, colors=None,
-                   face_interfaces=None, face_emitters=None, **scene_fields) -> Scene:
+                   face_interfaces=None, face_emitters=None, own_normals=False, **scene_fields) -> Scene:
     """The Scene of these triangles (checked) with their materials (the default one if there are
     none), per-corner UVs, shading normals and colours, and medium interfaces (per face, or None);
-    no camera yet."""
+    no camera yet.  ``own_normals``: ``normals`` is the caller's to give away (it may be changed
+    in place and kept, not copied)."""
     keep = _finite_faces(vertices, np.asarray(faces, np.int64))
     uvs = kept_per_face(uvs, keep, np.float32, (3, 2))
-    normals = kept_per_face(normals, keep, np.float32, (3, 3), copy=True)  # our own: made flat in place
+    normals = kept_per_face(normals, keep, np.float32, (3, 3), copy=not own_normals)  # ours: made flat in place
     colors = kept_per_face(colors, keep, np.float32, (3, 3))
     face_interfaces = kept_per_face(face_interfaces, keep, np.int32)
     face_emitters = kept_per_face(face_emitters, keep, np.int32)

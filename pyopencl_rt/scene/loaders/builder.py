@@ -487,6 +487,10 @@ class SceneBuilder:
                 normals = _stacked(self.normals, self.faces, (3, 3), 0.0)
             if self.any_colors:
                 colors = _stacked(self.colors, self.faces, (3, 3), 1.0)
+            # the per-mesh parts are in the stacked arrays now: free them before the Scene is made
+            for parts in (self.vertices, self.uvs, self.normals, self.colors, self.face_materials):
+                parts[:] = [None] * len(parts)
+            self.faces[:] = [np.zeros((len(f), 0), np.int8) for f in self.faces]  # their counts stay
         else:
             vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
             uvs, face_materials = None, np.zeros(0, np.int32)
@@ -520,7 +524,7 @@ class SceneBuilder:
         if not self.faces and not self.spheres:
             raise SceneFormatError(f"{self.name}: the scene has no shapes that we can render")
         scene = triangle_scene(vertices, faces, face_materials, self.materials, self.name, uvs=uvs, normals=normals,
-                               colors=colors,
+                               colors=colors, own_normals=True,
                                spheres=spheres.astype(np.float32),
                                sphere_materials=np.asarray(self.sphere_materials, np.int32),
                                settings=self.settings,
