@@ -561,12 +561,14 @@ class SceneBuilder:
 def _stacked(parts, faces, shape, fill) -> np.ndarray:
     """The per-face arrays ``parts`` (one per mesh, None: ``fill`` for each of its faces) in one
     float32 (F, *shape) array, written once (np.concatenate of the parts and placeholders)."""
-    out = np.empty((sum(len(f) for f in faces), *shape), np.float32)
+    # zeros from calloc: the pages of the meshes without such values are never written
+    out = (np.zeros if fill == 0 else np.empty)((sum(len(f) for f in faces), *shape), np.float32)
     at = 0
     for part, f in zip(parts, faces):
         n = len(f)
         if part is None:
-            out[at:at + n] = fill
+            if fill != 0:
+                out[at:at + n] = fill
         else:
             out[at:at + n] = np.asarray(part).reshape(n, *shape)
         at += n
