@@ -157,13 +157,18 @@ class Wavefront:
 
         with host_stage("bvh_collapse"):  # the device's node layout (8-wide on CPUs)
             nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout)
+        if bvh is None:  # the wide BVH cached on a BVH of our own: in the blob now
+            getattr(self.bvh, "world", self.bvh).__dict__.pop("_wide", None)
         upload_stage = host_stage("upload")  # every buffer made and copied (the scene's, the wave's)
         upload_stage.__enter__()
         # the nodes first, and their host copies gone before the other buffers are made (the peak
         # memory of a scene of millions of triangles): the wide BVH cached on a BVH of our own too
         nodes = const(nodes)
-        if bvh is None:
-            getattr(self.bvh, "world", self.bvh).__dict__.pop("_wide", None)
+        tris = const(self.bvh.triangles)
+        if bvh is None and not hasattr(self.bvh, "world"):
+            # our own BVH's triangle records (48 bytes a triangle) are on the device: nothing reads
+            # the host copy again (build_lights has; Embree uses the vertices, faces and prim_ids)
+            self.bvh.triangles = None
 
         def scratch(nbytes):
             return cl.Buffer(ctx, mf.READ_WRITE, max(int(nbytes), 16))
@@ -183,7 +188,7 @@ class Wavefront:
         self.args = KernelArgs(self.kernels)
         self.args.bind(
             nodes=nodes,
-            tris=const(self.bvh.triangles), **self._instance_buffers(const),
+            tris=tris, **self._instance_buffers(const),
             tri_material=const(tri_material), tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
@@ -208,7 +213,7 @@ class Wavefront:
         unbound = set(self.args.unbound()) - {p.name for p in abi.WAVE_PARAMS if p.launch}
         if unbound:
             raise AssertionError(f"wavefront parameters never bound: {sorted(unbound)}")
-        del nodes
+        del nodes, tris
         upload_stage.__exit__(None, None, None)
         # host-side state of the wave, carried across run() calls
         self.n_active = 0
