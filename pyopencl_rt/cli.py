@@ -222,13 +222,10 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
     if profile:
         stages = info["stage_seconds"]
         total_s = sum(stages.values()) or 1.0
-        host = info.get("host_seconds") or {}
-        if host:
-            peak = info.get("host_peak_rss_mb") or {}
-            click.echo("host stage    seconds  peak RSS MB", err=True)
-            for name, sec in host.items():
-                mb = peak.get(name)
-                click.echo(f"{name:<12} {sec:8.3f}  {'' if mb is None else f'{mb:11.0f}'}", err=True)
+        peak = info.get("host_peak_rss_mb") or {}  # host stages (host_stages.py), then the device's
+        click.echo("host stage    seconds  peak RSS MB\n" + "".join(
+            f"{name:<12} {sec:8.3f}  {peak.get(name) or 0:11.0f}\n" for name, sec in info["host_seconds"].items()), err=True,
+            nl=False)
         click.echo(f"lanes: {info.get('lanes_reason')}\nstage         seconds   share", err=True)  # lanes: which ran, why
         for name, sec in stages.items():
             click.echo(f"{name:<12} {sec:8.3f}  {100 * sec / total_s:5.1f}%", err=True)
@@ -391,18 +388,10 @@ def bench_scale(sizes, with_32m, workdir, repeat, width, height, spp, no_mitsuba
                 mitsuba_variant, json_path, device):
     """Wall time and peak RSS of the whole `pyopencl-rt render` command beside Mitsuba 3's load and
     render of the same Mitsuba XML, on height-field meshes of millions of triangles (issue 35)."""
-    from .bench.scale import BIG_SIZE, run_scale_bench
+    from .bench.scale import parse_millions, run_scale_bench
 
     check_json(json_path)
-    try:
-        values = [float(x) for x in sizes.split(",") if x.strip()]
-    except ValueError:
-        raise UserError(f"--sizes must be numbers (millions of triangles), got {sizes!r}") from None
-    if not values or min(values) <= 0:
-        raise UserError(f"--sizes must be positive numbers, got {sizes!r}")
-    if with_32m and BIG_SIZE not in values:
-        values.append(BIG_SIZE)
-    run_scale_bench(sizes=values, workdir=workdir, repeat=repeat, width=width, height=height, spp=spp,
+    run_scale_bench(sizes=parse_millions(sizes, with_32m), workdir=workdir, repeat=repeat, width=width, height=height, spp=spp,
                     device=list(device) or None, mitsuba=not no_mitsuba, mitsuba_python=mitsuba_python,
                     llvm_path=llvm_path, variant=mitsuba_variant, json_path=json_path, echo=click.echo)
 

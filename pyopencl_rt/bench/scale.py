@@ -32,6 +32,19 @@ DEFAULT_SIZES = (0.5, 2.0, 8.0)
 BIG_SIZE = 32.0
 
 
+def parse_millions(text: str, with_32m: bool = False) -> list:
+    """The --sizes list (millions of triangles), with 32 added by --with-32m; UserError if bad."""
+    from ..errors import UserError
+
+    try:
+        values = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise UserError(f"--sizes must be numbers (millions of triangles), got {text!r}") from None
+    if not values or min(values) <= 0:
+        raise UserError(f"--sizes must be positive numbers, got {text!r}")
+    return values + ([BIG_SIZE] if with_32m and BIG_SIZE not in values else [])
+
+
 def run_child(command, env=None, cwd=None, log=None) -> dict:
     """Runs ``command``; {"seconds": wall, "max_rss_mb": its peak RSS, "returncode", "stdout"}."""
     out_path = Path(log) if log else None

@@ -36,6 +36,23 @@ def kept_per_face(values, keep, dtype, shape=(), copy: bool = False):
     return np.ascontiguousarray(values[keep])
 
 
+def stacked_per_face(parts, faces, shape, fill) -> np.ndarray:
+    """The per-face arrays ``parts`` (one per mesh, None: ``fill`` for each of its faces) in one
+    float32 (F, *shape) array, written once (np.concatenate of the parts and placeholders)."""
+    # zeros from calloc: the pages of the meshes without such values are never written
+    out = (np.zeros if fill == 0 else np.empty)((sum(len(f) for f in faces), *shape), np.float32)
+    at = 0
+    for part, f in zip(parts, faces):
+        n = len(f)
+        if part is None:
+            if fill != 0:
+                out[at:at + n] = fill
+        else:
+            out[at:at + n] = np.asarray(part).reshape(n, *shape)
+        at += n
+    return out
+
+
 def checked_triangles(vertices, faces, face_materials, name):
     """check_triangles, keeping face_materials aligned with the faces it may drop."""
     faces = np.asarray(faces, np.int64)

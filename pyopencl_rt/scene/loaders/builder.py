@@ -28,7 +28,7 @@ import numpy as np
 
 from ..model import (Camera, DirectionalLight, Environment, Material, PointLight, ProjectorLight, RenderSettings,
                      Scene, SpotLight)
-from .assembly import angle_weighted_normals, frame_scene, transform_normals, triangle_scene
+from .assembly import angle_weighted_normals, frame_scene, stacked_per_face, transform_normals, triangle_scene
 from .values import SceneError, first_use_index, one_line
 
 
@@ -481,12 +481,12 @@ class SceneBuilder:
         if self.faces:
             vertices = np.concatenate(self.vertices)
             faces = np.concatenate(self.faces)
-            uvs = _stacked(self.uvs, self.faces, (3, 2), 0.0)
+            uvs = stacked_per_face(self.uvs, self.faces, (3, 2), 0.0)
             face_materials = np.concatenate(self.face_materials)
             if self.any_normals:
-                normals = _stacked(self.normals, self.faces, (3, 3), 0.0)
+                normals = stacked_per_face(self.normals, self.faces, (3, 3), 0.0)
             if self.any_colors:
-                colors = _stacked(self.colors, self.faces, (3, 3), 1.0)
+                colors = stacked_per_face(self.colors, self.faces, (3, 3), 1.0)
             # the per-mesh parts are in the stacked arrays now: free them before the Scene is made
             for parts in (self.vertices, self.uvs, self.normals, self.colors, self.face_materials):
                 parts[:] = [None] * len(parts)
@@ -556,23 +556,6 @@ class SceneBuilder:
         if hasattr(scene, "warnings"):
             scene.warnings = list(self.warnings)
         return scene
-
-
-def _stacked(parts, faces, shape, fill) -> np.ndarray:
-    """The per-face arrays ``parts`` (one per mesh, None: ``fill`` for each of its faces) in one
-    float32 (F, *shape) array, written once (np.concatenate of the parts and placeholders)."""
-    # zeros from calloc: the pages of the meshes without such values are never written
-    out = (np.zeros if fill == 0 else np.empty)((sum(len(f) for f in faces), *shape), np.float32)
-    at = 0
-    for part, f in zip(parts, faces):
-        n = len(f)
-        if part is None:
-            if fill != 0:
-                out[at:at + n] = fill
-        else:
-            out[at:at + n] = np.asarray(part).reshape(n, *shape)
-        at += n
-    return out
 
 
 # --------------------------------------------------------------------------------------------
