@@ -18,6 +18,7 @@ maxima (RSS); ``--json`` writes every run.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import statistics
@@ -48,7 +49,7 @@ def parse_millions(text: str, with_32m: bool = False) -> list:
 def run_child(command, env=None, cwd=None, log=None) -> dict:
     """Runs ``command``; {"seconds": wall, "max_rss_mb": its peak RSS, "returncode", "stdout"}."""
     out_path = Path(log) if log else None
-    with open(out_path, "wb") if out_path else subprocess.DEVNULL as sink:
+    with open(out_path, "wb") if out_path else contextlib.nullcontext(subprocess.DEVNULL) as sink:
         start = time.perf_counter()
         proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=sink, env=env, cwd=cwd)
         stdout = proc.stdout.read()
