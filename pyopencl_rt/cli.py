@@ -381,19 +381,22 @@ def bench_bvh(sizes, kinds, sweep_size, repeat, check, json_path):
 @click.option("--height", default=256, show_default=True, type=int)
 @click.option("--spp", default=16, show_default=True, type=int)
 @click.option("--no-mitsuba", is_flag=True, help="Ours only.")
+@click.option("--baseline", type=click.Path(file_okay=False, exists=True),
+              help="Another version's checkout (e.g. git archive of a commit): its render too, in turn.")
 @mitsuba_options
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
 @device_option
-def bench_scale(sizes, with_32m, workdir, repeat, width, height, spp, no_mitsuba, mitsuba_python, llvm_path,
-                mitsuba_variant, json_path, device):
+def bench_scale(sizes, with_32m, workdir, repeat, width, height, spp, no_mitsuba, baseline, mitsuba_python,
+                llvm_path, mitsuba_variant, json_path, device):
     """Wall time and peak RSS of the whole `pyopencl-rt render` command beside Mitsuba 3's load and
     render of the same Mitsuba XML, on height-field meshes of millions of triangles (issue 35)."""
     from .bench.scale import parse_millions, run_scale_bench
 
     check_json(json_path)
-    run_scale_bench(sizes=parse_millions(sizes, with_32m), workdir=workdir, repeat=repeat, width=width, height=height, spp=spp,
-                    device=list(device) or None, mitsuba=not no_mitsuba, mitsuba_python=mitsuba_python,
-                    llvm_path=llvm_path, variant=mitsuba_variant, json_path=json_path, echo=click.echo)
+    run_scale_bench(sizes=parse_millions(sizes, with_32m), workdir=workdir, repeat=repeat, width=width,
+                    height=height, spp=spp, device=list(device) or None, mitsuba=not no_mitsuba, baseline=baseline,
+                    mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=mitsuba_variant,
+                    json_path=json_path, echo=click.echo)
 
 
 @bench.command("materials")

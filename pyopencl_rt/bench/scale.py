@@ -12,8 +12,10 @@ reused), then, ``repeat`` times in turn, two child processes run and are timed f
 * Mitsuba: :mod:`.mitsuba_scale_runner` in the Mitsuba interpreter (import, ``load_file``,
   ``render``, ``write_bitmap``).
 
-Each child's wall time is measured around it and its peak resident memory comes from ``wait4``
-(``ru_maxrss`` of that child alone).  The figures are the medians of the repeats (wall) and the
+``baseline`` (``--baseline DIR``: a checkout or ``git archive`` of another version, whose
+``pyopencl_rt`` the same render command then imports) adds a third child per repeat, before ours:
+a before/after comparison in the same conditions.  Each child's wall time is measured around it
+and its peak resident memory comes from ``wait4`` (``ru_maxrss`` of that child alone).  The figures are the medians of the repeats (wall) and the
 maxima (RSS); ``--json`` writes every run.
 """
 from __future__ import annotations
@@ -84,7 +86,7 @@ def _failed(name, result, log):
 
 def run_scale_bench(*, sizes=DEFAULT_SIZES, workdir, repeat=1, width=256, height=256, spp=16, device=None,
                     mitsuba=True, mitsuba_python=None, llvm_path=None, variant="llvm_ad_rgb", json_path=None,
-                    echo=print) -> dict:
+                    baseline=None, echo=print) -> dict:
     from .mitsuba_host import mitsuba_env, require_mitsuba_python
     from .scale_scene import write_scene
 
@@ -103,8 +105,17 @@ def run_scale_bench(*, sizes=DEFAULT_SIZES, workdir, repeat=1, width=256, height
         xml = write_scene(workdir, float(size) * 1e6, width, height, spp)
         triangles = int(xml.stem.split("_")[-1])
         row = {"millions": float(size), "triangles": triangles, "scene": str(xml),
-               "scene_write_seconds": time.perf_counter() - t, "ours": [], "mitsuba": []}
+               "scene_write_seconds": time.perf_counter() - t, "ours": [], "mitsuba": [], "baseline": []}
         for k in range(repeat):
+            if baseline:
+                out, log = workdir / f"baseline_{triangles}.exr", workdir / f"baseline_{triangles}.log"
+                r = run_child(_ours(xml, out, device), env=dict(env, PYTHONPATH=str(Path(baseline).resolve())),
+                              log=log)
+                if r["returncode"] != 0:
+                    raise RuntimeError(_failed("the baseline's render", r, log))
+                r.pop("stdout")
+                r.update(_sidecar(out))
+                row["baseline"].append(r)
             out = workdir / f"ours_{triangles}.exr"
             log = workdir / f"ours_{triangles}.log"
             r = run_child(_ours(xml, out, device), env=env, log=log)
@@ -122,7 +133,7 @@ def run_scale_bench(*, sizes=DEFAULT_SIZES, workdir, repeat=1, width=256, height
                 lines = [ln for ln in m.pop("stdout").splitlines() if ln.startswith("{")]
                 m.update(json.loads(lines[-1]) if lines else {})
                 row["mitsuba"].append(m)
-        for who in ("ours", "mitsuba"):
+        for who in ("ours", "mitsuba", "baseline"):
             if row[who]:
                 row[f"{who}_seconds"] = statistics.median(r["seconds"] for r in row[who])
                 row[f"{who}_max_rss_mb"] = max(r["max_rss_mb"] for r in row[who])
@@ -133,6 +144,8 @@ def run_scale_bench(*, sizes=DEFAULT_SIZES, workdir, repeat=1, width=256, height
         mi = (f"{row['mitsuba_seconds']:9.2f} {row['mitsuba_max_rss_mb']:10.0f}  {row['time_ratio']:6.2f} "
               f"{row['rss_ratio']:6.2f}") if row["mitsuba"] else f"{'-':>9} {'-':>10}  {'-':>6} {'-':>6}"
         echo(f"{triangles:>10}  {row['ours_seconds']:8.2f} {row['ours_max_rss_mb']:8.0f}  {mi}")
+        if row["baseline"]:
+            echo(f"{'baseline':>10}  {row['baseline_seconds']:8.2f} {row['baseline_max_rss_mb']:8.0f}")
         host = row["ours"][-1].get("host_seconds")
         if host:
             echo("            ours, host stages: " + ", ".join(f"{k} {v:.2f}" for k, v in host.items()))

@@ -34,3 +34,15 @@ def test_bench_scale_ours_only(tmp_path, capsys):
     assert run["max_rss_mb"] > 10
     assert {"load", "mesh_read", "normals", "validation", "bvh", "kernel_build", "upload"} <= set(run["host_seconds"])
     assert "triangles" in capsys.readouterr().out
+
+
+def test_parse_millions():
+    import pytest
+
+    from pyopencl_rt.bench.scale import parse_millions
+    from pyopencl_rt.errors import UserError
+
+    assert parse_millions("0.5,2,8") == [0.5, 2.0, 8.0] and parse_millions("2", with_32m=True) == [2.0, 32.0]
+    for bad in ("", "a,b", "0,1", "-2"):
+        with pytest.raises(UserError):
+            parse_millions(bad)
