@@ -154,7 +154,16 @@ def _merge_small_subtrees(child, count, lo, hi, merge):
         lo[0], hi[0] = np.minimum(lo[0], lo[1]), np.maximum(hi[0], hi[1])  # (+inf, -inf) if absent
 
 
-@njit(parallel=True, nogil=True, cache=True)
+def _parallel_jit(fn):
+    """numba.njit(parallel=True), cached on disk where numba finds a writable place (else compiled
+    in every process, as bvh_binned's kernels)."""
+    try:
+        return njit(parallel=True, nogil=True, cache=True)(fn)
+    except RuntimeError:
+        return njit(parallel=True, nogil=True)(fn)
+
+
+@_parallel_jit
 def _gather_packets(tri12, lane_tri, raw):
     """raw[p, 3 v + c, l] = coordinate c of vertex v of triangle lane_tri[p, l] (tri12: the (T, 12)
     float32 view of the abi.TRIANGLE records, vertex v at 4 v), NaN where lane_tri < 0."""
@@ -167,7 +176,7 @@ def _gather_packets(tri12, lane_tri, raw):
                     raw[p, 3 * v + c, lane] = tri12[t, 4 * v + c] if t >= 0 else nan
 
 
-@njit(parallel=True, nogil=True, cache=True)
+@_parallel_jit
 def _node_boxes(slots, clo, chi, lx, ly, lz, hx, hy, hz):
     """The wide nodes' boxes: slot s of node i holds binary child slot slots[i, s]'s box, or
     (+inf, -inf) where it is empty (< 0)."""
