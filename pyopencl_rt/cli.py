@@ -188,7 +188,11 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
 
         need_dask()
     checkpoint_path = checkpoint_path or str(default_path(output))
-    scene = load_scene(scene_path, defines=parse_defines(defines))
+    from .host_stages import host_stage, reset
+
+    reset()
+    with host_stage("load"):
+        scene = load_scene(scene_path, defines=parse_defines(defines))
     aov_names = parse_aovs(scene.settings.aovs if aovs is None else aovs)
     settings = ImageSettings.resolve(scene, width=width, height=height, max_depth=max_depth, integrator=integrator,
                                      seed=seed, aovs=aov_names + (GUIDES if denoise else ()), sampler=sampler,
@@ -220,6 +224,10 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
     if profile:
         stages = info["stage_seconds"]
         total_s = sum(stages.values()) or 1.0
+        peak = info.get("host_peak_rss_mb") or {}  # host stages (host_stages.py), then the device's
+        click.echo("host stage    seconds  peak RSS MB\n" + "".join(
+            f"{name:<12} {sec:8.3f}  {peak.get(name) or 0:11.0f}\n" for name, sec in info["host_seconds"].items()), err=True,
+            nl=False)
         click.echo(f"lanes: {info.get('lanes_reason')}\nstage         seconds   share", err=True)  # lanes: which ran, why
         for name, sec in stages.items():
             click.echo(f"{name:<12} {sec:8.3f}  {100 * sec / total_s:5.1f}%", err=True)
@@ -362,6 +370,35 @@ def bench_bvh(sizes, kinds, sweep_size, repeat, check, json_path):
     check_json(json_path)
     run_bvh_bench(sizes=sizes, kinds=kinds, sweep_size=sweep_size, repeat=repeat, check=check,
                   json_path=json_path, echo=click.echo)
+
+
+@bench.command("scale")
+@click.option("--sizes", default="0.5,2,8", show_default=True, metavar="LIST",
+              help="Millions of triangles of the height-field scenes, comma-separated.")
+@click.option("--with-32m", "with_32m", is_flag=True, help="Also 32 million triangles (about 20 GB of memory for ours).")
+@click.option("--workdir", type=click.Path(file_okay=False), default="bench-scale", show_default=True,
+              help="Where the scenes (PLY + XML, reused) and the images go.")
+@click.option("--repeat", default=1, show_default=True, type=click.IntRange(min=1), help="Runs of each, in turn.")
+@click.option("--width", default=256, show_default=True, type=int)
+@click.option("--height", default=256, show_default=True, type=int)
+@click.option("--spp", default=16, show_default=True, type=int)
+@click.option("--no-mitsuba", is_flag=True, help="Ours only.")
+@click.option("--baseline", type=click.Path(file_okay=False, exists=True),
+              help="Another version's checkout (e.g. git archive of a commit): its render too, in turn.")
+@mitsuba_options
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
+@device_option
+def bench_scale(sizes, with_32m, workdir, repeat, width, height, spp, no_mitsuba, baseline, mitsuba_python,
+                llvm_path, mitsuba_variant, json_path, device):
+    """Wall time and peak RSS of the whole `pyopencl-rt render` command beside Mitsuba 3's load and
+    render of the same Mitsuba XML, on height-field meshes of millions of triangles (issue 35)."""
+    from .bench.scale import parse_millions, run_scale_bench
+
+    check_json(json_path)
+    run_scale_bench(sizes=parse_millions(sizes, with_32m), workdir=workdir, repeat=repeat, width=width,
+                    height=height, spp=spp, device=list(device) or None, mitsuba=not no_mitsuba, baseline=baseline,
+                    mitsuba_python=mitsuba_python, llvm_path=llvm_path, variant=mitsuba_variant,
+                    json_path=json_path, echo=click.echo)
 
 
 @bench.command("materials")

@@ -9,7 +9,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "pyopencl_rt"
 
 # Lowest first: a module may import from its own layer and the layers below it.
 LAYERS = [
-    {"errors", "imageio", "display", "compare", "validate"},  # display: tone curves; compare: image metrics; validate: argument checks
+    # display: tone curves; compare: image metrics; validate: argument checks; host_stages: --profile's host timers
+    {"errors", "imageio", "display", "compare", "validate", "host_stages"},
     {"device"},
     {"accel"},
     {"scene"},

@@ -497,7 +497,7 @@ def build(V, F, max_leaf_size, bins, ct, ci, max_depth, median_depth, max_sah_le
         _chunked(pool, threads, _prim_boxes, T, V, F, pb)
         idx = np.arange(T, dtype=np.int32)
         M = 2 * T - 1
-        tree = np.empty((M, 5), np.int64)       # first, count, left, right, depth
+        tree = np.empty((M, 5), np.int32 if M < 2**31 else np.int64)  # first, count, left, right, depth
         kind = np.full(M, -1, np.int8)          # -1 unused id, 0 inner, 1 leaf
         nbox = np.empty((M, 6), np.float32)
         box = np.empty(6, np.float32)

@@ -56,6 +56,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit, prange
 
 from ..device import abi
 from .bvh import BVH, MAX_DEPTH
@@ -153,6 +154,44 @@ def _merge_small_subtrees(child, count, lo, hi, merge):
         lo[0], hi[0] = np.minimum(lo[0], lo[1]), np.maximum(hi[0], hi[1])  # (+inf, -inf) if absent
 
 
+def _parallel_jit(fn):
+    """numba.njit(parallel=True), cached on disk where numba finds a writable place (else compiled
+    in every process, as bvh_binned's kernels)."""
+    try:
+        return njit(parallel=True, nogil=True, cache=True)(fn)
+    except RuntimeError:
+        return njit(parallel=True, nogil=True)(fn)
+
+
+@_parallel_jit
+def _gather_packets(tri12, lane_tri, raw):
+    """raw[p, 3 v + c, l] = coordinate c of vertex v of triangle lane_tri[p, l] (tri12: the (T, 12)
+    float32 view of the abi.TRIANGLE records, vertex v at 4 v), NaN where lane_tri < 0."""
+    nan = np.float32(np.nan)
+    for p in prange(lane_tri.shape[0]):
+        for lane in range(lane_tri.shape[1]):
+            t = lane_tri[p, lane]
+            for v in range(3):
+                for c in range(3):
+                    raw[p, 3 * v + c, lane] = tri12[t, 4 * v + c] if t >= 0 else nan
+
+
+@_parallel_jit
+def _node_boxes(slots, clo, chi, lx, ly, lz, hx, hy, hz):
+    """The wide nodes' boxes: slot s of node i holds binary child slot slots[i, s]'s box, or
+    (+inf, -inf) where it is empty (< 0)."""
+    inf = np.float32(np.inf)
+    for i in prange(slots.shape[0]):
+        for s in range(slots.shape[1]):
+            k = slots[i, s]
+            if k >= 0:
+                lx[i, s], ly[i, s], lz[i, s] = clo[k, 0], clo[k, 1], clo[k, 2]
+                hx[i, s], hy[i, s], hz[i, s] = chi[k, 0], chi[k, 1], chi[k, 2]
+            else:
+                lx[i, s], ly[i, s], lz[i, s] = inf, inf, inf
+                hx[i, s], hy[i, s], hz[i, s] = -inf, -inf, -inf
+
+
 def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge: int | None = None) -> WideBVH:
     """Collapse a binary BVH into a ``width``-wide BVH (4 or 8) with packets of ``packet_width``
     triangles (default: the width), binary subtrees of at most ``merge`` triangles (default: 0 for
@@ -233,24 +272,18 @@ def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge:
         leaf_of = np.repeat(np.arange(len(first))[order], cnt[order])     # leaves tile [0, T) in order
         local = np.arange(T) - first[leaf_of]
         lane_tri.ravel()[packet_width * pk_start[leaf_of] + local] = np.arange(T, dtype=np.int32)
-    pad = lane_tri < 0
-    xyz = np.empty((T + 1, 3, 3), np.float32)                 # (triangle, vertex, coordinate); row T = NaN
-    for v in range(3):
-        xyz[:T, v] = bvh.triangles[f"v{v}"][:, :3]
-    xyz[T] = np.nan
-    gathered = xyz[np.where(pad, T, lane_tri)]                # (P, lane, vertex, coordinate)
     packets = np.empty(n_packets, packet_dtype)
     raw = packets.view(np.float32).reshape(n_packets, 10, packet_width)
-    raw[:, :9] = gathered.transpose(0, 2, 3, 1).reshape(n_packets, 9, packet_width)
+    # row 3 v + c of a packet: coordinate c of vertex v of each lane's triangle (NaN in empty lanes)
+    _gather_packets(np.ascontiguousarray(bvh.triangles).view(np.float32).reshape(T, 12) if T else
+                    np.zeros((1, 12), np.float32), lane_tri, raw)
     packets["tri"] = lane_tri
 
     # --- node records -------------------------------------------------------------------
     nodes = np.zeros(n_nodes, node_dtype)
-    lo = np.where(present[:, None], clo[np.maximum(flat, 0)], np.float32(np.inf)).reshape(n_nodes, width, 3)
-    hi = np.where(present[:, None], chi[np.maximum(flat, 0)], np.float32(-np.inf)).reshape(n_nodes, width, 3)
-    for a, c in enumerate(_COORDS):
-        nodes[f"bmin_{c}"] = lo[:, :, a]
-        nodes[f"bmax_{c}"] = hi[:, :, a]
+    # each slot's box, (+inf, -inf) in an empty one
+    _node_boxes(flat.reshape(n_nodes, width), clo, chi, *(nodes[f"bmin_{c}"] for c in _COORDS),
+                *(nodes[f"bmax_{c}"] for c in _COORDS))
     child = np.zeros(len(flat), np.int64)
     child[is_inner] = node_units * child_node[is_inner]
     child[leaf_pos] = node_units * n_nodes + packet_units * pk_start

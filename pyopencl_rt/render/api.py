@@ -45,7 +45,10 @@ def scene_argument(scene) -> Scene:
         from ..errors import UsageError
 
         raise UsageError(f"scene must be a Scene or a scene file's path, got a {type(scene).__name__}")
-    check_scene(scene)
+    from ..host_stages import host_stage
+
+    with host_stage("validation"):
+        check_scene(scene)
     return scene
 
 
@@ -318,6 +321,10 @@ def sidecar(scene: Scene, settings: ImageSettings, film: Film, run: _Run, *, spp
         "interrupted": stats.interrupted,
         "host": platform.node(),
     }
+    from ..host_stages import peak_rss, snapshot
+
+    info["host_seconds"] = snapshot()  # load, mesh_read, normals, validation, bvh, ... (host_stages.py)
+    info["host_peak_rss_mb"] = peak_rss()  # the process's peak resident memory as each stage ended
     if profile:  # device stages from their events, host stages (Embree) from the host clock
         info["stage_seconds"] = dict(stats.stage_seconds)
     return info

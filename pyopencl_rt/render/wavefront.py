@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import validate
 from ..device import abi
+from ..host_stages import host_stage
 from ..scene.instances import scene_bvh
 from . import filters
 from .film import Film, RunStats
@@ -101,9 +102,11 @@ class Wavefront:
         if bvh is None:  # a BVH passed in was built by the caller from scene.camera_relative()
             scene = scene.camera_relative()
             self.scene = scene
-        self.bvh = bvh if bvh is not None else scene_bvh(scene)  # two-level with blas_groups
+        with host_stage("bvh"):
+            self.bvh = bvh if bvh is not None else scene_bvh(scene)  # two-level with blas_groups
         self.timings["bvh_seconds"] = time.perf_counter() - t0
-        lights, tri_light, sphere_light = build_lights(scene, self.bvh)
+        with host_stage("lights"):
+            lights, tri_light, sphere_light = build_lights(scene, self.bvh)
         self.n_lights = len(lights)
         if self.n_lights == 0:
             import warnings
@@ -117,6 +120,8 @@ class Wavefront:
 
         self.rt = runtime(device)
         t0 = time.perf_counter()
+        build_stage = host_stage("kernel_build")
+        build_stage.__enter__()
         self.lane_width, self.lane_reason = megakernel.lane_choice(self.kernel_mode, device, self.features)
         if self.lane_width:
             try:
@@ -137,7 +142,9 @@ class Wavefront:
         elif not self.lane_width:
             kernels = self.rt.new_kernels(SOURCES, [f"wf_{s}" for s in STAGES], self.features)
             self.kernels = {s: kernels[f"wf_{s}"] for s in STAGES}
+        build_stage.__exit__(None, None, None)
         self.timings["build_seconds"] = time.perf_counter() - t0
+        from ..accel.device_bvh import node_buffer
 
         ctx = self.rt.context
         mf = cl.mem_flags
@@ -148,10 +155,23 @@ class Wavefront:
                 a = np.zeros(16, np.uint8)
             return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
 
+        with host_stage("bvh_collapse"):  # the device's node layout (8-wide on CPUs)
+            nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout)
+        if bvh is None:  # the wide BVH cached on a BVH of our own: in the blob now
+            getattr(self.bvh, "world", self.bvh).__dict__.pop("_wide", None)
+        upload_stage = host_stage("upload")  # every buffer made and copied (the scene's, the wave's)
+        upload_stage.__enter__()
+        # the nodes first, and their host copies gone before the other buffers are made (the peak
+        # memory of a scene of millions of triangles): the wide BVH cached on a BVH of our own too
+        nodes = const(nodes)
+        tris = const(self.bvh.triangles)
+        if bvh is None and not hasattr(self.bvh, "world"):
+            # our own BVH's triangle records (48 bytes a triangle) are on the device: nothing reads
+            # the host copy again (build_lights has; Embree uses the vertices, faces and prim_ids)
+            self.bvh.triangles = None
+
         def scratch(nbytes):
             return cl.Buffer(ctx, mf.READ_WRITE, max(int(nbytes), 16))
-
-        from ..accel.device_bvh import node_buffer
 
         prim = self.bvh.prim_ids
         tri_material = scene.face_materials[prim].astype(np.int32) if len(prim) else np.zeros(0, np.int32)
@@ -167,8 +187,8 @@ class Wavefront:
         # arguments by parameter name (abi.WAVE_PARAMS), set once on every stage
         self.args = KernelArgs(self.kernels)
         self.args.bind(
-            nodes=const(node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout)),
-            tris=const(self.bvh.triangles), **self._instance_buffers(const),
+            nodes=nodes,
+            tris=tris, **self._instance_buffers(const),
             tri_material=const(tri_material), tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
@@ -193,6 +213,8 @@ class Wavefront:
         unbound = set(self.args.unbound()) - {p.name for p in abi.WAVE_PARAMS if p.launch}
         if unbound:
             raise AssertionError(f"wavefront parameters never bound: {sorted(unbound)}")
+        del nodes, tris
+        upload_stage.__exit__(None, None, None)
         # host-side state of the wave, carried across run() calls
         self.n_active = 0
         self.n_free = W
@@ -260,7 +282,7 @@ class Wavefront:
         normals and colours, 9 floats; 16-byte dummies when no kernel reads them."""
         dummy = const(np.zeros(0, np.uint8))
         prim = self.bvh.prim_ids
-        normals = const(self.scene.face_normals()[prim]) if "HAS_SHADING_NORMALS" in self.features else dummy
+        normals = const(self.scene.face_normals(prim)) if "HAS_SHADING_NORMALS" in self.features else dummy
         colors = const(self.scene.face_colors()[prim]) if "HAS_VERTEX_COLORS" in self.features else dummy
         return {"tri_normal": normals, "tri_color": colors}
 

@@ -19,15 +19,26 @@ class MeshError(UserError):
 
 
 def load_trimesh(path):
-    """``trimesh.load`` with errors turned into one-line :class:`MeshError`s."""
-    import trimesh
-
+    """``trimesh.load`` with errors turned into one-line :class:`MeshError`s; a binary PLY file
+    of the common layouts is read straight into arrays instead (:func:`read_binary_ply`)."""
     p = Path(path)
     if not p.exists():
         raise MeshError(f"{path}: no such file")
     if p.is_dir():
         raise MeshError(f"{path}: is a folder, not a mesh file")
+    from ..host_stages import host_stage
+
+    with host_stage("mesh_read"):
+        return _load_trimesh(p, path)
+
+
+def _load_trimesh(p: Path, path):
+    if p.suffix.lower() == ".ply":
+        fast = read_binary_ply(p)
+        if fast is not None:
+            return fast
     _reject_binary_text_format(p)
+    import trimesh
     try:
         # a coordinate beyond float32 (a PLY "float" of 1e39) becomes inf here, silently: the
         # non-finite vertices are reported by check_triangles, naming the file
@@ -66,7 +77,10 @@ def _reject_binary_text_format(p: Path) -> None:
 
 
 def flatten(geometry, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
-    """(vertices float32 (V,3), faces int32 (F,3)) of a trimesh mesh/scene or a (vertices, faces) pair."""
+    """(vertices float32 (V,3), faces int32 (F,3)) of a trimesh mesh/scene, a :class:`PlyMesh` or a
+    (vertices, faces) pair."""
+    if isinstance(geometry, PlyMesh):
+        return check_triangles(geometry.vertices, geometry.faces, name)
     import trimesh
 
     if isinstance(geometry, trimesh.Scene):
@@ -104,7 +118,8 @@ def check_triangles(vertices, faces, name: str = "mesh") -> tuple[np.ndarray, np
         raise MeshError(f"{name}: vertices must be an (N, 3) array of numbers, got shape {vertices.shape}")
     if faces.ndim != 2 or faces.shape[1] != 3 or (faces.size and not np.issubdtype(faces.dtype, np.integer)):
         raise MeshError(f"{name}: faces must be an (M, 3) array of integer indices, got shape {faces.shape}")
-    faces = faces.astype(np.int64)
+    if faces.dtype not in (np.int32, np.int64):
+        faces = faces.astype(np.int64)
     if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
         bad = int(np.count_nonzero((faces < 0) | (faces >= len(vertices))))
         raise MeshError(f"{name}: {bad} face indices out of range [0, {len(vertices)})")
@@ -121,9 +136,109 @@ def check_triangles(vertices, faces, name: str = "mesh") -> tuple[np.ndarray, np
         )
         faces = faces[~bad_faces]
         v32 = np.where(finite_vertex[:, None], v32, 0.0).astype(np.float32)
-    return np.ascontiguousarray(v32), np.ascontiguousarray(faces.astype(np.int32))
+    return np.ascontiguousarray(v32), np.ascontiguousarray(faces, np.int32)
 
 
 def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and faces of every mesh in ``path``, world transforms applied."""
     return flatten(load_trimesh(path), name=str(path))
+
+
+# --------------------------------------------------------------------------------------------
+# binary PLY, the common layouts, without trimesh
+
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+              "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+              "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+# vertex properties that trimesh reads as texture coordinates (and may then split vertices by):
+# such files go through trimesh
+_PLY_TEXCOORDS = ("texture_u", "texture_v", "u", "v", "s", "t")
+
+
+class PlyMesh:
+    """A triangle mesh read from a binary PLY file by :func:`read_binary_ply`, with what the
+    loaders use of a trimesh mesh: ``vertices`` (V, 3) as stored, ``faces`` (F, 3) int32,
+    ``metadata["_ply_raw"]["vertex"]["data"]`` (the vertex records: normals and attributes,
+    meshfile.ply_extras) and no ``visual`` (no texture coordinates)."""
+
+    visual = None
+
+    def __init__(self, vertices, faces, vertex_data):
+        self.vertices = vertices
+        self.faces = faces
+        self.metadata = {"_ply_raw": {"vertex": {"data": vertex_data}}}
+
+
+def read_binary_ply(path) -> PlyMesh | None:
+    """The mesh of a binary PLY file whose elements are ``vertex`` (scalar properties x, y, z and
+    any others but texture coordinates) and ``face`` (one list property vertex_indices or
+    vertex_index, every face a triangle), read with np.fromfile; None for anything else (ASCII,
+    other elements or properties, polygons, a file shorter than its header says), which
+    trimesh then reads.  The arrays are those trimesh gives (tests/scene/test_meshops.py)."""
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(4) != b"ply\n":
+                return None
+            header = [b"ply"]
+            while True:
+                line = fh.readline(4096)
+                if not line or len(header) > 1000:
+                    return None
+                line = line.strip()
+                header.append(line)
+                if line == b"end_header":
+                    break
+            offset = fh.tell()
+    except OSError:
+        return None
+    endian = None
+    elements = []
+    for raw in header[1:-1]:
+        words = raw.decode("ascii", "replace").split()
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        if words[0] == "format" and len(words) == 3:
+            endian = {"binary_little_endian": "<", "binary_big_endian": ">"}.get(words[1])
+        elif words[0] == "element" and len(words) == 3 and words[2].isdigit():
+            elements.append((words[1], int(words[2]), []))
+        elif words[0] == "property" and elements:
+            elements[-1][2].append(words[1:])
+        else:
+            return None
+    if endian is None or [e[0] for e in elements] != ["vertex", "face"]:
+        return None
+    (_, nv, vprops), (_, nf, fprops) = elements
+    vfields = []
+    for prop in vprops:
+        if len(prop) != 2 or prop[0] not in _PLY_TYPES or prop[1] in _PLY_TEXCOORDS:
+            return None
+        vfields.append((prop[1], endian + _PLY_TYPES[prop[0]]))
+    names = [n for n, _ in vfields]
+    if len(set(names)) != len(names) or not {"x", "y", "z"} <= set(names):
+        return None
+    if len(fprops) != 1 or len(fprops[0]) != 4 or fprops[0][0] != "list" \
+            or fprops[0][3] not in ("vertex_indices", "vertex_index"):
+        return None
+    count_t, index_t = _PLY_TYPES.get(fprops[0][1]), _PLY_TYPES.get(fprops[0][2])
+    if count_t is None or index_t is None or count_t[0] == "f" or index_t[0] == "f":
+        return None
+    vdtype = np.dtype(vfields)
+    fdtype = np.dtype([("n", endian + count_t), ("i", endian + index_t, (3,))])
+    size = Path(path).stat().st_size
+    if size < offset + nv * vdtype.itemsize + nf * fdtype.itemsize:
+        return None     # too short, or not all triangles: trimesh says what it makes of it
+    vdata = np.fromfile(path, vdtype, count=nv, offset=offset)
+    fdata = np.fromfile(path, fdtype, count=nf, offset=offset + nv * vdtype.itemsize)
+    if len(vdata) != nv or len(fdata) != nf or (nf and not (fdata["n"] == 3).all()):
+        return None
+    if nf and index_t[0] == "u" and fdata["i"].max() > np.iinfo(np.int32).max:
+        return None
+    if vdtype["x"] == vdtype["y"] == vdtype["z"] and vdtype["x"].kind == "f":
+        vertices = np.empty((nv, 3), vdtype["x"].newbyteorder("="))
+        for k, c in enumerate("xyz"):
+            vertices[:, k] = vdata[c]
+    else:
+        vertices = np.stack([vdata[c].astype(np.float64) for c in "xyz"], 1)
+    faces = np.ascontiguousarray(fdata["i"], np.int32)
+    del fdata
+    return PlyMesh(vertices, faces, vdata)

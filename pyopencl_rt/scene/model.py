@@ -457,7 +457,11 @@ class Scene:
 
     def has_shading_normals(self) -> bool:
         """Some face has a (non-zero) vertex normal: the kernels interpolate them."""
-        return self.normals is not None and len(self.faces) > 0 and bool(np.any(self.face_normals()))
+        if self.normals is None or len(self.faces) == 0:
+            return False
+        from .meshops import any_shading_normal
+
+        return any_shading_normal(self.normals, len(self.faces), self.normals_as_given)
 
     def has_anisotropy(self) -> bool:
         """Some material has anisotropic roughness: the kernels compute the tangent (dp/du)."""
@@ -531,23 +535,19 @@ class Scene:
         """(F, 3, 2) float32 texture coordinates (zeros where the scene has none)."""
         return self._per_corner(self.uvs, 2, 0.0)
 
-    def face_normals(self) -> np.ndarray:
+    def face_normals(self, prim=None) -> np.ndarray:
         """(F, 3, 3) float32 unit shading normals per corner (zeros where the scene has none;
         a non-finite or zero normal becomes 0: that face is shaded flat); with normals_as_given,
-        the normals with their lengths."""
+        the normals with their lengths.  ``prim`` (face indices): those faces' only, in that order
+        (face_normals()[prim] without the whole array; the renderer's BVH order).  One parallel
+        pass (scene/meshops.py)."""
         if self.normals is None:
-            return np.zeros((len(self.faces), 3, 3), np.float32)
-        n = np.asarray(self.normals, np.float64).reshape(len(self.faces), 3, 3)
-        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            length = np.linalg.norm(n, axis=2, keepdims=True)
-            unit = n / length
-        good = np.isfinite(unit).all(axis=2, keepdims=True) & (length > 0)
-        if self.normals_as_given:
-            unit = n
-        unit = np.where(good, unit, 0.0)
-        flat = ~good.all(axis=(1, 2))  # a face with a missing corner normal is shaded flat
-        unit[flat] = 0.0
-        return unit.astype(np.float32)
+            return np.zeros((len(self.faces) if prim is None else len(prim), 3, 3), np.float32)
+        from ..host_stages import host_stage
+        from .meshops import unit_corner_normals
+
+        with host_stage("normals"):
+            return unit_corner_normals(self.normals, len(self.faces), self.normals_as_given, prim)
 
     def face_colors(self) -> np.ndarray:
         """(F, 3, 3) float32 linear RGB per corner (1 where the scene has none; NaN as 0)."""

@@ -87,7 +87,11 @@ def check_geometry(scene) -> None:
         _fail(scene, f"face_materials has {len(fm)} entries for {len(f)} faces")
     _indices(scene, fm, "face material indices", n_mat)
     if len(f):
-        used = np.asarray(v, np.float64)[np.unique(f)]
+        from .meshops import used_vertices
+
+        used = np.asarray(v)[used_vertices(f, len(v))]  # the vertices of np.unique(f), in one pass
+        if used.dtype.kind != "f":
+            used = used.astype(np.float64)
         bad = ~np.isfinite(used).all(axis=1)
         if bad.any():
             _fail(scene, f"{int(bad.sum())} vertices used by faces are not finite (NaN, Inf or beyond float32)")

@@ -44,9 +44,15 @@ def load_scene(path, defines: dict | None = None) -> Scene:
     if defines and suffix != ".xml":
         raise SceneError(f"{name}: --define sets parameters of Mitsuba XML (.xml) scenes only")
     scene = _load(p, name, suffix, defines)
+    import gc
+
+    gc.collect()  # the loader's own arrays (a parser and its builder refer to each other): freed now, not later
     from ..validate import check_scene
 
-    check_scene(scene)  # the kernels' float32 limits, whichever format the values came from
+    from ...host_stages import host_stage
+
+    with host_stage("validation"):
+        check_scene(scene)  # the kernels' float32 limits, whichever format the values came from
     return scene
 
 

@@ -9,7 +9,10 @@ import warnings
 
 import numpy as np
 
+from ...host_stages import host_stage
+from .. import meshops
 from ..instances import instance_bounds, n_world_faces
+from ..meshops import finite_faces
 from ..mesh import check_triangles
 from ..model import Camera, Material, Scene
 
@@ -18,17 +21,36 @@ DEFAULT_FOV = 40.0
 
 def _finite_faces(vertices, faces) -> np.ndarray:
     """Which faces check_triangles keeps: those whose vertices are finite in float32."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        finite = np.isfinite(np.asarray(vertices, np.float64).astype(np.float32)).all(axis=1)
-    return finite[faces].all(axis=1) if len(faces) else np.zeros(0, bool)
+    return finite_faces(vertices, faces)
 
 
-def kept_per_face(values, keep, dtype, shape=()):
+def kept_per_face(values, keep, dtype, shape=(), copy: bool = False):
     """``values`` per face (each of ``shape``: (3, 2) uvs, (3, 3) normals or colours, () an index)
-    of the faces that checked_triangles keeps (the mask ``keep``), or None."""
+    of the faces that checked_triangles keeps (the mask ``keep``), or None; ``values`` itself
+    (as ``dtype``, contiguous) when every face is kept, unless ``copy``."""
     if values is None:
         return None
-    return np.ascontiguousarray(np.asarray(values, dtype).reshape(-1, *shape)[keep])
+    values = np.asarray(values, dtype).reshape(-1, *shape)
+    if keep.all():
+        return np.array(values, order="C", copy=True) if copy else np.ascontiguousarray(values)
+    return np.ascontiguousarray(values[keep])
+
+
+def stacked_per_face(parts, faces, shape, fill) -> np.ndarray:
+    """The per-face arrays ``parts`` (one per mesh, None: ``fill`` for each of its faces) in one
+    float32 (F, *shape) array, written once (np.concatenate of the parts and placeholders)."""
+    # zeros from calloc: the pages of the meshes without such values are never written
+    out = (np.zeros if fill == 0 else np.empty)((sum(len(f) for f in faces), *shape), np.float32)
+    at = 0
+    for part, f in zip(parts, faces):
+        n = len(f)
+        if part is None:
+            if fill != 0:
+                out[at:at + n] = fill
+        else:
+            out[at:at + n] = np.asarray(part).reshape(n, *shape)
+        at += n
+    return out
 
 
 def checked_triangles(vertices, faces, face_materials, name):
@@ -46,37 +68,31 @@ def checked_triangles(vertices, faces, face_materials, name):
 
 
 def triangle_scene(vertices, faces, face_materials, materials, name, uvs=None, normals=None, colors=None,
-                   face_interfaces=None, face_emitters=None, **scene_fields) -> Scene:
+                   face_interfaces=None, face_emitters=None, own_normals=False, **scene_fields) -> Scene:
     """The Scene of these triangles (checked) with their materials (the default one if there are
     none), per-corner UVs, shading normals and colours, and medium interfaces (per face, or None);
-    no camera yet."""
+    no camera yet.  ``own_normals``: ``normals`` is the caller's to give away (it may be changed
+    in place and kept, not copied)."""
     keep = _finite_faces(vertices, np.asarray(faces, np.int64))
     uvs = kept_per_face(uvs, keep, np.float32, (3, 2))
-    normals = kept_per_face(normals, keep, np.float32, (3, 3))
+    normals = kept_per_face(normals, keep, np.float32, (3, 3), copy=not own_normals)  # ours: made flat in place
     colors = kept_per_face(colors, keep, np.float32, (3, 3))
     face_interfaces = kept_per_face(face_interfaces, keep, np.int32)
     face_emitters = kept_per_face(face_emitters, keep, np.int32)
     v32, f32, face_materials = checked_triangles(vertices, faces, face_materials, name)
     return Scene(vertices=v32, faces=f32, face_materials=face_materials, materials=materials or [Material()],
-                 source=name, uvs=uvs, normals=flat_where_planar(v32, f32, normals), colors=colors,
+                 source=name, uvs=uvs, normals=flat_where_planar(v32, f32, normals, inplace=True), colors=colors,
                  face_interfaces=face_interfaces, face_emitters=face_emitters, **scene_fields)
 
 
-def flat_where_planar(vertices, faces, normals, tolerance: float = 1e-5):
+def flat_where_planar(vertices, faces, normals, tolerance: float = 1e-5, inplace: bool = False):
     """``normals`` with the faces whose three corner normals are their geometric normal (within
     ``tolerance``) set to 0, flat: they shade the same, and a scene of such faces only (a box of
     planar quads, whose vertex normals Mitsuba computes) compiles no shading normals.  None when
-    no face is left with normals."""
-    if normals is None or len(faces) == 0:
-        return None
-    n = np.asarray(normals, np.float32).reshape(-1, 3, 3).copy()
-    p = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
-    g = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        g /= np.linalg.norm(g, axis=1, keepdims=True)
-    flat = (np.abs(n - g[:, None, :]) <= tolerance).all(axis=(1, 2))
-    n[flat] = 0.0
-    return n if n.any() else None
+    no face is left with normals.  ``inplace``: a float32 C-contiguous ``normals`` is changed in
+    place, not copied (one parallel pass: scene/meshops.py)."""
+    with host_stage("normals"):
+        return meshops.flat_where_planar(vertices, faces, normals, tolerance, inplace=inplace)
 
 
 def transform_normals(matrix, normals, unit: bool = True):
@@ -98,31 +114,13 @@ def transform_normals(matrix, normals, unit: bool = True):
 def angle_weighted_normals(vertices, faces, keys=None) -> np.ndarray:
     """Per-corner (F, 3, 3) vertex normals as Mitsuba 3 computes them for a mesh without any
     (``Mesh::recompute_vertex_normals``: Thuermer and Wuethrich 1998): each face's unit normal
-    weighted by its angle at the vertex, summed over the faces that share the vertex, normalised.
-    ``keys`` (F, 3) int: which corners are one vertex (default: the face indices; Mitsuba's OBJ
-    reader makes one vertex per distinct position and texture coordinate)."""
-    v = np.asarray(vertices, np.float64)
-    f = np.asarray(faces, np.int64).reshape(-1, 3)
-    keys = f if keys is None else np.asarray(keys, np.int64).reshape(-1, 3)
-    if len(f) == 0:
-        return np.zeros((0, 3, 3), np.float32)
-    p = v[f]
-    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    ok = length[:, 0] > 0
-    n = np.where(ok[:, None], n / np.where(length > 0, length, 1.0), 0.0)
-    sums = np.zeros((int(keys.max()) + 1, 3))
-    for k in range(3):
-        d0 = p[:, (k + 1) % 3] - p[:, k]
-        d1 = p[:, (k + 2) % 3] - p[:, k]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            d0 /= np.linalg.norm(d0, axis=1, keepdims=True)
-            d1 /= np.linalg.norm(d1, axis=1, keepdims=True)
-        angle = np.nan_to_num(np.arccos(np.clip(np.sum(d0 * d1, axis=1), -1.0, 1.0)))
-        np.add.at(sums, keys[:, k], n * angle[:, None])
-    length = np.linalg.norm(sums, axis=1, keepdims=True)
-    unit = np.where(length > 0, sums / np.where(length > 0, length, 1.0), [1.0, 0.0, 0.0])  # Mitsuba's (1, 0, 0)
-    return unit[keys].astype(np.float32)
+    weighted by its angle at the vertex, summed over the faces that share the vertex, normalised
+    ((1, 0, 0) for a vertex whose sum is 0, as Mitsuba's).  ``keys`` (F, 3) int: which corners are
+    one vertex (default: the face indices; Mitsuba's OBJ reader makes one vertex per distinct
+    position and texture coordinate).  In float64, one parallel pass over the faces
+    (scene/meshops.py; tests/scene/test_meshops.py holds the numpy reference it matches)."""
+    with host_stage("normals"):
+        return meshops.angle_weighted_normals(vertices, faces, keys)
 
 
 def scene_bounds(scene: Scene):
@@ -132,7 +130,7 @@ def scene_bounds(scene: Scene):
     hi = np.full(3, -np.inf)
     world = np.asarray(scene.faces)[:n_world_faces(scene)]
     if len(world):
-        used = scene.vertices[np.unique(world)].astype(np.float64)
+        used = np.asarray(scene.vertices)[meshops.used_vertices(world, len(scene.vertices))].astype(np.float64)
         lo = np.minimum(lo, used.min(axis=0))
         hi = np.maximum(hi, used.max(axis=0))
     moved = instance_bounds(scene)

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..model import (Camera, DirectionalLight, Environment, Material, PointLight, ProjectorLight, RenderSettings,
                      Scene, SpotLight)
-from .assembly import angle_weighted_normals, frame_scene, transform_normals, triangle_scene
+from .assembly import angle_weighted_normals, frame_scene, stacked_per_face, transform_normals, triangle_scene
 from .values import SceneError, first_use_index, one_line
 
 
@@ -317,7 +317,9 @@ class SceneBuilder:
         self._material_index: dict[int, int] = {}
         self._emissive: dict[tuple, Material] = {}
         self.vertices, self.faces, self.face_materials, self.uvs = [], [], [], []
-        self.normals, self.colors = [], []  # per mesh: (F, 3, 3), zeros (flat) / ones where it has none
+        # per mesh: (F, 3, 3) or None where it has none (zeros, flat / ones, and uvs zeros, filled in
+        # by build() only when some mesh has them: no placeholders for a mesh of millions of faces)
+        self.normals, self.colors = [], []
         self.any_normals = self.any_colors = False
         self.n_vertices = 0
         self.spheres, self.sphere_materials = [], []
@@ -438,9 +440,9 @@ class SceneBuilder:
         """Triangles already in world space, their fronts set (what add_mesh leaves)."""
         self.vertices.append(v)
         self.faces.append(f + self.n_vertices)
-        self.uvs.append(np.zeros((len(f), 3, 2), np.float32) if uv is None else uv)
-        self.normals.append(nrm if nrm is not None else np.zeros((len(f), 3, 3), np.float32))
-        self.colors.append(col if col is not None else np.ones((len(f), 3, 3), np.float32))
+        self.uvs.append(uv)
+        self.normals.append(nrm)
+        self.colors.append(col)
         self.face_materials.append(np.full(len(f), self.material_index(material), np.int32))
         self.face_interfaces.append(np.full(len(f), self.interface_index(interface), np.int32))
         self.face_emitters.append(np.full(len(f), int(emitter), np.int32))
@@ -479,12 +481,16 @@ class SceneBuilder:
         if self.faces:
             vertices = np.concatenate(self.vertices)
             faces = np.concatenate(self.faces)
-            uvs = np.concatenate(self.uvs)
+            uvs = stacked_per_face(self.uvs, self.faces, (3, 2), 0.0)
             face_materials = np.concatenate(self.face_materials)
             if self.any_normals:
-                normals = np.concatenate(self.normals)
+                normals = stacked_per_face(self.normals, self.faces, (3, 3), 0.0)
             if self.any_colors:
-                colors = np.concatenate(self.colors)
+                colors = stacked_per_face(self.colors, self.faces, (3, 3), 1.0)
+            # the per-mesh parts are in the stacked arrays now: free them before the Scene is made
+            for parts in (self.vertices, self.uvs, self.normals, self.colors, self.face_materials):
+                parts[:] = [None] * len(parts)
+            self.faces[:] = [np.zeros((len(f), 0), np.int8) for f in self.faces]  # their counts stay
         else:
             vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
             uvs, face_materials = None, np.zeros(0, np.int32)
@@ -518,7 +524,7 @@ class SceneBuilder:
         if not self.faces and not self.spheres:
             raise SceneFormatError(f"{self.name}: the scene has no shapes that we can render")
         scene = triangle_scene(vertices, faces, face_materials, self.materials, self.name, uvs=uvs, normals=normals,
-                               colors=colors,
+                               colors=colors, own_normals=True,
                                spheres=spheres.astype(np.float32),
                                sphere_materials=np.asarray(self.sphere_materials, np.int32),
                                settings=self.settings,

@@ -1,0 +1,48 @@
+"""``pyopencl-rt bench scale`` (issue 35) on a tiny height field, ours only: the scene files it
+writes (a binary PLY both renderers read, the XML), one child render measured from outside (wall
+time, peak RSS from wait4) and the host stages from the sidecar.  Timings are not checked."""
+import json
+import math
+
+import numpy as np
+
+from pyopencl_rt.bench.scale_scene import grid_size, heightfield, write_scene
+from pyopencl_rt.cli import main
+from pyopencl_rt.scene.loaders import load_scene
+
+
+def test_scale_scene_files(tmp_path):
+    xml = write_scene(tmp_path, 2000, width=16, height=12, spp=2)
+    k = grid_size(2000)
+    assert xml.name == f"heightfield_{2 * k * k}.xml" and xml.with_suffix(".ply").exists()
+    scene = load_scene(xml)
+    v, f = heightfield(k)
+    assert np.array_equal(scene.faces[: len(f)], f) and np.array_equal(scene.vertices[: len(v)], v)
+    assert scene.normals is not None and scene.environment is not None  # computed normals, the constant env
+    assert (scene.settings.width, scene.settings.height, scene.settings.spp) == (16, 12, 2)
+
+
+def test_bench_scale_ours_only(tmp_path, capsys):
+    out = tmp_path / "scale.json"
+    main(["bench", "scale", "--sizes", "0.002", "--no-mitsuba", "--width", "8", "--height", "8", "--spp", "1",
+          "--workdir", str(tmp_path / "work"), "--json", str(out)])
+    data = json.loads(out.read_text())
+    (row,) = data["sizes"]
+    assert row["triangles"] == 2 * grid_size(2000) ** 2 and row["mitsuba"] == []
+    (run,) = row["ours"]
+    assert run["returncode"] == 0 and math.isfinite(run["seconds"]) and run["seconds"] > 0
+    assert run["max_rss_mb"] > 10
+    assert {"load", "mesh_read", "normals", "validation", "bvh", "kernel_build", "upload"} <= set(run["host_seconds"])
+    assert "triangles" in capsys.readouterr().out
+
+
+def test_parse_millions():
+    import pytest
+
+    from pyopencl_rt.bench.scale import parse_millions
+    from pyopencl_rt.errors import UserError
+
+    assert parse_millions("0.5,2,8") == [0.5, 2.0, 8.0] and parse_millions("2", with_32m=True) == [2.0, 32.0]
+    for bad in ("", "a,b", "0,1", "-2"):
+        with pytest.raises(UserError):
+            parse_millions(bad)
