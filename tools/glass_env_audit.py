@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 LUM = np.array([0.2126, 0.7152, 0.0722])
 
 
-def ours_renders(path, width, spp, seeds, config, device, first_seed=1000):
+def ours_renders(path, width, spp, seeds, config, device, first_seed=1000, params=None):
     """(seeds, W, W, 3) float64 renders of ours with config's overrides."""
     from pyopencl_rt.render import lights as lights_module
     from pyopencl_rt.render import wavefront as wavefront_module
@@ -47,7 +47,7 @@ def ours_renders(path, width, spp, seeds, config, device, first_seed=1000):
     config = dict(config)
     defines = config.pop("defines", {})
     compensated = config.pop("compensated", None)
-    scene = load_scene(path)
+    scene = load_scene(path, params or None)
     features, buffers = wavefront_module.kernel_features, wavefront_module.environment_buffers
     wavefront_module.kernel_features = lambda *a, **k: {**features(*a, **k), **defines}
     if compensated is not None:  # the wavefront asks for the compensated tables with integrator "path"
@@ -65,11 +65,11 @@ def ours_renders(path, width, spp, seeds, config, device, first_seed=1000):
     return np.array(out)
 
 
-def mitsuba_renders(path, width, spp, seeds, config, sampler, variant, first_seed=5000):
+def mitsuba_renders(path, width, spp, seeds, config, sampler, variant, first_seed=5000, params=None):
     import mitsuba as mi
 
     mi.set_variant(variant)
-    params = {"res": str(width), "spp": str(spp)}
+    params = {**(params or {}), "res": str(width), "spp": str(spp)}
     for key in ("max_depth", "rr_depth"):
         if key in config:
             params[key] = str(config[key])
@@ -92,12 +92,12 @@ def _with_sampler(mi, path, params, sampler):
         tmp.unlink()
 
 
-def plane_mask(path, width, device):
+def plane_mask(path, width, device, params=None):
     """Pixels whose camera ray first hits a diffuse surface (the plane), from our albedo AOV:
     glass has no albedo there (its AOV is the tint, 1) - the plane's checker is 0.1 or 0.7."""
     import pyopencl_rt as rt
 
-    r = rt.render_full(rt.load_scene(path), device=device, spp=4, width=width, height=width, seed=7,
+    r = rt.render_full(rt.load_scene(path, params or None), device=device, spp=4, width=width, height=width, seed=7,
                        aovs=["albedo"])
     albedo = np.asarray(r.layers["albedo"])[..., :3]
     return albedo.mean(-1) < 0.9
@@ -130,19 +130,21 @@ def main(argv=None):
     parser.add_argument("--mitsuba-sampler", default="independent")
     parser.add_argument("--mitsuba-variant", default="llvm_ad_rgb")
     parser.add_argument("--no-mitsuba", action="store_true", help="ours only (the mean of ours as reference)")
+    parser.add_argument("--define", action="append", default=[], help="NAME=VALUE: an XML parameter, both renderers")
     parser.add_argument("--save", help="a folder for the renders (.npy per config)")
     args = parser.parse_args(argv)
     device = select_device(args.device)
-    mask = plane_mask(args.scene, args.width, device)
+    params = dict(d.split("=", 1) for d in args.define)
+    mask = plane_mask(args.scene, args.width, device, params)
     for index, text in enumerate(args.config):
         config = json.loads(text)
-        ours = ours_renders(args.scene, args.width, args.spp, args.seeds, config, device)
+        ours = ours_renders(args.scene, args.width, args.spp, args.seeds, config, device, params=params)
         mits = None
         if not args.no_mitsuba:
             mits = mitsuba_renders(args.scene, args.width, args.spp, args.seeds, config, args.mitsuba_sampler,
-                                   args.mitsuba_variant)
+                                   args.mitsuba_variant, params=params)
         ref = ours.mean(0) if mits is None else 0.5 * (ours.mean(0) + mits.mean(0))
-        row = {"config": config, "spp": args.spp, "seeds": args.seeds, "ours": stats(ours, ref, args.spp, mask)}
+        row = {"config": config, "define": params, "spp": args.spp, "seeds": args.seeds, "ours": stats(ours, ref, args.spp, mask)}
         if mits is not None:
             row["mitsuba"] = stats(mits, ref, args.spp, mask)
             row["ratio"] = {k: row["ours"][k] / max(row["mitsuba"][k], 1e-30)
