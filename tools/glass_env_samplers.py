@@ -8,8 +8,12 @@ sphere, where stratification matters most.
 
 Printed per sampler: the luminance variance over the seeds times spp, summed over the caustic's
 pixels (the reference, the mean of all renders, above 1.5 in the image's lower quarter), over the
-sun seen through the glass (above 10 in the upper three quarters) and over the rest.  The figures
-of docs/BENCHMARKS.md, "Glass under an environment (issue 34)".
+sun seen through the glass (above 10 in the upper three quarters) and over the rest.  An entry of
+``--ours`` may add kernel defines after ``+``: ``sobol+AUDIT_INDEPENDENT_PIXEL`` draws the pixel
+jitter, ``sobol+AUDIT_INDEPENDENT_LOBE`` every lobe choice (the glass's Fresnel branch),
+``sobol+AUDIT_INDEPENDENT_BSDF`` every BSDF direction unstratified, the rest from the sampler (cl/render/path.h), to find which samples' stratification
+a class's variance depends on.  The figures of docs/BENCHMARKS.md, "Glass under an environment
+(issue 34)".
 """
 from __future__ import annotations
 
@@ -44,7 +48,9 @@ def main(argv=None):
     W, params, cfg = args.width, {"bsdf": args.bsdf}, {"max_depth": args.max_depth}
     res = {}
     for s in filter(None, args.ours.split(",")):
-        res[f"ours {s}"] = ours_renders(SCENE, W, args.spp, args.seeds, {**cfg, "sampler": s}, device,
+        sampler, *switches = s.split("+")  # sobol+AUDIT_INDEPENDENT_LOBE: with that kernel define
+        res[f"ours {s}"] = ours_renders(SCENE, W, args.spp, args.seeds,
+                                        {**cfg, "sampler": sampler, "defines": {d: 1 for d in switches}}, device,
                                         params=params) @ LUM
     for s in filter(None, args.mitsuba.split(",")):
         res[f"Mitsuba {s}"] = mitsuba_renders(SCENE, W, args.spp, args.seeds, cfg, s, args.mitsuba_variant,
@@ -55,7 +61,7 @@ def main(argv=None):
     print(f"caustic: {caustic.sum()} pixels, sun through the glass: {sun.sum()} pixels")
     for name, a in res.items():
         v = a.var(0, ddof=1) * args.spp
-        print(f"{name:24s} variance x spp: caustic {v[caustic].sum():9.1f}  sun through the glass "
+        print(f"{name:36s} variance x spp: caustic {v[caustic].sum():9.1f}  sun through the glass "
               f"{v[sun].sum():9.1f}  rest {v[~caustic & ~sun].sum():9.1f}", flush=True)
 
 
