@@ -104,6 +104,10 @@ RT_INLINE void camera_ray(__global const Camera *camera, __global const float *f
     pfloat ux, uy;
     pint negative_x, negative_y;
     sample_2d(k, PUINT(DIM_PIXEL), &ux, &uy);
+#ifdef AUDIT_INDEPENDENT_PIXEL /* variance audits only (tools/glass_env_samplers.py): the pixel jitter unstratified */
+    ux = rng_uniform(k.a, k.b, k.c, PUINT(DIM_PIXEL));
+    uy = rng_uniform(k.a, k.b, k.c, PUINT(DIM_PIXEL + 1));
+#endif
     const pfloat jx = filter_jitter(&cam, filter_cdf, 0, ux, &negative_x);
     const pfloat jy = filter_jitter(&cam, filter_cdf, 1, uy, &negative_y);
     *weight = filter_weight(&cam, negative_x, negative_y);
@@ -408,7 +412,14 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     /* -- BSDF sampling continues the path ---------------------------------------------------- */
     pfloat ubx, uby, pdf;
     sample_2d(key, dim + DIM_BSDF, &ubx, &uby);
+#ifdef AUDIT_INDEPENDENT_BSDF /* variance audits only (tools/glass_env_samplers.py): BSDF directions unstratified */
+    ubx = rng_uniform(key.a, key.b, key.c, dim + DIM_BSDF);
+    uby = rng_uniform(key.a, key.b, key.c, dim + DIM_BSDF + 1u);
+#endif
     pfloat ulobe = sample_1d(key, dim + DIM_BSDF_LOBE);
+#ifdef AUDIT_INDEPENDENT_LOBE /* variance audits only (tools/glass_env_samplers.py): the lobe choice unstratified */
+    ulobe = rng_uniform(key.a, key.b, key.c, dim + DIM_BSDF_LOBE);
+#endif
     /* a masked surface lets the path through with probability 1 - opacity (Mitsuba's mask: the
      * lobe sample u >= opacity; a null, delta bounce of weight 1 that counts as a segment), else
      * its nested BSDF samples with u / opacity and pdf times opacity */
