@@ -140,10 +140,13 @@ RT_OVL float rt_length(float3 v)
     const float d = rt_dot(v, v);
     return (d >= RT_LENGTH_SQ_MIN && d <= RT_LENGTH_SQ_MAX) ? __builtin_sqrtf(d) : length(v);
 }
+/* the zero vector is returned as it is, as OpenCL C defines normalize's special case (PoCL does;
+ * Intel's CPU runtime gives NaN) */
 RT_OVL float3 rt_normalize(float3 v)
 {
     const float d = rt_dot(v, v);
-    return (d >= RT_LENGTH_SQ_MIN && d <= RT_LENGTH_SQ_MAX) ? v / __builtin_sqrtf(d) : normalize(v);
+    if (d >= RT_LENGTH_SQ_MIN && d <= RT_LENGTH_SQ_MAX) return v / __builtin_sqrtf(d);
+    return (v.x == 0.0f && v.y == 0.0f && v.z == 0.0f) ? v : normalize(v);
 }
 
 /* mix(a, b, t) = a + (b - a) * t, its definition. */

@@ -30,39 +30,42 @@ from pyopencl_rt.render.settings import FEATURES_ENV
 os.environ.setdefault(FEATURES_ENV, "all")
 
 
-# The device tests of these run on every device, so on every OpenCL implementation present (the
-# kernels' arithmetic, their ABI, the materials and textures, traversal, lanes, the sampler,
-# several implementations in one render).  The others run on every device but the CPU devices
-# beyond the one `--device cpu` picks (PoCL): with Intel's CPU runtime installed (the dev extra)
-# they would take twice the time for what the modules above already cover.  ``PYOPENCL_TEST``
-# set (``PYOPENCL_TEST=all``) runs every device test on the devices it names.
-EVERY_IMPLEMENTATION = ("tests/accel/", "tests/device/", "tests/scene/test_materials.py",
-                        "tests/scene/test_mitsuba_bsdfs.py", "tests/scene/test_textures.py",
-                        "tests/render/test_path_lanes.py", "tests/render/test_lanes_math.py",
-                        "tests/render/test_sampler.py", "tests/render/test_shading.py",
-                        "tests/render/test_multidevice.py")
+# The device tests of these (test ids or their prefixes) run on every device, so on every OpenCL
+# implementation present: the kernels' arithmetic and ABI, the BSDFs' sampling and densities,
+# textures, traversal, the lanes, the sampler, several implementations in one render.  The other
+# device tests (whole renders, mostly) run on every device but the CPU devices beyond the one
+# `--device cpu` picks (PoCL): with Intel's CPU runtime installed (the dev extra) they would double
+# the suite's time for what the tests above already cover.  ``PYOPENCL_TEST`` set
+# (``PYOPENCL_TEST=all``) runs every device test on the devices it names.
+EVERY_IMPLEMENTATION = (
+    "tests/accel/", "tests/device/", "tests/render/test_lanes_math.py", "tests/render/test_sampler.py",
+    "tests/render/test_shading.py", "tests/scene/test_textures.py",
+    "tests/render/test_path_lanes.py::test_same_image_and_rays",
+    *(f"tests/scene/test_materials.py::test_{name}" for name in (
+        "sampled_directions_follow_the_pdf", "pdf_integrates_to_the_sampling_probability", "eval_is_reciprocal",
+        "smooth_dielectric_fresnel_snell_tir", "smooth_conductor_is_a_mirror_with_exact_fresnel",
+        "smooth_gltf_mirror_fraction", "no_nan_or_inf_for_extreme_parameters", "lane_widths_give_the_one_lane_bits",
+        "type_constants_and_layout_agree")))
 _ROOT = Path(__file__).resolve().parents[1]
 
 
-def device_specs_for(path: Path) -> list[str]:
+def device_specs_for(nodeid: str) -> list[str]:
+    """The devices of a device test (``nodeid`` relative to the repository, as pytest gives it)."""
     specs = dv.device_test_specs()
-    if os.environ.get("PYOPENCL_TEST", "").strip():
-        return specs
-    relative = path.resolve().relative_to(_ROOT).as_posix()
-    if relative.startswith(EVERY_IMPLEMENTATION):
+    if os.environ.get("PYOPENCL_TEST", "").strip() or nodeid.startswith(EVERY_IMPLEMENTATION):
         return specs
     import pyopencl as cl
 
-    first_cpu = {d.int_ptr for d in dv.resolve("cpu")} if any(
-        e[2].type & cl.device_type.CPU for e in dv.all_devices()) else set()
-    chosen = [e for e in dv.all_devices() if dv.describe(e).index in specs
-              and (not e[2].type & cl.device_type.CPU or e[2].int_ptr in first_cpu)]
-    return [dv.describe(e).index for e in chosen]
+    cpus = [e for e in dv.all_devices() if e[2].type & cl.device_type.CPU]
+    first_cpu = dv.resolve("cpu")[0] if cpus else None
+    return [dv.describe(e).index for e in dv.all_devices() if dv.describe(e).index in specs
+            and (not e[2].type & cl.device_type.CPU or e[2] == first_cpu)]
 
 
 def pytest_generate_tests(metafunc):
     if "device" in metafunc.fixturenames:
-        specs = device_specs_for(Path(metafunc.definition.fspath))
+        path = Path(metafunc.definition.fspath).resolve().relative_to(_ROOT).as_posix()
+        specs = device_specs_for(f"{path}::{metafunc.definition.name}")
         metafunc.parametrize("device", specs, ids=[f"dev{s}" for s in specs], indirect=True)
 
 

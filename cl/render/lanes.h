@@ -267,7 +267,16 @@ RT_INLINE pfloat pfloor(pfloat x) { return __builtin_elementwise_floor(x); }
 #else
 RT_INLINE pfloat pfloor(pfloat x) { return floor(x); }
 #endif
-RT_INLINE pfloat perf(pfloat x) { return PLIB1(erf, x); }
+/* erf rounded from double precision where the device has it: the library's float erf may be
+ * several ulp off (Intel's CPU runtime: 4; PoCL: 0.7), and the Beckmann sampling's 1 - erf near 1
+ * magnifies that into wrong slopes (and NaN at the clamps); from double every implementation
+ * gives the correctly rounded value but for rare near-ties */
+#ifdef cl_khr_fp64
+RT_INLINE float erf_rounded(float x) { return (float)erf((double)x); }
+#else
+RT_INLINE float erf_rounded(float x) { return erf(x); }
+#endif
+RT_INLINE pfloat perf(pfloat x) { return PLIB1(erf_rounded, x); }
 RT_INLINE pfloat ppow(pfloat x, pfloat y) { return PLIB2(pow, x, y); }
 RT_INLINE pint pisfinite(pfloat x) { return (as_puint(x) & PUINT(0x7f800000u)) != PUINT(0x7f800000u); }
 
