@@ -16,7 +16,7 @@ LAYERS = [
     {"scene"},
     {"render", "trace"},  # trace: the ray-casting API (accel + device), which bench times
     {"bench"},
-    {"cli", "cli_options", "__init__"},
+    {"cli", "cli_options", "progress", "__init__"},  # progress: the render command's progress bar
 ]
 MAX_LINES = 600
 
