@@ -38,9 +38,12 @@ os.environ.setdefault(FEATURES_ENV, "all")
 # the suite's time for what the tests above already cover.  ``PYOPENCL_TEST`` set
 # (``PYOPENCL_TEST=all``) runs every device test on the devices it names.
 EVERY_IMPLEMENTATION = (
-    "tests/accel/", "tests/device/", "tests/render/test_lanes_math.py", "tests/render/test_sampler.py",
-    "tests/render/test_shading.py", "tests/scene/test_textures.py",
-    "tests/render/test_path_lanes.py::test_same_image_and_rays",
+    "tests/accel/", "tests/device/", "tests/render/test_lanes_math.py", "tests/render/test_shading.py",
+    "tests/scene/test_textures.py",
+    *(f"tests/render/test_sampler.py::test_{name}" for name in (
+        "device_equals_numpy_copy", "lanes_draw_the_same_samples", "small_round_equals_numpy_copy",
+        "sobol_pixels_are_02_sequences", "sobol_pixel_groups_are_nets_at_block_ends", "stratified_fills_grids",
+        "every_dimension_uniform", "scrambles_independent")),
     *(f"tests/scene/test_materials.py::test_{name}" for name in (
         "sampled_directions_follow_the_pdf", "pdf_integrates_to_the_sampling_probability", "eval_is_reciprocal",
         "smooth_dielectric_fresnel_snell_tir", "smooth_conductor_is_a_mirror_with_exact_fresnel",
