@@ -127,12 +127,8 @@ def simd_width(isa: CpuISA) -> tuple[int, str]:
 
 def checked_width(isa: CpuISA, requested: int) -> tuple[int, str | None]:
     """``requested`` lanes (8 or 16) where their vectors cross the library ABI alike, else the
-    rule's width and a one-line reason for the refusal."""
-    if isa.passes_alike(4 * requested):
-        return requested, None
-    width, _ = simd_width(isa)
-    return width, (f"{requested} lanes refused: {isa.describe()}, which pass {4 * requested}-byte vectors "
-                   f"differently; using {width or 'one path per work-item'}{' lanes' if width else ''}")
+    rule's width and a one-line reason for the refusal (:meth:`LaneRule.checked`)."""
+    return pocl_rule(isa).checked(requested)
 
 
 # clang's warning at a call (or definition) whose vector argument or result is passed by a feature
@@ -231,6 +227,12 @@ class LaneRule:
                               f"{' lanes' if self.default else ''}")
 
 
+def pocl_rule(isa: CpuISA) -> LaneRule:
+    """The :class:`LaneRule` of a PoCL CPU device whose compile and library are ``isa``."""
+    default, reason = simd_width(isa)
+    return LaneRule("pocl", tuple(w for w in (8, 16) if isa.passes_alike(4 * w)), default, reason, isa.describe())
+
+
 def lane_rule(device) -> LaneRule:
     """The :class:`LaneRule` of an x86 CPU device, by implementation: PoCL by its probed compile
     and library (:func:`simd_width`, :meth:`CpuISA.passes_alike`); Intel's CPU runtime by
@@ -240,10 +242,7 @@ def lane_rule(device) -> LaneRule:
 
     impl = implementation(device)
     if impl == "pocl":
-        isa = probe(device)
-        default, reason = simd_width(isa)
-        widths = tuple(w for w in (8, 16) if isa.passes_alike(4 * w))
-        return LaneRule(impl, widths, default, reason, isa.describe())
+        return pocl_rule(probe(device))
     register = 4 * int(device.native_vector_width_float or 4)
     name = f"{device.platform.name.strip()} {device.driver_version.strip()} ({register * 8}-bit vectors)"
     if impl == "intel" and register in INTEL_CPU_WIDTH:
