@@ -192,20 +192,27 @@ def flat_where_planar(vertices, faces, normals, tolerance: float = 1e-5, inplace
 
 
 @_jit(inline="always")
+def _unit_corner(n, i, k, as_given):
+    """Corner k of face i of n made unit length (as given with ``as_given``), and whether that
+    corner is usable (its normalisation finite and its length non-zero)."""
+    x, y, z = np.float64(n[i, k, 0]), np.float64(n[i, k, 1]), np.float64(n[i, k, 2])
+    length = math.sqrt(x * x + y * y + z * z)
+    ux, uy, uz = x / length, y / length, z / length
+    good = math.isfinite(ux) and math.isfinite(uy) and math.isfinite(uz) and length > 0
+    if as_given:
+        ux, uy, uz = x, y, z
+    return good, np.float32(ux), np.float32(uy), np.float32(uz)
+
+
+@_jit(inline="always")
 def _unit_face(n, i, as_given, out, j):
     """out[j] = Scene.face_normals of face i of n: each corner normal made unit length (kept as
     given with ``as_given``), all 0 if a corner normal is non-finite or of zero length.  Returns
     whether some component of out[j] is non-zero."""
     good = True
     for k in range(3):
-        x, y, z = np.float64(n[i, k, 0]), np.float64(n[i, k, 1]), np.float64(n[i, k, 2])
-        length = math.sqrt(x * x + y * y + z * z)
-        ux, uy, uz = x / length, y / length, z / length
-        if not (math.isfinite(ux) and math.isfinite(uy) and math.isfinite(uz) and length > 0):
-            good = False
-        if as_given:
-            ux, uy, uz = x, y, z
-        out[j, k, 0], out[j, k, 1], out[j, k, 2] = np.float32(ux), np.float32(uy), np.float32(uz)
+        ok, out[j, k, 0], out[j, k, 1], out[j, k, 2] = _unit_corner(n, i, k, as_given)
+        good = good and ok
     nonzero = False
     for k in range(3):
         for c in range(3):
@@ -255,14 +262,9 @@ def _any_shading(n, as_given, flags):
         good = True
         nonzero = False
         for k in range(3):
-            x, y, z = np.float64(n[i, k, 0]), np.float64(n[i, k, 1]), np.float64(n[i, k, 2])
-            length = math.sqrt(x * x + y * y + z * z)
-            ux, uy, uz = x / length, y / length, z / length
-            if not (math.isfinite(ux) and math.isfinite(uy) and math.isfinite(uz) and length > 0):
-                good = False
-            if as_given:
-                ux, uy, uz = x, y, z
-            if np.float32(ux) != 0 or np.float32(uy) != 0 or np.float32(uz) != 0:
+            ok, ux, uy, uz = _unit_corner(n, i, k, as_given)
+            good = good and ok
+            if ux != 0 or uy != 0 or uz != 0:
                 nonzero = True
         flags[i] = good and nonzero
 
