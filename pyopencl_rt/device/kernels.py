@@ -10,7 +10,9 @@ as preprocessor defines, so a scene compiles only the code it uses.
 """
 from __future__ import annotations
 
+import os
 import re
+import time
 import threading
 import warnings
 from functools import lru_cache
@@ -79,6 +81,20 @@ def _never_release(obj) -> None:
 CACHE_RETRY_DEFINE = "RT_KERNEL_CACHE_RETRY"
 
 
+def _log_build(device, names, options, seconds: float) -> None:
+    """One JSON line per program build to the file ``PYOPENCL_RT_BUILD_LOG`` names (unset: nothing),
+    for finding which builds a test run or a render pays for (a warm kernel cache makes them short)."""
+    path = os.environ.get("PYOPENCL_RT_BUILD_LOG")
+    if not path:
+        return
+    import json
+
+    line = json.dumps({"seconds": round(seconds, 3), "device": device.name.strip(), "names": list(names),
+                       "options": options, "test": os.environ.get("PYTEST_CURRENT_TEST", "")})
+    with open(path, "a") as log:
+        log.write(line + "\n")
+
+
 class DeviceRuntime:
     """A context and an in-order queue for one device (profiling enabled, for per-stage timings)."""
 
@@ -113,9 +129,11 @@ class DeviceRuntime:
                 source = assemble(*names, extra=extra)
                 options = []  # no fast-relaxed-math: watertightness relies on IEEE rounding
                 options += define_options(defines)
+                started = time.perf_counter()
                 with warnings.catch_warnings():  # a compiler's remarks (Intel's runtime logs its
                     warnings.simplefilter("ignore", cl.CompilerWarning)  # vectoriser's) are not the user's
                     prog = cl.Program(self.context, source).build(options=options)
+                _log_build(self.device, names, options, time.perf_counter() - started)
                 self._programs[key] = prog
             return prog
 
