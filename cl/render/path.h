@@ -17,7 +17,8 @@
  *   path_shade      at the lanes' hits: their emission, weighted by MIS against light sampling
  *                   (power heuristic; weight 1 for camera rays), or by 1 (integrator 1, BSDF
  *                   sampling only) or 0 after the first segment (integrator 2, light sampling
- *                   only); one light sample each (picked by power with the alias table) whose
+ *                   only); one light sample each (picked by power with the alias table, or by
+ *                   importance with the light BVH: LIGHT_TREE, render/light_tree.h) whose
  *                   contribution, weighted by MIS (weight 1 for delta lights), comes back with
  *                   its shadow ray (not with integrator 1; infinitely distant lights get a shadow
  *                   ray of length ls.far along their exact direction); one BSDF sample that
@@ -39,6 +40,9 @@
 
 #include "render/lights.h"
 #include "render/filter.h"
+#ifdef LIGHT_TREE
+#include "render/light_tree.h"
+#endif
 #ifdef HAS_TEXTURES
 #include "scene/textures.h"
 #include "scene/texture_lights.h"
@@ -60,6 +64,9 @@ typedef struct {
     pfloat pdf;      /* solid-angle pdf of the BSDF sample that made d; 0 = camera or delta */
     pfloat eta_scale; /* product of eta^2 over the refractions so far */
     pint depth;      /* segments traced before this ray */
+#ifdef LIGHT_TREE
+    pvec3 nref;      /* the normal at the vertex that sampled d (0 in a medium): the light BVH's pmf at its hit */
+#endif
 #ifdef HAS_MEDIA
     pvec3 ref;       /* the last scattering vertex (light_pdf's reference point; o after a null crossing is not) */
     pvec3 r;         /* spectral-MIS ratios p_k / p_hero, mean 1 (cl/render/volpath.h) */
@@ -78,13 +85,14 @@ typedef struct {
     __global const float4 *tris, __global const Sphere *spheres, __global const int *tri_material,   \
     __global const int *tri_light, __global const int *sphere_material,                              \
     __global const int *sphere_light, __global const Material *materials,                            \
-    __global const Light *lights, const int n_lights, __global const float *env_map,                 \
+    __global const Light *lights, __global const LightNode *light_nodes, const int n_lights,         \
+    __global const float *env_map,                                                                   \
     __global const float *env_cdf, __global const float2 *tri_uv, __global const Texture *textures,  \
     __global const float4 *tex_data, __global const float *tri_normal, __global const float *tri_color, \
     __global float *aov_path, const int max_depth, const int rr_depth, const int integrator PATH_INSTANCES
 #define PATH_ARGS                                                                                     \
     tris, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,          \
-    n_lights, env_map, env_cdf, tri_uv, textures, tex_data, tri_normal, tri_color, aov_path, max_depth, \
+    light_nodes, n_lights, env_map, env_cdf, tri_uv, textures, tex_data, tri_normal, tri_color, aov_path, max_depth, \
     rr_depth, integrator PATH_INSTANCES_ARGS
 #ifdef HAS_INSTANCES
 #define PATH_INSTANCES , __global const Instance *instances
@@ -150,6 +158,9 @@ RT_INLINE void path_start(PathState *s, pint m, pvec3 o, pvec3 d)
     s->pdf = m ? PFLOAT(0.0f) : s->pdf;
     s->eta_scale = m ? PFLOAT(1.0f) : s->eta_scale;
     s->depth = m ? PINT(0) : s->depth;
+#ifdef LIGHT_TREE
+    s->nref = pv3_sel(s->nref, pv3_zero(), m);
+#endif
 }
 
 #ifdef HAS_ENVIRONMENT
@@ -211,16 +222,46 @@ RT_INLINE pfloat nee_mis_weight(int integrator, pint delta, pfloat lpdf, pfloat 
     return delta ? PFLOAT(1.0f) : power_heuristic(lpdf, other);
 }
 
+/* The probability that next-event estimation from `from` (normal nref) picks light li, the one a
+ * BSDF sample hit (the lanes of `mis`; li valid in every lane): its alias table's pmf, times with
+ * the light BVH the descent's probability. */
+RT_INLINE pfloat light_pick_pmf(__global const Light *lights, __global const LightNode *light_nodes, pint mis,
+                                pint li, pvec3 from, pvec3 nref)
+{
+    pfloat pmf = pgather((__global const float *)lights, li * STRIDE_INDEX(Light) + FIELD_INDEX(Light, pmf));
+#ifdef LIGHT_TREE
+    const pint trail = pgather_int((__global const int *)lights, li * STRIDE_INDEX(Light) + FIELD_INDEX(Light, trail));
+    const pint in_tree = mis & (trail >= 0);
+    if (pany(in_tree)) pmf = in_tree ? pmf * light_tree_pmf(light_nodes, in_tree ? trail : PINT(-1), from, nref) : pmf;
+#endif
+    return pmf;
+}
+
 /* Next-event estimation's light sample from ref (a surface's spawn point or a medium's scattering
- * point) in the lanes of `active`: a light picked by power (*pick_pmf) and a point on it (*ls, its
- * texture's emission included).  Returns the lanes with a sample of positive density and radiance;
- * there *wi is the unit direction toward it and *dist its distance (for an infinitely far light
- * the exact direction and the far end). */
-RT_INLINE pint nee_light_sample(PATH_PARAMS, SampleKey key, puint dim, pint active, pvec3 ref, LightSample *ls,
-                                pfloat *pick_pmf, pvec3 *wi, pfloat *dist)
+ * point; nref its normal, 0 in a medium) in the lanes of `active`: a light picked by power, or with
+ * the light BVH by importance to (ref, nref) (*pick_pmf) and a point on it (*ls, its texture's
+ * emission included).  Returns the lanes with a sample of positive density and radiance; there
+ * *wi is the unit direction toward it and *dist its distance (for an infinitely far light the
+ * exact direction and the far end). */
+RT_INLINE pint nee_light_sample(PATH_PARAMS, SampleKey key, puint dim, pint active, pvec3 ref, pvec3 nref,
+                                LightSample *ls, pfloat *pick_pmf, pvec3 *wi, pfloat *dist)
 {
     pfloat ulx, uly;
     sample_2d(key, dim + DIM_LIGHT_POINT, &ulx, &uly);
+#ifdef LIGHT_TREE
+    /* the alias table picks an infinitely far light or the tree (any row of it: the tree's share,
+     * in each one's pmf), its remainder of u descends the tree; the point's sample is its own */
+    pfloat u_tree;
+    pint li = sample_alias(lights, n_lights, sample_1d(key, dim + DIM_LIGHT_PICK), pick_pmf, &u_tree);
+    const pint trail = pgather_int((__global const int *)lights, li * STRIDE_INDEX(Light) + FIELD_INDEX(Light, trail));
+    const pint tree = active & (trail >= 0);
+    if (pany(tree)) {
+        pfloat tree_pmf;
+        const pint picked = light_tree_sample(light_nodes, tree, ref, nref, u_tree, &tree_pmf);
+        li = tree ? picked : li;
+        *pick_pmf = tree ? *pick_pmf * tree_pmf : *pick_pmf;
+    }
+#else
     /* With few lights the light point's first coordinate also picks the light (Mitsuba's
      * sample_reuse), so that the pick and the point are stratified together: on the Cornell box
      * (its light two triangles) 2% less error per sample, and one 1D sample fewer.  With many, its
@@ -232,6 +273,7 @@ RT_INLINE pint nee_light_sample(PATH_PARAMS, SampleKey key, puint dim, pint acti
         pfloat unused;
         li = sample_alias(lights, n_lights, sample_1d(key, dim + DIM_LIGHT_PICK), pick_pmf, &unused);
     }
+#endif
     pint sampled = active & (*pick_pmf > 0.0f);
     sampled &= light_sample_all(tris, spheres, materials, env_map, env_cdf, lights, li, sampled, ref, ulx, uly, ls);
 #ifdef HAS_TEXTURES
@@ -347,11 +389,15 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
         const pint mis = glows & (s->pdf > 0.0f) & (light_index >= 0);
         if (integrator == INTEGRATOR_MIS && pany(mis)) {
             const pint li = mis ? light_index : PINT(0);
-            const pfloat pmf = pgather((__global const float *)lights, li * STRIDE_INDEX(Light) + FIELD_INDEX(Light, pmf));
 #ifdef HAS_MEDIA
             const pvec3 from = s->ref; /* the last scattering vertex: null boundaries move o, not it */
 #else
             const pvec3 from = o;
+#endif
+#ifdef LIGHT_TREE
+            const pfloat pmf = light_pick_pmf(lights, light_nodes, mis, li, from, s->nref);
+#else
+            const pfloat pmf = light_pick_pmf(lights, light_nodes, mis, li, from, pv3_zero());
 #endif
             w = mis ? power_heuristic(s->pdf, pmf * light_pdf(spheres, lights, li, from, p, ng)) : w;
         }
@@ -380,7 +426,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
         LightSample ls;
         pfloat pick_pmf, dist;
         pvec3 wi;
-        const pint sampled = nee_light_sample(PATH_ARGS, key, dim, nee, ref, &ls, &pick_pmf, &wi, &dist);
+        const pint sampled = nee_light_sample(PATH_ARGS, key, dim, nee, ref, sh.n, &ls, &pick_pmf, &wi, &dist);
         if (pany(sampled)) {
             pfloat bpdf;
             pvec3 f = bsdf_eval(&m, sampled & surface, sh.n, sh.t, sh.front, wo, wi, &bpdf);
@@ -460,6 +506,9 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     s->pdf = on ? (delta ? PFLOAT(0.0f) : pdf) : s->pdf;
     s->eta_scale = on ? eta_scale : s->eta_scale;
     s->depth = on ? segments : s->depth;
+#ifdef LIGHT_TREE
+    s->nref = pv3_sel(s->nref, sh.n, on);
+#endif
     *goes_on = on;
 }
 

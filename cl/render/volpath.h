@@ -289,7 +289,7 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
         LightSample ls;
         pfloat pick_pmf, dist;
         pvec3 wl;
-        const pint sampled = nee_light_sample(PATH_ARGS, key, dim, nee, p, &ls, &pick_pmf, &wl, &dist);
+        const pint sampled = nee_light_sample(PATH_ARGS, key, dim, nee, p, pv3_zero(), &ls, &pick_pmf, &wl, &dist);
         if (pany(sampled)) {
             const pfloat ph = phase_eval(&med, wi_back, wl);
             const pint lit = sampled & (ph > 0.0f) & (dist > 0.0f);
@@ -324,6 +324,9 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
     s->beta = pv3_sel(s->beta, pv3_div(s->beta, q), on & roulette);
     s->o = pv3_sel(s->o, p, on);
     s->ref = pv3_sel(s->ref, p, on);
+#ifdef LIGHT_TREE
+    s->nref = pv3_sel(s->nref, pv3_zero(), on); /* a medium's point: no cosine at it */
+#endif
     s->d = pv3_sel(s->d, wo, on);
     /* a medium that does not sample emitters: the next emitter hit counts in full (Mitsuba's specular chain) */
     const pint emitters = (med.flags & MEDIUM_FLAG_SAMPLE_EMITTERS) != 0;

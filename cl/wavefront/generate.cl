@@ -35,6 +35,9 @@ __kernel void wf_generate(WAVE_PARAMS)
     path_depth[slot] = 0;
     path_pdf[slot] = 0.0f; /* 0 = "specular/camera": emission seen directly gets full weight */
     path_eta_scale[slot] = 1.0f;
+#ifdef LIGHT_TREE
+    store3(path_nref, slot, (float3)(0.0f));
+#endif
 #ifdef HAS_AOVS
     aov_start(aov_path, slot);
 #endif

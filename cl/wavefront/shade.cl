@@ -26,7 +26,13 @@
         path_pdf[slot] = s.pdf;                                                                     \
         path_eta_scale[slot] = s.eta_scale;                                                         \
         path_depth[slot] = s.depth;                                                                 \
+        STORE_NREF();                                                                               \
     } while (0)
+#ifdef LIGHT_TREE
+#define STORE_NREF() store3(path_nref, slot, pv3_lane(s.nref, 0))
+#else
+#define STORE_NREF() (void)0
+#endif
 
 __kernel void wf_shade(WAVE_PARAMS)
 {
@@ -55,6 +61,9 @@ __kernel void wf_shade(WAVE_PARAMS)
         s.pdf = path_pdf[slot];
         s.eta_scale = path_eta_scale[slot];
         s.depth = path_depth[slot];
+#ifdef LIGHT_TREE
+        s.nref = pv3_from(load3(path_nref, slot));
+#endif
 #ifdef HAS_MEDIA
         /* the medium step first: volpath_vertex, the megakernel's step; the ray's hit (a miss
          * too) bounds its free flight */

@@ -237,7 +237,8 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 #         LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT, LIGHT_PROJECTOR (delta lights: sampled, never
 #         hit) or LIGHT_ENVIRONMENT (prim = the map's width, material = its height; 0 x 0 = constant
 #         radiance; cells: its sampling cells per texel along each axis)
-#   pmf: probability that the light sampler picks this light (proportional to power)
+#   pmf: probability that the light sampler picks this light (proportional to power); with the
+#        light BVH (LIGHT_TREE), for a light in the tree: the tree's share of the picks
 #   alias, alias_prob: Walker/Vose alias table entry for O(1) sampling
 #   p:      point, spot, projector: position; directional, environment: centre of the scene's
 #           bounding sphere
@@ -249,6 +250,8 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 #   (LIGHT_SPOT_SMOOTHSTEP: pbrt-v4's falloff; LIGHT_PROJECTOR_COS3: Mitsuba's normalisation), frame
 #   (the rows of the world-to-light 3x3 map), cone (cos cutoff, cos beam, cutoff [rad], 1 /
 #   (cutoff - beam) [1/rad]), uv_scale (local (x, y, z) -> texture (0.5 + uv_scale (x, y) / z))
+#   trail: with the light BVH, the path from the root to the light's leaf (bit d set: the second
+#          child at depth d); -1 when the light is not in the tree (or there is none)
 # The environment map's buffer (env_map): a header of ENV_MAP_HEADER floats, then the H x W RGB
 # texels row by row from the top.  Header: the rows of the 3x3 world-to-map rotation at floats 0-2,
 # 4-6 and 8-10 (directions are turned into the map's frame before (u, v) is taken), and at 3 and 7
@@ -264,8 +267,20 @@ LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), (
                   ("alias", np.int32), ("material", np.int32), ("area", np.float32), ("cells", np.int32),
                   ("p", np.float32, 3), ("radius", np.float32), ("dir", np.float32, 3), ("texture", np.int32),
                   ("rgb", np.float32, 3), ("flags", np.int32), ("frame", np.float32, 9), ("cone", np.float32, 4),
-                  ("uv_scale", np.float32, 2), ("pad", np.int32)])
+                  ("uv_scale", np.float32, 2), ("trail", np.int32)])
 assert LIGHT.itemsize == 144
+
+# A node of the light BVH (64 bytes; pyopencl_rt/render/light_tree.py builds it, cl/render/light_tree.h
+# walks it): the box lo..hi of its lights, the cone of their emission (unit axis, cos_o: the spread
+# of their normals, cos_e: how far past a normal they emit), their summed power phi; flags
+# LIGHT_NODE_LEAF (child: the light's row) and LIGHT_NODE_TWO_SIDED; an inner node's first child
+# follows it, child is the second's index.
+LIGHT_NODE_LEAF = define("LIGHT_NODE_LEAF", 1)
+LIGHT_NODE_TWO_SIDED = define("LIGHT_NODE_TWO_SIDED", 2)
+LIGHT_NODE = np.dtype([("lo", np.float32, 3), ("child", np.int32), ("hi", np.float32, 3), ("flags", np.int32),
+                       ("axis", np.float32, 3), ("phi", np.float32), ("cos_o", np.float32), ("cos_e", np.float32),
+                       ("pad", np.int32, 2)])
+assert LIGHT_NODE.itemsize == 64
 
 # The camera (96 bytes), perspective (pinhole or thin lens) or orthographic.  A pixel (x, y) with
 # jitter (jx, jy) (from the pixel's top-left corner) maps to the film position sx = (x+jx)/W*2-1,
@@ -348,6 +363,7 @@ STRUCTS: dict[str, np.dtype] = {
     "Sphere": SPHERE,
     "Instance": INSTANCE,
     "Light": LIGHT,
+    "LightNode": LIGHT_NODE,
     "Camera": CAMERA,
     "WideNode": WIDE_NODE,
     "Tri4": TRI4,
@@ -494,6 +510,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("sphere_light", "const", "int", "light per sphere, -1 if none"),
     Param("materials", "const", "Material"),
     Param("lights", "const", "Light"),
+    Param("light_nodes", "const", "LightNode", "the light BVH (LIGHT_TREE); a dummy otherwise"),
     Param("camera", "const", "Camera", "one record"),
     # path state, structure of arrays indexed by wave slot
     _path("ray_o", "float", 3, "origin of the path's next ray"),
@@ -505,6 +522,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _path("path_depth", "int", 1, "segments so far"),
     _path("path_pdf", "float", 1, "BSDF pdf of the last bounce, 0 after a camera or delta bounce"),
     _path("path_eta_scale", "float", 1, "product of eta^2 over the refractions so far (Russian roulette)"),
+    _path("path_nref", "float", 3, "the normal at the last scattering vertex (LIGHT_TREE: the light pmf at a hit)"),
     _path("path_weight", "float", 1, "the camera sample's filter weight (+-filter_weight), applied at accumulate"),
     _path("hit_t", "float", 1, "closest hit of ray_o/ray_d (extend)"),
     _path("hit_prim", "int", 1, "its primitive (PRIM_MISS, triangle or SPHERE_PRIM)"),

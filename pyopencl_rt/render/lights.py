@@ -2,7 +2,8 @@
 spot, projector, directional and environment lights.  RenderSettings.light_sampler chooses how a
 light is picked: "power" in proportion to its power (emitted radiance luminance x area x pi, x2
 when two-sided), infinitely distant lights as pbrt-v4's BVH light sampler picks them
-(:func:`selection_weights`); "uniform" each emitter with probability sampling_weight / sum, split
+(:func:`selection_weights`); "bvh" as "power" for the infinitely distant lights, the others by
+their importance to the shading point through the light BVH (render/light_tree.py); "uniform" each emitter with probability sampling_weight / sum, split
 over its triangles by area (:func:`uniform_weights`: Mitsuba 3's rule).  The table's pmf is what
 the kernels divide by and weigh MIS with (cl/render/path.h), so either choice is unbiased."""
 from __future__ import annotations
@@ -19,9 +20,10 @@ from .sampling import fill_light_table
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 / sRGB primaries
 
 
-def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return (lights, tri_light, sphere_light): the LIGHT records and, per reordered triangle
-    and per sphere, the index of its light record (-1 when it does not emit)."""
+def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return (lights, tri_light, sphere_light, light_nodes): the LIGHT records, per reordered
+    triangle and per sphere the index of its light record (-1 when it does not emit), and the
+    light BVH's LIGHT_NODE records (render/light_tree.py; none unless light_sampler is "bvh")."""
     mats = scene.materials
     emissive = np.array([m.is_emissive for m in mats] or [False])
     # mean_emission: emission x the mean of its texture (textured emitters are sampled by that power)
@@ -74,8 +76,10 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     extra, extra_power = other_lights(scene)
     lights = np.concatenate([lights, extra])
     power = np.concatenate([power, extra_power])
+    no_tree = np.zeros(0, abi.LIGHT_NODE)
+    lights["trail"] = -1
     if len(lights) == 0:
-        return lights, tri_light, sphere_light
+        return lights, tri_light, sphere_light, no_tree
     if not (power > 0).any():  # only black lights (an environment map of zeros): any valid table
         power = np.ones(len(lights))
     sampler = getattr(getattr(scene, "settings", None), "light_sampler", "power")
@@ -86,7 +90,17 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     else:
         weights = selection_weights(lights["kind"], power)
     fill_light_table(lights, weights)
-    return lights, tri_light, sphere_light
+    if sampler != "bvh":
+        return lights, tri_light, sphere_light, no_tree
+    # the lights not infinitely far go in the tree, which the alias table's picks of any of them
+    # enter (pbrt-v4's share for the infinite lights: selection_weights); their pmf: that share
+    from .light_tree import build_light_tree, light_bounds
+
+    bounded = np.flatnonzero(~np.isin(lights["kind"], INFINITE_LIGHTS) & (weights > 0))
+    bounds = light_bounds(lights, bvh.triangles, scene.spheres, sides == 2.0, weights)  # phi: power, scaled
+    nodes, lights["trail"] = build_light_tree(bounds, bounded)
+    lights["pmf"][bounded] = np.float32(lights["pmf"][bounded].astype(np.float64).sum())
+    return lights, tri_light, sphere_light, nodes
 
 
 def uniform_weights(scene, bvh, lights, power) -> np.ndarray:

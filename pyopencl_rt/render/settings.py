@@ -203,6 +203,8 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
         defines["HAS_ENVIRONMENT"] = True
     if np.isin(kinds, (abi.LIGHT_DIRECTIONAL, abi.LIGHT_ENVIRONMENT)).any():
         defines["HAS_INFINITE_LIGHTS"] = True
+    if len(kinds) and (lights["trail"] >= 0).any():
+        defines["LIGHT_TREE"] = True  # light_sampler "bvh" (cl/render/light_tree.h)
     defines.update(layout_defines(bvh_layout))
     if settings.film_aovs:
         defines["HAS_AOVS"] = True  # cl/render/aov.h

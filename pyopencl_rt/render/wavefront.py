@@ -106,7 +106,7 @@ class Wavefront:
             self.bvh = bvh if bvh is not None else scene_bvh(scene)  # two-level with blas_groups
         self.timings["bvh_seconds"] = time.perf_counter() - t0
         with host_stage("lights"):
-            lights, tri_light, sphere_light = build_lights(scene, self.bvh)
+            lights, tri_light, sphere_light, light_nodes = build_lights(scene, self.bvh)
         self.n_lights = len(lights)
         if self.n_lights == 0:
             import warnings
@@ -192,6 +192,7 @@ class Wavefront:
             tri_material=const(tri_material), tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
+            light_nodes=const(light_nodes if len(light_nodes) else np.zeros(1, abi.LIGHT_NODE)),
             **self._texture_buffers(const), **self._shading_buffers(const), **self._aov_buffers(scratch, W, P),
             **self._media_buffers(const), **self._media_path_buffers(const),
             free_q=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32)),

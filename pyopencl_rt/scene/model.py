@@ -20,7 +20,7 @@ assert [INTEGRATORS.index(k) for k in ("path", "bsdf", "nee")] == [abi.INTEGRATO
                                                              abi.INTEGRATOR_NEE]  # the kernel argument
 # where the random numbers come from (cl/render/sampler.h), the default first
 SAMPLERS = ("sobol", "stratified", "independent")
-LIGHT_SAMPLERS = ("power", "uniform")  # RenderSettings.light_sampler (render/lights.py)
+LIGHT_SAMPLERS = ("power", "uniform", "bvh")  # RenderSettings.light_sampler (render/lights.py)
 assert set(SAMPLERS) == set(abi.SAMPLERS)
 # AOV layers a render can write beside the beauty (pyopencl_rt/render/aovs.py documents them)
 AOVS = ("albedo", "normal", "depth", "position", "variance", "spp")
@@ -330,9 +330,10 @@ class RenderSettings:
     # pdf alone (Mitsuba's volpath)
     spectral_mis: bool = True
     # how next-event estimation picks a light (render/lights.py, one of LIGHT_SAMPLERS): "power" in
-    # proportion to its power (pbrt-v4's "power"; its "bvh" maps here), "uniform" each emitter with
-    # probability sampling_weight / sum (Mitsuba 3's rule, pbrt-v4's "uniform"), an emitter's share
-    # split over its triangles by area
+    # proportion to its power (pbrt-v4's "power"), "uniform" each emitter with probability
+    # sampling_weight / sum (Mitsuba 3's rule, pbrt-v4's "uniform"), an emitter's share split over
+    # its triangles by area, "bvh" by importance to the shading point (the light BVH,
+    # render/light_tree.py; pbrt-v4's "bvh")
     light_sampler: str = "power"
     # pbrt-v4's Film "maxcomponentvalue": each camera sample's radiance scaled down so that its
     # largest CIE XYZ component (pbrt's cie1931 sensor RGB) is at most this; None: no clamp

@@ -41,7 +41,7 @@ MITSUBA_LIGHTS = """<scene version="3.0.0">
 
 def light_table(scene):
     bvh = build_bvh(scene.vertices, scene.faces)
-    lights, _, _ = build_lights(scene, bvh)
+    lights, _, _, _ = build_lights(scene, bvh)
     return lights, bvh
 
 
@@ -77,7 +77,8 @@ def test_mitsuba_picks_emitters_by_sampling_weight_then_area(tmp_path):
 
 def test_power_is_the_default_and_settings_are_read(tmp_path):
     """Our scenes pick by power unless told otherwise: TOML [render] light_sampler, pbrt-v4's
-    Integrator "string lightsampler" (uniform; power and bvh as power)."""
+    Integrator "string lightsampler" (uniform, power, bvh; exhaustive as power; our default where
+    the file names none)."""
     toml = tmp_path / "s.toml"
     body = ('[materials.lamp]\nemission = 1\n[[shape]]\ntype = "triangle"\nmaterial = "lamp"\n'
             'points = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]\n')
@@ -85,14 +86,16 @@ def test_power_is_the_default_and_settings_are_read(tmp_path):
     assert load_warned(toml)[0].settings.light_sampler == "power"
     toml.write_text('[render]\nlight_sampler = "uniform"\n' + body)
     assert load_warned(toml)[0].settings.light_sampler == "uniform"
-    for name, expect in (("uniform", "uniform"), ("power", "power"), ("bvh", "power")):
+    for name, expect in (("uniform", "uniform"), ("power", "power"), ("bvh", "bvh"), ("exhaustive", "power"),
+                         (None, "power")):
         pbrt = tmp_path / f"{name}.pbrt"
-        pbrt.write_text(f'Integrator "path" "string lightsampler" "{name}"\nWorldBegin\n'
+        param = "" if name is None else f' "string lightsampler" "{name}"'
+        pbrt.write_text(f'Integrator "path"{param}\nWorldBegin\n'
                         'AttributeBegin\nAreaLightSource "diffuse"\n'
                         'Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0]\nAttributeEnd\n')
         scene, warned = load_warned(pbrt)
         assert scene.settings.light_sampler == expect
-        assert not [w for w in warned if "lightsampler" in w]
+        assert bool([w for w in warned if "lightsampler" in w]) == (name == "exhaustive")
 
 
 def two_lamps_scene(light_sampler: str) -> Scene:
@@ -144,7 +147,7 @@ def test_bad_light_picking_fields_are_refused():
 
     check_scene(two_lamps_scene("uniform"))
     for change, message in (
-            (lambda s: setattr(s, "settings", dataclasses.replace(s.settings, light_sampler="bvh")), "light_sampler"),
+            (lambda s: setattr(s, "settings", dataclasses.replace(s.settings, light_sampler="tree")), "light_sampler"),
             (lambda s: setattr(s, "face_emitters", np.array([-1, -1, 0, 0, 1, 1], np.int32)), "face_emitters"),
             (lambda s: setattr(s, "lights", [PointLight(sampling_weight=-1.0)]), "sampling_weight")):
         scene = two_lamps_scene("uniform")

@@ -314,14 +314,16 @@ class _Importer:
             if depth < 0:
                 raise error_at(integ.pos, f"Integrator: maxdepth must be >= 0, got {depth}")
             st.max_depth = depth + 1  # pbrt counts bounces, we count path segments
-            sampler_name = integ.params.string("lightsampler", "bvh")
+            # pbrt's default ("bvh") only where the file names it: otherwise our default (measured,
+            # docs/BENCHMARKS.md)
+            sampler_name = integ.params.string("lightsampler", st.light_sampler)
             # pbrt-v4's light samplers: "uniform" (each light alike: a triangle of a mesh is a light),
-            # "power", and "bvh" (its default; by power, weighed by distance and orientation), read
-            # as our "power"; "exhaustive" (every light, by power) likewise
+            # "power", and "bvh" (its default; by importance to the point: our light BVH);
+            # "exhaustive" (every light, by power) is read as "power"
             if sampler_name not in ("bvh", "power", "uniform"):
                 self.warn(integ.params.items["lightsampler"].pos,
                           f'Integrator "string lightsampler" "{sampler_name}": read as "power"')
-            st.light_sampler = "uniform" if sampler_name == "uniform" else "power"
+            st.light_sampler = sampler_name if sampler_name in ("bvh", "uniform") else "power"
             if integ.params.boolean("regularize", False):
                 self.warn(integ.params.items["regularize"].pos, "Integrator: regularize is not supported; ignored")
             self.unused(integ)

@@ -22,7 +22,7 @@
     sampler = "sobol"             # "sobol" | "stratified" | "independent", default "sobol"
     adaptive = false              # adaptive sampling (spp: a pixel's maximum, or the mean), default false
     target_error = 0.02           # with adaptive: a pixel stops at this relative error, default none
-    light_sampler = "power"       # how lights are picked: "power" | "uniform", default "power"
+    light_sampler = "power"       # how lights are picked: "power" | "uniform" | "bvh", default "power"
 
     [materials.white]             # one table per material, referred to by NAME
     type = "diffuse"              # a type of pyopencl_rt.scene.materials (default "diffuse"),
