@@ -63,6 +63,9 @@ def devices(as_json, device):
 @click.option("--sampler", type=click.Choice(["sobol", "stratified", "independent"]),
               help="Where the random numbers come from: Owen-scrambled Sobol (default), progressive stratified, "
               "or independent (docs/SAMPLING.md).")
+@click.option("--light-sampler", type=click.Choice(["power", "uniform", "bvh"]),
+              help="How next-event estimation picks a light: by power, uniformly (Mitsuba's rule), or by importance "
+              "to the shading point with the light BVH (many lights; docs/SAMPLING.md) [default: the scene's].")
 @click.option("--adaptive/--no-adaptive", default=None, help="Adaptive sampling: samples where the estimated error "
               "is; --spp is each pixel's maximum with --target-error, the mean without (docs/SAMPLING.md).")
 @click.option("--target-error", type=float, help="With --adaptive: a pixel stops at this relative error (e.g. 0.02).")
@@ -98,7 +101,8 @@ def devices(as_json, device):
 @click.option("--device-timeout", type=float, metavar="SECONDS",
               help="With several devices: drop one that makes no progress for this long [default: 120].")
 @device_option
-def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, integrator, sampler, adaptive,
+def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, integrator, sampler, light_sampler,
+           adaptive,
            target_error, wave_size, profile, kernel_mode, intersector,
            quiet, scheduler, checkpoint_path, checkpoint_every, resume, defines, aovs, denoise, exposure, tonemap, no_exr,
            preview_every, device_timeout, device):
@@ -144,6 +148,10 @@ def render(scene_path, output, spp, time_limit, width, height, max_depth, seed, 
     reset()
     with host_stage("load"):
         scene = load_scene(scene_path, defines=parse_defines(defines))
+    if light_sampler is not None:
+        import dataclasses
+
+        scene.settings = dataclasses.replace(scene.settings, light_sampler=light_sampler)
     aov_names = parse_aovs(scene.settings.aovs if aovs is None else aovs)
     settings = ImageSettings.resolve(scene, width=width, height=height, max_depth=max_depth, integrator=integrator,
                                      seed=seed, aovs=aov_names + (GUIDES if denoise else ()), sampler=sampler,

@@ -35,9 +35,10 @@ RT_INLINE pfloat sin_sub_clamped(pfloat sin_a, pfloat cos_a, pfloat sin_b, pfloa
 RT_INLINE pfloat sqrt_one_minus_sq(pfloat c) { return psqrt(pfmax(PFLOAT(0.0f), 1.0f - c * c)); }
 
 /* The importance of node `node` (each lane's) to p with normal n (n = 0: no cosine bound): its power
- * over the squared distance to its box's centre (at least the half diagonal squared), times the
- * cosine bounds of the emission cone toward p and of the incidence at p, both widened by the angle
- * the box's bounding sphere subtends from p; 0 past the cone's cos_e.  Inside that sphere, phi / d2. */
+ * over the squared distance to its box's centre (at least the half diagonal, as pbrt-v4 clamps it:
+ * not a squared length, but it keeps the distance's weight inside big boxes), times the cosine
+ * bounds of the emission cone toward p and of the incidence at p, both widened by the angle the
+ * box's bounding sphere subtends from p; 0 past the cone's cos_e.  Inside that sphere, phi / d2. */
 RT_INLINE pfloat light_node_importance(__global const LightNode *nodes, pint node, pvec3 p, pvec3 n)
 {
     const pint row = node * STRIDE_INDEX(LightNode);
@@ -51,7 +52,7 @@ RT_INLINE pfloat light_node_importance(__global const LightNode *nodes, pint nod
     const pvec3 to = pv3_sub(p, pc);
     const pfloat dist2 = pv3_dot(to, to);
     const pint inside = dist2 <= r2;
-    const pfloat d2 = pfmax(pfmax(dist2, r2), PFLOAT(FLT_MIN));
+    const pfloat d2 = pfmax(pfmax(dist2, psqrt(r2)), PFLOAT(FLT_MIN)); /* pbrt-v4's clamp: the half diagonal */
     const pvec3 wi = pv3_scale(to, 1.0f / psqrt(dist2 > 0.0f ? dist2 : PFLOAT(1.0f)));
     pfloat cos_w = pv3_dot(wi, axis);
     cos_w = (flags & LIGHT_NODE_TWO_SIDED) != 0 ? pabs(cos_w) : cos_w;

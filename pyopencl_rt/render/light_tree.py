@@ -213,8 +213,8 @@ def _sin_sub(sin_a, cos_a, sin_b, cos_b):
 
 def importance(node, p, n) -> np.ndarray:
     """The importance of the light node (a record) to points p (N, 3) with normals n (N, 3; rows
-    of 0: a point in a medium, no cosine bound): pbrt-v4's LightBounds::Importance, with the
-    distance clamped below by the half diagonal squared (pbrt clamps by the half diagonal)."""
+    of 0: a point in a medium, no cosine bound): pbrt-v4's LightBounds::Importance (the squared
+    distance clamped below by the half diagonal, as pbrt clamps it)."""
     p = np.asarray(p, np.float64)
     n = np.asarray(n, np.float64)
     lo, hi = node["lo"].astype(np.float64), node["hi"].astype(np.float64)
@@ -225,7 +225,7 @@ def importance(node, p, n) -> np.ndarray:
     to = p - pc
     dist2 = np.einsum("ij,ij->i", to, to)
     inside = dist2 <= r2
-    d2 = np.maximum(np.maximum(dist2, r2), np.finfo(np.float32).tiny)
+    d2 = np.maximum(np.maximum(dist2, math.sqrt(r2)), np.finfo(np.float32).tiny)
     wi = to / np.sqrt(np.where(dist2 > 0, dist2, 1.0))[:, None]
     cos_w = wi @ axis
     if int(node["flags"]) & abi.LIGHT_NODE_TWO_SIDED:
