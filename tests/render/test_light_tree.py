@@ -222,3 +222,28 @@ def test_bvh_and_power_render_the_same_mean_with_less_variance_by_bvh(device):
     seen = va.sum(-1) > 0
     ratio = np.median(vb.sum(-1)[seen] / va.sum(-1)[seen])
     assert ratio < 0.7, ratio
+
+
+def test_many_lights_scene_is_its_script_and_builds_a_tree(tmp_path):
+    """scenes/many-lights.toml: its lamps are what many-lights/make_lamps.py writes (byte for byte),
+    3072 quads (6144 emissive triangles) facing down, every one a leaf of the tree (trails within
+    31 bits)."""
+    import importlib.util
+    from pathlib import Path
+
+    from pyopencl_rt.scene.loaders import load_scene
+
+    folder = Path(__file__).resolve().parents[2] / "scenes"
+    spec = importlib.util.spec_from_file_location("make_lamps", folder / "many-lights" / "make_lamps.py")
+    make = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make)
+    make.write(str(tmp_path))
+    for g in range(make.GROUPS):
+        assert (tmp_path / f"lamps-{g}.obj").read_bytes() == (folder / "many-lights" / f"lamps-{g}.obj").read_bytes()
+    scene = load_scene(folder / "many-lights.toml")
+    assert scene.settings.light_sampler == "bvh"
+    lights, nodes, bvh = tree_of(scene)
+    assert len(lights) == 6144 and (lights["kind"] == abi.LIGHT_TRIANGLE).all()
+    assert (lights["trail"] >= 0).all() and len(nodes) == 2 * len(lights) - 1
+    leaves = nodes[(nodes["flags"] & abi.LIGHT_NODE_LEAF) != 0]
+    assert (leaves["axis"][:, 1] < -0.999).all()  # every lamp faces down
