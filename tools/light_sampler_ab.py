@@ -2,7 +2,8 @@
 "bvh" interleaved (seed by seed), and prints per sampler the relMSE over the seeds (eps 1e-2, as
 tools/variance_audit.py) times the spp (the error of one sample per pixel: lower is better), the
 render's seconds (kernel runs only, not builds or the light tree's host build) and samples per
-second, as JSON lines; then the ratios power / bvh.
+second, and the image's mean with its standard error over the seeds (means_z: the two means'
+difference in standard errors), as JSON lines; then the ratios power / bvh.
 
     PYTHONPATH=. python tools/light_sampler_ab.py scenes/many-lights.toml --width 96 --spp 16 --seeds 8
 """
@@ -59,11 +60,14 @@ def main():
             a = np.array(images[sampler])
             rows[sampler] = {"relmse_per_sample": relmse_over_seeds(a) * args.spp,
                              "mean": float(a.mean()),
+                             "mean_stderr": float(a.mean(axis=(1, 2, 3)).std(ddof=1) / np.sqrt(len(a))),
                              "seconds": seconds[sampler] / args.seeds,
                              "samples_per_second": args.width * height * args.spp * args.seeds / seconds[sampler],
                              "setup_seconds_incl_first_build": host[sampler] / args.seeds}
         rows["power_over_bvh"] = {"relmse_per_sample": rows["power"]["relmse_per_sample"] / rows["bvh"]["relmse_per_sample"],
                                   "samples_per_second": rows["power"]["samples_per_second"] / rows["bvh"]["samples_per_second"]}
+        rows["means_z"] = abs(rows["power"]["mean"] - rows["bvh"]["mean"]) / np.hypot(
+            rows["power"]["mean_stderr"], rows["bvh"]["mean_stderr"])
         rows["power_over_bvh"]["time_to_error"] = (rows["power_over_bvh"]["relmse_per_sample"]
                                                    / rows["power_over_bvh"]["samples_per_second"])
         print(json.dumps({"scene": path, "width": args.width, "height": height, "spp": args.spp, "seeds": args.seeds,
