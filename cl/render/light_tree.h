@@ -35,31 +35,28 @@ RT_INLINE pfloat sin_sub_clamped(pfloat sin_a, pfloat cos_a, pfloat sin_b, pfloa
 RT_INLINE pfloat sqrt_one_minus_sq(pfloat c) { return psqrt(pfmax(PFLOAT(0.0f), 1.0f - c * c)); }
 
 /* The importance of node `node` (each lane's) to p with normal n (n = 0: no cosine bound): its power
- * over the squared distance to its box's centre (at least the half diagonal, as pbrt-v4 clamps it:
+ * over the squared distance to its box's centre (the node keeps the box's bounding sphere) (at least the half diagonal, as pbrt-v4 clamps it:
  * not a squared length, but it keeps the distance's weight inside big boxes), times the cosine
  * bounds of the emission cone toward p and of the incidence at p, both widened by the angle the
  * box's bounding sphere subtends from p; 0 past the cone's cos_e.  Inside that sphere, phi / d2. */
 RT_INLINE pfloat light_node_importance(__global const LightNode *nodes, pint node, pvec3 p, pvec3 n)
 {
     const pint row = node * STRIDE_INDEX(LightNode);
-    const pvec3 lo = NODE_V3(nodes, row, lo), hi = NODE_V3(nodes, row, hi);
-    const pvec3 axis = NODE_V3(nodes, row, axis);
-    const pfloat phi = NODE_F(nodes, row, phi), cos_o = NODE_F(nodes, row, cos_o), cos_e = NODE_F(nodes, row, cos_e);
+    const pvec3 pc = NODE_V3(nodes, row, centre), axis = NODE_V3(nodes, row, axis);
+    const pfloat r = NODE_F(nodes, row, radius), phi = NODE_F(nodes, row, phi);
+    const pfloat cos_o = NODE_F(nodes, row, cos_o), sin_o = NODE_F(nodes, row, sin_o), cos_e = NODE_F(nodes, row, cos_e);
     const pint flags = NODE_I(nodes, row, flags);
-    const pvec3 pc = pv3_scale(pv3_add(lo, hi), 0.5f);
-    const pvec3 diag = pv3_sub(hi, lo);
-    const pfloat r2 = 0.25f * pv3_dot(diag, diag);
+    const pfloat r2 = r * r;
     const pvec3 to = pv3_sub(p, pc);
     const pfloat dist2 = pv3_dot(to, to);
     const pint inside = dist2 <= r2;
-    const pfloat d2 = pfmax(pfmax(dist2, psqrt(r2)), PFLOAT(FLT_MIN)); /* pbrt-v4's clamp: the half diagonal */
+    const pfloat d2 = pfmax(pfmax(dist2, r), PFLOAT(FLT_MIN)); /* pbrt-v4's clamp: the half diagonal */
     const pvec3 wi = pv3_scale(to, 1.0f / psqrt(dist2 > 0.0f ? dist2 : PFLOAT(1.0f)));
     pfloat cos_w = pv3_dot(wi, axis);
     cos_w = (flags & LIGHT_NODE_TWO_SIDED) != 0 ? pabs(cos_w) : cos_w;
     const pfloat sin_w = sqrt_one_minus_sq(cos_w);
     const pfloat cos_b = inside ? PFLOAT(-1.0f) : psqrt(pfmax(PFLOAT(0.0f), 1.0f - r2 / (inside ? PFLOAT(1.0f) : dist2)));
     const pfloat sin_b = sqrt_one_minus_sq(cos_b);
-    const pfloat sin_o = sqrt_one_minus_sq(cos_o);
     const pfloat cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, cos_o);
     const pfloat sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, cos_o);
     const pfloat cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);

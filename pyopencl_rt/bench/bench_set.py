@@ -2,8 +2,10 @@
 
 For each scene of the set (by default :data:`DEFAULT_SCENES`: Mitsuba's Cornell box, the box with a
 glass and a rough gold sphere, a textured scene under an environment map, a scene of every
-material type Mitsuba renders the same, and smooth, rough and thin glass on a plane under an
-environment map, issue 34's caustics, one Mitsuba XML file), Mitsuba renders the very same scene, exported by
+material type Mitsuba renders the same, smooth, rough and thin glass on a plane under an
+environment map, issue 34's caustics, one Mitsuba XML file, a hall lit by 3072 small lamps (issue 34's
+many lights, our light BVH) and the Cornell box with fog, a medium in glass and smoke (against
+Mitsuba's volpath)), Mitsuba renders the very same scene, exported by
 :mod:`.mitsuba_export`, and the set reports:
 
 * **samples/s**, ours and Mitsuba's, timed in turns (:mod:`.render`: one persistent Mitsuba process
@@ -47,7 +49,7 @@ from .timing import machine_info, write_results
 
 SCHEMA = "pyopencl_rt.bench_set/1"
 DEFAULT_SCENES = ("scenes/mitsuba-cbox.toml", "scenes/mitsuba-cbox-spheres.toml", "scenes/textured-sky.toml",
-                  "scenes/materials.toml", "scenes/glass-env.xml")
+                  "scenes/materials.toml", "scenes/glass-env.xml", "scenes/many-lights.toml", "scenes/cornell-fog.toml")
 TARGET = 1e-3
 DEFAULT_SEEDS = 4  # each curve's renders: its share of the budget is split between them
 

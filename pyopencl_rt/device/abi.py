@@ -271,15 +271,15 @@ LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), (
 assert LIGHT.itemsize == 144
 
 # A node of the light BVH (64 bytes; pyopencl_rt/render/light_tree.py builds it, cl/render/light_tree.h
-# walks it): the box lo..hi of its lights, the cone of their emission (unit axis, cos_o: the spread
-# of their normals, cos_e: how far past a normal they emit), their summed power phi; flags
-# LIGHT_NODE_LEAF (child: the light's row) and LIGHT_NODE_TWO_SIDED; an inner node's first child
-# follows it, child is the second's index.
+# walks it): the sphere around the box of its lights (centre, radius: half the box's diagonal), the
+# cone of their emission (unit axis, cos_o and sin_o: the spread of their normals, cos_e: how far
+# past a normal they emit), their summed power phi; flags LIGHT_NODE_LEAF (child: the light's row)
+# and LIGHT_NODE_TWO_SIDED; an inner node's first child follows it, child is the second's index.
 LIGHT_NODE_LEAF = define("LIGHT_NODE_LEAF", 1)
 LIGHT_NODE_TWO_SIDED = define("LIGHT_NODE_TWO_SIDED", 2)
-LIGHT_NODE = np.dtype([("lo", np.float32, 3), ("child", np.int32), ("hi", np.float32, 3), ("flags", np.int32),
-                       ("axis", np.float32, 3), ("phi", np.float32), ("cos_o", np.float32), ("cos_e", np.float32),
-                       ("pad", np.int32, 2)])
+LIGHT_NODE = np.dtype([("centre", np.float32, 3), ("child", np.int32), ("axis", np.float32, 3), ("flags", np.int32),
+                       ("radius", np.float32), ("phi", np.float32), ("cos_o", np.float32), ("sin_o", np.float32),
+                       ("cos_e", np.float32), ("pad", np.int32, 3)])
 assert LIGHT_NODE.itemsize == 64
 
 # The camera (96 bytes), perspective (pinhole or thin lens) or orthographic.  A pixel (x, y) with

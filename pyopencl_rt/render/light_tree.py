@@ -170,9 +170,11 @@ def build_light_tree(b, rows) -> tuple[np.ndarray, np.ndarray]:
 
     def node_of(idx):
         rec = np.zeros((), abi.LIGHT_NODE)
-        rec["lo"], rec["hi"] = b["lo"][idx].min(0), b["hi"][idx].max(0)
+        lo, hi = b["lo"][idx].min(0), b["hi"][idx].max(0)
+        rec["centre"], rec["radius"] = 0.5 * (lo + hi), 0.5 * np.linalg.norm(hi - lo)
         axis, cos_o = _cone(b["axis"][idx], b["cos_o"][idx], b["phi"][idx])
         rec["axis"], rec["cos_o"], rec["cos_e"] = axis, cos_o, b["cos_e"][idx].min()
+        rec["sin_o"] = math.sqrt(max(0.0, 1 - float(rec["cos_o"]) ** 2))
         rec["phi"] = b["phi"][idx].sum()
         rec["flags"] = abi.LIGHT_NODE_TWO_SIDED if b["two_sided"][idx].any() else 0
         return rec
@@ -217,15 +219,14 @@ def importance(node, p, n) -> np.ndarray:
     distance clamped below by the half diagonal, as pbrt clamps it)."""
     p = np.asarray(p, np.float64)
     n = np.asarray(n, np.float64)
-    lo, hi = node["lo"].astype(np.float64), node["hi"].astype(np.float64)
-    axis = node["axis"].astype(np.float64)
-    cos_o, cos_e, phi = float(node["cos_o"]), float(node["cos_e"]), float(node["phi"])
-    pc = 0.5 * (lo + hi)
-    r2 = 0.25 * float(np.dot(hi - lo, hi - lo))
+    pc, axis = node["centre"].astype(np.float64), node["axis"].astype(np.float64)
+    cos_o, sin_o, cos_e, phi = (float(node[k]) for k in ("cos_o", "sin_o", "cos_e", "phi"))
+    r = float(node["radius"])
+    r2 = r * r
     to = p - pc
     dist2 = np.einsum("ij,ij->i", to, to)
     inside = dist2 <= r2
-    d2 = np.maximum(np.maximum(dist2, math.sqrt(r2)), np.finfo(np.float32).tiny)
+    d2 = np.maximum(np.maximum(dist2, r), np.finfo(np.float32).tiny)
     wi = to / np.sqrt(np.where(dist2 > 0, dist2, 1.0))[:, None]
     cos_w = wi @ axis
     if int(node["flags"]) & abi.LIGHT_NODE_TWO_SIDED:
@@ -233,7 +234,6 @@ def importance(node, p, n) -> np.ndarray:
     sin_w = np.sqrt(np.maximum(0.0, 1 - cos_w * cos_w))
     cos_b = np.where(inside, -1.0, np.sqrt(np.maximum(0.0, 1 - r2 / np.where(inside, 1.0, dist2))))
     sin_b = np.sqrt(np.maximum(0.0, 1 - cos_b * cos_b))
-    sin_o = math.sqrt(max(0.0, 1 - cos_o * cos_o))
     cos_x, sin_x = _cos_sub(sin_w, cos_w, sin_o, cos_o), _sin_sub(sin_w, cos_w, sin_o, cos_o)
     cos_p = _cos_sub(sin_x, cos_x, sin_b, cos_b)
     imp = np.where(cos_p > cos_e, phi * cos_p / d2, 0.0)
