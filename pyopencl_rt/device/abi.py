@@ -237,8 +237,7 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 #         LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT, LIGHT_PROJECTOR (delta lights: sampled, never
 #         hit) or LIGHT_ENVIRONMENT (prim = the map's width, material = its height; 0 x 0 = constant
 #         radiance; cells: its sampling cells per texel along each axis)
-#   pmf: probability that the light sampler picks this light (proportional to power); with the
-#        light BVH (LIGHT_TREE), for a light in the tree: the tree's share of the picks
+#   pmf: probability that the light sampler picks this light (by power; a light in the BVH: the tree's share)
 #   alias, alias_prob: Walker/Vose alias table entry for O(1) sampling
 #   p:      point, spot, projector: position; directional, environment: centre of the scene's
 #           bounding sphere
@@ -250,8 +249,7 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 #   (LIGHT_SPOT_SMOOTHSTEP: pbrt-v4's falloff; LIGHT_PROJECTOR_COS3: Mitsuba's normalisation), frame
 #   (the rows of the world-to-light 3x3 map), cone (cos cutoff, cos beam, cutoff [rad], 1 /
 #   (cutoff - beam) [1/rad]), uv_scale (local (x, y, z) -> texture (0.5 + uv_scale (x, y) / z))
-#   trail: with the light BVH, the path from the root to the light's leaf (bit d set: the second
-#          child at depth d); -1 when the light is not in the tree (or there is none)
+#   trail: in the light BVH (device/light_node.py), the root-to-leaf path of the light; -1: not in it
 # The environment map's buffer (env_map): a header of ENV_MAP_HEADER floats, then the H x W RGB
 # texels row by row from the top.  Header: the rows of the 3x3 world-to-map rotation at floats 0-2,
 # 4-6 and 8-10 (directions are turned into the map's frame before (u, v) is taken), and at 3 and 7
@@ -269,18 +267,6 @@ LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), (
                   ("rgb", np.float32, 3), ("flags", np.int32), ("frame", np.float32, 9), ("cone", np.float32, 4),
                   ("uv_scale", np.float32, 2), ("trail", np.int32)])
 assert LIGHT.itemsize == 144
-
-# A node of the light BVH (64 bytes; pyopencl_rt/render/light_tree.py builds it, cl/render/light_tree.h
-# walks it): the sphere around the box of its lights (centre, radius: half the box's diagonal), the
-# cone of their emission (unit axis, cos_o and sin_o: the spread of their normals, cos_e: how far
-# past a normal they emit), their summed power phi; flags LIGHT_NODE_LEAF (child: the light's row)
-# and LIGHT_NODE_TWO_SIDED; an inner node's first child follows it, child is the second's index.
-LIGHT_NODE_LEAF = define("LIGHT_NODE_LEAF", 1)
-LIGHT_NODE_TWO_SIDED = define("LIGHT_NODE_TWO_SIDED", 2)
-LIGHT_NODE = np.dtype([("centre", np.float32, 3), ("child", np.int32), ("axis", np.float32, 3), ("flags", np.int32),
-                       ("radius", np.float32), ("phi", np.float32), ("cos_o", np.float32), ("sin_o", np.float32),
-                       ("cos_e", np.float32), ("pad", np.int32, 3)])
-assert LIGHT_NODE.itemsize == 64
 
 # The camera (96 bytes), perspective (pinhole or thin lens) or orthographic.  A pixel (x, y) with
 # jitter (jx, jy) (from the pixel's top-left corner) maps to the film position sx = (x+jx)/W*2-1,
@@ -363,7 +349,6 @@ STRUCTS: dict[str, np.dtype] = {
     "Sphere": SPHERE,
     "Instance": INSTANCE,
     "Light": LIGHT,
-    "LightNode": LIGHT_NODE,
     "Camera": CAMERA,
     "WideNode": WIDE_NODE,
     "Tri4": TRI4,
@@ -374,6 +359,7 @@ STRUCTS: dict[str, np.dtype] = {
     "MediumGrid": MEDIUM_GRID,
     "MediumInterface": MEDIUM_INTERFACE,
 }
+from .light_node import LIGHT_NODE, LIGHT_NODE_LEAF, LIGHT_NODE_TWO_SIDED  # noqa: E402,F401 (registers them)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -158,7 +158,7 @@ def _split(b, idx, depth):
 
 
 def build_light_tree(b, rows) -> tuple[np.ndarray, np.ndarray]:
-    """(nodes, trail): the abi.LIGHT_NODE records of the tree over the light rows ``rows`` (depth
+    """(nodes, trail): the LIGHT_NODE records (device/light_node.py) of the tree over the light rows ``rows`` (depth
     first: an inner node's first child follows it, `child` names the second; a leaf's `child` is
     its light), and per light of ``b`` its bit trail (-1: not in the tree)."""
     n_all = len(b["phi"])
