@@ -435,6 +435,9 @@ _SCALAR_NUMPY = {"int": np.int32, "uint": np.uint32, "float": np.float32}
 _VECTOR_SIZE = {"float2": 8, "float4": 16}
 
 
+PARAM_SOURCES = ("scene", "settings", "run")
+
+
 @dataclass(frozen=True)
 class Param:
     """One kernel parameter.
@@ -445,6 +448,10 @@ class Param:
               ``per_slot * wave_size`` of them)
     launch    set at every launch (the queues that swap, the per-stage scalars, 0 unless given)
               rather than once when the wavefront is set up
+    source    where its value comes from: "scene" (a checkpoint's scene key covers it through
+              pyopencl_rt/render/scene_inputs.py), "settings" (the render key hashes the settings)
+              or "run" (the render's own state: path state, queues, counters, films; the default of
+              per-slot and per-launch parameters)
     """
 
     name: str
@@ -453,10 +460,15 @@ class Param:
     doc: str = ""
     per_slot: int = 0
     launch: bool = False
+    source: str = ""
 
     def __post_init__(self):
         if self.kind not in ("const", "global", "scalar"):
             raise ValueError(f"{self.name}: unknown kind {self.kind!r}")
+        if not self.source and (self.per_slot or self.launch):
+            object.__setattr__(self, "source", "run")
+        if self.source and self.source not in PARAM_SOURCES:
+            raise ValueError(f"{self.name}: source {self.source!r} is not one of {PARAM_SOURCES}")
         if self.kind == "scalar" and self.ctype not in _SCALAR_NUMPY:
             raise ValueError(f"{self.name}: scalar of unsupported type {self.ctype!r}")
 
@@ -485,16 +497,16 @@ def _path(name, ctype, per_slot, doc=""):
 # every kernel takes the whole list (the host sets the fixed arguments once, on every kernel).
 WAVE_PARAMS: tuple[Param, ...] = (
     # the scene, uploaded once
-    Param("nodes", "const", "BVHNode", "binary BVH nodes, or the wide BVH blob with BVH_WIDE"),
-    Param("tris", "const", "float4", "BVH-reordered triangles, 3 vertices each"),
-    Param("tri_material", "const", "int", "material per reordered triangle"),
-    Param("tri_light", "const", "int", "light per reordered triangle, -1 if none"),
-    Param("spheres", "const", "Sphere"),
-    Param("sphere_material", "const", "int"),
-    Param("sphere_light", "const", "int", "light per sphere, -1 if none"),
-    Param("materials", "const", "Material"),
-    Param("lights", "const", "Light"),
-    Param("camera", "const", "Camera", "one record"),
+    Param("nodes", "const", "BVHNode", "binary BVH nodes, or the wide BVH blob with BVH_WIDE", source="scene"),
+    Param("tris", "const", "float4", "BVH-reordered triangles, 3 vertices each", source="scene"),
+    Param("tri_material", "const", "int", "material per reordered triangle", source="scene"),
+    Param("tri_light", "const", "int", "light per reordered triangle, -1 if none", source="scene"),
+    Param("spheres", "const", "Sphere", source="scene"),
+    Param("sphere_material", "const", "int", source="scene"),
+    Param("sphere_light", "const", "int", "light per sphere, -1 if none", source="scene"),
+    Param("materials", "const", "Material", source="scene"),
+    Param("lights", "const", "Light", source="scene"),
+    Param("camera", "const", "Camera", "one record", source="scene"),
     # path state, structure of arrays indexed by wave slot
     _path("ray_o", "float", 3, "origin of the path's next ray"),
     _path("ray_d", "float", 3, "its direction"),
@@ -515,41 +527,43 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _path("sh_d", "float", 3, "shadow ray, t in (0, 1)"),
     _path("sh_contrib", "float", 3, "radiance the light sample adds if unoccluded"),
     # textures (cl/scene/textures.h); 16-byte dummies without HAS_TEXTURES
-    Param("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
-    Param("textures", "const", "Texture"),
-    Param("tex_data", "const", "float4", "texels of every texture"),
+    Param("tri_uv", "const", "float2", "3 UVs per reordered triangle", source="scene"),
+    Param("textures", "const", "Texture", source="scene"),
+    Param("tex_data", "const", "float4", "texels of every texture", source="scene"),
     # shading normals and vertex colours (cl/scene/shading.h); 16-byte dummies without
     # HAS_SHADING_NORMALS / HAS_VERTEX_COLORS
-    Param("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)"),
-    Param("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours"),
+    Param("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)",
+          source="scene"),
+    Param("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours", source="scene"),
     # queues of slot indices and their counters
     Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True),
     Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True),
     Param("shadow_q", "global", "int", "paths with a shadow ray", per_slot=1),
     Param("term_q", "global", "int", "finished paths", per_slot=1),
     Param("free_q", "global", "int", "stack of free slots", per_slot=1),
-    Param("counters", "global", "int", "COUNTER_* slots, then one per ring pass"),
-    Param("pass_ring", "global", "float", "ring_size passes of n_pixels RGB sums"),
+    Param("counters", "global", "int", "COUNTER_* slots, then one per ring pass", source="run"),
+    Param("pass_ring", "global", "float", "ring_size passes of n_pixels RGB sums", source="run"),
     # adaptive sampling (render/adaptive.py): the pixels that take samples, when n_listed > 0
-    Param("pixel_list", "const", "int", "n_pixels entries, the first n_listed in use"),
+    Param("pixel_list", "const", "int", "n_pixels entries, the first n_listed in use", source="run"),
     # AOVs (HAS_AOVS; AOV_* offsets): 16-byte dummies without them
     Param("aov_path", "global", "float", "the path's AOVs so far", per_slot=AOV_FLOATS),
-    Param("aov_ring", "global", "float", "ring_size passes of n_pixels x AOV_FLOATS"),
+    Param("aov_ring", "global", "float", "ring_size passes of n_pixels x AOV_FLOATS", source="run"),
     # the environment map and its sampling CDFs (cl/render/lights.h); dummies without HAS_ENVIRONMENT
-    Param("env_map", "const", "float"),
-    Param("env_cdf", "const", "float"),
+    Param("env_map", "const", "float", source="scene"),
+    Param("env_cdf", "const", "float", source="scene"),
     # the pixel filter's tables (FILTER_TABULATED, cl/render/filter.h); a dummy otherwise
-    Param("filter_cdf", "const", "float", "per axis: the segments, then filter_knots (x, f) pairs"),
+    Param("filter_cdf", "const", "float", "per axis: the segments, then filter_knots (x, f) pairs", source="settings"),
     # fixed scalars
-    Param("n_spheres", "scalar", "int"),
-    Param("n_lights", "scalar", "int"),
-    Param("n_pixels", "scalar", "int"),
-    Param("ring_size", "scalar", "int", "passes in flight at most"),
-    Param("max_depth", "scalar", "int", "path segments, < 0 for no limit"),
-    Param("rr_depth", "scalar", "int", "segments before Russian roulette"),
-    Param("integrator", "scalar", "int", "INTEGRATOR_MIS, _BSDF (BSDF sampling only) or _NEE (light sampling only)"),
-    Param("env_light", "scalar", "int", "the environment light's row in the light table, -1 if none"),
-    Param("seed", "scalar", "uint"),
+    Param("n_spheres", "scalar", "int", source="scene"),
+    Param("n_lights", "scalar", "int", source="scene"),
+    Param("n_pixels", "scalar", "int", source="settings"),
+    Param("ring_size", "scalar", "int", "passes in flight at most", source="run"),
+    Param("max_depth", "scalar", "int", "path segments, < 0 for no limit", source="settings"),
+    Param("rr_depth", "scalar", "int", "segments before Russian roulette", source="settings"),
+    Param("integrator", "scalar", "int", "INTEGRATOR_MIS, _BSDF (BSDF sampling only) or _NEE (light sampling only)",
+          source="settings"),
+    Param("env_light", "scalar", "int", "the environment light's row in the light table, -1 if none", source="scene"),
+    Param("seed", "scalar", "uint", source="settings"),
     # per-stage scalars (each stage reads the ones its .cl file names)
     Param("n_items", "scalar", "int", "work-items with work: new paths, or active paths", launch=True),
     Param("first_pass", "scalar", "int", "generate: pass of the first new sample", launch=True),
@@ -562,13 +576,13 @@ WAVE_PARAMS: tuple[Param, ...] = (
 # Participating media (cl/render/volpath.h, compiled with HAS_MEDIA): every kernel takes them, 16-byte dummies
 # without media; the buffers are pyopencl_rt/scene/media.py:pack_media's, tri_interface reordered as tri_material is.
 MEDIA_PARAMS: tuple[Param, ...] = (
-    Param("media", "const", "Medium", "participating media (cl/render/media.h)"),
-    Param("medium_grids", "const", "MediumGrid", "their density and albedo grids"),
-    Param("grid_data", "const", "float", "the grids' values"),
-    Param("medium_interfaces", "const", "MediumInterface", "how surfaces bound media"),
-    Param("tri_interface", "const", "int", "medium interface per reordered triangle, -1 if none"),
-    Param("sphere_interface", "const", "int", "medium interface per sphere, -1 if none"),
-    Param("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none"),
+    Param("media", "const", "Medium", "participating media (cl/render/media.h)", source="scene"),
+    Param("medium_grids", "const", "MediumGrid", "their density and albedo grids", source="scene"),
+    Param("grid_data", "const", "float", "the grids' values", source="scene"),
+    Param("medium_interfaces", "const", "MediumInterface", "how surfaces bound media", source="scene"),
+    Param("tri_interface", "const", "int", "medium interface per reordered triangle, -1 if none", source="scene"),
+    Param("sphere_interface", "const", "int", "medium interface per sphere, -1 if none", source="scene"),
+    Param("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none", source="scene"),
     # the wavefront's per-path media state (PathState's HAS_MEDIA fields): allocated with HAS_MEDIA in the
     # wavefront schedule only, 16-byte dummies otherwise (the megakernel keeps them in registers)
     _path("vol_medium", "int", 1, "the medium the path's ray is in, MEDIUM_VACUUM if none"),
@@ -580,13 +594,16 @@ MEDIA_PARAMS: tuple[Param, ...] = (
 )
 # Two-level instances (cl/accel/instances.h, compiled with HAS_INSTANCES): 16-byte dummies without.
 INSTANCE_PARAMS: tuple[Param, ...] = (
-    Param("tlas", "const", "BVHNode", "binary BVH over the instances' world boxes (leaves: ranges of instances)"),
-    Param("instances", "const", "Instance", "the instances in the TLAS's leaf order"),
-    Param("blas_nodes", "const", "BVHNode", "every two-level group's BVH in the device's layout, one after another"),
+    Param("tlas", "const", "BVHNode", "binary BVH over the instances' world boxes (leaves: ranges of instances)",
+          source="scene"),
+    Param("instances", "const", "Instance", "the instances in the TLAS's leaf order", source="scene"),
+    Param("blas_nodes", "const", "BVHNode", "every two-level group's BVH in the device's layout, one after another",
+          source="scene"),
 )
 WAVE_PARAMS = WAVE_PARAMS + MEDIA_PARAMS + INSTANCE_PARAMS
 WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
 assert len(WAVE_PARAM) == len(WAVE_PARAMS)
+assert all(p.source for p in WAVE_PARAMS), [p.name for p in WAVE_PARAMS if not p.source]
 
 def cl_header() -> str:
     """The OpenCL C declarations of this module's tables, prepended to every program
