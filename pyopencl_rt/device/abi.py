@@ -489,6 +489,10 @@ class Param:
         return f"__global {'const ' if self.kind == 'const' else ''}{self.ctype} *{self.name}"
 
 
+def _scene(name, kind, ctype, doc=""):
+    return Param(name, kind, ctype, doc, source="scene")
+
+
 def _path(name, ctype, per_slot, doc=""):
     return Param(name, "global", ctype, doc, per_slot=per_slot)
 
@@ -497,16 +501,16 @@ def _path(name, ctype, per_slot, doc=""):
 # every kernel takes the whole list (the host sets the fixed arguments once, on every kernel).
 WAVE_PARAMS: tuple[Param, ...] = (
     # the scene, uploaded once
-    Param("nodes", "const", "BVHNode", "binary BVH nodes, or the wide BVH blob with BVH_WIDE", source="scene"),
-    Param("tris", "const", "float4", "BVH-reordered triangles, 3 vertices each", source="scene"),
-    Param("tri_material", "const", "int", "material per reordered triangle", source="scene"),
-    Param("tri_light", "const", "int", "light per reordered triangle, -1 if none", source="scene"),
-    Param("spheres", "const", "Sphere", source="scene"),
-    Param("sphere_material", "const", "int", source="scene"),
-    Param("sphere_light", "const", "int", "light per sphere, -1 if none", source="scene"),
-    Param("materials", "const", "Material", source="scene"),
-    Param("lights", "const", "Light", source="scene"),
-    Param("camera", "const", "Camera", "one record", source="scene"),
+    _scene("nodes", "const", "BVHNode", "binary BVH nodes, or the wide BVH blob with BVH_WIDE"),
+    _scene("tris", "const", "float4", "BVH-reordered triangles, 3 vertices each"),
+    _scene("tri_material", "const", "int", "material per reordered triangle"),
+    _scene("tri_light", "const", "int", "light per reordered triangle, -1 if none"),
+    _scene("spheres", "const", "Sphere"),
+    _scene("sphere_material", "const", "int"),
+    _scene("sphere_light", "const", "int", "light per sphere, -1 if none"),
+    _scene("materials", "const", "Material"),
+    _scene("lights", "const", "Light"),
+    _scene("camera", "const", "Camera", "one record"),
     # path state, structure of arrays indexed by wave slot
     _path("ray_o", "float", 3, "origin of the path's next ray"),
     _path("ray_d", "float", 3, "its direction"),
@@ -527,14 +531,13 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _path("sh_d", "float", 3, "shadow ray, t in (0, 1)"),
     _path("sh_contrib", "float", 3, "radiance the light sample adds if unoccluded"),
     # textures (cl/scene/textures.h); 16-byte dummies without HAS_TEXTURES
-    Param("tri_uv", "const", "float2", "3 UVs per reordered triangle", source="scene"),
-    Param("textures", "const", "Texture", source="scene"),
-    Param("tex_data", "const", "float4", "texels of every texture", source="scene"),
+    _scene("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
+    _scene("textures", "const", "Texture"),
+    _scene("tex_data", "const", "float4", "texels of every texture"),
     # shading normals and vertex colours (cl/scene/shading.h); 16-byte dummies without
     # HAS_SHADING_NORMALS / HAS_VERTEX_COLORS
-    Param("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)",
-          source="scene"),
-    Param("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours", source="scene"),
+    _scene("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)"),
+    _scene("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours"),
     # queues of slot indices and their counters
     Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True),
     Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True),
@@ -549,20 +552,20 @@ WAVE_PARAMS: tuple[Param, ...] = (
     Param("aov_path", "global", "float", "the path's AOVs so far", per_slot=AOV_FLOATS),
     Param("aov_ring", "global", "float", "ring_size passes of n_pixels x AOV_FLOATS", source="run"),
     # the environment map and its sampling CDFs (cl/render/lights.h); dummies without HAS_ENVIRONMENT
-    Param("env_map", "const", "float", source="scene"),
-    Param("env_cdf", "const", "float", source="scene"),
+    _scene("env_map", "const", "float"),
+    _scene("env_cdf", "const", "float"),
     # the pixel filter's tables (FILTER_TABULATED, cl/render/filter.h); a dummy otherwise
     Param("filter_cdf", "const", "float", "per axis: the segments, then filter_knots (x, f) pairs", source="settings"),
     # fixed scalars
-    Param("n_spheres", "scalar", "int", source="scene"),
-    Param("n_lights", "scalar", "int", source="scene"),
+    _scene("n_spheres", "scalar", "int"),
+    _scene("n_lights", "scalar", "int"),
     Param("n_pixels", "scalar", "int", source="settings"),
     Param("ring_size", "scalar", "int", "passes in flight at most", source="run"),
     Param("max_depth", "scalar", "int", "path segments, < 0 for no limit", source="settings"),
     Param("rr_depth", "scalar", "int", "segments before Russian roulette", source="settings"),
     Param("integrator", "scalar", "int", "INTEGRATOR_MIS, _BSDF (BSDF sampling only) or _NEE (light sampling only)",
           source="settings"),
-    Param("env_light", "scalar", "int", "the environment light's row in the light table, -1 if none", source="scene"),
+    _scene("env_light", "scalar", "int", "the environment light's row in the light table, -1 if none"),
     Param("seed", "scalar", "uint", source="settings"),
     # per-stage scalars (each stage reads the ones its .cl file names)
     Param("n_items", "scalar", "int", "work-items with work: new paths, or active paths", launch=True),
@@ -576,13 +579,13 @@ WAVE_PARAMS: tuple[Param, ...] = (
 # Participating media (cl/render/volpath.h, compiled with HAS_MEDIA): every kernel takes them, 16-byte dummies
 # without media; the buffers are pyopencl_rt/scene/media.py:pack_media's, tri_interface reordered as tri_material is.
 MEDIA_PARAMS: tuple[Param, ...] = (
-    Param("media", "const", "Medium", "participating media (cl/render/media.h)", source="scene"),
-    Param("medium_grids", "const", "MediumGrid", "their density and albedo grids", source="scene"),
-    Param("grid_data", "const", "float", "the grids' values", source="scene"),
-    Param("medium_interfaces", "const", "MediumInterface", "how surfaces bound media", source="scene"),
-    Param("tri_interface", "const", "int", "medium interface per reordered triangle, -1 if none", source="scene"),
-    Param("sphere_interface", "const", "int", "medium interface per sphere, -1 if none", source="scene"),
-    Param("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none", source="scene"),
+    _scene("media", "const", "Medium", "participating media (cl/render/media.h)"),
+    _scene("medium_grids", "const", "MediumGrid", "their density and albedo grids"),
+    _scene("grid_data", "const", "float", "the grids' values"),
+    _scene("medium_interfaces", "const", "MediumInterface", "how surfaces bound media"),
+    _scene("tri_interface", "const", "int", "medium interface per reordered triangle, -1 if none"),
+    _scene("sphere_interface", "const", "int", "medium interface per sphere, -1 if none"),
+    _scene("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none"),
     # the wavefront's per-path media state (PathState's HAS_MEDIA fields): allocated with HAS_MEDIA in the
     # wavefront schedule only, 16-byte dummies otherwise (the megakernel keeps them in registers)
     _path("vol_medium", "int", 1, "the medium the path's ray is in, MEDIUM_VACUUM if none"),
@@ -594,11 +597,9 @@ MEDIA_PARAMS: tuple[Param, ...] = (
 )
 # Two-level instances (cl/accel/instances.h, compiled with HAS_INSTANCES): 16-byte dummies without.
 INSTANCE_PARAMS: tuple[Param, ...] = (
-    Param("tlas", "const", "BVHNode", "binary BVH over the instances' world boxes (leaves: ranges of instances)",
-          source="scene"),
-    Param("instances", "const", "Instance", "the instances in the TLAS's leaf order", source="scene"),
-    Param("blas_nodes", "const", "BVHNode", "every two-level group's BVH in the device's layout, one after another",
-          source="scene"),
+    _scene("tlas", "const", "BVHNode", "binary BVH over the instances' world boxes (leaves: ranges of instances)"),
+    _scene("instances", "const", "Instance", "the instances in the TLAS's leaf order"),
+    _scene("blas_nodes", "const", "BVHNode", "every two-level group's BVH in the device's layout, one after another"),
 )
 WAVE_PARAMS = WAVE_PARAMS + MEDIA_PARAMS + INSTANCE_PARAMS
 WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
