@@ -1,10 +1,9 @@
 """The kernel ABI, declared once: everything host and device must agree on.
 
 - :data:`STRUCTS`: the shared structs, as numpy structured dtypes;
-- :data:`DEFINES`: the enums (material types and flags, light kinds, texture flags, the hit
-  encoding), sizes (traversal stacks, packet units, box padding, work-group size) and the queue
-  counter slots, each declared with :func:`define` (``NAME = define("NAME", value)``);
-- :data:`WAVE_PARAMS`: the parameter list that every wavefront kernel shares, in order.
+- :data:`DEFINES`: the enums, sizes and queue counter slots, each ``NAME = define("NAME", value)``;
+- :data:`WAVE_PARAMS`: the parameter list that every wavefront kernel shares, in order, each
+  parameter saying where its value comes from (the scene, the settings or the run).
 
 :func:`cl_header` generates from them the header prepended to every program build (struct
 typedefs, ``#define`` s and the ``WAVE_PARAMS`` macro), so the kernels never restate them; the
@@ -427,14 +426,11 @@ AOV_HIT = define("AOV_HIT", 10)
 AOV_PENDING = define("AOV_PENDING", 11)  # aov_path only: 1 until the first non-delta hit is recorded
 AOV_FLOATS = define("AOV_FLOATS", 12)
 
-
 # ---------------------------------------------------------------------------------------------
 # The wavefront kernels' shared parameter list.
 # ---------------------------------------------------------------------------------------------
 _SCALAR_NUMPY = {"int": np.int32, "uint": np.uint32, "float": np.float32}
 _VECTOR_SIZE = {"float2": 8, "float4": 16}
-
-
 PARAM_SOURCES = ("scene", "settings", "run")
 
 
@@ -448,10 +444,8 @@ class Param:
               ``per_slot * wave_size`` of them)
     launch    set at every launch (the queues that swap, the per-stage scalars, 0 unless given)
               rather than once when the wavefront is set up
-    source    where its value comes from: "scene" (a checkpoint's scene key covers it through
-              pyopencl_rt/render/scene_inputs.py), "settings" (the render key hashes the settings)
-              or "run" (the render's own state: path state, queues, counters, films; the default of
-              per-slot and per-launch parameters)
+    source    "scene" (in a checkpoint's scene key: render/scene_inputs.py), "settings" (the render
+              key hashes them) or "run" (path state, queues, counters, films)
     """
 
     name: str
@@ -465,9 +459,7 @@ class Param:
     def __post_init__(self):
         if self.kind not in ("const", "global", "scalar"):
             raise ValueError(f"{self.name}: unknown kind {self.kind!r}")
-        if not self.source and (self.per_slot or self.launch):
-            object.__setattr__(self, "source", "run")
-        if self.source and self.source not in PARAM_SOURCES:
+        if self.source not in PARAM_SOURCES:
             raise ValueError(f"{self.name}: source {self.source!r} is not one of {PARAM_SOURCES}")
         if self.kind == "scalar" and self.ctype not in _SCALAR_NUMPY:
             raise ValueError(f"{self.name}: scalar of unsupported type {self.ctype!r}")
@@ -483,18 +475,13 @@ class Param:
         """``value`` as the numpy scalar that pyopencl passes by value for this parameter."""
         return _SCALAR_NUMPY[self.ctype](value)
 
-    def cl(self) -> str:
-        if self.kind == "scalar":
-            return f"const {self.ctype} {self.name}"
-        return f"__global {'const ' if self.kind == 'const' else ''}{self.ctype} *{self.name}"
-
 
 def _scene(name, kind, ctype, doc=""):
     return Param(name, kind, ctype, doc, source="scene")
 
 
 def _path(name, ctype, per_slot, doc=""):
-    return Param(name, "global", ctype, doc, per_slot=per_slot)
+    return Param(name, "global", ctype, doc, per_slot=per_slot, source="run")
 
 
 # In the order of the kernels' signatures; the host binds by name, so the order is free, but
@@ -539,17 +526,17 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _scene("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)"),
     _scene("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours"),
     # queues of slot indices and their counters
-    Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True),
-    Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True),
-    Param("shadow_q", "global", "int", "paths with a shadow ray", per_slot=1),
-    Param("term_q", "global", "int", "finished paths", per_slot=1),
-    Param("free_q", "global", "int", "stack of free slots", per_slot=1),
+    Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True, source="run"),
+    Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True, source="run"),
+    Param("shadow_q", "global", "int", "paths with a shadow ray", per_slot=1, source="run"),
+    Param("term_q", "global", "int", "finished paths", per_slot=1, source="run"),
+    Param("free_q", "global", "int", "stack of free slots", per_slot=1, source="run"),
     Param("counters", "global", "int", "COUNTER_* slots, then one per ring pass", source="run"),
     Param("pass_ring", "global", "float", "ring_size passes of n_pixels RGB sums", source="run"),
     # adaptive sampling (render/adaptive.py): the pixels that take samples, when n_listed > 0
     Param("pixel_list", "const", "int", "n_pixels entries, the first n_listed in use", source="run"),
     # AOVs (HAS_AOVS; AOV_* offsets): 16-byte dummies without them
-    Param("aov_path", "global", "float", "the path's AOVs so far", per_slot=AOV_FLOATS),
+    Param("aov_path", "global", "float", "the path's AOVs so far", per_slot=AOV_FLOATS, source="run"),
     Param("aov_ring", "global", "float", "ring_size passes of n_pixels x AOV_FLOATS", source="run"),
     # the environment map and its sampling CDFs (cl/render/lights.h); dummies without HAS_ENVIRONMENT
     _scene("env_map", "const", "float"),
@@ -568,13 +555,13 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _scene("env_light", "scalar", "int", "the environment light's row in the light table, -1 if none"),
     Param("seed", "scalar", "uint", source="settings"),
     # per-stage scalars (each stage reads the ones its .cl file names)
-    Param("n_items", "scalar", "int", "work-items with work: new paths, or active paths", launch=True),
-    Param("first_pass", "scalar", "int", "generate: pass of the first new sample", launch=True),
-    Param("first_pixel", "scalar", "int", "generate: its pixel (later ones follow, wrapping)", launch=True),
-    Param("queue_base", "scalar", "int", "generate: active-queue length before", launch=True),
-    Param("free_base", "scalar", "int", "generate, accumulate: free-stack length before", launch=True),
+    Param("n_items", "scalar", "int", "work-items with work: new paths, or active paths", launch=True, source="run"),
+    Param("first_pass", "scalar", "int", "generate: pass of the first new sample", launch=True, source="run"),
+    Param("first_pixel", "scalar", "int", "generate: its pixel (the next ones follow)", launch=True, source="run"),
+    Param("queue_base", "scalar", "int", "generate: active-queue length before", launch=True, source="run"),
+    Param("free_base", "scalar", "int", "generate, accumulate: free-stack length before", launch=True, source="run"),
     Param("n_listed", "scalar", "int", "generate, path: samples go to pixel_list[0..n_listed); 0: every pixel",
-          launch=True),
+          launch=True, source="run"),
 )
 # Participating media (cl/render/volpath.h, compiled with HAS_MEDIA): every kernel takes them, 16-byte dummies
 # without media; the buffers are pyopencl_rt/scene/media.py:pack_media's, tri_interface reordered as tri_material is.
@@ -604,7 +591,6 @@ INSTANCE_PARAMS: tuple[Param, ...] = (
 WAVE_PARAMS = WAVE_PARAMS + MEDIA_PARAMS + INSTANCE_PARAMS
 WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}
 assert len(WAVE_PARAM) == len(WAVE_PARAMS)
-assert all(p.source for p in WAVE_PARAMS), [p.name for p in WAVE_PARAMS if not p.source]
 
 def cl_header() -> str:
     """The OpenCL C declarations of this module's tables, prepended to every program
