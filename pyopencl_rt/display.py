@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .imageio import linear_to_srgb
-
 TONEMAPS = ("clamp", "filmic", "agx")
 
 # AgX: rows map a linear Rec.709 colour into / out of the AgX working space
@@ -37,6 +35,12 @@ _AGX_OUTSET = np.array([[1.19687900512017, -0.0980208811401368, -0.0990297440797
 _AGX_MIN_EV, _AGX_MAX_EV = -12.47393, 4.026069
 # the sigmoid's polynomial, highest power first
 _AGX_CURVE = (15.5, -40.14, 31.96, -6.868, 0.4298, 0.1191, -0.00232)
+
+
+def linear_to_srgb(x: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function (IEC 61966-2-1) on values clamped to [0, 1]."""
+    x = np.clip(np.nan_to_num(x, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
 def _finite(x: np.ndarray) -> np.ndarray:

@@ -9,13 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .display import to_8bit
 from .errors import UserError
-
-
-def linear_to_srgb(x: np.ndarray) -> np.ndarray:
-    """The sRGB transfer function (IEC 61966-2-1) on values clamped to [0, 1]."""
-    x = np.clip(np.nan_to_num(x, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
 def _atomic_write(path: Path, writer) -> None:
@@ -78,7 +73,6 @@ def write_png(path, image: np.ndarray, exposure: float = 0.0, tonemap: str = "cl
     """8-bit sRGB of linear ``image`` through the display transform (pyopencl_rt/display.py)."""
     from PIL import Image
 
-    from .display import to_8bit
 
     data = to_8bit(image, exposure, tonemap)
     _atomic_write(Path(path), lambda tmp: Image.fromarray(data, "RGB").save(tmp, format="PNG"))

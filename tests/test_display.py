@@ -5,7 +5,8 @@ import pytest
 
 from pyopencl_rt import compare, display
 from pyopencl_rt.errors import UserError
-from pyopencl_rt.imageio import linear_to_srgb, read_exr, read_exr_channels, write_outputs
+from pyopencl_rt.display import linear_to_srgb
+from pyopencl_rt.imageio import read_exr, read_exr_channels, write_outputs
 
 RAMP = np.geomspace(1e-6, 1e4, 20001)
 LUMA = np.array([0.2126, 0.7152, 0.0722])

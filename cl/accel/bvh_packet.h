@@ -34,6 +34,8 @@
 
 #include "render/lanes.h"
 
+#if PACKET_WIDTH > 1 /* packets are lanes: nothing here at one path per work-item */
+
 /* the smallest lane (operands never NaN: entry distances) */
 #if PACKET_WIDTH == 16
 RT_INLINE float pmin_all(pfloat v) { const float8 a = VMIN(v.lo, v.hi); const float4 b = VMIN(a.lo, a.hi); const float2 c = VMIN(b.lo, b.hi); return FAST_MIN(c.x, c.y); }
@@ -515,4 +517,5 @@ RT_INLINE pint packet_any_hit(__global const void *bvh, const PacketRay *r, pflo
     }
 }
 
+#endif /* PACKET_WIDTH > 1 */
 #endif

@@ -56,8 +56,8 @@
  * fields after the texture indices; material_lanes() gathers those only when some lane has such
  * a type.  roughplastic reads its table from the records themselves (MaterialLanes.records/rec).
  */
-#ifndef PYOPENCL_RT_BSDF_H
-#define PYOPENCL_RT_BSDF_H
+#ifndef PYOPENCL_RT_DISPATCH_H
+#define PYOPENCL_RT_DISPATCH_H
 
 #include "materials/diffuse.h"
 #include "materials/conductor.h"

@@ -4,6 +4,8 @@
 #ifndef PYOPENCL_RT_RAY_COUNTS_H
 #define PYOPENCL_RT_RAY_COUNTS_H
 
+#include "common.h"
+
 /* group_rays: 2 * group_size ints of local memory */
 RT_INLINE void add_group_ray_counts(__local int *group_rays, int group_size, int n_extend, int n_shadow,
                                     __global int *counters)

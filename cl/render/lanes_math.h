@@ -14,6 +14,9 @@
 #ifndef PYOPENCL_RT_LANES_MATH_H
 #define PYOPENCL_RT_LANES_MATH_H
 
+/* the lane types (lanes.h includes this file once they are declared) */
+#include "render/lanes.h"
+
 #define LM_PIO2_A 1.57080078125f
 #define LM_PIO2_B (-4.453584551811218e-06f)
 #define LM_PIO2_C (-8.705516307827565e-10f)

@@ -45,7 +45,6 @@ RT_INLINE pfloat light_node_importance(__global const LightNode *nodes, pint nod
     const pvec3 pc = NODE_V3(nodes, row, centre), axis = NODE_V3(nodes, row, axis);
     const pfloat r = NODE_F(nodes, row, radius), phi = NODE_F(nodes, row, phi);
     const pfloat cos_o = NODE_F(nodes, row, cos_o), sin_o = NODE_F(nodes, row, sin_o), cos_e = NODE_F(nodes, row, cos_e);
-    const pint flags = NODE_I(nodes, row, flags);
     const pfloat r2 = r * r;
     const pvec3 to = pv3_sub(p, pc);
     const pfloat dist2 = pv3_dot(to, to);
@@ -53,7 +52,7 @@ RT_INLINE pfloat light_node_importance(__global const LightNode *nodes, pint nod
     const pfloat d2 = pfmax(pfmax(dist2, r), PFLOAT(FLT_MIN)); /* pbrt-v4's clamp: the half diagonal */
     const pvec3 wi = pv3_scale(to, 1.0f / psqrt(dist2 > 0.0f ? dist2 : PFLOAT(1.0f)));
     pfloat cos_w = pv3_dot(wi, axis);
-    cos_w = (flags & LIGHT_NODE_TWO_SIDED) != 0 ? pabs(cos_w) : cos_w;
+    cos_w = NODE_I(nodes, row, two_sided) != 0 ? pabs(cos_w) : cos_w;
     const pfloat sin_w = sqrt_one_minus_sq(cos_w);
     const pfloat cos_b = inside ? PFLOAT(-1.0f) : psqrt(pfmax(PFLOAT(0.0f), 1.0f - r2 / (inside ? PFLOAT(1.0f) : dist2)));
     const pfloat sin_b = sqrt_one_minus_sq(cos_b);
@@ -88,10 +87,10 @@ RT_INLINE pint light_tree_sample(__global const LightNode *nodes, pint active, p
     pint node = PINT(0);
     pfloat prob = PFLOAT(1.0f);
     pint live = active;
-    pint flags = NODE_I(nodes, node * STRIDE_INDEX(LightNode), flags);
-    pint inner = live & ((flags & LIGHT_NODE_LEAF) == 0);
+    pint child = NODE_I(nodes, node * STRIDE_INDEX(LightNode), child); /* < 0: a leaf, -1 - its light */
+    pint inner = live & (child >= 0);
     while (pany(inner)) {
-        const pint second = NODE_I(nodes, node * STRIDE_INDEX(LightNode), child);
+        const pint second = child;
         pfloat total;
         const pfloat p0 = light_tree_first(nodes, inner, node + 1, second, p, n, &total);
         const pint first = u < p0;
@@ -100,11 +99,11 @@ RT_INLINE pint light_tree_sample(__global const LightNode *nodes, pint active, p
         live &= pnot(inner & pnot(total > 0.0f));
         node = inner ? (first ? node + 1 : second) : node;
         inner &= live;
-        flags = NODE_I(nodes, node * STRIDE_INDEX(LightNode), flags);
-        inner &= (flags & LIGHT_NODE_LEAF) == 0;
+        child = NODE_I(nodes, node * STRIDE_INDEX(LightNode), child);
+        inner &= child >= 0;
     }
     *pmf = live ? prob : PFLOAT(0.0f);
-    return live ? NODE_I(nodes, node * STRIDE_INDEX(LightNode), child) : PINT(0);
+    return live ? -1 - child : PINT(0);
 }
 
 /* The probability that light_tree_sample() from (p, n) takes the light of bit trail `trail` (each
@@ -114,9 +113,10 @@ RT_INLINE pfloat light_tree_pmf(__global const LightNode *nodes, pint trail, pve
     pint node = PINT(0);
     pfloat prob = PFLOAT(1.0f);
     pint live = trail >= 0;
-    pint inner = live & ((NODE_I(nodes, PINT(0), flags) & LIGHT_NODE_LEAF) == 0);
+    pint child = NODE_I(nodes, PINT(0), child); /* < 0: a leaf */
+    pint inner = live & (child >= 0);
     while (pany(inner)) {
-        const pint second = NODE_I(nodes, node * STRIDE_INDEX(LightNode), child);
+        const pint second = child;
         pfloat total;
         const pfloat p0 = light_tree_first(nodes, inner, node + 1, second, p, n, &total);
         const pint take_second = (trail & 1) != 0;
@@ -125,7 +125,8 @@ RT_INLINE pfloat light_tree_pmf(__global const LightNode *nodes, pint trail, pve
         node = inner ? (take_second ? second : node + 1) : node;
         trail = inner ? trail >> 1 : trail;
         inner &= live;
-        inner &= (NODE_I(nodes, node * STRIDE_INDEX(LightNode), flags) & LIGHT_NODE_LEAF) == 0;
+        child = NODE_I(nodes, node * STRIDE_INDEX(LightNode), child);
+        inner &= child >= 0;
     }
     return live ? prob : PFLOAT(0.0f);
 }

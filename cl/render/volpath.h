@@ -33,7 +33,10 @@
 #ifndef PYOPENCL_RT_VOLPATH_H
 #define PYOPENCL_RT_VOLPATH_H
 
+#include "render/path.h"
 #include "render/media.h"
+
+#ifdef HAS_MEDIA /* the integrator of scenes with media (PathState's media fields) */
 
 #define MEDIA_PATH_PARAMS                                                                                   \
     __global const Medium *media, __global const MediumGrid *medium_grids, __global const float *grid_data, \
@@ -391,4 +394,5 @@ RT_INLINE void volpath_vertex(PATH_PARAMS, MEDIA_PATH_PARAMS, int env_light, pin
     *with_shadow |= medium_shadow;
 }
 
+#endif /* HAS_MEDIA */
 #endif

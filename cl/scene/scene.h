@@ -12,8 +12,7 @@
 
 /* bvh_closest_hit / bvh_any_hit of the BVH layout chosen on the host */
 #include "accel/traverse.h"
-/* the packets of lanes wider than 1 (it includes nothing traverse.h has not: see lanes.h on
- * conditional includes) */
+/* the packets of lanes wider than 1 */
 #if PACKET_WIDTH > 1 && defined(HAS_TRIANGLES)
 #include "accel/bvh_packet.h"
 #endif
@@ -23,8 +22,7 @@
 #include "render/spawn.h"
 #include "materials/dispatch.h"
 #include "render/sampler.h"
-/* the alpha cut-outs below look textures up (the host includes a file once, wherever its first
- * #include stands, even inside an #if: so here, unconditionally) */
+/* the alpha cut-outs below look textures up */
 #include "scene/textures.h"
 
 #define SPHERE_PRIM(s) (PRIM_SPHERE_FIRST - (s))

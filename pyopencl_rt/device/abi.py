@@ -1,10 +1,9 @@
 """The kernel ABI, declared once: everything host and device must agree on.
 
 - :data:`STRUCTS`: the shared structs, as numpy structured dtypes;
-- :data:`DEFINES`: the enums (material types and flags, light kinds, texture flags, the hit
-  encoding), sizes (traversal stacks, packet units, box padding, work-group size) and the queue
-  counter slots, each declared with :func:`define` (``NAME = define("NAME", value)``);
-- :data:`WAVE_PARAMS`: the parameter list that every wavefront kernel shares, in order.
+- :data:`DEFINES`: the enums, sizes and queue counter slots, each ``NAME = define("NAME", value)``;
+- :data:`WAVE_PARAMS`: the parameter list that every wavefront kernel shares, in order, each
+  parameter saying where its value comes from (the scene, the settings or the run).
 
 :func:`cl_header` generates from them the header prepended to every program build (struct
 typedefs, ``#define`` s and the ``WAVE_PARAMS`` macro), so the kernels never restate them; the
@@ -239,8 +238,7 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 #         radiance; cells: its sampling cells per texel along each axis)
 #   pmf: probability that the light sampler picks this light (by power; a light in the BVH: the tree's share)
 #   alias, alias_prob: Walker/Vose alias table entry for O(1) sampling
-#   p:      point, spot, projector: position; directional, environment: centre of the scene's
-#           bounding sphere
+#   p:      point, spot, projector: position; directional, environment: the scene's bounding sphere's centre
 #   radius: directional, environment: radius of the scene's bounding sphere (shadow-ray length)
 #   dir:    directional: unit direction of travel; projector: to_world's image of local +z
 #   rgb:    point, spot: intensity [W/sr] (a spot's on its axis); directional: irradiance on a
@@ -249,7 +247,6 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 #   (LIGHT_SPOT_SMOOTHSTEP: pbrt-v4's falloff; LIGHT_PROJECTOR_COS3: Mitsuba's normalisation), frame
 #   (the rows of the world-to-light 3x3 map), cone (cos cutoff, cos beam, cutoff [rad], 1 /
 #   (cutoff - beam) [1/rad]), uv_scale (local (x, y, z) -> texture (0.5 + uv_scale (x, y) / z))
-#   trail: in the light BVH (device/light_node.py), the root-to-leaf path of the light; -1: not in it
 # The environment map's buffer (env_map): a header of ENV_MAP_HEADER floats, then the H x W RGB
 # texels row by row from the top.  Header: the rows of the 3x3 world-to-map rotation at floats 0-2,
 # 4-6 and 8-10 (directions are turned into the map's frame before (u, v) is taken), and at 3 and 7
@@ -278,13 +275,12 @@ assert LIGHT.itemsize == 144
 # Thin lens when lens_radius > 0 (either projection): the ray leaves a point of the lens disk
 # (radius lens_radius, spanned by the unit right and up) toward the pinhole ray's point at distance
 # focus_distance along forward.
-# The jitter is drawn from the pixel reconstruction filter (cl/render/filter.h; filter importance
-# sampling): filter is a FILTER_* method, filter_radius its half widths along x and y in pixels,
-# filter_weight the magnitude of every sample's weight (1 for filters without negative lobes; the
-# sign is that of the filter where the sample fell); FILTER_TABULATED: filter_knots knots per axis
-# in filter_cdf and filter_segments segments along each axis (else 0; pyopencl_rt/render/filters.py
-# lays the tables out: per axis FILTER_MAX_SEGMENTS records of FILTER_SEGMENT_FLOATS, then the
-# knots as (x, f) pairs).
+# The jitter is drawn from the pixel reconstruction filter (cl/render/filter.h; filter importance sampling): filter is
+# a FILTER_* method, filter_radius its half widths along x and y in pixels, filter_weight the magnitude of every
+# sample's weight (1 for filters without negative lobes; the sign is that of the filter where the sample fell);
+# FILTER_TABULATED: filter_knots knots per axis in filter_cdf and filter_segments segments along each axis (else 0;
+# pyopencl_rt/render/filters.py lays the tables out: per axis FILTER_MAX_SEGMENTS records of FILTER_SEGMENT_FLOATS,
+# then the knots as (x, f) pairs).
 PROJECTION_PERSPECTIVE = define("PROJECTION_PERSPECTIVE", 0)
 PROJECTION_ORTHOGRAPHIC = define("PROJECTION_ORTHOGRAPHIC", 1)
 PROJECTIONS = {"perspective": PROJECTION_PERSPECTIVE, "orthographic": PROJECTION_ORTHOGRAPHIC}
@@ -342,13 +338,14 @@ INSTANCE = np.dtype([("world_to_object", np.float32, 12), ("object_to_world", np
                      ("blas_offset", np.int32), ("tri_offset", np.int32), ("pad", np.int32, 2)])
 assert INSTANCE.itemsize == 112
 
+from .light_node import LIGHT_NODE  # noqa: E402  (the light BVH's node record, documented there)
 # Registry of every shared struct: name -> dtype.  Add new shared structs here.
 STRUCTS: dict[str, np.dtype] = {
     "BVHNode": BVH_NODE,
     "Material": MATERIAL,
     "Sphere": SPHERE,
     "Instance": INSTANCE,
-    "Light": LIGHT,
+    "Light": LIGHT, "LightNode": LIGHT_NODE,
     "Camera": CAMERA,
     "WideNode": WIDE_NODE,
     "Tri4": TRI4,
@@ -359,7 +356,6 @@ STRUCTS: dict[str, np.dtype] = {
     "MediumGrid": MEDIUM_GRID,
     "MediumInterface": MEDIUM_INTERFACE,
 }
-from .light_node import LIGHT_NODE, LIGHT_NODE_LEAF, LIGHT_NODE_TWO_SIDED  # noqa: E402,F401 (registers them)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -429,12 +425,12 @@ AOV_HIT = define("AOV_HIT", 10)
 AOV_PENDING = define("AOV_PENDING", 11)  # aov_path only: 1 until the first non-delta hit is recorded
 AOV_FLOATS = define("AOV_FLOATS", 12)
 
-
 # ---------------------------------------------------------------------------------------------
 # The wavefront kernels' shared parameter list.
 # ---------------------------------------------------------------------------------------------
 _SCALAR_NUMPY = {"int": np.int32, "uint": np.uint32, "float": np.float32}
 _VECTOR_SIZE = {"float2": 8, "float4": 16}
+PARAM_SOURCES = ("scene", "settings", "run")
 
 
 @dataclass(frozen=True)
@@ -447,6 +443,8 @@ class Param:
               ``per_slot * wave_size`` of them)
     launch    set at every launch (the queues that swap, the per-stage scalars, 0 unless given)
               rather than once when the wavefront is set up
+    source    "scene" (in a checkpoint's scene key: render/scene_inputs.py), "settings" (the render
+              key hashes them) or "run" (path state, queues, counters, films)
     """
 
     name: str
@@ -455,10 +453,13 @@ class Param:
     doc: str = ""
     per_slot: int = 0
     launch: bool = False
+    source: str = ""
 
     def __post_init__(self):
         if self.kind not in ("const", "global", "scalar"):
             raise ValueError(f"{self.name}: unknown kind {self.kind!r}")
+        if self.source not in PARAM_SOURCES:
+            raise ValueError(f"{self.name}: source {self.source!r} is not one of {PARAM_SOURCES}")
         if self.kind == "scalar" and self.ctype not in _SCALAR_NUMPY:
             raise ValueError(f"{self.name}: scalar of unsupported type {self.ctype!r}")
 
@@ -473,31 +474,29 @@ class Param:
         """``value`` as the numpy scalar that pyopencl passes by value for this parameter."""
         return _SCALAR_NUMPY[self.ctype](value)
 
-    def cl(self) -> str:
-        if self.kind == "scalar":
-            return f"const {self.ctype} {self.name}"
-        return f"__global {'const ' if self.kind == 'const' else ''}{self.ctype} *{self.name}"
+
+def _scene(name, kind, ctype, doc=""):
+    return Param(name, kind, ctype, doc, source="scene")
 
 
 def _path(name, ctype, per_slot, doc=""):
-    return Param(name, "global", ctype, doc, per_slot=per_slot)
+    return Param(name, "global", ctype, doc, per_slot=per_slot, source="run")
 
 
 # In the order of the kernels' signatures; the host binds by name, so the order is free, but
 # every kernel takes the whole list (the host sets the fixed arguments once, on every kernel).
 WAVE_PARAMS: tuple[Param, ...] = (
     # the scene, uploaded once
-    Param("nodes", "const", "BVHNode", "binary BVH nodes, or the wide BVH blob with BVH_WIDE"),
-    Param("tris", "const", "float4", "BVH-reordered triangles, 3 vertices each"),
-    Param("tri_material", "const", "int", "material per reordered triangle"),
-    Param("tri_light", "const", "int", "light per reordered triangle, -1 if none"),
-    Param("spheres", "const", "Sphere"),
-    Param("sphere_material", "const", "int"),
-    Param("sphere_light", "const", "int", "light per sphere, -1 if none"),
-    Param("materials", "const", "Material"),
-    Param("lights", "const", "Light"),
-    Param("light_nodes", "const", "LightNode", "the light BVH (LIGHT_TREE); a dummy otherwise"),
-    Param("camera", "const", "Camera", "one record"),
+    _scene("nodes", "const", "BVHNode", "binary BVH nodes, or the wide BVH blob with BVH_WIDE"),
+    _scene("tris", "const", "float4", "BVH-reordered triangles, 3 vertices each"),
+    _scene("tri_material", "const", "int", "material per reordered triangle"),
+    _scene("tri_light", "const", "int", "light per reordered triangle, -1 if none"),
+    _scene("spheres", "const", "Sphere"),
+    _scene("sphere_material", "const", "int"),
+    _scene("sphere_light", "const", "int", "light per sphere, -1 if none"),
+    _scene("materials", "const", "Material"),
+    _scene("lights", "const", "Light"), _scene("light_nodes", "const", "LightNode", "the light BVH (LIGHT_TREE)"),
+    _scene("camera", "const", "Camera", "one record"),
     # path state, structure of arrays indexed by wave slot
     _path("ray_o", "float", 3, "origin of the path's next ray"),
     _path("ray_d", "float", 3, "its direction"),
@@ -519,60 +518,61 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _path("sh_d", "float", 3, "shadow ray, t in (0, 1)"),
     _path("sh_contrib", "float", 3, "radiance the light sample adds if unoccluded"),
     # textures (cl/scene/textures.h); 16-byte dummies without HAS_TEXTURES
-    Param("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
-    Param("textures", "const", "Texture"),
-    Param("tex_data", "const", "float4", "texels of every texture"),
+    _scene("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
+    _scene("textures", "const", "Texture"),
+    _scene("tex_data", "const", "float4", "texels of every texture"),
     # shading normals and vertex colours (cl/scene/shading.h); 16-byte dummies without
     # HAS_SHADING_NORMALS / HAS_VERTEX_COLORS
-    Param("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)"),
-    Param("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours"),
+    _scene("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)"),
+    _scene("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours"),
     # queues of slot indices and their counters
-    Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True),
-    Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True),
-    Param("shadow_q", "global", "int", "paths with a shadow ray", per_slot=1),
-    Param("term_q", "global", "int", "finished paths", per_slot=1),
-    Param("free_q", "global", "int", "stack of free slots", per_slot=1),
-    Param("counters", "global", "int", "COUNTER_* slots, then one per ring pass"),
-    Param("pass_ring", "global", "float", "ring_size passes of n_pixels RGB sums"),
+    Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True, source="run"),
+    Param("queue_out", "global", "int", "paths that continue", per_slot=1, launch=True, source="run"),
+    Param("shadow_q", "global", "int", "paths with a shadow ray", per_slot=1, source="run"),
+    Param("term_q", "global", "int", "finished paths", per_slot=1, source="run"),
+    Param("free_q", "global", "int", "stack of free slots", per_slot=1, source="run"),
+    Param("counters", "global", "int", "COUNTER_* slots, then one per ring pass", source="run"),
+    Param("pass_ring", "global", "float", "ring_size passes of n_pixels RGB sums", source="run"),
     # adaptive sampling (render/adaptive.py): the pixels that take samples, when n_listed > 0
-    Param("pixel_list", "const", "int", "n_pixels entries, the first n_listed in use"),
+    Param("pixel_list", "const", "int", "n_pixels entries, the first n_listed in use", source="run"),
     # AOVs (HAS_AOVS; AOV_* offsets): 16-byte dummies without them
-    Param("aov_path", "global", "float", "the path's AOVs so far", per_slot=AOV_FLOATS),
-    Param("aov_ring", "global", "float", "ring_size passes of n_pixels x AOV_FLOATS"),
+    Param("aov_path", "global", "float", "the path's AOVs so far", per_slot=AOV_FLOATS, source="run"),
+    Param("aov_ring", "global", "float", "ring_size passes of n_pixels x AOV_FLOATS", source="run"),
     # the environment map and its sampling CDFs (cl/render/lights.h); dummies without HAS_ENVIRONMENT
-    Param("env_map", "const", "float"),
-    Param("env_cdf", "const", "float"),
+    _scene("env_map", "const", "float"),
+    _scene("env_cdf", "const", "float"),
     # the pixel filter's tables (FILTER_TABULATED, cl/render/filter.h); a dummy otherwise
-    Param("filter_cdf", "const", "float", "per axis: the segments, then filter_knots (x, f) pairs"),
+    Param("filter_cdf", "const", "float", "per axis: the segments, then filter_knots (x, f) pairs", source="settings"),
     # fixed scalars
-    Param("n_spheres", "scalar", "int"),
-    Param("n_lights", "scalar", "int"),
-    Param("n_pixels", "scalar", "int"),
-    Param("ring_size", "scalar", "int", "passes in flight at most"),
-    Param("max_depth", "scalar", "int", "path segments, < 0 for no limit"),
-    Param("rr_depth", "scalar", "int", "segments before Russian roulette"),
-    Param("integrator", "scalar", "int", "INTEGRATOR_MIS, _BSDF (BSDF sampling only) or _NEE (light sampling only)"),
-    Param("env_light", "scalar", "int", "the environment light's row in the light table, -1 if none"),
-    Param("seed", "scalar", "uint"),
+    _scene("n_spheres", "scalar", "int"),
+    _scene("n_lights", "scalar", "int"),
+    Param("n_pixels", "scalar", "int", source="settings"),
+    Param("ring_size", "scalar", "int", "passes in flight at most", source="run"),
+    Param("max_depth", "scalar", "int", "path segments, < 0 for no limit", source="settings"),
+    Param("rr_depth", "scalar", "int", "segments before Russian roulette", source="settings"),
+    Param("integrator", "scalar", "int", "INTEGRATOR_MIS, _BSDF (BSDF sampling only) or _NEE (light sampling only)",
+          source="settings"),
+    _scene("env_light", "scalar", "int", "the environment light's row in the light table, -1 if none"),
+    Param("seed", "scalar", "uint", source="settings"),
     # per-stage scalars (each stage reads the ones its .cl file names)
-    Param("n_items", "scalar", "int", "work-items with work: new paths, or active paths", launch=True),
-    Param("first_pass", "scalar", "int", "generate: pass of the first new sample", launch=True),
-    Param("first_pixel", "scalar", "int", "generate: its pixel (later ones follow, wrapping)", launch=True),
-    Param("queue_base", "scalar", "int", "generate: active-queue length before", launch=True),
-    Param("free_base", "scalar", "int", "generate, accumulate: free-stack length before", launch=True),
+    Param("n_items", "scalar", "int", "work-items with work: new paths, or active paths", launch=True, source="run"),
+    Param("first_pass", "scalar", "int", "generate: pass of the first new sample", launch=True, source="run"),
+    Param("first_pixel", "scalar", "int", "generate: its pixel (the next ones follow)", launch=True, source="run"),
+    Param("queue_base", "scalar", "int", "generate: active-queue length before", launch=True, source="run"),
+    Param("free_base", "scalar", "int", "generate, accumulate: free-stack length before", launch=True, source="run"),
     Param("n_listed", "scalar", "int", "generate, path: samples go to pixel_list[0..n_listed); 0: every pixel",
-          launch=True),
+          launch=True, source="run"),
 )
 # Participating media (cl/render/volpath.h, compiled with HAS_MEDIA): every kernel takes them, 16-byte dummies
 # without media; the buffers are pyopencl_rt/scene/media.py:pack_media's, tri_interface reordered as tri_material is.
 MEDIA_PARAMS: tuple[Param, ...] = (
-    Param("media", "const", "Medium", "participating media (cl/render/media.h)"),
-    Param("medium_grids", "const", "MediumGrid", "their density and albedo grids"),
-    Param("grid_data", "const", "float", "the grids' values"),
-    Param("medium_interfaces", "const", "MediumInterface", "how surfaces bound media"),
-    Param("tri_interface", "const", "int", "medium interface per reordered triangle, -1 if none"),
-    Param("sphere_interface", "const", "int", "medium interface per sphere, -1 if none"),
-    Param("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none"),
+    _scene("media", "const", "Medium", "participating media (cl/render/media.h)"),
+    _scene("medium_grids", "const", "MediumGrid", "their density and albedo grids"),
+    _scene("grid_data", "const", "float", "the grids' values"),
+    _scene("medium_interfaces", "const", "MediumInterface", "how surfaces bound media"),
+    _scene("tri_interface", "const", "int", "medium interface per reordered triangle, -1 if none"),
+    _scene("sphere_interface", "const", "int", "medium interface per sphere, -1 if none"),
+    _scene("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none"),
     # the wavefront's per-path media state (PathState's HAS_MEDIA fields): allocated with HAS_MEDIA in the
     # wavefront schedule only, 16-byte dummies otherwise (the megakernel keeps them in registers)
     _path("vol_medium", "int", 1, "the medium the path's ray is in, MEDIUM_VACUUM if none"),
@@ -584,9 +584,9 @@ MEDIA_PARAMS: tuple[Param, ...] = (
 )
 # Two-level instances (cl/accel/instances.h, compiled with HAS_INSTANCES): 16-byte dummies without.
 INSTANCE_PARAMS: tuple[Param, ...] = (
-    Param("tlas", "const", "BVHNode", "binary BVH over the instances' world boxes (leaves: ranges of instances)"),
-    Param("instances", "const", "Instance", "the instances in the TLAS's leaf order"),
-    Param("blas_nodes", "const", "BVHNode", "every two-level group's BVH in the device's layout, one after another"),
+    _scene("tlas", "const", "BVHNode", "binary BVH over the instances' world boxes (leaves: ranges of instances)"),
+    _scene("instances", "const", "Instance", "the instances in the TLAS's leaf order"),
+    _scene("blas_nodes", "const", "BVHNode", "every two-level group's BVH in the device's layout, one after another"),
 )
 WAVE_PARAMS = WAVE_PARAMS + MEDIA_PARAMS + INSTANCE_PARAMS
 WAVE_PARAM = {p.name: p for p in WAVE_PARAMS}

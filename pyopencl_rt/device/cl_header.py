@@ -45,10 +45,17 @@ def cl_defines(defines: dict, overridable=frozenset()) -> str:
 
 def cl_params(macro: str, params) -> str:
     """``#define macro`` the parameter list, one parameter a line with its doc."""
-    lines = [f"    {p.cl()}{',' if i < len(params) - 1 else ''}" + (f" /* {p.doc} */" if p.doc else "")
+    lines = [f"    {_declaration(p)}{',' if i < len(params) - 1 else ''}" + (f" /* {p.doc} */" if p.doc else "")
              for i, p in enumerate(params)]
     width = max(map(len, lines))
     return f"#define {macro} \\\n" + " \\\n".join(line.ljust(width) for line in lines[:-1]) + f" \\\n{lines[-1]}\n"
+
+
+def _declaration(p) -> str:
+    """A parameter as the kernels' signature declares it."""
+    if p.kind == "scalar":
+        return f"const {p.ctype} {p.name}"
+    return f"__global {'const ' if p.kind == 'const' else ''}{p.ctype} *{p.name}"
 
 
 def cl_header(structs: dict, defines: dict, overridable, wave_params) -> str:

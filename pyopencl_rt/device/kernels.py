@@ -32,26 +32,54 @@ def cl_dir() -> Path:
     raise FileNotFoundError(f"OpenCL sources not found next to {package} (looked for cl/accel/intersect.h)")
 
 
+_CONDITIONAL_OPEN = re.compile(r"^\s*#\s*if(n?def)?\b")
+_CONDITIONAL_CLOSE = re.compile(r"^\s*#\s*endif\b")
+_GUARD = re.compile(r"\A(?:\s*(?:/\*.*?\*/|//[^\n]*))*\s*#\s*ifndef\s+(\w+)\s*\n\s*#\s*define\s+\1\b", re.S)
+
+
 def assemble(*names: str, extra: str = "") -> str:
     """Concatenate the named sources, then ``extra`` source text, with every ``#include "x.h"``
-    expanded from ``cl/`` (each file included once; a ``*.tpl.h`` template at every include)."""
+    expanded from ``cl/`` as the preprocessor would: a header is expanded at each include until one
+    of its expansions is outside every ``#if`` (its include guard then keeps any later one out, so
+    later includes are dropped); a header included first inside an ``#if`` that turns out false is
+    therefore still there for a later include.  A ``*.tpl.h`` template is expanded at every include."""
     root = cl_dir()
-    seen: set[Path] = set()
+    unconditional: set[Path] = set()  # headers expanded at least once outside every #if
+    open_headers: list[Path] = []  # the headers being expanded: their guards are defined there
 
-    def expand(name: str, base: Path) -> str:
+    def expand_text(text: str, base: Path, level: int) -> str:
+        """``text`` with its includes expanded; ``level``: the #if nesting around it."""
+        out = []
+        for line in text.splitlines(keepends=True):
+            if _CONDITIONAL_OPEN.match(line):
+                level += 1
+            elif _CONDITIONAL_CLOSE.match(line):
+                level -= 1
+            include = _INCLUDE.match(line)
+            out.append(expand(include.group(1), base, max(level, 0)) + "\n" if include else line)
+        return "".join(out)
+
+    def expand(name: str, base: Path, level: int) -> str:
         # an include is looked up next to the including file first, then in cl/
         path = (base / name).resolve()
         if not path.is_file():
             path = (root / name).resolve()
-        if path in seen and not path.name.endswith(".tpl.h"):
+        template = path.name.endswith(".tpl.h")
+        if not template and (path in unconditional or path in open_headers):
             return ""
-        seen.add(path)
+        if level == 0 and not template:
+            unconditional.add(path)
         text = path.read_text()
-        return _INCLUDE.sub(lambda m: expand(m.group(1), path.parent), text)
+        guarded = _GUARD.match(text) is not None  # a header's own guard is no condition on its text
+        open_headers.append(path)
+        try:
+            return expand_text(text, path.parent, level - 1 if guarded else level)
+        finally:
+            open_headers.pop()
 
-    body = "\n".join(expand(n, root) for n in names)
+    body = "\n".join(expand(n, root, 0) for n in names)
     if extra:
-        body += "\n" + _INCLUDE.sub(lambda m: expand(m.group(1), root), extra)
+        body += "\n" + expand_text(extra, root, 0)
     return abi.cl_header() + "\n" + body
 
 

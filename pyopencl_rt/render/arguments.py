@@ -17,8 +17,8 @@ from ..errors import UsageError, UserError
 from ..scene.model import INTEGRATORS
 from .intersectors import INTERSECTORS, Intersector
 from .multidevice import DEVICE_TIMEOUT
+from .wavefront import MAX_WAVE_SIZE, check_wave_memory
 
-MAX_WAVE_SIZE = 1 << 26  # paths in flight; the device's memory is checked too (check_wave_memory)
 MAX_LOCAL_WORKERS = 64  # --scheduler local:N
 
 
@@ -158,27 +158,6 @@ def check_scheduler(scheduler) -> None:
     from .distributed import _probe
 
     _probe(text)  # nothing listening there: one line now, not after the scene is loaded
-
-
-def wave_bytes(wave_size: int) -> tuple[int, int]:
-    """(total, largest single buffer) bytes of a wave's path state and queues (abi.WAVE_PARAMS)."""
-    from ..device import abi
-
-    sizes = [p.per_slot * p.itemsize * wave_size for p in abi.WAVE_PARAMS if p.per_slot]
-    sizes += [4 * wave_size] * 3  # the two queues that swap and the free list
-    return sum(sizes), max(sizes)
-
-
-def check_wave_memory(device, wave_size: int) -> None:
-    """Refuse a wave whose path state does not fit the device (before any buffer is made)."""
-    total, largest = wave_bytes(wave_size)
-    mem, alloc = int(device.global_mem_size), int(device.max_mem_alloc_size)
-    if total > 0.75 * mem or largest > alloc:
-        from ..device.devices import device_label
-
-        raise UsageError(f"--wave-size {wave_size} needs {total / 2**30:.2f} GiB of path state; "
-                         f"{device_label(device)} has {mem / 2**30:.2f} GiB "
-                         f"(at most {alloc / 2**30:.2f} GiB per buffer): use a smaller wave")
 
 
 def check_outputs(output, checkpoint=None, exr=True) -> dict:

@@ -38,37 +38,16 @@ from .checkpoint_schema import FORMAT, CheckpointError, read_checked  # noqa: F4
 
 
 def scene_hash(scene) -> str:
-    """SHA-256 of everything in the scene that the kernels see (arrays, not file names)."""
-    h = hashlib.sha256()
+    """SHA-256 of everything in the scene that the kernels see: every scene-sourced parameter of the
+    kernel ABI, as :func:`~pyopencl_rt.render.scene_inputs.scene_inputs` gives it (arrays, not
+    file names, and not the device's BVH layout)."""
+    from .scene_inputs import scene_inputs
 
-    def add(name, a):
+    h = hashlib.sha256()
+    for name, a in scene_inputs(scene).items():
         a = np.ascontiguousarray(a)
         h.update(f"{name}:{a.dtype.str}:{a.shape}".encode())
         h.update(a.tobytes())
-
-    add("vertices", scene.vertices)
-    add("faces", scene.faces)
-    add("face_materials", scene.face_materials)
-    add("materials", scene.material_records())
-    add("spheres", scene.spheres)
-    add("sphere_materials", scene.sphere_materials)
-    add("camera", scene.camera.record(1, 1))  # the aspect ratio is a setting (width, height)
-    if getattr(scene, "normals", None) is not None:  # (absent: the hash of a scene without them is unchanged)
-        add("normals", scene.face_normals())
-    if getattr(scene, "colors", None) is not None:
-        add("colors", scene.face_colors())
-    if getattr(scene, "blas_groups", None):  # two-level instances draw what no array above holds
-        from ..scene.instances import two_level
-
-        insts = two_level(scene)
-        add("instance_to_world", np.asarray([i.to_world for i in insts], np.float64).reshape(-1, 4, 4))
-        add("instance_blas", np.asarray([i.blas for i in insts], np.int64))
-        add("blas_groups", np.asarray([(g.first_face, g.n_faces) for g in scene.blas_groups], np.int64))
-    if getattr(scene, "lights", None) or getattr(scene, "environment", None) is not None:
-        from .lights import environment_buffers, other_lights
-
-        add("lights", other_lights(scene)[0])
-        add("environment", environment_buffers(scene)[0])
     return h.hexdigest()
 
 

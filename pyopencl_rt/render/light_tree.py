@@ -160,7 +160,7 @@ def _split(b, idx, depth):
 def build_light_tree(b, rows) -> tuple[np.ndarray, np.ndarray]:
     """(nodes, trail): the LIGHT_NODE records (device/light_node.py) of the tree over the light rows ``rows`` (depth
     first: an inner node's first child follows it, `child` names the second; a leaf's `child` is
-    its light), and per light of ``b`` its bit trail (-1: not in the tree)."""
+    -1 - its light), and per light of ``b`` its bit trail (-1: not in the tree)."""
     n_all = len(b["phi"])
     trail = np.full(n_all, -1, np.int64)
     rows = np.asarray(rows, np.int64)
@@ -176,7 +176,7 @@ def build_light_tree(b, rows) -> tuple[np.ndarray, np.ndarray]:
         rec["axis"], rec["cos_o"], rec["cos_e"] = axis, cos_o, b["cos_e"][idx].min()
         rec["sin_o"] = math.sqrt(max(0.0, 1 - float(rec["cos_o"]) ** 2))
         rec["phi"] = b["phi"][idx].sum()
-        rec["flags"] = abi.LIGHT_NODE_TWO_SIDED if b["two_sided"][idx].any() else 0
+        rec["two_sided"] = int(b["two_sided"][idx].any())
         return rec
 
     stack = [(rows, 0, 0, -1)]  # (lights, depth, trail so far, parent record to point at this one)
@@ -188,8 +188,7 @@ def build_light_tree(b, rows) -> tuple[np.ndarray, np.ndarray]:
         if parent >= 0:
             records[parent]["child"] = me
         if len(idx) == 1:
-            rec["flags"] |= abi.LIGHT_NODE_LEAF
-            rec["child"] = idx[0]
+            rec["child"] = -1 - idx[0]
             trail[idx[0]] = bits
             continue
         first, second = _split(b, idx, depth)
@@ -229,7 +228,7 @@ def importance(node, p, n) -> np.ndarray:
     d2 = np.maximum(np.maximum(dist2, r), np.finfo(np.float32).tiny)
     wi = to / np.sqrt(np.where(dist2 > 0, dist2, 1.0))[:, None]
     cos_w = wi @ axis
-    if int(node["flags"]) & abi.LIGHT_NODE_TWO_SIDED:
+    if node["two_sided"]:
         cos_w = np.abs(cos_w)
     sin_w = np.sqrt(np.maximum(0.0, 1 - cos_w * cos_w))
     cos_b = np.where(inside, -1.0, np.sqrt(np.maximum(0.0, 1 - r2 / np.where(inside, 1.0, dist2))))
@@ -256,8 +255,8 @@ def tree_pmfs(nodes, n_lights, p, n) -> np.ndarray:
     while stack:
         i, prob = stack.pop()
         node = nodes[i]
-        if int(node["flags"]) & abi.LIGHT_NODE_LEAF:
-            out[:, int(node["child"])] = prob
+        if node["child"] < 0:  # a leaf
+            out[:, -1 - int(node["child"])] = prob
             continue
         c0, c1 = i + 1, int(node["child"])
         i0, i1 = importance(nodes[c0], p, n), importance(nodes[c1], p, n)

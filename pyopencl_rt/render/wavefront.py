@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import validate
+from ..errors import UsageError
 from ..device import abi
 from ..host_stages import host_stage
 from ..scene.instances import scene_bvh
@@ -57,6 +58,28 @@ def default_wave_size(device, kernel_mode: str = "wavefront") -> int:
     return DEFAULT_WAVE_MEGAKERNEL if kernel_mode == "megakernel" else DEFAULT_WAVE_CPU
 
 
+MAX_WAVE_SIZE = 1 << 26  # paths in flight; the device's memory is checked too (check_wave_memory)
+
+
+def wave_bytes(wave_size: int) -> tuple[int, int]:
+    """(total, largest single buffer) bytes of a wave's path state and queues (abi.WAVE_PARAMS)."""
+    sizes = [p.per_slot * p.itemsize * wave_size for p in abi.WAVE_PARAMS if p.per_slot]
+    sizes += [4 * wave_size] * 3  # the two queues that swap and the free list
+    return sum(sizes), max(sizes)
+
+
+def check_wave_memory(device, wave_size: int) -> None:
+    """Refuse a wave whose path state does not fit the device (before any buffer is made)."""
+    total, largest = wave_bytes(wave_size)
+    mem, alloc = int(device.global_mem_size), int(device.max_mem_alloc_size)
+    if total > 0.75 * mem or largest > alloc:
+        from ..device.devices import device_label
+
+        raise UsageError(f"--wave-size {wave_size} needs {total / 2**30:.2f} GiB of path state; "
+                         f"{device_label(device)} has {mem / 2**30:.2f} GiB "
+                         f"(at most {alloc / 2**30:.2f} GiB per buffer): use a smaller wave")
+
+
 class Wavefront:
     """A scene loaded on one device, ready to render passes.
 
@@ -93,8 +116,6 @@ class Wavefront:
         self.scene = scene
         self.device = device
         if wave_size is not None:
-            from .arguments import MAX_WAVE_SIZE, check_wave_memory
-
             check_wave_memory(device, validate.integer(wave_size, "--wave-size", minimum=1, maximum=MAX_WAVE_SIZE))
         self.timings = {}
 

@@ -14,6 +14,12 @@ import dataclasses
 import numpy as np
 
 
+def is_similarity(m, rtol: float = 1e-6) -> tuple:
+    """(whether the 3x3 part of ``m`` is a rotation (or mirror) times one scale, that scale)."""
+    s = np.linalg.svd(np.asarray(m, np.float64)[:3, :3], compute_uv=False)
+    return bool(s.max() - s.min() <= rtol * s.max()), float(s.mean())
+
+
 def two_level(scene) -> list:
     """The scene's two-level instances (blas >= 0)."""
     return [i for i in getattr(scene, "instances", ()) if i.blas >= 0]
@@ -64,8 +70,6 @@ def camera_shifted(scene, eye) -> list:
 def flattened(scene):
     """``scene`` with each two-level instance drawn by its own moved copy of its group's faces,
     as the loaders flatten instances (loaders/instancing.py); ``scene`` itself without any."""
-    from .loaders.instancing import is_similarity
-
     insts = two_level(scene)
     if not insts:
         return scene

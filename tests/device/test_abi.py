@@ -235,7 +235,7 @@ def test_signature_checker_reports_edits(runtime, monkeypatch):
     params = list(abi.WAVE_PARAMS)
     params[10], params[11] = params[11], params[10]
     i = next(i for i, p in enumerate(params) if p.name == "materials")
-    params[i] = abi.Param("materials", "global", "Material")
+    params[i] = abi.Param("materials", "global", "Material", source="scene")
     found = signature_mismatches(probe_signature(runtime), expected_signature(params))
     assert [f.split(":")[0] for f in found] == ["argument 7", "argument 10", "argument 11"]
     # device side: the header generated from an edited table, checked against the real one

@@ -132,14 +132,14 @@ def test_tree_holds_every_light_once_and_bounds_what_can_light():
     kind, trail = lights["kind"], lights["trail"]
     bounded = kind != abi.LIGHT_ENVIRONMENT
     assert (trail[bounded] >= 0).all() and (trail[~bounded] == -1).all()
-    leaves = nodes[(nodes["flags"] & abi.LIGHT_NODE_LEAF) != 0]
-    assert sorted(leaves["child"]) == sorted(np.flatnonzero(bounded))
+    leaves = nodes[nodes["child"] < 0]
+    assert sorted(-1 - leaves["child"]) == sorted(np.flatnonzero(bounded))
     for i in np.flatnonzero(bounded):  # the trail's walk ends at the light's leaf
         node, t = 0, int(trail[i])
-        while not nodes[node]["flags"] & abi.LIGHT_NODE_LEAF:
+        while nodes[node]["child"] >= 0:
             node = int(nodes[node]["child"]) if t & 1 else node + 1
             t >>= 1
-        assert nodes[node]["child"] == i
+        assert -1 - nodes[node]["child"] == i
     assert np.allclose(lights["pmf"][~bounded], 0.5) and np.allclose(lights["pmf"][bounded], 0.5)
     rng = np.random.default_rng(3)
     p, n = shading_points(rng, 300)
@@ -245,5 +245,5 @@ def test_many_lights_scene_is_its_script_and_builds_a_tree(tmp_path):
     lights, nodes, bvh = tree_of(scene)
     assert len(lights) == 6144 and (lights["kind"] == abi.LIGHT_TRIANGLE).all()
     assert (lights["trail"] >= 0).all() and len(nodes) == 2 * len(lights) - 1
-    leaves = nodes[(nodes["flags"] & abi.LIGHT_NODE_LEAF) != 0]
+    leaves = nodes[nodes["child"] < 0]
     assert (leaves["axis"][:, 1] < -0.999).all()  # every lamp faces down

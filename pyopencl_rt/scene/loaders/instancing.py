@@ -36,7 +36,10 @@ import numpy as np
 
 from ...errors import UserError
 from ..model import BlasGroup, Instance
+from ..instances import is_similarity
 from .assembly import transform_normals
+from .geometry import sphere_mesh, transform_points
+from .values import error_at
 
 INSTANCING_ENV = "PYOPENCL_RT_INSTANCING"
 # auto: two-level once flattening would copy more triangles than this, the measured speed
@@ -59,12 +62,6 @@ class ShapeGroup:
     @property
     def empty(self) -> bool:
         return not self.meshes and not self.spheres
-
-
-def is_similarity(m, rtol: float = 1e-6) -> tuple:
-    """(whether the 3x3 part of ``m`` is a rotation (or mirror) times one scale, that scale)."""
-    s = np.linalg.svd(np.asarray(m, np.float64)[:3, :3], compute_uv=False)
-    return bool(s.max() - s.min() <= rtol * s.max()), float(s.mean())
 
 
 def instancing_mode() -> str:
@@ -91,8 +88,6 @@ def add_instance(builder, group: ShapeGroup, matrix, position: str) -> Instance:
     """Add an instance of ``group`` moved by the 4x4 ``matrix`` (None: the identity) to
     ``builder``'s scene: flattened now, or (a group that may go two-level) once :func:`place`
     decides; returns (and records in ``builder.instances``) the Instance."""
-    from .builder import error_at
-
     if builder.recording is not None:
         raise error_at(position, "an instance inside a shape group: nested instancing is not supported")
     m = np.eye(4) if matrix is None else np.asarray(matrix, np.float64)
@@ -139,8 +134,6 @@ def place(builder) -> list:
 def flatten_instance(builder, group: ShapeGroup, m, record: bool = True) -> Instance:
     """Add ``group``'s shapes moved by ``m`` to the builder's arrays (recorded in
     builder.instances with ``record``); the Instance."""
-    from .builder import sphere_mesh, transform_points
-
     det = float(np.linalg.det(m[:3, :3]))
     first_face, first_sphere = builder.n_faces, len(builder.spheres)
     # shading normals by the inverse transpose, not made unit length again, all divided by its

@@ -207,3 +207,11 @@ class TableReader:
         if key not in self.table:
             return None
         return read_texture(self.ctx, self.where, key, self.table[key], srgb=srgb)
+
+
+class SceneFormatError(SceneError):
+    """Malformed Mitsuba XML or pbrt input: one line, ``<file>:<line>: <what>``."""
+
+
+def error_at(position: str, what: str) -> SceneFormatError:
+    return SceneFormatError(one_line(f"{position}: {what}"))
