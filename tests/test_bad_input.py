@@ -75,6 +75,7 @@ OPTION_CASES = [
     (["--device-timeout", "0"], 2, "--device-timeout must be positive"),
     (["--device", "no-such-device"], 2, "no OpenCL device matches"),
     (["--kernel-mode", "warp"], 2, "'warp' is not one of"),
+    (["--light-sampler", "tree"], 2, "'tree' is not one of"),
     (["--adaptive", "--target-error", "0"], 2, "--target-error must be positive (got 0)"),
     (["--adaptive", "--target-error", "nan"], 2, "--target-error must be finite"),
     (["--no-adaptive", "--target-error", "0.1"], 2, "--target-error needs --adaptive"),

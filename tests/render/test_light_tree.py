@@ -247,3 +247,27 @@ def test_many_lights_scene_is_its_script_and_builds_a_tree(tmp_path):
     assert (lights["trail"] >= 0).all() and len(nodes) == 2 * len(lights) - 1
     leaves = nodes[nodes["child"] < 0]
     assert (leaves["axis"][:, 1] < -0.999).all()  # every lamp faces down
+
+
+def test_cli_light_sampler_option_reaches_the_kernels(tmp_path, monkeypatch, capsys):
+    """``render --light-sampler bvh`` on a scene that picks by power builds the tree (LIGHT_TREE in
+    the sidecar's kernel features), and the scene's own choice stands without the option."""
+    import json
+
+    from pyopencl_rt.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    scene = tmp_path / "lamps.toml"
+    scene.write_text('[camera]\neye = [0, 3, 3]\nlook_at = [0, 0, 0]\n[materials.lamp]\nemission = 5\n'
+                     '[[shape]]\ntype = "quad"\npoints = [[-2, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2]]\n'
+                     '[[shape]]\ntype = "quad"\nmaterial = "lamp"\n'
+                     'points = [[0, 1, 0], [0.2, 1, 0], [0.2, 1, 0.2], [0, 1, 0.2]]\n')
+    for option, expect in ((["--light-sampler", "bvh"], True), ([], False)):
+        out = tmp_path / f"out{len(option)}.exr"
+        try:
+            main(["render", str(scene), "-o", str(out), "--width", "4", "--height", "4", "--spp", "1", "-q",
+                  "--device", "cpu", *option])
+        except SystemExit as exc:
+            assert exc.code == 0, capsys.readouterr().err
+        features = json.loads(out.with_suffix(".json").read_text())["features"]
+        assert ("LIGHT_TREE" in features) == expect, features
