@@ -1,9 +1,9 @@
 """The light BVH of RenderSettings.light_sampler "bvh" (Conty Estevez & Kulla 2018, "Importance
 Sampling of Many Lights with Adaptive Tree Splitting"; pbrt-v4's BVHLightSampler is the design
 followed): a binary tree over the lights that are not infinitely far, each node bounding its
-lights by a box, a cone of emission directions (axis, cos theta_o: the normals' spread, cos
-theta_e: how far past a normal light leaves), their summed power phi and whether any emits from
-both sides.  cl/render/light_tree.h descends it from the root, at each inner node taking a child
+lights by the sphere around their box, a cone of emission directions (axis, cos theta_o: the
+normals' spread, cos theta_e: how far past a normal light leaves), their summed power phi and
+whether any emits from both sides.  cl/render/light_tree.h descends it from the root, at each inner node taking a child
 with probability proportional to its importance to the shading point p (and its normal n), so that
 a light's pick probability is the product of the choices along its path; the path is stored per
 light (Light.trail, bit d: the second child at depth d) so that the pmf of a light that a BSDF
