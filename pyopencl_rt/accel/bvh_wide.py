@@ -90,6 +90,7 @@ class WideBVH:
     stats: dict = field(default_factory=dict)
     width: int = 4           # children per node
     packet_width: int = 4    # triangles per packet
+    storage: np.ndarray | None = None   # uint8: room for the nodes, then the packets (a view of its tail)
 
     @property
     def unit(self) -> int:
@@ -339,7 +340,10 @@ def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge:
     n_nodes = len(all_slots)
     child, count, lane_tri = _leaf_layout(all_slots, cchild, ccount, T, packet_width, node_units, packet_units)
     n_packets = len(lane_tri)
-    packets = np.empty(n_packets, packet_dtype)
+    # the packets live at the tail of the device blob's buffer (device_blob writes the padded nodes
+    # at its head), so that the blob is no second copy of them
+    storage = np.empty(n_nodes * node_dtype.itemsize + n_packets * packet_dtype.itemsize, np.uint8)
+    packets = storage[n_nodes * node_dtype.itemsize:].view(packet_dtype)
     raw = packets.view(np.float32).reshape(n_packets, 10, packet_width)
     # row 3 v + c of a packet: coordinate c of vertex v of each lane's triangle (NaN in empty lanes)
     _gather_packets(np.ascontiguousarray(bvh.triangles).view(np.float32).reshape(T, 12) if T else
@@ -357,7 +361,8 @@ def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge:
     nodes["count"] = count
 
     depth = int(depth)
-    wide = WideBVH(nodes=nodes, packets=packets, depth=depth, n_triangles=T, width=width, packet_width=packet_width)
+    wide = WideBVH(nodes=nodes, packets=packets, depth=depth, n_triangles=T, width=width, packet_width=packet_width,
+                   storage=storage)
     fill = lane_tri >= 0
     wide.stats = dict(
         width=width, packet_width=packet_width, merge=merge, nodes=n_nodes, packets=n_packets, depth=depth,
@@ -378,11 +383,18 @@ def wide_bvh(bvh: BVH, width: int = 4) -> WideBVH:
 
 
 def device_blob(wide: WideBVH) -> np.ndarray:
-    """The buffer cl/accel/bvh_wide.h (bvh_wide8.h) reads: padded nodes then packets, as uint8.
+    """The buffer cl/accel/bvh_wide.h (bvh_wide8.h) reads: padded nodes then packets, as uint8 (the
+    wide BVH's own storage, whose tail already holds the packets).
 
     Present boxes grow by 2^-20 of the scene's largest coordinate (then one more ulp outwards), the
     same padding as :func:`pyopencl_rt.trace.padded_nodes`; empty slots keep (+inf, -inf)."""
-    nodes = wide.nodes.copy()
+    head = wide.nodes.nbytes
+    blob = wide.storage
+    if blob is None or blob.nbytes != head + wide.packets.nbytes:
+        blob = np.empty(head + wide.packets.nbytes, np.uint8)
+        blob[head:] = wide.packets.view(np.uint8).ravel()
+    nodes = blob[:head].view(wide.nodes.dtype)
+    nodes[...] = wide.nodes
     if wide.n_triangles:
         present = nodes["count"] >= 0
         scale = 0.0
@@ -394,7 +406,7 @@ def device_blob(wide: WideBVH) -> np.ndarray:
             lo, hi = nodes[f"bmin_{c}"], nodes[f"bmax_{c}"]
             lo[present] = np.nextafter(lo[present] - pad, np.float32(-np.inf))
             hi[present] = np.nextafter(hi[present] + pad, np.float32(np.inf))
-    return np.concatenate([nodes.view(np.uint8).ravel(), wide.packets.view(np.uint8).ravel()])
+    return blob
 
 
 # ---------------------------------------------------------------------------------------------
