@@ -187,7 +187,7 @@ def _partition_exact(pb, idx, begin, end, bax, cmin, sc, nb, bbin, cbox, ccb):
     return i
 
 
-@_jit()
+@_jit(inline="always")
 def _process_node(pb, idx, begin, end, depth, nid, box, cb, cbox, ccb, size, nbox, bins, max_leaf,
                   ct, ci, max_depth, median_depth, max_sah_leaf, cnt, bb, scale, rarea):
     """Decide and, for a split, partition one node.  Writes node ``nid`` (its box; size: its
@@ -237,17 +237,24 @@ def _process_node(pb, idx, begin, end, depth, nid, box, cb, cbox, ccb, size, nbo
         for a in range(3):
             if scale[a] == 0.0:
                 continue
+            # an empty bin changes no box and no count: its suffix area is the next bin's, and the
+            # plane after it costs what the plane before it did (never strictly less: skipped)
             r0 = r1 = r2 = np.inf
             r3 = r4 = r5 = -np.inf
+            area = 0.0
             for b in range(nb - 1, 0, -1):
                 k = a * nb + b
-                r0, r1, r2, r3, r4, r5 = _union(bb, k, r0, r1, r2, r3, r4, r5)
-                rarea[b] = _area(r0, r1, r2, r3, r4, r5)
+                if cnt[k] > 0:
+                    r0, r1, r2, r3, r4, r5 = _union(bb, k, r0, r1, r2, r3, r4, r5)
+                    area = _area(r0, r1, r2, r3, r4, r5)
+                rarea[b] = area
             l0 = l1 = l2 = np.inf
             l3 = l4 = l5 = -np.inf
             nl = 0
             for b in range(nb - 1):
                 k = a * nb + b
+                if cnt[k] == 0:
+                    continue
                 l0, l1, l2, l3, l4, l5 = _union(bb, k, l0, l1, l2, l3, l4, l5)
                 nl += cnt[k]
                 nr = m - nl
@@ -353,9 +360,16 @@ def _build_subtree(pb, idx, begin, end, depth, nid, box, cb, size, nbox, bins, m
     cur_cb = cb.copy()
     top = 0
     while True:
-        mid = _process_node(pb, idx, begin, end, depth, nid, cur_box, cur_cb, cbox, ccb, size, nbox,
-                            bins, max_leaf, ct, ci, max_depth, median_depth, max_sah_leaf, cnt, bb, scale,
-                            rarea)
+        if end - begin <= max_leaf or depth >= max_depth:
+            # _process_node's first rule, here: a call costs about what a small leaf does
+            for d in range(6):
+                nbox[nid, d] = cur_box[d]
+            size[nid] = begin - end
+            mid = -1
+        else:
+            mid = _process_node(pb, idx, begin, end, depth, nid, cur_box, cur_cb, cbox, ccb, size, nbox,
+                                bins, max_leaf, ct, ci, max_depth, median_depth, max_sah_leaf, cnt, bb,
+                                scale, rarea)
         if mid >= 0:
             left = nid + 1
             right = nid + 2 * (mid - begin)
