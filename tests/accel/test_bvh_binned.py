@@ -1,5 +1,6 @@
 """The compiled binned SAH builder (pyopencl_rt.accel.bvh_binned): its root split and every node's
-split and leaf decision against a float64 numpy reference of the rule, the thread pool against the one-thread build, and its numba cache fallback."""
+split and leaf decision against a float64 numpy reference of the rule, the thread pool against the
+one-thread build, and its numba cache fallback."""
 import numpy as np
 import pytest
 
