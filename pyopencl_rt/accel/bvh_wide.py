@@ -112,8 +112,8 @@ def _child_arrays(nodes):
     R = len(nodes)
     lo = np.empty((2 * R, 3), np.float32)
     hi = np.empty((2 * R, 3), np.float32)
-    child = np.empty(2 * R, np.int64)
-    count = np.empty(2 * R, np.int64)
+    child = np.empty(2 * R, np.int32)      # int32 as in the records: the collapse's largest arrays
+    count = np.empty(2 * R, np.int32)
     area = np.empty(2 * R)
     raw = np.ascontiguousarray(nodes).view(np.float32).reshape(R, 16)
     _child_slots(raw, raw.view(np.int32), lo, hi, child, count, area)
@@ -209,9 +209,9 @@ def _collapse(cchild, ccount, carea, width, max_depth):
     and the deepest wide level.  Each starts as a binary record's two children and, ``width - 2``
     times, opens the inner child of largest area among the shallowest ones (first on ties)."""
     R = len(cchild) // 2
-    slots = np.full((max(R, 1), width), -1, np.int64)
-    record = np.empty(max(R, 1), np.int64)                # binary record of each wide node
-    depth = np.zeros(max(R, 1), np.int64)
+    slots = np.full((max(R, 1), width), -1, np.int32)
+    record = np.empty(max(R, 1), np.int32)                # binary record of each wide node
+    depth = np.zeros(max(R, 1), np.int32)
     level = np.empty(width, np.int64)                     # binary levels below the wide node
     record[0] = 0
     n_nodes = 1
