@@ -192,8 +192,8 @@ class Wavefront:
             return cl.Buffer(ctx, mf.READ_WRITE, max(int(nbytes), 16))
 
         prim = self.bvh.prim_ids
-        tri_material = filled(prim.shape, np.int32,
-                              lambda out: np.take(np.asarray(scene.face_materials, np.int32), prim, out=out, mode="clip"))
+        face_materials = np.asarray(scene.face_materials, np.int32)
+        tri_material = filled(prim.shape, np.int32, lambda out: np.take(face_materials, prim, out=out, mode="clip"))
         cam = scene.camera.record(self.width, self.height)
         filter_cdf = filters.apply(cam, settings.filter)  # the pixel filter's fields and tables
         W, P = self.wave_size, self.n_pixels
