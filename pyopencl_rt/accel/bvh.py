@@ -7,7 +7,7 @@ children's boxes):
 ``method="binned"`` (the default)
     Binned SAH over all three axes, compiled with numba and run on every CPU of the process
     (:mod:`pyopencl_rt.accel.bvh_binned`): node by node, in place, child boxes exactly from the
-    bins.  About 1 s for 1M triangles on the 2-core development machine (docs/BENCHMARKS.md,
+    bins.  About 0.6 CPU s for 1M triangles, Embree's build time at 2M (docs/BENCHMARKS.md,
     "BVH build"), within about 1-4% of the sweep's SAH cost.  The first build in a process
     compiles the kernels (or loads them from numba's on-disk cache).
 

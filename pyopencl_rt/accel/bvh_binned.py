@@ -24,10 +24,12 @@ Top-down, one node at a time, in place (the classic binned build of Wald 2007):
 Node ids: the subtree of a node with ``n`` triangles and id ``i`` uses ids in ``[i, i + 2n - 1)``
 (a binary tree with ``n`` triangles has at most ``2n - 1`` nodes): the left child is ``i + 1``,
 the right child ``i + 2 * n_left``.  Ids therefore depend only on the tree, not on which thread
-built what.  The records are then numbered breadth first, left child before right, as the
-level-synchronous numpy builder numbered them: the 4- and 8-wide collapses of
-:mod:`pyopencl_rt.accel.bvh_wide`, level-synchronous too, run about 15% faster on that order than
-on the depth-first one (1M triangles).
+built what.  The node table keeps, per id, only the box and the triangle count (negated for a
+leaf): children and first triangles follow from the counts (28 bytes an id; it held first, count,
+children, depth and a kind, 45 bytes, before).  The records are then numbered breadth first, left
+child before right, as the level-synchronous numpy builder numbered them: the 4- and 8-wide
+collapses of :mod:`pyopencl_rt.accel.bvh_wide`, breadth first too, read them in that order.  The
+node table and the triangle boxes are freed before the reordered triangle records are made.
 
 Parallelism (meshes of at least ``_PARALLEL_MIN`` triangles): nodes bigger than
 ``max(T / (8 * threads), _BIG_MIN)`` are split one by one as tasks of a thread pool; the smaller
@@ -185,21 +187,19 @@ def _partition_exact(pb, idx, begin, end, bax, cmin, sc, nb, bbin, cbox, ccb):
     return i
 
 
-@_jit()
-def _process_node(pb, idx, begin, end, depth, nid, box, cb, cbox, ccb, tree, kind, nbox, bins, max_leaf,
+@_jit(inline="always")
+def _process_node(pb, idx, begin, end, depth, nid, box, cb, cbox, ccb, size, nbox, bins, max_leaf,
                   ct, ci, max_depth, median_depth, max_sah_leaf, cnt, bb, scale, rarea):
-    """Decide and, for a split, partition one node.  Writes node ``nid`` and returns the split
+    """Decide and, for a split, partition one node.  Writes node ``nid`` (its box; size: its
+    triangle count, negated for a leaf) and returns the split
     position (-1 for a leaf); cbox (2, 6) / ccb (2, 6) receive the children's boxes and centroid
     bounds.  cnt (3 * bins,), bb (3 * bins, 6), scale (3,) and rarea (bins,) are scratch; bin b
     of axis a is row a * nb + b."""
     n = end - begin
     for d in range(6):
         nbox[nid, d] = box[d]
-    tree[nid, 0] = begin
-    tree[nid, 1] = n
-    tree[nid, 4] = depth
     if n <= max_leaf or depth >= max_depth:
-        kind[nid] = 1
+        size[nid] = -n
         return -1
     # fewer bins for small nodes: the per-node sweep then stays below the per-triangle work
     nb = bins
@@ -237,17 +237,24 @@ def _process_node(pb, idx, begin, end, depth, nid, box, cb, cbox, ccb, tree, kin
         for a in range(3):
             if scale[a] == 0.0:
                 continue
+            # an empty bin changes no box and no count: its suffix area is the next bin's, and the
+            # plane after it costs what the plane before it did (never strictly less: skipped)
             r0 = r1 = r2 = np.inf
             r3 = r4 = r5 = -np.inf
+            area = 0.0
             for b in range(nb - 1, 0, -1):
                 k = a * nb + b
-                r0, r1, r2, r3, r4, r5 = _union(bb, k, r0, r1, r2, r3, r4, r5)
-                rarea[b] = _area(r0, r1, r2, r3, r4, r5)
+                if cnt[k] > 0:
+                    r0, r1, r2, r3, r4, r5 = _union(bb, k, r0, r1, r2, r3, r4, r5)
+                    area = _area(r0, r1, r2, r3, r4, r5)
+                rarea[b] = area
             l0 = l1 = l2 = np.inf
             l3 = l4 = l5 = -np.inf
             nl = 0
             for b in range(nb - 1):
                 k = a * nb + b
+                if cnt[k] == 0:
+                    continue
                 l0, l1, l2, l3, l4, l5 = _union(bb, k, l0, l1, l2, l3, l4, l5)
                 nl += cnt[k]
                 nr = m - nl
@@ -270,9 +277,9 @@ def _process_node(pb, idx, begin, end, depth, nid, box, cb, cbox, ccb, tree, kin
     else:
         split_cost = ct + ci * n
     if n <= max(max_sah_leaf, max_leaf) and (not valid or split_cost >= ci * n):
-        kind[nid] = 1
+        size[nid] = -n
         return -1
-    kind[nid] = 0
+    size[nid] = n
     for s in range(2):
         for d in range(3):
             cbox[s, d] = np.inf
@@ -337,7 +344,7 @@ def _process_node(pb, idx, begin, end, depth, nid, box, cb, cbox, ccb, tree, kin
 
 
 @_jit()
-def _build_subtree(pb, idx, begin, end, depth, nid, box, cb, tree, kind, nbox, bins, max_leaf, ct, ci,
+def _build_subtree(pb, idx, begin, end, depth, nid, box, cb, size, nbox, bins, max_leaf, ct, ci,
                    max_depth, median_depth, max_sah_leaf, cbox, ccb, single):
     """The whole subtree of one node, depth first with an explicit stack; with ``single``, only
     the node itself: returns its split position (-1: a leaf), its children's boxes and centroid
@@ -353,14 +360,19 @@ def _build_subtree(pb, idx, begin, end, depth, nid, box, cb, tree, kind, nbox, b
     cur_cb = cb.copy()
     top = 0
     while True:
-        mid = _process_node(pb, idx, begin, end, depth, nid, cur_box, cur_cb, cbox, ccb, tree, kind, nbox,
-                            bins, max_leaf, ct, ci, max_depth, median_depth, max_sah_leaf, cnt, bb, scale,
-                            rarea)
+        if end - begin <= max_leaf or depth >= max_depth:
+            # _process_node's first rule, here: a call costs about what a small leaf does
+            for d in range(6):
+                nbox[nid, d] = cur_box[d]
+            size[nid] = begin - end
+            mid = -1
+        else:
+            mid = _process_node(pb, idx, begin, end, depth, nid, cur_box, cur_cb, cbox, ccb, size, nbox,
+                                bins, max_leaf, ct, ci, max_depth, median_depth, max_sah_leaf, cnt, bb,
+                                scale, rarea)
         if mid >= 0:
             left = nid + 1
             right = nid + 2 * (mid - begin)
-            tree[nid, 2] = left
-            tree[nid, 3] = right
             if single:
                 return mid
             s_int[top, 0] = mid
@@ -436,51 +448,53 @@ def _chunked(pool, n, fn, T, *args):
 
 
 @_jit()
-def _records(tree, kind, nbox, rec_f, rec_i, leaf_counts):
+def _records(size, nbox, rec_f, rec_i, leaf_counts):
     """abi.BVH_NODE records of the inner nodes, numbered breadth first, left before right (rec_f /
     rec_i: float32 / int32 views (R, 16) of the same records); leaf_counts receives each leaf's
-    size.  Returns the deepest leaf's depth and the two sums of bvh.sah_cost: of the records'
-    areas and of leaf area * count."""
+    size.  Node ``i``'s children are ``i + 1`` and ``i + 2 * n_left``, its first triangle is its
+    parent's (left child) or the parent's first plus n_left (right child).  Returns the deepest
+    leaf's depth and the two sums of bvh.sah_cost: of the records' areas and of leaf area * count."""
     R = rec_f.shape[0]
-    queue = np.empty(R, np.int64)           # record r is node queue[r]
-    rec_of = np.empty(kind.shape[0], np.int64)
+    queue = np.empty(R, np.int64)           # record r is node queue[r] ...
+    first = np.empty(R, np.int64)           # ... whose triangles start at first[r]
     queue[0] = 0
-    rec_of[0] = 0
+    first[0] = 0
     tail = 1
+    level_end = 1                           # records [.., level_end) lie at depth `depth`
+    depth = 0
     record_area = 0.0
     for r in range(R):
+        if r == level_end:
+            depth += 1
+            level_end = tail
         i = queue[r]
         record_area += _area(nbox[i, 0], nbox[i, 1], nbox[i, 2], nbox[i, 3], nbox[i, 4], nbox[i, 5])
+        left = i + 1
+        n_left = abs(size[left])
         for s in range(2):
-            ch = tree[i, 2 + s]
-            if kind[ch] == 0:
-                rec_of[ch] = tail
-                queue[tail] = ch
-                tail += 1
-    for r in range(R):
-        i = queue[r]
-        for s in range(2):
-            ch = tree[i, 2 + s]
+            ch = left if s == 0 else i + 2 * n_left
+            f = first[r] if s == 0 else first[r] + n_left
             o = 8 * s
             for d in range(3):
                 rec_f[r, o + d] = nbox[ch, d]
                 rec_f[r, o + 4 + d] = nbox[ch, 3 + d]
-            if kind[ch] == 1:
-                rec_i[r, o + 3] = tree[ch, 0]
-                rec_i[r, o + 7] = tree[ch, 1]
+            if size[ch] < 0:
+                rec_i[r, o + 3] = f
+                rec_i[r, o + 7] = -size[ch]
             else:
-                rec_i[r, o + 3] = rec_of[ch]
+                rec_i[r, o + 3] = tail
                 rec_i[r, o + 7] = 0
+                queue[tail] = ch
+                first[tail] = f
+                tail += 1
     nleaf = 0
-    depth = 0
     leaf_area = 0.0
-    for i in range(kind.shape[0]):
-        if kind[i] == 1:
-            leaf_counts[nleaf] = tree[i, 1]
+    for i in range(size.shape[0]):
+        if size[i] < 0:
+            leaf_counts[nleaf] = -size[i]
             nleaf += 1
-            depth = max(depth, tree[i, 4])
-            leaf_area += _area(nbox[i, 0], nbox[i, 1], nbox[i, 2], nbox[i, 3], nbox[i, 4], nbox[i, 5]) * tree[i, 1]
-    return depth, record_area, leaf_area
+            leaf_area += _area(nbox[i, 0], nbox[i, 1], nbox[i, 2], nbox[i, 3], nbox[i, 4], nbox[i, 5]) * -size[i]
+    return depth + 1, record_area, leaf_area
 
 
 def build(V, F, max_leaf_size, bins, ct, ci, max_depth, median_depth, max_sah_leaf, threads=None):
@@ -497,31 +511,35 @@ def build(V, F, max_leaf_size, bins, ct, ci, max_depth, median_depth, max_sah_le
         _chunked(pool, threads, _prim_boxes, T, V, F, pb)
         idx = np.arange(T, dtype=np.int32)
         M = 2 * T - 1
-        tree = np.empty((M, 5), np.int32 if M < 2**31 else np.int64)  # first, count, left, right, depth
-        kind = np.full(M, -1, np.int8)          # -1 unused id, 0 inner, 1 leaf
+        # per node id: its triangle count (negated for a leaf; 0: an id no node took; calloc'd, so
+        # untouched pages cost nothing) and box
+        size = np.zeros(M, np.int32 if M < 2**31 else np.int64)
         nbox = np.empty((M, 6), np.float32)
         box = np.empty(6, np.float32)
         cb = np.empty(6)
         _range_bounds(pb, 0, T, box, cb)
         params = (bins, max_leaf_size, float(ct), float(ci), max_depth, median_depth, max_sah_leaf)
         if pool is None:
-            _build_subtree(pb, idx, 0, T, 0, 0, box, cb, tree, kind, nbox, *params, *_scratch(), False)
+            _build_subtree(pb, idx, 0, T, 0, 0, box, cb, size, nbox, *params, *_scratch(), False)
         else:
-            _build_tasks(pool, threads, pb, idx, T, box, cb, tree, kind, nbox, params)
+            _build_tasks(pool, threads, pb, idx, T, box, cb, size, nbox, params)
+        del pb
+        if size[0] < 0:     # the whole mesh is one leaf
+            nodes, leaf_counts, depth, sah = None, np.array([T]), 0, None
+        else:
+            nodes = np.zeros(int(np.count_nonzero(size > 0)), abi.BVH_NODE)
+            raw = nodes.view(np.float32).reshape(len(nodes), 16)
+            leaf_counts = np.empty(len(nodes) + 1, np.int64)
+            depth, record_area, leaf_area = _records(size, nbox, raw, raw.view(np.int32), leaf_counts)
+            d = np.maximum(nbox[0, 3:].astype(np.float64) - nbox[0, :3], 0.0)
+            root_area = 2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
+            sah = (ct * record_area + ci * leaf_area) / root_area if root_area > 0 else None
+        del size, nbox      # the node table is in the records: free it before the triangles are made
         tris = np.empty((T, 12), np.float32)
         _chunked(pool, threads, _gather_triangles, T, V, F, idx, tris)
     finally:
         if pool is not None:
             pool.shutdown()
-    if kind[0] == 1:        # the whole mesh is one leaf
-        return None, idx, tris, np.array([T]), 0, None
-    nodes = np.zeros(int(np.count_nonzero(kind == 0)), abi.BVH_NODE)
-    raw = nodes.view(np.float32).reshape(len(nodes), 16)
-    leaf_counts = np.empty(len(nodes) + 1, np.int64)
-    depth, record_area, leaf_area = _records(tree, kind, nbox, raw, raw.view(np.int32), leaf_counts)
-    d = np.maximum(nbox[0, 3:].astype(np.float64) - nbox[0, :3], 0.0)
-    root_area = 2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
-    sah = (ct * record_area + ci * leaf_area) / root_area if root_area > 0 else None
     return nodes, idx, tris, leaf_counts, int(depth), sah
 
 
@@ -534,20 +552,20 @@ def warm_up() -> float:
     return time.perf_counter() - start
 
 
-def _build_tasks(pool, threads, pb, idx, T, box, cb, tree, kind, nbox, params):
+def _build_tasks(pool, threads, pb, idx, T, box, cb, size, nbox, params):
     """Split the big nodes as single tasks, then build the subtrees below them as whole tasks."""
     big = max(T // (8 * threads), _BIG_MIN)
 
     def split(begin, end, depth, nid, nbox_, ncb):
         cbox, ccb = _scratch()
-        mid = _build_subtree(pb, idx, begin, end, depth, nid, nbox_, ncb, tree, kind, nbox, *params, cbox, ccb, True)
+        mid = _build_subtree(pb, idx, begin, end, depth, nid, nbox_, ncb, size, nbox, *params, cbox, ccb, True)
         if mid < 0:
             return []
         left, right = nid + 1, nid + 2 * (mid - begin)
         return [(begin, mid, depth + 1, left, cbox[0], ccb[0]), (mid, end, depth + 1, right, cbox[1], ccb[1])]
 
     def subtree(begin, end, depth, nid, nbox_, ncb):
-        _build_subtree(pb, idx, begin, end, depth, nid, nbox_, ncb, tree, kind, nbox, *params, *_scratch(), False)
+        _build_subtree(pb, idx, begin, end, depth, nid, nbox_, ncb, size, nbox, *params, *_scratch(), False)
         return []
 
     def submit(task):

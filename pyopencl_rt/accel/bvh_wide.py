@@ -1,4 +1,4 @@
-"""4-wide and 8-wide BVHs for CPU devices, collapsed from the binary BVH (numpy only).
+"""4-wide and 8-wide BVHs for CPU devices, collapsed from the binary BVH (compiled with numba).
 
 PoCL runs each work-item as scalar code, so the binary traversal tests one box pair and one
 triangle at a time.  This layout gives a single work-item SIMD-shaped work, as Embree's
@@ -33,7 +33,7 @@ U = V = W = NaN never takes the double-precision path, which only an exact 0 doe
 
 Collapse
 --------
-Top-down, level-synchronous (all wide nodes of a level in the same few numpy calls): a wide node
+Top-down and breadth first (one compiled pass over a queue of wide nodes): a wide node
 starts as a binary record's two children; ``width - 2`` times, an inner child is replaced by its
 own two children, the one of largest surface area (as Embree's and tinybvh's collapses do) among
 the shallowest ones, giving up to ``width`` children.  "Shallowest first" makes every wide level
@@ -90,6 +90,7 @@ class WideBVH:
     stats: dict = field(default_factory=dict)
     width: int = 4           # children per node
     packet_width: int = 4    # triangles per packet
+    storage: np.ndarray | None = None   # uint8: room for the nodes, then the packets (a view of its tail)
 
     @property
     def unit(self) -> int:
@@ -107,63 +108,190 @@ class WideBVH:
 
 def _child_arrays(nodes):
     """The binary records' 2R child slots (slot 2r = left, 2r + 1 = right of record r): box, child,
-    count (binary encoding) and surface area."""
+    count (binary encoding) and surface area (half of it: only its order matters)."""
     R = len(nodes)
     lo = np.empty((2 * R, 3), np.float32)
     hi = np.empty((2 * R, 3), np.float32)
-    child = np.empty(2 * R, np.int64)
-    count = np.empty(2 * R, np.int64)
-    for k, s in enumerate(("left", "right")):
-        lo[k::2] = nodes[f"bmin_{s}"]
-        hi[k::2] = nodes[f"bmax_{s}"]
-        child[k::2] = nodes[f"child_{s}"]
-        count[k::2] = nodes[f"count_{s}"]
-    ext = np.maximum(hi.astype(np.float64) - lo.astype(np.float64), 0.0)
-    ext = np.where(np.isfinite(ext), ext, 0.0)           # empty boxes (-inf - inf): area 0
-    area = ext[:, 0] * ext[:, 1] + ext[:, 1] * ext[:, 2] + ext[:, 2] * ext[:, 0]
+    child = np.empty(2 * R, np.int32)      # int32 as in the records: the collapse's largest arrays
+    count = np.empty(2 * R, np.int32)
+    area = np.empty(2 * R)
+    raw = np.ascontiguousarray(nodes).view(np.float32).reshape(R, 16)
+    _child_slots(raw, raw.view(np.int32), lo, hi, child, count, area)
     return lo, hi, child, count, area
 
 
+def _jit(parallel=False):
+    """numba.njit (releasing the GIL), cached on disk where numba finds a writable place (else
+    compiled in every process, as bvh_binned's kernels)."""
+    def decorate(fn):
+        try:
+            return njit(parallel=parallel, nogil=True, cache=True)(fn)
+        except RuntimeError:
+            return njit(parallel=parallel, nogil=True)(fn)
+    return decorate
+
+
+# the binary records' raw words, per side: bmin xyz, child, bmax xyz, count
+assert [abi.BVH_NODE.fields[f"{k}_{s}"][1] for s in ("left", "right") for k in ("bmin", "child", "bmax", "count")] \
+    == [0, 12, 16, 28, 32, 44, 48, 60] and abi.BVH_NODE.itemsize == 64
+
+
+@_jit()
+def _extent(lo, hi):
+    x = np.float64(hi) - np.float64(lo)
+    return x if x > 0.0 and x < np.inf else 0.0
+
+
+@_jit()
+def _child_slots(rec_f, rec_i, lo, hi, child, count, area):
+    """_child_arrays' loop; an extent that is not a positive finite number (an empty box) counts 0."""
+    for r in range(rec_f.shape[0]):
+        for k in range(2):
+            s = 2 * r + k
+            o = 8 * k
+            child[s] = rec_i[r, o + 3]
+            count[s] = rec_i[r, o + 7]
+            for d in range(3):
+                lo[s, d] = rec_f[r, o + d]
+                hi[s, d] = rec_f[r, o + 4 + d]
+            e0 = _extent(lo[s, 0], hi[s, 0])
+            e1 = _extent(lo[s, 1], hi[s, 1])
+            e2 = _extent(lo[s, 2], hi[s, 2])
+            area[s] = e0 * e1 + e1 * e2 + e2 * e0
+
+
+@_jit()
 def _merge_small_subtrees(child, count, lo, hi, merge):
     """Turn every inner child slot whose subtree holds <= ``merge`` triangles into a leaf of the
     subtree's triangle range (in place).  A subtree's triangles are contiguous in the reordered
     array (top-down build, stable partitions), so the range is [first, first + total)."""
     R = len(child) // 2
-    total = np.where(count > 0, count, 0)
-    first = np.where(count > 0, child, np.iinfo(np.int64).max)
-    levels, frontier = [], np.array([0], np.int64)
-    while len(frontier):                                  # records, level by level from the root
-        levels.append(frontier)
-        slots = np.concatenate([2 * frontier, 2 * frontier + 1])
-        frontier = child[slots[count[slots] == 0]]
-    rec_total, rec_first = np.zeros(R, np.int64), np.zeros(R, np.int64)
-    for recs in reversed(levels):                         # bottom-up: children's records are done
-        for k in (0, 1):
-            s = 2 * recs + k
-            inner = count[s] == 0
-            total[s[inner]] = rec_total[child[s[inner]]]
-            first[s[inner]] = rec_first[child[s[inner]]]
-        rec_total[recs] = total[2 * recs] + total[2 * recs + 1]
-        rec_first[recs] = np.minimum(first[2 * recs], first[2 * recs + 1])
-    small = (count == 0) & (total <= merge)
-    child[small] = first[small]
-    count[small] = total[small]
+    total = np.empty(2 * R, np.int64)
+    first = np.empty(2 * R, np.int64)
+    for s in range(2 * R):
+        total[s] = count[s] if count[s] > 0 else 0
+        first[s] = child[s] if count[s] > 0 else np.iinfo(np.int64).max
+    queue = np.empty(R, np.int64)                         # records reachable from the root, breadth first
+    queue[0] = 0
+    tail = 1
+    for q in range(R):
+        if q >= tail:
+            break
+        for s in (2 * queue[q], 2 * queue[q] + 1):
+            if count[s] == 0:
+                queue[tail] = child[s]
+                tail += 1
+    rec_total = np.zeros(R, np.int64)
+    rec_first = np.zeros(R, np.int64)
+    for q in range(tail - 1, -1, -1):                     # children (later in the queue) first
+        r = queue[q]
+        for s in (2 * r, 2 * r + 1):
+            if count[s] == 0:
+                total[s] = rec_total[child[s]]
+                first[s] = rec_first[child[s]]
+        rec_total[r] = total[2 * r] + total[2 * r + 1]
+        rec_first[r] = min(first[2 * r], first[2 * r + 1])
+    for s in range(2 * R):
+        if count[s] == 0 and total[s] <= merge:
+            child[s] = first[s]
+            count[s] = total[s]
     if rec_total[0] <= merge:                             # the whole mesh: one leaf at the root
         child[0], count[0] = rec_first[0], rec_total[0]
         child[1], count[1] = 0, -1
-        lo[0], hi[0] = np.minimum(lo[0], lo[1]), np.maximum(hi[0], hi[1])  # (+inf, -inf) if absent
+        for d in range(3):                                # (+inf, -inf) if absent
+            lo[0, d] = min(lo[0, d], lo[1, d])
+            hi[0, d] = max(hi[0, d], hi[1, d])
 
 
-def _parallel_jit(fn):
-    """numba.njit(parallel=True), cached on disk where numba finds a writable place (else compiled
-    in every process, as bvh_binned's kernels)."""
-    try:
-        return njit(parallel=True, nogil=True, cache=True)(fn)
-    except RuntimeError:
-        return njit(parallel=True, nogil=True)(fn)
+@_jit()
+def _collapse(cchild, ccount, carea, width, max_depth):
+    """The wide nodes, numbered breadth first: (n_nodes, width) binary child-slot ids (-1 empty)
+    and the deepest wide level.  Each starts as a binary record's two children and, ``width - 2``
+    times, opens the inner child of largest area among the shallowest ones (first on ties)."""
+    R = len(cchild) // 2
+    slots = np.full((max(R, 1), width), -1, np.int32)
+    record = np.empty(max(R, 1), np.int32)                # binary record of each wide node
+    depth = np.zeros(max(R, 1), np.int32)
+    level = np.empty(width, np.int64)                     # binary levels below the wide node
+    record[0] = 0
+    n_nodes = 1
+    head = 0
+    while head < n_nodes:
+        r = record[head]
+        s = slots[head]
+        s[0] = 2 * r if ccount[2 * r] >= 0 else -1        # absent children (0/1-leaf trees)
+        s[1] = 2 * r + 1 if ccount[2 * r + 1] >= 0 else -1
+        level[0] = 1
+        level[1] = 1
+        for n in range(2, width):
+            shallowest = np.iinfo(np.int64).max
+            for j in range(n):
+                if s[j] >= 0 and ccount[s[j]] == 0:
+                    shallowest = min(shallowest, level[j])
+            pick = -1
+            best = -1.0
+            for j in range(n):
+                if s[j] >= 0 and ccount[s[j]] == 0 and level[j] == shallowest and carea[s[j]] > best:
+                    best = carea[s[j]]
+                    pick = j
+            if pick < 0:
+                continue
+            rec = cchild[s[pick]]
+            s[pick] = 2 * rec
+            s[n] = 2 * rec + 1
+            level[pick] += 1
+            level[n] = level[pick]
+        for j in range(width):
+            if s[j] >= 0 and ccount[s[j]] == 0:
+                record[n_nodes] = cchild[s[j]]
+                depth[n_nodes] = depth[head] + 1
+                if depth[n_nodes] > max_depth:
+                    raise AssertionError("wide BVH deeper than the binary depth bound")
+                n_nodes += 1
+        head += 1
+    return slots[:n_nodes], depth[n_nodes - 1]
 
 
-@_parallel_jit
+@_jit()
+def _leaf_layout(slots, cchild, ccount, T, packet_width, node_units, packet_units):
+    """Child offsets and counts of the wide nodes (the blob's encoding) and each packet lane's
+    triangle (-1 empty): the leaves' packets in triangle order (leaf ranges tile [0, T))."""
+    n_nodes, width = slots.shape
+    npk_at = np.zeros(T + 1, np.int32)                    # packets of the leaf starting at triangle t
+    for i in range(n_nodes):
+        for j in range(width):
+            k = slots[i, j]
+            if k >= 0 and ccount[k] > 0:
+                npk_at[cchild[k]] = (ccount[k] + packet_width - 1) // packet_width
+    n_packets = 0
+    for t in range(T + 1):                                # exclusive prefix: the leaf's first packet
+        c = npk_at[t]
+        npk_at[t] = n_packets
+        n_packets += c
+    lane_tri = np.full((n_packets, packet_width), -1, np.int32)
+    child = np.zeros((n_nodes, width), np.int64)
+    count = np.full((n_nodes, width), -1, np.int64)
+    inner = 0
+    for i in range(n_nodes):
+        for j in range(width):
+            k = slots[i, j]
+            if k < 0 or ccount[k] < 0:
+                continue
+            if ccount[k] == 0:
+                inner += 1                                # node ids in the order inner slots appear
+                child[i, j] = node_units * inner
+                count[i, j] = 0
+                continue
+            first = cchild[k]
+            pk = npk_at[first]
+            child[i, j] = node_units * n_nodes + packet_units * pk
+            count[i, j] = (ccount[k] + packet_width - 1) // packet_width
+            for m in range(ccount[k]):
+                lane_tri[pk + m // packet_width, m % packet_width] = first + m
+    return child, count, lane_tri
+
+
+@_jit(parallel=True)
 def _gather_packets(tri12, lane_tri, raw):
     """raw[p, 3 v + c, l] = coordinate c of vertex v of triangle lane_tri[p, l] (tri12: the (T, 12)
     float32 view of the abi.TRIANGLE records, vertex v at 4 v), NaN where lane_tri < 0."""
@@ -176,7 +304,7 @@ def _gather_packets(tri12, lane_tri, raw):
                     raw[p, 3 * v + c, lane] = tri12[t, 4 * v + c] if t >= 0 else nan
 
 
-@_parallel_jit
+@_jit(parallel=True)
 def _node_boxes(slots, clo, chi, lx, ly, lz, hx, hy, hz):
     """The wide nodes' boxes: slot s of node i holds binary child slot slots[i, s]'s box, or
     (+inf, -inf) where it is empty (< 0)."""
@@ -208,71 +336,14 @@ def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge:
     if merge > 0 and T:
         _merge_small_subtrees(cchild, ccount, clo, chi, merge)
 
-    # --- top-down collapse, one wide level at a time -------------------------------------
-    level_slots = []            # per level: (K, width) binary child-slot ids, -1 = empty
-    frontier = np.array([0], np.int64)   # binary record of each wide node of this level
-    while len(frontier):
-        K = len(frontier)
-        slots = np.full((K, width), -1, np.int64)
-        slots[:, 0] = 2 * frontier
-        slots[:, 1] = 2 * frontier + 1
-        two = slots[:, :2]
-        two[ccount[two] < 0] = -1                         # absent children (0/1-leaf trees)
-        rows = np.arange(K)
-        level = np.ones((K, width), np.int64)             # binary levels below the wide node
-        for n in range(2, width):                         # fill slot n by opening one inner child
-            valid = slots[:, :n] >= 0
-            inner = valid & (ccount[np.maximum(slots[:, :n], 0)] == 0)
-            # the largest inner child among the shallowest ones: the inner children of the
-            # first log2(width) - 1 binary levels are always opened, so every wide level
-            # descends log2(width) binary levels
-            shallow = inner & (level[:, :n] == np.where(inner, level[:, :n], 99).min(axis=1, keepdims=True))
-            score = np.where(shallow, carea[np.maximum(slots[:, :n], 0)], -1.0)
-            pick = np.argmax(score, axis=1)
-            ok = inner[rows, pick]
-            r_ok, p_ok = rows[ok], pick[ok]
-            rec = cchild[slots[r_ok, p_ok]]               # binary record being opened
-            slots[r_ok, p_ok] = 2 * rec
-            slots[r_ok, n] = 2 * rec + 1
-            level[r_ok, p_ok] += 1
-            level[r_ok, n] = level[r_ok, p_ok]
-        level_slots.append(slots)
-        s = slots.ravel()
-        inner = (s >= 0) & (ccount[np.maximum(s, 0)] == 0)
-        frontier = cchild[s[inner]]
-        if len(level_slots) > max_depth + 1:
-            raise AssertionError("wide BVH deeper than the binary depth bound")
-
-    # --- node indices (BFS order) and leaf packets ---------------------------------------
-    sizes = [len(s) for s in level_slots]
-    n_nodes = int(sum(sizes))
-    all_slots = np.concatenate(level_slots)               # (n_nodes, width), node-major
-    flat = all_slots.ravel()
-    present = flat >= 0
-    fc = np.where(present, ccount[np.maximum(flat, 0)], -1)
-    is_inner = fc == 0
-    is_leaf = fc > 0
-    # inner children appear in the same order as the next level's nodes: node ids 1, 2, ...
-    child_node = np.zeros(len(flat), np.int64)
-    child_node[is_inner] = 1 + np.arange(int(is_inner.sum()))
-    # leaves: packets laid out in triangle order (leaf ranges tile [0, T) in that order)
-    leaf_pos = np.flatnonzero(is_leaf)
-    first = cchild[flat[leaf_pos]]
-    cnt = fc[leaf_pos]
-    order = np.argsort(first, kind="stable")
-    npk = (cnt + packet_width - 1) // packet_width
-    pk_start_sorted = np.concatenate([[0], np.cumsum(npk[order])[:-1]]).astype(np.int64)
-    pk_start = np.empty_like(pk_start_sorted)
-    pk_start[order] = pk_start_sorted
-    n_packets = int(npk.sum())
-
-    lane_tri = np.full((n_packets, packet_width), -1, np.int32)
-    if T:
-        # triangle i of a leaf starting at `first` goes to packet pk_start + (i-first)//W, lane (i-first)%W
-        leaf_of = np.repeat(np.arange(len(first))[order], cnt[order])     # leaves tile [0, T) in order
-        local = np.arange(T) - first[leaf_of]
-        lane_tri.ravel()[packet_width * pk_start[leaf_of] + local] = np.arange(T, dtype=np.int32)
-    packets = np.empty(n_packets, packet_dtype)
+    all_slots, depth = _collapse(cchild, ccount, carea, width, max_depth)
+    n_nodes = len(all_slots)
+    child, count, lane_tri = _leaf_layout(all_slots, cchild, ccount, T, packet_width, node_units, packet_units)
+    n_packets = len(lane_tri)
+    # the packets live at the tail of the device blob's buffer (device_blob writes the padded nodes
+    # at its head), so that the blob is no second copy of them
+    storage = np.empty(n_nodes * node_dtype.itemsize + n_packets * packet_dtype.itemsize, np.uint8)
+    packets = storage[n_nodes * node_dtype.itemsize:].view(packet_dtype)
     raw = packets.view(np.float32).reshape(n_packets, 10, packet_width)
     # row 3 v + c of a packet: coordinate c of vertex v of each lane's triangle (NaN in empty lanes)
     _gather_packets(np.ascontiguousarray(bvh.triangles).view(np.float32).reshape(T, 12) if T else
@@ -282,25 +353,21 @@ def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge:
     # --- node records -------------------------------------------------------------------
     nodes = np.zeros(n_nodes, node_dtype)
     # each slot's box, (+inf, -inf) in an empty one
-    _node_boxes(flat.reshape(n_nodes, width), clo, chi, *(nodes[f"bmin_{c}"] for c in _COORDS),
+    _node_boxes(all_slots, clo, chi, *(nodes[f"bmin_{c}"] for c in _COORDS),
                 *(nodes[f"bmax_{c}"] for c in _COORDS))
-    child = np.zeros(len(flat), np.int64)
-    child[is_inner] = node_units * child_node[is_inner]
-    child[leaf_pos] = node_units * n_nodes + packet_units * pk_start
-    count = np.where(is_leaf, 0, fc)
-    count[leaf_pos] = npk
     if n_nodes * node_units + n_packets * packet_units >= 2**31:
         raise ValueError("wide BVH too large for 32-bit offsets")
-    nodes["child"] = child.reshape(n_nodes, width)
-    nodes["count"] = count.reshape(n_nodes, width)
+    nodes["child"] = child
+    nodes["count"] = count
 
-    depth = len(level_slots) - 1
-    wide = WideBVH(nodes=nodes, packets=packets, depth=depth, n_triangles=T, width=width, packet_width=packet_width)
+    depth = int(depth)
+    wide = WideBVH(nodes=nodes, packets=packets, depth=depth, n_triangles=T, width=width, packet_width=packet_width,
+                   storage=storage)
     fill = lane_tri >= 0
     wide.stats = dict(
         width=width, packet_width=packet_width, merge=merge, nodes=n_nodes, packets=n_packets, depth=depth,
         lane_fill=float(fill.mean()) if n_packets else 0.0,
-        children_per_node=float(present.sum() / max(n_nodes, 1)),
+        children_per_node=float((all_slots >= 0).sum() / max(n_nodes, 1)),
         bytes=int(nodes.nbytes + packets.nbytes),
         build_seconds=time.perf_counter() - t0,
     )
@@ -316,11 +383,18 @@ def wide_bvh(bvh: BVH, width: int = 4) -> WideBVH:
 
 
 def device_blob(wide: WideBVH) -> np.ndarray:
-    """The buffer cl/accel/bvh_wide.h (bvh_wide8.h) reads: padded nodes then packets, as uint8.
+    """The buffer cl/accel/bvh_wide.h (bvh_wide8.h) reads: padded nodes then packets, as uint8 (the
+    wide BVH's own storage, whose tail already holds the packets).
 
     Present boxes grow by 2^-20 of the scene's largest coordinate (then one more ulp outwards), the
     same padding as :func:`pyopencl_rt.trace.padded_nodes`; empty slots keep (+inf, -inf)."""
-    nodes = wide.nodes.copy()
+    head = wide.nodes.nbytes
+    blob = wide.storage
+    if blob is None or blob.nbytes != head + wide.packets.nbytes:
+        blob = np.empty(head + wide.packets.nbytes, np.uint8)
+        blob[head:] = wide.packets.view(np.uint8).ravel()
+    nodes = blob[:head].view(wide.nodes.dtype)
+    nodes[...] = wide.nodes
     if wide.n_triangles:
         present = nodes["count"] >= 0
         scale = 0.0
@@ -332,7 +406,7 @@ def device_blob(wide: WideBVH) -> np.ndarray:
             lo, hi = nodes[f"bmin_{c}"], nodes[f"bmax_{c}"]
             lo[present] = np.nextafter(lo[present] - pad, np.float32(-np.inf))
             hi[present] = np.nextafter(hi[present] + pad, np.float32(np.inf))
-    return np.concatenate([nodes.view(np.uint8).ravel(), wide.packets.view(np.uint8).ravel()])
+    return blob
 
 
 # ---------------------------------------------------------------------------------------------

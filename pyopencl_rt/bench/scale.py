@@ -90,7 +90,7 @@ def run_scale_bench(*, sizes=DEFAULT_SIZES, workdir, repeat=1, width=256, height
     from .mitsuba_host import mitsuba_env, require_mitsuba_python
     from .scale_scene import write_scene
 
-    workdir = Path(workdir)
+    workdir = Path(workdir).resolve()     # the children run in their package's folder
     workdir.mkdir(parents=True, exist_ok=True)
     python = require_mitsuba_python(mitsuba_python, variant, llvm_path, echo) if mitsuba else None
     runner = Path(__file__).with_name("mitsuba_scale_runner.py")
@@ -109,8 +109,10 @@ def run_scale_bench(*, sizes=DEFAULT_SIZES, workdir, repeat=1, width=256, height
         for k in range(repeat):
             if baseline:
                 out, log = workdir / f"baseline_{triangles}.exr", workdir / f"baseline_{triangles}.log"
-                r = run_child(_ours(xml, out, device), env=dict(env, PYTHONPATH=str(Path(baseline).resolve())),
-                              log=log)
+                # in the baseline's folder: ``python -m`` puts the working folder before PYTHONPATH,
+                # so from a checkout of ours the "baseline" was ours
+                root = str(Path(baseline).resolve())
+                r = run_child(_ours(xml, out, device), env=dict(env, PYTHONPATH=root), cwd=root, log=log)
                 if r["returncode"] != 0:
                     raise RuntimeError(_failed("the baseline's render", r, log))
                 r.pop("stdout")
@@ -118,7 +120,7 @@ def run_scale_bench(*, sizes=DEFAULT_SIZES, workdir, repeat=1, width=256, height
                 row["baseline"].append(r)
             out = workdir / f"ours_{triangles}.exr"
             log = workdir / f"ours_{triangles}.log"
-            r = run_child(_ours(xml, out, device), env=env, log=log)
+            r = run_child(_ours(xml, out, device), env=env, cwd=package_root, log=log)
             if r["returncode"] != 0:
                 raise RuntimeError(_failed("pyopencl-rt render", r, log))
             r.update(_sidecar(out))

@@ -176,10 +176,28 @@ class Wavefront:
                 a = np.zeros(16, np.uint8)
             return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
 
+        def filled(shape, dtype, fill):
+            """A read-only buffer of ``shape``, written by ``fill(array)`` through a mapping: no host
+            array beside the device's (the largest per-triangle buffers of a big scene)."""
+            nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
+            if nbytes == 0:
+                return const(np.zeros(0, np.uint8))
+            buf = cl.Buffer(ctx, mf.READ_ONLY, nbytes)
+            mapped, _ = cl.enqueue_map_buffer(self.rt.queue, buf, cl.map_flags.WRITE_INVALIDATE_REGION, 0, shape, dtype)
+            try:
+                fill(mapped)
+            finally:
+                mapped.base.release(self.rt.queue)
+            return buf
+
         with host_stage("bvh_collapse"):  # the device's node layout (8-wide on CPUs)
             nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout)
         if bvh is None:  # the wide BVH cached on a BVH of our own: in the blob now
             getattr(self.bvh, "world", self.bvh).__dict__.pop("_wide", None)
+        if bvh is None and not hasattr(self.bvh, "world"):
+            # our own BVH's binary records are in the node buffer now (padded or collapsed): nothing
+            # reads them on the host again, and they go before the uploads double what they copy
+            self.bvh.nodes = None
         upload_stage = host_stage("upload")  # every buffer made and copied (the scene's, the wave's)
         upload_stage.__enter__()
         # the nodes first, and their host copies gone before the other buffers are made (the peak
@@ -195,7 +213,8 @@ class Wavefront:
             return cl.Buffer(ctx, mf.READ_WRITE, max(int(nbytes), 16))
 
         prim = self.bvh.prim_ids
-        tri_material = scene.face_materials[prim].astype(np.int32) if len(prim) else np.zeros(0, np.int32)
+        face_materials = np.asarray(scene.face_materials, np.int32)
+        tri_material = filled(prim.shape, np.int32, lambda out: np.take(face_materials, prim, out=out, mode="clip"))
         cam = scene.camera.record(self.width, self.height)
         filter_cdf = filters.apply(cam, settings.filter)  # the pixel filter's fields and tables
         W, P = self.wave_size, self.n_pixels
@@ -210,11 +229,12 @@ class Wavefront:
         self.args.bind(
             nodes=nodes,
             tris=tris, **self._instance_buffers(const),
-            tri_material=const(tri_material), tri_light=const(tri_light), spheres=const(scene.sphere_records()),
+            tri_material=tri_material, tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
             light_nodes=const(light_nodes if len(light_nodes) else np.zeros(1, abi.LIGHT_NODE)),
-            **self._texture_buffers(const), **self._shading_buffers(const), **self._aov_buffers(scratch, W, P),
+            **self._texture_buffers(const), **self._shading_buffers(const, filled),
+            **self._aov_buffers(scratch, W, P),
             **self._media_buffers(const), **self._media_path_buffers(const),
             free_q=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32)),
             counters=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host),
@@ -299,12 +319,14 @@ class Wavefront:
         table, texels = pack_textures(self.scene.textures())
         return {"tri_uv": const(uv), "textures": const(table), "tex_data": const(texels)}
 
-    def _shading_buffers(self, const) -> dict:
+    def _shading_buffers(self, const, filled) -> dict:
         """tri_normal and tri_color (cl/scene/shading.h): each reordered triangle's three corner
         normals and colours, 9 floats; 16-byte dummies when no kernel reads them."""
         dummy = const(np.zeros(0, np.uint8))
         prim = self.bvh.prim_ids
-        normals = const(self.scene.face_normals(prim)) if "HAS_SHADING_NORMALS" in self.features else dummy
+        normals = dummy
+        if "HAS_SHADING_NORMALS" in self.features:
+            normals = filled((len(prim), 3, 3), np.float32, lambda out: self.scene.face_normals(prim, out=out))
         colors = const(self.scene.face_colors()[prim]) if "HAS_VERTEX_COLORS" in self.features else dummy
         return {"tri_normal": normals, "tri_color": colors}
 

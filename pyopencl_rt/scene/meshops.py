@@ -239,15 +239,19 @@ def _as_normals(normals, n_faces):
     return np.ascontiguousarray(n)
 
 
-def unit_corner_normals(normals, n_faces: int, as_given: bool = False, prim=None) -> np.ndarray:
+def unit_corner_normals(normals, n_faces: int, as_given: bool = False, prim=None, out=None) -> np.ndarray:
     """(F, 3, 3) float32: Scene.face_normals of per-corner ``normals`` (any real dtype); with
-    ``prim`` (int indices), its rows prim only, gathered (face_normals()[prim] in one pass)."""
+    ``prim`` (int indices), its rows prim only, gathered (face_normals()[prim] in one pass);
+    written into ``out`` (C-contiguous float32 of that shape: a mapped device buffer) if given."""
     n = _as_normals(normals, n_faces)
     prim = np.zeros(0, np.int64) if prim is None else np.ascontiguousarray(prim)
     rows = len(prim) if len(prim) else n_faces
     if len(prim) and (prim.min() < 0 or prim.max() >= n_faces):
         raise IndexError("prim out of range")
-    out = np.empty((rows, 3, 3), np.float32)
+    if out is None:
+        out = np.empty((rows, 3, 3), np.float32)
+    elif out.shape != (rows, 3, 3) or out.dtype != np.float32 or not out.flags.c_contiguous:
+        raise ValueError(f"out must be a C-contiguous float32 ({rows}, 3, 3) array")
     nonzero = np.empty(rows, np.bool_)
     if rows:
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):

@@ -536,19 +536,23 @@ class Scene:
         """(F, 3, 2) float32 texture coordinates (zeros where the scene has none)."""
         return self._per_corner(self.uvs, 2, 0.0)
 
-    def face_normals(self, prim=None) -> np.ndarray:
+    def face_normals(self, prim=None, out=None) -> np.ndarray:
         """(F, 3, 3) float32 unit shading normals per corner (zeros where the scene has none;
         a non-finite or zero normal becomes 0: that face is shaded flat); with normals_as_given,
         the normals with their lengths.  ``prim`` (face indices): those faces' only, in that order
         (face_normals()[prim] without the whole array; the renderer's BVH order).  One parallel
-        pass (scene/meshops.py)."""
+        pass (scene/meshops.py), into ``out`` where given (the renderer's mapped device buffer)."""
         if self.normals is None:
-            return np.zeros((len(self.faces) if prim is None else len(prim), 3, 3), np.float32)
+            shape = (len(self.faces) if prim is None else len(prim), 3, 3)
+            if out is None:
+                return np.zeros(shape, np.float32)
+            out[...] = 0.0
+            return out
         from ..host_stages import host_stage
         from .meshops import unit_corner_normals
 
         with host_stage("normals"):
-            return unit_corner_normals(self.normals, len(self.faces), self.normals_as_given, prim)
+            return unit_corner_normals(self.normals, len(self.faces), self.normals_as_given, prim, out)
 
     def face_colors(self) -> np.ndarray:
         """(F, 3, 3) float32 linear RGB per corner (1 where the scene has none; NaN as 0)."""

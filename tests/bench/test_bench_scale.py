@@ -36,6 +36,30 @@ def test_bench_scale_ours_only(tmp_path, capsys):
     assert "triangles" in capsys.readouterr().out
 
 
+def test_baseline_runs_its_own_package(tmp_path, monkeypatch):
+    """--baseline DIR renders with DIR's package even when the bench runs from a folder holding
+    another one (``python -m`` puts the working folder before PYTHONPATH): a stub package there
+    writes the sidecar the bench reads back."""
+    from pathlib import Path
+
+    import pyopencl_rt
+
+    stub = tmp_path / "base" / "pyopencl_rt"
+    stub.mkdir(parents=True)
+    (stub / "__init__.py").write_text("")
+    (stub / "cli.py").write_text(
+        "import json, sys\n"
+        "out = sys.argv[sys.argv.index('-o') + 1]\n"
+        "open(out[:-4] + '.json', 'w').write(json.dumps({'host_seconds': {'stub': 1.0}}))\n")
+    monkeypatch.chdir(Path(pyopencl_rt.__file__).parents[1])     # a folder holding our package
+    out = tmp_path / "scale.json"
+    main(["bench", "scale", "--sizes", "0.002", "--no-mitsuba", "--width", "8", "--height", "8", "--spp", "1",
+          "--workdir", str(tmp_path / "work"), "--json", str(out), "--baseline", str(tmp_path / "base")])
+    (row,) = json.loads(out.read_text())["sizes"]
+    assert row["baseline"][0]["host_seconds"] == {"stub": 1.0}
+    assert "bvh" in row["ours"][0]["host_seconds"]
+
+
 def test_parse_millions():
     import pytest
 

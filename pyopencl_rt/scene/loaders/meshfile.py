@@ -97,7 +97,7 @@ def ply_extras(loaded, faces) -> MeshExtras:
     try:
         if raw is None or "vertex" not in raw or len(loaded.faces) != len(faces):
             return extras
-        f = np.asarray(faces, np.int64)
+        f = np.asarray(faces)       # an index array as it is (an int64 copy cost 24 bytes a triangle)
         vdata = raw["vertex"]["data"]
         if len(vdata) != len(loaded.vertices):
             return extras
