@@ -97,7 +97,8 @@ NEUTRAL: dict[str, dict[str, tuple[str, ...]]] = {
     "shape": {t: ("silhouette_sampling_weight",) for t in HONOURED["shape"] if t not in ("shapegroup", "instance")},
     "bsdf": {t: ("sample_visible",) for t in ("roughdielectric", "roughconductor", "roughplastic")},
     "emitter": {"envmap": ("mis_compensation",)},
-    "texture": {"bitmap": ("mip_filter_type", "accel")},
+    # format: the texels' storage precision (fp16 or the variant's float), 1e-3 at most
+    "texture": {"bitmap": ("mip_filter_type", "accel", "format")},
     "spectrum": {"blackbody": ("wavelength_min", "wavelength_max")},
     "medium": {t: ("has_spectral_extinction",) for t in HONOURED["medium"]},
     "volume": {"gridvolume": ("raw", "accel")},
