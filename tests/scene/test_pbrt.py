@@ -287,7 +287,8 @@ def test_materials(tmp_path):
         dict(type="dielectric", ior=1.33, alpha=pytest.approx(0.1)),
         dict(type="dielectric", ior=1.5168),
         dict(type="conductor", alpha=pytest.approx(0.2), alpha_v=pytest.approx(0.5), is_anisotropic=True),
-        dict(type="gltf", metallic=0.0, albedo=(0.6, 0.5, 0.4), ior=1.5, alpha=pytest.approx(0.3)),
+        dict(type="roughplastic", albedo=(0.6, 0.5, 0.4), ior=1.5, alpha=pytest.approx(0.3), distribution="ggx",
+             nonlinear=True, specular_reflectance=(1, 1, 1)),
         dict(type="dielectric", ior=1.5, name="thin"),
         dict(type="diffuse", albedo=(0.0, 0.0, 0.0), emission=(0.0, 0.0, 0.0)),  # never scatters
     ] + [dict(name="pbrt-interface")] * 2

@@ -5,7 +5,7 @@
 | ``diffuse`` | ``diffuse``: ``reflectance`` (default 0.5; an ``imagemap`` texture as its texture) |
 | ``conductor`` | ``conductor``: ``eta``/``k`` (the named spectra ``metal-Au/Ag/Cu/Al-eta/k`` as our metals; RGB as given; sampled spectra and ``.spd`` files: :func:`sampled_rgb`) or ``reflectance`` (as F0, Schlick); default copper |
 | ``dielectric`` (``thindielectric`` with a warning) | ``dielectric``: ``eta`` (default 1.5; the named glasses at their d-line index) |
-| ``coateddiffuse`` | ``gltf`` with metallic 0: base colour ``reflectance``, IOR ``eta``, the coating's roughness (documented approximation) |
+| ``coateddiffuse`` | ``plastic`` (smooth coat) or ``roughplastic`` (GGX coat), ``nonlinear``: base ``reflectance``, IOR ``eta``, the coating's roughness (the layer's absorption aside: docs/SCENE_FORMAT.md) |
 | ``coatedconductor`` | ``conductor``: the metal under the coating (``conductor.eta``/``conductor.k`` or ``reflectance``, divided by ``interface.eta``), alpha combining ``conductor.*`` and ``interface.*`` roughness; a documented approximation, with a warning |
 | ``interface`` (and ``""``, ``none``: pbrt-v4's old names) | no surface: its shapes only bound media (index-matched: pbrt_media.py) |
 | ``mix`` | ``mix`` of the two named ``materials``, weight ``amount`` (a float or a texture; 1 is the second) |
@@ -400,10 +400,16 @@ class MaterialMapper:
             mat.ior = self._eta(p, what)
             mat.alpha = self._alpha(p, what, mat)
         elif mtype == "coateddiffuse":
-            mat.type, mat.metallic = "gltf", 0.0
+            # pbrt's layered BSDF of a Lambertian base under a dielectric interface, no medium between
+            # (albedo 0): our plastic (smooth coat) or roughplastic (GGX coat), whose closed form of
+            # the light scattered back and forth under the coat (nonlinear: d / (1 - d F_dr)) is the
+            # expectation pbrt's random walk estimates, but for its thin layer's absorption
             mat.albedo, mat.base_texture = self.color(p, "reflectance", (0.5, 0.5, 0.5))
             mat.ior = self._eta(p, what)
-            mat.alpha = self._alpha(p, what)
+            alpha = self._alpha(p, what)
+            mat.type = "roughplastic" if alpha > 0 else "plastic"
+            mat.alpha, mat.distribution, mat.nonlinear = alpha, "ggx", True
+            mat.specular_reflectance = (1.0, 1.0, 1.0)
             albedo = spectrum_rgb(imp, p, "albedo", (0.0, 0.0, 0.0))
             if max(albedo) > 0:
                 imp.warn(p.items["albedo"].pos, f"{what}: a scattering coating (albedo) is not supported")
