@@ -345,10 +345,10 @@ def test_coatedconductor_reads_pbrt_v4s_prefixed_parameters(tmp_path):
     assert np.allclose(m.eta, 1 / 1.5) and np.allclose(m.k, 2 * np.sqrt(r) / np.sqrt(1 - r) / 1.5)
     assert m.alpha == 0.0
     # neither: pbrt's copper
-    from pyopencl_rt.scene.materials.conductor import METALS
+    from pyopencl_rt.scene.loaders.mitsuba_metals import CONDUCTORS
 
     m, _ = _material(tmp_path, 'Material "coatedconductor"')
-    assert np.allclose(m.eta, np.array(METALS["copper"][0]) / 1.5) and np.allclose(m.k, np.array(METALS["copper"][1]) / 1.5)
+    assert np.allclose(m.eta, np.array(CONDUCTORS["Cu"][0]) / 1.5) and np.allclose(m.k, np.array(CONDUCTORS["Cu"][1]) / 1.5)
 
 
 def test_coatedconductor_with_reflectance_and_eta_is_one_error_line(tmp_path):
@@ -501,3 +501,18 @@ def test_impossible_exposures_are_one_error_line(tmp_path, camera, film, message
         load_scene(path)
     msg = str(info.value)
     assert "\n" not in msg and msg.startswith(f"{path}:") and re.search(message, msg), msg
+
+
+def test_named_metal_spectra_are_mitsubas_conductors_and_brass_is_refused(tmp_path):
+    """pbrt-v4's metal-X-eta / metal-X-k are Mitsuba's conductors of the same name (their spectra
+    made RGB as Mitsuba's RGB variants make them); a named spectrum we have no data for is one error
+    line, never another metal."""
+    from pyopencl_rt.scene.loaders.mitsuba_metals import CONDUCTORS
+
+    for metal in ("Au", "Ag", "Cu", "Al", "MgO", "TiO2"):
+        m, warned = _material(tmp_path, f'Material "conductor" "spectrum eta" "metal-{metal}-eta" '
+                                        f'"spectrum k" "metal-{metal}-k"')
+        assert warned == [] and (m.eta, m.k) == (CONDUCTORS[metal][0], CONDUCTORS[metal][1]), metal
+    path = write(tmp_path, 'WorldBegin\nMaterial "conductor" "spectrum eta" "metal-CuZn-eta"\n' + TRIANGLE)
+    with pytest.raises(SceneError, match=r':2: Material "conductor": spectrum "metal-CuZn-eta" is not supported'):
+        load_scene(path)
