@@ -228,7 +228,7 @@ def test_spd_conductor_spectra_are_gold(tmp_path):
     """pbrt-v4's "spectrum eta" "spds/Au.eta.spd": Mitsuba's own gold tables (its data/ior/Au.*.spd),
     read as wavelength-value pairs and made RGB as the loaders make named conductors (no illuminant,
     clamped at 0): exactly Mitsuba's "Au" (its scalar_rgb's eta and k, float32), red-yellow (eta
-    rising from red to blue, k falling), not the aluminium that an unknown name gives."""
+    rising from red to blue, k falling)."""
     import shutil
 
     from harness import mitsuba
