@@ -55,6 +55,7 @@ def _scene(tmp_path, body) -> Path:
      '<rgb name="specular_reflectance" value="0.5"/></bsdf></shape>',
      r'<bsdf type="conductor">: specular_reflectance with eta/k or a named material is not supported$'),
     ('<emitter type="sunsky"/>', r'<emitter type="sunsky">: emitter type "sunsky" is not supported \(we render: area, '),
+    ('<emitter type="area"/>', r'<emitter type="area">: an area emitter must be attached to a shape$'),
     ('<shape type="sphere"><bsdf type="measured"/></shape>', r'<bsdf type="measured">: bsdf type "measured" is not'),
     ('<shape type="sphere"><bsdf type="diffuse"><spectrum type="irregular" name="reflectance">'
      '<string name="wavelengths" value="400, 500"/><string name="values" value="0.1, 0.2"/></spectrum></bsdf></shape>',

@@ -458,6 +458,8 @@ class _Importer:
             self.b.set_environment(Environment(radiance=radiance, sampling_weight=sampling_weight(obj)), obj.node.pos)
         elif t == "envmap":
             self.envmap(obj, m)
+        elif t == "area":  # Mitsuba too: an area emitter needs a shape
+            raise error_at(obj.node.pos, f"{obj.label()}: an area emitter must be attached to a shape")
         else:
             raise error_at(obj.node.pos, refusal(obj))
         self.unused(obj)
