@@ -529,10 +529,17 @@ def bench_mitsuba_suite(path, device, **options):
               help="Kill a scene's render after S seconds.")
 @click.option("--only", multiple=True, metavar="TEXT", help="Scenes whose path contains TEXT (repeatable).")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), help="Write the results to this JSON file.")
+@click.option("--pbrt", type=click.Path(exists=True, dir_okay=False), metavar="BINARY",
+              help="A pbrt-v4 binary: judge each ok scene against pbrt's render (z-test, as bench mitsuba-suite).")
+@click.option("--ref-spp", default=64, show_default=True, type=click.IntRange(min=1),
+              help="With --pbrt: our spp, and pbrt's per seed.")
+@click.option("--ref-seeds", default=16, show_default=True, type=click.IntRange(min=2),
+              help="With --pbrt: pbrt renders (seeds 0 .. N-1), whose spread gives its variance.")
 def bench_pbrt_scenes(path, **options):
     """pbrt-v4 scene files under PATH (e.g. a copy of mmp/pbrt-v4-scenes), each rendered small in a
     subprocess: ok, refused (the feature named), missing (a file not there), error or timeout,
-    with seconds, peak RSS and the warnings (those that drop or replace a feature: defects)."""
+    with seconds, peak RSS and the warnings (those that drop or replace a feature: defects); with
+    --pbrt, each ok scene's verdict against pbrt-v4's render."""
     from .bench.pbrt_scenes import run_bench
 
     run_bench(path, echo=click.echo, **options)

@@ -31,6 +31,13 @@ dropped or replaced (:data:`DEFECT_WORDS`: "not supported", "ignored", "using ..
 "rendered as", "read as") is a *defect* and is listed as one; the others (such as a documented
 approximation) are listed as warnings.  The feature counts say how many scenes each feature
 blocks (refusals) and how many it spoils (defect warnings).
+
+With ``--pbrt BINARY`` (a pbrt-v4 the user built; nothing of pbrt is part of this repository),
+every ``ok`` scene is also rendered by pbrt and judged against it (:mod:`.pbrt_reference`: the
+mitsuba-suite's z-test rule, our ``--ref-spp``-sample render against pbrt's mean over
+``--ref-seeds`` seeds): the row's ``pbrt`` holds the verdict (pass / fail), the accepted share of
+pixel channels and the ratio of mean luminance, ours over pbrt's; a scene pbrt cannot render gets
+``pbrt-error`` and the reason.
 """
 from __future__ import annotations
 
@@ -308,9 +315,29 @@ def _name(scene, root: Path) -> str:
         return str(scene)
 
 
-def run_bench(path, width=160, height=120, spp=4, timeout=300.0, json_path=None, only=(), echo=print) -> list:
+def judge_against_pbrt(row: dict, pbrt, width, height, ref_spp, ref_seeds, timeout) -> dict:
+    """pbrt's verdict on an ``ok`` row's scene (:func:`.pbrt_reference.compare_scene`)."""
+    from .pbrt_reference import compare_scene
+
+    try:
+        return compare_scene(pbrt, row["scene"], width, height, spp=ref_spp, ref_spp=ref_spp, seeds=ref_seeds,
+                             timeout=timeout)
+    except UserError as exc:
+        return {"verdict": "pbrt-error", "reason": one_line(str(exc))}
+
+
+def format_judgement_line(row: dict) -> str:
+    from .pbrt_reference import format_judgement
+
+    j = row["pbrt"]
+    return "    against pbrt: " + (format_judgement(j) if j["verdict"] != "pbrt-error" else f"pbrt-error: {j['reason']}")
+
+
+def run_bench(path, width=160, height=120, spp=4, timeout=300.0, json_path=None, only=(), echo=print, pbrt=None,
+              ref_spp=64, ref_seeds=16) -> list:
     """Every scene under ``path`` (those whose path contains one of ``only``, when given), a row
-    each printed as it is done, then the counts by verdict and by feature.  Returns the rows."""
+    each printed as it is done, then the counts by verdict and by feature.  With ``pbrt`` (a
+    pbrt-v4 binary) each ok scene is judged against pbrt's render as well.  Returns the rows."""
     from .. import validate
 
     if json_path is not None:
@@ -328,9 +355,16 @@ def run_bench(path, width=160, height=120, spp=4, timeout=300.0, json_path=None,
         if rows[-1]["status"] == "missing":
             rows[-1]["probe"] = probe_scene(scene, timeout)
         echo(format_row(rows[-1], root, width_col))
+        if pbrt and rows[-1]["status"] == "ok":
+            rows[-1]["pbrt"] = judge_against_pbrt(rows[-1], pbrt, width, height, ref_spp, ref_seeds, timeout)
+            echo(format_judgement_line(rows[-1]))
     verdicts = {v: sum(r["status"] == v for r in rows) for v in ("ok", "refused", "missing", "error", "timeout")}
     clean = sum(r["status"] == "ok" and not r["defects"] for r in rows)
     echo(", ".join(f"{n} {v}" for v, n in verdicts.items()) + f" (of {len(rows)}; {clean} ok without a defect)")
+    judged = [r["pbrt"]["verdict"] for r in rows if "pbrt" in r]
+    if pbrt:
+        echo(f"against pbrt: {judged.count('pass')} pass, {judged.count('fail')} fail, "
+             f"{judged.count('pbrt-error')} pbrt-error (of {len(judged)} ok scenes)")
     counts = feature_counts(rows)
     if counts:
         echo("features (scenes each blocks / spoils with a defect warning / is found behind missing files):")
@@ -338,7 +372,7 @@ def run_bench(path, width=160, height=120, spp=4, timeout=300.0, json_path=None,
             echo(f"  {c['blocks']:3d} {c['spoils']:3d} {c['behind_missing']:3d}  {feature}")
     if json_path:
         results = {"path": str(root), "width": width, "height": height, "spp": spp, "timeout": timeout,
-                   "date": time.strftime("%Y-%m-%d"), "verdicts": verdicts, "ok_without_defects": clean,
+                   "date": time.strftime("%Y-%m-%d"), "verdicts": verdicts, "pbrt": str(pbrt) if pbrt else None, "ok_without_defects": clean,
                    "features": counts, "scenes": [dict(r, scene=_name(r["scene"], root)) for r in rows]}
         try:
             Path(json_path).write_text(json.dumps(results, indent=2) + "\n")

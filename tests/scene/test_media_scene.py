@@ -174,31 +174,25 @@ def test_mitsuba_media_against_mitsuba(tmp_path, rng):
 
 
 def test_mitsuba_media_warnings_and_errors(tmp_path):
-    """Unsupported parts warn, one line each, and the rest loads: another medium type, phase function
-    or volume, wrap_mode repeat, a grid sigma_t in a homogeneous medium, a medium ref without the
+    """Approximated parts warn, one line each, and the rest loads: wrap_mode repeat, a grid sigma_t in a homogeneous medium, a medium ref without the
     interior/exterior name; malformed ones are errors: hg g outside (-1, 1), a gridvolume without a
-    file, a 6-channel grid, interior not a medium; volpath sets the single-channel estimate."""
+    file, a 6-channel grid, interior not a medium, another medium type, phase function or volume
+    (refused, never replaced); volpath sets the single-channel estimate."""
     write_vol(tmp_path / "g.vol", np.ones((2, 2, 2)) * 0.5)
     path = write_xml(tmp_path, """
     <integrator type="volpath"/>
-    <medium type="foggy" id="a"/>
-    <medium type="homogeneous" id="b"><phase type="sggx"/>
+    <medium type="homogeneous" id="a"/>
+    <medium type="homogeneous" id="b"><phase type="isotropic"/>
         <volume type="gridvolume" name="sigma_t"><string name="filename" value="g.vol"/>
             <string name="wrap_mode" value="repeat"/></volume></medium>
-    <medium type="heterogeneous" id="c"><volume type="voxels" name="sigma_t"/></medium>
-    <shape type="cube"><ref name="interior" id="a"/><ref id="b"/><ref name="inside" id="c"/></shape>""")
+    <medium type="heterogeneous" id="c"/>
+    <shape type="cube"><ref name="interior" id="a"/><ref id="b"/></shape>""")
     scene, warned = load(path)
     said = [w.split(": ", 1)[1] for w in warned]
     assert said == [
-        '<medium type="foggy" id="a">: medium type not supported; rendered as a homogeneous medium of Mitsuba\'s '
-        'defaults (sigma_t 1, albedo 0.75)',
-        '<phase type="sggx">: phase function not supported; rendered isotropic',
         '<volume type="gridvolume">: wrap_mode "repeat" is read as "clamp" (they differ only in the outer half texel)',
         '<medium type="homogeneous" id="b">: a homogeneous medium needs a constant sigma_t; using the grid\'s mean '
         '(0.5, 0.5, 0.5)',
-        '<volume type="voxels">: volume type not supported; using 1',
-        '<medium type="heterogeneous" id="c"> in <shape type="cube">: a shape\'s medium is named "interior" or '
-        '"exterior"; ignored',
         '<medium type="homogeneous" id="b"> in <shape type="cube">: a shape\'s medium needs name="interior" or '
         'name="exterior"; ignored'], said
     assert scene.settings.spectral_mis is False
@@ -209,7 +203,16 @@ def test_mitsuba_media_warnings_and_errors(tmp_path):
             ('<medium type="heterogeneous" id="m"><volume type="gridvolume" name="sigma_t"/></medium>'
              '<shape type="cube"><ref name="interior" id="m"/></shape>', r'needs <string name="filename">'),
             ('<shape type="cube"><bsdf type="diffuse" name="interior"/><float name="exterior" value="1"/></shape>',
-             r'"exterior" must be a <medium>')]:
+             r'"exterior" must be a <medium>'),
+            ('<medium type="homogeneous" id="c"/><shape type="cube"><ref name="inside" id="c"/></shape>',
+             r'<medium type="homogeneous" id="c"> in <shape type="cube">: a shape\'s medium is named "interior" or '
+             r'"exterior"$'),
+            ('<medium type="foggy" id="a"/><shape type="cube"><ref name="interior" id="a"/></shape>',
+             r'bad\.xml:2: <medium type="foggy" id="a">: medium type "foggy" is not supported \(we render: '),
+            ('<medium type="homogeneous" id="a"><phase type="sggx"/></medium>',
+             r'<phase type="sggx">: phase type "sggx" is not supported'),
+            ('<medium type="heterogeneous" id="a"><volume type="voxels" name="sigma_t"/></medium>',
+             r'<volume type="voxels">: volume type "voxels" is not supported')]:
         with pytest.raises(SceneError, match=message):
             load(write_xml(tmp_path, body, "bad.xml"))
     write_vol(tmp_path / "six.vol", np.ones((1, 1, 1, 6)))

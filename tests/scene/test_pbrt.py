@@ -251,7 +251,7 @@ def test_object_instances(tmp_path):
 # -- materials and textures ----------------------------------------------------------------------------
 
 def test_materials(tmp_path):
-    from pyopencl_rt.scene.materials.conductor import METALS
+    from pyopencl_rt.scene.loaders.mitsuba_metals import CONDUCTORS
 
     write_png_image(tmp_path / "t.png", np.full((2, 2, 3), 255, np.uint8))
     lines = [
@@ -280,14 +280,15 @@ def test_materials(tmp_path):
     expect = [
         dict(type="diffuse", albedo=(0.1, 0.2, 0.3)),
         dict(type="diffuse", albedo=(1, 1, 1)),
-        dict(type="conductor", eta=METALS["copper"][0], k=METALS["copper"][1], alpha=0.0),  # pbrt's default
-        dict(type="conductor", eta=METALS["gold"][0], alpha=pytest.approx(0.2)),  # sqrt(0.04)
+        dict(type="conductor", eta=CONDUCTORS["Cu"][0], k=CONDUCTORS["Cu"][1], alpha=0.0),  # pbrt's default
+        dict(type="conductor", eta=CONDUCTORS["Au"][0], alpha=pytest.approx(0.2)),  # sqrt(0.04)
         dict(type="conductor", eta=(0.2, 0.3, 0.4), k=(3, 3, 3), alpha=0.25),
         dict(type="conductor", eta=None, f0=(0.9, 0.8, 0.7)),
         dict(type="dielectric", ior=1.33, alpha=pytest.approx(0.1)),
         dict(type="dielectric", ior=1.5168),
         dict(type="conductor", alpha=pytest.approx(0.2), alpha_v=pytest.approx(0.5), is_anisotropic=True),
-        dict(type="gltf", metallic=0.0, albedo=(0.6, 0.5, 0.4), ior=1.5, alpha=pytest.approx(0.3)),
+        dict(type="roughplastic", albedo=(0.6, 0.5, 0.4), ior=1.5, alpha=pytest.approx(0.3), distribution="ggx",
+             nonlinear=True, specular_reflectance=(1, 1, 1)),
         dict(type="dielectric", ior=1.5, name="thin"),
         dict(type="diffuse", albedo=(0.0, 0.0, 0.0), emission=(0.0, 0.0, 0.0)),  # never scatters
     ] + [dict(name="pbrt-interface")] * 2

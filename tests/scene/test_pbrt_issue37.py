@@ -228,7 +228,7 @@ def test_spd_conductor_spectra_are_gold(tmp_path):
     """pbrt-v4's "spectrum eta" "spds/Au.eta.spd": Mitsuba's own gold tables (its data/ior/Au.*.spd),
     read as wavelength-value pairs and made RGB as the loaders make named conductors (no illuminant,
     clamped at 0): exactly Mitsuba's "Au" (its scalar_rgb's eta and k, float32), red-yellow (eta
-    rising from red to blue, k falling), not the aluminium that an unknown name gives."""
+    rising from red to blue, k falling)."""
     import shutil
 
     from harness import mitsuba
@@ -345,10 +345,10 @@ def test_coatedconductor_reads_pbrt_v4s_prefixed_parameters(tmp_path):
     assert np.allclose(m.eta, 1 / 1.5) and np.allclose(m.k, 2 * np.sqrt(r) / np.sqrt(1 - r) / 1.5)
     assert m.alpha == 0.0
     # neither: pbrt's copper
-    from pyopencl_rt.scene.materials.conductor import METALS
+    from pyopencl_rt.scene.loaders.mitsuba_metals import CONDUCTORS
 
     m, _ = _material(tmp_path, 'Material "coatedconductor"')
-    assert np.allclose(m.eta, np.array(METALS["copper"][0]) / 1.5) and np.allclose(m.k, np.array(METALS["copper"][1]) / 1.5)
+    assert np.allclose(m.eta, np.array(CONDUCTORS["Cu"][0]) / 1.5) and np.allclose(m.k, np.array(CONDUCTORS["Cu"][1]) / 1.5)
 
 
 def test_coatedconductor_with_reflectance_and_eta_is_one_error_line(tmp_path):
@@ -467,7 +467,7 @@ def _lights(scene):
     ("", "", 1.0),
     ("", '"float iso" 400', 4.0),  # pbrt-v4: exposure time x ISO / 100
     ('"float shutteropen" 0.25 "float shutterclose" 0.75', '"float iso" 50', 0.25),  # the shutter's 0.5
-    ('"float shutterclose" 3', '"float exposuretime" 0.2 "float iso" 200', 0.4),  # exposuretime given: it
+    ('"float shutterclose" 3', '"float iso" 200', 6.0),
 ])
 def test_iso_and_exposure_time_scale_what_the_film_records(tmp_path, camera, film, ratio):
     base, warned0 = load(write(tmp_path, LIT.format(camera="", film=""), name="base.pbrt"))
@@ -492,7 +492,8 @@ def test_iso_scales_the_rendered_image_exactly(tmp_path):
     ('"float shutteropen" 1 "float shutterclose" 1', "", r":2: Camera: shutteropen 1 and shutterclose 1: the shutter "
                                                         r"does not open"),
     ("", '"float iso" 0', r':3: Film "float iso" must be > 0, got 0'),
-    ("", '"float exposuretime" -1', r':3: Film "float exposuretime" must be > 0, got -1'),
+    ("", '"float exposuretime" 0.5', r':3: Film "float exposuretime": not a parameter of pbrt-v4\'s film, which '
+                                     r"refuses it \(the exposure time is the Camera's shutterclose - shutteropen\)$"),
 ])
 def test_impossible_exposures_are_one_error_line(tmp_path, camera, film, message):
     path = write(tmp_path, LIT.format(camera=camera, film=film))
@@ -500,3 +501,18 @@ def test_impossible_exposures_are_one_error_line(tmp_path, camera, film, message
         load_scene(path)
     msg = str(info.value)
     assert "\n" not in msg and msg.startswith(f"{path}:") and re.search(message, msg), msg
+
+
+def test_named_metal_spectra_are_mitsubas_conductors_and_brass_is_refused(tmp_path):
+    """pbrt-v4's metal-X-eta / metal-X-k are Mitsuba's conductors of the same name (their spectra
+    made RGB as Mitsuba's RGB variants make them); a named spectrum we have no data for is one error
+    line, never another metal."""
+    from pyopencl_rt.scene.loaders.mitsuba_metals import CONDUCTORS
+
+    for metal in ("Au", "Ag", "Cu", "Al", "MgO", "TiO2"):
+        m, warned = _material(tmp_path, f'Material "conductor" "spectrum eta" "metal-{metal}-eta" '
+                                        f'"spectrum k" "metal-{metal}-k"')
+        assert warned == [] and (m.eta, m.k) == (CONDUCTORS[metal][0], CONDUCTORS[metal][1]), metal
+    path = write(tmp_path, 'WorldBegin\nMaterial "conductor" "spectrum eta" "metal-CuZn-eta"\n' + TRIANGLE)
+    with pytest.raises(SceneError, match=r':2: Material "conductor": spectrum "metal-CuZn-eta" is not supported'):
+        load_scene(path)

@@ -35,6 +35,7 @@ from ...device import abi
 from ..model import Material
 from .builder import error_at
 from .mitsuba_metals import CONDUCTORS
+from .mitsuba_plugins import refusal
 from .mitsuba_spectrum import spectrum_rgb
 
 # Mitsuba's named indices of refraction (include/mitsuba/render/ior.h)
@@ -101,15 +102,11 @@ def color_value(imp, obj, name, default, *, texture_ok=False, attribute_ok=False
     if isinstance(texture, MeshAttribute):
         if attribute_ok:
             return (texture.scale,) * 3, texture
-        imp.warn(p.node.pos, f'{tex_obj.label()} as "{name}" of {obj.label()}: mesh attributes are not supported '
-                             f"here; using {tuple(default)}")
-        return tuple(float(x) for x in default), None
+        raise error_at(p.node.pos, f'{tex_obj.label()} as "{name}" of {obj.label()}: a mesh attribute is not '
+                                   "supported here")
     if texture_ok:
         return (1.0, 1.0, 1.0), texture
-    mean = tuple(float(x) for x in texture.mean_rgb())
-    imp.warn(p.node.pos, f'{tex_obj.label()} as "{name}" of {obj.label()}: textures are not supported here; '
-                         f"using its mean {tuple(round(x, 4) for x in mean)}")
-    return mean, None
+    raise error_at(p.node.pos, f'{tex_obj.label()} as "{name}" of {obj.label()}: a texture is not supported here')
 
 
 def _spectrum_object(imp, spec):
@@ -128,10 +125,9 @@ def _spectrum_object(imp, spec):
         t = spec.float("temperature", 6500.0, positive=True)
         imp.warn(spec.node.pos, f"{spec.label()}: Mitsuba's RGB variants cannot render a black body (spectral "
                                 "variants only); rendered as its RGB colour at luminance 1")
-        imp.unused(spec, extra=("wavelength_min", "wavelength_max"))
+        imp.unused(spec)
         return blackbody_rgb(t)
-    imp.warn(spec.node.pos, f"{spec.label()}: spectrum type not supported; using 0.5")
-    return (0.5, 0.5, 0.5)
+    raise error_at(spec.node.pos, refusal(spec))
 
 
 def _checker(c0, c1) -> np.ndarray:
@@ -207,10 +203,7 @@ class BsdfMapper:
             texture.mitsuba_mean = 0.5 * (float(np.mean(c0)) + float(np.mean(c1)))  # Mitsuba's mean()
             return texture
         if obj.type != "bitmap":
-            if to_uv is not None:
-                imp.warn(obj.props["to_uv"].node.pos, f"{obj.label()}: to_uv is not supported here; ignored")
-            imp.warn(obj.node.pos, f"{obj.label()}: texture type not supported; ignored")
-            return None
+            raise error_at(obj.node.pos, refusal(obj))
         fname = obj.string("filename")
         if fname is None:
             raise error_at(obj.node.pos, f'{obj.label()} needs <string name="filename">')
@@ -309,8 +302,7 @@ class BsdfMapper:
         if t == "twosided":
             nested = obj.children_of("bsdf")
             if len(nested) > 1 and nested[1] is not nested[0]:
-                imp.warn(nested[1].node.pos, f"{obj.label()}: a different back-side BSDF is not supported; "
-                                             "both sides use the first")
+                raise error_at(nested[1].node.pos, f"{obj.label()}: a different back-side BSDF is not supported")
             nested_mat = self._nested(obj, "")
             mat = _two_sided(nested_mat)
             if id(nested_mat) in self.attributes:
@@ -338,12 +330,9 @@ class BsdfMapper:
         elif t in ("principled", "principledthin"):
             self._principled(obj, mat)
         elif t == "null":
-            imp.warn(obj.node.pos, f"{obj.label()}: invisible surfaces are not supported; rendered black")
-            mat.albedo = (0.0, 0.0, 0.0)
+            raise error_at(obj.node.pos, f"{obj.label()}: a null BSDF is supported as a shape's own BSDF only")
         else:
-            imp.warn(obj.node.pos, f"{obj.label()}: BSDF type not supported; using diffuse 0.5")
-            mat.albedo = (0.5, 0.5, 0.5)
-            return mat
+            raise error_at(obj.node.pos, refusal(obj))
         mat.albedo = _clamp01(imp, obj, mat.albedo, "reflectance")
         mat.one_sided = t in ONE_SIDED  # black seen from behind, unless a twosided wraps it
         imp.unused(obj)
@@ -445,8 +434,9 @@ class BsdfMapper:
         trans, tex = color_value(imp, obj, "specular_transmittance", (1.0,) * 3, texture_ok=True, attribute_ok=True)
         mat.tint, mat.base_texture = _clamp01(imp, obj, trans, "specular_transmittance"), tex
         if refl != (1.0, 1.0, 1.0) and refl != trans:
-            imp.warn(obj.props["specular_reflectance"].node.pos,
-                     f"{obj.label()}: one tint (specular_transmittance) scales reflection and transmission")
+            raise error_at(obj.props["specular_reflectance"].node.pos,
+                           f"{obj.label()}: a specular_reflectance other than 1 or the specular_transmittance is not "
+                           "supported (one tint scales reflection and transmission)")
 
     def _conductor(self, obj, mat) -> None:
         imp = self.imp
@@ -471,8 +461,8 @@ class BsdfMapper:
                                            f"{', '.join(CONDUCTORS)}, or none)")
             mat.eta, mat.k = CONDUCTORS[metal]
         if spec != (1.0, 1.0, 1.0):
-            imp.warn(obj.props["specular_reflectance"].node.pos,
-                     f"{obj.label()}: specular_reflectance with eta/k is not supported; ignored")
+            raise error_at(obj.props["specular_reflectance"].node.pos,
+                           f"{obj.label()}: specular_reflectance with eta/k or a named material is not supported")
 
     def _plastic(self, obj, mat) -> None:
         """Mitsuba's plastic / roughplastic: the same parameters (src/bsdfs/plastic.cpp, roughplastic.cpp)."""

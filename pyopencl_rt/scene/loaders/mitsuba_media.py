@@ -20,9 +20,9 @@ import numpy as np
 from ..media import Grid, Medium, PhaseFunction
 from .builder import error_at, scale, translate
 from .mitsuba_bsdf import color_value
+from .mitsuba_plugins import refusal
 from .mitsuba_xml import MiObject
 
-SILENT = {"has_spectral_extinction", "raw", "accel"}
 
 
 class MediaMapper:
@@ -42,10 +42,7 @@ class MediaMapper:
         name = obj.id or f"medium@{obj.node.pos}"
         med = Medium(name=name)
         if obj.type not in ("homogeneous", "heterogeneous"):
-            imp.warn(obj.node.pos, f"{obj.label()}: medium type not supported; rendered as a homogeneous medium of "
-                                   "Mitsuba's defaults (sigma_t 1, albedo 0.75)")
-            imp.unused(obj, extra=set(obj.props))
-            return med
+            raise error_at(obj.node.pos, refusal(obj))
         med.scale = obj.float("scale", 1.0, minimum=0.0)
         med.sample_emitters = bool(obj.boolean("sample_emitters", True))
         phases = obj.children_of("phase")
@@ -54,7 +51,7 @@ class MediaMapper:
             imp.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: a second phase function; ignored")
         for extra in obj.children:
             if extra.tag != "phase":
-                imp.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported; ignored")
+                raise error_at(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported")
         sigma_t = self.volume_value(obj, "sigma_t", 1.0)
         albedo = self.volume_value(obj, "albedo", 0.75)
         if obj.type == "homogeneous":
@@ -73,7 +70,7 @@ class MediaMapper:
             med.albedo_grid = albedo
         else:
             med.albedo = albedo
-        imp.unused(obj, extra=SILENT)
+        imp.unused(obj)
         return med
 
     def phase(self, obj: MiObject) -> PhaseFunction:
@@ -83,11 +80,7 @@ class MediaMapper:
                 raise error_at(obj.props["g"].node.pos, f"{obj.label()}: g must lie in (-1, 1), got {g:g}")
             self.imp.unused(obj)
             return PhaseFunction("hg", g)
-        if obj.type != "isotropic":
-            self.imp.warn(obj.node.pos, f"{obj.label()}: phase function not supported; rendered isotropic")
-            self.imp.unused(obj, extra=set(obj.props))
-        else:
-            self.imp.unused(obj)
+        self.imp.unused(obj)  # refuses other phase functions
         return PhaseFunction("isotropic")
 
     def volume_value(self, obj: MiObject, name: str, default: float):
@@ -108,9 +101,7 @@ class MediaMapper:
             if m is None:
                 return rgb
             return Grid(np.asarray(rgb, np.float32).reshape(1, 1, 1, 3), to_world=m)
-        self.imp.warn(vol.node.pos, f"{vol.label()}: volume type not supported; using {default:g}")
-        self.imp.unused(vol, extra=set(vol.props))
-        return (default,) * 3
+        raise error_at(vol.node.pos, refusal(vol))
 
     def gridvolume(self, vol: MiObject) -> Grid:
         from .mitsuba_vol import read_vol
@@ -137,5 +128,5 @@ class MediaMapper:
                 raise error_at(vol.node.pos, f"{vol.label()}: use_grid_bbox with the empty box {box.tolist()} of '{fname}'")
             m = m @ translate(lo) @ scale(hi - lo)
         max_value = vol.float("max_value", None)
-        imp.unused(vol, extra=SILENT)
+        imp.unused(vol)
         return Grid(data, to_world=m, filter=filt, outside="clamp", max_value=max_value, source=str(fname))

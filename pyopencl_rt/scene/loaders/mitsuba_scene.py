@@ -1,9 +1,10 @@
 """Mitsuba 3 XML scene files (``.xml``): the plugin objects of :mod:`.mitsuba_xml` mapped onto our
 scene; docs/SCENE_FORMAT.md ("Mitsuba 3 XML") lists each plugin and parameter and what it becomes.
 
-Every parameter that this mapping does not read is reported as one warning naming the element
-and its file position (except those that do not change the image: ``pixel_format``,
-``near_clip``, ...), as is every plugin we do not render.
+The plugins and parameters we take are those of :mod:`.mitsuba_plugins`; any other plugin type
+or parameter is refused with one line naming it (Mitsuba refuses a parameter its plugin does not
+read, too).  A parameter we take but that this mapping does not read in its context is one
+warning naming the element and its file position.
 """
 from __future__ import annotations
 
@@ -21,12 +22,9 @@ from ..media import MediumInterface
 from .mitsuba_bsdf import BsdfMapper, color_value
 from .mitsuba_instances import instance, shapegroup
 from .mitsuba_media import MediaMapper
+from .mitsuba_plugins import ANY_TEXTURE_NAME, HONOURED, accepted, refusal
 from .mitsuba_xml import Document, MiObject
 
-# parameters that do not change the image
-SILENT = {"pixel_format", "component_format", "near_clip", "far_clip", "sample_border", "banner", "file_format",
-          "compensate", "shutter_open", "shutter_close", "srf", "sample_visible", "emitter_samples",
-          "bsdf_samples", "jitter", "mis_compensation", "silhouette_sampling_weight", "mip_filter_type"}
 
 # hdrfilm's filter when it names none (and the film's when there is no film)
 MITSUBA_DEFAULT_FILTER = PixelFilter("gaussian", (2.0, 2.0), sigma=0.5)
@@ -70,12 +68,26 @@ class _Importer:
     def warn(self, position, what):
         self.b.warn(position, what)
 
-    def unused(self, obj: MiObject, extra=()) -> None:
-        """One warning per parameter of ``obj`` the mapping did not read."""
+    def unused(self, obj: MiObject) -> None:
+        """Refuses a parameter of ``obj`` that mitsuba_plugins does not list for its plugin; one
+        warning per listed parameter the mapping did not read (its neutral ones aside)."""
+        known = accepted(obj.tag, obj.type)
+        if known is None:
+            raise error_at(obj.node.pos, refusal(obj))
+        honoured = HONOURED[obj.tag][obj.type]
+        any_texture = (obj.tag, obj.type) in ANY_TEXTURE_NAME
         for pname, p in obj.props.items():
-            if pname in obj.used or pname in SILENT or pname in extra:
+            if any_texture and p.kind == "object" and p.value.tag == "texture":
                 continue
-            self.warn(p.node.pos, f'<{p.kind} name="{pname}"> of {obj.label()}: not supported; ignored')
+            if pname not in known:
+                raise error_at(p.node.pos, f'<{p.kind} name="{pname}"> of {obj.label()}: parameter not supported')
+            if pname in honoured and pname not in obj.used:
+                self.warn(p.node.pos, f'<{p.kind} name="{pname}"> of {obj.label()}: not read here; ignored')
+
+    def refuse_type(self, obj: MiObject) -> None:
+        """One error line for a plugin type we do not render (never replaced by another)."""
+        if obj.type not in HONOURED.get(obj.tag, {}):
+            raise error_at(obj.node.pos, refusal(obj))
 
     def resolve(self, fname, obj: MiObject) -> Path:
         return self.doc.resolve(fname, obj.node)
@@ -110,9 +122,10 @@ class _Importer:
             elif obj.tag in ("bsdf", "texture", "phase", "volume"):
                 continue  # used through references
             elif obj.tag not in ("sensor", "integrator"):
-                self.warn(obj.node.pos, f"{obj.label()}: not supported; ignored")
+                raise error_at(obj.node.pos, f"{obj.label()}: not supported at the top level of a scene")
 
     def integrator(self, obj: MiObject, settings: RenderSettings) -> None:
+        self.refuse_type(obj)
         nested = obj.children_of("integrator")
         if obj.type in ("aov", "moment") and nested:
             # a wrapper that adds variance or AOV images beside its nested integrator's image:
@@ -127,38 +140,35 @@ class _Importer:
         else:
             if obj.type in ("volpath", "volpathmis"):  # the weights of chromatic media (scene/media.py)
                 settings.spectral_mis = obj.type == "volpathmis" and bool(obj.boolean("use_spectral_mis", True))
-            elif obj.type != "path":
-                self.warn(obj.node.pos, f"{obj.label()}: rendered with our path tracer (MIS of BSDF and "
-                                        "light sampling) with its max_depth and rr_depth")
             depth = obj.integer("max_depth", -1, minimum=-1)
             if depth == 0:
                 raise error_at(obj.props["max_depth"].node.pos, f"{obj.label()}: max_depth 0 renders nothing")
             settings.max_depth = depth
             settings.rr_depth = obj.integer("rr_depth", 5, minimum=0)
         if obj.boolean("hide_emitters", False):
-            self.warn(obj.props["hide_emitters"].node.pos, f"{obj.label()}: hide_emitters is not supported; "
-                                                           "emitters are visible")
-        self.unused(obj, extra=("max_depth", "rr_depth") if obj.type == "direct" else ())
+            raise error_at(obj.props["hide_emitters"].node.pos, f"{obj.label()}: hide_emitters true is not "
+                                                                "supported (emitters are always visible)")
+        self.unused(obj)
 
     def sensor(self, obj: MiObject, settings: RenderSettings) -> None:
         films = obj.children_of("film")
         film = films[0] if films else None
         if film is not None:
-            if film.type not in ("hdrfilm", "specfilm"):
-                self.warn(film.node.pos, f"{film.label()}: not supported; read as an hdrfilm")
+            self.refuse_type(film)
             settings.width = film.integer("width", 768, minimum=1)
             settings.height = film.integer("height", 576, minimum=1)
             settings.filter = self.rfilter(film)
             for extra in film.children:
                 if extra.tag != "rfilter":
-                    self.warn(extra.node.pos, f"{extra.label()} in {film.label()}: not supported; ignored")
+                    raise error_at(extra.node.pos, f"{extra.label()} in {film.label()}: not supported")
             self.unused(film)
         for sampler in obj.children_of("sampler"):
+            self.refuse_type(sampler)
             settings.spp = sampler.integer("sample_count", 4, minimum=1)
             seed = sampler.integer("seed", None)
             if seed is not None:
                 settings.seed = seed & 0xFFFFFFFF
-            self.unused(sampler, extra=("scramble_seed", "strength"))
+            self.unused(sampler)
         media = obj.children_of("medium") + [p.value for p in obj.props.values()
                                              if p.kind == "object" and p.value.tag == "medium"]
         obj.used.update(n for n, p in obj.props.items() if p.kind == "object" and p.value.tag == "medium")
@@ -166,12 +176,10 @@ class _Importer:
             self.b.camera_medium = self.b.medium_index(self.media.medium(media[0]))
         for extra in obj.children:
             if extra.tag not in ("film", "sampler", "medium"):
-                self.warn(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported; ignored")
+                raise error_at(extra.node.pos, f"{extra.label()} in {obj.label()}: not supported")
         if obj.type == "orthographic":
             return self.orthographic(obj, settings)
-        if obj.type not in ("perspective", "thinlens"):
-            self.warn(obj.node.pos, f"{obj.label()}: not supported; using a camera that frames the scene")
-            return
+        self.refuse_type(obj)
         fov, axis = _mitsuba_fov(obj)
         vfov = vertical_fov(fov, axis, settings.width, settings.height)
         aperture, focus = 0.0, None
@@ -234,8 +242,7 @@ class _Importer:
             lobes = rf.integer("lobes", 3, minimum=1)
             flt = PixelFilter("lanczos", (float(lobes), float(lobes)), tau=float(lobes))
         else:
-            self.warn(rf.node.pos, f"{rf.label()}: not supported; using Mitsuba's default, a gaussian of stddev 0.5")
-            flt = MITSUBA_DEFAULT_FILTER
+            raise error_at(rf.node.pos, refusal(rf))
         self.unused(rf)
         try:
             return flt.checked()
@@ -257,9 +264,8 @@ class _Importer:
                 sides[side] = self.b.medium_index(self.media.medium(p.value))
         for extra in (p for n, p in obj.props.items() if p.kind == "object" and p.value.tag == "medium"
                       and n not in ("interior", "exterior")):
-            obj.used.add(extra.node.attrs.get("name"))
-            self.warn(extra.node.pos, f'{extra.value.label()} in {obj.label()}: a shape\'s medium is named "interior" '
-                                      'or "exterior"; ignored')
+            raise error_at(extra.node.pos, f'{extra.value.label()} in {obj.label()}: a shape\'s medium is named '
+                                           '"interior" or "exterior"')
         for extra in obj.children_of("medium"):
             self.warn(extra.node.pos, f'{extra.label()} in {obj.label()}: a shape\'s medium needs name="interior" or '
                                       'name="exterior"; ignored')
@@ -290,12 +296,10 @@ class _Importer:
             material = self.bsdfs.material(bsdfs[0]) if bsdfs else self.bsdfs.default(black=emitting)
             attribute = self.bsdfs.attribute(material)  # a mesh_attribute as its reflectance
         if len(bsdfs) > 1:
-            self.warn(bsdfs[1].node.pos, f"{obj.label()}: a second BSDF; ignored")
+            raise error_at(bsdfs[1].node.pos, f"{obj.label()}: a second BSDF is not supported (Mitsuba refuses it)")
         for em in emitters:
             if em.type != "area":
-                self.warn(em.node.pos, f"{em.label()} in {obj.label()}: only area emitters attach to shapes; "
-                                       "ignored")
-                continue
+                raise error_at(em.node.pos, f"{em.label()} in {obj.label()}: only area emitters attach to shapes")
             radiance, texture = color_value(self, em, "radiance", (1.0, 1.0, 1.0), texture_ok=True)
             material = self.b.emissive(material, radiance, False, texture)
             if emitter < 0:
@@ -329,8 +333,7 @@ class _Importer:
         elif t == "cylinder":
             v, f, uv, normals = self.cylinder(obj)
         else:
-            self.warn(obj.node.pos, f"{obj.label()}: shape type not supported; ignored")
-            return
+            raise error_at(obj.node.pos, refusal(obj))
         colors = None
         if attribute is not None:
             colors = extras.colors(attribute) if extras is not None else None
@@ -455,9 +458,10 @@ class _Importer:
             self.b.set_environment(Environment(radiance=radiance, sampling_weight=sampling_weight(obj)), obj.node.pos)
         elif t == "envmap":
             self.envmap(obj, m)
+        elif t == "area":  # Mitsuba too: an area emitter needs a shape
+            raise error_at(obj.node.pos, f"{obj.label()}: an area emitter must be attached to a shape")
         else:
-            self.warn(obj.node.pos, f"{obj.label()}: emitter type not supported; ignored")
-            return
+            raise error_at(obj.node.pos, refusal(obj))
         self.unused(obj)
 
     def _light_frame(self, obj: MiObject, m):

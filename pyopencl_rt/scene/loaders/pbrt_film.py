@@ -123,8 +123,9 @@ def film_settings(imp, film, st) -> None:
 def imaging_ratio(cam, film) -> float:
     """pbrt-v4's PixelSensor imaging ratio, exposure time x ISO / 100 (film.cpp), by which its RGB
     film scales what it records: the exposure time is the camera's shutterclose - shutteropen
-    (defaults 1 and 0; scene.cpp), or the Film's "exposuretime" where one is given.  ``cam``: the
-    Camera directive (or None), ``film``: the Film directive (or None)."""
+    (defaults 1 and 0; scene.cpp).  pbrt-v4's film has no "exposuretime" (pbrt 5f7a606 stops at it:
+    "unused parameter"), and neither has ours.  ``cam``: the Camera directive (or None), ``film``:
+    the Film directive (or None)."""
     exposure = 1.0
     if cam is not None:
         opened, closed = cam.params.float("shutteropen", 0.0), cam.params.float("shutterclose", 1.0)
@@ -134,9 +135,10 @@ def imaging_ratio(cam, film) -> float:
                                     "does not open (as pbrt-v4, an error)")
     if film is None:
         return exposure
-    exposure = film.params.float("exposuretime", exposure)
+    if "exposuretime" in film.params:
+        raise error_at(film.params.items["exposuretime"].pos, 'Film "float exposuretime": not a parameter of '
+                       "pbrt-v4's film, which refuses it (the exposure time is the Camera's shutterclose - shutteropen)")
     iso = film.params.float("iso", 100.0)
-    for key, value in (("exposuretime", exposure), ("iso", iso)):
-        if key in film.params and not value > 0:
-            raise error_at(film.params.items[key].pos, f'Film "float {key}" must be > 0, got {value:g}')
+    if "iso" in film.params and not iso > 0:
+        raise error_at(film.params.items["iso"].pos, f'Film "float iso" must be > 0, got {iso:g}')
     return exposure * iso / 100.0

@@ -3,9 +3,9 @@
 | pbrt-v4 | ours |
 |---|---|
 | ``diffuse`` | ``diffuse``: ``reflectance`` (default 0.5; an ``imagemap`` texture as its texture) |
-| ``conductor`` | ``conductor``: ``eta``/``k`` (the named spectra ``metal-Au/Ag/Cu/Al-eta/k`` as our metals; RGB as given; sampled spectra and ``.spd`` files: :func:`sampled_rgb`) or ``reflectance`` (as F0, Schlick); default copper |
+| ``conductor`` | ``conductor``: ``eta``/``k`` (the named spectra ``metal-Au/Ag/Cu/Al/MgO/TiO2-eta/k`` as Mitsuba's conductors of those names; RGB as given; sampled spectra and ``.spd`` files: :func:`sampled_rgb`) or ``reflectance`` (as F0, Schlick); default copper |
 | ``dielectric`` (``thindielectric`` with a warning) | ``dielectric``: ``eta`` (default 1.5; the named glasses at their d-line index) |
-| ``coateddiffuse`` | ``gltf`` with metallic 0: base colour ``reflectance``, IOR ``eta``, the coating's roughness (documented approximation) |
+| ``coateddiffuse`` | ``plastic`` (smooth coat) or ``roughplastic`` (GGX coat), ``nonlinear``: base ``reflectance``, IOR ``eta``, the coating's roughness (the layer's absorption aside: docs/SCENE_FORMAT.md) |
 | ``coatedconductor`` | ``conductor``: the metal under the coating (``conductor.eta``/``conductor.k`` or ``reflectance``, divided by ``interface.eta``), alpha combining ``conductor.*`` and ``interface.*`` roughness; a documented approximation, with a warning |
 | ``interface`` (and ``""``, ``none``: pbrt-v4's old names) | no surface: its shapes only bound media (index-matched: pbrt_media.py) |
 | ``mix`` | ``mix`` of the two named ``materials``, weight ``amount`` (a float or a texture; 1 is the second) |
@@ -25,17 +25,12 @@ from ..model import Material
 from .builder import blackbody_rgb, error_at
 from .pbrt import MissingFile, one_line_at, pbrt_file, pbrt_path
 
-METALS = {"Au": "gold", "Ag": "silver", "Cu": "copper", "Al": "aluminium"}
+# pbrt-v4's named metal spectra (metal-X-eta, metal-X-k) by Mitsuba's conductor of the same
+# measurement (mitsuba_metals.py: its spectra made RGB as Mitsuba's RGB variants make them);
+# pbrt's brass (metal-CuZn) has no counterpart there and is refused
+METALS = {"Au": "Au", "Ag": "Ag", "Cu": "Cu", "Al": "Al", "MgO": "MgO", "TiO2": "TiO2"}
 GLASSES = {"glass-BK7": 1.5168, "glass-BAF10": 1.6700, "glass-FK51A": 1.4866, "glass-LASF9": 1.8503,
            "glass-F5": 1.6727, "glass-F10": 1.7283, "glass-F11": 1.7847}  # F5, F10, F11: Schott SF5, SF10, SF11
-
-
-def _metals():
-    try:
-        from ..materials.conductor import METALS as table
-    except ImportError:  # pragma: no cover - before the material registry
-        from ..model import CONDUCTORS as table
-    return table
 
 
 # how a sampled spectrum (a .spd file or wavelength-value pairs) becomes RGB, by parameter
@@ -400,10 +395,16 @@ class MaterialMapper:
             mat.ior = self._eta(p, what)
             mat.alpha = self._alpha(p, what, mat)
         elif mtype == "coateddiffuse":
-            mat.type, mat.metallic = "gltf", 0.0
+            # pbrt's layered BSDF of a Lambertian base under a dielectric interface, no medium between
+            # (albedo 0): our plastic (smooth coat) or roughplastic (GGX coat), whose closed form of
+            # the light scattered back and forth under the coat (nonlinear: d / (1 - d F_dr)) is the
+            # expectation pbrt's random walk estimates, but for its thin layer's absorption
             mat.albedo, mat.base_texture = self.color(p, "reflectance", (0.5, 0.5, 0.5))
             mat.ior = self._eta(p, what)
-            mat.alpha = self._alpha(p, what)
+            alpha = self._alpha(p, what)
+            mat.type = "roughplastic" if alpha > 0 else "plastic"
+            mat.alpha, mat.distribution, mat.nonlinear = alpha, "ggx", True
+            mat.specular_reflectance = (1.0, 1.0, 1.0)
             albedo = spectrum_rgb(imp, p, "albedo", (0.0, 0.0, 0.0))
             if max(albedo) > 0:
                 imp.warn(p.items["albedo"].pos, f"{what}: a scattering coating (albedo) is not supported")
@@ -522,21 +523,21 @@ class MaterialMapper:
                                                              f"here; using its mean")
             mat.f0 = tuple(min(max(c, 0.0), 1.0) for c in rgb)
             return
-        metals = _metals()
+        from .mitsuba_metals import CONDUCTORS
+
         out = {}
         for part in ("eta", "k"):
             q = p.get(prefix + part)
             if q is None:
-                out[part] = metals["copper"][0 if part == "eta" else 1]  # pbrt's default: copper
+                out[part] = CONDUCTORS["Cu"][0 if part == "eta" else 1]  # pbrt's default: copper
             elif q.type == "spectrum" and len(q.values) == 1 and isinstance(q.values[0], str) and \
                     spectrum_file(self.imp, q) is None:
                 named = q.values[0]
                 metal = named[len("metal-"):].rsplit("-", 1)[0] if named.startswith("metal-") else None
                 if metal not in METALS:
-                    self.imp.warn(q.pos, f'{what}: spectrum "{named}" is not among our metals '
-                                         f"({', '.join(f'metal-{m}-{part}' for m in METALS)}); using aluminium")
-                    metal = "Al"
-                out[part] = metals[METALS[metal]][0 if part == "eta" else 1]
+                    raise error_at(q.pos, f'{what}: spectrum "{named}" is not supported (the named metals we read: '
+                                          f"{', '.join(f'metal-{m}-{part}' for m in METALS)})")
+                out[part] = CONDUCTORS[METALS[metal]][0 if part == "eta" else 1]
             else:
                 out[part] = spectrum_rgb(self.imp, p, prefix + part, (1.0,) * 3, conductor=True)
         mat.eta, mat.k = tuple(map(float, out["eta"])), tuple(map(float, out["k"]))

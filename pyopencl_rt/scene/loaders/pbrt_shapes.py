@@ -109,10 +109,9 @@ def shape_geometry(imp, d):
 
 def _loopsubdiv(d):
     """``levels`` (default 3, as pbrt-v4) of Loop subdivision of the control mesh ``P`` /
-    ``indices``, its vertices on the limit surface (subdivision.py); shading normals: the vertex
-    normals of the subdivided mesh (pbrt's are the limit surface's, which they approach as the
-    levels grow)."""
-    from .subdivision import SubdivisionError, loop_subdivide, vertex_normals
+    ``indices``, its vertices on the limit surface and its shading normals from the limit
+    tangents, as pbrt-v4 computes both (subdivision.py)."""
+    from .subdivision import SubdivisionError, limit_normals, loop_subdivide
 
     levels = d.params.integer("levels", 3)
     if levels < 0:
@@ -126,7 +125,7 @@ def _loopsubdiv(d):
         v, f = loop_subdivide(v, f, levels)
     except SubdivisionError as exc:
         raise error_at(d.pos, f'Shape "loopsubdiv": {exc}') from None
-    return v, f, None, vertex_normals(v, f).astype(np.float32)[f]
+    return v, f, None, limit_normals(v, f).astype(np.float32)[f]
 
 
 def _unit(n) -> np.ndarray:
