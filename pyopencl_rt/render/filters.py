@@ -42,7 +42,7 @@ import numpy as np
 
 from ..device import abi
 from ..errors import UsageError
-from ..scene.model import PixelFilter
+from ..scene.pixel_filter import PixelFilter
 
 CELLS = 4096  # cells per axis of a tabulated filter (of equal mass within each of its segments)
 _GAUSS_ORDER = 16

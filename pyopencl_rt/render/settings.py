@@ -22,7 +22,7 @@ from ..device import abi
 from .. import validate
 from ..errors import UsageError, UserError
 from ..scene.model import INTEGRATORS, SAMPLERS  # MIS path, BSDF only, light only; cl/render/sampler.h
-from ..scene.model import PixelFilter
+from ..scene.pixel_filter import PixelFilter
 
 MAX_PIXELS = 1 << 26  # 8192 x 8192
 

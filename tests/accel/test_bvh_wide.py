@@ -9,8 +9,8 @@ import pytest
 from meshes import MESHES, coherent_rays, incoherent_rays
 from pyopencl_rt import build_bvh, occluded, trace
 from pyopencl_rt.accel.bvh_validate import validate
-from pyopencl_rt.accel.bvh_wide import (STACK_SIZE, build_wide, device_blob, max_wide_depth, reference_closest_hit,
-                                        validate_wide, wide_bvh)
+from pyopencl_rt.accel.bvh_wide import STACK_SIZE, build_wide, device_blob, max_wide_depth, wide_bvh
+from pyopencl_rt.accel.bvh_wide_validate import reference_closest_hit, validate_wide
 from pyopencl_rt.device import abi
 from pyopencl_rt.errors import UserError
 from pyopencl_rt.accel.device_bvh import LAYOUT_WIDTHS, bvh_layout

@@ -27,7 +27,7 @@ import pyopencl_rt as rt
 from pyopencl_rt.device import abi
 from pyopencl_rt.render import filters, megakernel
 from pyopencl_rt.render.settings import ImageSettings
-from pyopencl_rt.scene.model import PixelFilter
+from pyopencl_rt.scene.pixel_filter import PixelFilter
 
 import harness
 from harness import lane_renders as renders, mitsuba

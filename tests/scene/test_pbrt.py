@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pyopencl_rt.scene.loaders import SceneError, load_scene
-from pyopencl_rt.scene.model import PixelFilter
+from pyopencl_rt.scene.pixel_filter import PixelFilter
 from pyopencl_rt.scene.loaders.pbrt import tokenize
 from pyopencl_rt.scene.loaders.pbrt_materials import equal_area_sphere_to_square, equal_area_square_to_sphere
 

@@ -8,7 +8,7 @@ import pytest
 from pyopencl_rt.device import abi
 from pyopencl_rt.errors import UserError
 from pyopencl_rt.scene.loaders import load_scene
-from pyopencl_rt.scene.model import PixelFilter
+from pyopencl_rt.scene.pixel_filter import PixelFilter
 
 import harness
 

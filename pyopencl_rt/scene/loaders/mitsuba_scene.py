@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model import (DirectionalLight, Environment, PixelFilter, PointLight, ProjectorLight, RenderSettings,
-                     SpotLight)
+from ..model import DirectionalLight, Environment, PointLight, ProjectorLight, RenderSettings, SpotLight
+from ..pixel_filter import PixelFilter
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cylinder_mesh, error_at, rectangle_mesh,
                       transform_points, transform_vector, vertical_fov)
 from .mitsuba_meshes import CURVED_SEGMENTS, mitsuba_cube_mesh, mitsuba_disk_mesh, mitsuba_sphere_mesh

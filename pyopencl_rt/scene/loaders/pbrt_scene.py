@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..media import MediumInterface
-from ..model import Material, PixelFilter, RenderSettings
+from ..model import Material, RenderSettings
+from ..pixel_filter import PixelFilter
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh,
                       transform_points, translate)
 from .instancing import add_instance

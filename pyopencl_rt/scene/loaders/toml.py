@@ -72,8 +72,9 @@ from ...errors import UserError
 from ...imageio import read_exr
 from ..materials import REGISTRY
 from ..mesh import MeshError, flatten, load_trimesh
-from ..model import (AOVS, FILTERS, INTEGRATORS, LIGHT_SAMPLERS, SAMPLERS, Camera, Environment, Material, PixelFilter,
-                     PROJECTIONS, RenderSettings, Scene)
+from ..model import (AOVS, INTEGRATORS, LIGHT_SAMPLERS, SAMPLERS, Camera, Environment, Material, PROJECTIONS,
+                     RenderSettings, Scene)
+from ..pixel_filter import FILTERS, PixelFilter
 from .assembly import DEFAULT_FOV, frame_scene, transform_normals, triangle_scene
 from .gltf import read_gltf
 from .meshfile import ply_extras, trimesh_uvs
