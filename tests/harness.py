@@ -348,6 +348,21 @@ def random_slivers(n, rng):
     return v.reshape(-1, 3).astype(np.float32), np.arange(3 * n, dtype=np.int32).reshape(n, 3)
 
 
+def width_sets():
+    """The parameters of a feature's lane test: "users" compares one path per work-item with the
+    width users get (``make test``), "every" with every width the device builds (``make stress``:
+    each width is a kernel build of its own, and the broad test of tests/render/test_path_lanes.py
+    already takes every width in ``make test``)."""
+    import pytest
+
+    return [pytest.param("users", id="users-width"), pytest.param("every", id="every-width", marks=pytest.mark.stress)]
+
+
+def widths_of(device, width_set: str) -> tuple[str, ...]:
+    """The lane counts of a :func:`width_sets` parameter on ``device``."""
+    return lane_widths(device) if width_set == "every" else ("0", forced_lanes(device))
+
+
 def lane_renders(scene, device, monkeypatch, widths, **options):
     """The same megakernel render at each lane width of ``widths`` ($PYOPENCL_RT_LANES; "0": one
     path per work-item), by width."""

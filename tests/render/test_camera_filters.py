@@ -354,11 +354,12 @@ radius = {radius}
 
 
 # ----------------------------------------------------------------------------- lanes and schedules
-def test_lanes_are_bit_identical(device, monkeypatch):
-    """Every filter, with the orthographic camera and with the thin lens: the film sums at 8 and 16
-    lanes are the one-path megakernel's bit for bit (the tables are read with gathers, the
+@pytest.mark.parametrize("width_set", harness.width_sets())
+def test_lanes_are_bit_identical(device, monkeypatch, width_set):
+    """Every filter, with the orthographic camera and with the thin lens: the film sums at the lane
+    widths are the one-path megakernel's bit for bit (the tables are read with gathers, the
     weights multiply each lane's radiance)."""
-    wide = harness.forced_lanes(device)
+    widths = harness.widths_of(device, width_set)
     base = rt.load_scene(SCENES / "mitsuba-cbox.toml")
     ortho = dataclasses.replace(base.camera, projection="orthographic", extent=1.7)
     lens = dataclasses.replace(base.camera, aperture_radius=0.05, focus_distance=3.0)
@@ -366,7 +367,7 @@ def test_lanes_are_bit_identical(device, monkeypatch):
                          ("lanczos-pbrt", lens), ("catmull-rom", ortho)):
         scene = dataclasses.replace(base, camera=camera,
                                     settings=dataclasses.replace(base.settings, filter=FILTERS[name]))
-        results = renders(scene, device, monkeypatch, widths=tuple(dict.fromkeys(("0", wide, "8"))), spp=3, seed=7,
+        results = renders(scene, device, monkeypatch, widths=widths, spp=3, seed=7,
                           width=20, height=14)
         for width, r in results.items():
             assert r.info["lanes"] == int(width)

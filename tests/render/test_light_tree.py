@@ -96,7 +96,7 @@ def lamps_scene(light_sampler="bvh", n_lamps=120, seed=7, environment=False, siz
                   face_materials=np.array(mats, np.int32), materials=materials,
                   camera=Camera(eye=(0, 7, 6), look_at=(0, 0, 0), up=(0, 1, 0), fov=60),
                   settings=RenderSettings(width=size, height=size, max_depth=3, integrator="path",
-                                          sampler="independent", light_sampler=light_sampler),
+                                          light_sampler=light_sampler),
                   spheres=spheres, sphere_materials=np.array([1, 3], np.int32),
                   lights=[PointLight(position=(1.0, 1.5, 1.0), intensity=(3, 3, 3))],
                   environment=Environment(radiance=(0.2, 0.3, 0.5)) if environment else None)
@@ -204,8 +204,9 @@ def test_device_picks_follow_the_host_pmf(device, runtime, width):
 def test_bvh_and_power_render_the_same_mean_with_less_variance_by_bvh(device):
     """A floor and a wall under 120 small lamps, two spheres, a point light and a sky: the tree's
     picks and power's give the same image (every 4 x 4 tile and the mean within 4.5 standard
-    errors, from the per-pixel variances; independent samples), and the tree's variance is lower in
-    most pixels (the median ratio; its picks follow the lamps near each point)."""
+    errors, from the per-pixel sample variances, which bound the Sobol means' from above in practice),
+    and the tree's variance is lower in most pixels (the median ratio; its picks follow the lamps
+    near each point)."""
     renders = {}
     for seed, mode in enumerate(("power", "bvh"), 3):
         scene = lamps_scene(mode, environment=True)

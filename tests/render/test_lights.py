@@ -819,7 +819,11 @@ def test_extreme_parameters_finite(device):
 
 
 def test_no_lights_warns(device):
-    sc = sphere_under(None, "path", size=4)
+    """A sphere beside a triangle (the kernel of tests/test_robustness.py's light-less meshes), no light."""
+    ball = sphere_under(None, "path", size=4)
+    sc = Scene(vertices=np.array([[-1, -1, -2], [1, -1, -2], [0, 1, -2]], np.float32),
+               faces=np.array([[0, 1, 2]], np.int32), face_materials=np.array([0], np.int32),
+               **{k: getattr(ball, k) for k in ("materials", "camera", "spheres", "sphere_materials", "settings")})
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         render_full(sc, spp=1, device=device, seed=1)

@@ -225,12 +225,11 @@ def test_spot_light_in_a_medium(device, tmp_path):
     assert rt.render_full(load(tmp_path, away, "away.toml"), device=device, spp=4).film.sum.max() == 0
 
 
-def test_lanes_render_the_same_bits(device, monkeypatch):
-    """Every lane width the device builds (8, and 16 where it builds alike) against one path per
-    work-item on the media scene of scenes/ (test_path_lanes.py's rule)."""
-    import harness
-
-    widths = harness.lane_widths(device)  # the widths this device builds; skips where lanes never run
+@pytest.mark.parametrize("width_set", harness.width_sets())
+def test_lanes_render_the_same_bits(device, monkeypatch, width_set):
+    """The lane widths (harness.width_sets: the users' in make test, all in make stress) against
+    one path per work-item on the media scene of scenes/ (test_path_lanes.py's rule)."""
+    widths = harness.widths_of(device, width_set)  # skips where lanes never run
     scene = rt.load_scene(SCENES / "cornell-fog.toml")
     results = harness.lane_renders(scene, device, monkeypatch, widths, spp=2, seed=4, width=24, height=24)
     assert "HAS_MEDIA" in results["0"].info["features"] and results["0"].film.sum.max() > 0
