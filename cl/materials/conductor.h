@@ -39,6 +39,7 @@
 #define PYOPENCL_RT_CONDUCTOR_H
 
 #include "materials/microfacet.h"
+#include "materials/record.h"
 
 typedef struct {
     pvec3 f0, eta, k;
@@ -108,5 +109,25 @@ RT_INLINE pvec3 conductor_sample(const ConductorParams *c, pint active, pvec3 wo
     const pvec3 w = pv3_sel(F, pv3_scale(F, mf_g_over_g1(&c->d, wo, li, h)), rough);
     return pv3_sel(pv3_zero(), w, any_weight);
 }
+
+/* The parameters from the lanes' Material fields. */
+RT_INLINE ConductorParams conductor_params(const MaterialLanes *m)
+{
+    ConductorParams c = {.f0 = m->specular, .eta = m->eta, .k = m->k,
+                         .schlick = (m->flags & MATERIAL_FLAG_CONDUCTOR_F0) != 0};
+    c.d = microfacet_params(m, &c.smooth);
+    return c;
+}
+
+/* the albedo guide (dispatch.h, material_albedo_aov): the Fresnel reflectance at the viewing angle */
+RT_INLINE pvec3 conductor_albedo(const MaterialLanes *m, pfloat cos_o)
+{
+    const ConductorParams c = conductor_params(m);
+    return conductor_fresnel(&c, cos_o);
+}
+
+#define MATERIAL_CASE_CONDUCTOR(X) \
+    X(CONDUCTOR, conductor, ConductorParams, conductor_params(m), conductor_eval(&P, K, lo, li, &q), \
+      conductor_sample(&P, K, lo, u0, u1, &wl, &q, &d), pnot(material_smooth(m)), conductor_albedo(m, cos_o))
 
 #endif

@@ -41,6 +41,7 @@
 #define PYOPENCL_RT_DIELECTRIC_H
 
 #include "materials/microfacet.h"
+#include "materials/record.h"
 
 /* mask: `smooth` (the distribution's lanes below the threshold) or an invisible interface */
 RT_INLINE pint dielectric_is_smooth(pint smooth, pfloat eta)
@@ -148,5 +149,45 @@ RT_INLINE pvec3 thin_dielectric_sample(pfloat eta, pvec3 tint, pint active, pvec
     *delta = active;
     return pv3_sel(pv3_zero(), tint, active);
 }
+
+/* a dielectric's distribution and the relative index seen by wo (dielectric_eta) */
+typedef struct {
+    Microfacet d;
+    pint smooth;
+    pfloat eta;
+} DielectricParams;
+
+RT_INLINE DielectricParams dielectric_params(const MaterialLanes *m, pint front)
+{
+    DielectricParams p;
+    p.d = microfacet_params(m, &p.smooth);
+    p.eta = dielectric_eta(m, front);
+    return p;
+}
+
+/* A dielectric's sample: it refracts, or (MATERIAL_FLAG_THIN, Mitsuba's thindielectric) a thin sheet
+ * lets light through unbent or reflects it. */
+RT_INLINE pvec3 dielectric_or_thin_sample(const MaterialLanes *m, const DielectricParams *p, pint active, pvec3 lo,
+                                          pfloat u0, pfloat u1, pfloat u2, pvec3 *wl, pfloat *q, pint *d)
+{
+    pvec3 g = dielectric_sample(&p->d, p->smooth, p->eta, m->specular, active, lo, u0, u1, u2, wl, q, d);
+    const pint thin = active & ((m->flags & MATERIAL_FLAG_THIN) != 0);
+    if (pany(thin)) {
+        pvec3 wt;
+        pfloat qt;
+        pint dt;
+        g = pv3_sel(g, thin_dielectric_sample(m->ior, m->specular, thin, lo, u2, &wt, &qt, &dt), thin);
+        *wl = pv3_sel(*wl, wt, thin);
+        *q = thin ? qt : *q;
+        *d = thin ? dt : *d;
+    }
+    return g;
+}
+
+#define MATERIAL_CASE_DIELECTRIC(X) \
+    X(DIELECTRIC, dielectric, DielectricParams, dielectric_params(m, front), \
+      dielectric_eval(&P.d, P.smooth, P.eta, m->specular, K, lo, li, &q), \
+      dielectric_or_thin_sample(m, &P, K, lo, u0, u1, u2, &wl, &q, &d), \
+      pnot(dielectric_is_smooth(material_smooth(m), m->ior)), m->specular)
 
 #endif

@@ -37,4 +37,8 @@ RT_INLINE pvec3 diffuse_sample(pvec3 albedo, pint active, pvec3 n, pfloat u0, pf
     return pv3_sel(pv3_zero(), albedo, ok);
 }
 
+/* Diffuse is shaded before the local frame (cl/materials/dispatch.h), and by every type not
+ * compiled in: no case among the framed types. */
+#define MATERIAL_CASE_DIFFUSE(X)
+
 #endif

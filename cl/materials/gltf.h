@@ -34,6 +34,7 @@
 #define PYOPENCL_RT_GLTF_H
 
 #include "materials/microfacet.h"
+#include "materials/record.h"
 
 typedef struct {
     pvec3 base;
@@ -120,5 +121,28 @@ RT_INLINE pvec3 gltf_sample(const GltfParams *g, pint active, pvec3 wo, pfloat u
     if (pany(smooth)) r = pv3_sel(r, pv3_div(fresnel_schlick(gltf_f0(g), wo.z), ps), smooth);
     return r;
 }
+
+/* The parameters from the lanes' Material fields. */
+RT_INLINE GltfParams gltf_params(const MaterialLanes *m)
+{
+    const pfloat r = (m->ior - 1.0f) / (m->ior + 1.0f);
+    const GltfParams g = {.base = m->albedo, .metallic = pclamp(m->metallic, 0.0f, 1.0f), .alpha = m->alpha,
+                          .f0d = pisfinite(r) ? r * r : PFLOAT(0.0f)};
+    return g;
+}
+
+/* the albedo guide: the specular Fresnel term plus the diffuse base's share, (1 - metallic) base (1 - Fd) */
+RT_INLINE pvec3 gltf_albedo(const MaterialLanes *m, pfloat cos_o)
+{
+    const GltfParams g = gltf_params(m);
+    const pfloat s = 1.0f - fresnel_schlick1(g.f0d, cos_o);
+    const pvec3 d = pv3_scale(pv3_scale(g.base, 1.0f - g.metallic), s);
+    return pv3_add(fresnel_schlick(gltf_f0(&g), cos_o), d);
+}
+
+#define MATERIAL_CASE_GLTF(X) \
+    X(GLTF, gltf, GltfParams, gltf_params(m), gltf_eval(&P, K, lo, li, &q), \
+      gltf_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d), pnot(microfacet_is_smooth(m->alpha)) | (m->metallic < 1.0f), \
+      gltf_albedo(m, cos_o))
 
 #endif

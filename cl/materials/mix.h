@@ -28,6 +28,9 @@
 #ifndef PYOPENCL_RT_MIX_H
 #define PYOPENCL_RT_MIX_H
 
+#include "scene/textures.h"
+#include "scene/shading.h"
+
 #ifdef HAS_MATERIAL_MIX
 
 #define MIX_MAX_DEPTH 8

@@ -29,6 +29,7 @@
 #define PYOPENCL_RT_PLASTIC_H
 
 #include "materials/microfacet.h"
+#include "materials/record.h"
 
 typedef struct {
     pvec3 diffuse, specular;
@@ -108,5 +109,17 @@ RT_INLINE pvec3 plastic_sample(const PlasticParams *p, pint active, pvec3 wo, pf
     *delta = spec;
     return r;
 }
+
+/* The parameters from the lanes' Material fields. */
+RT_INLINE PlasticParams plastic_params(const MaterialLanes *m)
+{
+    const PlasticParams p = {.diffuse = m->albedo, .specular = m->specular, .eta = m->ior, .fdr = m->fdr,
+                             .spec_weight = m->spec_weight, .nonlinear = (m->flags & MATERIAL_FLAG_NONLINEAR) != 0};
+    return p;
+}
+
+#define MATERIAL_CASE_PLASTIC(X) \
+    X(PLASTIC, plastic, PlasticParams, plastic_params(m), plastic_eval(&P, K, lo, li, &q), \
+      plastic_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d), pnot(PINT(0)), m->albedo)
 
 #endif

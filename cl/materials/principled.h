@@ -40,6 +40,7 @@
 #define PYOPENCL_RT_PRINCIPLED_H
 
 #include "materials/microfacet.h"
+#include "materials/record.h"
 
 typedef struct {
     pvec3 base;
@@ -379,5 +380,21 @@ RT_INLINE pvec3 principled_sample(const PrincipledParams *P, pint active, pint f
     const pvec3 f = principled_eval_mi(P, ok, mwi, mwo, &q);
     return sample_weight(f, q, ok, pdf);
 }
+
+/* The parameters from the lanes' Material fields. */
+RT_INLINE PrincipledParams principled_params(const MaterialLanes *m)
+{
+    const PrincipledParams p = {
+        .base = m->albedo, .roughness = m->roughness, .anisotropic = m->anisotropic, .metallic = m->metallic,
+        .spec_trans = m->spec_trans, .spec_tint = m->spec_tint, .sheen = m->sheen, .sheen_tint = m->sheen_tint,
+        .clearcoat = m->clearcoat, .clearcoat_gloss = m->clearcoat_gloss, .flatness = m->flatness,
+        .diff_trans = m->diff_trans, .eta = m->ior, .rate0 = m->rate0, .rate1 = m->rate1, .rate2 = m->rate2,
+        .rate3 = m->rate3};
+    return p;
+}
+
+#define MATERIAL_CASE_PRINCIPLED(X) \
+    X(PRINCIPLED, principled, PrincipledParams, principled_params(m), principled_eval(&P, K, front, lo, li, &q), \
+      principled_sample(&P, K, front, lo, u0, u1, u2, &wl, &q, &d), pnot(PINT(0)), m->albedo)
 
 #endif

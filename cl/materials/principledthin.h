@@ -28,6 +28,7 @@
 #define PYOPENCL_RT_PRINCIPLEDTHIN_H
 
 #include "materials/principled.h"
+#include "materials/record.h"
 
 /* f * |cos_i| and *pdf for local wo (wo.z > 0) and wi. */
 RT_INLINE pvec3 principledthin_eval(const PrincipledParams *P, pint active, pvec3 wo, pvec3 wi, pfloat *pdf)
@@ -141,5 +142,9 @@ RT_INLINE pvec3 principledthin_sample(const PrincipledParams *P, pint active, pv
     const pvec3 f = principledthin_eval(P, ok, wo, li, &q);
     return sample_weight(f, q, ok, pdf);
 }
+
+#define MATERIAL_CASE_PRINCIPLEDTHIN(X) \
+    X(PRINCIPLEDTHIN, principledthin, PrincipledParams, principled_params(m), principledthin_eval(&P, K, lo, li, &q), \
+      principledthin_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d), pnot(PINT(0)), m->albedo)
 
 #endif

@@ -36,6 +36,7 @@
 #define PYOPENCL_RT_ROUGHPLASTIC_H
 
 #include "materials/plastic.h"
+#include "materials/record.h"
 
 typedef struct {
     PlasticParams s; /* plastic's parameters (the smooth coating's) */
@@ -116,5 +117,18 @@ RT_INLINE pvec3 roughplastic_sample(const RoughPlasticParams *p, pint active, pv
     *pdf = ok ? q : PFLOAT(0.0f);
     return pv3_sel(pv3_zero(), w, ok);
 }
+
+/* plastic's parameters and the rough coating's (its transmittance table lies in the record) */
+RT_INLINE RoughPlasticParams roughplastic_params(const MaterialLanes *m)
+{
+    const RoughPlasticParams p = {.s = plastic_params(m), .alpha = pfmax(m->alpha, PFLOAT(1e-4f)),
+                                  .beckmann = (m->flags & MATERIAL_FLAG_BECKMANN) != 0, .records = m->records,
+                                  .table = m->rec + FIELD_INDEX(Material, table)};
+    return p;
+}
+
+#define MATERIAL_CASE_ROUGHPLASTIC(X) \
+    X(ROUGHPLASTIC, roughplastic, RoughPlasticParams, roughplastic_params(m), roughplastic_eval(&P, K, lo, li, &q), \
+      roughplastic_sample(&P, K, lo, u0, u1, u2, &wl, &q, &d), pnot(PINT(0)), m->albedo)
 
 #endif

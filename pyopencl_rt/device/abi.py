@@ -110,9 +110,9 @@ assert TRIANGLE.itemsize == 48
 #   (mix: metallic the blend weight, rates[0] and rates[1] the two blended records' indices, as floats;
 #   cl/materials/mix.h resolves it to one of them before shading)
 MATERIAL_TYPES = define_enum("MATERIAL_", ("diffuse", "conductor", "dielectric", "gltf", "plastic", "roughplastic",
-                                           "principled", "principledthin", "mix"))
+                                           "principled", "principledthin", "mix", "roughdiffuse"))
 (MATERIAL_DIFFUSE, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_GLTF, MATERIAL_PLASTIC, MATERIAL_ROUGHPLASTIC,
- MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLEDTHIN, MATERIAL_MIX) = MATERIAL_TYPES.values()
+ MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLEDTHIN, MATERIAL_MIX, *_) = MATERIAL_TYPES.values()
 MATERIAL_FLAG_TWO_SIDED = define("MATERIAL_FLAG_TWO_SIDED", 1)
 MATERIAL_FLAG_CONDUCTOR_F0 = define("MATERIAL_FLAG_CONDUCTOR_F0", 2)
 MATERIAL_FLAG_NONLINEAR = define("MATERIAL_FLAG_NONLINEAR", 4)
@@ -132,6 +132,7 @@ MATERIAL_FLAG_MASK, MATERIAL_FLAG_ONE_SIDED, MATERIAL_FLAG_CUTOUT = (
     define("MATERIAL_FLAG_MASK", 1024), define("MATERIAL_FLAG_ONE_SIDED", 2048), define("MATERIAL_FLAG_CUTOUT", 4096))
 MATERIAL_FLAG_ANISOTROPIC = define("MATERIAL_FLAG_ANISOTROPIC", 8192)
 MATERIAL_FLAG_SEPARABLE = define("MATERIAL_FLAG_SEPARABLE", 16384)
+MATERIAL_FLAG_FAST_APPROX = define("MATERIAL_FLAG_FAST_APPROX", 32768)  # roughdiffuse: Oren-Nayar's qualitative model
 MATERIAL = np.dtype(
     [("albedo", np.float32, 3), ("type", np.int32), ("emission", np.float32, 3), ("flags", np.int32),
      ("specular", np.float32, 3), ("alpha", np.float32), ("eta", np.float32, 3), ("metallic", np.float32),
@@ -427,7 +428,6 @@ AOV_FLOATS = define("AOV_FLOATS", 12)
 
 # ---------------------------------------------------------------------------------------------
 # The wavefront kernels' shared parameter list.
-# ---------------------------------------------------------------------------------------------
 _SCALAR_NUMPY = {"int": np.int32, "uint": np.uint32, "float": np.float32}
 _VECTOR_SIZE = {"float2": 8, "float4": 16}
 PARAM_SOURCES = ("scene", "settings", "run")
@@ -597,4 +597,4 @@ def cl_header() -> str:
     (:mod:`.cl_header` writes them)."""
     from . import cl_header as header
 
-    return header.cl_header(STRUCTS, DEFINES, OVERRIDABLE, WAVE_PARAMS)
+    return header.cl_header(STRUCTS, DEFINES, OVERRIDABLE, WAVE_PARAMS, MATERIAL_TYPES)

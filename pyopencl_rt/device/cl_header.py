@@ -58,13 +58,41 @@ def _declaration(p) -> str:
     return f"__global {'const ' if p.kind == 'const' else ''}{p.ctype} *{p.name}"
 
 
-def cl_header(structs: dict, defines: dict, overridable, wave_params) -> str:
-    """The header of :mod:`.abi`'s tables: struct typedefs, #defines, the WAVE_PARAMS macro and
-    the Sobol matrices."""
+# The material types without a BSDF of their own: cl/render/path.h resolves a mix to one of the
+# records it blends before the BSDF dispatch (cl/materials/dispatch.h).
+RESOLVED_MATERIALS = ("mix",)
+# The type every kernel compiles (the fallback of a type not compiled in): no HAS_MATERIAL_ switch.
+ALWAYS_COMPILED_MATERIAL = "diffuse"
+
+
+def bsdf_types(material_types) -> list[str]:
+    """The names of the types cl/materials/dispatch.h routes to, in the enum's order."""
+    return [name for name in material_types if name not in RESOLVED_MATERIALS]
+
+
+def bsdf_includes(material_types) -> str:
+    """The generated header "materials/bsdfs.h": each BSDF type's cl/materials/<name>.h."""
+    includes = "".join(f'#include "materials/{name}.h"\n' for name in bsdf_types(material_types))
+    return f"#ifndef PYOPENCL_RT_BSDFS_H\n#define PYOPENCL_RT_BSDFS_H\n{includes}#endif\n"
+
+
+def material_cases(material_types) -> str:
+    """MATERIAL_CASES(X), every BSDF type's case (cl/materials/dispatch.h), and the switch of every
+    type but the one always compiled, all on where a scene does not select them (MATERIALS_SELECTED)."""
+    cases = " ".join(f"MATERIAL_CASE_{name.upper()}(X)" for name in bsdf_types(material_types))
+    switches = "".join(f"#define HAS_MATERIAL_{name.upper()}\n" for name in material_types
+                       if name != ALWAYS_COMPILED_MATERIAL)
+    return f"#define MATERIAL_CASES(X) {cases}\n#ifndef MATERIALS_SELECTED\n{switches}#endif\n"
+
+
+def cl_header(structs: dict, defines: dict, overridable, wave_params, material_types) -> str:
+    """The header of :mod:`.abi`'s tables: struct typedefs, #defines, the material types' cases and
+    switches, the WAVE_PARAMS macro and the Sobol matrices."""
     return "\n".join([
         "/* generated from pyopencl_rt/device/abi.py: do not edit */",
         *(cl_struct(name, dt) for name, dt in structs.items()),
         cl_defines(defines, overridable),
+        material_cases(material_types),
         cl_params("WAVE_PARAMS", wave_params),
         sobol.cl_table(),
     ])

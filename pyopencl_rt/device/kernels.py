@@ -37,6 +37,13 @@ _CONDITIONAL_CLOSE = re.compile(r"^\s*#\s*endif\b")
 _GUARD = re.compile(r"\A(?:\s*(?:/\*.*?\*/|//[^\n]*))*\s*#\s*ifndef\s+(\w+)\s*\n\s*#\s*define\s+\1\b", re.S)
 
 
+def _generated_headers() -> dict:
+    """Headers written from the ABI's tables, not read from cl/: their include path -> text."""
+    from .cl_header import bsdf_includes
+
+    return {"materials/bsdfs.h": bsdf_includes(abi.MATERIAL_TYPES)}
+
+
 def assemble(*names: str, extra: str = "") -> str:
     """Concatenate the named sources, then ``extra`` source text, with every ``#include "x.h"``
     expanded from ``cl/`` as the preprocessor would: a header is expanded at each include until one
@@ -44,6 +51,7 @@ def assemble(*names: str, extra: str = "") -> str:
     later includes are dropped); a header included first inside an ``#if`` that turns out false is
     therefore still there for a later include.  A ``*.tpl.h`` template is expanded at every include."""
     root = cl_dir()
+    generated = _generated_headers()
     unconditional: set[Path] = set()  # headers expanded at least once outside every #if
     open_headers: list[Path] = []  # the headers being expanded: their guards are defined there
 
@@ -64,12 +72,13 @@ def assemble(*names: str, extra: str = "") -> str:
         path = (base / name).resolve()
         if not path.is_file():
             path = (root / name).resolve()
+        text = generated.get(name)
         template = path.name.endswith(".tpl.h")
         if not template and (path in unconditional or path in open_headers):
             return ""
         if level == 0 and not template:
             unconditional.add(path)
-        text = path.read_text()
+        text = path.read_text() if text is None else text
         guarded = _GUARD.match(text) is not None  # a header's own guard is no condition on its text
         open_headers.append(path)
         try:

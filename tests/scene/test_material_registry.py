@@ -46,20 +46,39 @@ def test_registry_enum_headers_and_modules_agree():
 
 
 def test_kernel_defines_exist_in_the_kernels():
-    """Each type's define gates its code: an #ifdef, or a row of cl/materials/dispatch.h's table of
-    framed types, whose cases are compiled under RT_WHEN(HAS_MATERIAL_<row>)."""
-    import re
-
+    """Each type's define gates its code: an #ifdef, or its row in cl/materials/dispatch.h's cases,
+    MATERIAL_CASE_<NAME>(X) of its own header, compiled under RT_WHEN(HAS_MATERIAL_<row>)."""
     sources = "\n".join(p.read_text() for p in (REPO / "cl").rglob("*.[hc]*"))
-    dispatch = (REPO / "cl" / "materials" / "dispatch.h").read_text()
-    table = dispatch[dispatch.index("#define FRAMED_MATERIALS(X)"):]
-    table = table[:table.index("\n\n")]
-    rows = set(re.findall(r"X\((\w+),", table))
+    dispatch = (CL_MATERIALS / "dispatch.h").read_text()
     assert "RT_WHEN(HAS_MATERIAL_##T)" in dispatch
     for name, material_type in REGISTRY.items():
         if material_type.kernel_define is not None:
             assert material_type.kernel_define == f"HAS_MATERIAL_{name.upper()}"
-            assert f"#ifdef {material_type.kernel_define}" in sources or name.upper() in rows, name
+            row = re.search(rf"#define MATERIAL_CASE_{name.upper()}\(X\)\s*\\?\s*X\({name.upper()},",
+                            (CL_MATERIALS / f"{name}.h").read_text())
+            assert f"#ifdef {material_type.kernel_define}" in sources or row, name
+
+
+def test_generated_cases_and_switches_are_the_registry():
+    """The generated header's MATERIAL_CASES names one case per BSDF type, in the enum's order, each
+    defined by the type's own header (as X(NAME, name, ...), or empty for diffuse, shaded before the
+    frame), "materials/bsdfs.h" includes those headers, and the switches on by default are the
+    registry's kernel defines: adding a type needs no edit of dispatch.h."""
+    from pyopencl_rt.device import cl_header, kernels
+
+    header = abi.cl_header()
+    cases = re.search(r"#define MATERIAL_CASES\(X\) (.*)", header).group(1).split()
+    bsdfs = [name for name in abi.MATERIAL_TYPES if name not in cl_header.RESOLVED_MATERIALS]
+    assert cases == [f"MATERIAL_CASE_{name.upper()}(X)" for name in bsdfs]
+    for name in bsdfs:
+        text = (CL_MATERIALS / f"{name}.h").read_text()
+        case = re.search(rf"#define MATERIAL_CASE_{name.upper()}\(X\)(.*)", text)
+        assert case, f"cl/materials/{name}.h defines no MATERIAL_CASE_{name.upper()}(X)"
+        assert REGISTRY[name].kernel_define is None or re.search(rf"X\({name.upper()}, {name},", text), name
+    switches = set(re.findall(r"#define (HAS_MATERIAL_\w+)", header))
+    assert switches == {t.kernel_define for t in REGISTRY.values() if t.kernel_define is not None}
+    generated = kernels._generated_headers()["materials/bsdfs.h"]
+    assert re.findall(r'#include "materials/(\w+)\.h"', generated) == bsdfs
 
 
 def test_mtl_precedences_are_distinct():
@@ -169,6 +188,9 @@ CASES = [  # (type, TOML keys, expected record fields)
                         "flatness_texture": "t.png"},
      {"albedo": (0.5, 0.5, 0.5), "roughness": 0.5, "ior": 1.5, "rates": (1, 1, 1, 1), "tex_scalar": (0, 1, 2, 3, -1, -1),
       "tex_params": texp("spec_tint", "sheen", "sheen_tint", "flatness")}),
+    ("roughdiffuse", {}, {"albedo": (0.8, 0.8, 0.8), "alpha": 0.2}),
+    ("roughdiffuse", {"albedo": [0.25, 0.5, 0.75], "albedo_texture": "t.png", "alpha": 0.5, "fast_approx": True},
+     {"albedo": (0.25, 0.5, 0.75), "alpha": 0.5, "tex_base": 0, "flags": abi.MATERIAL_FLAG_FAST_APPROX}),
     ("mix", {}, {"metallic": 0.5, "rates": (1, 2, 0, 0)}),
     ("mix", {"materials": ["b", "a"], "weight": 0.25, "weight_texture": "t.png"},
      {"metallic": 0.25, "rates": (2, 1, 0, 0), "tex_scalar": (0, -1, -1, -1, -1, -1), "tex_params": texp("metallic")}),

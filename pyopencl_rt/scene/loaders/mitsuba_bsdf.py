@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...device import abi
+from ..materials import MITSUBA_TYPES
 from ..model import Material
 from .builder import error_at
 from .mitsuba_metals import CONDUCTORS
@@ -331,10 +332,14 @@ class BsdfMapper:
             self._principled(obj, mat)
         elif t == "null":
             raise error_at(obj.node.pos, f"{obj.label()}: a null BSDF is supported as a shape's own BSDF only")
+        elif t in MITSUBA_TYPES:  # a type that reads its own plugin (scene/materials/<name>.py)
+            mat.type = MITSUBA_TYPES[t].name
+            MITSUBA_TYPES[t].from_mitsuba(obj, mat, lambda key, default: color_value(
+                imp, obj, key, default, texture_ok=True, attribute_ok=True))
         else:
             raise error_at(obj.node.pos, refusal(obj))
         mat.albedo = _clamp01(imp, obj, mat.albedo, "reflectance")
-        mat.one_sided = t in ONE_SIDED  # black seen from behind, unless a twosided wraps it
+        mat.one_sided = mat.one_sided or t in ONE_SIDED  # black seen from behind, unless a twosided wraps it
         imp.unused(obj)
         return mat
 

@@ -11,6 +11,8 @@ parameter, as Mitsuba itself refuses a property that no plugin queries ("Unrefer
 """
 from __future__ import annotations
 
+from ..materials import MITSUBA_TYPES
+
 _SAMPLER = ("sample_count", "seed")
 _SHAPE = ("to_world", "flip_normals", "interior", "exterior")
 _ROUGH = ("distribution", "alpha", "alpha_u", "alpha_v")
@@ -84,6 +86,8 @@ HONOURED: dict[str, dict[str, tuple[str, ...]]] = {
         "constvolume": ("value", "to_world"),
     },
 }
+# the BSDF plugins that material types read themselves (scene/materials/<name>.py, MITSUBA_PLUGINS)
+HONOURED["bsdf"].update({plugin: t.mitsuba_plugins[plugin] for plugin, t in MITSUBA_TYPES.items()})
 
 NEUTRAL: dict[str, dict[str, tuple[str, ...]]] = {
     "integrator": {"direct": ("emitter_samples", "bsdf_samples", "shading_samples", "max_depth", "rr_depth"),

@@ -17,15 +17,20 @@ A type is a module of this package named as its entry of the kernel's type enum
 * ``MTL_PRECEDENCE`` and ``from_mtl(material, mtl) -> bool`` (optional): claim a material of an
   MTL file from its statements (:class:`~pyopencl_rt.scene.loaders.obj.MtlStatements`) and set
   its parameters; the OBJ loader asks the types in increasing precedence, the first claim wins;
-* ``to_mitsuba(material) -> dict`` (optional): the Mitsuba 3 BSDF, as ``mi.load_dict`` takes it.
+* ``to_mitsuba(material) -> dict`` (optional): the Mitsuba 3 BSDF, as ``mi.load_dict`` takes it;
+* ``MITSUBA_PLUGINS`` and ``from_mitsuba(obj, material, color)`` (optional): the Mitsuba XML BSDF
+  plugins the type reads itself ({plugin: the parameters it renders as Mitsuba does}) and its reader
+  (``obj`` the XML object, ``color(name, default)`` a colour or texture of it), for plugins the
+  XML loader (scene/loaders/mitsuba_bsdf.py) does not read on its own.
 
 Other modules here are helpers shared by types (``microfacet.py``, as ``cl/materials/microfacet.h``).
 
-Adding a type: ``<name>.py`` here, its enum entry in ``device/abi.py``, its kernel
-``cl/materials/<name>.h`` with its cases in ``cl/materials/dispatch.h``, and its docstring in
-docs/SCENE_FORMAT.md (tests/scene/test_material_registry.py checks that these agree).  A type
-whose parameters are not yet fields of :class:`~pyopencl_rt.scene.model.Material` and of the
-``abi.MATERIAL`` record also adds them there.
+Adding a type: ``<name>.py`` here, its enum entry in ``device/abi.py`` and its kernel
+``cl/materials/<name>.h``, which defines its case of ``cl/materials/dispatch.h`` (the dispatch
+includes it and routes to it from the enum), and its docstring in docs/SCENE_FORMAT.md
+(tests/scene/test_material_registry.py checks that these agree; docs/ARCHITECTURE.md has the
+recipe).  A type whose parameters are not yet fields of :class:`~pyopencl_rt.scene.model.Material`
+(or entries of its ``params``) and of the ``abi.MATERIAL`` record also adds them there.
 """
 from __future__ import annotations
 
@@ -51,6 +56,8 @@ class MaterialType:
     mtl_precedence: int | None = None
     from_mtl: Callable | None = None
     to_mitsuba: Callable | None = None
+    mitsuba_plugins: dict | None = None
+    from_mitsuba: Callable | None = None
 
     @classmethod
     def from_module(cls, name: str, type_id: int, module) -> "MaterialType":
@@ -59,6 +66,7 @@ class MaterialType:
             toml_keys=frozenset(module.TOML_KEYS), read_toml=module.read_toml, pack=module.pack,
             kernel_define=module.KERNEL_DEFINE, mtl_precedence=getattr(module, "MTL_PRECEDENCE", None),
             from_mtl=getattr(module, "from_mtl", None), to_mitsuba=getattr(module, "to_mitsuba", None),
+            mitsuba_plugins=getattr(module, "MITSUBA_PLUGINS", None), from_mitsuba=getattr(module, "from_mitsuba", None),
         )
 
 
@@ -74,6 +82,11 @@ REGISTRY: dict[str, MaterialType] = _registry()
 # The types that MTL materials can become, in the order the OBJ loader asks them.
 MTL_TYPES: tuple[MaterialType, ...] = tuple(
     sorted((t for t in REGISTRY.values() if t.from_mtl is not None), key=lambda t: t.mtl_precedence))
+
+
+# The Mitsuba XML BSDF plugins that registered types read themselves: plugin -> type.
+MITSUBA_TYPES: dict[str, MaterialType] = {
+    plugin: t for t in REGISTRY.values() for plugin in (t.mitsuba_plugins or {})}
 
 
 def documentation() -> str:
