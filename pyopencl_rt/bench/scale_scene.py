@@ -7,6 +7,10 @@ rectangular area light above it and a constant environment.
     python -m pyopencl_rt.bench.scale_scene OUTDIR ...      (the same)
 
 writes OUTDIR/heightfield_<N>.ply and OUTDIR/heightfield_<N>.xml and prints the XML's path.
+With ``--textured``, the textured variant of issue 34's benchmark set: the PLY also holds texture
+coordinates (u, v over the grid), is flat-shaded and two-sided, and the ground's reflectance is a 1024 x 1024 image
+(OUTDIR/heightfield_texture.png: bands and a checker, deterministic), in
+OUTDIR/heightfield_textured_<N>.{ply,xml}.
 The grid has k x k quads (k = round(sqrt(N / 2))), so 2 k^2 triangles; the heights are a sum of
 sines (deterministic: the same file on every machine).  ``pyopencl-rt bench scale``
 (:mod:`.scale`) writes its scenes with :func:`write_scene`."""
@@ -40,11 +44,14 @@ def heightfield(k: int) -> tuple[np.ndarray, np.ndarray]:
     return vertices, faces
 
 
-def write_ply(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
-    """Binary little-endian PLY: float x, y, z; list uchar int vertex_indices."""
+def write_ply(path: Path, vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray | None = None) -> None:
+    """Binary little-endian PLY: float x, y, z (and u, v); list uchar int vertex_indices."""
+    texcoords = "property float u\nproperty float v\n" if uv is not None else ""
     header = (f"ply\nformat binary_little_endian 1.0\ncomment pyopencl_rt tools/scale_scene.py\n"
-              f"element vertex {len(vertices)}\nproperty float x\nproperty float y\nproperty float z\n"
+              f"element vertex {len(vertices)}\nproperty float x\nproperty float y\nproperty float z\n{texcoords}"
               f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n").encode("ascii")
+    if uv is not None:
+        vertices = np.concatenate([vertices, uv], 1)
     rec = np.empty(len(faces), np.dtype([("n", "u1"), ("i", "<i4", (3,))]))
     rec["n"] = 3
     rec["i"] = faces
@@ -64,8 +71,8 @@ XML = """<scene version="3.0.0">
             <rfilter type="box"/></film>
     </sensor>
     <shape type="ply">
-        <string name="filename" value="{ply}"/>
-        <bsdf type="diffuse"><rgb name="reflectance" value="0.6, 0.55, 0.5"/></bsdf>
+        <string name="filename" value="{ply}"/>{ply_options}
+        {bsdf}
     </shape>
     <shape type="rectangle">
         <transform name="to_world"><scale value="0.4"/><rotate x="1" angle="180"/><translate value="0.3, -0.2, 1.5"/></transform>
@@ -76,21 +83,52 @@ XML = """<scene version="3.0.0">
 """
 
 
-def write_scene(outdir, triangles: float, width: int = 256, height: int = 256, spp: int = 16) -> Path:
+TEXTURE = "heightfield_texture.png"
+
+
+def texture_image(n: int = 1024) -> np.ndarray:
+    """(n, n, 3) uint8: earthy bands along v crossed by a fine checker, so that a texel's colour
+    changes within a few pixels of a 256 x 256 image (texture lookups and their variance matter)."""
+    t = (np.arange(n) + 0.5) / n
+    u, v = np.meshgrid(t, t, indexing="xy")
+    band = 0.5 + 0.5 * np.sin(2 * np.pi * (9 * v + 0.3 * np.sin(2 * np.pi * 3 * u)))
+    checker = ((np.floor(64 * u) + np.floor(64 * v)) % 2)[..., None]
+    rgb = np.stack([0.45 + 0.4 * band, 0.35 + 0.3 * band, 0.2 + 0.15 * (1 - band)], -1) * (0.75 + 0.25 * checker)
+    return np.clip(np.round(255 * rgb), 0, 255).astype(np.uint8)
+
+
+def write_scene(outdir, triangles: float, width: int = 256, height: int = 256, spp: int = 16,
+                textured: bool = False) -> Path:
     """Writes the PLY and the XML of about ``triangles`` triangles into ``outdir`` (reusing a PLY
-    already there); returns the XML's path."""
+    and a texture already there); returns the XML's path."""
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     k = grid_size(triangles)
-    stem = f"heightfield_{2 * k * k}"
+    stem = f"heightfield_{'textured_' if textured else ''}{2 * k * k}"
     ply = outdir / f"{stem}.ply"
     if not ply.exists():
         vertices, faces = heightfield(k)
+        uv = (vertices[:, :2] + 1.0) / 2.0 if textured else None
         tmp = ply.with_suffix(".ply.part")
-        write_ply(tmp, vertices, faces)
+        write_ply(tmp, vertices, faces, uv)
         tmp.replace(ply)
+    reflectance = '<rgb name="reflectance" value="0.6, 0.55, 0.5"/>'
+    if textured:
+        if not (outdir / TEXTURE).exists():
+            from PIL import Image
+
+            Image.fromarray(texture_image()).save(outdir / TEXTURE)
+        reflectance = f'<texture type="bitmap" name="reflectance"><string name="filename" value="{TEXTURE}"/></texture>'
     xml = outdir / f"{stem}.xml"
-    xml.write_text(XML.format(ply=ply.name, width=int(width), height=int(height), spp=int(spp)))
+    bsdf = f'<bsdf type="diffuse">{reflectance}</bsdf>'
+    # the textured variant is flat-shaded (face normals) and two-sided: the benchmark set's export to
+    # Mitsuba writes triangles without vertex normals and two-sided BSDFs (a million triangles hide
+    # the facets, and the camera sees the top side only)
+    ply_options = '\n        <boolean name="face_normals" value="true"/>' if textured else ""
+    if textured:
+        bsdf = f'<bsdf type="twosided">{bsdf}</bsdf>'
+    xml.write_text(XML.format(ply=ply.name, width=int(width), height=int(height), spp=int(spp),
+                              bsdf=bsdf, ply_options=ply_options))
     return xml
 
 
@@ -101,8 +139,9 @@ def main(argv=None) -> int:
     ap.add_argument("--width", type=int, default=256)
     ap.add_argument("--height", type=int, default=256)
     ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--textured", action="store_true", help="texture coordinates and an image as the reflectance")
     a = ap.parse_args(argv)
-    print(write_scene(a.outdir, a.triangles, a.width, a.height, a.spp))
+    print(write_scene(a.outdir, a.triangles, a.width, a.height, a.spp, a.textured))
     return 0
 
 

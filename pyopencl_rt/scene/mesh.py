@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -150,28 +151,29 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
 _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
               "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
               "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
-# vertex properties that trimesh reads as texture coordinates (and may then split vertices by):
-# such files go through trimesh
+# vertex properties that trimesh reads as texture coordinates, in pairs: one pair per vertex is
+# read here as trimesh reads it (a file with more than one pair goes through trimesh)
 _PLY_TEXCOORDS = ("texture_u", "texture_v", "u", "v", "s", "t")
+_PLY_UV_PAIRS = (("texture_u", "texture_v"), ("u", "v"), ("s", "t"))
 
 
 class PlyMesh:
     """A triangle mesh read from a binary PLY file by :func:`read_binary_ply`, with what the
     loaders use of a trimesh mesh: ``vertices`` (V, 3) as stored, ``faces`` (F, 3) int32,
     ``metadata["_ply_raw"]["vertex"]["data"]`` (the vertex records: normals and attributes,
-    meshfile.ply_extras) and no ``visual`` (no texture coordinates)."""
+    meshfile.ply_extras) and ``visual.uv``, the per-vertex texture coordinates (float64, as
+    trimesh gives them), or no ``visual``."""
 
-    visual = None
-
-    def __init__(self, vertices, faces, vertex_data):
+    def __init__(self, vertices, faces, vertex_data, uv=None):
         self.vertices = vertices
         self.faces = faces
         self.metadata = {"_ply_raw": {"vertex": {"data": vertex_data}}}
+        self.visual = None if uv is None else SimpleNamespace(uv=uv)
 
 
 def read_binary_ply(path) -> PlyMesh | None:
-    """The mesh of a binary PLY file whose elements are ``vertex`` (scalar properties x, y, z and
-    any others but texture coordinates) and ``face`` (one list property vertex_indices or
+    """The mesh of a binary PLY file whose elements are ``vertex`` (scalar properties x, y, z, at
+    most one pair of texture coordinates, any others) and ``face`` (one list property vertex_indices or
     vertex_index, every face a triangle), read with np.fromfile; None for anything else (ASCII,
     other elements or properties, polygons, a file shorter than its header says), which
     trimesh then reads.  The arrays are those trimesh gives (tests/scene/test_meshops.py)."""
@@ -210,11 +212,14 @@ def read_binary_ply(path) -> PlyMesh | None:
     (_, nv, vprops), (_, nf, fprops) = elements
     vfields = []
     for prop in vprops:
-        if len(prop) != 2 or prop[0] not in _PLY_TYPES or prop[1] in _PLY_TEXCOORDS:
+        if len(prop) != 2 or prop[0] not in _PLY_TYPES:
             return None
         vfields.append((prop[1], endian + _PLY_TYPES[prop[0]]))
     names = [n for n, _ in vfields]
     if len(set(names)) != len(names) or not {"x", "y", "z"} <= set(names):
+        return None
+    pairs = [pair for pair in _PLY_UV_PAIRS if set(pair) <= set(names)]
+    if len(pairs) > 1 or sum(n in _PLY_TEXCOORDS for n in names) != 2 * len(pairs):
         return None
     if len(fprops) != 1 or len(fprops[0]) != 4 or fprops[0][0] != "list" \
             or fprops[0][3] not in ("vertex_indices", "vertex_index"):
@@ -241,4 +246,5 @@ def read_binary_ply(path) -> PlyMesh | None:
         vertices = np.stack([vdata[c].astype(np.float64) for c in "xyz"], 1)
     faces = np.ascontiguousarray(fdata["i"], np.int32)
     del fdata
-    return PlyMesh(vertices, faces, vdata)
+    uv = np.stack([vdata[c].astype(np.float64) for c in pairs[0]], 1) if pairs else None
+    return PlyMesh(vertices, faces, vdata, uv)

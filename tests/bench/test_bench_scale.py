@@ -70,3 +70,29 @@ def test_parse_millions():
     for bad in ("", "a,b", "0,1", "-2"):
         with pytest.raises(UserError):
             parse_millions(bad)
+
+
+def test_textured_scene_for_the_benchmark_set(tmp_path, monkeypatch):
+    """The set's generated scene (bench_set.GENERATED) has at least a million triangles; its
+    textured variant, written small here, reads its texture coordinates through the binary PLY path
+    (u, v over the grid), is flat-shaded, two-sided and textured, and exports to Mitsuba."""
+    from pyopencl_rt.bench import bench_set
+    from pyopencl_rt.bench.render import check_exportable
+    from pyopencl_rt.render.settings import ImageSettings
+    from pyopencl_rt.scene.mesh import PlyMesh, load_trimesh
+
+    for name, spec in bench_set.GENERATED.items():
+        assert 2 * grid_size(spec["triangles"]) ** 2 >= 1_000_000 and spec["textured"], name
+    xml = write_scene(tmp_path, 2000, textured=True)
+    k = grid_size(2000)
+    ply = load_trimesh(tmp_path / f"heightfield_textured_{2 * k * k}.ply")
+    assert isinstance(ply, PlyMesh)
+    assert np.array_equal(ply.visual.uv, (ply.vertices[:, :2].astype(np.float64) + 1) / 2)
+    scene = load_scene(xml)
+    assert scene.has_textures() and not scene.has_shading_normals() and len(scene.faces) == 2 * k * k + 2
+    check_exportable(str(xml), scene, ImageSettings.resolve(scene, width=8, height=8))
+    monkeypatch.setenv("PYOPENCL_RT_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(bench_set, "GENERATED", {"generated:small": dict(triangles=2000, textured=True)})
+    path = bench_set.scene_path("generated:small")
+    assert path.startswith(str(tmp_path / "cache")) and load_scene(path).has_textures()
+    assert bench_set.scene_path("scenes/mitsuba-cbox.toml") == "scenes/mitsuba-cbox.toml"

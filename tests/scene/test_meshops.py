@@ -234,8 +234,11 @@ def _ply_variants(tmp_path):
                                       list(v.astype(np.float64).T), f, count="uchar", index="uint", endian=">"),
         "char_count": _write_ply(tmp_path / "charcount.ply", xyz, list(v.T), f, count="char"),
     }
-    # trimesh's cases, which the fast path leaves to it
-    out["uv"] = _write_ply(tmp_path / "uv.ply", xyz + [("float", "u"), ("float", "v")], list(v.T) + [v[:, 0], v[:, 1]], f)
+    # texture coordinates under each of the names trimesh reads
+    for u, w in (("u", "v"), ("s", "t"), ("texture_u", "texture_v")):
+        out[f"uv_{u}"] = _write_ply(tmp_path / f"uv_{u}.ply", xyz + [("float", u), ("float", w)],
+                                    list(v.T) + [rng.random(len(v)), rng.random(len(v))], f)
+    # trimesh's case, which the fast path leaves to it
     quads = np.stack([f[0::2, 0], f[0::2, 1], f[0::2, 2], f[1::2, 2]], 1)
     out["quads"] = _write_ply(tmp_path / "quads.ply", xyz, list(v.T), quads)
     return out
@@ -249,7 +252,7 @@ def test_binary_ply_fast_path_matches_trimesh(tmp_path):
 
     for name, path in _ply_variants(tmp_path).items():
         fast = load_trimesh(path)
-        assert isinstance(fast, PlyMesh) == (name not in ("uv", "quads")), name
+        assert isinstance(fast, PlyMesh) == (name != "quads"), name
         ref = trimesh.load(str(path), process=False)
         v, f = flatten(fast, name)
         rv, rf = flatten(ref, name)
@@ -261,7 +264,10 @@ def test_binary_ply_fast_path_matches_trimesh(tmp_path):
         assert sorted(got.attributes) == sorted(want.attributes), name
         for key in want.attributes:
             _same(got.attributes[key], want.attributes[key])
-        assert (trimesh_uvs(fast, v, f) is None) == (trimesh_uvs(ref, rv, rf) is None), name
+        uv, ref_uv = trimesh_uvs(fast, v, f), trimesh_uvs(ref, rv, rf)
+        assert (uv is None) == (ref_uv is None) == (not name.startswith("uv")), name
+        if uv is not None:
+            assert np.array_equal(uv, ref_uv) and uv.dtype == ref_uv.dtype, name
 
 
 def test_binary_ply_fast_path_declines_what_it_does_not_read(tmp_path):
@@ -281,3 +287,8 @@ def test_binary_ply_fast_path_declines_what_it_does_not_read(tmp_path):
                          "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
                          "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
     assert read_binary_ply(ascii_ply) is None
+    two = _write_ply(tmp_path / "two.ply", xyz + [("float", "u"), ("float", "v"), ("float", "s"), ("float", "t")],
+                     list(v.T) + [v[:, 0]] * 4, f)
+    assert read_binary_ply(two) is None  # which pair trimesh takes is its business
+    lone = _write_ply(tmp_path / "lone.ply", xyz + [("float", "u")], list(v.T) + [v[:, 0]], f)
+    assert read_binary_ply(lone) is None

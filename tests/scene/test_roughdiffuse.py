@@ -77,18 +77,21 @@ def test_sigma_zero_is_lambert(runtime, rng, fast):
     assert np.allclose(f, np.asarray(RHO) / np.pi * wi[:, 2:3], rtol=2e-6, atol=0)
 
 
-def albedo_quadrature(runtime, mat, wo, k=48, m=96):
-    """The directional albedo, the integral of the device's f |cos_i| over the hemisphere:
-    Gauss-Legendre in cos(theta_i) (k nodes) times the midpoint rule in phi (m nodes)."""
+def hemisphere_rule(k=48, m=96):
+    """Directions over the upper hemisphere and their weights (solid angle): Gauss-Legendre in
+    cos(theta) (k nodes) times the midpoint rule in phi (m nodes)."""
     x, w = np.polynomial.legendre.leggauss(k)
-    mu, wmu = (x + 1) / 2, w / 2
-    phi = (np.arange(m) + 0.5) * 2 * np.pi / m
-    MU, PHI = np.meshgrid(mu, phi, indexing="ij")
+    MU, PHI = np.meshgrid((x + 1) / 2, (np.arange(m) + 0.5) * 2 * np.pi / m, indexing="ij")
     s = np.sqrt(1 - MU ** 2)
     wi = np.stack([s * np.cos(PHI), s * np.sin(PHI), MU], -1).reshape(-1, 3)
+    return wi, np.repeat(w / 2, m) * (2 * np.pi / m)
+
+
+def albedo_quadrature(runtime, mat, wo):
+    """The directional albedo, the integral of the device's f |cos_i| over the hemisphere."""
+    wi, weights = hemisphere_rule()
     f, _ = bsdf_eval(runtime, [mat], wo, wi)
-    # dw = d(cos theta) d(phi), and f already holds |cos_i|
-    return (f.reshape(k, m, 3) * wmu[:, None, None]).sum(axis=(0, 1)) * (2 * np.pi / m)
+    return (f * weights[:, None]).sum(0)
 
 
 @pytest.mark.parametrize("fast", [False, True], ids=["full", "fast"])
@@ -112,15 +115,8 @@ def test_sample_weights_average_to_the_float64_albedo(runtime, rng, alpha, theta
     oren_nayar), which the device's own quadrature matches to 2e-4."""
     wo = direction(np.radians(theta_o), 0.4)
     mat = rough(alpha, fast)
-    k, m = 48, 96
-    x, w = np.polynomial.legendre.leggauss(k)
-    mu, wmu = (x + 1) / 2, w / 2
-    phi = (np.arange(m) + 0.5) * 2 * np.pi / m
-    MU, PHI = np.meshgrid(mu, phi, indexing="ij")
-    s = np.sqrt(1 - MU ** 2)
-    wi = np.stack([s * np.cos(PHI), s * np.sin(PHI), MU], -1).reshape(-1, 3)
-    ref = (oren_nayar(np.tile(wo, (len(wi), 1)), wi, alpha, fast).reshape(k, m, 3)
-           * wmu[:, None, None]).sum(axis=(0, 1)) * (2 * np.pi / m)
+    wi, weights = hemisphere_rule()
+    ref = (oren_nayar(np.tile(wo, (len(wi), 1)), wi, alpha, fast) * weights[:, None]).sum(0)
     assert np.allclose(albedo_quadrature(runtime, mat, wo), ref, rtol=2e-4)
     n = 200_000
     wi_s, weight, pdf, delta = bsdf_sample(runtime, [mat], wo, u3(rng, n))
