@@ -91,11 +91,13 @@ def test_same_image_and_rays(device, monkeypatch, tmp_path):
                         width=40, height=30))
 
 
+@pytest.mark.stress
 @pytest.mark.parametrize("sampler", sorted(set(abi.SAMPLERS) - {"sobol"}))
 def test_other_samplers(device, monkeypatch, sampler):
     """The other samplers (the default, sobol: above) draw the same numbers in lanes
-    (tests/render/test_sampler.py compares them sample by sample): here the Cornell box, a small
-    kernel, with the consumption of a whole path."""
+    (tests/render/test_sampler.py compares them sample by sample, at every width, in make test):
+    here the Cornell box, a small kernel, with the consumption of a whole path.  In make stress:
+    two megakernels of their own per sampler (one path per work-item and the users' width)."""
     scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
     harness.assert_same_lanes(renders(scene, device, monkeypatch, widths=("0", harness.forced_lanes(device)), spp=4, seed=3,
                         width=32, height=24, sampler=sampler))
