@@ -52,7 +52,7 @@ RT_INLINE MaterialLanes material_lanes(__global const Material *materials, pint 
         m.clearcoat = m.clearcoat_gloss = m.flatness = m.diff_trans = m.rate0 = m.rate1 = m.rate2 = m.rate3 =
             PFLOAT(0.0f);
 #ifdef HAS_MITSUBA_MATERIALS
-    if (pany(m.type >= MATERIAL_PLASTIC)) {
+    if (pany((m.type >= MATERIAL_PLASTIC) & (m.type <= MATERIAL_PRINCIPLEDTHIN))) { /* plastic .. principledthin */
         GATHER_FLOAT(fdr) GATHER_FLOAT(spec_weight) GATHER_FLOAT(roughness) GATHER_FLOAT(anisotropic)
         GATHER_FLOAT(spec_trans) GATHER_FLOAT(spec_tint) GATHER_FLOAT(sheen) GATHER_FLOAT(sheen_tint)
         GATHER_FLOAT(clearcoat) GATHER_FLOAT(clearcoat_gloss) GATHER_FLOAT(flatness) GATHER_FLOAT(diff_trans)
