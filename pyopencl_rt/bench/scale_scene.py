@@ -112,21 +112,20 @@ def write_scene(outdir, triangles: float, width: int = 256, height: int = 256, s
         tmp = ply.with_suffix(".ply.part")
         write_ply(tmp, vertices, faces, uv)
         tmp.replace(ply)
-    reflectance = '<rgb name="reflectance" value="0.6, 0.55, 0.5"/>'
+    bsdf = '<bsdf type="diffuse"><rgb name="reflectance" value="0.6, 0.55, 0.5"/></bsdf>'
+    ply_options = ""
     if textured:
         if not (outdir / TEXTURE).exists():
             from PIL import Image
 
             Image.fromarray(texture_image()).save(outdir / TEXTURE)
-        reflectance = f'<texture type="bitmap" name="reflectance"><string name="filename" value="{TEXTURE}"/></texture>'
+        # flat-shaded (face normals) and two-sided: the benchmark set's export to Mitsuba writes
+        # triangles without vertex normals and two-sided BSDFs (a million triangles hide the
+        # facets, and the camera sees the top side only)
+        bsdf = (f'<bsdf type="twosided"><bsdf type="diffuse"><texture type="bitmap" name="reflectance">'
+                f'<string name="filename" value="{TEXTURE}"/></texture></bsdf></bsdf>')
+        ply_options = '\n        <boolean name="face_normals" value="true"/>'
     xml = outdir / f"{stem}.xml"
-    bsdf = f'<bsdf type="diffuse">{reflectance}</bsdf>'
-    # the textured variant is flat-shaded (face normals) and two-sided: the benchmark set's export to
-    # Mitsuba writes triangles without vertex normals and two-sided BSDFs (a million triangles hide
-    # the facets, and the camera sees the top side only)
-    ply_options = '\n        <boolean name="face_normals" value="true"/>' if textured else ""
-    if textured:
-        bsdf = f'<bsdf type="twosided">{bsdf}</bsdf>'
     xml.write_text(XML.format(ply=ply.name, width=int(width), height=int(height), spp=int(spp),
                               bsdf=bsdf, ply_options=ply_options))
     return xml

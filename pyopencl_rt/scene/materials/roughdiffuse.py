@@ -17,8 +17,9 @@ and `use_fast_approx`, and is black from behind unless a `twosided` wraps it, as
 from __future__ import annotations
 
 from ...device import abi
+from . import diffuse
 
-TOML_KEYS = frozenset({"albedo", "albedo_texture", "alpha", "fast_approx"})
+TOML_KEYS = diffuse.TOML_KEYS | {"alpha", "fast_approx"}
 KERNEL_DEFINE = "HAS_MATERIAL_ROUGHDIFFUSE"
 # alpha beyond this is the model's limit to 1e-6 (s2 / (s2 + 0.09) = 1 - 2e-7), and its square stays finite
 MAX_ALPHA = 1e3
@@ -27,8 +28,7 @@ MITSUBA_PLUGINS = {"roughdiffuse": ("reflectance", "alpha", "use_fast_approx")}
 
 
 def read_toml(material, table) -> None:
-    material.albedo = table.rgb01("albedo", 0.8)
-    material.base_texture = table.texture("albedo_texture", srgb=True)
+    diffuse.read_toml(material, table)  # the facets' reflectance, as diffuse's
     material.alpha = table.number("alpha", 0.2, minimum=0.0)
     material.params["fast_approx"] = table.boolean("fast_approx", False)
 
@@ -44,7 +44,7 @@ def from_mitsuba(obj, material, color) -> None:
 
 
 def pack(material, record) -> None:
-    record["albedo"] = material.albedo
+    diffuse.pack(material, record)
     record["alpha"] = min(material.alpha, MAX_ALPHA)
     if material.params.get("fast_approx", False):
         record["flags"] |= abi.MATERIAL_FLAG_FAST_APPROX
