@@ -106,11 +106,12 @@ assert TRIANGLE.itemsize == 48
 #                the diffuse reflection (4th unused); principledthin: of the specular
 #                reflection, specular transmission, diffuse transmission and diffuse reflection
 #   table        roughplastic: the rough interface's external transmittance at cos(theta) =
-#                k / 63, k = 0..63 (Mitsuba's table, interpolated linearly)
+#                k / 63, k = 0..63 (Mitsuba's table, interpolated linearly); coatedconductor: its
+#                layer's parameter block, COATED_* of cl/materials/coatedconductor.h
 #   (mix: metallic the blend weight, rates[0] and rates[1] the two blended records' indices, as floats;
 #   cl/materials/mix.h resolves it to one of them before shading)
 MATERIAL_TYPES = define_enum("MATERIAL_", ("diffuse", "conductor", "dielectric", "gltf", "plastic", "roughplastic",
-                                           "principled", "principledthin", "mix", "roughdiffuse"))
+                                           "principled", "principledthin", "mix", "roughdiffuse", "coatedconductor"))
 (MATERIAL_DIFFUSE, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_GLTF, MATERIAL_PLASTIC, MATERIAL_ROUGHPLASTIC,
  MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLEDTHIN, MATERIAL_MIX, *_) = MATERIAL_TYPES.values()
 MATERIAL_FLAG_TWO_SIDED = define("MATERIAL_FLAG_TWO_SIDED", 1)
@@ -124,8 +125,7 @@ MATERIAL_FLAG_VERTEX_COLOR = define("MATERIAL_FLAG_VERTEX_COLOR", 32)
 MATERIAL_FLAG_MAP_FLIP = define("MATERIAL_FLAG_MAP_FLIP", 64)
 MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
 MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
-# dielectric: a thin sheet, Mitsuba's thindielectric (cl/materials/dielectric.h: thin_dielectric_sample)
-MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)
+MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)  # dielectric: a thin sheet, Mitsuba's thindielectric
 # MASK: Mitsuba's mask, met with probability `opacity` (cl/render/path.h); ONE_SIDED: black from behind (Mitsuba's
 # BSDFs outside twosided); CUTOUT: a cut-out in the intersection, alpha `opacity`, `alpha_cutoff` (cl/scene/scene.h)
 MATERIAL_FLAG_MASK, MATERIAL_FLAG_ONE_SIDED, MATERIAL_FLAG_CUTOUT = (

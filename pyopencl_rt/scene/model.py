@@ -131,7 +131,10 @@ class Material:
         principledthin: a non-zero or textured `anisotropic`): the BSDF's frame follows dp/du."""
         if self.type in ("principled", "principledthin"):
             return float(self.params.get("anisotropic", 0.0)) != 0.0 or "anisotropic" in self.scalar_textures
-        return self.type in ("conductor", "dielectric") and (
+        params = self.params
+        if self.type == "coatedconductor" and params.get("conductor_alpha_u") != params.get("conductor_alpha_v"):
+            return True  # the metal under the coating is anisotropic
+        return self.type in ("conductor", "dielectric", "coatedconductor") and (
             (self.alpha_v is not None and float(self.alpha_v) != float(self.alpha))
             or "alpha_v" in self.scalar_textures)
 

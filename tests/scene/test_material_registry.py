@@ -14,6 +14,7 @@ from pyopencl_rt.device import abi
 from pyopencl_rt.scene import materials
 from pyopencl_rt.scene.loaders.toml import MATERIAL_COMMON_KEYS
 from pyopencl_rt.scene.materials import REGISTRY
+from pyopencl_rt.scene.materials.conductor import METALS
 from pyopencl_rt.scene.materials.plastic import fresnel_diffuse_reflectance
 from pyopencl_rt.scene.materials.principled import eta_from_specular
 from pyopencl_rt.scene.materials.roughplastic import rough_tables
@@ -113,6 +114,12 @@ def rough(distribution, alpha, eta):
     return {"table": table, "fdr": internal}
 
 
+def coated(metal, ior, layer):
+    """coatedconductor's metal (eta, k in air) under a coating of index ior, and its layer's block"""
+    eta, k = (tuple(float(x) / ior for x in v) for v in metal)
+    return {"eta": eta, "k": k, "table": tuple(layer) + (0,) * (abi.ROUGH_TRANSMITTANCE_RES - len(layer))}
+
+
 def texp(*names):
     """tex_params naming these fields in slots 0, 1, ..."""
     ids = {name: k for k, name in abi.TEXTURE_PARAMS.items()}
@@ -191,6 +198,17 @@ CASES = [  # (type, TOML keys, expected record fields)
     ("roughdiffuse", {}, {"albedo": (0.8, 0.8, 0.8), "alpha": 0.2}),
     ("roughdiffuse", {"albedo": [0.25, 0.5, 0.75], "albedo_texture": "t.png", "alpha": 0.5, "fast_approx": True},
      {"albedo": (0.25, 0.5, 0.75), "alpha": 0.5, "tex_base": 0, "flags": abi.MATERIAL_FLAG_FAST_APPROX}),
+    ("coatedconductor", {}, {"ior": 1.5, **coated(METALS["copper"], 1.5, (0, 0, 0.01, 10, 1))}),
+    ("coatedconductor", {"roughness": 0.5, "ior": 1.25, "metal": "gold", "conductor_roughness": 0.5, "thickness": 0.1,
+                         "max_depth": 5, "samples": 2, "distribution": "beckmann", "masking": "separable"},
+     {"alpha": 0.25, "ior": 1.25, "flags": BECKMANN | abi.MATERIAL_FLAG_SEPARABLE,
+      **coated(METALS["gold"], 1.25, (0.25, 0.25, 0.1, 5, 2))}),
+    ("coatedconductor", {"alpha_u": 0.1, "alpha_v": 0.2, "eta": [0.2, 0.4, 1.4], "k": [3.0, 2.0, 1.5],
+                         "conductor_alpha_u": 0.3, "conductor_alpha_v": 0.4},
+     {"alpha": 0.1, "alpha_v": 0.2, "ior": 1.5, "flags": abi.MATERIAL_FLAG_ANISOTROPIC,
+      **coated(((0.2, 0.4, 1.4), (3.0, 2.0, 1.5)), 1.5, (0.3, 0.4, 0.01, 10, 1))}),
+    ("coatedconductor", {"alpha": 0.3, "reflectance": 0.5, "conductor_alpha": 0.2},  # pbrt's k = 2 sqrt(r / (1 - r))
+     {"alpha": 0.3, "ior": 1.5, **coated(((1, 1, 1), (2, 2, 2)), 1.5, (0.2, 0.2, 0.01, 10, 1))}),
     ("mix", {}, {"metallic": 0.5, "rates": (1, 2, 0, 0)}),
     ("mix", {"materials": ["b", "a"], "weight": 0.25, "weight_texture": "t.png"},
      {"metallic": 0.25, "rates": (2, 1, 0, 0), "tex_scalar": (0, -1, -1, -1, -1, -1), "tex_params": texp("metallic")}),

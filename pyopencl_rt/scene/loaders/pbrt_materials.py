@@ -6,7 +6,7 @@
 | ``conductor`` | ``conductor``: ``eta``/``k`` (the named spectra ``metal-Au/Ag/Cu/Al/MgO/TiO2-eta/k`` as Mitsuba's conductors of those names; RGB as given; sampled spectra and ``.spd`` files: :func:`sampled_rgb`) or ``reflectance`` (as F0, Schlick); default copper |
 | ``dielectric`` (``thindielectric`` with a warning) | ``dielectric``: ``eta`` (default 1.5; the named glasses at their d-line index) |
 | ``coateddiffuse`` | ``plastic`` (smooth coat) or ``roughplastic`` (GGX coat), ``nonlinear``: base ``reflectance``, IOR ``eta``, the coating's roughness (the layer's absorption aside: docs/SCENE_FORMAT.md) |
-| ``coatedconductor`` | ``conductor``: the metal under the coating (``conductor.eta``/``conductor.k`` or ``reflectance``, divided by ``interface.eta``), alpha combining ``conductor.*`` and ``interface.*`` roughness; a documented approximation, with a warning |
+| ``coatedconductor`` | ``coatedconductor`` (pbrt-v4's layered BSDF, its random walk): ``interface.eta`` and ``interface.*roughness``, ``conductor.eta``/``conductor.k`` (or ``reflectance``) and ``conductor.*roughness``, ``thickness``, ``maxdepth``, ``nsamples``; ``albedo`` > 0 (a scattering coating) refused |
 | ``interface`` (and ``""``, ``none``: pbrt-v4's old names) | no surface: its shapes only bound media (index-matched: pbrt_media.py) |
 | ``mix`` | ``mix`` of the two named ``materials``, weight ``amount`` (a float or a texture; 1 is the second) |
 | others (``diffusetransmission``, ``hair``, ``measured``, ``subsurface``) | an error naming the type (never replaced) |
@@ -479,36 +479,35 @@ class MaterialMapper:
         return float(eta)
 
     def _coated_conductor(self, mat, p, pos, what) -> None:
-        """pbrt-v4's coatedconductor (a dielectric coating over a conductor, its stochastic layered
-        BSDF) approximated by our conductor: the metal as pbrt-v4 puts it under the coating (its
-        `conductor.eta` and `conductor.k`, or the k that gives `reflectance`, divided by
-        `interface.eta`), its GGX alpha the root sum of squares of the conductor's and the
-        interface's (each pbrt's RoughnessToAlpha of its `*.roughness` / `*.uroughness` /
-        `*.vroughness`).  Not rendered (docs/SCENE_FORMAT.md): the coating's own reflection, the
-        inter-reflections between the layers, `thickness`, `albedo`, `g`, `maxdepth`, `nsamples`."""
-        ieta = self._eta(p, what, "interface.eta")
+        """pbrt-v4's coatedconductor as our coatedconductor (the same layered BSDF, estimated as pbrt
+        does): `interface.eta` and the interface's roughness, the conductor's `conductor.eta` /
+        `conductor.k` or `reflectance` (pbrt's eta 1 and matching k) and its roughness, `thickness`,
+        `maxdepth`, `nsamples`.  A scattering coating (`albedo` > 0) is refused."""
+        from ..materials.coatedconductor import reflectance_to_index
+
+        mat.ior = self._eta(p, what, "interface.eta")
         if "reflectance" in p and ("conductor.eta" in p or "conductor.k" in p):
             raise error_at(p.items["reflectance"].pos, f'{what}: give "reflectance" or "conductor.eta" / '
                                                        '"conductor.k", not both (as pbrt-v4)')
         self._conductor(mat, p, pos, what, "conductor.", reflectance_key="reflectance")
+        mat.type = "coatedconductor"
         if mat.eta is None:  # reflectance r: pbrt-v4's eta 1 and the k whose normal reflectance is r
-            r = np.clip(np.asarray(mat.f0, np.float64), 0.0, 0.9999)
-            mat.eta, mat.k = (1.0,) * 3, tuple(float(x) for x in 2 * np.sqrt(r) / np.sqrt(1 - r))
+            mat.eta, mat.k = reflectance_to_index(mat.f0)
             mat.f0 = (1.0, 1.0, 1.0)
-        mat.eta = tuple(float(e) / ieta for e in mat.eta)
-        mat.k = tuple(float(k) / ieta for k in mat.k)
+        mat.alpha, av = self._alphas(p, "interface.")
+        mat.alpha_v = av if av != mat.alpha else None
         cu, cv = self._alphas(p, "conductor.")
-        iu, iv = self._alphas(p, "interface.")
-        au, av = min(math.hypot(cu, iu), 1.0), min(math.hypot(cv, iv), 1.0)
-        mat.alpha, mat.alpha_v = au, (av if av != au else None)
         albedo = spectrum_rgb(self.imp, p, "albedo", (0.0, 0.0, 0.0))
-        self.imp.warn(pos, f"{what}: approximated by its conductor under the coating (eta and k divided by "
-                           f"interface.eta {ieta:g}, the two roughnesses combined); the coating's own reflection "
-                           "and the inter-reflections are not rendered" +
-                      ("; nor is its scattering albedo" if max(albedo) > 0 else ""))
-        for key in ("thickness", "g", "maxdepth", "nsamples"):
-            if key in p:
-                p.items[key].used = True
+        if max(albedo) > 0:
+            raise error_at(p.items["albedo"].pos, f"{what}: a scattering coating (albedo > 0) is not supported")
+        thickness = p.float("thickness", 0.01)
+        depth, samples = p.integer("maxdepth", 10), p.integer("nsamples", 1)
+        if thickness < 0 or depth < 1 or samples < 1:
+            raise error_at(pos, f"{what}: thickness must be >= 0 and maxdepth, nsamples >= 1")
+        mat.params.update(conductor_alpha_u=cu, conductor_alpha_v=cv, thickness=thickness, max_depth=depth,
+                          samples=samples)
+        if "g" in p:
+            p.items["g"].used = True  # the phase function of a scattering coating: none without albedo
 
     def _conductor(self, mat, p, pos, what, prefix, reflectance_key=None) -> None:
         mat.type = "conductor"

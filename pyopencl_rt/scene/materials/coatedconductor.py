@@ -1,0 +1,93 @@
+"""`"coatedconductor"` — a metal under a clear coat: pbrt-v4's `coatedconductor`, a dielectric
+interface over a conductor with the light that bounces between them simulated by a random walk, as
+pbrt-v4 estimates its layered BSDF (`cl/materials/coatedconductor.h`). pbrt files name it too.
+
+| key | type | default | meaning |
+|---|---|---|---|
+| `roughness` / `alpha` | number in [0, 1] | 0 | the coating's roughness (see **Roughness** above; also `distribution`, `alpha_u`/`alpha_v`, `masking`) |
+| `ior` | number > 0 | 1.5 | the coating's index of refraction |
+| `metal` | `"gold"`, `"silver"`, `"copper"` or `"aluminium"` | `"copper"` | the metal under the coating (as `conductor`'s) |
+| `eta`, `k` | [r, g, b] or one number (`eta` > 0, `k` ≥ 0), both | | the metal's complex index of refraction in air, instead of `metal` (divided by `ior` under the coating) |
+| `reflectance` | [r, g, b] in [0, 1), or one number | | instead of `metal` or `eta`/`k`: the metal whose reflectance at normal incidence in air this is (pbrt's eta 1 and k = 2 √r / √(1 − r)) |
+| `conductor_roughness` / `conductor_alpha` | number in [0, 1] | 0 | the metal's roughness under the coating (GGX; `conductor_alpha_u`, `conductor_alpha_v` for anisotropy) |
+| `thickness` | number ≥ 0 | 0.01 | the coating's thickness: light crossing it at angle θ keeps exp(−thickness / cos θ) |
+| `max_depth` | integer ≥ 1 | 10 | the longest walk between the layers (pbrt's `maxdepth`) |
+| `samples` | integer ≥ 1 | 1 | walks per estimate (pbrt's `nsamples`) |
+
+The coating reflects by its Fresnel term (with a rough coating, a glossy highlight over the metal's);
+what it lets through reaches the metal, and what the metal reflects bounces between the two before it
+leaves: a coated metal is deeper in colour and has a second, sharper highlight. Two-sided, as pbrt's.
+Its value, its density and its samples are estimates (random walks), exactly as pbrt-v4 renders it;
+a smooth coating over a smooth metal is a mirror (no light sampling).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .conductor import METALS
+from .microfacet import DISTRIBUTION_KEYS, ROUGHNESS_KEYS, pack_distribution, read_distribution
+
+TOML_KEYS = ROUGHNESS_KEYS | DISTRIBUTION_KEYS | {
+    "ior", "metal", "eta", "k", "reflectance", "conductor_roughness", "conductor_alpha", "conductor_alpha_u",
+    "conductor_alpha_v", "thickness", "max_depth", "samples"}
+KERNEL_DEFINE = "HAS_MATERIAL_COATEDCONDUCTOR"
+# the layer's parameter block in Material.table, in cl/materials/coatedconductor.h's COATED_* order
+LAYER = ("conductor_alpha_u", "conductor_alpha_v", "thickness", "max_depth", "samples")
+DEFAULTS = {"conductor_alpha_u": 0.0, "conductor_alpha_v": 0.0, "thickness": 0.01, "max_depth": 10, "samples": 1}
+
+
+def reflectance_to_index(r) -> tuple:
+    """pbrt-v4's conductor of normal reflectance r: eta 1 and k = 2 sqrt(r) / sqrt(1 - r), r clamped to
+    [0, 0.9999]."""
+    r = np.clip(np.asarray(r, np.float64), 0.0, 0.9999)
+    return (1.0, 1.0, 1.0), tuple(float(x) for x in 2 * np.sqrt(r) / np.sqrt(1 - r))
+
+
+def read_toml(material, table) -> None:
+    read_distribution(material, table)
+    material.ior = table.number("ior", 1.5, positive=True)
+    given = [k for k in ("metal", "reflectance") if k in table] + (["eta/k"] if "eta" in table or "k" in table else [])
+    if len(given) > 1:
+        raise table.error(f"give only one of 'metal', 'eta' and 'k', or 'reflectance' (got {', '.join(given)})")
+    if "eta" in table or "k" in table:
+        if "eta" not in table or "k" not in table:
+            raise table.error("'eta' and 'k' (the complex index of refraction eta + i k) go together")
+        eta, k = table.vector("eta", allow_scalar=True), table.vector("k", allow_scalar=True)
+        if not (eta > 0).all() or k.min() < 0:
+            raise table.error(f"'eta' must be > 0 and 'k' >= 0, got {eta.tolist()}, {k.tolist()}")
+        material.eta, material.k = tuple(float(x) for x in eta), tuple(float(x) for x in k)
+    elif "reflectance" in table:
+        material.eta, material.k = reflectance_to_index(table.rgb01("reflectance", 0.5))
+    else:
+        material.eta, material.k = METALS[table.choice("metal", "metal", METALS) if "metal" in table else "copper"]
+    if "conductor_alpha_u" in table or "conductor_alpha_v" in table:
+        au = table.number("conductor_alpha_u", None, minimum=0.0, maximum=1.0)
+        av = table.number("conductor_alpha_v", None, minimum=0.0, maximum=1.0)
+    else:
+        if "conductor_alpha" in table and "conductor_roughness" in table:
+            raise table.error("give 'conductor_roughness' or 'conductor_alpha', not both")
+        au = av = (table.number("conductor_alpha", None, minimum=0.0, maximum=1.0) if "conductor_alpha" in table
+                   else table.number("conductor_roughness", 0.0, minimum=0.0, maximum=1.0) ** 2)
+    material.params.update(conductor_alpha_u=au, conductor_alpha_v=av,
+                           thickness=table.number("thickness", 0.01, minimum=0.0),
+                           max_depth=_count(table, "max_depth", 10), samples=_count(table, "samples", 1))
+
+
+def _count(table, key, default) -> int:
+    value = table.number(key, default, minimum=1)
+    if value != int(value) or value > 1000:
+        raise table.error(f"'{key}' must be a whole number from 1 to 1000, got {value}")
+    return int(value)
+
+
+def pack(material, record) -> None:
+    """The coating's distribution and index; the metal's eta and k relative to the coating (divided by
+    its index, as pbrt-v4 puts the metal under it); the layer's block in ``table``."""
+    pack_distribution(material, record)
+    record["ior"] = material.ior
+    eta = material.eta if material.eta is not None else METALS["copper"][0]
+    k = material.k if material.k is not None else METALS["copper"][1]
+    record["eta"] = tuple(float(x) / material.ior for x in eta)
+    record["k"] = tuple(float(x) / material.ior for x in k)
+    for i, key in enumerate(LAYER):
+        record["table"][i] = float(material.params.get(key, DEFAULTS[key]))
