@@ -249,8 +249,8 @@ def test_spd_conductor_spectra_are_gold(tmp_path):
     # coatedconductor's conductor.eta / conductor.k read the same files the same way
     s2, _ = load(write(tmp_path, 'WorldBegin\nMaterial "coatedconductor" "spectrum conductor.eta" "spds/Au.eta.spd" '
                                  '"spectrum conductor.k" "spds/Au.k.spd"\n' + TRIANGLE, name="c.pbrt"))
-    inner = s2.materials[s2.face_materials[0]]  # under the coating: divided by interface.eta, 1.5
-    assert np.allclose(np.multiply(inner.eta, 1.5), mat.eta) and np.allclose(np.multiply(inner.k, 1.5), mat.k)
+    inner = s2.materials[s2.face_materials[0]].record()  # under the coating: divided by interface.eta, 1.5
+    assert np.allclose(inner["eta"] * 1.5, mat.eta, rtol=1e-6) and np.allclose(inner["k"] * 1.5, mat.k, rtol=1e-6)
 
 
 def test_spd_reflectance_and_emission(tmp_path):
@@ -321,34 +321,36 @@ def _material(tmp_path, text, name="m.pbrt"):
 
 def test_coatedconductor_reads_pbrt_v4s_prefixed_parameters(tmp_path):
     """pbrt-v4's coatedconductor parameters (materials.cpp: conductor.eta, conductor.k or reflectance,
-    conductor.roughness / uroughness / vroughness, interface.eta, interface.roughness, ...): the metal
-    as pbrt puts it under the coating (eta and k divided by interface.eta; reflectance r as eta 1,
-    k = 2 sqrt(r) / sqrt(1 - r)), GGX alpha = hypot(conductor alpha, interface alpha) with pbrt's
-    alpha = sqrt(roughness); the approximation is one warning."""
+    conductor.roughness / uroughness / vroughness, interface.eta, interface.roughness, thickness,
+    maxdepth, nsamples) as our coatedconductor's record: the metal as pbrt puts it under the coating
+    (eta and k divided by interface.eta; reflectance r as eta 1, k = 2 sqrt(r) / sqrt(1 - r)), each
+    layer's GGX alpha = sqrt(roughness) (pbrt's RoughnessToAlpha), no warning."""
     m, warned = _material(tmp_path, 'Material "coatedconductor" "rgb conductor.eta" [0.2 0.4 1.0] '
                                     '"rgb conductor.k" [3 2.5 2] "float conductor.roughness" 0.04 '
                                     '"float interface.roughness" 0.09 "float thickness" 0.02')
-    assert m.type == "conductor"
-    assert np.allclose(m.eta, np.array([0.2, 0.4, 1.0]) / 1.5) and np.allclose(m.k, np.array([3, 2.5, 2]) / 1.5)
-    assert np.isclose(m.alpha, np.hypot(0.2, 0.3)) and m.alpha_v is None
-    assert len(warned) == 1 and re.search(r':2: Material "coatedconductor": approximated by its conductor under the '
-                                          r"coating \(eta and k divided by interface\.eta 1\.5", warned[0]), warned
+    rec = m.record()
+    assert m.type == "coatedconductor" and warned == []
+    assert np.allclose(rec["eta"], np.array([0.2, 0.4, 1.0]) / 1.5) and np.allclose(rec["k"], np.array([3, 2.5, 2]) / 1.5)
+    assert np.isclose(rec["alpha"], 0.3) and m.alpha_v is None and np.isclose(rec["ior"], 1.5)
+    assert np.allclose(rec["table"][:5], [0.2, 0.2, 0.02, 10, 1])
     # anisotropic conductor, smooth coating of 1.33, no remapping
     m, _ = _material(tmp_path, 'Material "coatedconductor" "rgb conductor.eta" [1 1 1] "rgb conductor.k" [2 2 2] '
                                '"float conductor.uroughness" 0.1 "float conductor.vroughness" 0.5 '
                                '"float interface.eta" 1.33 "bool remaproughness" false')
-    assert np.allclose(m.eta, 1 / 1.33) and np.allclose(m.k, 2 / 1.33)
-    assert np.isclose(m.alpha, 0.1) and np.isclose(m.alpha_v, 0.5)
+    rec = m.record()
+    assert np.allclose(rec["eta"], 1 / 1.33) and np.allclose(rec["k"], 2 / 1.33) and rec["alpha"] == 0.0
+    assert np.allclose(rec["table"][:2], [0.1, 0.5]) and m.is_anisotropic
     # reflectance, as pbrt-v4 turns it into eta and k
     m, _ = _material(tmp_path, 'Material "coatedconductor" "rgb reflectance" [0.9 0.5 0.2]')
     r = np.array([0.9, 0.5, 0.2])
-    assert np.allclose(m.eta, 1 / 1.5) and np.allclose(m.k, 2 * np.sqrt(r) / np.sqrt(1 - r) / 1.5)
-    assert m.alpha == 0.0
+    rec = m.record()
+    assert np.allclose(rec["eta"], 1 / 1.5) and np.allclose(rec["k"], 2 * np.sqrt(r) / np.sqrt(1 - r) / 1.5)
     # neither: pbrt's copper
     from pyopencl_rt.scene.loaders.mitsuba_metals import CONDUCTORS
 
-    m, _ = _material(tmp_path, 'Material "coatedconductor"')
-    assert np.allclose(m.eta, np.array(CONDUCTORS["Cu"][0]) / 1.5) and np.allclose(m.k, np.array(CONDUCTORS["Cu"][1]) / 1.5)
+    rec = _material(tmp_path, 'Material "coatedconductor"')[0].record()
+    assert np.allclose(rec["eta"], np.array(CONDUCTORS["Cu"][0]) / 1.5)
+    assert np.allclose(rec["k"], np.array(CONDUCTORS["Cu"][1]) / 1.5)
 
 
 def test_coatedconductor_with_reflectance_and_eta_is_one_error_line(tmp_path):
