@@ -67,7 +67,7 @@ assert TRIANGLE.itemsize == 48
 
 # A material (464 bytes).  type selects the BSDF (cl/materials/dispatch.h dispatches on it; each type is
 # documented at the top of cl/materials/<name>.h); every type may also emit.
-#   albedo    diffuse: reflectance; gltf, principled, principledthin: base colour; plastic,
+#   albedo    diffuse, diffusetransmission: reflectance; gltf, principled, principledthin: base colour; plastic,
 #             roughplastic: diffuse_reflectance
 #   emission  emitted radiance (any type)
 #   flags     bit 0: emission on both sides (default: only on the side the geometric normal
@@ -84,7 +84,7 @@ assert TRIANGLE.itemsize == 48
 #             it, alpha_v along the bitangent; bit 13 (MATERIAL_FLAG_SEPARABLE): conductor, dielectric:
 #             Mitsuba's separable shadowing-masking G1(wo) G1(wi) (else height-correlated)
 #   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes;
-#             plastic, roughplastic: specular_reflectance
+#             plastic, roughplastic: specular_reflectance; diffusetransmission: transmittance
 #   alpha     microfacet roughness alpha (conductor, dielectric: alpha_u with
 #             MATERIAL_FLAG_ANISOTROPIC; gltf: GGX; < 1e-3 is perfectly smooth);
 #             roughplastic: the distribution's alpha (clamped to >= 1e-4, as Mitsuba's)
@@ -108,10 +108,10 @@ assert TRIANGLE.itemsize == 48
 #   table        roughplastic: the rough interface's external transmittance at cos(theta) =
 #                k / 63, k = 0..63 (Mitsuba's table, interpolated linearly); coatedconductor: its
 #                layer's parameter block, COATED_* of cl/materials/coatedconductor.h
-#   (mix: metallic the blend weight, rates[0] and rates[1] the two blended records' indices, as floats;
-#   cl/materials/mix.h resolves it to one of them before shading)
+#   (mix: metallic the blend weight, rates[0..1] the blended records' indices as floats; cl/materials/mix.h)
 MATERIAL_TYPES = define_enum("MATERIAL_", ("diffuse", "conductor", "dielectric", "gltf", "plastic", "roughplastic",
-                                           "principled", "principledthin", "mix", "roughdiffuse", "coatedconductor"))
+                                           "principled", "principledthin", "mix", "roughdiffuse", "coatedconductor",
+                                           "diffusetransmission"))
 (MATERIAL_DIFFUSE, MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_GLTF, MATERIAL_PLASTIC, MATERIAL_ROUGHPLASTIC,
  MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLEDTHIN, MATERIAL_MIX, *_) = MATERIAL_TYPES.values()
 MATERIAL_FLAG_TWO_SIDED = define("MATERIAL_FLAG_TWO_SIDED", 1)

@@ -300,6 +300,8 @@ CHI2_CASES = {
     "principledthin_spec_10": (principledthin(roughness=0.2, spec_trans=1.0, eta=1.2), 1, 10),
     "roughdiffuse_a0.5_60": (Material("rd", type="roughdiffuse", alpha=0.5), 1, 60),
     "roughdiffuse_fast_a1_85": (Material("rd", type="roughdiffuse", alpha=1.0, params={"fast_approx": True}), 0, 85),
+    "diffusetransmission_35": (Material("dt", type="diffusetransmission", albedo=(0.2, 0.5, 0.1), tint=(0.6, 0.3, 0.9)),
+                               1, 35),
 }
 
 N_CHI2 = 400_000

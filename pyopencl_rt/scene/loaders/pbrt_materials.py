@@ -9,7 +9,8 @@
 | ``coatedconductor`` | ``coatedconductor`` (pbrt-v4's layered BSDF, its random walk): ``interface.eta`` and ``interface.*roughness``, ``conductor.eta``/``conductor.k`` (or ``reflectance``) and ``conductor.*roughness``, ``thickness``, ``maxdepth``, ``nsamples``; ``albedo`` > 0 (a scattering coating) refused |
 | ``interface`` (and ``""``, ``none``: pbrt-v4's old names) | no surface: its shapes only bound media (index-matched: pbrt_media.py) |
 | ``mix`` | ``mix`` of the two named ``materials``, weight ``amount`` (a float or a texture; 1 is the second) |
-| others (``diffusetransmission``, ``hair``, ``measured``, ``subsurface``) | an error naming the type (never replaced) |
+| ``diffusetransmission`` | ``diffusetransmission``: ``reflectance`` (a texture too), ``transmittance`` (0.25 each), ``scale``; a transmittance texture is an error |
+| others (``hair``, ``measured``, ``subsurface``) | an error naming the type (never replaced) |
 
 Roughness: ``roughness`` (or the mean of ``uroughness`` and ``vroughness``, with a warning when they
 differ) becomes GGX alpha = sqrt(roughness) when ``remaproughness`` is true (the default), as
@@ -376,6 +377,9 @@ class MaterialMapper:
         imp = self.imp
         self._count += 1
         mat = Material(name=name or f"{mtype}#{self._count}")
+        transmittance = p.get("transmittance")
+        if mtype == "diffusetransmission" and transmittance is not None and transmittance.type == "texture":
+            raise error_at(p.items["transmittance"].pos, f'{what}: a "texture transmittance" is not supported')
         for q in list(p.items.values()):  # textures where we take a number (roughness, eta, ...)
             if q.type == "texture" and not q.name.endswith("reflectance") and not (mtype == "mix" and q.name == "amount"):
                 imp.warn(q.pos, f'{what}: "texture {q.name}": textures are not supported here; using the default')
@@ -411,6 +415,14 @@ class MaterialMapper:
             for key in ("thickness", "g", "maxdepth", "nsamples"):
                 if key in p:
                     p.items[key].used = True
+        elif mtype == "diffusetransmission":  # pbrt-v4's: scale times each of the two, clamped to [0, 1]
+            mat.type = "diffusetransmission"
+            scale = p.float("scale", 1.0)
+            rgb, mat.base_texture = self.color(p, "reflectance", (0.25, 0.25, 0.25))
+            if mat.base_texture is not None and scale > 1:
+                raise error_at(pos, f"{what}: a reflectance texture with scale > 1 is not supported")
+            t = spectrum_rgb(imp, p, "transmittance", (0.25, 0.25, 0.25))
+            mat.albedo, mat.tint = (tuple(min(max(scale * c, 0.0), 1.0) for c in v) for v in (rgb, t))
         elif mtype in ("interface", "", "none"):  # pbrt-v4's Material::Create: "" and "none" are "interface"
             return None
         elif mtype == "mix":
