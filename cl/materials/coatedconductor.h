@@ -196,6 +196,18 @@ RT_INLINE pfloat coat_weight(const CoatSample *s)
 #define COAT_IMPORTANCE 0, 0, 1
 
 /* The estimate of f(wo, wi), times cos_i (both above the surface), pbrt-v4's LayeredBxDF::f */
+/* The walks' first two draws, as pbrt-v4's f and PDF make them: the coating's transmitted samples of
+ * wo (radiance) and of wi (importance); the lanes where both exist */
+RT_INLINE pint coat_through(const CoatedConductorParams *p, pint live, pvec3 wo, pvec3 wi, CoatRng *r, CoatSample *wos,
+                            CoatSample *wis)
+{
+    const pfloat a0 = coat_next(r), a1 = coat_next(r), a2 = coat_next(r);
+    *wos = coat_sample(p, live, wo, a0, a1, a2, COAT_RADIANCE);
+    const pfloat b0 = coat_next(r), b1 = coat_next(r), b2 = coat_next(r);
+    *wis = coat_sample(p, live, wi, b0, b1, b2, COAT_IMPORTANCE);
+    return live & wos->ok & wis->ok;
+}
+
 /* not inlined (nor coated_pdf, coatedconductor_sample): each walk is large, and kernels call the BSDF
  * from several places; inlined, this type alone more than doubled the build of a kernel with every type */
 __attribute__((noinline)) pvec3 coated_f(const CoatedConductorParams *p, pint active, pvec3 wo, pvec3 wi)
@@ -208,11 +220,8 @@ __attribute__((noinline)) pvec3 coated_f(const CoatedConductorParams *p, pint ac
     CoatRng r = coat_rng(0u, wo, wi);
     for (int s = 0; pany(ok & (PINT(s) < p->samples)); ++s) {
         pint live = ok & (PINT(s) < p->samples);
-        const pfloat a0 = coat_next(&r), a1 = coat_next(&r), a2 = coat_next(&r);
-        const CoatSample wos = coat_sample(p, live, wo, a0, a1, a2, COAT_RADIANCE);
-        const pfloat b0 = coat_next(&r), b1 = coat_next(&r), b2 = coat_next(&r);
-        const CoatSample wis = coat_sample(p, live, wi, b0, b1, b2, COAT_IMPORTANCE);
-        live &= wos.ok & wis.ok;
+        CoatSample wos, wis;
+        live = coat_through(p, live, wo, wi, &r, &wos, &wis);
         const pfloat bw = coat_weight(&wos);
         pvec3 beta = pv3(bw, bw, bw), w = wos.wi;
         const pvec3 wis_up = pv3_neg(wis.wi);
@@ -277,11 +286,8 @@ __attribute__((noinline)) pfloat coated_pdf(const CoatedConductorParams *p, pint
     CoatRng r = coat_rng(1u, wi, wo);
     for (int s = 0; pany(ok & (PINT(s) < p->samples)); ++s) {
         pint live = ok & (PINT(s) < p->samples);
-        const pfloat a0 = coat_next(&r), a1 = coat_next(&r), a2 = coat_next(&r);
-        const CoatSample wos = coat_sample(p, live, wo, a0, a1, a2, COAT_RADIANCE);
-        const pfloat b0 = coat_next(&r), b1 = coat_next(&r), b2 = coat_next(&r);
-        const CoatSample wis = coat_sample(p, live, wi, b0, b1, b2, COAT_IMPORTANCE);
-        live &= wos.ok & wis.ok;
+        CoatSample wos, wis;
+        live = coat_through(p, live, wo, wi, &r, &wos, &wis);
         const pvec3 wos_up = pv3_neg(wos.wi), wis_up = pv3_neg(wis.wi);
         pfloat pb;
         (void)conductor_eval(&p->metal, live, wos_up, wis_up, &pb); /* 0 for a smooth conductor */

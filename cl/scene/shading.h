@@ -48,7 +48,9 @@
  *                                   et al. 2019: 2 / (1 + sqrt(1 + a2 tan^2 theta_i)), a2 =
  *                                   min(tan^2 theta_n / 8, 1), angles to the shading normal
  *                   A viewer on the shading normal's back side sees the map mirrored through the
- *                   tangent plane (Mitsuba's twosided around the wrapper).
+ *                   tangent plane (Mitsuba's twosided around the wrapper); with MAP_WHOLE (pbrt-v4's
+ *                   normal and bump maps: the map tilts the frame, a two-sided BSDF sees it from
+ *                   behind) the tilted normal negated whole.
  *   tangent         (HAS_ANISOTROPY: the lanes of MATERIAL_FLAG_ANISOTROPIC) the direction of the
  *                   BSDF frame's x axis, as Mitsuba's sh_frame.s: dp/du of the triangle from its
  *                   vertices and UVs (a triangle without a UV parameterisation: its edge v1 - v0,
@@ -202,6 +204,8 @@ RT_INLINE pint map_normal_lanes(__global const float4 *tris, __global const floa
     const pfloat cos_o = pv3_dot(wo, N);
     const pvec3 Nv = pv3_sel(pv3_neg(N), N, cos_o >= 0.0f);
     pvec3 n = pv3_add(pv3_add(pv3_scale(S, tn.x), pv3_scale(T, tn.y)), pv3_scale(Nv, tn.z));
+    const pint whole = (cos_o < 0.0f) & ((flags & MATERIAL_FLAG_MAP_WHOLE) != 0);
+    n = pv3_sel(n, pv3_neg(pv3_add(pv3_add(pv3_scale(S, tn.x), pv3_scale(T, tn.y)), pv3_scale(N, tn.z))), whole);
     const pint flip = ((flags & MATERIAL_FLAG_MAP_FLIP) != 0) & (pabs(cos_o) * pv3_dot(wo, n) <= 0.0f);
     n = pv3_sel(n, pv3_sub(pv3_sub(pv3_scale(Nv, tn.z), pv3_scale(S, tn.x)), pv3_scale(T, tn.y)), flip);
     n = pv3_normalize(n, mapped);

@@ -41,9 +41,8 @@ def define_enum(prefix: str, names) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------
-# BVH node (64 bytes).  A binary BVH in which each node stores the boxes of *both* children
-# (the layout of Aila & Laine 2009), so one node fetch gives the traversal loop everything it needs to
-# test two boxes and decide the order.  Node 0 is the root.
+# BVH node (64 bytes): a binary BVH whose nodes hold the boxes of *both* children (Aila & Laine 2009's
+# layout), so a node fetch gives the traversal loop all it needs to test two boxes and pick the order; node 0: the root.
 #
 #   child_left / child_right : when the matching count is 0, index of the child node;
 #                              when count > 0, the child is a leaf holding triangles
@@ -125,6 +124,7 @@ MATERIAL_FLAG_VERTEX_COLOR = define("MATERIAL_FLAG_VERTEX_COLOR", 32)
 MATERIAL_FLAG_MAP_FLIP = define("MATERIAL_FLAG_MAP_FLIP", 64)
 MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
 MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
+MATERIAL_FLAG_MAP_WHOLE = define("MATERIAL_FLAG_MAP_WHOLE", 65536)  # pbrt's maps seen from behind: cl/scene/shading.h
 MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)  # dielectric: a thin sheet, Mitsuba's thindielectric
 # MASK: Mitsuba's mask, met with probability `opacity` (cl/render/path.h); ONE_SIDED: black from behind (Mitsuba's
 # BSDFs outside twosided); CUTOUT: a cut-out in the intersection, alpha `opacity`, `alpha_cutoff` (cl/scene/scene.h)

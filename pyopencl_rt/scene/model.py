@@ -27,7 +27,7 @@ assert set(SAMPLERS) == set(abi.SAMPLERS)
 AOVS = ("albedo", "normal", "depth", "position", "variance", "spp")
 # the rules of Mitsuba's normalmap and bumpmap wrappers a material's map may follow (Material)
 MAP_CONVENTIONS = {"flip": abi.MATERIAL_FLAG_MAP_FLIP, "terminator": abi.MATERIAL_FLAG_MAP_TERMINATOR,
-                   "side": abi.MATERIAL_FLAG_MAP_SIDE}
+                   "side": abi.MATERIAL_FLAG_MAP_SIDE, "whole": abi.MATERIAL_FLAG_MAP_WHOLE}
 MITSUBA_MAP = ("flip", "terminator", "side")  # Mitsuba's defaults
 
 
@@ -80,7 +80,8 @@ class Material:
     # normal); normal_scale multiplies the normal map's x and y, or the height map's gradient.
     # map_conventions: which of Mitsuba's wrappers' rules apply (cl/scene/shading.h): "flip"
     # (flip_invalid_normals), "terminator" (use_shadowing_function) and "side" (directions on
-    # opposite sides of the shading and perturbed frames give 0), a subset of MAP_CONVENTIONS.
+    # opposite sides of the shading and perturbed frames give 0), a subset of MAP_CONVENTIONS; "whole"
+    # (pbrt-v4's maps: seen from behind, the tilted normal is negated whole, not mirrored).
     normal_texture: object = None
     bump_map: bool = False
     normal_scale: float = 1.0

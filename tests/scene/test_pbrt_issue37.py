@@ -518,3 +518,60 @@ def test_named_metal_spectra_are_mitsubas_conductors_and_brass_is_refused(tmp_pa
     path = write(tmp_path, 'WorldBegin\nMaterial "conductor" "spectrum eta" "metal-CuZn-eta"\n' + TRIANGLE)
     with pytest.raises(SceneError, match=r':2: Material "conductor": spectrum "metal-CuZn-eta" is not supported'):
         load_scene(path)
+
+
+# -- (g) displacement: bump mapping by a float texture ------------------------------------------------------
+
+def test_displacement_texture_is_a_bump_map_of_the_channel_average(tmp_path):
+    """pbrt-v4's "texture displacement" (BumpMap) becomes our bump map of the texture (no warning): its
+    texels the average of the image's channels (pbrt's float image textures), times the texture's
+    scale, looked up with its uv mapping; a constant displacement tilts nothing; a normal map wins."""
+    from PIL import Image
+
+    Image.fromarray(np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [255, 255, 255]]], np.uint8)).save(
+        tmp_path / "h.png")
+    tex = 'Texture "h" "float" "imagemap" "string filename" "h.png" "string encoding" "linear" "float scale" 0.5 ' \
+          '"float uscale" 2\n'
+    s, warned = load(write(tmp_path, f'WorldBegin\n{tex}Material "diffuse" "texture displacement" "h"\n{TRIANGLE}'))
+    mat = s.materials[s.face_materials[0]]
+    assert warned == [] and mat.bump_map and mat.normal_scale == 1.0
+    texels = mat.normal_texture.texels[..., :3]
+    assert np.allclose(texels, np.array([[1, 1], [1, 3]])[..., None] / 3 * 0.5, atol=1e-6)
+    assert mat.normal_texture.to_uv[0] == 2.0  # pbrt's uscale
+    s, warned = load(write(tmp_path, 'WorldBegin\nTexture "c" "float" "constant" "float value" 0.3\n'
+                                     f'Material "diffuse" "texture displacement" "c"\n{TRIANGLE}'))
+    assert warned == [] and s.materials[s.face_materials[0]].normal_texture is None
+    Image.new("RGB", (2, 2), (128, 128, 255)).save(tmp_path / "n.png")
+    s, _ = load(write(tmp_path, f'WorldBegin\n{tex}Material "diffuse" "texture displacement" "h" '
+                                f'"string normalmap" "n.png"\n{TRIANGLE}'))
+    assert not s.materials[s.face_materials[0]].bump_map
+
+
+@pytest.mark.parametrize("whole", [True, False])
+def test_a_bump_map_seen_from_behind_is_pbrts(tmp_path, whole):
+    """pbrt-v4 displaces along the surface's own normal (the triangles' winding) and its two-sided BSDF
+    sees the tilted frame from behind, so a bumped panel seen from behind shows the height field
+    inverted: the panel wound the other way under the height h renders as the first under -h.  Mitsuba's
+    rule (the map mirrored through the tangent plane for a viewer behind it, our other convention)
+    shows the same bumps from both sides: the mutation (map_conventions emptied) fails it."""
+    from PIL import Image
+
+    from pyopencl_rt.render.api import render_full
+
+    y, x = np.mgrid[0:32, 0:32] / 32
+    Image.fromarray(np.round((0.5 + 0.25 * np.sin(2 * np.pi * x) + 0.25 * np.cos(2 * np.pi * y)) * 255)
+                    .astype(np.uint8), "L").save(tmp_path / "h.png")
+    images = []
+    for indices, scale in (("0 1 2 0 2 3", 0.4), ("0 2 1 0 3 2", -0.4)):
+        s, _ = load(write(tmp_path, 'LookAt 0 0 -3  0 0 0  0 1 0\nCamera "perspective" "float fov" 40\n'
+                                    'Film "rgb" "integer xresolution" 32 "integer yresolution" 24\nWorldBegin\n'
+                                    'LightSource "distant" "point3 from" [0 1 -1] "point3 to" [0 0 0] "rgb L" [3 3 3]\n'
+                                    f'Texture "h" "float" "imagemap" "string filename" "h.png" "float scale" {scale}\n'
+                                    'Material "conductor" "float roughness" 0.1 "texture displacement" "h"\n'
+                                    f'Shape "trianglemesh" "integer indices" [{indices}] '
+                                    '"point3 P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] "point2 uv" [0 0  1 0  1 1  0 1]\n'))
+        if not whole:
+            s.materials[0].map_conventions = ()
+        images.append(render_full(s, seed=3).image.astype(np.float64))
+    diff = np.abs(images[0] - images[1]).mean() / images[0].mean()
+    assert (diff < 1e-3) if whole else (diff > 0.05), diff

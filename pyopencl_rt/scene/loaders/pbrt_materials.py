@@ -381,7 +381,8 @@ class MaterialMapper:
         if mtype == "diffusetransmission" and transmittance is not None and transmittance.type == "texture":
             raise error_at(p.items["transmittance"].pos, f'{what}: a "texture transmittance" is not supported')
         for q in list(p.items.values()):  # textures where we take a number (roughness, eta, ...)
-            if q.type == "texture" and not q.name.endswith("reflectance") and not (mtype == "mix" and q.name == "amount"):
+            if q.type == "texture" and not q.name.endswith("reflectance") and q.name != "displacement" and \
+                    not (mtype == "mix" and q.name == "amount"):
                 imp.warn(q.pos, f'{what}: "texture {q.name}": textures are not supported here; using the default')
                 q.used = True
                 del p.items[q.name]
@@ -434,8 +435,7 @@ class MaterialMapper:
             imp.warn(pos, f"{what}: reflectance {tuple(mat.albedo)} clamped to [0, 1]")
             mat.albedo = clipped
         if "displacement" in p:
-            imp.warn(p.items["displacement"].pos, f"{what}: displacement is not supported; ignored")
-            p.items["displacement"].used = True
+            self._displacement(mat, p)
         fname = p.string("normalmap") if "normalmap" in p else None
         if fname:  # pbrt-v4's NormalMap(): linear RGB, the shading frame of dp/du, no other rule
             from ..textures import texture_from_image
@@ -443,10 +443,34 @@ class MaterialMapper:
             path = pbrt_path(p.items["normalmap"].pos, imp.path.parent, fname, f"{what}: normal map")
             try:
                 mat.normal_texture = texture_from_image(path, srgb=False)
+                mat.map_conventions = ("whole",)
             except Exception as exc:
                 raise error_at(p.items["normalmap"].pos, f"{what}: cannot read normal map '{fname}' "
                                                          f"({type(exc).__name__}: {exc})") from None
         return mat
+
+    def _displacement(self, mat, p) -> None:
+        """pbrt-v4's bump mapping by a float "displacement" texture (its BumpMap): the shading frame's
+        dp/du and dp/dv tilted along the normal by the texture's derivatives in (u, v), the normal their
+        cross product.  Ours is Mitsuba's bumpmap (cl/scene/shading.h) with the bilinear lookup's
+        derivative where pbrt takes a finite difference over the ray's footprint, and without pbrt's
+        term of the displacement times the change of interpolated normals (0 on flat faces).  An
+        image's channels are averaged, as pbrt-v4's float image textures average them.  A constant
+        displacement tilts nothing; a normal map takes precedence, as in pbrt-v4."""
+        from ..textures import Texture
+
+        q = p.items["displacement"]
+        q.used = True
+        if q.type != "texture" or "normalmap" in p:
+            return
+        _, tex = self.color(p, "displacement", (0.0, 0.0, 0.0))
+        if tex is None:
+            return
+        texels = tex.texels.copy()
+        texels[..., :3] = texels[..., :3].mean(axis=-1, keepdims=True)
+        mat.normal_texture = Texture(texels, srgb=False, channels=1, name=tex.name, wrap=tex.wrap,
+                                     filter=tex.filter, to_uv=tex.to_uv)
+        mat.bump_map, mat.normal_scale, mat.map_conventions = True, 1.0, ("whole",)
 
     def _mix(self, mat, p, pos, what) -> Material:
         """pbrt-v4's MixMaterial: materials[1] with probability ``amount`` (default 0.5), else materials[0]."""
