@@ -549,8 +549,9 @@ def main(argv=None):
     """Entry point: user errors become one line on stderr and a non-zero exit code (1 for bad
     input, 2 for a wrong command line, 130 when interrupted); warnings (e.g. a scene file's
     unsupported elements) one line each, all through one logger (errors.report_to_stderr)."""
-    from .errors import report_to_stderr
+    from .errors import report_to_stderr, watch_sigint
 
+    watch_sigint()
     report_to_stderr()
     try:
         cli.main(args=argv, prog_name="pyopencl-rt", standalone_mode=False)

@@ -7,7 +7,9 @@ both through one logger, ``logging.getLogger("pyopencl_rt")``, as single lines
 ``pyopencl-rt: error: ...`` and ``pyopencl-rt: warning: ...`` (:func:`report_to_stderr`).
 """
 import logging
+import signal
 import sys
+import threading
 import warnings
 
 LOGGER = logging.getLogger("pyopencl_rt")
@@ -80,3 +82,31 @@ def report_to_stderr() -> None:
     LOGGER.propagate = False
     warnings.formatwarning = lambda message, category, *args, **kwargs: f"pyopencl-rt: warning: {one_line(message)}\n"
     warnings.showwarning = _show_warning
+
+
+# A Ctrl-C (SIGINT) seen by the CLI, set by watch_sigint()'s handler.  Python raises the
+# KeyboardInterrupt wherever the main thread is, and where that is a callback whose exceptions are
+# ignored (an import's module-lock weakref callback, during start-up) the interrupt was lost and
+# the render went on to the end; render.checkpoint.stop_on_signals reads this flag, so such a
+# signal still stops the render before its first pass.
+SIGINT_SEEN = threading.Event()
+
+
+def watch_sigint() -> None:
+    """From the CLI's start: SIGINT records itself in SIGINT_SEEN, then interrupts as Python does; a
+    KeyboardInterrupt that Python has to ignore (raised in such a callback) is not printed, since it
+    is recorded (Python would print it with a traceback)."""
+
+    def handler(signum, frame):
+        SIGINT_SEEN.set()
+        raise KeyboardInterrupt
+
+    default_hook = sys.unraisablehook
+
+    def unraisable(info):
+        if not (isinstance(info.exc_value, KeyboardInterrupt) and SIGINT_SEEN.is_set()):
+            default_hook(info)
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, handler)
+        sys.unraisablehook = unraisable

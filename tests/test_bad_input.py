@@ -515,3 +515,35 @@ def test_adaptive_from_the_scene_file_refused_where_it_cannot_run(tmp_path, monk
         rt.render_full(str(scene), spp=1, width=4, height=4, scheduler="local:1")
     with pytest.raises(UserError, match="cannot be combined with --resume"):
         rt.render_full(str(scene), spp=1, width=4, height=4, checkpoint=str(tmp_path / "c.npz"), resume=True)
+
+
+def test_a_ctrl_c_python_had_to_ignore_still_stops_the_render():
+    """A SIGINT whose KeyboardInterrupt lands in a callback Python ignores (seen during start-up under
+    load: an import's module-lock callback; the render then went on to the end and exited 0) is still
+    recorded: the render's signal watch starts stopped, and the ignored exception prints nothing."""
+    import pyopencl_rt.errors as errors
+    from pyopencl_rt.render.checkpoint import stop_on_signals
+
+    saved = signal.getsignal(signal.SIGINT), sys.unraisablehook
+    try:
+        errors.watch_sigint()
+        with stop_on_signals() as stop:
+            assert not stop.is_set()
+        with pytest.raises(KeyboardInterrupt):
+            signal.raise_signal(signal.SIGINT)
+        assert errors.SIGINT_SEEN.is_set()
+        with stop_on_signals() as stop:
+            assert stop.is_set()
+        printed = []
+        sys.stderr, real = type("W", (), {"write": lambda self, s: printed.append(s), "flush": lambda self: None})(), \
+            sys.stderr
+        try:
+            sys.unraisablehook(type("U", (), {"exc_type": KeyboardInterrupt, "exc_value": KeyboardInterrupt(),
+                                              "exc_traceback": None, "err_msg": None, "object": None})())
+        finally:
+            sys.stderr = real
+        assert printed == []
+    finally:
+        errors.SIGINT_SEEN.clear()
+        signal.signal(signal.SIGINT, saved[0])
+        sys.unraisablehook = saved[1]

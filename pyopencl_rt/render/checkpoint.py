@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import SIGINT_SEEN, UserError
 from .film import Film
 from .settings import ImageSettings
 
@@ -170,6 +170,8 @@ def stop_on_signals(enabled: bool = True):
     saved = {}
     for sig in (signal.SIGINT, signal.SIGTERM):
         saved[sig] = signal.signal(sig, handler)
+    if SIGINT_SEEN.is_set():  # a Ctrl-C during start-up whose KeyboardInterrupt was swallowed
+        stop.set()
     try:
         yield stop
     finally:

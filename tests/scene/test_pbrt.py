@@ -300,7 +300,7 @@ def test_materials(tmp_path):
         'Material "dielectric": glass-BK7 rendered without dispersion, at its d-line index 1.5168',
         'material "thin": approximated by a dielectric interface (a thin sheet refracts instead of passing light '
         'straight through)']
-    for kind in ("hair", "measured", "subsurface", "diffusetransmission"):  # refused, never replaced
+    for kind in ("hair", "measured", "subsurface"):  # refused, never replaced
         with pytest.raises(SceneError, match=f':3: Material "{kind}": material type "{kind}" is not supported$'):
             world(tmp_path, f'Material "{kind}" {TRIANGLE}')
     with pytest.raises(SceneError, match=r'material "skin": material type "subsurface" is not supported$'):
