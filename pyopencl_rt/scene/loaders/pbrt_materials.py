@@ -443,7 +443,6 @@ class MaterialMapper:
             path = pbrt_path(p.items["normalmap"].pos, imp.path.parent, fname, f"{what}: normal map")
             try:
                 mat.normal_texture = texture_from_image(path, srgb=False)
-                mat.map_conventions = ("whole",)
             except Exception as exc:
                 raise error_at(p.items["normalmap"].pos, f"{what}: cannot read normal map '{fname}' "
                                                          f"({type(exc).__name__}: {exc})") from None
