@@ -49,8 +49,8 @@
  *                                   min(tan^2 theta_n / 8, 1), angles to the shading normal
  *                   A viewer on the shading normal's back side sees the map mirrored through the
  *                   tangent plane (Mitsuba's twosided around the wrapper); with MAP_WHOLE (pbrt-v4's
- *                   bump maps: the map tilts the frame, a two-sided BSDF sees it from behind) the
- *                   tilted normal negated whole.
+ *                   normal and bump maps: the map tilts the frame, a two-sided BSDF sees it from
+ *                   behind) the tilted normal negated whole.
  *   tangent         (HAS_ANISOTROPY: the lanes of MATERIAL_FLAG_ANISOTROPIC) the direction of the
  *                   BSDF frame's x axis, as Mitsuba's sh_frame.s: dp/du of the triangle from its
  *                   vertices and UVs (a triangle without a UV parameterisation: its edge v1 - v0,

@@ -124,7 +124,7 @@ MATERIAL_FLAG_VERTEX_COLOR = define("MATERIAL_FLAG_VERTEX_COLOR", 32)
 MATERIAL_FLAG_MAP_FLIP = define("MATERIAL_FLAG_MAP_FLIP", 64)
 MATERIAL_FLAG_MAP_TERMINATOR = define("MATERIAL_FLAG_MAP_TERMINATOR", 128)
 MATERIAL_FLAG_MAP_SIDE = define("MATERIAL_FLAG_MAP_SIDE", 256)
-MATERIAL_FLAG_MAP_WHOLE = define("MATERIAL_FLAG_MAP_WHOLE", 65536)  # pbrt's bump maps from behind: cl/scene/shading.h
+MATERIAL_FLAG_MAP_WHOLE = define("MATERIAL_FLAG_MAP_WHOLE", 65536)  # pbrt's maps seen from behind: cl/scene/shading.h
 MATERIAL_FLAG_THIN = define("MATERIAL_FLAG_THIN", 512)  # dielectric: a thin sheet, Mitsuba's thindielectric
 # MASK: Mitsuba's mask, met with probability `opacity` (cl/render/path.h); ONE_SIDED: black from behind (Mitsuba's
 # BSDFs outside twosided); CUTOUT: a cut-out in the intersection, alpha `opacity`, `alpha_cutoff` (cl/scene/scene.h)

@@ -81,7 +81,7 @@ class Material:
     # map_conventions: which of Mitsuba's wrappers' rules apply (cl/scene/shading.h): "flip"
     # (flip_invalid_normals), "terminator" (use_shadowing_function) and "side" (directions on
     # opposite sides of the shading and perturbed frames give 0), a subset of MAP_CONVENTIONS; "whole"
-    # (pbrt-v4's bump maps: seen from behind, the tilted normal is negated whole, not mirrored).
+    # (pbrt-v4's maps: seen from behind, the tilted normal is negated whole, not mirrored).
     normal_texture: object = None
     bump_map: bool = False
     normal_scale: float = 1.0

@@ -437,12 +437,16 @@ class MaterialMapper:
         if "displacement" in p:
             self._displacement(mat, p)
         fname = p.string("normalmap") if "normalmap" in p else None
-        if fname:  # pbrt-v4's NormalMap(): linear RGB, the shading frame of dp/du, no other rule
+        if fname:  # pbrt-v4's NormalMap(): linear RGB in the shading frame of dp/du
             from ..textures import texture_from_image
 
             path = pbrt_path(p.items["normalmap"].pos, imp.path.parent, fname, f"{what}: normal map")
             try:
                 mat.normal_texture = texture_from_image(path, srgb=False)
+                # against pbrt-v4's renders (BENCHMARKS, feature scene normalmap), its map's y runs opposite
+                # to the frame's T of cl/scene/shading.h, and seen from behind it turns whole, as bump maps
+                mat.normal_texture.texels[..., 1] = 1.0 - mat.normal_texture.texels[..., 1]
+                mat.map_conventions = ("whole",)
             except Exception as exc:
                 raise error_at(p.items["normalmap"].pos, f"{what}: cannot read normal map '{fname}' "
                                                          f"({type(exc).__name__}: {exc})") from None
