@@ -195,7 +195,6 @@ RT_INLINE pfloat coat_weight(const CoatSample *s)
 #define COAT_RADIANCE 1, 0, 1 /* radiance transport, transmission only */
 #define COAT_IMPORTANCE 0, 0, 1
 
-/* The estimate of f(wo, wi), times cos_i (both above the surface), pbrt-v4's LayeredBxDF::f */
 /* The walks' first two draws, as pbrt-v4's f and PDF make them: the coating's transmitted samples of
  * wo (radiance) and of wi (importance); the lanes where both exist */
 RT_INLINE pint coat_through(const CoatedConductorParams *p, pint live, pvec3 wo, pvec3 wi, CoatRng *r, CoatSample *wos,
@@ -208,8 +207,9 @@ RT_INLINE pint coat_through(const CoatedConductorParams *p, pint live, pvec3 wo,
     return live & wos->ok & wis->ok;
 }
 
-/* not inlined (nor coated_pdf, coatedconductor_sample): each walk is large, and kernels call the BSDF
- * from several places; inlined, this type alone more than doubled the build of a kernel with every type */
+/* The estimate of f(wo, wi), times cos_i (both above the surface), pbrt-v4's LayeredBxDF::f.  Not
+ * inlined (nor coated_pdf, coatedconductor_sample): each walk is large, and kernels call the BSDF from
+ * several places; inlined, this type alone more than doubled the build of a kernel with every type. */
 __attribute__((noinline)) pvec3 coated_f(const CoatedConductorParams *p, pint active, pvec3 wo, pvec3 wi)
 {
     const pint ok = active & (wo.z > 0.0f) & (wi.z > 0.0f);
@@ -312,8 +312,9 @@ __attribute__((noinline)) pfloat coated_pdf(const CoatedConductorParams *p, pint
 
 /* A sample of pbrt-v4's LayeredBxDF::Sample_f: the weight f |cos| / pdf; *pdf the estimate MIS takes
  * (0 for a delta sample). */
-__attribute__((noinline)) pvec3 coatedconductor_sample(const CoatedConductorParams *p, pint active, pvec3 wo, pfloat u0, pfloat u1, pfloat u2,
-                              pvec3 *wi, pfloat *pdf, pint *delta)
+__attribute__((noinline)) pvec3 coatedconductor_sample(const CoatedConductorParams *p, pint active, pvec3 wo,
+                                                       pfloat u0, pfloat u1, pfloat u2, pvec3 *wi, pfloat *pdf,
+                                                       pint *delta)
 {
     pint ok = active & (wo.z > 0.0f);
     const CoatSample bs = coat_sample(p, ok, wo, u2, u0, u1, 1, 1, 1);

@@ -203,9 +203,10 @@ RT_INLINE pint map_normal_lanes(__global const float4 *tris, __global const floa
     /* a viewer behind N sees the map mirrored through the tangent plane (Mitsuba's twosided) */
     const pfloat cos_o = pv3_dot(wo, N);
     const pvec3 Nv = pv3_sel(pv3_neg(N), N, cos_o >= 0.0f);
-    pvec3 n = pv3_add(pv3_add(pv3_scale(S, tn.x), pv3_scale(T, tn.y)), pv3_scale(Nv, tn.z));
+    const pvec3 tangential = pv3_add(pv3_scale(S, tn.x), pv3_scale(T, tn.y));
+    pvec3 n = pv3_add(tangential, pv3_scale(Nv, tn.z));
     const pint whole = (cos_o < 0.0f) & ((flags & MATERIAL_FLAG_MAP_WHOLE) != 0);
-    n = pv3_sel(n, pv3_neg(pv3_add(pv3_add(pv3_scale(S, tn.x), pv3_scale(T, tn.y)), pv3_scale(N, tn.z))), whole);
+    n = pv3_sel(n, pv3_neg(pv3_add(tangential, pv3_scale(N, tn.z))), whole);
     const pint flip = ((flags & MATERIAL_FLAG_MAP_FLIP) != 0) & (pabs(cos_o) * pv3_dot(wo, n) <= 0.0f);
     n = pv3_sel(n, pv3_sub(pv3_sub(pv3_scale(Nv, tn.z), pv3_scale(S, tn.x)), pv3_scale(T, tn.y)), flip);
     n = pv3_normalize(n, mapped);

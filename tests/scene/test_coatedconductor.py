@@ -21,6 +21,7 @@ from pyopencl_rt.scene.model import Material
 
 import harness
 from test_materials import HARNESS, _bsdf, bsdf_sample, direction, fresnel_complex, fresnel_dielectric, u3
+from test_roughdiffuse import hemisphere
 
 N = 1 << 17
 Z_MAX = 4.5
@@ -69,18 +70,11 @@ def _eval(runtime, m, wo, wi, nee=0):
     return out[:, :3], out[:, 3]
 
 
-def _hemisphere(rng, n):
-    v = rng.normal(size=(n, 3))
-    v /= np.linalg.norm(v, axis=1, keepdims=True)
-    v[:, 2] = np.abs(v[:, 2])
-    return v
-
-
 def _albedos(runtime, rng, m, theta, nee=0):
     """(weights of the non-delta samples, zero elsewhere; f cos / uniform pdf of uniform directions)"""
     wo = direction(np.radians(theta))
     _, w, _, delta = bsdf_sample(runtime, [m], wo, u3(rng, N))
-    f, pdf = _eval(runtime, m, wo, _hemisphere(rng, N), nee)
+    f, pdf = _eval(runtime, m, wo, hemisphere(rng, N), nee)
     assert np.isfinite(f).all() and (pdf > 0).all()
     return np.where(delta[:, None], 0.0, w), f * 2 * np.pi
 

@@ -532,7 +532,6 @@ class MaterialMapper:
         mat.type = "coatedconductor"
         if mat.eta is None:  # reflectance r: pbrt-v4's eta 1 and the k whose normal reflectance is r
             mat.eta, mat.k = reflectance_to_index(mat.f0)
-            mat.f0 = (1.0, 1.0, 1.0)
         mat.alpha, av = self._alphas(p, "interface.")
         mat.alpha_v = av if av != mat.alpha else None
         cu, cv = self._alphas(p, "conductor.")

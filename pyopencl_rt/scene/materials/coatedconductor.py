@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .conductor import METALS
+from .conductor import METALS, read_index
 from .microfacet import DISTRIBUTION_KEYS, ROUGHNESS_KEYS, pack_distribution, read_distribution
 
 TOML_KEYS = ROUGHNESS_KEYS | DISTRIBUTION_KEYS | {
@@ -50,12 +50,7 @@ def read_toml(material, table) -> None:
     if len(given) > 1:
         raise table.error(f"give only one of 'metal', 'eta' and 'k', or 'reflectance' (got {', '.join(given)})")
     if "eta" in table or "k" in table:
-        if "eta" not in table or "k" not in table:
-            raise table.error("'eta' and 'k' (the complex index of refraction eta + i k) go together")
-        eta, k = table.vector("eta", allow_scalar=True), table.vector("k", allow_scalar=True)
-        if not (eta > 0).all() or k.min() < 0:
-            raise table.error(f"'eta' must be > 0 and 'k' >= 0, got {eta.tolist()}, {k.tolist()}")
-        material.eta, material.k = tuple(float(x) for x in eta), tuple(float(x) for x in k)
+        material.eta, material.k = read_index(table)
     elif "reflectance" in table:
         material.eta, material.k = reflectance_to_index(table.rgb01("reflectance", 0.5))
     else:

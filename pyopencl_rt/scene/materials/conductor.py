@@ -38,17 +38,22 @@ def read_toml(material, table) -> None:
     if "metal" in table:
         material.eta, material.k = METALS[table.choice("metal", "metal", METALS)]
     elif "eta" in table or "k" in table:
-        if "eta" not in table or "k" not in table:
-            raise table.error("'eta' and 'k' (the complex index of refraction eta + i k) go together")
-        eta = table.vector("eta", allow_scalar=True)
-        k = table.vector("k", allow_scalar=True)
-        if not (eta > 0).all():
-            raise table.error(f"'eta' must be > 0, got {eta.tolist()}")
-        if k.min() < 0:
-            raise table.error(f"'k' must not be negative, got {k.tolist()}")
-        material.eta, material.k = tuple(float(x) for x in eta), tuple(float(x) for x in k)
+        material.eta, material.k = read_index(table)
     else:
         material.f0 = table.rgb01("f0", 1.0)
+
+
+def read_index(table) -> tuple:
+    """(eta, k) of a table's 'eta' and 'k' (both, eta > 0, k >= 0), as tuples of floats."""
+    if "eta" not in table or "k" not in table:
+        raise table.error("'eta' and 'k' (the complex index of refraction eta + i k) go together")
+    eta = table.vector("eta", allow_scalar=True)
+    k = table.vector("k", allow_scalar=True)
+    if not (eta > 0).all():
+        raise table.error(f"'eta' must be > 0, got {eta.tolist()}")
+    if k.min() < 0:
+        raise table.error(f"'k' must not be negative, got {k.tolist()}")
+    return tuple(float(x) for x in eta), tuple(float(x) for x in k)
 
 
 def from_mtl(material, mtl) -> bool:
