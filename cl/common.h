@@ -34,19 +34,23 @@ RT_INLINE void store3(__global float *p, int i, float3 v) { vstore3(v, i, p); }
 RT_INLINE float safe_rcp(float x) { return 1.0f / (fabs(x) < RCP_MIN_INPUT ? copysign(RCP_MIN_INPUT, x) : x); }
 RT_INLINE float3 safe_rcp3(float3 d) { return (float3)(safe_rcp(d.x), safe_rcp(d.y), safe_rcp(d.z)); }
 
-/* pbrt-v4's Film "maxcomponentvalue" (MAX_COMPONENT_VALUE, a float literal): a camera sample's
- * radiance scaled down, hue kept, so that its largest component in pbrt's sensor space is at most
- * the value.  pbrt's default sensor (cie1931) records CIE XYZ, so the largest of X, Y, Z of our
- * linear sRGB (the Rec. 709 / D65 matrix) is what is bounded.  NaN and infinities pass through to
- * the non-finite check after it.  Without the define, the identity. */
-RT_INLINE float3 clamp_sample(float3 L)
+/* pbrt-v4's Film "maxcomponentvalue": a camera sample's radiance scaled down, hue kept, so that its
+ * largest component in pbrt's sensor space is at most the value.  pbrt's default sensor (cie1931)
+ * records CIE XYZ, so the largest of X, Y, Z of our linear sRGB (the Rec. 709 / D65 matrix) is what
+ * is bounded.  NaN and infinities pass through to the non-finite check after it.  The value is
+ * MAX_COMPONENT_VALUE (a float literal) where one is compiled in, else the run-time `limit`
+ * (+inf: none; PYOPENCL_RT_KERNEL_FEATURES=all); without either, the identity. */
+RT_INLINE float3 clamp_sample(float3 L, float limit)
 {
+#if defined(MAX_COMPONENT_VALUE) || defined(MAX_COMPONENT_RUNTIME)
 #ifdef MAX_COMPONENT_VALUE
+    limit = MAX_COMPONENT_VALUE;
+#endif
     const float x = 0.412453f * L.x + 0.357580f * L.y + 0.180423f * L.z;
     const float y = 0.212671f * L.x + 0.715160f * L.y + 0.072169f * L.z;
     const float z = 0.019334f * L.x + 0.119193f * L.y + 0.950227f * L.z;
     const float m = fmax(fmax(x, y), z);
-    if (m > MAX_COMPONENT_VALUE) L *= MAX_COMPONENT_VALUE / m;
+    if (m > limit) L *= limit / m;
 #endif
     return L;
 }

@@ -80,7 +80,7 @@ typedef struct {
  * ray (camera_ray). */
 RT_INLINE void ready_fill(__global const Camera *camera, __global const float *filter_cdf, SampleCursor *cur,
                           int last, int n_pixels, __global const int *pixel_list, int n_listed, int ring_size,
-                          uint seed, ReadySamples *r)
+                          int sampler, uint seed, ReadySamples *r)
 {
     const int width = camera->width;
     const int n_take = n_listed > 0 ? n_listed : n_pixels;
@@ -103,7 +103,7 @@ RT_INLINE void ready_fill(__global const Camera *camera, __global const float *f
     r->count = n;
     r->next = 0;
     if (!n) return;
-    r->key = sampler_key_xy(seed, as_puint(pixels), as_puint(px), as_puint(py), as_puint(passes));
+    r->key = sampler_key_xy(sampler, seed, as_puint(pixels), as_puint(px), as_puint(py), as_puint(passes));
     camera_ray(camera, filter_cdf, r->key, px, py, pmask((int)((1u << n) - 1u)), &r->o, &r->d, &r->weight);
     r->out = out;
 }
@@ -113,13 +113,14 @@ RT_INLINE void ready_fill(__global const Camera *camera, __global const float *f
  * block runs out). */
 RT_INLINE int start_lanes(__global const Camera *camera, __global const float *filter_cdf, int starting,
                           ReadySamples *r, SampleCursor *cur, int last, int n_pixels, __global const int *pixel_list,
-                          int n_listed, int ring_size, uint seed, int camera_medium, PathState *s, SampleKey *key,
+                          int n_listed, int ring_size, int sampler, uint seed, int camera_medium, PathState *s,
+                          SampleKey *key,
                           pint *out, pfloat *weight)
 {
     int started = 0;
     while (starting) {
         if (r->next == r->count) {
-            ready_fill(camera, filter_cdf, cur, last, n_pixels, pixel_list, n_listed, ring_size, seed, r);
+            ready_fill(camera, filter_cdf, cur, last, n_pixels, pixel_list, n_listed, ring_size, sampler, seed, r);
             if (!r->count) break;
         }
         pint from = PINT(0); /* each starting lane's entry of r */
@@ -161,6 +162,9 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
     path_start(&s, PTRUE, pv3_zero(), pv3_splat((float3)(0.0f, 0.0f, 1.0f)));
     SampleKey key;
     key.a = key.b = key.c = PUINT(0);
+#ifndef SAMPLER
+    key.kind = sampler;
+#endif
 #ifdef HAS_MEDIA
     path_start_media(&s, PTRUE, MEDIUM_VACUUM, key);
 #endif
@@ -169,7 +173,7 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
     ReadySamples ready;
     ready.count = ready.next = 0;
     int live = start_lanes(camera, filter_cdf, (1 << PACKET_WIDTH) - 1, &ready, &cur, last, n_pixels, pixel_list,
-                           n_listed, ring_size, seed, camera_medium, &s, &key, &out, &weight); /* bit k: lane k holds a path */
+                           n_listed, ring_size, sampler, seed, camera_medium, &s, &key, &out, &weight); /* bit k: lane k holds a path */
     while (live) {
         const pint live_lanes = pmask(live);
         /* -- extend: the live lanes' rays ------------------------------------------------------ */
@@ -214,7 +218,7 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
         const int ended = live & ~pbits(goes_on);
         for (int k = 0; k < PACKET_WIDTH; ++k) {
             if (!((ended >> k) & 1)) continue;
-            float3 L = clamp_sample(pv3_lane(s.L, k)) * PLANE(weight, k);
+            float3 L = clamp_sample(pv3_lane(s.L, k), max_component) * PLANE(weight, k);
             if (!(isfinite(L.x) && isfinite(L.y) && isfinite(L.z))) {
                 atomic_inc(&counters[COUNTER_NONFINITE]);
                 L = (float3)(0.0f);
@@ -224,7 +228,7 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
         live &= ~ended;
         if (ended && (ready.next < ready.count || cur.j < last))
             live |= start_lanes(camera, filter_cdf, ended, &ready, &cur, last, n_pixels, pixel_list, n_listed,
-                                ring_size, seed, camera_medium, &s, &key, &out, &weight);
+                                ring_size, sampler, seed, camera_medium, &s, &key, &out, &weight);
     }
     add_group_ray_counts(group_rays, LANE_GROUP, n_extend, n_shadow, counters);
 }

@@ -42,6 +42,13 @@
 #include "render/filter.h"
 #ifdef LIGHT_TREE
 #include "render/light_tree.h"
+/* whether this scene's lights have a tree: the kernels' light_tree where LIGHT_TREE_RUNTIME compiles
+ * the tree in for every scene (PYOPENCL_RT_KERNEL_FEATURES=all), else always (LIGHT_TREE is the scene's) */
+#ifdef LIGHT_TREE_RUNTIME
+#define LIGHT_TREE_ON (light_tree != 0)
+#else
+#define LIGHT_TREE_ON 1
+#endif
 #endif
 #ifdef HAS_TEXTURES
 #include "scene/textures.h"
@@ -86,13 +93,14 @@ typedef struct {
     __global const int *tri_light, __global const int *sphere_material,                              \
     __global const int *sphere_light, __global const Material *materials,                            \
     __global const Light *lights, __global const LightNode *light_nodes, const int n_lights,         \
+    const int light_tree,                                                                            \
     __global const float *env_map,                                                                   \
     __global const float *env_cdf, __global const float2 *tri_uv, __global const Texture *textures,  \
     __global const float4 *tex_data, __global const float *tri_normal, __global const float *tri_color, \
     __global float *aov_path, const int max_depth, const int rr_depth, const int integrator PATH_INSTANCES
 #define PATH_ARGS                                                                                     \
     tris, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,          \
-    light_nodes, n_lights, env_map, env_cdf, tri_uv, textures, tex_data, tri_normal, tri_color, aov_path, max_depth, \
+    light_nodes, n_lights, light_tree, env_map, env_cdf, tri_uv, textures, tex_data, tri_normal, tri_color, aov_path, max_depth, \
     rr_depth, integrator PATH_INSTANCES_ARGS
 #ifdef HAS_INSTANCES
 #define PATH_INSTANCES , __global const Instance *instances
@@ -248,32 +256,36 @@ RT_INLINE pint nee_light_sample(PATH_PARAMS, SampleKey key, puint dim, pint acti
 {
     pfloat ulx, uly;
     sample_2d(key, dim + DIM_LIGHT_POINT, &ulx, &uly);
-#ifdef LIGHT_TREE
-    /* the alias table picks an infinitely far light or the tree (any row of it: the tree's share,
-     * in each one's pmf), its remainder of u descends the tree; the point's sample is its own */
-    pfloat u_tree;
-    pint li = sample_alias(lights, n_lights, sample_1d(key, dim + DIM_LIGHT_PICK), pick_pmf, &u_tree);
-    const pint trail = pgather_int((__global const int *)lights, li * STRIDE_INDEX(Light) + FIELD_INDEX(Light, trail));
-    const pint tree = active & (trail >= 0);
-    if (pany(tree)) {
-        pfloat tree_pmf;
-        const pint picked = light_tree_sample(light_nodes, tree, ref, nref, u_tree, &tree_pmf);
-        li = tree ? picked : li;
-        *pick_pmf = tree ? *pick_pmf * tree_pmf : *pick_pmf;
-    }
-#else
-    /* With few lights the light point's first coordinate also picks the light (Mitsuba's
-     * sample_reuse), so that the pick and the point are stratified together: on the Cornell box
-     * (its light two triangles) 2% less error per sample, and one 1D sample fewer.  With many, its
-     * remainder would keep too few bits for the point: a 1D sample of its own picks. */
     pint li;
-    if (n_lights <= ALIAS_REUSE_MAX_LIGHTS)
-        li = sample_alias(lights, n_lights, ulx, pick_pmf, &ulx);
-    else {
-        pfloat unused;
-        li = sample_alias(lights, n_lights, sample_1d(key, dim + DIM_LIGHT_PICK), pick_pmf, &unused);
-    }
+#ifdef LIGHT_TREE
+    if (LIGHT_TREE_ON) {
+        /* the alias table picks an infinitely far light or the tree (any row of it: the tree's
+         * share, in each one's pmf), its remainder of u descends the tree; the point's sample is
+         * its own */
+        pfloat u_tree;
+        li = sample_alias(lights, n_lights, sample_1d(key, dim + DIM_LIGHT_PICK), pick_pmf, &u_tree);
+        const pint trail = pgather_int((__global const int *)lights, li * STRIDE_INDEX(Light) + FIELD_INDEX(Light, trail));
+        const pint tree = active & (trail >= 0);
+        if (pany(tree)) {
+            pfloat tree_pmf;
+            const pint picked = light_tree_sample(light_nodes, tree, ref, nref, u_tree, &tree_pmf);
+            li = tree ? picked : li;
+            *pick_pmf = tree ? *pick_pmf * tree_pmf : *pick_pmf;
+        }
+    } else
 #endif
+    {
+        /* With few lights the light point's first coordinate also picks the light (Mitsuba's
+         * sample_reuse), so that the pick and the point are stratified together: on the Cornell
+         * box (its light two triangles) 2% less error per sample, and one 1D sample fewer.  With
+         * many, its remainder would keep too few bits for the point: a 1D sample of its own picks. */
+        if (n_lights <= ALIAS_REUSE_MAX_LIGHTS)
+            li = sample_alias(lights, n_lights, ulx, pick_pmf, &ulx);
+        else {
+            pfloat unused;
+            li = sample_alias(lights, n_lights, sample_1d(key, dim + DIM_LIGHT_PICK), pick_pmf, &unused);
+        }
+    }
     pint sampled = active & (*pick_pmf > 0.0f);
     sampled &= light_sample_all(tris, spheres, materials, env_map, env_cdf, lights, li, sampled, ref, ulx, uly, ls);
 #ifdef HAS_TEXTURES

@@ -6,7 +6,9 @@
  *   sample_2d(k, dim, &u, &v);          a 2D sample (pixel, lens, light point, BSDF direction)
  *
  * dim names the sample (cl/scene/scene.h lays them out); a 2D sample at dim takes the ids dim and
- * dim + 1.  SAMPLER (one of the generated SAMPLER_* values, chosen by kernel_features) selects:
+ * dim + 1.  The sampler (one of the generated SAMPLER_* values) is SAMPLER where kernel_features
+ * compiles one in, else the kernels' run-time argument `sampler`, kept in the key (every sampler
+ * compiled, one program for all: PYOPENCL_RT_KERNEL_FEATURES=all); the same numbers either way:
  *
  * SAMPLER_INDEPENDENT  rng_uniform (cl/render/rng.h): every dimension an independent hash.
  * SAMPLER_SOBOL        Owen-scrambled Sobol in pbrt-v4's ZSobol arrangement.  Within a tile of
@@ -40,8 +42,11 @@
 
 #include "render/rng.h"
 
-#ifndef SAMPLER
-#define SAMPLER SAMPLER_INDEPENDENT
+/* The sampler of key k: a constant where one is compiled in (the branches below fold away) */
+#ifdef SAMPLER
+#define SAMPLER_OF(k) SAMPLER
+#else
+#define SAMPLER_OF(k) ((k).kind)
 #endif
 
 /* The samples of a path: their dimension ids.  The pixel jitter (2D) takes
@@ -67,7 +72,12 @@
 /* independent: (seed, pixel, pass); sobol: (index of the pass, key of tile and round, the index
  * bit-reversed); stratified: (pass, key of the pixel, the pass bit-reversed); per lane
  * (cl/render/lanes.h), like everything below: the lanes draw their own paths' samples. */
-typedef struct { puint a, b, c; } SampleKey;
+typedef struct {
+    puint a, b, c;
+#ifndef SAMPLER
+    int kind; /* SAMPLER_*: the same for every lane */
+#endif
+} SampleKey;
 
 RT_INLINE puint reverse_bits32(puint x)
 {
@@ -144,34 +154,35 @@ RT_INLINE puint gather_even_bits(puint x)
 
 /* sampler_key of pixel (x, y) = (pixel % width, pixel / width), for a caller that has them
  * already (the megakernel steps through pixels without dividing) */
-RT_INLINE SampleKey sampler_key_xy(uint seed, puint pixel, puint x, puint y, puint pass)
+RT_INLINE SampleKey sampler_key_xy(int sampler, uint seed, puint pixel, puint x, puint y, puint pass)
 {
     SampleKey k;
-#if SAMPLER == SAMPLER_SOBOL
-    const uint tile_mask = (1u << SOBOL_TILE_BITS) - 1u;
-    const puint morton = spread_bits(x & tile_mask) | (spread_bits(y & tile_mask) << 1);
-    const uint round_mask = (1u << SOBOL_LOG2_ROUND) - 1u;
-    k.a = (morton << SOBOL_LOG2_ROUND) | (pass & round_mask);
-    const puint tile = (x >> SOBOL_TILE_BITS) | ((y >> SOBOL_TILE_BITS) << 16);
-    k.b = rng_hash(PUINT(seed), tile, pass >> SOBOL_LOG2_ROUND, PUINT(SAMPLER_KEY_SOBOL));
-#elif SAMPLER == SAMPLER_STRATIFIED
-    k.a = pass;
-    k.b = rng_hash(PUINT(seed), pixel, PUINT(0u), PUINT(SAMPLER_KEY_STRATIFIED));
-#else
-    k.a = PUINT(seed); k.b = pixel; k.c = pass;
+#ifndef SAMPLER
+    k.kind = sampler;
 #endif
-#if SAMPLER != SAMPLER_INDEPENDENT
-    k.c = reverse_bits32(k.a);
-#endif
+    if (SAMPLER_OF(k) == SAMPLER_SOBOL) {
+        const uint tile_mask = (1u << SOBOL_TILE_BITS) - 1u;
+        const puint morton = spread_bits(x & tile_mask) | (spread_bits(y & tile_mask) << 1);
+        const uint round_mask = (1u << SOBOL_LOG2_ROUND) - 1u;
+        k.a = (morton << SOBOL_LOG2_ROUND) | (pass & round_mask);
+        const puint tile = (x >> SOBOL_TILE_BITS) | ((y >> SOBOL_TILE_BITS) << 16);
+        k.b = rng_hash(PUINT(seed), tile, pass >> SOBOL_LOG2_ROUND, PUINT(SAMPLER_KEY_SOBOL));
+    } else if (SAMPLER_OF(k) == SAMPLER_STRATIFIED) {
+        k.a = pass;
+        k.b = rng_hash(PUINT(seed), pixel, PUINT(0u), PUINT(SAMPLER_KEY_STRATIFIED));
+    } else {
+        k.a = PUINT(seed); k.b = pixel; k.c = pass;
+    }
+    if (SAMPLER_OF(k) != SAMPLER_INDEPENDENT) k.c = reverse_bits32(k.a);
     return k;
 }
 
-RT_INLINE SampleKey sampler_key(uint seed, puint pixel, uint width, puint pass)
+/* `sampler`: SAMPLER_*, read where SAMPLER is not compiled in */
+RT_INLINE SampleKey sampler_key(int sampler, uint seed, puint pixel, uint width, puint pass)
 {
-    return sampler_key_xy(seed, pixel, pixel % width, pixel / width, pass);
+    return sampler_key_xy(sampler, seed, pixel, pixel % width, pixel / width, pass);
 }
 
-#if SAMPLER != SAMPLER_INDEPENDENT
 /* The first scramble seed of sample dim (the index shuffle); the others follow by hashing. */
 RT_INLINE puint sample_seed(SampleKey k, puint dim)
 {
@@ -180,44 +191,43 @@ RT_INLINE puint sample_seed(SampleKey k, puint dim)
 
 /* The shuffled index of sample dim: nested_scramble(k.a, seed), computed from k.c = k.a reversed. */
 RT_INLINE puint shuffled_index(SampleKey k, puint seed) { return reverse_bits32(lk_permute(k.c, seed)); }
-#endif
 
 RT_INLINE pfloat sample_1d(SampleKey k, puint dim)
 {
-#if SAMPLER == SAMPLER_INDEPENDENT
-    return rng_uniform(k.a, k.b, k.c, dim);
-#else
+    if (SAMPLER_OF(k) == SAMPLER_INDEPENDENT) return rng_uniform(k.a, k.b, k.c, dim);
     /* both: the first Sobol dimension (van der Corput: the index reversed) of the shuffled index,
      * scrambled */
     const puint s0 = sample_seed(k, dim);
     const puint index = shuffled_index(k, s0);
     return u32_to_unit_float(reverse_bits32(lk_permute(index, hash_u32(s0 ^ 1u))));
-#endif
 }
 
 /* The 2D sample dim (ids dim and dim + 1) */
 RT_INLINE void sample_2d(SampleKey k, puint dim, pfloat *u, pfloat *v)
 {
-#if SAMPLER == SAMPLER_INDEPENDENT
-    *u = rng_uniform(k.a, k.b, k.c, dim);
-    *v = rng_uniform(k.a, k.b, k.c, dim + 1u);
-#else
+    if (SAMPLER_OF(k) == SAMPLER_INDEPENDENT) {
+        *u = rng_uniform(k.a, k.b, k.c, dim);
+        *v = rng_uniform(k.a, k.b, k.c, dim + 1u);
+        return;
+    }
     const puint s0 = sample_seed(k, dim);
     const puint index = shuffled_index(k, s0);
-#if SAMPLER == SAMPLER_SOBOL
-    /* both coordinates bit-reversed: dimension 0 is the index itself */
-    const puint ru = index, rv = sobol_dim1_reversed(index);
-#else
-    /* the cell of each level from a base-4 digit: even bits to x, odd bits to y, coarsest first.
-     * lk_permute flips each digit as a hash of the coarser ones (a nested scramble of the
-     * quadtree), which also fills the digits below the first 4^k passes' cells with bits that
-     * differ from sample to sample: the jitter inside a cell is not shared by a grid column. */
-    const puint cells = lk_permute(index, hash_u32(s0 ^ 3u));
-    const puint ru = gather_even_bits(cells), rv = gather_even_bits(cells >> 1);
-#endif
+    puint ru, rv;
+    if (SAMPLER_OF(k) == SAMPLER_SOBOL) {
+        /* both coordinates bit-reversed: dimension 0 is the index itself */
+        ru = index;
+        rv = sobol_dim1_reversed(index);
+    } else {
+        /* the cell of each level from a base-4 digit: even bits to x, odd bits to y, coarsest
+         * first.  lk_permute flips each digit as a hash of the coarser ones (a nested scramble of
+         * the quadtree), which also fills the digits below the first 4^k passes' cells with bits
+         * that differ from sample to sample: the jitter inside a cell is not shared by a grid column. */
+        const puint cells = lk_permute(index, hash_u32(s0 ^ 3u));
+        ru = gather_even_bits(cells);
+        rv = gather_even_bits(cells >> 1);
+    }
     *u = u32_to_unit_float(reverse_bits32(lk_permute(ru, hash_u32(s0 ^ 1u))));
     *v = u32_to_unit_float(reverse_bits32(lk_permute(rv, hash_u32(s0 ^ 2u))));
-#endif
 }
 
 #endif

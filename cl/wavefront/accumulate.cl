@@ -11,7 +11,7 @@ __kernel void wf_accumulate(WAVE_PARAMS)
     const int i = get_global_id(0);
     if (i >= counters[COUNTER_TERM]) return;
     const int slot = term_q[i];
-    float3 L = clamp_sample(load3(radiance, slot)) * path_weight[slot]; /* the camera sample's filter weight */
+    float3 L = clamp_sample(load3(radiance, slot), max_component) * path_weight[slot]; /* the camera sample's filter weight */
     if (!(isfinite(L.x) && isfinite(L.y) && isfinite(L.z))) {
         atomic_inc(&counters[COUNTER_NONFINITE]);
         L = (float3)(0.0f);

@@ -21,7 +21,7 @@ __kernel void wf_generate(WAVE_PARAMS)
     const int slot = free_q[free_base - 1 - i];
     queue_in[queue_base + i] = slot;
 
-    const SampleKey key = sampler_key(seed, (uint)pixel, (uint)camera->width, (uint)pass);
+    const SampleKey key = sampler_key(sampler, seed, (uint)pixel, (uint)camera->width, (uint)pass);
     pvec3 o, d;
     pfloat weight;
     camera_ray(camera, filter_cdf, key, pixel % camera->width, pixel / camera->width, PTRUE, &o, &d, &weight);

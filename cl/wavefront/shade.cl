@@ -52,7 +52,7 @@ __kernel void wf_shade(WAVE_PARAMS)
     int alive = 0, queued_shadow = 0;
     if (active) {
         const int prim = hit_prim[slot];
-        const SampleKey key = sampler_key(seed, (uint)path_pixel[slot], (uint)camera->width, (uint)path_pass[slot]);
+        const SampleKey key = sampler_key(sampler, seed, (uint)path_pixel[slot], (uint)camera->width, (uint)path_pass[slot]);
         PathState s;
         s.o = pv3_from(load3(ray_o, slot));
         s.d = pv3_from(load3(ray_d, slot));

@@ -401,14 +401,11 @@ assert sorted((COUNTER_QUEUE_OUT, COUNTER_SHADOW, COUNTER_TERM)) == list(range(I
 assert max(COUNTERS.values()) < COUNTER_PASS_DONE
 assert COUNTER_RAYS_SHADOW == COUNTER_RAYS_EXTEND + 1  # the megakernel copies the two as one pair
 
-# Samplers (cl/render/sampler.h; SAMPLER is one of these, set by render/settings.py:kernel_features).
+# Samplers (cl/render/sampler.h: SAMPLER, or the kernels' `sampler`, is one of these).
 # SOBOL_LOG2_ROUND: the Sobol sampler gives each pixel a block of 2^SOBOL_LOG2_ROUND consecutive
 # indices of one sequence per 2^((32 - SOBOL_LOG2_ROUND) / 2)-pixel-square tile (the Morton order
 # of pbrt-v4's ZSobol); passes beyond a block start a new, independently scrambled round.
-SAMPLER_INDEPENDENT = define("SAMPLER_INDEPENDENT", 0)
-SAMPLER_SOBOL = define("SAMPLER_SOBOL", 1)
-SAMPLER_STRATIFIED = define("SAMPLER_STRATIFIED", 2)
-SAMPLERS = {"independent": SAMPLER_INDEPENDENT, "sobol": SAMPLER_SOBOL, "stratified": SAMPLER_STRATIFIED}
+SAMPLERS = define_enum("SAMPLER_", ("independent", "sobol", "stratified"))
 # the estimators, in the order of scene.model.INTEGRATORS ("path", "bsdf", "nee"): a kernel argument
 INTEGRATOR_MIS, INTEGRATOR_BSDF, INTEGRATOR_NEE = define_enum("INTEGRATOR_", ("mis", "bsdf", "nee")).values()
 SOBOL_LOG2_ROUND = define("SOBOL_LOG2_ROUND", 16, overridable=True)
@@ -546,6 +543,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     # fixed scalars
     _scene("n_spheres", "scalar", "int"),
     _scene("n_lights", "scalar", "int"),
+    _scene("light_tree", "scalar", "int", "1: lights of trail >= 0 are in the light BVH (read with LIGHT_TREE_RUNTIME)"),
     Param("n_pixels", "scalar", "int", source="settings"),
     Param("ring_size", "scalar", "int", "passes in flight at most", source="run"),
     Param("max_depth", "scalar", "int", "path segments, < 0 for no limit", source="settings"),
@@ -554,6 +552,8 @@ WAVE_PARAMS: tuple[Param, ...] = (
           source="settings"),
     _scene("env_light", "scalar", "int", "the environment light's row in the light table, -1 if none"),
     Param("seed", "scalar", "uint", source="settings"),
+    Param("sampler", "scalar", "int", "SAMPLER_*, where no SAMPLER is compiled in", source="settings"),
+    _scene("max_component", "scalar", "float", "Film maxcomponentvalue (+inf: none), where MAX_COMPONENT_RUNTIME"),
     # per-stage scalars (each stage reads the ones its .cl file names)
     Param("n_items", "scalar", "int", "work-items with work: new paths, or active paths", launch=True, source="run"),
     Param("first_pass", "scalar", "int", "generate: pass of the first new sample", launch=True, source="run"),

@@ -309,6 +309,7 @@ def sidecar(scene: Scene, settings: ImageSettings, film: Film, run: _Run, *, spp
         "triangles": int(len(scene.faces)),
         "spheres": int(len(scene.spheres)),
         "lights": engine.get("lights"),
+        "light_tree": engine.get("light_tree"),
         "bvh_seconds": engine.get("bvh_seconds"),
         "kernel_build_seconds": engine.get("kernel_build_seconds"),
         "setup_seconds": run.setup_seconds,

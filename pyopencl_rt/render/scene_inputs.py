@@ -20,6 +20,7 @@ from typing import Callable
 import numpy as np
 
 from ..device import abi
+from .settings import max_component_value
 
 
 def _geometry(scene) -> dict:
@@ -68,12 +69,13 @@ def _lights(scene) -> dict:
     """lights, tri_light, sphere_light, n_lights, env_light, light_nodes: the light table (and the
     light BVH) as render/lights.py builds it, over the faces in the scene's order."""
     from .lights import build_lights
-    from .settings import environment_row
+    from .settings import environment_row, has_light_tree
 
     identity = SimpleNamespace(prim_ids=np.arange(len(scene.faces)), triangles=_FaceCorners(scene))
     lights, tri_light, sphere_light, light_nodes = build_lights(scene, identity)
     return {"lights": lights, "tri_light": tri_light, "sphere_light": sphere_light,
-            "env_light": np.int64(environment_row(lights)), "light_nodes": light_nodes}
+            "env_light": np.int64(environment_row(lights)), "light_nodes": light_nodes,
+            "light_tree": np.int64(has_light_tree(lights))}
 
 
 def _spheres(scene) -> dict:
@@ -91,6 +93,10 @@ def _materials(scene) -> dict:
 
 def _camera(scene) -> dict:
     return {"camera": scene.camera.record(1, 1)}  # the aspect ratio is a setting (width, height)
+
+
+def _film_clamp(scene) -> dict:
+    return {"max_component": np.float32(max_component_value(scene))}
 
 
 def _textures(scene) -> dict:
@@ -137,10 +143,11 @@ SCENE_INPUTS: dict[str, Callable] = {
     "tlas": _instances, "instances": _instances, "blas_nodes": _instances,
     "tri_material": _face_materials,
     "tri_light": _lights, "sphere_light": _lights, "lights": _lights, "n_lights": _lights, "env_light": _lights,
+    "light_tree": _lights,
     "light_nodes": _lights,
     "spheres": _spheres, "sphere_material": _spheres, "n_spheres": _spheres,
     "materials": _materials,
-    "camera": _camera,
+    "camera": _camera, "max_component": _film_clamp,
     "tri_uv": _textures, "textures": _textures, "tex_data": _textures,
     "tri_normal": _shading_normals,
     "tri_color": _vertex_colors,

@@ -155,7 +155,20 @@ FEATURES_ENV = "PYOPENCL_RT_KERNEL_FEATURES"
 # flags, a light's kind, n_spheres, env_light).  HAS_TRIANGLES (the BVH), HAS_LIGHTS (next-event
 # estimation), HAS_MEDIA (the volumetric integrator) and HAS_AOVS (a setting) stay the scene's.
 EVERY_FEATURE = ("HAS_SPHERES", "HAS_TEXTURES", "HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS",
-                 "HAS_CUTOUTS", "HAS_ANISOTROPY", "HAS_DELTA_LIGHTS", "HAS_ENVIRONMENT", "HAS_INFINITE_LIGHTS")
+                 "HAS_CUTOUTS", "HAS_ANISOTROPY", "HAS_DELTA_LIGHTS", "HAS_ENVIRONMENT", "HAS_INFINITE_LIGHTS",
+                 "LIGHT_TREE")
+
+# The defines that "all" replaces by a run-time choice: every material type compiled in, and the
+# kernels' `sampler`, `max_component` and `light_tree` arguments (cl/render/sampler.h, cl/common.h
+# clamp_sample, cl/render/path.h nee_light_sample), read where the *_RUNTIME defines say.
+RUN_TIME_CHOICES = ("MATERIALS_SELECTED", "SAMPLER", "MAX_COMPONENT_VALUE")
+RUN_TIME_DEFINES = ("MAX_COMPONENT_RUNTIME", "LIGHT_TREE_RUNTIME")
+
+
+def max_component_value(scene) -> float:
+    """Film maxcomponentvalue (pbrt-v4): the largest XYZ component of a camera sample, +inf: none."""
+    value = getattr(scene.settings, "max_component_value", None)
+    return math.inf if value is None or not math.isfinite(value) else float(value)
 
 
 def every_feature() -> bool:
@@ -167,6 +180,11 @@ def every_feature() -> bool:
     if value not in ("all", "scene"):
         raise UsageError(f"${FEATURES_ENV} must be 'scene' or 'all', not {value!r}")
     return value == "all"
+
+
+def has_light_tree(lights: np.ndarray) -> bool:
+    """Whether the light table has rows in the light BVH (light_sampler "bvh"; the kernels' light_tree)."""
+    return bool(len(lights) and (lights["trail"] >= 0).any())
 
 
 def environment_row(lights: np.ndarray) -> int:
@@ -203,21 +221,21 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
         defines["HAS_ENVIRONMENT"] = True
     if np.isin(kinds, (abi.LIGHT_DIRECTIONAL, abi.LIGHT_ENVIRONMENT)).any():
         defines["HAS_INFINITE_LIGHTS"] = True
-    if len(kinds) and (lights["trail"] >= 0).any():
+    if has_light_tree(lights):
         defines["LIGHT_TREE"] = True  # light_sampler "bvh" (cl/render/light_tree.h)
     defines.update(layout_defines(bvh_layout))
     if settings.film_aovs:
         defines["HAS_AOVS"] = True  # cl/render/aov.h
-    max_component = getattr(scene.settings, "max_component_value", None)
-    if max_component is not None and math.isfinite(max_component):
-        defines["MAX_COMPONENT_VALUE"] = f"{float(max_component)!r}f"  # cl/common.h clamp_sample
+    if math.isfinite(max_component_value(scene)):
+        defines["MAX_COMPONENT_VALUE"] = f"{max_component_value(scene)!r}f"  # cl/common.h clamp_sample
     if scene.has_media():
         defines["HAS_MEDIA"] = True  # the volumetric integrator (cl/render/volpath.h)
         if getattr(scene.settings, "spectral_mis", True) and any(m.chromatic() for m in scene.media):
             defines["SPECTRAL_MIS"] = True  # chromatic sigma_t: the balance heuristic over the channels
     if every_feature():
-        defines = {k: v for k, v in defines.items() if not k.startswith("HAS_MATERIAL_") and k != "MATERIALS_SELECTED"}
+        defines = {k: v for k, v in defines.items() if not k.startswith("HAS_MATERIAL_") and k not in RUN_TIME_CHOICES}
         defines.update(dict.fromkeys(EVERY_FEATURE, True))  # and every material type (no MATERIALS_SELECTED)
+        defines.update(dict.fromkeys(RUN_TIME_DEFINES, True))
     return defines
 
 

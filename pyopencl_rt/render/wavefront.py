@@ -22,7 +22,8 @@ from ..scene.instances import scene_bvh
 from . import filters
 from .film import Film, RunStats
 from .lights import build_lights, environment_buffers
-from .settings import ImageSettings, environment_row, feature_names, kernel_features
+from .settings import (ImageSettings, environment_row, feature_names, has_light_tree, kernel_features,
+                       max_component_value)
 from ..scene.model import INTEGRATORS, Scene
 
 STAGES = ("generate", "extend", "shade", "shadow", "accumulate")  # cl/wavefront/<stage>.cl, kernel wf_<stage>
@@ -129,6 +130,7 @@ class Wavefront:
         with host_stage("lights"):
             lights, tri_light, sphere_light, light_nodes = build_lights(scene, self.bvh)
         self.n_lights = len(lights)
+        self.light_tree = has_light_tree(lights)
         if self.n_lights == 0:
             import warnings
 
@@ -244,6 +246,8 @@ class Wavefront:
             n_spheres=len(scene.spheres), n_lights=self.n_lights, n_pixels=P, ring_size=self.ring_size,
             max_depth=self.settings.max_depth, rr_depth=self.settings.rr_depth, seed=self.settings.seed,
             integrator=INTEGRATORS.index(self.settings.integrator), env_light=environment_row(lights),
+            sampler=abi.SAMPLERS[self.settings.sampler], max_component=max_component_value(scene),
+            light_tree=int(self.light_tree),
         )
         # the rest of the path state and queues, sized by the table, written by the kernels first
         # (the megakernel keeps them in registers: it gets placeholders)
@@ -282,6 +286,7 @@ class Wavefront:
             "lanes_reason": self.lane_reason,  # why that width (pyopencl_rt/device/isa.py)
             "features": feature_names(self.features),
             "lights": self.n_lights,
+            "light_tree": self.light_tree,  # lights picked by the light BVH (light_sampler "bvh")
             "bvh_seconds": self.timings.get("bvh_seconds"),
             "kernel_build_seconds": self.timings.get("build_seconds"),
         }

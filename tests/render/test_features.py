@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import pyopencl_rt as rt
+from pyopencl_rt.device import abi
 from pyopencl_rt.render import megakernel
 from pyopencl_rt.render.settings import EVERY_FEATURE, FEATURES_ENV
 from pyopencl_rt.errors import UsageError
@@ -39,15 +40,29 @@ def assert_same(own, every):
     assert (own.stats.rays_extend, own.stats.rays_shadow) == (every.stats.rays_extend, every.stats.rays_shadow)
 
 
-@pytest.mark.parametrize("name", ["mitsuba-cbox", "textured-sky", "cornell-fog"])
+@pytest.mark.parametrize("name", ["mitsuba-cbox", "textured-sky", "cornell-fog", "many-lights", "clamped"])
 def test_every_feature_renders_the_same_bits(device, monkeypatch, name):
     """A box of diffuse triangles and an area light (almost nothing compiled in of its own), a
-    textured scene under an environment map with spheres, and a box with fog (the volumetric
-    integrator): at the lane width users get (megakernel)."""
+    textured scene under an environment map with spheres, a box with fog (the volumetric
+    integrator), thousands of lamps picked by the light BVH, and the box again with the run-time
+    choices that a scene's kernel compiles in (the stratified sampler, pbrt's maxcomponentvalue):
+    at the lane width users get (megakernel)."""
+    import dataclasses
+
     monkeypatch.setenv(megakernel.LANES_ENV, harness.forced_lanes(device))
-    scene = rt.load_scene(SCENES / f"{name}.toml")
-    assert_same(*both(scene, device, monkeypatch, kernel_mode="megakernel", spp=2, seed=4, width=32, height=24,
-                      max_depth=6))
+    options = {}
+    if name == "clamped":
+        scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
+        scene.settings = dataclasses.replace(scene.settings, max_component_value=0.5)
+        options["sampler"] = "stratified"
+    else:
+        scene = rt.load_scene(SCENES / f"{name}.toml")
+    own, every = both(scene, device, monkeypatch, kernel_mode="megakernel", spp=2, seed=4, width=32, height=24,
+                      max_depth=6, **options)
+    assert_same(own, every)
+    if name == "clamped":  # the clamp and the sampler were the scene kernel's defines
+        assert {"MAX_COMPONENT_VALUE=0.5f", f"SAMPLER={abi.SAMPLERS['stratified']}"} <= set(own.info["features"])
+    assert every.info["light_tree"] is (name == "many-lights") is ("LIGHT_TREE" in own.info["features"])
 
 
 def test_every_feature_renders_the_same_bits_one_path_per_item(device, monkeypatch):

@@ -33,8 +33,9 @@ Z_MAX = 5.0  # correlation tests: |r| sqrt(n) under this (two-sided p ~ 6e-7 eac
 SOURCE = r"""
 #include "render/sampler.h"
 /* keys: (seed, pixel, width, pass, dim) per item; out: sample_2d then sample_1d.  Work-item i
- * draws items i * PACKET_WIDTH .. + PACKET_WIDTH in its lanes (seed and width: its first item's). */
-__kernel void h_sampler(__global const uint *keys, __global float *out)
+ * draws items i * PACKET_WIDTH .. + PACKET_WIDTH in its lanes (seed and width: its first item's).
+ * kind: the sampler, read where no SAMPLER is compiled in (the kernels' run-time choice). */
+__kernel void h_sampler(__global const uint *keys, __global float *out, const int kind)
 {
     const int base = get_global_id(0) * PACKET_WIDTH;
     puint pixel, pass, dim;
@@ -42,7 +43,7 @@ __kernel void h_sampler(__global const uint *keys, __global float *out)
         __global const uint *k = keys + 5 * (base + j);
         PLANE_U(pixel, j) = k[1]; PLANE_U(pass, j) = k[3]; PLANE_U(dim, j) = k[4];
     }
-    const SampleKey sk = sampler_key(keys[5 * base], pixel, keys[5 * base + 2], pass);
+    const SampleKey sk = sampler_key(kind, keys[5 * base], pixel, keys[5 * base + 2], pass);
     pfloat u, v;
     sample_2d(sk, dim, &u, &v);
     const pfloat w = sample_1d(sk, dim);
@@ -71,14 +72,21 @@ __kernel void h_layout(__global uint *out)
 """
 KERNELS = {name: harness.Kernels(SOURCE, defines={"SAMPLER": value}) for name, value in abi.SAMPLERS.items()}
 SMALL_ROUND = 4  # a ZSobol build with blocks of 16 passes, to check whole blocks cheaply
-SOBOL_SMALL = harness.Kernels(SOURCE, defines={"SAMPLER": abi.SAMPLER_SOBOL, "SOBOL_LOG2_ROUND": SMALL_ROUND})
+SOBOL_SMALL = harness.Kernels(SOURCE, defines={"SAMPLER": abi.SAMPLERS["sobol"], "SOBOL_LOG2_ROUND": SMALL_ROUND})
+ANY_SAMPLER = harness.Kernels(SOURCE)  # no SAMPLER: the one program of every sampler, `kind` chooses
+for _name, _kernels in KERNELS.items():
+    _kernels.kind = abi.SAMPLERS[_name]
+SOBOL_SMALL.kind = abi.SAMPLERS["sobol"]
 
 
-def draw(runtime, kernels, seed, pixel, width, passes, dim):
+def draw(runtime, kernels, seed, pixel, width, passes, dim, kind=None):
+    """The samples of each (seed, pixel, width, pass, dim), drawn by ``kernels`` (sampler ``kind``:
+    the one compiled in unless given)."""
     keys = np.stack(np.broadcast_arrays(*(np.asarray(k, np.uint32) for k in (seed, pixel, width, passes, dim))), -1)
     shape = keys.shape[:-1]
     keys = np.ascontiguousarray(keys.reshape(-1, 5), np.uint32)
-    out = kernels(runtime, "h_sampler", len(keys), keys=keys, out=(len(keys), 3))
+    kind = kernels.kind if kind is None else kind
+    out = kernels(runtime, "h_sampler", len(keys), keys=keys, out=(len(keys), 3), kind=np.int32(kind))
     return out.reshape(*shape, 3)
 
 
@@ -226,6 +234,9 @@ def test_device_equals_numpy_copy(runtime, rng, name):
     assert np.array_equal(got, again)  # deterministic
     other = draw(runtime, KERNELS[name], seed + U(1), pixel, width, passes.astype(U), dim)
     assert np.mean(other == got) < 0.01  # another seed, other numbers
+    # the program of every sampler (PYOPENCL_RT_KERNEL_FEATURES=all) draws the same bits when told this one
+    assert np.array_equal(draw(runtime, ANY_SAMPLER, seed, pixel, width, passes.astype(U), dim,
+                               kind=abi.SAMPLERS[name]), got)
 
 
 @pytest.mark.parametrize("width", [8, 16])
@@ -246,8 +257,9 @@ def test_lanes_draw_the_same_samples(device, runtime, rng, name, width):
                               rng.integers(0, 2 ** 32, n, dtype=np.uint64)).astype(U)], -1)
     keys = np.ascontiguousarray(keys)
     lanes = harness.Kernels(SOURCE, defines={"SAMPLER": abi.SAMPLERS[name], "PACKET_WIDTH": width})
-    one = KERNELS[name](runtime, "h_sampler", n, keys=keys, out=(n, 3))
-    wide = lanes(runtime, "h_sampler", groups, keys=keys, out=(n, 3))
+    kind = np.int32(abi.SAMPLERS[name])
+    one = KERNELS[name](runtime, "h_sampler", n, keys=keys, out=(n, 3), kind=kind)
+    wide = lanes(runtime, "h_sampler", groups, keys=keys, out=(n, 3), kind=kind)
     assert np.array_equal(one.view(np.uint32), wide.view(np.uint32))
     assert one.min() >= 0.0 and one.max() < 1.0
     assert len(np.unique(one[:, :2])) > 0.99 * 2 * n
@@ -423,7 +435,7 @@ def test_sampler_is_an_image_setting(tmp_path, device):
     from pyopencl_rt.errors import UserError
     from pyopencl_rt.render import checkpoint as ckp
     from pyopencl_rt.render.api import render_full
-    from pyopencl_rt.render.settings import ImageSettings
+    from pyopencl_rt.render.settings import ImageSettings, every_feature
     from pyopencl_rt.scene.loaders import load_scene
     from scenes_small import small_scene
 
@@ -447,7 +459,9 @@ def test_sampler_is_an_image_setting(tmp_path, device):
     for name in ("sobol", "independent"):
         r = render_full(scene, spp=2, device=device, sampler=name, checkpoint=path if name == "sobol" else None,
                         checkpoint_every=1e-6 if name == "sobol" else None)
-        assert r.info["sampler"] == name and f"SAMPLER={abi.SAMPLERS[name]}" in r.info["features"]
+        assert r.info["sampler"] == name
+        # compiled in per scene; with every feature, the kernels' run-time argument
+        assert (f"SAMPLER={abi.SAMPLERS[name]}" in r.info["features"]) == (not every_feature())
         images[name] = r.image
     assert not np.array_equal(images["sobol"], images["independent"])
     with pytest.raises(ckp.CheckpointError, match="sampler 'sobol' -> 'stratified'"):
