@@ -434,7 +434,8 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
 #ifdef HAS_MATERIAL_MIX
     nee |= going & mo.surface & bsdf_has_nondelta_lobes(&mo.m) & (opacity > 0.0f);
 #endif
-    if (integrator != INTEGRATOR_BSDF && pany(nee)) { /* (a scalar test: a lane mask is -1, not 1) */
+    /* n_lights: HAS_LIGHTS is compiled in for scenes without lights too (PYOPENCL_RT_KERNEL_FEATURES=all) */
+    if (integrator != INTEGRATOR_BSDF && n_lights > 0 && pany(nee)) { /* (a scalar test: a lane mask is -1, not 1) */
         LightSample ls;
         pfloat pick_pmf, dist;
         pvec3 wi;

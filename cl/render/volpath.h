@@ -288,7 +288,7 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
     const puint dim = convert_puint(2 + DIMS_PER_BOUNCE * s->depth);
 #ifdef HAS_LIGHTS
     const pint nee = going & ((med.flags & MEDIUM_FLAG_SAMPLE_EMITTERS) != 0);
-    if (integrator != INTEGRATOR_BSDF && pany(nee)) {
+    if (integrator != INTEGRATOR_BSDF && n_lights > 0 && pany(nee)) {
         LightSample ls;
         pfloat pick_pmf, dist;
         pvec3 wl;

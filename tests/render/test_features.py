@@ -40,13 +40,14 @@ def assert_same(own, every):
     assert (own.stats.rays_extend, own.stats.rays_shadow) == (every.stats.rays_extend, every.stats.rays_shadow)
 
 
-@pytest.mark.parametrize("name", ["mitsuba-cbox", "textured-sky", "cornell-fog", "many-lights", "clamped"])
+@pytest.mark.parametrize("name", ["mitsuba-cbox", "textured-sky", "cornell-fog", "many-lights", "clamped", "spheres"])
 def test_every_feature_renders_the_same_bits(device, monkeypatch, name):
     """A box of diffuse triangles and an area light (almost nothing compiled in of its own), a
     textured scene under an environment map with spheres, a box with fog (the volumetric
-    integrator), thousands of lamps picked by the light BVH, and the box again with the run-time
-    choices that a scene's kernel compiles in (the stratified sampler, pbrt's maxcomponentvalue):
-    at the lane width users get (megakernel)."""
+    integrator), thousands of lamps picked by the light BVH, the box again with the run-time
+    choices that a scene's kernel compiles in (the stratified sampler, pbrt's maxcomponentvalue),
+    and spheres without a triangle (the empty BVH traversed): at the lane width users get
+    (megakernel)."""
     import dataclasses
 
     monkeypatch.setenv(megakernel.LANES_ENV, harness.forced_lanes(device))
@@ -55,6 +56,11 @@ def test_every_feature_renders_the_same_bits(device, monkeypatch, name):
         scene = rt.load_scene(SCENES / "mitsuba-cbox.toml")
         scene.settings = dataclasses.replace(scene.settings, max_component_value=0.5)
         options["sampler"] = "stratified"
+    elif name == "spheres":
+        from scenes_small import small_scene
+
+        scene = dataclasses.replace(small_scene(), vertices=np.zeros((0, 3), np.float32),
+                                    faces=np.zeros((0, 3), np.int32), face_materials=np.zeros(0, np.int32))
     else:
         scene = rt.load_scene(SCENES / f"{name}.toml")
     own, every = both(scene, device, monkeypatch, kernel_mode="megakernel", spp=2, seed=4, width=32, height=24,
@@ -63,6 +69,8 @@ def test_every_feature_renders_the_same_bits(device, monkeypatch, name):
     if name == "clamped":  # the clamp and the sampler were the scene kernel's defines
         assert {"MAX_COMPONENT_VALUE=0.5f", f"SAMPLER={abi.SAMPLERS['stratified']}"} <= set(own.info["features"])
     assert every.info["light_tree"] is (name == "many-lights") is ("LIGHT_TREE" in own.info["features"])
+    if name == "spheres":
+        assert "HAS_TRIANGLES" not in own.info["features"] and own.image.mean() > 0.1
 
 
 def test_every_feature_renders_the_same_bits_one_path_per_item(device, monkeypatch):
