@@ -41,8 +41,17 @@
 #define MEDIA_PATH_PARAMS                                                                                   \
     __global const Medium *media, __global const MediumGrid *medium_grids, __global const float *grid_data, \
         __global const MediumInterface *medium_interfaces, __global const int *tri_interface,               \
-        __global const int *sphere_interface
-#define MEDIA_PATH_ARGS media, medium_grids, grid_data, medium_interfaces, tri_interface, sphere_interface
+        __global const int *sphere_interface, const int spectral_mis
+#define MEDIA_PATH_ARGS media, medium_grids, grid_data, medium_interfaces, tri_interface, sphere_interface, spectral_mis
+
+/* Whether the channels are combined by spectral MIS: always where SPECTRAL_MIS is the scene's; the
+ * kernels' spectral_mis where SPECTRAL_MIS_RUNTIME compiles it in for every scene with media
+ * (PYOPENCL_RT_KERNEL_FEATURES=all). */
+#ifdef SPECTRAL_MIS_RUNTIME
+#define SPECTRAL_MIS_ON (spectral_mis != 0)
+#else
+#define SPECTRAL_MIS_ON 1
+#endif
 
 /* at most this many surfaces a shadow ray passes through */
 #define MAX_NULL_CROSSINGS 64
@@ -82,17 +91,20 @@ RT_INLINE pint interface_flags(__global const MediumInterface *interfaces, pint 
     return has ? f : PINT(0);
 }
 
-/* beta / mean(r) and r / mean(r) in the lanes of `m` (see the top); r stays 1 without SPECTRAL_MIS */
-RT_INLINE void spectral_normalise(pvec3 *beta, pvec3 *r, pint m)
+/* beta / mean(r) and r / mean(r) in the lanes of `m` (see the top); r stays 1 without spectral MIS
+ * (`on`: SPECTRAL_MIS_ON) */
+RT_INLINE void spectral_normalise(pvec3 *beta, pvec3 *r, pint m, int on)
 {
 #ifdef SPECTRAL_MIS
-    const pfloat mean = pv3_mean(*r);
-    const pint ok = m & (mean > 0.0f) & pisfinite(mean);
-    *beta = pv3_sel(*beta, pv3_sel(pv3_zero(), pv3_div(*beta, ok ? mean : PFLOAT(1.0f)), ok), m);
-    *r = pv3_sel(*r, pv3_sel(pv3_splat((float3)(1.0f)), pv3_div(*r, ok ? mean : PFLOAT(1.0f)), ok), m);
-#else
-    *r = pv3_sel(*r, pv3_splat((float3)(1.0f)), m);
+    if (on) {
+        const pfloat mean = pv3_mean(*r);
+        const pint ok = m & (mean > 0.0f) & pisfinite(mean);
+        *beta = pv3_sel(*beta, pv3_sel(pv3_zero(), pv3_div(*beta, ok ? mean : PFLOAT(1.0f)), ok), m);
+        *r = pv3_sel(*r, pv3_sel(pv3_splat((float3)(1.0f)), pv3_div(*r, ok ? mean : PFLOAT(1.0f)), ok), m);
+        return;
+    }
 #endif
+    *r = pv3_sel(*r, pv3_splat((float3)(1.0f)), m);
 }
 
 /* Thin dielectric sheets (MATERIAL_FLAG_THIN, Mitsuba's thindielectric) are null boundaries that
@@ -190,10 +202,9 @@ RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global con
         o = pv3_sel(o, beyond, live);
     }
 #ifdef SPECTRAL_MIS
-    return spectral_mis_estimate(T, ratios);
-#else
-    return T;
+    if (SPECTRAL_MIS_ON) return spectral_mis_estimate(T, ratios);
 #endif
+    return T;
 }
 
 /* The medium step of the lanes of `live` (see the top), after their closest hits (prim, t, u, v; `hit`:
@@ -223,7 +234,7 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
         pvec3 beta = s->beta, r = s->r;
         real = medium_sample_free_flight(&med, grid_data, s->o, s->d, PFLOAT(0.0f), hit ? t : PFLOAT(INFINITY),
                                          s->channel, &s->rng, inside, &ts, &beta, &r);
-        spectral_normalise(&beta, &r, inside);
+        spectral_normalise(&beta, &r, inside, SPECTRAL_MIS_ON);
         s->beta = pv3_sel(s->beta, beta, inside);
         s->r = pv3_sel(s->r, r, inside);
     }

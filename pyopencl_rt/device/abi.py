@@ -342,20 +342,10 @@ assert INSTANCE.itemsize == 112
 from .light_node import LIGHT_NODE  # noqa: E402  (the light BVH's node record, documented there)
 # Registry of every shared struct: name -> dtype.  Add new shared structs here.
 STRUCTS: dict[str, np.dtype] = {
-    "BVHNode": BVH_NODE,
-    "Material": MATERIAL,
-    "Sphere": SPHERE,
-    "Instance": INSTANCE,
-    "Light": LIGHT, "LightNode": LIGHT_NODE,
-    "Camera": CAMERA,
-    "WideNode": WIDE_NODE,
-    "Tri4": TRI4,
-    "Wide8Node": WIDE8_NODE,
-    "Tri8": TRI8,
-    "Texture": TEXTURE,
-    "Medium": MEDIUM,
-    "MediumGrid": MEDIUM_GRID,
-    "MediumInterface": MEDIUM_INTERFACE,
+    "BVHNode": BVH_NODE, "Material": MATERIAL, "Sphere": SPHERE, "Instance": INSTANCE,
+    "Light": LIGHT, "LightNode": LIGHT_NODE, "Camera": CAMERA,
+    "WideNode": WIDE_NODE, "Tri4": TRI4, "Wide8Node": WIDE8_NODE, "Tri8": TRI8, "Texture": TEXTURE,
+    "Medium": MEDIUM, "MediumGrid": MEDIUM_GRID, "MediumInterface": MEDIUM_INTERFACE,
 }
 
 
@@ -406,6 +396,7 @@ assert COUNTER_RAYS_SHADOW == COUNTER_RAYS_EXTEND + 1  # the megakernel copies t
 # indices of one sequence per 2^((32 - SOBOL_LOG2_ROUND) / 2)-pixel-square tile (the Morton order
 # of pbrt-v4's ZSobol); passes beyond a block start a new, independently scrambled round.
 SAMPLERS = define_enum("SAMPLER_", ("independent", "sobol", "stratified"))
+SAMPLER_INDEPENDENT, SAMPLER_SOBOL, SAMPLER_STRATIFIED = SAMPLERS.values()
 # the estimators, in the order of scene.model.INTEGRATORS ("path", "bsdf", "nee"): a kernel argument
 INTEGRATOR_MIS, INTEGRATOR_BSDF, INTEGRATOR_NEE = define_enum("INTEGRATOR_", ("mis", "bsdf", "nee")).values()
 SOBOL_LOG2_ROUND = define("SOBOL_LOG2_ROUND", 16, overridable=True)
@@ -573,6 +564,7 @@ MEDIA_PARAMS: tuple[Param, ...] = (
     _scene("tri_interface", "const", "int", "medium interface per reordered triangle, -1 if none"),
     _scene("sphere_interface", "const", "int", "medium interface per sphere, -1 if none"),
     _scene("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none"),
+    _scene("spectral_mis", "scalar", "int", "1: spectral MIS over the channels (read with SPECTRAL_MIS_RUNTIME)"),
     # the wavefront's per-path media state (PathState's HAS_MEDIA fields): allocated with HAS_MEDIA in the
     # wavefront schedule only, 16-byte dummies otherwise (the megakernel keeps them in registers)
     _path("vol_medium", "int", 1, "the medium the path's ray is in, MEDIUM_VACUUM if none"),

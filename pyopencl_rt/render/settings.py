@@ -21,6 +21,7 @@ import numpy as np
 from ..device import abi
 from .. import validate
 from ..errors import UsageError, UserError
+from ..scene.media import uses_spectral_mis
 from ..scene.model import INTEGRATORS, SAMPLERS  # MIS path, BSDF only, light only; cl/render/sampler.h
 from ..scene.pixel_filter import PixelFilter
 
@@ -160,9 +161,10 @@ EVERY_FEATURE = ("HAS_SPHERES", "HAS_TEXTURES", "HAS_SHADING_NORMALS", "HAS_NORM
                  "HAS_TRIANGLES", "HAS_LIGHTS", "LIGHT_TREE")
 
 # The defines that "all" replaces by a run-time choice: every material type compiled in, and the
-# kernels' `sampler`, `max_component` and `light_tree` arguments (cl/render/sampler.h, cl/common.h
-# clamp_sample, cl/render/path.h nee_light_sample), read where the *_RUNTIME defines say.
-RUN_TIME_CHOICES = ("MATERIALS_SELECTED", "SAMPLER", "MAX_COMPONENT_VALUE")
+# kernels' `sampler`, `max_component`, `light_tree` and `spectral_mis` arguments (cl/render/sampler.h,
+# cl/common.h clamp_sample, cl/render/path.h nee_light_sample, cl/render/volpath.h), read where the
+# *_RUNTIME defines say.
+RUN_TIME_CHOICES = ("MATERIALS_SELECTED", "SAMPLER", "MAX_COMPONENT_VALUE", "SPECTRAL_MIS")
 RUN_TIME_DEFINES = ("MAX_COMPONENT_RUNTIME", "LIGHT_TREE_RUNTIME")
 
 
@@ -231,12 +233,14 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
         defines["MAX_COMPONENT_VALUE"] = f"{max_component_value(scene)!r}f"  # cl/common.h clamp_sample
     if scene.has_media():
         defines["HAS_MEDIA"] = True  # the volumetric integrator (cl/render/volpath.h)
-        if getattr(scene.settings, "spectral_mis", True) and any(m.chromatic() for m in scene.media):
+        if uses_spectral_mis(scene):
             defines["SPECTRAL_MIS"] = True  # chromatic sigma_t: the balance heuristic over the channels
     if every_feature():
         defines = {k: v for k, v in defines.items() if not k.startswith("HAS_MATERIAL_") and k not in RUN_TIME_CHOICES}
         defines.update(dict.fromkeys(EVERY_FEATURE, True))  # and every material type (no MATERIALS_SELECTED)
         defines.update(dict.fromkeys(RUN_TIME_DEFINES, True))
+        if "HAS_MEDIA" in defines:
+            defines.update(SPECTRAL_MIS=True, SPECTRAL_MIS_RUNTIME=True)  # the kernels' spectral_mis
     return defines
 
 

@@ -341,12 +341,12 @@ class Wavefront:
         if "HAS_MEDIA" not in self.features:
             dummy = const(np.zeros(0, np.uint8))
             return {**{p.name: dummy for p in abi.MEDIA_PARAMS if p.kind != "scalar" and not p.per_slot},
-                    "camera_medium": -1}
+                    "camera_medium": -1, "spectral_mis": 0}
         from ..scene.media import pack_media
 
         packed = pack_media(self.scene)
         packed["tri_interface"] = packed["tri_interface"][self.bvh.prim_ids]
-        return {k: v if k == "camera_medium" else const(v) for k, v in packed.items()}
+        return {k: v if k in ("camera_medium", "spectral_mis") else const(v) for k, v in packed.items()}
 
     def _media_path_buffers(self, const) -> dict:
         """Dummies for the per-path media state (abi.MEDIA_PARAMS' per-slot buffers) where no kernel keeps it

@@ -243,11 +243,17 @@ def pack_grids(media) -> tuple[np.ndarray, np.ndarray, dict]:
     return table, data, index
 
 
+def uses_spectral_mis(scene) -> bool:
+    """Whether the media's channels are combined by spectral MIS: a chromatic medium, and
+    RenderSettings.spectral_mis (the kernels' SPECTRAL_MIS, or spectral_mis at run time)."""
+    return bool(getattr(scene.settings, "spectral_mis", True) and any(m.chromatic() for m in scene.media))
+
+
 def pack_media(scene) -> dict:
     """The kernel buffers of the scene's media, by their abi.MEDIA_PARAMS names (not the per-path
     state): media, medium_grids, grid_data, medium_interfaces (one record at least each),
     tri_interface (per face, in the scene's face order: the renderer reorders it as tri_material),
-    sphere_interface, and camera_medium."""
+    sphere_interface, camera_medium and spectral_mis."""
     table, data, index = pack_grids(scene.media)
     media = np.zeros(max(1, len(scene.media)), abi.MEDIUM)
     for i, m in enumerate(scene.media):
@@ -257,4 +263,4 @@ def pack_media(scene) -> dict:
         interfaces[i] = mi.record()
     return {"media": media, "medium_grids": table, "grid_data": data, "medium_interfaces": interfaces,
             "tri_interface": scene.face_interface_array(), "sphere_interface": scene.sphere_interface_array(),
-            "camera_medium": int(scene.camera_medium)}
+            "camera_medium": int(scene.camera_medium), "spectral_mis": int(uses_spectral_mis(scene))}
