@@ -7,7 +7,7 @@ import numpy as np
 from ..model import DirectionalLight, Environment, PointLight, ProjectorLight, SpotLight, look_at_frame
 from .builder import EnvMap, error_at, transform_points, transform_vector
 from .pbrt import pbrt_file, pbrt_path
-from .pbrt_materials import spectrum_rgb
+from .pbrt_spectra import spectrum_rgb
 
 
 def light_source(imp, d):

@@ -3,7 +3,7 @@
 | pbrt-v4 | ours |
 |---|---|
 | ``diffuse`` | ``diffuse``: ``reflectance`` (default 0.5; an ``imagemap`` texture as its texture) |
-| ``conductor`` | ``conductor``: ``eta``/``k`` (the named spectra ``metal-Au/Ag/Cu/Al/MgO/TiO2-eta/k`` as Mitsuba's conductors of those names; RGB as given; sampled spectra and ``.spd`` files: :func:`sampled_rgb`) or ``reflectance`` (as F0, Schlick); default copper |
+| ``conductor`` | ``conductor``: ``eta``/``k`` (the named spectra ``metal-Au/Ag/Cu/Al/MgO/TiO2-eta/k`` as Mitsuba's conductors of those names; RGB as given; sampled spectra and ``.spd`` files: :func:`pbrt_spectra.sampled_rgb`) or ``reflectance`` (as F0, Schlick); default copper |
 | ``dielectric`` (``thindielectric`` with a warning) | ``dielectric``: ``eta`` (default 1.5; the named glasses at their d-line index) |
 | ``coateddiffuse`` | ``plastic`` (smooth coat) or ``roughplastic`` (GGX coat), ``nonlinear``: base ``reflectance``, IOR ``eta``, the coating's roughness (the layer's absorption aside: docs/SCENE_FORMAT.md) |
 | ``coatedconductor`` | ``coatedconductor`` (pbrt-v4's layered BSDF, its random walk): ``interface.eta`` and ``interface.*roughness``, ``conductor.eta``/``conductor.k`` (or ``reflectance``) and ``conductor.*roughness``, ``thickness``, ``maxdepth``, ``nsamples``; ``albedo`` > 0 (a scattering coating) refused |
@@ -12,9 +12,11 @@
 | ``diffusetransmission`` | ``diffusetransmission``: ``reflectance`` (a texture too), ``transmittance`` (0.25 each), ``scale``; a transmittance texture is an error |
 | others (``hair``, ``measured``, ``subsurface``) | an error naming the type (never replaced) |
 
-Roughness: ``roughness`` (or the mean of ``uroughness`` and ``vroughness``, with a warning when they
-differ) becomes GGX alpha = sqrt(roughness) when ``remaproughness`` is true (the default), as
-pbrt-v4's ``TrowbridgeReitzDistribution::RoughnessToAlpha``, else alpha = roughness.
+Roughness: ``roughness``, or ``uroughness`` and ``vroughness`` (anisotropic where the material is;
+a coating's mean, with a warning when they differ), becomes GGX alpha = sqrt(roughness) when
+``remaproughness`` is true (the default), as pbrt-v4's ``TrowbridgeReitzDistribution::RoughnessToAlpha``,
+else alpha = roughness.  A float texture of a conductor's, dielectric's or coateddiffuse's roughness
+is remapped texel by texel into the material's textured alpha (``scalar_textures``).
 """
 from __future__ import annotations
 
@@ -23,8 +25,9 @@ import math
 import numpy as np
 
 from ..model import Material
-from .builder import blackbody_rgb, error_at
-from .pbrt import MissingFile, one_line_at, pbrt_file, pbrt_path
+from .builder import error_at
+from .pbrt import MissingFile, pbrt_file, pbrt_path
+from .pbrt_spectra import spectrum_file, spectrum_rgb
 
 # pbrt-v4's named metal spectra (metal-X-eta, metal-X-k) by Mitsuba's conductor of the same
 # measurement (mitsuba_metals.py: its spectra made RGB as Mitsuba's RGB variants make them);
@@ -32,117 +35,6 @@ from .pbrt import MissingFile, one_line_at, pbrt_file, pbrt_path
 METALS = {"Au": "Au", "Ag": "Ag", "Cu": "Cu", "Al": "Al", "MgO": "MgO", "TiO2": "TiO2"}
 GLASSES = {"glass-BK7": 1.5168, "glass-BAF10": 1.6700, "glass-FK51A": 1.4866, "glass-LASF9": 1.8503,
            "glass-F5": 1.6727, "glass-F10": 1.7283, "glass-F11": 1.7847}  # F5, F10, F11: Schott SF5, SF10, SF11
-
-
-# how a sampled spectrum (a .spd file or wavelength-value pairs) becomes RGB, by parameter
-EMISSION_PARAMS = {"L", "I"}
-REFLECTANCE_PARAMS = {"reflectance", "tex1", "tex2", "value", "albedo", "transmittance"}
-CONDUCTOR_PARAMS = {"eta", "k", "conductor.eta", "conductor.k"}
-
-
-def _context(name: str, conductor: bool) -> str:
-    if conductor and name in CONDUCTOR_PARAMS:
-        return "conductor"
-    if name in EMISSION_PARAMS:
-        return "emission"
-    return "reflectance" if name in REFLECTANCE_PARAMS else "unbounded"
-
-
-def sampled_rgb(wavelengths, values, context: str) -> tuple:
-    """Linear sRGB of a sampled spectrum, with the conversions of mitsuba_spectrum.py (the CIE 1931
-    observer, Mitsuba's integration): ``conductor`` (eta, k) as Mitsuba's named conductors
-    (mitsuba_metals.py: no illuminant, clamped at 0; Mitsuba's own Au.eta.spd gives its "Au"),
-    ``reflectance`` under D65, clamped to [0, 1], ``unbounded`` under D65, clamped at 0 (a
-    constant spectrum stays that constant), ``emission`` the spectrum's colour at luminance 1
-    (pbrt-v4 divides a light's scale by the spectrum's photometric value)."""
-    from .mitsuba_spectrum import XYZ_TO_SRGB, Spectrum, sampled_to_xyz
-    from .mitsuba_spectrum import spectrum_rgb as mitsuba_rgb
-
-    if context == "conductor":
-        rgb = XYZ_TO_SRGB @ sampled_to_xyz(wavelengths, values, with_d65=False)
-        return tuple(float(x) for x in np.maximum(rgb, 0.0))
-    if context == "emission":
-        xyz = sampled_to_xyz(wavelengths, values, with_d65=False)
-        if not xyz[1] > 0:
-            return (0.0, 0.0, 0.0)
-        return tuple(float(x) for x in np.maximum(XYZ_TO_SRGB @ (xyz / xyz[1]), 0.0))
-    return mitsuba_rgb(Spectrum(tuple(wavelengths), tuple(values)), context)[0]
-
-
-def read_spectrum_file(path, pos: str, what: str) -> tuple:
-    """(wavelengths, values) of a pbrt spectrum file: numbers separated by blanks (``#`` starts a
-    comment), taken in wavelength-value pairs, as pbrt-v4's ReadFloatFile and
-    PiecewiseLinearSpectrum::FromInterleaved read it."""
-    numbers = []
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise error_at(pos, f"{what}: cannot read '{path.name}' ({exc.strerror or exc})") from None
-    for n, line in enumerate(text.splitlines(), 1):
-        for token in line.split("#", 1)[0].split():
-            try:
-                numbers.append(float(token))
-            except ValueError:
-                raise error_at(pos, f"{what}: '{path.name}' line {n}: '{token}' is not a number") from None
-    return _pairs(numbers, pos, f"{what}: '{path.name}'")
-
-
-def _pairs(numbers, pos: str, what: str) -> tuple:
-    if len(numbers) % 2 or len(numbers) < 4:
-        raise error_at(pos, f"{what}: needs wavelength-value pairs, at least two (got {len(numbers)} numbers)")
-    wl, v = [float(x) for x in numbers[0::2]], [float(x) for x in numbers[1::2]]
-    if any(b <= a for a, b in zip(wl, wl[1:])):
-        raise error_at(pos, f"{what}: the wavelengths must increase")
-    if not all(np.isfinite(wl + v)):
-        raise error_at(pos, f"{what}: wavelengths and values must be finite")
-    return wl, v
-
-
-def spectrum_file(imp, p):
-    """The path of a "spectrum" parameter's string value if it names a file (pbrt-v4 looks for a
-    file when the name is not one of its named spectra), else None."""
-    fname = p.values[0]
-    path = imp.path.parent / fname
-    if path.is_file():
-        return path
-    if "/" in fname or "\\" in fname or fname.lower().endswith((".spd", ".txt", ".csv")):
-        raise MissingFile(one_line_at(p.pos, f'"spectrum {p.name}": spectrum file \'{fname}\' not found '
-                                      f'(looked for {path})'))
-    return None
-
-
-def spectrum_rgb(imp, params, name, default, conductor: bool = False):
-    """Linear RGB of a spectrum-valued parameter: ``rgb``, a constant ``float`` or ``spectrum``,
-    ``blackbody`` (at luminance 1, as pbrt normalises it), a named spectrum, or a sampled one
-    (wavelength-value pairs, or a file of them: :func:`sampled_rgb`, by the parameter's role;
-    ``conductor``: a conductor's ``eta`` and ``k``)."""
-    p = params.get(name)
-    if p is None:
-        return tuple(float(x) for x in default)
-    if p.type in ("rgb", "color"):
-        v = params.numbers(name, (p.type,), 3)
-        return tuple(float(x) for x in v)
-    if p.type == "float":
-        v = params.float(name)
-        return (v, v, v)
-    if p.type == "blackbody":
-        v = params.numbers(name, ("blackbody",), 1)
-        return blackbody_rgb(v[0])
-    if p.type == "spectrum":
-        context = _context(name, conductor)
-        if len(p.values) == 1 and isinstance(p.values[0], str):
-            path = spectrum_file(imp, p)
-            if path is not None:
-                return sampled_rgb(*read_spectrum_file(path, p.pos, f'"spectrum {name}"'), context)
-            named = p.values[0]
-            if named != "stdillum-D65":
-                imp.warn(p.pos, f'"spectrum {name}" "{named}": named spectra are rendered as white')
-            return (1.0, 1.0, 1.0)
-        values = params.numbers(name, ("spectrum",))
-        if len(values) == 1:
-            return (float(values[0]),) * 3
-        return sampled_rgb(*_pairs(values, p.pos, f'"spectrum {name}"'), context)
-    raise error_at(p.pos, f'"{p.type} {name}": expected an rgb, spectrum, blackbody or float value')
 
 
 def equal_area_square_to_sphere(u, v):
@@ -186,6 +78,12 @@ def _inverted(tex, invert: bool):
     return tex
 
 
+# pbrt-v4's roughness parameters; the materials that take them as float textures (the textured alpha of
+# Material.scalar_textures: a coatedconductor's prefixed ones are still numbers)
+ROUGHNESS = ("roughness", "uroughness", "vroughness")
+TEXTURED_ROUGHNESS = ("conductor", "dielectric", "thindielectric", "coateddiffuse")
+
+
 class MaterialMapper:
     def __init__(self, importer):
         self.imp = importer
@@ -193,6 +91,7 @@ class MaterialMapper:
         self.textures: dict[str, tuple] = {}  # name -> (rgb, Texture or None)
         self._default = None
         self._count = 0
+        self._alpha_textures: dict = {}  # (id of a float texture, scale, remap) -> (it, its alpha texture)
 
     def default(self) -> Material:
         """pbrt-v4's material before any Material directive: diffuse, reflectance 0.5."""
@@ -349,19 +248,64 @@ class MaterialMapper:
     def _alphas(self, p, prefix="") -> tuple:
         """(alpha along dp/du, alpha along the bitangent) of ``prefix``'s `roughness`, or of its
         `uroughness` and `vroughness` (pbrt-v4: each defaults to `roughness`, default 0), remapped
-        as pbrt-v4's RoughnessToAlpha (sqrt) when `remaproughness` is true (the default)."""
+        as pbrt-v4's RoughnessToAlpha (sqrt) when `remaproughness` is true (the default).  A float
+        texture's alpha is its Texture (:meth:`_alpha_texture`), the others numbers."""
         remap = p.boolean("remaproughness", True)
 
-        def alpha(r):
+        def alpha(name, default):
+            q = p.get(name)
+            if q is not None and q.type == "texture":
+                return self._alpha_texture(p, name, remap)
+            r = p.float(name, default)
             return min(math.sqrt(max(r, 0.0)) if remap else max(r, 0.0), 1.0)
 
-        r = p.float(prefix + "roughness", 0.0)
-        return alpha(p.float(prefix + "uroughness", r)), alpha(p.float(prefix + "vroughness", r))
+        r = alpha(prefix + "roughness", 0.0)
+        return (alpha(prefix + "uroughness", 0.0) if prefix + "uroughness" in p else r,
+                alpha(prefix + "vroughness", 0.0) if prefix + "vroughness" in p else r)
+
+    def _alpha_texture(self, p, name, remap):
+        """The alpha texture of a float texture parameter: each texel's first channel (pbrt-v4's float
+        image textures read channel 0) times the texture's scale, as RoughnessToAlpha remaps it
+        (sqrt where `remaproughness`), clamped to [0, 1]; a constant texture is its number.  The
+        kernels multiply the material's alpha (1) by its R (Material.scalar_textures); the remap is
+        applied to texels, before the bilinear lookup (pbrt-v4 remaps after it: the same at texel
+        centres)."""
+        from ..textures import Texture
+
+        rgb, tex = self.color(p, name, (0.0,) * 3)
+        if tex is None:
+            r = float(rgb[0])
+            return min(math.sqrt(max(r, 0.0)) if remap else max(r, 0.0), 1.0)
+        key = (id(tex), float(rgb[0]), remap)
+        cached = self._alpha_textures.get(key)
+        if cached is None:
+            r = np.maximum(tex.texels[..., 0].astype(np.float64) * float(rgb[0]), 0.0)
+            a = np.minimum(np.sqrt(r) if remap else r, 1.0)
+            texels = np.ones(tex.texels.shape[:2] + (4,), np.float32)
+            texels[..., :3] = a[..., None]
+            cached = Texture(np.ascontiguousarray(texels), srgb=False, channels=1, name=f"{tex.name}:alpha",
+                             wrap=tex.wrap, filter=tex.filter, to_uv=tex.to_uv)
+            self._alpha_textures[key] = (tex, cached)  # tex kept alive: its id stays its own
+        else:
+            cached = cached[1]
+        return cached
 
     def _alpha(self, p, what, mat=None, prefix="") -> float:
         """The alpha of `roughness`, or of `uroughness` (along dp/du); a `vroughness` that differs sets
-        mat.alpha_v (pbrt-v4's anisotropic Trowbridge-Reitz; without mat: their mean, with a warning)."""
+        mat.alpha_v (pbrt-v4's anisotropic Trowbridge-Reitz; without mat: their mean, with a warning).
+        A texture (with mat only) goes to mat.scalar_textures ("alpha", "alpha_v") with the factor 1."""
         au, av = self._alphas(p, prefix)
+        if mat is not None and not (isinstance(au, float) and isinstance(av, float)):
+            def factor(a, slot):
+                if isinstance(a, float):
+                    return a
+                mat.scalar_textures[slot] = a
+                return 1.0
+
+            alpha = factor(au, "alpha")
+            if av is not au:
+                mat.alpha_v = factor(av, "alpha_v")
+            return alpha
         if au != av and mat is not None:
             mat.alpha_v = av
             return au
@@ -380,8 +324,9 @@ class MaterialMapper:
         transmittance = p.get("transmittance")
         if mtype == "diffusetransmission" and transmittance is not None and transmittance.type == "texture":
             raise error_at(p.items["transmittance"].pos, f'{what}: a "texture transmittance" is not supported')
-        for q in list(p.items.values()):  # textures where we take a number (roughness, eta, ...)
-            if q.type == "texture" and not q.name.endswith("reflectance") and q.name != "displacement" and \
+        textured = ("displacement",) + (ROUGHNESS if mtype in TEXTURED_ROUGHNESS else ())
+        for q in list(p.items.values()):  # textures where we take a number (eta, a coat's roughness, ...)
+            if q.type == "texture" and not q.name.endswith("reflectance") and q.name not in textured and \
                     not (mtype == "mix" and q.name == "amount"):
                 imp.warn(q.pos, f'{what}: "texture {q.name}": textures are not supported here; using the default')
                 q.used = True
@@ -406,7 +351,13 @@ class MaterialMapper:
             # expectation pbrt's random walk estimates, but for its thin layer's absorption
             mat.albedo, mat.base_texture = self.color(p, "reflectance", (0.5, 0.5, 0.5))
             mat.ior = self._eta(p, what)
-            alpha = self._alpha(p, what)
+            if any(p.get(k) is not None and p.get(k).type == "texture" for k in ROUGHNESS):
+                au, av = self._alphas(p)
+                if au is not av:  # the coat (our roughplastic) is isotropic
+                    raise error_at(pos, f"{what}: a textured roughness that differs along u and v is not supported")
+                alpha = self._alpha(p, what, mat)  # the texture in mat.scalar_textures, alpha 1
+            else:
+                alpha = self._alpha(p, what)
             mat.type = "roughplastic" if alpha > 0 else "plastic"
             mat.alpha, mat.distribution, mat.nonlinear = alpha, "ggx", True
             mat.specular_reflectance = (1.0, 1.0, 1.0)

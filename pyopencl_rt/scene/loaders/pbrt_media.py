@@ -15,7 +15,7 @@ import numpy as np
 
 from ..media import Grid, Medium, PhaseFunction
 from .builder import error_at, scale, translate
-from .pbrt_materials import spectrum_rgb
+from .pbrt_spectra import spectrum_rgb
 
 # pbrt-v4's GetMediumScatteringProperties: name -> (sigma_prime_s, sigma_a) [mm^-1] (Jensen et al. 2001;
 # Narasimhan et al. 2006)

@@ -25,7 +25,8 @@ from . import pbrt as _pbrt
 from .pbrt import Directive, MissingFile, Parser
 from .pbrt_film import film_settings, imaging_ratio
 from .pbrt_lights import light_source
-from .pbrt_materials import MaterialMapper, spectrum_rgb
+from .pbrt_materials import MaterialMapper
+from .pbrt_spectra import spectrum_rgb
 
 SILENT = {("Film", "filename"), ("Sampler", "seed"), ("Film", "diagonal"),
           ("Film", "savefp16"), ("Integrator", "regularize"), ("Shape", "S"),

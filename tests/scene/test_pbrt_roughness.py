@@ -1,0 +1,89 @@
+"""pbrt-v4's roughness as a float texture (conductor, dielectric, coateddiffuse): each texel's alpha as
+pbrt-v4's RoughnessToAlpha makes it (sqrt where remaproughness, the default), multiplied into the
+material's alpha by the kernels' textured parameters (Material.scalar_textures)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pyopencl_rt.scene.loaders import SceneError
+
+from harness import load_warned as load
+
+QUAD = 'Shape "trianglemesh" "point3 P" [-2 -1 0  2 -1 0  2 1 0  -2 1 0] "integer indices" [0 1 2  0 2 3] ' \
+       '"point2 uv" [0 0  1 0  1 1  0 1]'
+SCENE = """LookAt 0 0 -3  0 0 0  0 1 0
+Camera "perspective" "float fov" 50
+Film "rgb" "integer xresolution" 16 "integer yresolution" 16
+Sampler "independent" "integer pixelsamples" 8
+WorldBegin
+LightSource "point" "point3 from" [0.3 0.5 -2] "rgb I" [3 3 3]
+LightSource "infinite" "rgb L" [0.2 0.3 0.4]
+Texture "rough" "float" "checkerboard" "float tex1" {r1} "float tex2" {r2} "float uscale" 4 "float vscale" 4
+{material}
+""" + QUAD
+
+
+def scene_file(tmp_path, material, r1=0.0, r2=0.25, name="s.pbrt"):
+    path = tmp_path / name
+    path.write_text(SCENE.format(material=material, r1=r1, r2=r2))
+    return path
+
+
+def material(scene):
+    return scene.materials[scene.face_materials[0]]
+
+
+def values(texture):
+    return sorted(set(np.round(texture.texels[..., 0].ravel().astype(float), 6)))
+
+
+@pytest.mark.parametrize("remap,expect", [("", [0.0, 0.5]), ('"bool remaproughness" false', [0.0, 0.25])])
+@pytest.mark.parametrize("mtype", ["conductor", "dielectric"])
+def test_a_roughness_texture_becomes_the_alpha_texture(tmp_path, mtype, remap, expect):
+    s, warned = load(scene_file(tmp_path, f'Material "{mtype}" "texture roughness" "rough" {remap}'))
+    m = material(s)
+    assert warned == []
+    assert m.alpha == 1.0 and set(m.scalar_textures) == {"alpha"}
+    assert values(m.scalar_textures["alpha"]) == expect
+    assert not m.is_anisotropic
+
+
+def test_u_and_v_textures_and_numbers(tmp_path):
+    """uroughness a texture, vroughness a number: alpha 1 times the texture along u, sqrt(0.09) along v."""
+    s, warned = load(scene_file(tmp_path, 'Material "conductor" "texture uroughness" "rough" "float vroughness" 0.09'))
+    m = material(s)
+    assert warned == [] and m.alpha == 1.0 and m.alpha_v == pytest.approx(0.3) and m.is_anisotropic
+    assert values(m.scalar_textures["alpha"]) == [0.0, 0.5]
+
+
+def test_coateddiffuse_takes_an_isotropic_texture_and_refuses_two(tmp_path):
+    s, warned = load(scene_file(tmp_path, 'Material "coateddiffuse" "texture roughness" "rough"'))
+    m = material(s)
+    assert warned == [] and m.type == "roughplastic" and m.alpha == 1.0
+    assert values(m.scalar_textures["alpha"]) == [0.0, 0.5]
+    with pytest.raises(SceneError, match="a textured roughness that differs along u and v is not supported") as e:
+        load(scene_file(tmp_path, 'Material "coateddiffuse" "texture uroughness" "rough" "float vroughness" 0.1',
+                        name="b.pbrt"))
+    assert "\n" not in str(e.value)
+
+
+def test_a_coatings_textured_roughness_still_warns(tmp_path):
+    _, warned = load(scene_file(tmp_path, 'Material "coatedconductor" "texture interface.roughness" "rough"'))
+    assert any("interface.roughness" in w for w in warned)
+
+
+def test_a_uniform_texture_renders_the_numbers_image_bit_for_bit(tmp_path):
+    """A checkerboard of 0.25 and 0.25 against "float roughness" 0.25 (alpha 0.5 both ways: 1 x 0.5
+    and sqrt(0.25), exact): the same image at the same seed; a checkerboard of 0 and 0.25 another."""
+    import pyopencl_rt as rt
+
+    def render(text, **kw):
+        s, _ = load(scene_file(tmp_path, text, name=f"{abs(hash((text, tuple(kw.items()))))}.pbrt", **kw))
+        return rt.render_full(s, spp=8, width=16, height=16, device="cpu", seed=3).image
+
+    number = render('Material "conductor" "float roughness" 0.25')
+    assert number.mean() > 0.01
+    assert np.array_equal(render('Material "conductor" "texture roughness" "rough"', r1=0.25), number)
+    checks = render('Material "conductor" "texture roughness" "rough"')
+    assert not np.array_equal(checks, number)
