@@ -77,53 +77,6 @@ def device(request):
     return dv.select_device(request.param)
 
 
-# The programs most renders of the suite share (every feature compiled in: the megakernel at the
-# lane width the CPU device gets and the wavefront stages, without and with media).  Each is 25-70 s
-# of one core on a fresh machine, and two xdist workers that need one at once each build it in full
-# (PoCL's cache has no lock): measured, two cold renders of one scene side by side took 64 and 69 s
-# against 69 s alone.  So before its first test each worker builds the ones no other worker has
-# taken (a file lock per program), then waits for the rest: each is built once.
-SHARED_PROGRAMS = (("cornell-box", "megakernel"), ("cornell-box", "wavefront"),
-                   ("cornell-fog", "megakernel"), ("cornell-fog", "wavefront"))
-
-
-@pytest.fixture(scope="session", autouse=True)
-def shared_programs_built_once(request, tmp_path_factory):
-    """Builds :data:`SHARED_PROGRAMS` on the CPU device, split between the xdist workers (a run of
-    the whole suite on two or more workers; a single file or test builds only what it uses)."""
-    import fcntl
-    import warnings
-
-    if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) < 2 or len(request.session.items) < 500 or \
-            os.environ.get("PYOPENCL_RT_TEST_SHARED_BUILDS", "1") == "0":  # 0: each test builds what it uses
-        return
-    from pyopencl_rt.render.api import render_full
-    from pyopencl_rt.scene.loaders import load_scene
-
-    device = dv.resolve("cpu")[0]
-    root = tmp_path_factory.getbasetemp().parent / "shared-programs"  # the workers' common parent
-    root.mkdir(exist_ok=True)
-    waiting = []
-    for k, (scene, mode) in enumerate(SHARED_PROGRAMS):
-        lock = open(root / f"{k}.lock", "w")
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:  # another worker builds it
-            waiting.append(lock)
-            continue
-        done = root / f"{k}.done"
-        if not done.exists():
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                render_full(load_scene(_ROOT / "scenes" / f"{scene}.toml"), device=device, kernel_mode=mode,
-                            spp=1, width=8, height=8)
-            done.touch()
-        lock.close()
-    for lock in waiting:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        lock.close()
-
-
 @pytest.fixture
 def runtime(device):
     from pyopencl_rt.device.kernels import runtime as rt
