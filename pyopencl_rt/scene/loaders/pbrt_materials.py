@@ -187,8 +187,9 @@ class MaterialMapper:
     def _mapping(self, d) -> tuple:
         p = d.params
         mapping = p.string("mapping", "uv")
-        if mapping != "uv":
-            self.imp.warn(p.items["mapping"].pos, f'Texture "{d.args[0]}": mapping "{mapping}" read as "uv"')
+        if mapping != "uv":  # planar, spherical, cylindrical: of the hit point, which our lookup does not take
+            raise error_at(p.items["mapping"].pos, f'Texture "{d.args[0]}": mapping "{mapping}" is not supported '
+                                                   "(textures are looked up by the shape's uv)")
         return tuple(p.float(k, dflt) for k, dflt in (("uscale", 1.0), ("vscale", 1.0), ("udelta", 0.0),
                                                        ("vdelta", 0.0)))
 
