@@ -167,6 +167,11 @@ EVERY_FEATURE = ("HAS_SPHERES", "HAS_TEXTURES", "HAS_SHADING_NORMALS", "HAS_NORM
 RUN_TIME_CHOICES = ("MATERIALS_SELECTED", "SAMPLER", "MAX_COMPONENT_VALUE", "SPECTRAL_MIS")
 RUN_TIME_DEFINES = ("MAX_COMPONENT_RUNTIME", "LIGHT_TREE_RUNTIME")
 
+# Material types (besides diffuse) from which a program calls its BSDF dispatch out of line
+# (RT_BSDF_NOINLINE): the build of a program of every type takes half the time, and scenes of one
+# or two types, whose renders lose 3-6% of their speed so, keep it inline (docs/BENCHMARKS.md).
+BSDF_OUT_OF_LINE_TYPES = 3
+
 
 def max_component_value(scene) -> float:
     """Film maxcomponentvalue (pbrt-v4): the largest XYZ component of a camera sample, +inf: none."""
@@ -235,6 +240,8 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
         defines["HAS_MEDIA"] = True  # the volumetric integrator (cl/render/volpath.h)
         if uses_spectral_mis(scene):
             defines["SPECTRAL_MIS"] = True  # chromatic sigma_t: the balance heuristic over the channels
+    if sum(k.startswith("HAS_MATERIAL_") for k in defines) >= BSDF_OUT_OF_LINE_TYPES or every_feature():
+        defines["RT_BSDF_NOINLINE"] = True  # cl/materials/dispatch.h: one copy of the BSDF dispatch
     if every_feature():
         defines = {k: v for k, v in defines.items() if not k.startswith("HAS_MATERIAL_") and k not in RUN_TIME_CHOICES}
         defines.update(dict.fromkeys(EVERY_FEATURE, True))  # and every material type (no MATERIALS_SELECTED)
