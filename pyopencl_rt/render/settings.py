@@ -246,6 +246,7 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
         defines = {k: v for k, v in defines.items() if not k.startswith("HAS_MATERIAL_") and k not in RUN_TIME_CHOICES}
         defines.update(dict.fromkeys(EVERY_FEATURE, True))  # and every material type (no MATERIALS_SELECTED)
         defines.update(dict.fromkeys(RUN_TIME_DEFINES, True))
+        defines["RT_NEE_NOINLINE"] = True  # cl/render/path.h: a shorter build of the biggest programs
         if "HAS_MEDIA" in defines:
             defines.update(SPECTRAL_MIS=True, SPECTRAL_MIS_RUNTIME=True)  # the kernels' spectral_mis
     return defines
