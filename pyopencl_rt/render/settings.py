@@ -234,8 +234,9 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
     defines.update(layout_defines(bvh_layout))
     if settings.film_aovs:
         defines["HAS_AOVS"] = True  # cl/render/aov.h
-    if math.isfinite(max_component_value(scene)):
-        defines["MAX_COMPONENT_VALUE"] = f"{max_component_value(scene)!r}f"  # cl/common.h clamp_sample
+    max_component = max_component_value(scene)
+    if math.isfinite(max_component):
+        defines["MAX_COMPONENT_VALUE"] = f"{max_component!r}f"  # cl/common.h clamp_sample
     if scene.has_media():
         defines["HAS_MEDIA"] = True  # the volumetric integrator (cl/render/volpath.h)
         if uses_spectral_mis(scene):

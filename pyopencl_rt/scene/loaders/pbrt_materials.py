@@ -84,6 +84,13 @@ ROUGHNESS = ("roughness", "uroughness", "vroughness")
 TEXTURED_ROUGHNESS = ("conductor", "dielectric", "thindielectric", "coateddiffuse")
 
 
+def roughness_to_alpha(roughness, remap: bool):
+    """pbrt-v4's RoughnessToAlpha (sqrt) where `remaproughness`, else the roughness, clamped to [0, 1]
+    (a number or an array of texels)."""
+    r = np.maximum(roughness, 0.0)
+    return np.minimum(np.sqrt(r) if remap else r, 1.0)
+
+
 class MaterialMapper:
     def __init__(self, importer):
         self.imp = importer
@@ -257,8 +264,7 @@ class MaterialMapper:
             q = p.get(name)
             if q is not None and q.type == "texture":
                 return self._alpha_texture(p, name, remap)
-            r = p.float(name, default)
-            return min(math.sqrt(max(r, 0.0)) if remap else max(r, 0.0), 1.0)
+            return float(roughness_to_alpha(p.float(name, default), remap))
 
         r = alpha(prefix + "roughness", 0.0)
         return (alpha(prefix + "uroughness", 0.0) if prefix + "uroughness" in p else r,
@@ -275,13 +281,11 @@ class MaterialMapper:
 
         rgb, tex = self.color(p, name, (0.0,) * 3)
         if tex is None:
-            r = float(rgb[0])
-            return min(math.sqrt(max(r, 0.0)) if remap else max(r, 0.0), 1.0)
+            return float(roughness_to_alpha(rgb[0], remap))
         key = (id(tex), float(rgb[0]), remap)
         cached = self._alpha_textures.get(key)
         if cached is None:
-            r = np.maximum(tex.texels[..., 0].astype(np.float64) * float(rgb[0]), 0.0)
-            a = np.minimum(np.sqrt(r) if remap else r, 1.0)
+            a = roughness_to_alpha(tex.texels[..., 0].astype(np.float64) * float(rgb[0]), remap)
             texels = np.ones(tex.texels.shape[:2] + (4,), np.float32)
             texels[..., :3] = a[..., None]
             cached = Texture(np.ascontiguousarray(texels), srgb=False, channels=1, name=f"{tex.name}:alpha",
