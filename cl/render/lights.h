@@ -36,6 +36,13 @@
  *                dir . (ref - p) / dist, so that the irradiance on the plane at z = 1 is rgb tex
  *                (rgb = pi scale irradiance); pbrt-v4's Le = rgb tex(u, v) / dist^2
  *                Both set ls->tex / ls->uv for the texture, applied by cl/scene/textures.h.
+ *   directional area (HAS_DELTA_LIGHTS) a triangle emitting only along its geometric normal n
+ *                (Mitsuba 3's directionalarea: its flux per unit area is the radiance value rgb,
+ *                all along n, as its particle tracer emits it).  The one point of it that lights
+ *                ref is ref's projection along -n onto its plane, when that lies inside it and ref
+ *                in front: Le = rgb there, a delta light as above (a parallel beam: no falloff);
+ *                elsewhere no sample.  Mitsuba's path tracer does not sample it at all (its
+ *                directionalarea.cpp leaves that to be done "with a flat surface"); this is that.
  *   environment  (HAS_ENVIRONMENT) radiance from every direction: constant (uniform sampling of
  *                the sphere, pdf 1 / 4 pi) or an equirectangular map (env_map: a header, then RGB
  *                rows from the top; pyopencl_rt/device/abi.py ENV_MAP_HEADER), times rgb.  A world
@@ -284,6 +291,30 @@ RT_INLINE pint light_sample_cone(__global const Light *lights, pint row, pint sp
 }
 #endif
 
+/* Directional area lights (the lanes of `sel`): ref projected along the triangle's -n onto it. */
+RT_INLINE pint light_sample_directional_area(__global const float4 *tris, __global const Light *lights, pint row,
+                                             pint sel, pvec3 ref, LightSample *ls)
+{
+    const pint i = sel ? LIGHT_I(lights, row, prim) : PINT(0);
+    const pvec3 p0 = tri_vertex(tris, i, 0), p1 = tri_vertex(tris, i, 1), p2 = tri_vertex(tris, i, 2);
+    const pvec3 e1 = pv3_sub(p1, p0), e2 = pv3_sub(p2, p0), to_ref = pv3_sub(ref, p0);
+    const pvec3 n = pv3_normalize(pv3_cross(e1, e2), sel);
+    const pfloat h = pv3_dot(to_ref, n); /* ref's height above the plane, on the emitting side */
+    const pvec3 q = pv3_sub(to_ref, pv3_scale(n, h)); /* the projection, from p0 */
+    /* its barycentrics (b1, b2) from the normal equations of q = b1 e1 + b2 e2 */
+    const pfloat d11 = pv3_dot(e1, e1), d12 = pv3_dot(e1, e2), d22 = pv3_dot(e2, e2);
+    const pfloat q1 = pv3_dot(q, e1), q2 = pv3_dot(q, e2);
+    const pfloat det = d11 * d22 - d12 * d12;
+    const pint ok = sel & (h > 0.0f) & (det > 0.0f);
+    const pfloat inv = 1.0f / (ok ? det : PFLOAT(1.0f));
+    const pfloat b1 = (d22 * q1 - d12 * q2) * inv, b2 = (d11 * q2 - d12 * q1) * inv;
+    const pint inside = ok & (b1 >= 0.0f) & (b2 >= 0.0f) & (b1 + b2 <= 1.0f);
+    pvec3 err;
+    const pvec3 p = triangle_point(p0, p1, p2, b1, b2, &err);
+    light_sample_set(ls, sel, p, err, n, LIGHT_V3(lights, row, rgb), PFLOAT(1.0f));
+    return inside;
+}
+
 /* Length of a shadow ray from ref that leaves the scene's bounding sphere (centre, radius: the
  * record's p and radius) of a directional or environment light. */
 RT_INLINE pfloat light_far(pvec3 center, pfloat radius, pvec3 ref, pint live)
@@ -457,6 +488,11 @@ RT_INLINE pint light_sample_all(__global const float4 *tris, __global const Sphe
     }
     const pint spot = active & (kind == LIGHT_SPOT), proj = active & (kind == LIGHT_PROJECTOR);
     if (pany(spot | proj)) got = got | light_sample_cone(lights, row, spot, proj, ref, ls);
+    const pint beam = active & (kind == LIGHT_DIRECTIONAL_AREA);
+    if (pany(beam)) {
+        got = got | light_sample_directional_area(tris, lights, row, beam, ref, ls);
+        ls->delta = ls->delta | beam;
+    }
 #else
     const pint directional = PINT(0);
 #endif

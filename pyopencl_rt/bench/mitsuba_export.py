@@ -204,7 +204,8 @@ def _material_record(m, index: int, arrays: dict) -> dict:
     put in, for spheres), its emission and, where textured, the emission texture; texel arrays go
     into ``arrays``."""
     bsdf = m.mitsuba_bsdf()
-    record = {"name": m.name, "bsdf": bsdf, "emission": [float(x) for x in m.emission]}
+    record = {"name": m.name, "bsdf": bsdf, "emission": [float(x) for x in m.emission],
+              "directional": bool(m.emission_directional)}
     if m.masked or m.one_sided:
         raise ValueError(f"material {m.name!r}: alpha cut-outs and one-sided materials are not exported to Mitsuba")
     for t in (m.base_texture, m.emission_texture):
@@ -385,7 +386,7 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
     def emitter(m, textured=True):
         key = m.get("emission_texture") if textured else None
         radiance = resolved(_texture_ref(key)) if key else {"type": "rgb", "value": m["emission"]}
-        return {"type": "area", "radiance": radiance}
+        return {"type": "directionalarea" if m.get("directional") else "area", "radiance": radiance}
 
     verts, faces, fmat = arrays["vertices"], arrays["faces"], arrays["face_materials"]
     fif = arrays.get("face_interfaces", np.full(len(fmat), -1, np.int32))

@@ -234,6 +234,7 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 
 # An emitter that next-event estimation samples (144 bytes; cl/render/lights.h documents each kind).
 #   kind: LIGHT_TRIANGLE (prim = original face index) or LIGHT_SPHERE (prim = sphere index),
+#         LIGHT_DIRECTIONAL_AREA (prim as a triangle's, rgb its radiance, emitted along its normal alone),
 #         LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT, LIGHT_PROJECTOR (delta lights: sampled, never
 #         hit) or LIGHT_ENVIRONMENT (prim = the map's width, material = its height; 0 x 0 = constant
 #         radiance; cells: its sampling cells per texel along each axis)
@@ -254,9 +255,11 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 # the row coordinate of v: y = v * v_scale + v_offset (H, -0.5: rows centred in [0, 1]; H - 1, 0:
 # the first and last rows on the poles, Mitsuba's envmap); the texels are interpolated bilinearly.
 ENV_MAP_HEADER = define("ENV_MAP_HEADER", 16)
-(LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_ENVIRONMENT, LIGHT_SPOT,
- LIGHT_PROJECTOR) = define_enum(
-    "LIGHT_", ("triangle", "sphere", "point", "directional", "environment", "spot", "projector")).values()
+(LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_ENVIRONMENT, LIGHT_SPOT, LIGHT_PROJECTOR,
+ LIGHT_DIRECTIONAL_AREA) = define_enum("LIGHT_", ("triangle", "sphere", "point", "directional", "environment", "spot",
+                                                  "projector", "directional_area")).values()
+TRIANGLE_LIGHTS = (LIGHT_TRIANGLE, LIGHT_DIRECTIONAL_AREA)  # their prim is a triangle
+DELTA_LIGHTS = (LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT, LIGHT_PROJECTOR, LIGHT_DIRECTIONAL_AREA)  # never hit
 LIGHT_SPOT_SMOOTHSTEP = define("LIGHT_SPOT_SMOOTHSTEP", 1)
 LIGHT_PROJECTOR_COS3 = define("LIGHT_PROJECTOR_COS3", 1)
 LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), ("alias_prob", np.float32),

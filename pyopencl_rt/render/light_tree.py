@@ -39,7 +39,7 @@ def light_bounds(lights, triangles, spheres, two_sided_material, power) -> dict:
     cos_o = np.full(n, -1.0)
     cos_e = np.zeros(n)
     two_sided = np.zeros(n, bool)
-    tri = np.flatnonzero(kind == abi.LIGHT_TRIANGLE)
+    tri = np.flatnonzero(np.isin(kind, abi.TRIANGLE_LIGHTS))  # a directional area light: bounded as a triangle
     if len(tri):
         prim = lights["prim"][tri]
         v = [np.asarray(triangles[k][prim, :3], np.float64) for k in ("v0", "v1", "v2")]

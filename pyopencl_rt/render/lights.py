@@ -26,6 +26,7 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     light BVH's LIGHT_NODE records (render/light_tree.py; none unless light_sampler is "bvh")."""
     mats = scene.materials
     emissive = np.array([m.is_emissive for m in mats] or [False])
+    directional = np.array([m.emission_directional for m in mats] or [False])
     # mean_emission: emission x the mean of its texture (textured emitters are sampled by that power)
     luminance = np.array([float(np.dot(m.mean_emission(), LUMINANCE)) for m in mats] or [0.0])
     sides = np.array([2.0 if m.two_sided else 1.0 for m in mats] or [1.0])
@@ -69,6 +70,12 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     sphere_light[sph_idx] = np.arange(k, n, dtype=np.int32)
     mat = lights["material"]
     power = luminance[mat] * lights["area"].astype(np.float64) * np.pi * sides[mat] if n else np.zeros(0)
+    beam = np.flatnonzero(directional[mat]) if n else np.zeros(0, np.int64)
+    if len(beam):  # emitting along the normal alone: flux = radiance x area; never hit (no tri_light)
+        lights["kind"][beam] = abi.LIGHT_DIRECTIONAL_AREA
+        lights["rgb"][beam] = [mats[i].emission for i in mat[beam]]
+        power[beam] = luminance[mat[beam]] * lights["area"][beam].astype(np.float64)
+        tri_light[tri_idx[beam]] = -1
     if n and not (power > 0).any():  # e.g. pure blue emitters have luminance; this guards all-zero
         power = lights["area"].astype(np.float64)
     # an infinite emission has infinite power: pick it as often as a finite table allows
@@ -119,7 +126,7 @@ def uniform_weights(scene, bvh, lights, power) -> np.ndarray:
     kind = lights["kind"]
     prim = lights["prim"].astype(np.int64)
     group = np.full(n, -1, np.int64)  # the emitter index of each row (-1: a row by itself)
-    tri = np.nonzero(kind == abi.LIGHT_TRIANGLE)[0]
+    tri = np.nonzero(np.isin(kind, abi.TRIANGLE_LIGHTS))[0]
     sph = np.nonzero(kind == abi.LIGHT_SPHERE)[0]
     face_emitters = getattr(scene, "face_emitters", None)
     if face_emitters is not None and len(tri):

@@ -223,7 +223,7 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
     kinds = lights["kind"] if len(lights) else np.zeros(0, np.int32)
     if len(kinds):
         defines["HAS_LIGHTS"] = True  # next-event estimation
-    if np.isin(kinds, (abi.LIGHT_POINT, abi.LIGHT_DIRECTIONAL, abi.LIGHT_SPOT, abi.LIGHT_PROJECTOR)).any():
+    if np.isin(kinds, abi.DELTA_LIGHTS).any():
         defines["HAS_DELTA_LIGHTS"] = True
     if environment_row(lights) >= 0:
         defines["HAS_ENVIRONMENT"] = True

@@ -41,6 +41,9 @@ class Material:
     albedo: tuple = (0.8, 0.8, 0.8)
     emission: tuple = (0.0, 0.0, 0.0)
     two_sided: bool = False
+    # the emission leaves along the geometric normal alone (Mitsuba's directionalarea; cl/render/lights.h):
+    # only next-event estimation sees it, a hit sees no emission
+    emission_directional: bool = False
     type: str = "diffuse"
     alpha: float = 0.0  # GGX alpha (the scene format's roughness squared)
     metallic: float = 0.0
@@ -166,7 +169,7 @@ class Material:
         material_type = self.material_type
         rec = np.zeros((), abi.MATERIAL)
         rec["type"] = material_type.type_id
-        rec["emission"] = self.emission
+        rec["emission"] = (0.0, 0.0, 0.0) if self.emission_directional else self.emission
         rec["flags"] = abi.MATERIAL_FLAG_TWO_SIDED if self.two_sided else 0
         material_type.pack(self, rec)
         ti = texture_index or {}

@@ -935,7 +935,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
                ('<shape type="sdfgrid" id="g"/>', '<shape type="sdfgrid" id="g">: shape type "sdfgrid"'),
                ('<shape type="sphere"><bsdf type="hair"/></shape>', '<bsdf type="hair">: bsdf type "hair"'),
                ('<shape type="sphere"><emitter type="point"/></shape>',
-                '<emitter type="point"> in <shape type="sphere">: only area emitters attach to shapes'),
+                '<emitter type="point"> in <shape type="sphere">: only area and directionalarea emitters attach to shapes'),
                ('<emitter type="sunsky"/>', '<emitter type="sunsky">: emitter type "sunsky" is not supported')]
     for body, what in refused:
         bad = write(tmp_path, body, name="bad.xml")

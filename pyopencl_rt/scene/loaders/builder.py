@@ -242,13 +242,15 @@ class SceneBuilder:
             self.materials.append(material)
         return self._material_index[key]
 
-    def emissive(self, material: Material, radiance, two_sided: bool = False, texture=None) -> Material:
-        """``material`` emitting ``radiance`` (one copy per combination)."""
-        key = (id(material), tuple(float(x) for x in radiance), bool(two_sided), id(texture))
+    def emissive(self, material: Material, radiance, two_sided: bool = False, texture=None,
+                 directional: bool = False) -> Material:
+        """``material`` emitting ``radiance`` (one copy per combination); ``directional``: along
+        the normal alone (Material.emission_directional)."""
+        key = (id(material), tuple(float(x) for x in radiance), bool(two_sided), id(texture), bool(directional))
         if key not in self._emissive:
             self._emissive[key] = dataclasses.replace(
                 material, name=f"{material.name}+emitter", emission=tuple(float(x) for x in radiance),
-                two_sided=bool(two_sided), emission_texture=texture)
+                two_sided=bool(two_sided), emission_texture=texture, emission_directional=bool(directional))
         return self._emissive[key]
 
     def medium_index(self, medium) -> int:

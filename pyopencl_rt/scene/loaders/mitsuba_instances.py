@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from .builder import error_at
 from .instancing import ShapeGroup, add_instance
+from .mitsuba_plugins import SURFACE_EMITTERS
 from .mitsuba_xml import MiObject
 
 
@@ -35,7 +36,7 @@ def shapegroup(imp, obj: MiObject) -> ShapeGroup:
                 raise error_at(child.node.pos, f"{child.label()} in {obj.label()}: nested instancing is not "
                                                "permitted")
             else:
-                if any(em.type == "area" for em in child.children_of("emitter")):
+                if any(em.type in SURFACE_EMITTERS for em in child.children_of("emitter")):
                     imp.warn(child.node.pos, f"{child.label()} in {obj.label()}: an emitter in a shapegroup "
                                              "(Mitsuba refuses it: instancing of emitters is not supported); "
                                              "each instance emits")

@@ -53,3 +53,16 @@ def mitsuba_sphere_mesh(n_phi: int = CURVED_SEGMENTS, n_theta: int = CURVED_SEGM
     within 1e-4 of a radius of the sphere."""
     v, f, uv = sphere_mesh(1.0, n_theta=n_theta, n_full=n_phi)
     return v, f, uv, v[f]
+
+
+def flat(vertices, faces, tolerance=1e-5) -> bool:
+    """Whether every face of the mesh lies in one plane (its face normals parallel, to
+    ``tolerance``), so that vertex normals, if it has any, are its face normal."""
+    v = np.asarray(vertices, np.float64)[np.asarray(faces)]
+    n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    n = n[np.linalg.norm(n, axis=1) > 0]
+    if len(n) == 0:
+        return True
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return bool((n @ n[0] > 1.0 - tolerance).all())
+

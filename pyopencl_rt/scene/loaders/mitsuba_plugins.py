@@ -24,6 +24,9 @@ _PATH = ("max_depth", "rr_depth", "hide_emitters")
 _FOV = ("to_world", "fov", "fov_axis", "focal_length")
 _MEDIUM = ("sigma_t", "albedo", "scale", "sample_emitters")
 
+# the emitters that attach to a shape
+SURFACE_EMITTERS = ("area", "directionalarea")
+
 HONOURED: dict[str, dict[str, tuple[str, ...]]] = {
     "integrator": {
         "path": _PATH, "volpath": _PATH, "volpathmis": _PATH + ("use_spectral_mis",),
@@ -65,6 +68,7 @@ HONOURED: dict[str, dict[str, tuple[str, ...]]] = {
     },
     "emitter": {
         "area": ("radiance", "sampling_weight"),
+        "directionalarea": ("radiance", "sampling_weight"),
         "point": ("intensity", "position", "to_world", "sampling_weight"),
         "directional": ("irradiance", "direction", "to_world", "sampling_weight"),
         "constant": ("radiance", "sampling_weight"),

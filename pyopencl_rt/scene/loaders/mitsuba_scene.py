@@ -17,12 +17,12 @@ from ..model import DirectionalLight, Environment, PointLight, ProjectorLight, R
 from ..pixel_filter import PixelFilter
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cylinder_mesh, error_at, rectangle_mesh,
                       transform_points, transform_vector, vertical_fov)
-from .mitsuba_meshes import CURVED_SEGMENTS, mitsuba_cube_mesh, mitsuba_disk_mesh, mitsuba_sphere_mesh
+from .mitsuba_meshes import CURVED_SEGMENTS, flat, mitsuba_cube_mesh, mitsuba_disk_mesh, mitsuba_sphere_mesh
 from ..media import MediumInterface
 from .mitsuba_bsdf import BsdfMapper, color_value
 from .mitsuba_instances import instance, shapegroup
 from .mitsuba_media import MediaMapper
-from .mitsuba_plugins import ANY_TEXTURE_NAME, HONOURED, accepted, refusal
+from .mitsuba_plugins import ANY_TEXTURE_NAME, HONOURED, SURFACE_EMITTERS, accepted, refusal
 from .mitsuba_xml import Document, MiObject
 
 
@@ -113,7 +113,7 @@ class _Importer:
                 (shapegroup if obj.type == "shapegroup" else instance)(self, obj)
             elif obj.tag == "shape":
                 self.shape(obj)
-            elif obj.tag == "emitter" and obj.type == "area" and obj in self.doc.referenced:
+            elif obj.tag == "emitter" and obj.type in SURFACE_EMITTERS and obj in self.doc.referenced:
                 continue  # declared at the top level, used by the shapes that <ref> it
             elif obj.tag == "emitter":
                 self.emitter(obj)
@@ -286,7 +286,7 @@ class _Importer:
         interface = self.interface(obj, bsdfs)
         emitters = obj.children_of("emitter")
         # Mitsuba's shape without a BSDF: diffuse, reflectance 0.5, or 0 for an emitter (shape.cpp)
-        emitting = any(em.type == "area" for em in emitters)
+        emitting = any(em.type in SURFACE_EMITTERS for em in emitters)
         emitter = -1  # our index of its area emitter (Scene.face_emitters), with its sampling_weight
         attribute = None
         if interface is not None and interface.null:  # index-matched: no scattering (scene/media.py)
@@ -298,10 +298,15 @@ class _Importer:
         if len(bsdfs) > 1:
             raise error_at(bsdfs[1].node.pos, f"{obj.label()}: a second BSDF is not supported (Mitsuba refuses it)")
         for em in emitters:
-            if em.type != "area":
-                raise error_at(em.node.pos, f"{em.label()} in {obj.label()}: only area emitters attach to shapes")
-            radiance, texture = color_value(self, em, "radiance", (1.0, 1.0, 1.0), texture_ok=True)
-            material = self.b.emissive(material, radiance, False, texture)
+            if em.type not in SURFACE_EMITTERS:
+                raise error_at(em.node.pos, f"{em.label()} in {obj.label()}: only area and directionalarea "
+                                            "emitters attach to shapes")
+            directional = em.type == "directionalarea"
+            if directional and "to_world" in em.props:  # Mitsuba refuses it too
+                raise error_at(em.props["to_world"].node.pos, f"{em.label()}: a directionalarea emitter takes "
+                                                              "its shape's transform, not a to_world")
+            radiance, texture = color_value(self, em, "radiance", (1.0, 1.0, 1.0), texture_ok=not directional)
+            material = self.b.emissive(material, radiance, False, texture, directional=directional)
             if emitter < 0:
                 emitter = self.b.new_emitter(sampling_weight(em))
             else:
@@ -315,6 +320,9 @@ class _Importer:
         if m is not None and abs(np.linalg.det(m[:3, :3])) < 1e-300:
             raise error_at(obj.props["to_world"].node.pos, f"{obj.label()}: to_world is singular")
         t = obj.type
+        if material.emission_directional and t in ("sphere", "cylinder"):  # (no plane to project onto)
+            raise error_at(obj.node.pos, f"{obj.label()}: a directionalarea emitter on a curved shape is not "
+                                         "supported (only on flat faces: meshes, rectangles, disks, cubes)")
         if t == "sphere":
             return self.sphere(obj, material, m, flip, emitters, interface, emitter)
         normals = compute = extras = None
@@ -334,6 +342,10 @@ class _Importer:
             v, f, uv, normals = self.cylinder(obj)
         else:
             raise error_at(obj.node.pos, refusal(obj))
+        if material.emission_directional and (normals is not None or compute is not None) and not flat(v, f):
+            # Mitsuba's directionalarea emits along the interpolated vertex normal; ours along the face's
+            raise error_at(obj.node.pos, f"{obj.label()}: a directionalarea emitter on a curved mesh with vertex "
+                                         "normals is not supported (flat meshes, or face_normals true)")
         colors = None
         if attribute is not None:
             colors = extras.colors(attribute) if extras is not None else None
@@ -458,7 +470,7 @@ class _Importer:
             self.b.set_environment(Environment(radiance=radiance, sampling_weight=sampling_weight(obj)), obj.node.pos)
         elif t == "envmap":
             self.envmap(obj, m)
-        elif t == "area":  # Mitsuba too: an area emitter needs a shape
+        elif t in SURFACE_EMITTERS:  # Mitsuba too: an area emitter needs a shape
             raise error_at(obj.node.pos, f"{obj.label()}: an area emitter must be attached to a shape")
         else:
             raise error_at(obj.node.pos, refusal(obj))
