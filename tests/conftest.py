@@ -122,8 +122,30 @@ def pytest_addoption(parser):
                           "and as markdown to PATH with the suffix .md")
 
 
+def secondary_implementation(spec: str) -> bool:
+    """Whether the device test spec ``spec`` is a CPU device beyond the one ``--device cpu`` picks
+    (Intel's CPU runtime beside PoCL): a second compiler of the same kernels."""
+    import pyopencl as cl
+
+    entry = dv.resolve(spec)[0]
+    return bool(entry.type & cl.device_type.CPU) and entry != dv.resolve("cpu")[0]
+
+
+def mark_second_implementation_subsets(items):
+    """A test module's ``SECOND_IMPLEMENTATION = {test name: keep(params, device)}`` names the
+    cases that a second implementation runs in ``make test`` (one per code path, where the first
+    runs every case); the others there get the ``stress`` marker (``make stress`` runs them)."""
+    for item in items:
+        keep = getattr(item.module, "SECOND_IMPLEMENTATION", {}).get(item.originalname)
+        params = getattr(getattr(item, "callspec", None), "params", {})
+        if keep is not None and "device" in params and secondary_implementation(params["device"]):
+            if not keep(params, dv.select_device(params["device"])):
+                item.add_marker(pytest.mark.stress)
+
+
 def pytest_collection_modifyitems(config, items):
     """Without ``-m``, deselect the long (``stress``) variants and the ISA matrix (``isa``)."""
+    mark_second_implementation_subsets(items)
     if config.option.markexpr:
         return
     slow = [item for item in items if item.get_closest_marker("stress") or item.get_closest_marker("isa")]

@@ -120,8 +120,10 @@ _ADDRESS = {cl.kernel_arg_address_qualifier.GLOBAL: "global", cl.kernel_arg_addr
 def with_arg_info(context, source):
     """``source`` built from source with -cl-kernel-arg-info: not through pyopencl's binary cache,
     which serves the implementations without a cache of their own (Intel's CPU runtime) a program
-    made from a binary, and such a program has no argument information."""
-    return cl.Program(cl._cl._Program(context, source)).build(options=["-cl-kernel-arg-info"])
+    made from a binary, and such a program has no argument information.  Unoptimised: the
+    signatures do not depend on it, and the whole wavefront took 14-19 s to build optimised with
+    Intel's runtime."""
+    return cl.Program(cl._cl._Program(context, source)).build(options=["-cl-kernel-arg-info", "-cl-opt-disable"])
 
 
 def kernel_signature(kernel) -> list[tuple]:
