@@ -119,8 +119,8 @@ typedef struct {
 RT_INLINE MixOther mix_other(__global const float4 *tris, __global const float *tri_normal,
                              __global const Material *materials, __global const float2 *tri_uv,
                              __global const Texture *textures, __global const float4 *tex_data,
-                             __global const float *tri_color, pint hit, pint prim, pfloat u, pfloat v, pvec3 ng,
-                             pvec3 n, pint front, pvec3 wo, pint other, pfloat w_other)
+                             __global const float *tri_color, pint hit, pint prim, pfloat u, pfloat v, pvec3 p,
+                             pvec3 ng, pvec3 n, pint front, pvec3 wo, pint other, pfloat w_other)
 {
     MixOther x;
     x.blended = hit & (other >= 0);
@@ -134,7 +134,7 @@ RT_INLINE MixOther mix_other(__global const float4 *tris, __global const float *
         return x;
     }
 #ifdef HAS_TEXTURES
-    texture_material(tri_uv, textures, tex_data, x.blended & pnot(IS_SPHERE(prim)), prim, u, v, &x.m);
+    texture_material(tri_uv, textures, tex_data, x.blended & pnot(IS_SPHERE(prim)), prim, u, v, p, ng, &x.m);
 #endif
 #ifdef HAS_VERTEX_COLORS
     vertex_color_material(tri_color, x.blended, prim, u, v, &x.m);

@@ -360,12 +360,12 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     mix_keep_top(materials, tri_uv, textures, tex_data, top_index, mat_index, prim, u, v, &m);
     /* a mix of two materials that are not mixes: the other one, evaluated beside the picked one */
     const MixOther mo = mix_other(tris, tri_normal, materials, tri_uv, textures, tex_data, tri_color, hit, prim, u, v,
-                                  ng, n, front, wo, mix_index, mix_w);
+                                  p, ng, n, front, wo, mix_index, mix_w);
 #else
     MaterialLanes m = material_lanes(materials, mat_index);
 #endif
 #ifdef HAS_TEXTURES
-    texture_material(tri_uv, textures, tex_data, hit & pnot(IS_SPHERE(prim)), prim, u, v, &m);
+    texture_material(tri_uv, textures, tex_data, hit & pnot(IS_SPHERE(prim)), prim, u, v, p, ng, &m);
 #endif
 #ifdef HAS_VERTEX_COLORS
     vertex_color_material(tri_color, hit, prim, u, v, &m);

@@ -197,7 +197,8 @@ RT_INLINE pint map_normal_lanes(__global const float4 *tris, __global const floa
         tn = pv3_sel(tn, pv3(pv3_dot(nb, S), pv3_dot(nb, T), pv3_dot(nb, N)), bump);
     }
     if (pany(normal_map)) {
-        const pvec3 c = tex_sample_lanes(textures, tex_data, tex_normal, tu, tv, normal_map);
+        const TexHit at = {tu, tv, pv3_zero(), ng}; /* a normal map is looked up by uv (scene/validate.py) */
+        const pvec3 c = tex_sample_lanes(textures, tex_data, tex_normal, &at, normal_map);
         tn = pv3_sel(tn, pv3((2.0f * c.x - 1.0f) * scale, (2.0f * c.y - 1.0f) * scale, 2.0f * c.z - 1.0f), normal_map);
     }
     /* a viewer behind N sees the map mirrored through the tangent plane (Mitsuba's twosided) */

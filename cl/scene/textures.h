@@ -11,7 +11,12 @@
  * W; mirror: modulo 2 W, the second copy reversed, so the edge texel repeats once; clamp: to
  * [0, W - 1]).  Repeat and mirror reduce the coordinate to one period first (u - floor(u), or
  * modulo 2 for mirror), so large coordinates keep precision; a non-finite coordinate reads as 0.
- * No mipmapping.  texlookup_ref() in pyopencl_rt/scene/textures.py is the same lookup in numpy.
+ * No mipmapping.  lookup() in pyopencl_rt/scene/textures.py is the same lookup in numpy.  A texture
+ * whose mapping is pbrt-v4's planar, spherical or cylindrical one is looked up by the hit point
+ * instead of its uv (tex_map_lanes), and a direction mix (pbrt-v4's directionmix) blends two by the
+ * geometric normal: both where texture_material() applies textures (TexHit carries the point and
+ * the normal); scene/validate.py keeps them from the uv-only lookups (normal and bump maps,
+ * emission, masks, a mix's weight).
  *
  * Per-triangle UVs: tri_uv holds 3 float2 per BVH-reordered triangle; a hit's uv is
  * (1 - u - v) uv0 + u uv1 + v uv2 with (u, v) the hit's barycentrics (weights of v1 and v2).
@@ -59,21 +64,70 @@ RT_INLINE float4 tex_sample(__global const Texture *textures, __global const flo
                     tex_channel1(texels, &q, 3));
 }
 
-/* The RGB of texture index[k] at (u[k], v[k]) in the lanes k of `on` (0 in the others): the lanes
- * are taken a texture at a time (usually all of them at once), each group in vectors with its
- * record's fields shared; tex_sample's texels, bit for bit. */
+/* Where the lanes look their textures up: the hit's uv and, for the textures that map the hit
+ * point (Texture.mapping) or mix by the normal (TEXTURE_MAP_DIRECTION_MIX), its world position p
+ * and geometric normal ng (any sign). */
+typedef struct {
+    pfloat u, v;
+    pvec3 p, ng;
+} TexHit;
+
+/* pbrt-v4's mappings of the hit point (pyopencl_rt/scene/textures.py map_points is the same in
+ * numpy): x = frame (p, 1) (3 x 4 rows), then planar (s, t) = (x.x, x.y) (pbrt's ds + vs . p,
+ * folded into the frame), spherical (theta / pi, phi / 2 pi) of x / |x| (theta from +z, phi from
+ * +x toward +y in [0, 2 pi)), cylindrical ((pi + atan2(x.y, x.x)) / 2 pi, x.z). */
+RT_INLINE void tex_map_lanes(__global const Texture *t, pvec3 p, pfloat *s, pfloat *tt)
+{
+    __global const float *f = t->frame;
+    const pfloat x = f[0] * p.x + f[1] * p.y + f[2] * p.z + f[3];
+    const pfloat y = f[4] * p.x + f[5] * p.y + f[6] * p.z + f[7];
+    const pfloat z = f[8] * p.x + f[9] * p.y + f[10] * p.z + f[11];
+    if (t->mapping == TEXTURE_MAP_PLANAR) {
+        *s = x;
+        *tt = y;
+    } else if (t->mapping == TEXTURE_MAP_CYLINDRICAL) {
+        *s = (PI_F + patan2(y, x)) * (0.5f * INV_PI_F);
+        *tt = z;
+    } else { /* spherical */
+        pfloat phi = patan2(y, x);
+        phi = phi < 0.0f ? phi + 2.0f * PI_F : phi;
+        *s = pacos(pclamp(z / psqrt(x * x + y * y + z * z), -1.0f, 1.0f)) * INV_PI_F;
+        *tt = phi * (0.5f * INV_PI_F);
+    }
+}
+
+/* The RGB of image texture t at the lanes' hits (its mapping applied), every lane computed. */
+RT_INLINE pvec3 tex_image_lanes(__global const Texture *t, __global const float4 *data, const TexHit *h)
+{
+    pfloat s = h->u, tt = h->v;
+    if (t->mapping != TEXTURE_MAP_UV) tex_map_lanes(t, h->p, &s, &tt);
+    const TexelQuad_lanes q = tex_quad_lanes(t, s, tt);
+    __global const float *texels = tex_texels(data, t);
+    return pv3(tex_channel_lanes(texels, &q, 0), tex_channel_lanes(texels, &q, 1), tex_channel_lanes(texels, &q, 2));
+}
+
+/* The RGB of texture index[k] at hit k in the lanes k of `on` (0 in the others): the lanes are
+ * taken a texture at a time (usually all of them at once), each group in vectors with its
+ * record's fields shared; tex_sample's texels, bit for bit, for a uv lookup.  A direction mix
+ * (pbrt-v4's directionmix) weighs its first texture by |ng . dir| (frame[0..2], a unit vector)
+ * and its second by the rest; its textures are images. */
 RT_INLINE pvec3 tex_sample_lanes(__global const Texture *textures, __global const float4 *data, pint index,
-                                 pfloat u, pfloat v, pint on)
+                                 const TexHit *h, pint on)
 {
     pvec3 out = pv3_zero();
     for (int todo = pbits(on); todo;) {
         const int ti = PLANE_I(index, lowest_bit(todo));
         const pint group = on & (index == ti);
         __global const Texture *t = textures + ti;
-        const TexelQuad_lanes q = tex_quad_lanes(t, u, v);
-        __global const float *texels = tex_texels(data, t);
-        out = pv3_sel(out, pv3(tex_channel_lanes(texels, &q, 0), tex_channel_lanes(texels, &q, 1),
-                               tex_channel_lanes(texels, &q, 2)), group);
+        pvec3 c;
+        if (t->mapping == TEXTURE_MAP_DIRECTION_MIX) {
+            const pfloat amt = pabs(pv3_dot(h->ng, pv3(PFLOAT(t->frame[0]), PFLOAT(t->frame[1]), PFLOAT(t->frame[2]))));
+            c = pv3_add(pv3_scale(tex_image_lanes(textures + t->children[0], data, h), amt),
+                        pv3_scale(tex_image_lanes(textures + t->children[1], data, h), 1.0f - amt));
+        } else {
+            c = tex_image_lanes(t, data, h);
+        }
+        out = pv3_sel(out, c, group);
         todo &= ~pbits(group);
     }
     return out;
@@ -132,33 +186,36 @@ RT_INLINE void triangle_uv_lanes(__global const float2 *tri_uv, pint prim, pfloa
 }
 
 /* The textures of the lanes' materials applied at their hits (lanes of `tri_hit`: hits on
- * triangles, prim a triangle there), in vectors over the lanes that read each texture. */
+ * triangles, prim a triangle there; p the hit point, ng its geometric normal, both in the world),
+ * in vectors over the lanes that read each texture. */
 RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Texture *textures,
-                                __global const float4 *data, pint tri_hit, pint prim, pfloat u, pfloat v,
-                                MaterialLanes *m)
+                                __global const float4 *data, pint tri_hit, pint prim, pfloat u, pfloat v, pvec3 p,
+                                pvec3 ng, MaterialLanes *m)
 {
     __global const int *recs = (__global const int *)m->records;
     const pint scalar = pgather_int(recs, m->rec + FIELD_INDEX(Material, tex_scalar)) >= 0;
     const pint textured = tri_hit & ((m->tex_base >= 0) | (m->tex_mr >= 0) | (m->tex_emission >= 0) | scalar);
     if (!pany(textured)) return;
-    pfloat tu, tv;
-    triangle_uv_lanes(tri_uv, textured ? prim : PINT(0), u, v, &tu, &tv);
+    TexHit h;
+    triangle_uv_lanes(tri_uv, textured ? prim : PINT(0), u, v, &h.u, &h.v);
+    h.p = p;
+    h.ng = ng;
     const pint base = textured & (m->tex_base >= 0);
     if (pany(base)) {
-        const pvec3 c = tex_sample_lanes(textures, data, m->tex_base, tu, tv, base);
+        const pvec3 c = tex_sample_lanes(textures, data, m->tex_base, &h, base);
         const pint tint = base & (m->type == MATERIAL_DIELECTRIC);
         m->specular = pv3_sel(m->specular, pv3_mul(m->specular, c), tint);
         m->albedo = pv3_sel(m->albedo, pv3_mul(m->albedo, c), base & pnot(tint));
     }
     const pint mr = textured & (m->tex_mr >= 0);
     if (pany(mr)) {
-        const pvec3 c = tex_sample_lanes(textures, data, m->tex_mr, tu, tv, mr);
+        const pvec3 c = tex_sample_lanes(textures, data, m->tex_mr, &h, mr);
         m->metallic = mr ? m->metallic * c.z : m->metallic;
         m->alpha = mr ? m->alpha * (c.y * c.y) : m->alpha;
     }
     const pint emission = textured & (m->tex_emission >= 0);
     if (pany(emission)) {
-        const pvec3 c = tex_sample_lanes(textures, data, m->tex_emission, tu, tv, emission);
+        const pvec3 c = tex_sample_lanes(textures, data, m->tex_emission, &h, emission);
         m->emission = pv3_sel(m->emission, pv3_mul(m->emission, c), emission);
     }
     pint on = textured & scalar;
@@ -167,7 +224,7 @@ RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Te
         const pint t = on ? pgather_int(recs, m->rec + (FIELD_INDEX(Material, tex_scalar) + slot)) : PINT(-1);
         on &= t >= 0;
         if (!pany(on)) break;
-        const pfloat c = tex_sample_lanes(textures, data, t, tu, tv, on).x;
+        const pfloat c = tex_sample_lanes(textures, data, t, &h, on).x;
         const pint kind = on ? (params >> (4 * slot)) & 15 : PINT(-1);
 #define TEXP_TIMES(K, field) m->field = kind == K ? m->field * c : m->field
         TEXP_TIMES(TEXP_ALPHA, alpha);

@@ -209,6 +209,8 @@ def _material_record(m, index: int, arrays: dict) -> dict:
     if m.masked or m.one_sided:
         raise ValueError(f"material {m.name!r}: alpha cut-outs and one-sided materials are not exported to Mitsuba")
     for t in (m.base_texture, m.emission_texture):
+        if t is not None and t.mapping != "uv":
+            raise ValueError(f"material {m.name!r}: a {t.mapping} texture is not exported to Mitsuba")
         if t is not None and (t.wrap, t.filter, tuple(t.to_uv)) != ("repeat", "bilinear", (1, 0, 0, 0, 1, 0)):
             raise ValueError(f"material {m.name!r}: a texture looked up other than bilinearly, repeated and "
                              "untransformed is not exported to Mitsuba")

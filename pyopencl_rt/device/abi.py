@@ -168,19 +168,24 @@ TEXTURE_PARAMS = {k: "ior" if name == "eta" else name for name, k in _TEXP.items
 #                 with MATERIAL_FLAG_BUMP_MAP a height map (its luminance), perturbing the
 #                 shading normal (HAS_NORMAL_MAPS, cl/scene/shading.h); normal_scale scales the
 #                 normal map's x and y (glTF's normalTexture.scale) or the bump map's gradient
-# A texture (64 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row by row from the
-# top (v = 0 is the top row, as in glTF; OBJ's v is flipped at load), linear (sRGB colour images are decoded at
-# load: flags bit 0); channels: the source's (informative).  Looked up (cl/scene/textures.h, as Mitsuba's bitmap)
-# at (a u + b v + c, d u + e v + f), to_uv = (a..f); wrap TEXTURE_WRAP_*, filter TEXTURE_FILTER_*; texels shared.
+# A texture (112 bytes): texels [offset, offset + width * height) of the float4 texel buffer, row by row from the top
+# (v = 0 the top row, as in glTF; OBJ's v is flipped at load), linear (sRGB images decoded at load: flags bit 0);
+# channels: the source's (informative).  Looked up (cl/scene/textures.h, as Mitsuba's bitmap) at (a u + b v + c,
+# d u + e v + f), to_uv = (a..f), of the hit's uv, or with mapping TEXTURE_MAP_PLANAR, _SPHERICAL, _CYLINDRICAL of the
+# hit point through frame (3 x 4 rows: pbrt-v4's mappings); wrap TEXTURE_WRAP_*, filter TEXTURE_FILTER_*; texels
+# shared.  TEXTURE_MAP_DIRECTION_MIX (pbrt-v4's directionmix, no texels): |ng . frame[0:3]| of record children[0]
+# and the rest of children[1]; children -1 otherwise.
 TEXTURE_FLAG_SRGB = define("TEXTURE_FLAG_SRGB", 1)
 TEXTURE_WRAPS = define_enum("TEXTURE_WRAP_", ("repeat", "mirror", "clamp"))
 TEXTURE_FILTERS = define_enum("TEXTURE_FILTER_", ("bilinear", "nearest"))
+TEXTURE_MAPS = define_enum("TEXTURE_MAP_", ("uv", "planar", "spherical", "cylindrical", "direction_mix"))
 TEXTURE_WRAP_REPEAT, TEXTURE_WRAP_MIRROR, TEXTURE_WRAP_CLAMP = TEXTURE_WRAPS.values()
 TEXTURE_FILTER_BILINEAR, TEXTURE_FILTER_NEAREST = TEXTURE_FILTERS.values()
+TEXTURE_MAP_UV, TEXTURE_MAP_PLANAR, TEXTURE_MAP_SPHERICAL, TEXTURE_MAP_CYLINDRICAL, TEXTURE_MAP_DIRECTION_MIX = TEXTURE_MAPS.values()
 TEXTURE = np.dtype([("offset", np.int32), ("width", np.int32), ("height", np.int32), ("channels", np.int32),
-                    ("flags", np.int32), ("wrap", np.int32), ("filter", np.int32), ("pad0", np.int32),
-                    ("to_uv", np.float32, 6), ("pad1", np.int32), ("pad2", np.int32)])
-assert TEXTURE.itemsize == 64
+                    ("flags", np.int32), ("wrap", np.int32), ("filter", np.int32), ("mapping", np.int32),
+                    ("to_uv", np.float32, 6), ("children", np.int32, 2), ("frame", np.float32, 12)])
+assert TEXTURE.itemsize == 112
 
 # Participating media (cl/render/media.h; pyopencl_rt/scene/media.py packs them).  A medium (64 bytes):
 #   type      MEDIUM_TYPE_HOMOGENEOUS (sigma_t everywhere) or MEDIUM_TYPE_GRID (sigma_t times its density grid, inside the

@@ -108,7 +108,7 @@ def _textures(scene) -> dict:
     if len(scene.faces) and (scene.has_textures() or scene.has_anisotropy()):
         out["face_uvs"] = scene.face_uvs()
     if scene.has_textures():
-        out["textures"], out["tex_data"] = pack_textures(scene.textures())
+        out["textures"], out["tex_data"] = pack_textures(scene.textures(), scene.world_origin)
     return out
 
 

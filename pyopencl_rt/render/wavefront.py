@@ -321,7 +321,7 @@ class Wavefront:
         from ..scene.textures import pack_textures
 
         uv = self.scene.face_uvs()[self.bvh.prim_ids].reshape(-1, 2)
-        table, texels = pack_textures(self.scene.textures())
+        table, texels = pack_textures(self.scene.textures(), self.scene.world_origin)
         return {"tri_uv": const(uv), "textures": const(table), "tex_data": const(texels)}
 
     def _shading_buffers(self, const, filled) -> dict:

@@ -335,6 +335,9 @@ class Scene:
     # and one Environment or None
     lights: list = field(default_factory=list)
     environment: Environment | None = None
+    # the world position of these coordinates' origin (camera_relative moves it to the camera): the
+    # textures looked up by the world's hit point (pbrt's planar, spherical, cylindrical) add it back
+    world_origin: tuple = (0.0, 0.0, 0.0)
     # per-face texture coordinates (F, 3, 2) float32 (corner k of face f), or None (all 0)
     uvs: np.ndarray | None = None
     # per-corner shading normals (F, 3, 3) float32 in world space, or None: the triangles'
@@ -394,6 +397,8 @@ class Scene:
         for m in self.materials:
             for t in m.textures():
                 seen.setdefault(id(t), t)
+                for child in getattr(t, "children", tuple)():  # a direction mix's two textures
+                    seen.setdefault(id(child), child)
         for lt in self.light_textures():
             seen.setdefault(id(lt), lt)
         return list(seen.values())
@@ -448,6 +453,7 @@ class Scene:
             s.spheres = spheres.astype(np.float32)
         s.camera = dataclasses.replace(self.camera, eye=(0.0, 0.0, 0.0),
                                        look_at=tuple(np.asarray(self.camera.look_at, np.float64) - eye))
+        s.world_origin = tuple(float(x) for x in np.asarray(self.world_origin, np.float64) + eye)
         s.lights = [dataclasses.replace(lt, position=tuple(np.asarray(lt.position, np.float64) - eye))
                     if hasattr(lt, "position") else lt for lt in self.lights]
         if self.media:

@@ -31,6 +31,7 @@ def srgb_to_linear(c):
 
 WRAPS = tuple(abi.TEXTURE_WRAPS)      # "repeat", "mirror", "clamp"
 FILTERS = tuple(abi.TEXTURE_FILTERS)  # "bilinear", "nearest"
+POINT_MAPPINGS = ("planar", "spherical", "cylindrical")  # of the hit point (pbrt-v4's), besides "uv"
 IDENTITY_UV = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
 
 
@@ -60,7 +61,9 @@ class Texture:
     How it is looked up: ``to_uv``, the affine map (a, b, c, d, e, f) applied to the hit's uv
     (u' = a u + b v + c, v' = d u + e v + f), ``wrap`` (one of WRAPS) and ``filter`` (one of
     FILTERS); :meth:`with_lookup` gives the same texels with other settings (they share one copy
-    on the device)."""
+    on the device).  ``mapping`` "uv" (the shape's uv) or one of POINT_MAPPINGS: to_uv then
+    applies to the (s, t) of the hit point that :func:`map_points` gives (pbrt-v4's planar,
+    spherical and cylindrical mappings), ``frame`` their 3 x 4 matrix (12 numbers, rows)."""
 
     texels: np.ndarray
     srgb: bool = False
@@ -69,6 +72,8 @@ class Texture:
     wrap: str = "repeat"
     filter: str = "bilinear"
     to_uv: tuple = IDENTITY_UV
+    mapping: str = "uv"
+    frame: tuple = ()
 
     def __post_init__(self):
         if self.wrap not in WRAPS:
@@ -78,15 +83,26 @@ class Texture:
         self.to_uv = tuple(float(x) for x in self.to_uv)
         if len(self.to_uv) != 6 or not all(np.isfinite(self.to_uv)):
             raise ValueError(f"{self.name}: to_uv must be 6 finite numbers (a b c d e f), got {self.to_uv}")
+        if self.mapping not in ("uv", *POINT_MAPPINGS):
+            raise ValueError(f"{self.name}: mapping must be uv or one of {', '.join(POINT_MAPPINGS)}")
+        self.frame = tuple(float(x) for x in self.frame) if self.mapping != "uv" else ()
+        if self.mapping != "uv" and (len(self.frame) != 12 or not all(np.isfinite(self.frame))):
+            raise ValueError(f"{self.name}: a {self.mapping} mapping needs 12 finite numbers (its 3 x 4 frame)")
 
-    def with_lookup(self, wrap=None, filter=None, to_uv=None) -> "Texture":
+    def with_lookup(self, wrap=None, filter=None, to_uv=None, mapping=None, frame=None) -> "Texture":
         """These texels with other lookup settings (None keeps one); ``self`` when nothing changes."""
         wrap = self.wrap if wrap is None else wrap
         filter = self.filter if filter is None else filter
         to_uv = self.to_uv if to_uv is None else tuple(float(x) for x in to_uv)
-        if (wrap, filter, to_uv) == (self.wrap, self.filter, self.to_uv):
+        mapping = self.mapping if mapping is None else mapping
+        frame = self.frame if frame is None else tuple(float(x) for x in frame)
+        if (wrap, filter, to_uv, mapping, frame) == (self.wrap, self.filter, self.to_uv, self.mapping, self.frame):
             return self
-        return dataclasses.replace(self, wrap=wrap, filter=filter, to_uv=to_uv)
+        return dataclasses.replace(self, wrap=wrap, filter=filter, to_uv=to_uv, mapping=mapping, frame=frame)
+
+    def lookup_key(self) -> tuple:
+        """What besides the texels decides a lookup (textures that share it read the same texel)."""
+        return self.texels.shape, self.wrap, self.filter, self.to_uv, self.mapping, self.frame
 
     @property
     def width(self) -> int:
@@ -101,6 +117,38 @@ class Texture:
         return self.texels[..., :3].astype(np.float64).mean(axis=(0, 1))
 
 
+@dataclass(eq=False)
+class DirectionMix:
+    """pbrt-v4's directionmix texture: ``first`` weighted by |ng . direction| (ng the hit's geometric
+    normal, ``direction`` a unit vector in the world), ``second`` by the rest; both image Textures
+    (each with its own mapping).  No texels of its own (abi.TEXTURE_MAP_DIRECTION_MIX)."""
+
+    first: Texture
+    second: Texture
+    direction: tuple = (0.0, 1.0, 0.0)
+    name: str = "directionmix"
+    mapping = "direction_mix"
+
+    def __post_init__(self):
+        d = np.asarray(self.direction, np.float64)
+        if d.shape != (3,) or not np.all(np.isfinite(d)) or not np.linalg.norm(d) > 0:
+            raise ValueError(f"{self.name}: the direction must be a finite, non-zero 3-vector")
+        self.direction = tuple(float(x) for x in d / np.linalg.norm(d))
+        if not (isinstance(self.first, Texture) and isinstance(self.second, Texture)):
+            raise ValueError(f"{self.name}: a directionmix mixes two image textures")
+
+    @property
+    def channels(self) -> int:
+        return max(self.first.channels, self.second.channels)
+
+    @property
+    def srgb(self) -> bool:
+        return self.first.srgb and self.second.srgb
+
+    def children(self) -> tuple:
+        return self.first, self.second
+
+
 # Mitsuba's luminance of linear sRGB (include/mitsuba/core/spectrum.h)
 LUMINANCE = (0.212671, 0.715160, 0.072169)
 
@@ -112,13 +160,15 @@ def scalar_texture(texture: Texture) -> Texture:
     """The texture of a scalar parameter: its luminance in R, G and B (Mitsuba's eval_1 of a
     colour texture; a grey one keeps its value); one per source texture."""
     cached = _SCALAR_TEXTURES.get(texture)
-    if cached is None:
+    if cached is None and isinstance(texture, DirectionMix):
+        cached = dataclasses.replace(texture, first=scalar_texture(texture.first), second=scalar_texture(texture.second))
+        _SCALAR_TEXTURES[texture] = cached
+    elif cached is None:
         t = texture.texels.astype(np.float64)
         lum = t[..., :3] @ np.array(LUMINANCE) if texture.channels >= 3 else t[..., 0]
         out = np.ones_like(t)
         out[..., :3] = lum[..., None]
-        cached = Texture(np.ascontiguousarray(out, np.float32), srgb=texture.srgb, channels=1, name=texture.name,
-                         wrap=texture.wrap, filter=texture.filter, to_uv=texture.to_uv)
+        cached = dataclasses.replace(texture, texels=np.ascontiguousarray(out, np.float32), channels=1)
         _SCALAR_TEXTURES[texture] = cached
     return cached
 
@@ -173,15 +223,25 @@ def texture_from_image(image, *, srgb: bool = False, name: str | None = None) ->
     return texture_from_array(a, srgb=srgb, name=str(name))
 
 
-def pack_textures(textures) -> tuple[np.ndarray, np.ndarray]:
+def pack_textures(textures, origin=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """(TEXTURE table, float32 texel buffer of 4 floats per texel) for a list of textures; textures
-    that share their texels array (Texture.with_lookup) share its copy in the buffer."""
+    that share their texels array (Texture.with_lookup) share its copy in the buffer.  ``origin``:
+    the world position of the kernels' origin (Scene.world_origin), which the frames of point
+    mappings add to the points the kernels give them."""
     table = np.zeros(max(1, len(textures)), abi.TEXTURE)
     table["to_uv"] = IDENTITY_UV
+    table["children"] = -1
     chunks = []
     offset = 0
     placed: dict[int, int] = {}  # id(texels) -> offset
+    index = {id(t): i for i, t in enumerate(textures)}
     for i, t in enumerate(textures):
+        if isinstance(t, DirectionMix):  # its two textures are in the table too (Scene.textures)
+            table["mapping"][i] = abi.TEXTURE_MAP_DIRECTION_MIX
+            table["children"][i] = index[id(t.first)], index[id(t.second)]
+            table["frame"][i, :3] = t.direction
+            table["channels"][i] = t.channels
+            continue
         if id(t.texels) not in placed:
             placed[id(t.texels)] = offset
             chunks.append(t.texels.reshape(-1))
@@ -194,6 +254,11 @@ def pack_textures(textures) -> tuple[np.ndarray, np.ndarray]:
         table[i]["wrap"] = abi.TEXTURE_WRAPS[t.wrap]
         table[i]["filter"] = abi.TEXTURE_FILTERS[t.filter]
         table[i]["to_uv"] = t.to_uv
+        table[i]["mapping"] = abi.TEXTURE_MAPS[t.mapping]
+        if t.frame:
+            frame = np.reshape(np.asarray(t.frame, np.float64), (3, 4)).copy()
+            frame[:, 3] += frame[:, :3] @ np.asarray(origin, np.float64)
+            table[i]["frame"] = frame.ravel()
     if offset >= 2**31:
         raise ValueError("textures too large (more than 2^31 texels in all)")
     data = np.concatenate(chunks).astype(np.float32) if chunks else np.zeros(4, np.float32)
@@ -238,6 +303,23 @@ def lookup(texels, uv, wrap="repeat", filter="bilinear", to_uv=IDENTITY_UV) -> n
     top = t[y0, x0] * (1 - ax) + t[y0, x1] * ax
     bot = t[y1, x0] * (1 - ax) + t[y1, x1] * ax
     return top * (1 - ay) + bot * ay
+
+
+def map_points(mapping, frame, points) -> np.ndarray:
+    """(s, t) of world points (N x 3) under pbrt-v4's mapping (float64; cl/scene/textures.h
+    tex_map_lanes): x = frame (p, 1) with frame 3 x 4; planar (x0, x1) (pbrt's ds + vs . p, folded
+    into the frame); spherical (theta / pi, phi / 2 pi) of x / |x|, theta from +z, phi from +x
+    toward +y in [0, 2 pi); cylindrical ((pi + atan2(x1, x0)) / 2 pi, x2)."""
+    m = np.asarray(frame, np.float64).reshape(3, 4)
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    x = p @ m[:, :3].T + m[:, 3]
+    if mapping == "planar":
+        return x[:, :2]
+    if mapping == "cylindrical":
+        return np.stack([(np.pi + np.arctan2(x[:, 1], x[:, 0])) / (2 * np.pi), x[:, 2]], 1)
+    d = x / np.linalg.norm(x, axis=1, keepdims=True)
+    return np.stack([np.arccos(np.clip(d[:, 2], -1, 1)) / np.pi,
+                     np.mod(np.arctan2(d[:, 1], d[:, 0]), 2 * np.pi) / (2 * np.pi)], 1)
 
 
 def bilinear(texels, uv) -> np.ndarray:

@@ -250,6 +250,22 @@ def check_media(scene) -> None:
     _shape_indices(scene, "interfaces", len(interfaces))
 
 
+def check_textures(scene) -> None:
+    """Textures looked up by the hit point or mixed by its normal (planar, spherical and
+    cylindrical mappings, directionmix) where the kernels read them so: a material's base,
+    metallic-roughness and scalar textures, not its emission, normal or bump map, cut-out
+    opacity or a mix's weight (read by uv alone)."""
+    for m in scene.materials:
+        uv_only = [("emission", m.emission_texture), ("normal or bump map", m.normal_texture),
+                   ("opacity", m.scalar_textures.get("opacity"))]
+        if m.type == "mix":
+            uv_only.append(("blend weight", m.scalar_textures.get("metallic")))
+        for what, t in uv_only:
+            if t is not None and getattr(t, "mapping", "uv") != "uv":
+                _fail(scene, f"material {m.name!r}: a {t.mapping.replace('_', '')} texture ({t.name}) as its {what} "
+                             "is not supported (there textures are looked up by the shape's uv)")
+
+
 def check_scene(scene) -> None:
     """Every check above; a SceneValueError (one line naming the scene) at the first problem."""
     from .model import Scene
@@ -263,6 +279,7 @@ def check_scene(scene) -> None:
         check_camera(scene)
         check_lights(scene)
         check_media(scene)
+    check_textures(scene)
     check_settings(scene)
 
 

@@ -1,7 +1,7 @@
 """pbrt-v4's roughness as a float texture (conductor, dielectric, coateddiffuse): each texel's alpha as
 pbrt-v4's RoughnessToAlpha makes it (sqrt where remaproughness, the default), multiplied into the
 material's alpha by the kernels' textured parameters (Material.scalar_textures); and the texture
-mappings our lookup cannot take (of the hit point) refused."""
+mappings pbrt-v4 does not have refused."""
 from __future__ import annotations
 
 import numpy as np
@@ -90,13 +90,12 @@ def test_a_uniform_texture_renders_the_numbers_image_bit_for_bit(tmp_path):
     assert not np.array_equal(checks, number)
 
 
-@pytest.mark.parametrize("mapping", ["planar", "spherical", "cylindrical"])
-def test_texture_mappings_of_the_hit_point_are_refused_in_one_line(tmp_path, mapping):
-    """pbrt-v4's mappings other than uv need the hit point in the lookup: refused, naming the mapping
-    (never read as uv)."""
+def test_an_unknown_texture_mapping_is_refused_in_one_line(tmp_path):
+    """pbrt-v4 has uv, spherical, cylindrical and planar mappings (tests/scene/test_texture_mappings.py);
+    another name is one line naming it (never read as uv)."""
     path = tmp_path / "m.pbrt"
-    path.write_text(f'WorldBegin\nTexture "t" "spectrum" "checkerboard" "string mapping" "{mapping}"\n'
+    path.write_text('WorldBegin\nTexture "t" "spectrum" "checkerboard" "string mapping" "conical"\n'
                     'Material "diffuse" "texture reflectance" "t"\n' + QUAD)
-    with pytest.raises(SceneError, match=f'm.pbrt:2: Texture "t": mapping "{mapping}" is not supported') as e:
+    with pytest.raises(SceneError, match='m.pbrt:2: Texture "t": unknown mapping "conical"') as e:
         load(path)
     assert "\n" not in str(e.value)

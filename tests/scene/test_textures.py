@@ -100,7 +100,8 @@ __kernel void h_tex_lanes(__global const Texture *textures, __global const float
         PLANE(v, k) = uv[base + k].y;
         PLANE_I(live, k) = on[base + k] ? -1 : 0;
     }
-    const pvec3 c = tex_sample_lanes(textures, data, ti, u, v, live);
+    const TexHit h = {u, v, pv3_zero(), pv3_zero()};
+    const pvec3 c = tex_sample_lanes(textures, data, ti, &h, live);
     for (int k = 0; k < PACKET_WIDTH; ++k) {
         const float4 one = tex_sample(textures, data, index[base + k], uv[base + k]);
         vstore3(pv3_lane(c, k), 0, out + 7 * (base + k));

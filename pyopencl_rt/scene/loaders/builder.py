@@ -87,6 +87,24 @@ def camera_from_matrix(camera_to_world, vfov: float, image_right_sign: float, *,
     return cam, mirror
 
 
+def mirror_texture_spaces(materials, mirror) -> None:
+    """The textures of a scene mirrored by ``mirror`` (4 x 4, its own inverse) that look up by the
+    hit point or mix by the normal: their frames take mirrored points (frame @ mirror), a direction
+    mix's direction turns with the normals; each texture once."""
+    from ..textures import DirectionMix
+
+    seen = {}
+    for m in materials:
+        for t in m.textures():
+            for x in (t, *getattr(t, "children", tuple)()):
+                seen.setdefault(id(x), x)
+    for t in seen.values():
+        if isinstance(t, DirectionMix):
+            t.direction = tuple(float(x) for x in mirror[:3, :3] @ np.asarray(t.direction))
+        elif t.mapping != "uv":
+            t.frame = tuple(float(x) for x in (np.reshape(t.frame, (3, 4)) @ mirror).ravel())
+
+
 # --------------------------------------------------------------------------------------------
 # environment maps
 
@@ -377,6 +395,7 @@ class SceneBuilder:
                       dataclasses.replace(lt, direction=tuple(transform_vector(mirror, lt.direction)))
                       if isinstance(lt, DirectionalLight) else lt for lt in lights]
             media = [m.transformed(mirror) for m in media]
+            mirror_texture_spaces(self.materials, mirror)
         instances = self.instances
         if instances and mirror is not None:
             # a two-level group's own space was mirrored with the rest: its instances are

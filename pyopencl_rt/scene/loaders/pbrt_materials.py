@@ -20,6 +20,7 @@ is remapped texel by texel into the material's textured alpha (``scalar_textures
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -142,6 +143,8 @@ class MaterialMapper:
         elif cls == "scale":  # pbrt-v4's ScaleTexture: tex (default 1) times scale (default 1)
             value = self._compose(d, [self.color(p, "tex", (1.0,) * 3), self.color(p, "scale", (1.0,) * 3)],
                                   lambda t, s: t * s, floats=(1,))
+        elif cls == "directionmix":
+            value = self._direction_mix(d)
         elif cls == "mix":  # pbrt-v4's MixTexture: (1 - amount) tex1 + amount tex2 (0, 1, 0.5 by default)
             amount = self.color(p, "amount", (0.5,) * 3)
             value = self._compose(d, [self.color(p, "tex1", (0.0,) * 3), self.color(p, "tex2", (1.0,) * 3), amount],
@@ -149,6 +152,29 @@ class MaterialMapper:
         else:
             raise error_at(d.pos, f'Texture "{tname}" "{cls}": texture class "{cls}" is not supported')
         self.textures[tname] = value
+
+    def _direction_mix(self, d) -> tuple:
+        """pbrt-v4's directionmix: tex1 weighted by |n . dir| (n the hit's geometric normal, dir
+        (default +y) moved by the transform in effect and normalised), tex2 by the rest.  Of two
+        constants it is a direction mix of two 1 x 1 images; each input keeps its mapping."""
+        from ..textures import DirectionMix, Texture, texture_from_array
+
+        p = d.params
+        direction = self.imp.state.ctm[:3, :3] @ np.asarray(p.numbers("dir", ("vector3", "vector"), 3, [0.0, 1.0, 0.0]))
+        if not np.linalg.norm(direction) > 0:
+            raise error_at(d.pos, f'Texture "{d.args[0]}": "dir" is the zero vector')
+        inputs = []
+        for name, default in (("tex1", (0.0,) * 3), ("tex2", (1.0,) * 3)):
+            rgb, tex = self.color(p, name, default)
+            if isinstance(tex, Texture):
+                if rgb != (1.0, 1.0, 1.0):  # (textures here carry their scale in the texels)
+                    tex = dataclasses.replace(tex, texels=tex.texels * np.array([*rgb, 1.0], np.float32))
+                inputs.append(tex)
+            elif tex is None:
+                inputs.append(texture_from_array(np.array([[[*rgb, 1.0]]], np.float32), name=f"{d.args[0]}.{name}"))
+            else:
+                raise error_at(d.pos, f'Texture "{d.args[0]}": a directionmix of a directionmix is not supported')
+        return (1.0, 1.0, 1.0), DirectionMix(*inputs, direction=tuple(direction), name=d.args[0])
 
     def _compose(self, d, inputs, fn, floats=()) -> tuple:
         """A texture made of others by ``fn`` (pbrt-v4's scale and mix textures), as the pair
@@ -166,8 +192,10 @@ class MaterialMapper:
         if not images:
             out = fn(*(np.asarray(rgb, np.float64) for rgb, _ in inputs))
             return tuple(float(x) for x in out), None
+        if any(not isinstance(t, Texture) for t in images):
+            raise error_at(d.pos, f'Texture "{tname}": a directionmix inside a {d.args[2]} texture is not supported')
         base = images[0]
-        lookup = (base.texels.shape, base.wrap, base.filter, base.to_uv)
+        lookup = base.lookup_key()
         arrays = []
         for k, (rgb, tex) in enumerate(inputs):
             grey = kind == "float" or k in floats
@@ -179,7 +207,7 @@ class MaterialMapper:
             if grey:
                 texels = np.repeat(texels[..., :1], 3, axis=-1)
             texels = texels * np.asarray(rgb, np.float64)
-            if (tex.texels.shape, tex.wrap, tex.filter, tex.to_uv) != lookup:
+            if tex.lookup_key() != lookup:
                 self.imp.warn(d.pos, f'Texture "{tname}": its image inputs differ in size or mapping; '
                                      f"'{tex.name}' is read at its mean")
                 texels = texels.reshape(-1, 3).mean(0)
@@ -189,16 +217,40 @@ class MaterialMapper:
         texels[..., :3] = out
         channels = 1 if kind == "float" else 3
         return (1.0, 1.0, 1.0), Texture(np.ascontiguousarray(texels), srgb=False, channels=channels, name=tname,
-                                        wrap=base.wrap, filter=base.filter, to_uv=base.to_uv)
+                                        wrap=base.wrap, filter=base.filter, to_uv=base.to_uv, mapping=base.mapping,
+                                        frame=base.frame)
 
-    def _mapping(self, d) -> tuple:
+    def _mapping(self, d, image: bool) -> dict:
+        """Texture.with_lookup's to_uv, mapping and frame for pbrt-v4's 2-D mapping of Texture ``d``
+        (TextureMapping2D::Create): "uv" (s, t) = (uscale u + udelta, vscale v + vdelta) of the
+        shape's uv; "planar" (udelta + v1 . x, vdelta + v2 . x), "spherical", "cylindrical" of the
+        hit point x in the texture's space (the inverse of the transform in effect at the
+        directive; textures.map_points).  An ``image`` is looked up at (s, 1 - t) (pbrt flips t:
+        our v runs down the image as pbrt's image rows do), a checkerboard at (s / 2, t / 2)."""
         p = d.params
         mapping = p.string("mapping", "uv")
-        if mapping != "uv":  # planar, spherical, cylindrical: of the hit point, which our lookup does not take
-            raise error_at(p.items["mapping"].pos, f'Texture "{d.args[0]}": mapping "{mapping}" is not supported '
-                                                   "(textures are looked up by the shape's uv)")
-        return tuple(p.float(k, dflt) for k, dflt in (("uscale", 1.0), ("vscale", 1.0), ("udelta", 0.0),
-                                                       ("vdelta", 0.0)))
+        if mapping == "uv":
+            us, vs, ud, vd = (p.float(k, dflt) for k, dflt in (("uscale", 1.0), ("vscale", 1.0), ("udelta", 0.0),
+                                                                ("vdelta", 0.0)))
+            # the shape's uv here is (u, 1 - pbrt's v)
+            return {"to_uv": (us, 0.0, ud, 0.0, vs, 1.0 - vs - vd) if image else
+                    (us / 2, 0.0, ud / 2, 0.0, -vs / 2, (vs + vd) / 2)}
+        if mapping not in ("planar", "spherical", "cylindrical"):
+            raise error_at(p.items["mapping"].pos, f'Texture "{d.args[0]}": unknown mapping "{mapping}" (pbrt-v4 has '
+                                                   "uv, spherical, cylindrical and planar)")
+        ctm = self.imp.state.ctm
+        if not abs(np.linalg.det(ctm[:3, :3])) > 1e-300:
+            raise error_at(d.pos, f'Texture "{d.args[0]}": its transform is singular (the {mapping} mapping needs '
+                                  "its inverse)")
+        frame = np.linalg.inv(ctm)[:3]  # texture from world
+        if mapping == "planar":
+            vs = np.asarray(p.numbers("v1", ("vector3", "vector"), 3, [1.0, 0.0, 0.0]), np.float64)
+            vt = np.asarray(p.numbers("v2", ("vector3", "vector"), 3, [0.0, 1.0, 0.0]), np.float64)
+            rows = np.stack([vs @ frame, vt @ frame, np.zeros(4)])
+            rows[:2, 3] += (p.float("udelta", 0.0), p.float("vdelta", 0.0))
+            frame = rows
+        to_uv = (1.0, 0.0, 0.0, 0.0, -1.0, 1.0) if image else (0.5, 0.0, 0.0, 0.0, 0.5, 0.0)
+        return {"to_uv": to_uv, "mapping": mapping, "frame": tuple(frame.ravel())}
 
     def _imagemap(self, d):
         from ..textures import texture_from_array, texture_from_image
@@ -206,9 +258,7 @@ class MaterialMapper:
         p = d.params
         fname, path = pbrt_file(d, self.imp.path.parent, f'Texture "{d.args[0]}"',
                                 needs=f'Texture "{d.args[0]}" "imagemap"')
-        us, vs, ud, vd = self._mapping(d)
-        # pbrt-v4's UVMapping (s, t) = (us u + ud, vs v + vd), looked up at (s, 1 - t); our v is 1 - pbrt's
-        lookup = dict(to_uv=(us, 0.0, ud, 0.0, vs, 1.0 - vs - vd))
+        lookup = self._mapping(d, image=True)
         filt = p.string("filter", "bilinear")
         if filt not in ("point", "bilinear"):
             self.imp.warn(p.items["filter"].pos, f'Texture "{d.args[0]}": filter "{filt}": we filter bilinearly '
@@ -244,12 +294,9 @@ class MaterialMapper:
             self.imp.warn(p.items["dimension"].pos, f'Texture "{d.args[0]}": 3D checkerboards are not supported')
         c1, _ = self.color(p, "tex1", (1.0, 1.0, 1.0))
         c2, _ = self.color(p, "tex2", (0.0, 0.0, 0.0))
-        us, vs, ud, vd = self._mapping(d)
-        # tex1 where floor(s) + floor(t) is even, (s, t) = (us u + ud, vs (1 - v) + vd) (our v runs down
-        # the image, pbrt's t up): a 2 x 2 image looked up nearest at (s / 2, t / 2), repeated
+        # tex1 where floor(s) + floor(t) is even: a 2 x 2 image looked up nearest at (s / 2, t / 2), repeated
         img = np.array([[c1, c2], [c2, c1]], np.float32)
-        return texture_from_array(img, name=d.args[0]).with_lookup(
-            filter="nearest", to_uv=(us / 2, 0.0, ud / 2, 0.0, -vs / 2, (vs + vd) / 2))
+        return texture_from_array(img, name=d.args[0]).with_lookup(filter="nearest", **self._mapping(d, image=False))
 
     # -- materials -------------------------------------------------------------------------------
 
@@ -282,14 +329,16 @@ class MaterialMapper:
         rgb, tex = self.color(p, name, (0.0,) * 3)
         if tex is None:
             return float(roughness_to_alpha(rgb[0], remap))
+        if not isinstance(tex, Texture):
+            raise error_at(p.items[name].pos, f'"texture {name}": a directionmix roughness is not supported')
         key = (id(tex), float(rgb[0]), remap)
         cached = self._alpha_textures.get(key)
         if cached is None:
             a = roughness_to_alpha(tex.texels[..., 0].astype(np.float64) * float(rgb[0]), remap)
             texels = np.ones(tex.texels.shape[:2] + (4,), np.float32)
             texels[..., :3] = a[..., None]
-            cached = Texture(np.ascontiguousarray(texels), srgb=False, channels=1, name=f"{tex.name}:alpha",
-                             wrap=tex.wrap, filter=tex.filter, to_uv=tex.to_uv)
+            cached = dataclasses.replace(tex, texels=np.ascontiguousarray(texels), srgb=False, channels=1,
+                                         name=f"{tex.name}:alpha")
             self._alpha_textures[key] = (tex, cached)  # tex kept alive: its id stays its own
         else:
             cached = cached[1]
@@ -425,10 +474,11 @@ class MaterialMapper:
         _, tex = self.color(p, "displacement", (0.0, 0.0, 0.0))
         if tex is None:
             return
+        if not isinstance(tex, Texture):
+            raise error_at(q.pos, '"texture displacement": a directionmix displacement is not supported')
         texels = tex.texels.copy()
         texels[..., :3] = texels[..., :3].mean(axis=-1, keepdims=True)
-        mat.normal_texture = Texture(texels, srgb=False, channels=1, name=tex.name, wrap=tex.wrap,
-                                     filter=tex.filter, to_uv=tex.to_uv)
+        mat.normal_texture = dataclasses.replace(tex, texels=texels, srgb=False, channels=1)
         mat.bump_map, mat.normal_scale, mat.map_conventions = True, 1.0, ("whole",)
 
     def _mix(self, mat, p, pos, what) -> Material:

@@ -548,11 +548,11 @@ class _Importer:
             if tex is not None:
                 from ..textures import Texture
 
+                if not isinstance(tex, Texture):
+                    raise error_at(d.pos, f'Shape "{d.args[0]}": a directionmix "alpha" is not supported')
                 first = np.repeat(tex.texels[..., :1], 4, axis=-1)  # pbrt's float textures read channel 0
-                first[..., 3] = 1.0
-                cut.scalar_textures["opacity"] = Texture(np.ascontiguousarray(first), srgb=tex.srgb, channels=1,
-                                                         name=tex.name, wrap=tex.wrap, filter=tex.filter,
-                                                         to_uv=tex.to_uv)
+                first[..., 3] = 1.0  # (its mapping kept: scene/validate.py refuses one of the hit point)
+                cut.scalar_textures["opacity"] = dataclasses.replace(tex, texels=np.ascontiguousarray(first), channels=1)
             cache[key] = (cut, mat)  # keep mat alive: the key holds its id
         return cache[key][0]
 
@@ -588,7 +588,8 @@ class _Importer:
 
     def _sphere(self, centre, radius, m, mat, pos, flip, interface=None) -> None:
         s = np.linalg.svd(m[:3, :3], compute_uv=False)
-        if s.max() - s.min() > 1e-6 * s.max():  # scaled unevenly: an ellipsoid, as triangles (its exact normals)
+        # scaled unevenly (an ellipsoid), or textured (our spheres take no textures): triangles, exact normals
+        if s.max() - s.min() > 1e-6 * s.max() or mat.textures():
             v, f, uv = sphere_mesh(radius)
             self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=(v / radius)[f], interface=interface)
             return
