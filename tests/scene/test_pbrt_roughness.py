@@ -69,9 +69,33 @@ def test_coateddiffuse_takes_an_isotropic_texture_and_refuses_two(tmp_path):
     assert "\n" not in str(e.value)
 
 
-def test_a_coatings_textured_roughness_still_warns(tmp_path):
-    _, warned = load(scene_file(tmp_path, 'Material "coatedconductor" "texture interface.roughness" "rough"'))
-    assert any("interface.roughness" in w for w in warned)
+def test_a_coated_conductors_interface_roughness_texture_is_read(tmp_path):
+    """coatedconductor's "texture interface.roughness": the coat's alpha texture (the kernels' coat
+    reads the material's alpha); its conductor's roughness, a texture there, still warns (a number of
+    the layer's table)."""
+    s, warned = load(scene_file(tmp_path, 'Material "coatedconductor" "texture interface.roughness" "rough"'))
+    m = material(s)
+    assert warned == [] and m.type == "coatedconductor" and m.alpha == 1.0
+    assert values(m.scalar_textures["alpha"]) == [0.0, 0.5]
+    _, warned = load(scene_file(tmp_path, 'Material "coatedconductor" "texture conductor.roughness" "rough"',
+                                name="c.pbrt"))
+    assert any("conductor.roughness" in w for w in warned)
+
+
+def test_a_uniform_coat_roughness_texture_renders_the_numbers_image_bit_for_bit(tmp_path):
+    """A coatedconductor whose interface roughness is a checkerboard of 0.25 and 0.25 against the number
+    0.25: the same image at the same seed (the coat's alpha 0.5 both ways); of 0 and 0.25 another."""
+    import pyopencl_rt as rt
+
+    def render(text, **kw):
+        s, _ = load(scene_file(tmp_path, text, name=f"{abs(hash((text, tuple(kw.items()))))}.pbrt", **kw))
+        return rt.render_full(s, spp=8, width=16, height=16, device="cpu", seed=3).image
+
+    coat = 'Material "coatedconductor" "float conductor.roughness" 0.1 '
+    number = render(coat + '"float interface.roughness" 0.25')
+    assert number.mean() > 0.01
+    assert np.array_equal(render(coat + '"texture interface.roughness" "rough"', r1=0.25), number)
+    assert not np.array_equal(render(coat + '"texture interface.roughness" "rough"'), number)
 
 
 def test_a_uniform_texture_renders_the_numbers_image_bit_for_bit(tmp_path):

@@ -80,7 +80,7 @@ def _inverted(tex, invert: bool):
 
 
 # pbrt-v4's roughness parameters; the materials that take them as float textures (the textured alpha of
-# Material.scalar_textures: a coatedconductor's prefixed ones are still numbers)
+# Material.scalar_textures; a coatedconductor its interface's, not its conductor's)
 ROUGHNESS = ("roughness", "uroughness", "vroughness")
 TEXTURED_ROUGHNESS = ("conductor", "dielectric", "thindielectric", "coateddiffuse")
 
@@ -378,7 +378,8 @@ class MaterialMapper:
         transmittance = p.get("transmittance")
         if mtype == "diffusetransmission" and transmittance is not None and transmittance.type == "texture":
             raise error_at(p.items["transmittance"].pos, f'{what}: a "texture transmittance" is not supported')
-        textured = ("displacement",) + (ROUGHNESS if mtype in TEXTURED_ROUGHNESS else ())
+        textured = ("displacement",) + (ROUGHNESS if mtype in TEXTURED_ROUGHNESS else ()) + \
+            (tuple("interface." + r for r in ROUGHNESS) if mtype == "coatedconductor" else ())
         for q in list(p.items.values()):  # textures where we take a number (eta, a coat's roughness, ...)
             if q.type == "texture" and not q.name.endswith("reflectance") and q.name not in textured and \
                     not (mtype == "mix" and q.name == "amount"):
@@ -538,8 +539,7 @@ class MaterialMapper:
         mat.type = "coatedconductor"
         if mat.eta is None:  # reflectance r: pbrt-v4's eta 1 and the k whose normal reflectance is r
             mat.eta, mat.k = reflectance_to_index(mat.f0)
-        mat.alpha, av = self._alphas(p, "interface.")
-        mat.alpha_v = av if av != mat.alpha else None
+        mat.alpha = self._alpha(p, what, mat, prefix="interface.")  # a texture: in mat.scalar_textures
         cu, cv = self._alphas(p, "conductor.")
         albedo = spectrum_rgb(self.imp, p, "albedo", (0.0, 0.0, 0.0))
         if max(albedo) > 0:
