@@ -99,6 +99,11 @@ def rays_for(mesh, rng, n=6000):
     return build_bvh(v, f), o, d, tmax
 
 
+# a second implementation (Intel's CPU runtime beside PoCL, tests/conftest.py): every variant (the code)
+# on the slivers in `make test`, the other meshes (data) under stress
+SECOND_IMPLEMENTATION = {"test_packets_equal_single_rays": lambda params, device: params["mesh"] == "slivers"}
+
+
 @pytest.mark.parametrize("variant", VARIANTS, ids=lambda v: f"w{v[0]}-hybrid{v[1]}-pairs{v[2]}")
 @pytest.mark.parametrize("mesh", ["icosphere", "torus", "slivers", "grid"])
 def test_packets_equal_single_rays(device, runtime, rng, mesh, variant, monkeypatch):

@@ -49,23 +49,20 @@ def test_bench_bvh_without_sweep_and_unknown_kind(tmp_path, capsys):
 
 
 def test_bench_materials_tiny(tmp_path, own_features):
-    """Two pairs at 16x16, 1 spp: the ratio is the ratio of the medians, and variant b of the
-    texture pair is compiled without textures (else it would time the same kernel twice)."""
+    """The texture pair at 16x16, 1 spp (each pair is two kernel builds of its own): only the pair
+    asked for is run, the ratio is the ratio of the medians, and variant b is compiled without
+    textures (else it would time the same kernel twice)."""
     out = tmp_path / "materials.json"
-    main(["bench", "materials", "--device", "cpu", "--pairs", "textures,gltf", "--width", "16", "--height", "16",
+    main(["bench", "materials", "--device", "cpu", "--pairs", "textures", "--width", "16", "--height", "16",
           "--spp", "1", "--repeat", "1", "--json", str(out)])
     data = json.loads(out.read_text())
-    assert "rough_vs_smooth" not in data
-    for key in ("textured_vs_untextured", "gltf_vs_diffuse"):
-        pair = data[key]
-        assert finite_positive(pair["a_samples_per_second"]) and finite_positive(pair["b_samples_per_second"])
-        assert pair["a_over_b"] == pytest.approx(pair["a_samples_per_second"] / pair["b_samples_per_second"])
-        assert len(pair["a_all"]) == len(pair["b_all"]) == 1
-    textures = data["textured_vs_untextured"]
-    assert any("HAS_TEXTURES" in f for f in textures["features_a"])
-    assert not any("HAS_TEXTURES" in f for f in textures["features_b"])
-    gltf = data["gltf_vs_diffuse"]
-    assert gltf["features_a"] != gltf["features_b"]
+    assert "rough_vs_smooth" not in data and "gltf_vs_diffuse" not in data
+    pair = data["textured_vs_untextured"]
+    assert finite_positive(pair["a_samples_per_second"]) and finite_positive(pair["b_samples_per_second"])
+    assert pair["a_over_b"] == pytest.approx(pair["a_samples_per_second"] / pair["b_samples_per_second"])
+    assert len(pair["a_all"]) == len(pair["b_all"]) == 1
+    assert any("HAS_TEXTURES" in f for f in pair["features_a"])
+    assert not any("HAS_TEXTURES" in f for f in pair["features_b"])
 
 
 def test_bench_render_with_both_intersectors(tmp_path):
