@@ -22,7 +22,8 @@
  * (1 - u - v) uv0 + u uv1 + v uv2 with (u, v) the hit's barycentrics (weights of v1 and v2).
  *
  * Textured materials (Material.tex_base / tex_mr / tex_emission >= 0, triangles only):
- *   tex_base      albedo *= rgb (diffuse, gltf); tint *= rgb (dielectric)
+ *   tex_base      albedo *= rgb (diffuse, gltf); tint *= rgb (dielectric); coatedconductor: the metal's
+ *                 k from the reflectance albedo * rgb (pbrt-v4's "texture reflectance")
  *   tex_mr        glTF metallicRoughness: metallic *= b, roughness *= g (alpha *= g^2)
  *   tex_emission  emission *= rgb
  *   tex_scalar    slot k (used slots first, -1 after them): the parameter TEXP_* named by bits
@@ -204,8 +205,20 @@ RT_INLINE void texture_material(__global const float2 *tri_uv, __global const Te
     if (pany(base)) {
         const pvec3 c = tex_sample_lanes(textures, data, m->tex_base, &h, base);
         const pint tint = base & (m->type == MATERIAL_DIELECTRIC);
+        /* a coated conductor's reflectance r = albedo c: pbrt-v4's metal of eta 1 and k = 2 sqrt(r) /
+         * sqrt(1 - r), r clamped to [0, 0.9999] (coatedconductor.py reflectance_to_index), under the coat
+         * (divided by its index, as the record's eta is) */
+        const pint metal = base & (m->type == MATERIAL_COATEDCONDUCTOR);
+        if (pany(metal)) {
+            const pvec3 r = pv3_mul(m->albedo, c);
+            const pvec3 rc = pv3(pclamp(r.x, 0.0f, 0.9999f), pclamp(r.y, 0.0f, 0.9999f), pclamp(r.z, 0.0f, 0.9999f));
+            const pfloat s = 2.0f / (metal ? m->ior : PFLOAT(1.0f));
+            const pvec3 k = pv3(s * psqrt(rc.x) / psqrt(1.0f - rc.x), s * psqrt(rc.y) / psqrt(1.0f - rc.y),
+                                s * psqrt(rc.z) / psqrt(1.0f - rc.z));
+            m->k = pv3_sel(m->k, k, metal);
+        }
         m->specular = pv3_sel(m->specular, pv3_mul(m->specular, c), tint);
-        m->albedo = pv3_sel(m->albedo, pv3_mul(m->albedo, c), base & pnot(tint));
+        m->albedo = pv3_sel(m->albedo, pv3_mul(m->albedo, c), base & pnot(tint) & pnot(metal));
     }
     const pint mr = textured & (m->tex_mr >= 0);
     if (pany(mr)) {

@@ -148,6 +148,10 @@ class DirectionMix:
     def children(self) -> tuple:
         return self.first, self.second
 
+    def mean_rgb(self) -> np.ndarray:
+        """An estimate of the mean over the surfaces (the two textures' means averaged)."""
+        return 0.5 * (self.first.mean_rgb() + self.second.mean_rgb())
+
 
 # Mitsuba's luminance of linear sRGB (include/mitsuba/core/spectrum.h)
 LUMINANCE = (0.212671, 0.715160, 0.072169)

@@ -123,3 +123,30 @@ def test_an_unknown_texture_mapping_is_refused_in_one_line(tmp_path):
     with pytest.raises(SceneError, match='m.pbrt:2: Texture "t": unknown mapping "conical"') as e:
         load(path)
     assert "\n" not in str(e.value)
+
+
+def test_a_coated_conductors_reflectance_texture_makes_the_metal_of_each_texel(tmp_path):
+    """coatedconductor's "texture reflectance": each texel's r becomes the metal under the coat, pbrt-v4's
+    eta 1 and k = 2 sqrt(r) / sqrt(1 - r) (in the kernels; it was the texture's mean, with a warning):
+    a uniform checkerboard of r renders the image of the number r at the same seed (k's float32
+    rounding moves a random walk's Russian roulette now and then: over 95% of the pixels equal to
+    1e-4, the means within 1%), a checkerboard of 0.9 and 0.1 another."""
+    import pyopencl_rt as rt
+
+    def render(text, name):
+        path = tmp_path / name
+        path.write_text(SCENE.format(material=text, r1=0.0, r2=0.0))
+        s, warned = load(path)
+        assert warned == [], warned
+        return rt.render_full(s, spp=8, width=16, height=16, device="cpu", seed=3).image.astype(np.float64)
+
+    coat = 'Material "coatedconductor" "float interface.roughness" 0.1 "float conductor.roughness" 0.2 '
+    checks = 'Texture "r" "spectrum" "checkerboard" "rgb tex1" [{a}] "rgb tex2" [{b}] "float uscale" 4 "float vscale" 4\n'
+    number = render(coat + '"rgb reflectance" [0.6 0.5 0.3]', "n.pbrt")
+    uniform = render(checks.format(a="0.6 0.5 0.3", b="0.6 0.5 0.3") + coat + '"texture reflectance" "r"', "u.pbrt")
+    varied = render(checks.format(a="0.9 0.9 0.9", b="0.1 0.1 0.1") + coat + '"texture reflectance" "r"', "v.pbrt")
+    assert number.mean() > 0.01
+    same = (np.abs(uniform - number) <= 1e-4 * number.max()).all(axis=-1)
+    assert same.mean() > 0.95 and abs(uniform.mean() / number.mean() - 1) < 0.01, (same.mean(), uniform.mean(),
+                                                                                     number.mean())
+    assert np.abs(varied - number).mean() > 0.01

@@ -535,10 +535,18 @@ class MaterialMapper:
         if "reflectance" in p and ("conductor.eta" in p or "conductor.k" in p):
             raise error_at(p.items["reflectance"].pos, f'{what}: give "reflectance" or "conductor.eta" / '
                                                        '"conductor.k", not both (as pbrt-v4)')
+        texture = None
+        if "reflectance" in p and p.items["reflectance"].type == "texture":  # the kernels make k of each texel
+            rgb, texture = self.color(p, "reflectance", (1.0,) * 3)
+            p.items["reflectance"].used = True
+            del p.items["reflectance"]
+            mat.f0 = tuple(min(max(float(c), 0.0), 1.0) for c in rgb)
         self._conductor(mat, p, pos, what, "conductor.", reflectance_key="reflectance")
         mat.type = "coatedconductor"
+        if texture is not None:
+            mat.eta, mat.albedo, mat.base_texture = None, mat.f0, texture
         if mat.eta is None:  # reflectance r: pbrt-v4's eta 1 and the k whose normal reflectance is r
-            mat.eta, mat.k = reflectance_to_index(mat.f0)
+            mat.eta, mat.k = reflectance_to_index(mat.f0 if texture is None else np.multiply(mat.f0, texture.mean_rgb()))
         mat.alpha = self._alpha(p, what, mat, prefix="interface.")  # a texture: in mat.scalar_textures
         cu, cv = self._alphas(p, "conductor.")
         albedo = spectrum_rgb(self.imp, p, "albedo", (0.0, 0.0, 0.0))

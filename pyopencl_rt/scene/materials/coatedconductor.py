@@ -84,5 +84,7 @@ def pack(material, record) -> None:
     k = material.k if material.k is not None else METALS["copper"][1]
     record["eta"] = tuple(float(x) / material.ior for x in eta)
     record["k"] = tuple(float(x) / material.ior for x in k)
+    if material.base_texture is not None:  # pbrt's reflectance texture: r = albedo x texel (cl/scene/textures.h)
+        record["albedo"] = material.albedo
     for i, key in enumerate(LAYER):
         record["table"][i] = float(material.params.get(key, DEFAULTS[key]))
