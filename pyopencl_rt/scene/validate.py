@@ -266,6 +266,21 @@ def check_textures(scene) -> None:
                              "is not supported (there textures are looked up by the shape's uv)")
 
 
+def check_directional_emitters(scene) -> None:
+    """Material.emission_directional (Mitsuba's directionalarea) on flat faces alone: one-sided,
+    untextured, not on a sphere (cl/render/lights.h projects onto a triangle)."""
+    directional = [m for m in scene.materials if m.emission_directional and m.is_emissive]
+    for m in directional:
+        if m.two_sided or m.emission_texture is not None:
+            _fail(scene, f"material {m.name!r}: a directional emission is one-sided and untextured")
+    if directional and len(scene.spheres):
+        used = {id(scene.materials[i]) for i in np.unique(np.asarray(scene.sphere_materials, np.int64))}
+        for m in directional:
+            if id(m) in used:
+                _fail(scene, f"material {m.name!r}: a directional emission on a sphere is not supported "
+                             "(only on flat faces)")
+
+
 def check_scene(scene) -> None:
     """Every check above; a SceneValueError (one line naming the scene) at the first problem."""
     from .model import Scene
@@ -280,6 +295,7 @@ def check_scene(scene) -> None:
         check_lights(scene)
         check_media(scene)
     check_textures(scene)
+    check_directional_emitters(scene)
     check_settings(scene)
 
 

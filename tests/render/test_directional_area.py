@@ -66,14 +66,46 @@ def test_matches_mitsubas_particle_tracer(tmp_path):
     assert z_brighter.max() > 4.5
 
 
-def test_direct_light_is_the_radiance_times_the_albedo_over_pi(tmp_path):
-    """The beam straight down, direct light only (max_depth 2), no cube: a floor point whose vertical
-    meets the emitter gets irradiance R (a parallel beam: no falloff with the distance), so its
-    pixel is albedo R / pi (within 4.5 standard errors over the lit pixels; the two triangles are
-    picked by power, so half the samples miss); a point beyond the emitter's outline, by a margin
-    of a pixel's footprint, is exactly 0."""
-    r = rt.render_full(load_scene(_scene(tmp_path, max_depth=2, tilt=90, box=False)), spp=64, device="cpu", seed=2,
-                       aovs="position")
+TOML = f"""[camera]
+eye = [0, 6, 5]
+look_at = [0, 0, 0]
+fov = 45
+[film]
+width = {W}
+height = {H}
+[render]
+max_depth = 2
+[materials.floor]
+albedo = [{ALBEDO}, {ALBEDO}, {ALBEDO}]
+[materials.beam]
+albedo = [0, 0, 0]
+emission = {list(RADIANCE)}
+emission_directional = true
+[[shape]]
+type = "quad"
+material = "floor"
+points = [[-4, 0, -4], [-4, 0, 4], [4, 0, 4], [4, 0, -4]]
+[[shape]]  # its front, (p1 - p0) x (p2 - p0), faces down
+type = "quad"
+material = "beam"
+points = [[-1.2, 3, -0.8], [1.2, 3, -0.8], [1.2, 3, 0.8], [-1.2, 3, 0.8]]
+"""
+
+
+@pytest.mark.parametrize("fmt", ["mitsuba", "toml"])
+def test_direct_light_is_the_radiance_times_the_albedo_over_pi(tmp_path, fmt):
+    """The beam straight down, direct light only (max_depth 2), no cube, from Mitsuba XML and from
+    our TOML (`emission_directional`): a floor point whose vertical meets the emitter gets
+    irradiance R (a parallel beam: no falloff with the distance), so its pixel is albedo R / pi
+    (within 4.5 standard errors over the lit pixels; the two triangles are picked by power, so half
+    the samples miss); a point beyond the emitter's outline, by a margin of a pixel's footprint, is
+    exactly 0."""
+    if fmt == "toml":
+        path = tmp_path / "beam.toml"
+        path.write_text(TOML)
+    else:
+        path = _scene(tmp_path, max_depth=2, tilt=90, box=False)
+    r = rt.render_full(load_scene(str(path)), spp=64, device="cpu", seed=2, aovs="position")
     p = np.asarray(r.layers["position"], np.float64)
     image, var = r.image.astype(np.float64), r.film.variance_of_mean()
     on_floor = np.abs(p[..., 1]) < 1e-4
@@ -96,6 +128,18 @@ def test_every_lane_width_renders_the_same_bits(device, monkeypatch, tmp_path):
     scene = load_scene(_scene(tmp_path))
     harness.assert_same_lanes(harness.lane_renders(scene, device, monkeypatch, widths, spp=4, seed=2, width=32,
                                                    height=24))
+
+
+def test_a_directional_emitter_on_a_sphere_or_two_sided_is_refused(tmp_path):
+    """From TOML (or the API), a directional emission on a sphere, or two-sided: one line (scene/validate.py)."""
+    sphere = TOML + '[[shape]]\ntype = "sphere"\nmaterial = "beam"\ncenter = [0, 1, 0]\nradius = 0.3\n'
+    two_sided = TOML.replace("emission_directional = true", "emission_directional = true\ntwo_sided = true")
+    for name, text, needle in (("s.toml", sphere, "on a sphere"), ("t.toml", two_sided, "one-sided")):
+        path = tmp_path / name
+        path.write_text(text)
+        with pytest.raises(UserError) as caught:
+            rt.render_full(load_scene(str(path)), spp=1, device="cpu", width=8, height=8)
+        assert "\n" not in str(caught.value) and needle in str(caught.value), str(caught.value)
 
 
 @pytest.mark.parametrize("what,needle", [

@@ -29,6 +29,8 @@
     albedo = [0.725, 0.71, 0.68]  #   whose module documents its keys
     emission = [0, 0, 0]          # linear RGB radiance >= 0 (or one number), default 0; any type
     two_sided = false             # emit from both sides, default false
+    emission_directional = false  # emit along the face's normal alone (Mitsuba's directionalarea: a
+                                  #   parallel beam, seen by light sampling alone), default false
     opacity = 1.0                 # an alpha cut-out: met with this probability (times opacity_texture's
                                   #   luminance), else passed straight through; default: opaque
 
@@ -105,7 +107,8 @@ _FILTER_KEYS = {"box": {"type", "radius"}, "tent": {"type", "radius"}, "gaussian
 _RENDER_KEYS = {"spp", "max_depth", "integrator", "seed", "rr_depth", "sampler", "adaptive", "target_error",
                 "light_sampler"}
 # the keys of every [materials.NAME]; each type adds its own (MaterialType.toml_keys)
-MATERIAL_COMMON_KEYS = frozenset({"type", "emission", "two_sided", "emission_texture", "opacity", "opacity_texture"})
+MATERIAL_COMMON_KEYS = frozenset({"type", "emission", "two_sided", "emission_texture", "opacity", "opacity_texture",
+                                  "emission_directional"})
 _TRANSFORM_KEYS = {"translate", "scale", "rotate", "matrix", "flip_normals"}
 _SHAPE_KEYS = {
     "mesh": {"type", "material", "file", "use_file_materials"} | _TRANSFORM_KEYS,
@@ -127,7 +130,9 @@ def _read_material(ctx, where, name, spec) -> Material:
         raise ctx.error(where, f"'emission' must not be negative, got {emission.tolist()}")
     two_sided = check_boolean(ctx, where, "two_sided", spec.get("two_sided", False))
     material = Material(name=name, emission=tuple(float(x) for x in emission), two_sided=two_sided,
-                        type=material_type.name)
+                        type=material_type.name,
+                        emission_directional=check_boolean(ctx, where, "emission_directional",
+                                                           spec.get("emission_directional", False)))
     table = TableReader(ctx, where, spec)
     material.emission_texture = table.texture("emission_texture", srgb=True)
     material_type.read_toml(material, table)
