@@ -311,7 +311,8 @@ N_THETA, N_PHI = 40, 80
 
 # A second implementation (Intel's CPU runtime beside PoCL, tests/conftest.py) compiles the same BSDF
 # code: in `make test` it takes one case per code path (each type; Beckmann, anisotropy, the inside
-# and total internal reflection, the nonlinear and fast variants) and the users' lane width.
+# and total internal reflection, the nonlinear and fast variants) and 8 lanes (its 16-lane harness
+# took Intel's compiler 23-26 s; its 16-lane integrator is built by tests/render/test_shading.py).
 CHI2_SECOND = ("conductor_gold_a0.1_30", "conductor_aniso_beckmann_sep_0.05_0.5_75", "dielectric_1.5_a0.3_in_60_tir",
                "dielectric_aniso_beckmann_1.33_0.1_0.4_in_20", "gltf_m0.5_a0.5_75", "plastic_nonlinear_85",
                "roughplastic_beckmann_a0.3_60", "principled_trans_in_40", "principledthin_45",
@@ -320,15 +321,8 @@ assert set(CHI2_SECOND) <= set(CHI2_CASES)
 SECOND_IMPLEMENTATION = {
     "test_sampled_directions_follow_the_pdf": lambda params, device: params["name"] in CHI2_SECOND,
     "test_pdf_integrates_to_the_sampling_probability": lambda params, device: params["name"] in CHI2_SECOND,
-    "test_lane_widths_give_the_one_lane_bits": lambda params, device: str(params["width"]) == users_width(device),
+    "test_lane_widths_give_the_one_lane_bits": lambda params, device: params["width"] == 8,
 }
-
-
-def users_width(device) -> str:
-    from pyopencl_rt.device import isa
-
-    rule = isa.lane_rule(device)
-    return str(rule.default or max(rule.widths))
 
 
 def bin_integrals(runtime, mat, front, wo, theta_edges, phi_edges, k=6, sub=4):
