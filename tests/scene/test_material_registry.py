@@ -217,8 +217,10 @@ CASES = [  # (type, TOML keys, expected record fields)
      {"metallic": 0.25, "rates": (2, 1, 0, 0), "tex_scalar": (0, -1, -1, -1, -1, -1), "tex_params": texp("metallic")}),
 ]
 # the keys every type takes, and what they do to the record
+# (emission_directional true packs emission 0 and makes the light a directional area one, which
+# tests/render/test_directional_area.py renders from TOML; two-sided it is refused)
 COMMON = ({"emission": [1.0, 2.0, 4.0], "two_sided": True, "emission_texture": "t.png", "opacity": 0.5,
-           "opacity_texture": "t.png"},
+           "opacity_texture": "t.png", "emission_directional": False},
           {"emission": (1, 2, 4), "flags": abi.MATERIAL_FLAG_TWO_SIDED | abi.MATERIAL_FLAG_MASK, "tex_emission": 0,
            "opacity": 0.5, "tex_scalar": (1, -1, -1, -1, -1, -1), "tex_params": abi.TEXP_OPACITY})
 
