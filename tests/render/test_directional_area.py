@@ -66,15 +66,9 @@ def test_matches_mitsubas_particle_tracer(tmp_path):
     assert z_brighter.max() > 4.5
 
 
-TOML = f"""[camera]
-eye = [0, 6, 5]
-look_at = [0, 0, 0]
-fov = 45
-[film]
-width = {W}
-height = {H}
-[render]
-max_depth = 2
+TOML = f"""camera = {{eye = [0, 6, 5], look_at = [0, 0, 0], fov = 45}}
+film = {{width = {W}, height = {H}}}
+render = {{max_depth = 2}}
 [materials.floor]
 albedo = [{ALBEDO}, {ALBEDO}, {ALBEDO}]
 [materials.beam]
