@@ -73,7 +73,7 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     beam = np.flatnonzero(directional[mat]) if n else np.zeros(0, np.int64)
     if len(beam):  # emitting along the normal alone: flux = radiance x area; never hit (no tri_light)
         lights["kind"][beam] = abi.LIGHT_DIRECTIONAL_AREA
-        lights["rgb"][beam] = [mats[i].emission for i in mat[beam]]
+        lights["rgb"][beam] = np.array([m.emission for m in mats], np.float64)[mat[beam]]
         power[beam] = luminance[mat[beam]] * lights["area"][beam].astype(np.float64)
         tri_light[tri_idx[beam]] = -1
     if n and not (power > 0).any():  # e.g. pure blue emitters have luminance; this guards all-zero

@@ -393,15 +393,9 @@ class Scene:
     def textures(self) -> list:
         """The distinct textures the materials use, in order of first use, then the lights' (spot
         and projector textures)."""
-        seen = {}
-        for m in self.materials:
-            for t in m.textures():
-                seen.setdefault(id(t), t)
-                for child in getattr(t, "children", tuple)():  # a direction mix's two textures
-                    seen.setdefault(id(child), child)
-        for lt in self.light_textures():
-            seen.setdefault(id(lt), lt)
-        return list(seen.values())
+        from .textures import with_inputs
+
+        return with_inputs([*(t for m in self.materials for t in m.textures()), *self.light_textures()])
 
     def light_textures(self) -> list:
         return [t for t in (getattr(lt, "texture", None) for lt in self.lights or []) if t is not None]

@@ -153,6 +153,16 @@ class DirectionMix:
         return 0.5 * (self.first.mean_rgb() + self.second.mean_rgb())
 
 
+def with_inputs(textures) -> list:
+    """``textures`` and, after each DirectionMix among them, its two inputs: each once, in order of
+    first use (what the texture table holds, and what a change of the scene's frame moves)."""
+    seen = {}
+    for t in textures:
+        for x in (t, *getattr(t, "children", tuple)()):
+            seen.setdefault(id(x), x)
+    return list(seen.values())
+
+
 # Mitsuba's luminance of linear sRGB (include/mitsuba/core/spectrum.h)
 LUMINANCE = (0.212671, 0.715160, 0.072169)
 

@@ -91,14 +91,9 @@ def mirror_texture_spaces(materials, mirror) -> None:
     """The textures of a scene mirrored by ``mirror`` (4 x 4, its own inverse) that look up by the
     hit point or mix by the normal: their frames take mirrored points (frame @ mirror), a direction
     mix's direction turns with the normals; each texture once."""
-    from ..textures import DirectionMix
+    from ..textures import DirectionMix, with_inputs
 
-    seen = {}
-    for m in materials:
-        for t in m.textures():
-            for x in (t, *getattr(t, "children", tuple)()):
-                seen.setdefault(id(x), x)
-    for t in seen.values():
+    for t in with_inputs(t for m in materials for t in m.textures()):
         if isinstance(t, DirectionMix):
             t.direction = tuple(float(x) for x in mirror[:3, :3] @ np.asarray(t.direction))
         elif t.mapping != "uv":

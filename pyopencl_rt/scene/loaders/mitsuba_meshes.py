@@ -65,4 +65,3 @@ def flat(vertices, faces, tolerance=1e-5) -> bool:
         return True
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     return bool((n @ n[0] > 1.0 - tolerance).all())
-

@@ -216,9 +216,9 @@ class MaterialMapper:
         texels = np.ones(base.texels.shape, np.float32)
         texels[..., :3] = out
         channels = 1 if kind == "float" else 3
-        return (1.0, 1.0, 1.0), Texture(np.ascontiguousarray(texels), srgb=False, channels=channels, name=tname,
-                                        wrap=base.wrap, filter=base.filter, to_uv=base.to_uv, mapping=base.mapping,
-                                        frame=base.frame)
+        # (base's lookup: wrap, filter, to_uv, mapping and frame)
+        return (1.0, 1.0, 1.0), dataclasses.replace(base, texels=np.ascontiguousarray(texels), srgb=False,
+                                                    channels=channels, name=tname)
 
     def _mapping(self, d, image: bool) -> dict:
         """Texture.with_lookup's to_uv, mapping and frame for pbrt-v4's 2-D mapping of Texture ``d``
@@ -535,18 +535,10 @@ class MaterialMapper:
         if "reflectance" in p and ("conductor.eta" in p or "conductor.k" in p):
             raise error_at(p.items["reflectance"].pos, f'{what}: give "reflectance" or "conductor.eta" / '
                                                        '"conductor.k", not both (as pbrt-v4)')
-        texture = None
-        if "reflectance" in p and p.items["reflectance"].type == "texture":  # the kernels make k of each texel
-            rgb, texture = self.color(p, "reflectance", (1.0,) * 3)
-            p.items["reflectance"].used = True
-            del p.items["reflectance"]
-            mat.f0 = tuple(min(max(float(c), 0.0), 1.0) for c in rgb)
-        self._conductor(mat, p, pos, what, "conductor.", reflectance_key="reflectance")
+        self._conductor(mat, p, pos, what, "conductor.", reflectance_key="reflectance", per_texel=True)
         mat.type = "coatedconductor"
-        if texture is not None:
-            mat.eta, mat.albedo, mat.base_texture = None, mat.f0, texture
         if mat.eta is None:  # reflectance r: pbrt-v4's eta 1 and the k whose normal reflectance is r
-            mat.eta, mat.k = reflectance_to_index(mat.f0 if texture is None else np.multiply(mat.f0, texture.mean_rgb()))
+            mat.eta, mat.k = reflectance_to_index(mat.f0)
         mat.alpha = self._alpha(p, what, mat, prefix="interface.")  # a texture: in mat.scalar_textures
         cu, cv = self._alphas(p, "conductor.")
         albedo = spectrum_rgb(self.imp, p, "albedo", (0.0, 0.0, 0.0))
@@ -561,14 +553,20 @@ class MaterialMapper:
         if "g" in p:
             p.items["g"].used = True  # the phase function of a scattering coating: none without albedo
 
-    def _conductor(self, mat, p, pos, what, prefix, reflectance_key=None) -> None:
+    def _conductor(self, mat, p, pos, what, prefix, reflectance_key=None, per_texel=False) -> None:
+        """The metal's index (mat.eta, mat.k) or its reflectance (mat.f0); a reflectance texture
+        ``per_texel`` (a coatedconductor's: the kernels make the metal of each texel, albedo x
+        texel) becomes mat.base_texture with mat.albedo its factor and f0 their mean, else its mean."""
         mat.type = "conductor"
         if not prefix:
             mat.alpha = self._alpha(p, what, mat)
         reflectance_key = reflectance_key or prefix + "reflectance"
         if reflectance_key in p:
             rgb, tex = self.color(p, reflectance_key, (1.0,) * 3)
-            if tex is not None:
+            if tex is not None and per_texel:
+                mat.base_texture, mat.albedo = tex, tuple(min(max(float(c), 0.0), 1.0) for c in rgb)
+                rgb = tuple(float(c) for c in np.multiply(rgb, tex.mean_rgb()))
+            elif tex is not None:
                 rgb = tuple(float(c) for c in tex.mean_rgb())
                 self.imp.warn(p.items[reflectance_key].pos, f"{what}: a reflectance texture is not supported "
                                                              f"here; using its mean")
