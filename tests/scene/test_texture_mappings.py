@@ -246,3 +246,41 @@ def test_a_point_mapped_texture_where_lookups_take_uv_is_one_line(tmp_path, use)
         rt.render_full(scene, device="cpu", spp=1, width=8, height=8)
     message = str(caught.value)
     assert "\n" not in message and "planar texture" in message and what in message, message
+
+
+def _rotation(degrees, axis) -> np.ndarray:
+    """pbrt's Rotate: by ``degrees`` about ``axis``, counter-clockwise looking down it (Rodrigues)."""
+    a = np.asarray(axis, np.float64) / np.linalg.norm(axis)
+    t = np.radians(degrees)
+    cross = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    m = np.eye(4)
+    m[:3, :3] = np.cos(t) * np.eye(3) + np.sin(t) * cross + (1 - np.cos(t)) * np.outer(a, a)
+    return m
+
+
+@pytest.mark.parametrize("mapping", ["planar", "spherical", "cylindrical"])
+def test_pbrt_mapping_frames_are_the_inverse_of_the_texture_transform(tmp_path, mapping):
+    """The loader's frame against one made here from the file's numbers: the inverse of Translate,
+    Rotate, Scale in effect at the Texture directive (a camera with pbrt's `Scale -1 1 1`, which our
+    world does not mirror), planar's rows v1 and v2 of it plus udelta and vdelta."""
+    text = ('Scale -1 1 1\nLookAt 0 0 -5  0 0 0  0 1 0\nCamera "perspective"\nWorldBegin\nAttributeBegin\n'
+            'Translate 0.3 -0.2 0.1\nRotate 35 1 1 0\nScale 1.5 0.8 1.2\n'
+            f'Texture "t" "spectrum" "checkerboard" "string mapping" "{mapping}" '
+            '"vector3 v1" [0.4 0.1 0.2] "vector3 v2" [-0.1 0.3 0.1] "float udelta" 0.2 "float vdelta" -0.1\n'
+            'AttributeEnd\nMaterial "diffuse" "texture reflectance" "t"\n'
+            'Shape "trianglemesh" "point3 P" [-1 -1 0  1 -1 0  1 1 0] "integer indices" [0 1 2]\n')
+    if mapping != "planar":  # (pbrt reads v1, v2, udelta, vdelta for planar alone)
+        text = text.replace('"vector3 v1" [0.4 0.1 0.2] "vector3 v2" [-0.1 0.3 0.1] "float udelta" 0.2 '
+                            '"float vdelta" -0.1', "")
+    path = tmp_path / "f.pbrt"
+    path.write_text(text)
+    scene, _ = harness.load_warned(path)
+    translate = np.eye(4)
+    translate[:3, 3] = (0.3, -0.2, 0.1)
+    to_world = translate @ _rotation(35, (1, 1, 0)) @ np.diag([1.5, 0.8, 1.2, 1.0])
+    want = np.linalg.inv(to_world)[:3]
+    if mapping == "planar":
+        want = np.stack([np.array([0.4, 0.1, 0.2]) @ want, np.array([-0.1, 0.3, 0.1]) @ want, np.zeros(4)])
+        want[:2, 3] += (0.2, -0.1)
+    tex = scene.materials[0].base_texture
+    assert tex.mapping == mapping and np.allclose(np.reshape(tex.frame, (3, 4)), want, atol=1e-9)
