@@ -9,9 +9,11 @@
  *                  below 1e-3, as conductor.h)
  *   eta, k         the conductor's complex index relative to the coating (pbrt divides conductor.eta
  *                  and conductor.k by interface.eta)
- *   table[0..4]    the layer (COATED_*): the conductor's alpha along the tangent and the bitangent, the
- *                  coating's thickness (light crossing it at cos theta keeps exp(-thickness / |cos|)),
- *                  the walk's maximum depth and its number of samples (pbrt's maxdepth, nsamples)
+ *   table[0..8]    the layer (COATED_*): the conductor's alpha along the tangent and the bitangent, the
+ *                  coating's thickness in mean free paths (light crossing it at cos theta keeps
+ *                  exp(-thickness / |cos|)), the walk's maximum depth and its number of samples (pbrt's
+ *                  maxdepth, nsamples), the coating's single-scattering albedo (rgb) and its
+ *                  Henyey-Greenstein asymmetry g (pbrt's albedo, g)
  *
  * Two-sided, reflection only, and every quantity is an estimate, as in pbrt-v4:
  *   eval    f(wo, wi): the coating's own reflection, plus walks that refract in towards wo, bounce
@@ -27,7 +29,12 @@
  * pbrt's RNG(Hash(wo), Hash(wi)): each is a function of its arguments, the same at every lane width.
  * The coating's inner dielectric interface transports radiance (f / eta'^2 refracted) towards wo and
  * importance (no eta'^2) from wi, as pbrt-v4's TransportMode; the conductor is conductor.h's.
- * Not built: a scattering coating (pbrt's albedo, g); the loaders refuse a non-zero albedo.
+ * A scattering coating (albedo > 0 in a channel) is a medium of unit extinction between the layers, as
+ * pbrt-v4's: the walk tracks its height z (the coating at thickness, the metal at 0), samples a free
+ * path, and where it stops inside scatters by the phase function (weight albedo); f then also connects
+ * each scattering point to wi's refracted direction and, through a rough coating, out towards wi.  pbrt's
+ * PDF estimate leaves the medium out, and so does coated_pdf.  Each lane draws from its own counter, so
+ * that lanes at different heights (or of different materials) keep the stream they have at width 1.
  */
 #ifndef PYOPENCL_RT_COATEDCONDUCTOR_H
 #define PYOPENCL_RT_COATEDCONDUCTOR_H
@@ -35,6 +42,7 @@
 #include "materials/conductor.h"
 #include "materials/microfacet.h"
 #include "materials/record.h"
+#include "render/phase.h"
 #include "render/rng.h"
 
 /* f's estimate of the light that leaves the conductor: 0 both connections, power-heuristic weighted as
@@ -51,6 +59,9 @@ typedef struct {
     ConductorParams metal; /* under the coating: eta, k relative to it */
     pfloat thickness;
     pint max_depth, samples;
+    pvec3 albedo;        /* the coating's single-scattering albedo (0: a clear, absorbing coating) */
+    pfloat g;            /* its phase function's asymmetry */
+    pint scattering;     /* albedo > 0 in some channel */
 } CoatedConductorParams;
 
 /* A sample of the coating (pbrt's BSDFSample): f without the cosine, its density, and masks */
@@ -60,10 +71,10 @@ typedef struct {
     pint ok, specular, transmitted;
 } CoatSample;
 
-/* The walk's random numbers: the n-th of a stream keyed by a hash of directions */
+/* The walk's random numbers: the n-th of a stream keyed by a hash of directions (n per lane) */
 typedef struct {
     puint key;
-    uint n;
+    puint n;
 } CoatRng;
 
 RT_INLINE puint coat_hash3(puint h, pvec3 v)
@@ -75,19 +86,28 @@ RT_INLINE puint coat_hash3(puint h, pvec3 v)
 
 RT_INLINE CoatRng coat_rng(uint stream, pvec3 a, pvec3 b)
 {
-    const CoatRng r = {coat_hash3(coat_hash3(PUINT(stream + RNG_KEY_OFFSET), a), b), 0u};
+    const CoatRng r = {coat_hash3(coat_hash3(PUINT(stream + RNG_KEY_OFFSET), a), b), PUINT(0u)};
     return r;
 }
 
-RT_INLINE pfloat coat_next(CoatRng *r)
+/* the next number of the lanes in `used` (the others' counters stay) */
+RT_INLINE pfloat coat_next_in(CoatRng *r, pint used)
 {
-    return u32_to_unit_float(hash_u32(r->key ^ hash_u32(PUINT(r->n++ + RNG_KEY_OFFSET))));
+    const pfloat u = u32_to_unit_float(hash_u32(r->key ^ hash_u32(r->n + RNG_KEY_OFFSET)));
+    r->n = used ? r->n + PUINT(1u) : r->n;
+    return u;
 }
 
-/* pbrt-v4's Tr: the share of light crossing the coating along w */
-RT_INLINE pfloat coat_tr(pfloat thickness, pvec3 w)
+RT_INLINE pfloat coat_next(CoatRng *r) { return coat_next_in(r, PINT(-1)); }
+
+/* pbrt-v4's SampleExponential with sigma_t 1 along w: the height the walk climbs (or falls) before the
+ * medium stops it */
+RT_INLINE pfloat coat_free_height(pfloat u, pvec3 w) { return -plog(1.0f - u) * pabs(w.z); }
+
+/* pbrt-v4's Tr: the share of light crossing a height dz of the coating (either way) along w */
+RT_INLINE pfloat coat_tr(pfloat dz, pvec3 w)
 {
-    return thickness <= 1.17549435e-38f ? PFLOAT(1.0f) : pexp(-pabs(thickness / w.z));
+    return pabs(dz) <= 1.17549435e-38f ? PFLOAT(1.0f) : pexp(-pabs(dz / w.z));
 }
 
 /* pbrt-v4's PowerHeuristic(1, a, 1, b) */
@@ -218,26 +238,62 @@ __attribute__((noinline)) pvec3 coated_f(const CoatedConductorParams *p, pint ac
     const pfloat top = coat_f(p, ok, wo, wi, 1, 1, 1, &unused) * convert_pfloat(p->samples);
     pvec3 f = pv3(top, top, top);
     CoatRng r = coat_rng(0u, wo, wi);
+    const pfloat top_z = pfmax(p->thickness, PFLOAT(1.17549435e-38f)); /* the coating's height; wi leaves there */
     for (int s = 0; pany(ok & (PINT(s) < p->samples)); ++s) {
         pint live = ok & (PINT(s) < p->samples);
         CoatSample wos, wis;
         live = coat_through(p, live, wo, wi, &r, &wos, &wis);
         const pfloat bw = coat_weight(&wos);
         pvec3 beta = pv3(bw, bw, bw), w = wos.wi;
+        pfloat z = top_z;
         const pvec3 wis_up = pv3_neg(wis.wi);
+        const pfloat wis_f = live ? wis.f / wis.pdf : PFLOAT(0.0f);
         const pfloat wis_scale = live ? coat_tr(p->thickness, wis.wi) * wis.f / wis.pdf : PFLOAT(0.0f);
         for (int depth = 0; pany(live & (PINT(depth) < p->max_depth)); ++depth) {
             live &= PINT(depth) < p->max_depth;
             if (depth > 3) { /* Russian roulette */
                 const pfloat mb = pv3_max3(beta), q = pfmax(PFLOAT(0.0f), 1.0f - mb);
                 const pint rr = live & (mb < 0.25f);
-                live &= pnot(rr & (coat_next(&r) < q));
+                live &= pnot(rr & (coat_next_in(&r, live) < q));
                 beta = pv3_sel(beta, pv3_div(beta, rr ? 1.0f - q : PFLOAT(1.0f)), live);
             }
-            beta = pv3_scale(beta, coat_tr(p->thickness, w));
-            if ((depth & 1) == 0) { /* at the conductor */
+            pint at_layer = live; /* the lanes that reach the coating or the metal in this step */
+            const pint medium = live & p->scattering;
+            if (pany(medium)) { /* a scattering coating: where does the medium stop the walk? */
+                const pfloat dz = coat_free_height(coat_next_in(&r, medium), w);
+                const pfloat zp = w.z > 0.0f ? z + dz : z - dz;
+                const pint inside = medium & (zp > 0.0f) & (zp < top_z) & (zp != z);
+                at_layer &= pnot(medium & ((zp == z) | inside)); /* zp == z: pbrt steps on in place */
+                z = (medium & pnot(inside)) ? pfmin(pfmax(zp, PFLOAT(0.0f)), top_z) : z;
+                if (pany(inside)) {
+                    /* towards wi's refracted direction (the only way out through a smooth coating) */
+                    const pfloat ph = phase_hg(p->g, pv3_dot(w, wis.wi));
+                    const pfloat wt = p->coat_smooth ? PFLOAT(1.0f) : coat_power(wis.pdf, ph);
+                    const pfloat sw = inside ? ph * wt * coat_tr(zp - top_z, wis.wi) * wis_f : PFLOAT(0.0f);
+                    f = pv3_add(f, pv3_scale(pv3_mul(beta, p->albedo), sw));
+                    const pfloat u1 = coat_next_in(&r, inside), u2 = coat_next_in(&r, inside);
+                    pfloat pp;
+                    const pvec3 wn = phase_sample_pg(PINT(PHASE_HG), p->g, pv3_neg(w), u1, u2, &pp);
+                    const pint moved = inside & (pp > 0.0f) & (wn.z != 0.0f);
+                    beta = pv3_sel(beta, pv3_mul(beta, p->albedo), moved); /* p / pdf = 1 */
+                    w = pv3_sel(w, wn, moved);
+                    z = moved ? zp : z;
+                    const pint out = moved & (wn.z > 0.0f) & pnot(p->coat_smooth);
+                    if (pany(out)) { /* out through a rough coating towards wi */
+                        pfloat pe;
+                        const pfloat fe = coat_f(p, out, pv3_neg(w), wi, 1, 0, 1, &pe);
+                        const pfloat so = out ? coat_tr(zp - top_z, w) * fe * coat_power(pp, pe) : PFLOAT(0.0f);
+                        f = pv3_add(f, pv3_scale(beta, so));
+                    }
+                }
+            }
+            const pint clear = at_layer & pnot(p->scattering); /* straight across, attenuated */
+            z = clear ? (z == top_z ? PFLOAT(0.0f) : top_z) : z;
+            beta = pv3_sel(beta, pv3_scale(beta, coat_tr(p->thickness, w)), clear);
+            const pint at_metal = at_layer & (z == 0.0f), at_coat = at_layer & (z == top_z);
+            if (pany(at_metal)) {
                 const pvec3 wb = pv3_neg(w);
-                const pint rough_metal = live & pnot(p->metal.smooth);
+                const pint rough_metal = at_metal & pnot(p->metal.smooth);
                 if (pany(rough_metal)) { /* towards wi's refracted direction */
                     pfloat pb;
                     const pvec3 fb = conductor_eval(&p->metal, rough_metal, wb, wis_up, &pb);
@@ -248,12 +304,13 @@ __attribute__((noinline)) pvec3 coated_f(const CoatedConductorParams *p, pint ac
                 pvec3 wn;
                 pfloat pc;
                 pint dc;
-                const pfloat c0 = coat_next(&r), c1 = coat_next(&r);
-                const pvec3 g = conductor_sample(&p->metal, live, wb, c0, c1, &wn, &pc, &dc);
-                live &= (dc | (pc > 0.0f)) & (pv3_max3(g) > 0.0f) & (wn.z != 0.0f);
-                beta = pv3_sel(pv3_zero(), pv3_mul(beta, g), live);
-                w = wn;
-                const pint rough_coat = live & pnot(p->coat_smooth);
+                const pfloat c0 = coat_next_in(&r, at_metal), c1 = coat_next_in(&r, at_metal);
+                const pvec3 g = conductor_sample(&p->metal, at_metal, wb, c0, c1, &wn, &pc, &dc);
+                const pint bounced = at_metal & (dc | (pc > 0.0f)) & (pv3_max3(g) > 0.0f) & (wn.z != 0.0f);
+                live &= pnot(at_metal & pnot(bounced));
+                beta = pv3_sel(beta, pv3_sel(pv3_zero(), pv3_mul(beta, g), bounced), at_metal);
+                w = pv3_sel(w, wn, at_metal);
+                const pint rough_coat = bounced & pnot(p->coat_smooth);
                 if (pany(rough_coat)) { /* out through the coating towards wi */
                     pfloat pe;
                     const pfloat fe = coat_f(p, rough_coat, pv3_neg(w), wi, 1, 0, 1, &pe);
@@ -262,12 +319,14 @@ __attribute__((noinline)) pvec3 coated_f(const CoatedConductorParams *p, pint ac
                     const pfloat s = rough_coat ? coat_tr(p->thickness, w) * fe * wt : PFLOAT(0.0f);
                     f = pv3_add(f, pv3_scale(beta, s));
                 }
-            } else { /* the coating's underside reflects back down */
-                const pfloat d0 = coat_next(&r), d1 = coat_next(&r), d2 = coat_next(&r);
-                const CoatSample bs = coat_sample(p, live, pv3_neg(w), d0, d1, d2, 1, 1, 0);
-                live &= bs.ok;
-                beta = pv3_scale(beta, coat_weight(&bs));
-                w = bs.wi;
+            }
+            if (pany(at_coat)) { /* the coating's underside reflects back down */
+                const pfloat d0 = coat_next_in(&r, at_coat), d1 = coat_next_in(&r, at_coat);
+                const pfloat d2 = coat_next_in(&r, at_coat);
+                const CoatSample bs = coat_sample(p, at_coat, pv3_neg(w), d0, d1, d2, 1, 1, 0);
+                live &= pnot(at_coat & pnot(bs.ok));
+                beta = pv3_sel(beta, pv3_scale(beta, coat_weight(&bs)), at_coat);
+                w = pv3_sel(w, bs.wi, at_coat);
             }
         }
     }
@@ -326,43 +385,73 @@ __attribute__((noinline)) pvec3 coatedconductor_sample(const CoatedConductorPara
     if (pany(walking)) {
         CoatRng r = coat_rng(2u, wo, pv3(u0, u1, u2));
         const pfloat f0 = bs.f * pabs(bs.wi.z);
+        const pfloat top_z = pfmax(p->thickness, PFLOAT(1.17549435e-38f));
         pvec3 f = pv3(f0, f0, f0), w = bs.wi;
-        pfloat q = bs.pdf;
+        pfloat q = bs.pdf, z = top_z;
         for (int depth = 0; pany(walking & (PINT(depth) < p->max_depth)); ++depth) {
             walking &= PINT(depth) < p->max_depth;
             if (depth > 3) { /* Russian roulette */
                 const pfloat rr_beta = pv3_max3(f) / q, kill = pfmax(PFLOAT(0.0f), 1.0f - rr_beta);
                 const pint rr = walking & (rr_beta < 0.25f);
-                walking &= pnot(rr & (coat_next(&r) < kill));
+                walking &= pnot(rr & (coat_next_in(&r, walking) < kill));
                 q = rr ? q * (1.0f - kill) : q;
             }
             walking &= w.z != 0.0f;
-            f = pv3_scale(f, coat_tr(p->thickness, w));
-            if ((depth & 1) == 0) { /* the conductor */
+            pint at_layer = walking;
+            const pint medium = walking & p->scattering;
+            if (pany(medium)) { /* a scattering coating */
+                const pfloat dz = coat_free_height(coat_next_in(&r, medium), w);
+                const pfloat zp = w.z > 0.0f ? z + dz : z - dz;
+                walking &= pnot(medium & (zp == z)); /* as pbrt: no sample */
+                const pint inside = walking & medium & (zp > 0.0f) & (zp < top_z);
+                at_layer = walking & pnot(inside);
+                z = (walking & medium & pnot(inside)) ? pfmin(pfmax(zp, PFLOAT(0.0f)), top_z) : z;
+                if (pany(inside)) {
+                    const pfloat v1 = coat_next_in(&r, inside), v2 = coat_next_in(&r, inside);
+                    pfloat pp;
+                    const pvec3 wn = phase_sample_pg(PINT(PHASE_HG), p->g, pv3_neg(w), v1, v2, &pp);
+                    const pint moved = inside & (pp > 0.0f) & (wn.z != 0.0f);
+                    walking &= pnot(inside & pnot(moved));
+                    f = pv3_sel(f, pv3_scale(pv3_mul(f, p->albedo), pp), moved);
+                    q = moved ? q * pp : q;
+                    specular &= pnot(moved);
+                    w = pv3_sel(w, wn, moved);
+                    z = moved ? zp : z;
+                }
+            }
+            const pint clear = at_layer & pnot(p->scattering);
+            z = clear ? (z == top_z ? PFLOAT(0.0f) : top_z) : z;
+            f = pv3_sel(f, pv3_scale(f, coat_tr(p->thickness, w)), clear);
+            const pint at_metal = at_layer & (z == 0.0f), at_coat = at_layer & (z == top_z);
+            if (pany(at_metal)) {
                 pvec3 wn;
                 pfloat pc;
                 pint dc;
-                const pfloat c0 = coat_next(&r), c1 = coat_next(&r);
-                const pvec3 g = conductor_sample(&p->metal, walking, pv3_neg(w), c0, c1, &wn, &pc, &dc);
-                walking &= (dc | (pc > 0.0f)) & (pv3_max3(g) > 0.0f);
-                f = pv3_scale(pv3_mul(f, g), dc ? PFLOAT(1.0f) : pc); /* f_c |cos| = g pc (a mirror: g) */
-                q = dc ? q : q * pc;
-                specular &= dc | pnot(walking);
-                w = wn;
-            } else { /* the coating from below: out, or back down */
-                const pfloat d0 = coat_next(&r), d1 = coat_next(&r), d2 = coat_next(&r);
-                const CoatSample cs = coat_sample(p, walking, pv3_neg(w), d0, d1, d2, 1, 1, 1);
-                walking &= cs.ok;
-                specular &= cs.specular | pnot(walking);
-                const pint leave = walking & cs.transmitted;
+                const pfloat c0 = coat_next_in(&r, at_metal), c1 = coat_next_in(&r, at_metal);
+                const pvec3 g = conductor_sample(&p->metal, at_metal, pv3_neg(w), c0, c1, &wn, &pc, &dc);
+                walking &= pnot(at_metal & pnot((dc | (pc > 0.0f)) & (pv3_max3(g) > 0.0f)));
+                /* f_c |cos| = g pc (a mirror: g) */
+                f = pv3_sel(f, pv3_scale(pv3_mul(f, g), dc ? PFLOAT(1.0f) : pc), at_metal);
+                q = at_metal & pnot(dc) ? q * pc : q;
+                specular &= dc | pnot(at_metal) | pnot(walking);
+                w = pv3_sel(w, wn, at_metal);
+            }
+            if (pany(at_coat)) { /* the coating from below: out, or back down */
+                const pfloat d0 = coat_next_in(&r, at_coat), d1 = coat_next_in(&r, at_coat);
+                const pfloat d2 = coat_next_in(&r, at_coat);
+                const CoatSample cs = coat_sample(p, at_coat, pv3_neg(w), d0, d1, d2, 1, 1, 1);
+                walking &= pnot(at_coat & pnot(cs.ok));
+                const pint here = at_coat & walking;
+                specular &= cs.specular | pnot(here);
+                const pint leave = here & cs.transmitted;
                 const pvec3 fl = pv3_scale(f, cs.f * pabs(cs.wi.z) / (q * cs.pdf));
                 weight = pv3_sel(weight, fl, leave);
                 out = pv3_sel(out, cs.wi, leave);
                 done |= leave;
                 walking &= pnot(leave);
-                f = pv3_scale(f, cs.f * pabs(cs.wi.z));
-                q = q * cs.pdf;
-                w = cs.wi;
+                f = pv3_sel(f, pv3_scale(f, cs.f * pabs(cs.wi.z)), here);
+                q = here ? q * cs.pdf : q;
+                w = pv3_sel(w, cs.wi, here);
             }
         }
     }
@@ -378,6 +467,8 @@ __attribute__((noinline)) pvec3 coatedconductor_sample(const CoatedConductorPara
 #define COATED_THICKNESS 2
 #define COATED_MAX_DEPTH 3
 #define COATED_SAMPLES 4
+#define COATED_ALBEDO 5 /* 5, 6, 7: r, g, b */
+#define COATED_G 8
 
 /* The parameters from the lanes' Material fields and table. */
 RT_INLINE CoatedConductorParams coatedconductor_params(const MaterialLanes *m)
@@ -401,6 +492,10 @@ RT_INLINE CoatedConductorParams coatedconductor_params(const MaterialLanes *m)
     const pint samples = convert_pint(pgather(m->records, t + COATED_SAMPLES));
     p.max_depth = depth < 1 ? PINT(1) : depth; /* the loaders give at least 1 */
     p.samples = samples < 1 ? PINT(1) : samples;
+    p.albedo = pv3(pgather(m->records, t + COATED_ALBEDO), pgather(m->records, t + COATED_ALBEDO + 1),
+                   pgather(m->records, t + COATED_ALBEDO + 2));
+    p.g = pgather(m->records, t + COATED_G);
+    p.scattering = pv3_max3(p.albedo) > 0.0f;
     return p;
 }
 
@@ -410,11 +505,11 @@ RT_INLINE pvec3 coatedconductor_eval(const CoatedConductorParams *p, pint active
     return coated_f(p, active, wo, wi);
 }
 
-/* mask: a rough coating or a rough conductor (else every sample is a delta sample) */
+/* mask: a rough coating, a rough conductor or a scattering coating (else every sample is a delta sample) */
 RT_INLINE pint coatedconductor_nondelta(const MaterialLanes *m)
 {
     const CoatedConductorParams p = coatedconductor_params(m);
-    return pnot(p.coat_smooth & p.metal.smooth);
+    return pnot(p.coat_smooth & p.metal.smooth) | p.scattering;
 }
 
 /* the albedo guide: the coating's Fresnel reflectance at the viewing angle, and the conductor's for the rest */

@@ -6,7 +6,7 @@
 | ``conductor`` | ``conductor``: ``eta``/``k`` (the named spectra ``metal-Au/Ag/Cu/Al/MgO/TiO2-eta/k`` as Mitsuba's conductors of those names; RGB as given; sampled spectra and ``.spd`` files: :func:`pbrt_spectra.sampled_rgb`) or ``reflectance`` (as F0, Schlick); default copper |
 | ``dielectric`` (``thindielectric`` with a warning) | ``dielectric``: ``eta`` (default 1.5; the named glasses at their d-line index) |
 | ``coateddiffuse`` | ``plastic`` (smooth coat) or ``roughplastic`` (GGX coat), ``nonlinear``: base ``reflectance``, IOR ``eta``, the coating's roughness (the layer's absorption aside: docs/SCENE_FORMAT.md) |
-| ``coatedconductor`` | ``coatedconductor`` (pbrt-v4's layered BSDF, its random walk): ``interface.eta`` and ``interface.*roughness``, ``conductor.eta``/``conductor.k`` (or ``reflectance``) and ``conductor.*roughness``, ``thickness``, ``maxdepth``, ``nsamples``; ``albedo`` > 0 (a scattering coating) refused |
+| ``coatedconductor`` | ``coatedconductor`` (pbrt-v4's layered BSDF, its random walk): ``interface.eta`` and ``interface.*roughness``, ``conductor.eta``/``conductor.k`` (or ``reflectance``) and ``conductor.*roughness``, ``thickness``, ``maxdepth``, ``nsamples``, ``albedo`` and ``g`` (a scattering coating) |
 | ``interface`` (and ``""``, ``none``: pbrt-v4's old names) | no surface: its shapes only bound media (index-matched: pbrt_media.py) |
 | ``mix`` | ``mix`` of the two named ``materials``, weight ``amount`` (a float or a texture; 1 is the second) |
 | ``diffusetransmission`` | ``diffusetransmission``: ``reflectance`` (a texture too), ``transmittance`` (0.25 each), ``scale``; a transmittance texture is an error |
@@ -528,8 +528,8 @@ class MaterialMapper:
         """pbrt-v4's coatedconductor as our coatedconductor (the same layered BSDF, estimated as pbrt
         does): `interface.eta` and the interface's roughness, the conductor's `conductor.eta` /
         `conductor.k` or `reflectance` (pbrt's eta 1 and matching k) and its roughness, `thickness`,
-        `maxdepth`, `nsamples`.  A scattering coating (`albedo` > 0) is refused."""
-        from ..materials.coatedconductor import reflectance_to_index
+        `maxdepth`, `nsamples`, and a scattering coating's `albedo` and `g`."""
+        from ..materials.coatedconductor import reflectance_to_index, set_coating_medium
 
         mat.ior = self._eta(p, what, "interface.eta")
         if "reflectance" in p and ("conductor.eta" in p or "conductor.k" in p):
@@ -542,16 +542,20 @@ class MaterialMapper:
         mat.alpha = self._alpha(p, what, mat, prefix="interface.")  # a texture: in mat.scalar_textures
         cu, cv = self._alphas(p, "conductor.")
         albedo = spectrum_rgb(self.imp, p, "albedo", (0.0, 0.0, 0.0))
-        if max(albedo) > 0:
-            raise error_at(p.items["albedo"].pos, f"{what}: a scattering coating (albedo > 0) is not supported")
+        if min(albedo) < 0 or max(albedo) > 1:
+            clamped = tuple(min(max(c, 0.0), 1.0) for c in albedo)
+            self.imp.warn(p.items["albedo"].pos, f"{what}: albedo {tuple(albedo)} clamped to [0, 1]")
+            albedo = clamped
+        g = p.float("g", 0.0)
+        if not -1 < g < 1:
+            raise error_at(p.items["g"].pos, f"{what}: g must be in (-1, 1), got {g:g}")
+        set_coating_medium(mat, albedo, g)
         thickness = p.float("thickness", 0.01)
         depth, samples = p.integer("maxdepth", 10), p.integer("nsamples", 1)
         if thickness < 0 or depth < 1 or samples < 1:
             raise error_at(pos, f"{what}: thickness must be >= 0 and maxdepth, nsamples >= 1")
         mat.params.update(conductor_alpha_u=cu, conductor_alpha_v=cv, thickness=thickness, max_depth=depth,
                           samples=samples)
-        if "g" in p:
-            p.items["g"].used = True  # the phase function of a scattering coating: none without albedo
 
     def _conductor(self, mat, p, pos, what, prefix, reflectance_key=None, per_texel=False) -> None:
         """The metal's index (mat.eta, mat.k) or its reflectance (mat.f0); a reflectance texture

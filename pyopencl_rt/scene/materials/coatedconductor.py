@@ -10,15 +10,19 @@ pbrt-v4 estimates its layered BSDF (`cl/materials/coatedconductor.h`). pbrt file
 | `eta`, `k` | [r, g, b] or one number (`eta` > 0, `k` ≥ 0), both | | the metal's complex index of refraction in air, instead of `metal` (divided by `ior` under the coating) |
 | `reflectance` | [r, g, b] in [0, 1), or one number | | instead of `metal` or `eta`/`k`: the metal whose reflectance at normal incidence in air this is (pbrt's eta 1 and k = 2 √r / √(1 − r)) |
 | `conductor_roughness` / `conductor_alpha` | number in [0, 1] | 0 | the metal's roughness under the coating (GGX; `conductor_alpha_u`, `conductor_alpha_v` for anisotropy) |
-| `thickness` | number ≥ 0 | 0.01 | the coating's thickness: light crossing it at angle θ keeps exp(−thickness / cos θ) |
+| `thickness` | number ≥ 0 | 0.01 | the coating's thickness in mean free paths: light crossing it at angle θ keeps exp(−thickness / cos θ) |
+| `coating_albedo` | [r, g, b] in [0, 1], or one number | 0 | the coating's single-scattering albedo (pbrt's `albedo`): above 0, the coating is a medium that scatters what it does not absorb |
+| `coating_g` | number in (−1, 1) | 0 | the asymmetry of the coating's Henyey-Greenstein phase function (pbrt's `g`; > 0 forward) |
 | `max_depth` | integer ≥ 1 | 10 | the longest walk between the layers (pbrt's `maxdepth`) |
 | `samples` | integer ≥ 1 | 1 | walks per estimate (pbrt's `nsamples`) |
 
 The coating reflects by its Fresnel term (with a rough coating, a glossy highlight over the metal's);
 what it lets through reaches the metal, and what the metal reflects bounces between the two before it
 leaves: a coated metal is deeper in colour and has a second, sharper highlight. Two-sided, as pbrt's.
+A scattering coating (`coating_albedo` > 0) turns part of the light back before it reaches the metal:
+a milky, diffuse sheen over the metal, stronger the thicker the coating.
 Its value, its density and its samples are estimates (random walks), exactly as pbrt-v4 renders it;
-a smooth coating over a smooth metal is a mirror (no light sampling).
+a smooth, clear coating over a smooth metal is a mirror (no light sampling).
 """
 from __future__ import annotations
 
@@ -29,11 +33,13 @@ from .microfacet import DISTRIBUTION_KEYS, ROUGHNESS_KEYS, pack_distribution, re
 
 TOML_KEYS = ROUGHNESS_KEYS | DISTRIBUTION_KEYS | {
     "ior", "metal", "eta", "k", "reflectance", "conductor_roughness", "conductor_alpha", "conductor_alpha_u",
-    "conductor_alpha_v", "thickness", "max_depth", "samples"}
+    "conductor_alpha_v", "thickness", "max_depth", "samples", "coating_albedo", "coating_g"}
 KERNEL_DEFINE = "HAS_MATERIAL_COATEDCONDUCTOR"
 # the layer's parameter block in Material.table, in cl/materials/coatedconductor.h's COATED_* order
-LAYER = ("conductor_alpha_u", "conductor_alpha_v", "thickness", "max_depth", "samples")
-DEFAULTS = {"conductor_alpha_u": 0.0, "conductor_alpha_v": 0.0, "thickness": 0.01, "max_depth": 10, "samples": 1}
+LAYER = ("conductor_alpha_u", "conductor_alpha_v", "thickness", "max_depth", "samples", "albedo_r", "albedo_g",
+         "albedo_b", "g")
+DEFAULTS = {"conductor_alpha_u": 0.0, "conductor_alpha_v": 0.0, "thickness": 0.01, "max_depth": 10, "samples": 1,
+            "albedo_r": 0.0, "albedo_g": 0.0, "albedo_b": 0.0, "g": 0.0}
 
 
 def reflectance_to_index(r) -> tuple:
@@ -66,6 +72,17 @@ def read_toml(material, table) -> None:
     material.params.update(conductor_alpha_u=au, conductor_alpha_v=av,
                            thickness=table.number("thickness", 0.01, minimum=0.0),
                            max_depth=_count(table, "max_depth", 10), samples=_count(table, "samples", 1))
+    g = table.number("coating_g", 0.0)
+    if not -1.0 < g < 1.0:
+        raise table.error(f"'coating_g' must be in (-1, 1), got {g:g}")
+    set_coating_medium(material, table.rgb01("coating_albedo", 0.0) if "coating_albedo" in table else (0.0,) * 3, g)
+
+
+def set_coating_medium(material, albedo, g) -> None:
+    """The scattering coating's albedo (each channel in [0, 1]) and Henyey-Greenstein g in (-1, 1), as the
+    loaders have checked them."""
+    material.params.update(albedo_r=float(albedo[0]), albedo_g=float(albedo[1]), albedo_b=float(albedo[2]),
+                           g=float(g))
 
 
 def _count(table, key, default) -> int:
