@@ -226,6 +226,25 @@ AttributeEnd
     assert np.abs(amt - np.abs(n[seen] @ np.asarray(mix.direction))).max() < 1e-4
 
 
+def test_pbrt_direction_mix_under_a_coating(tmp_path):
+    """A directionmix as a coateddiffuse's reflectance (our plastic, whose sampling weight takes the mean
+    luminance of its diffuse texture, Mitsuba's rule): the mix has no image of its own, so the weight
+    takes the mean of its two inputs; kroken's magazines render so (an AttributeError before)."""
+    path = tmp_path / "coated-dirmix.pbrt"
+    path.write_text(CAMERA + """Texture "d" "spectrum" "directionmix" "rgb tex1" [0.9 0.2 0.1] "rgb tex2" [0.1 0.3 0.8]
+Material "coateddiffuse" "texture reflectance" "d" "float roughness" 0
+Shape "sphere"
+""")
+    scene, aov = _render(path)
+    mat = scene.materials[0]
+    lum = np.array([0.212671, 0.715160, 0.072169])
+    d = np.mean(mat.albedo) * (0.5 * (np.array([0.9, 0.2, 0.1]) + np.array([0.1, 0.3, 0.8]))) @ lum
+    s = np.mean(mat.specular_reflectance)
+    assert isinstance(mat.base_texture, DirectionMix)
+    assert np.isclose(mat.record()["spec_weight"], s / (d + s), rtol=1e-6)
+    assert np.isfinite(aov["albedo"]).all() and aov["albedo"].max() > 0.1
+
+
 @pytest.mark.parametrize("use", ["displacement", "mix amount"])
 def test_a_point_mapped_texture_where_lookups_take_uv_is_one_line(tmp_path, use):
     """A planar-mapped texture as a bump map (pbrt's displacement) or as a mix material's amount (both

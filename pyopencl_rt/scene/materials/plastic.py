@@ -81,9 +81,12 @@ def specular_weight(material) -> float:
     d = material.params.get("diffuse_mean")
     if d is None:
         d = float(np.mean(material.albedo))
-        if material.base_texture is not None:
-            rgb = material.base_texture.texels[..., :3].astype(np.float64)
-            d *= float((rgb @ np.array([0.212671, 0.715160, 0.072169])).mean())
+        lum = np.array([0.212671, 0.715160, 0.072169])
+        tex = material.base_texture
+        if tex is not None and hasattr(tex, "texels"):
+            d *= float((tex.texels[..., :3].astype(np.float64) @ lum).mean())
+        elif tex is not None:  # no image of its own (pbrt's directionmix): its estimated mean
+            d *= float(tex.mean_rgb() @ lum)
     s = float(np.mean(material.specular_reflectance))
     return s / (d + s) if d + s > 0 else 0.5
 
