@@ -171,10 +171,8 @@ def _plymesh(imp, d):
 
     p = d.params
     fname, path = pbrt_file(d, imp.path.parent, 'Shape "plymesh"')
-    for key in ("displacement", "edgelength"):
-        if key in p:
-            imp.warn(p.items[key].pos, f'Shape "plymesh": {key} is not supported; ignored')
-            p.items[key].used = True
+    if "edgelength" in p:
+        p.items["edgelength"].used = True  # read with a displacement; pbrt ignores it without one
     try:
         if path.suffix.lower() == ".gz":  # pbrt-v4 reads .ply.gz through gzip
             loaded = _gzipped_mesh(path, d.pos)
@@ -185,7 +183,56 @@ def _plymesh(imp, d):
         raise error_at(d.pos, f'Shape "plymesh": {exc}') from None
     if len(f) == 0:
         raise error_at(d.pos, f"Shape \"plymesh\": '{fname}' contains no triangles")
-    return np.asarray(v, np.float64), np.asarray(f, np.int64), trimesh_uvs(loaded, v, f), ply_extras(loaded, f).normals
+    v, f, uv, normals = np.asarray(v, np.float64), np.asarray(f, np.int64), trimesh_uvs(loaded, v, f), \
+        ply_extras(loaded, f).normals
+    if "displacement" in p:
+        return _displaced(imp, d, v, f, uv, normals)
+    return v, f, uv, normals
+
+
+def _displaced(imp, d, v, f, uv, normals):
+    """pbrt-v4's displaced plymesh (scene/displacement.py): refined to edges under "edgelength" (default
+    1) in the world, each vertex moved along its normal by the float texture "displacement" at its uv
+    (channels averaged, as pbrt's float image textures), normals recomputed.  -> (v, f, per-corner uv,
+    per-corner normals)."""
+    from ..displacement import displace
+    from ..textures import Texture, lookup
+
+    p = d.params
+    q = p.items["displacement"]
+    q.used = True
+    if q.type != "texture":
+        raise error_at(q.pos, 'Shape "plymesh": "displacement" must name a float texture ("texture displacement")')
+    rgb, tex = imp.materials.color(p, "displacement", (0.0, 0.0, 0.0))
+    if tex is not None and (not isinstance(tex, Texture) or tex.mapping != "uv"):
+        kind = "directionmix" if not isinstance(tex, Texture) else f"{tex.mapping}-mapped"
+        raise error_at(q.pos, f'Shape "plymesh": a {kind} displacement texture is not supported (uv only)')
+    edge = p.float("edgelength", 1.0)
+    if not edge > 0:
+        raise error_at(p.items["edgelength"].pos, f'Shape "plymesh": edgelength must be > 0, got {edge:g}')
+    if uv is None:
+        raise error_at(d.pos, 'Shape "plymesh": a displacement needs the mesh\'s vertex uvs (as pbrt-v4)')
+    scale = float(np.mean(rgb))
+    corners = f.reshape(-1)
+    uv_v = np.zeros((len(v), 2))
+    uv_v[corners] = np.asarray(uv, np.float64).reshape(-1, 2)
+    n_v = None
+    if normals is not None:
+        n_v = np.zeros((len(v), 3))
+        n_v[corners] = np.asarray(normals, np.float64).reshape(-1, 3)
+    if tex is None:
+        def height(points):
+            return np.full(len(points), scale)
+    else:
+        grey = tex.texels[..., :3].astype(np.float64).mean(axis=-1, keepdims=True)
+
+        def height(points):
+            return scale * lookup(grey, points, tex.wrap, tex.filter, tex.to_uv)[:, 0]
+    try:
+        v, f, uv_v, n_v = displace(v, f, uv_v, n_v, imp.state.ctm[:3, :3], edge, height)
+    except ValueError as exc:
+        raise error_at(d.pos, f'Shape "plymesh": displacement: {exc}') from None
+    return v, f, uv_v[f].astype(np.float32), n_v[f].astype(np.float32)
 
 
 def _gzipped_mesh(path, pos):
