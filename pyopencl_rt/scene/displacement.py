@@ -38,9 +38,10 @@ def face_normal_sum(v, f) -> np.ndarray:
 def refine(v, f, uv, n, linear, max_edge, max_triangles=200_000_000):
     """(v, f, uv, n) with every edge shorter than max_edge after ``linear`` (3 x 3, the shape's
     transform without its translation, which distances do not see).  v (V, 3), uv (V, 2), n (V, 3)
-    per vertex; f (F, 3).  Raises ValueError past max_triangles (an edgelength far below the mesh's
-    scale)."""
-    v, uv, n = (np.asarray(a, np.float64) for a in (v, uv, n))
+    per vertex; f (F, 3).  Positions, uvs and normals are kept in float32 as pbrt keeps them (a carpet
+    of kroken's refines to 54M triangles); the lengths are measured in float64.  Raises ValueError past
+    max_triangles (an edgelength far below the mesh's scale)."""
+    grow = _Growing(np.asarray(v, np.float32), np.asarray(uv, np.float32), np.asarray(n, np.float32))
     f = np.asarray(f, np.int64)
     linear = np.asarray(linear, np.float64)
     done = []
@@ -48,12 +49,12 @@ def refine(v, f, uv, n, linear, max_edge, max_triangles=200_000_000):
     edge_keys = np.zeros(0, np.int64)  # sorted keys of the edges split so far, and their midpoints
     edge_mids = np.zeros(0, np.int64)
     while len(f):
-        p = v @ linear.T
-        d01 = np.linalg.norm(p[f[:, 1]] - p[f[:, 0]], axis=1)
-        d12 = np.linalg.norm(p[f[:, 2]] - p[f[:, 1]], axis=1)
-        d20 = np.linalg.norm(p[f[:, 0]] - p[f[:, 2]], axis=1)
+        p = grow.v
+        lengths = [np.linalg.norm((p[f[:, j]].astype(np.float64) - p[f[:, i]]) @ linear.T, axis=1)
+                   for i, j in ((0, 1), (1, 2), (2, 0))]
+        d01, d12, d20 = lengths
         small = (d01 < max_edge) & (d12 < max_edge) & (d20 < max_edge)
-        done.append(f[small])
+        done.append(f[small].astype(np.int32))
         count += int(small.sum())
         f, d01, d12, d20 = f[~small], d01[~small], d12[~small], d20[~small]
         if count + 2 * len(f) > max_triangles:
@@ -62,31 +63,56 @@ def refine(v, f, uv, n, linear, max_edge, max_triangles=200_000_000):
             break
         # the longest edge first (pbrt's comparisons, ties included): (a, b) is split, c is opposite
         first = np.where(d01 > d12, np.where(d01 > d20, 0, 2), np.where(d12 > d20, 1, 2))
+        del d01, d12, d20, lengths
         rows = np.arange(len(f))
         a, b, c = f[rows, first], f[rows, (first + 1) % 3], f[rows, (first + 2) % 3]
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        keys = (lo << 32) | hi
+        del rows, first, f
+        keys = (np.minimum(a, b) << 32) | np.maximum(a, b)
         unique, inverse = np.unique(keys, return_inverse=True)
+        del keys
         mids = np.empty(len(unique), np.int64)
-        at = np.searchsorted(edge_keys, unique)
-        known = (at < len(edge_keys)) & (edge_keys[np.minimum(at, len(edge_keys) - 1)] == unique) \
-            if len(edge_keys) else np.zeros(len(unique), bool)
-        mids[known] = edge_mids[at[known]]
-        fresh = ~known
-        ulo, uhi = unique[fresh] >> 32, unique[fresh] & 0xFFFFFFFF
-        mids[fresh] = len(v) + np.arange(int(fresh.sum()))
-        nn = n[ulo] + n[uhi]
-        length = np.linalg.norm(nn, axis=1, keepdims=True)
-        nn = np.divide(nn, length, out=nn.copy(), where=length > 0)
-        v = np.concatenate([v, 0.5 * (v[ulo] + v[uhi])])
-        uv = np.concatenate([uv, 0.5 * (uv[ulo] + uv[uhi])])
-        n = np.concatenate([n, nn])
-        order = np.argsort(np.concatenate([edge_keys, unique[fresh]]), kind="stable")
-        edge_keys = np.concatenate([edge_keys, unique[fresh]])[order]
-        edge_mids = np.concatenate([edge_mids, mids[fresh]])[order]
+        known = np.zeros(len(unique), bool)
+        if len(edge_keys):
+            at = np.minimum(np.searchsorted(edge_keys, unique), len(edge_keys) - 1)
+            known = edge_keys[at] == unique
+            mids[known] = edge_mids[at[known]]
+        fresh = unique[~known]
+        mids[~known] = grow.add_midpoints(fresh >> 32, fresh & 0xFFFFFFFF)
+        order = np.argsort(np.concatenate([edge_keys, fresh]), kind="stable")
+        edge_keys = np.concatenate([edge_keys, fresh])[order]
+        edge_mids = np.concatenate([edge_mids, mids[~known]])[order]
         m = mids[inverse]
         f = np.concatenate([np.stack([a, m, c], 1), np.stack([m, b, c], 1)])
-    return v, np.concatenate(done) if done else np.zeros((0, 3), np.int64), uv, n
+    out = np.concatenate(done) if done else np.zeros((0, 3), np.int32)
+    return grow.v, out, grow.uv, grow.n
+
+
+class _Growing:
+    """Per-vertex arrays that grow by midpoints without a copy each round (capacity doubles)."""
+
+    def __init__(self, v, uv, n):
+        self.size = len(v)
+        self._v, self._uv, self._n = v, uv, n
+
+    v = property(lambda self: self._v[:self.size])
+    uv = property(lambda self: self._uv[:self.size])
+    n = property(lambda self: self._n[:self.size])
+
+    def add_midpoints(self, lo, hi) -> np.ndarray:
+        """Append the midpoints of edges (lo, hi): position and uv their means, normal the normalised sum
+        (left as it is where the sum is 0).  -> their indices."""
+        k = len(lo)
+        if self.size + k > len(self._v):
+            cap = max(2 * len(self._v), self.size + k)
+            self._v, self._uv, self._n = (np.resize(a, (cap, a.shape[1])) for a in (self._v, self._uv, self._n))
+        at = slice(self.size, self.size + k)
+        self._v[at] = 0.5 * (self._v[lo] + self._v[hi])
+        self._uv[at] = 0.5 * (self._uv[lo] + self._uv[hi])
+        nn = self._n[lo] + self._n[hi]
+        length = np.linalg.norm(nn, axis=1, keepdims=True)
+        self._n[at] = np.divide(nn, length, out=nn, where=length > 0)
+        start, self.size = self.size, self.size + k
+        return np.arange(start, start + k)
 
 
 def displace(v, f, uv, n, linear, max_edge, height):
@@ -96,6 +122,6 @@ def displace(v, f, uv, n, linear, max_edge, height):
     if n is None:
         n = face_normal_sum(v, f)
     v, f, uv, n = refine(v, f, uv, n, linear, max_edge)
-    h = np.asarray(height(uv), np.float64).reshape(-1)
+    h = np.asarray(height(uv), np.float32).reshape(-1)
     v = v + h[:, None] * n
-    return v, f, uv, face_normal_sum(v, f)
+    return v, f, uv, face_normal_sum(v, f).astype(np.float32)

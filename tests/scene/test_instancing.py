@@ -184,3 +184,37 @@ def test_framing_camera_sees_the_instances_in_the_world(tmp_path, monkeypatch, m
     v = np.asarray(flat.vertices, np.float64)[np.unique(flat.faces)]
     assert np.allclose(flat.camera.look_at, (v.min(0) + v.max(0)) / 2, atol=1e-4)
     assert 30 < flat.camera.look_at[0] < 50
+
+
+def _big_ply(path, k=370):
+    """A flat k x k grid of (k - 1)^2 * 2 triangles (> 2^18 for k = 370) as a binary PLY."""
+    x, y = np.meshgrid(np.arange(k, dtype=np.float32), np.arange(k, dtype=np.float32))
+    v = np.stack([x.ravel(), y.ravel(), np.zeros(k * k, np.float32)], 1)
+    i = np.arange(k * k).reshape(k, k)
+    a, b, c, d = i[:-1, :-1].ravel(), i[:-1, 1:].ravel(), i[1:, 1:].ravel(), i[1:, :-1].ravel()
+    f = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]).astype(np.int32)
+    rec = np.zeros(len(f), [("n", "u1"), ("i", "<i4", 3)])
+    rec["n"], rec["i"] = 3, f
+    head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(v)}\nproperty float x\nproperty float y\n"
+            f"property float z\nelement face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n")
+    path.write_bytes(head.encode() + v.astype("<f4").tobytes() + rec.tobytes())
+    return len(f)
+
+
+@pytest.mark.parametrize("instances", [1, 2])
+def test_auto_draws_a_group_instanced_once_flattened(tmp_path, monkeypatch, instances):
+    """auto: a group of more than FLATTEN_MAX_TRIANGLES drawn once is flattened (its own space would
+    save nothing, and pbrt exporters wrap single meshes in ObjectBegin / ObjectInstance: kroken's 54M-
+    triangle displaced carpet was refused as an instanced BVH over 2 GiB); drawn twice, two-level."""
+    from pyopencl_rt.scene.loaders import load_scene
+    from pyopencl_rt.scene.loaders.instancing import FLATTEN_MAX_TRIANGLES, INSTANCING_ENV
+
+    n = _big_ply(tmp_path / "big.ply")
+    assert n > FLATTEN_MAX_TRIANGLES
+    uses = "".join(f"AttributeBegin\nTranslate {500 * k} 0 0\nObjectInstance \"g\"\nAttributeEnd\n" for k in range(instances))
+    (tmp_path / "s.pbrt").write_text('LookAt 0 0 -900  0 0 0  0 1 0\nCamera "perspective"\nWorldBegin\n'
+                                     'ObjectBegin "g"\nShape "plymesh" "string filename" "big.ply"\nObjectEnd\n' + uses)
+    monkeypatch.setenv(INSTANCING_ENV, "auto")
+    scene = load_scene(tmp_path / "s.pbrt")
+    assert bool(scene.blas_groups) == (instances == 2)
+    assert len(scene.faces) == n * (1 if instances == 2 else instances)  # two-level: the group's faces once

@@ -14,8 +14,8 @@ by its ``to_world`` M, so a shape lands at M @ (its own to_world), as in Mitsuba
 * a sphere stays a sphere (centre moved, radius scaled) when M is a similarity; otherwise it is the
   ellipsoid M makes of it, as triangles with its exact normals.
 
-Flattening is exact but its memory grows with the instances.  So a group whose instances would
-flatten to more than :data:`FLATTEN_MAX_TRIANGLES` triangles is drawn through a two-level BVH
+Flattening is exact but its memory grows with the instances.  So a group of two or more instances
+that would flatten to more than :data:`FLATTEN_MAX_TRIANGLES` triangles is drawn through a two-level BVH
 instead (:func:`place`, at the end of loading): its faces are added once, in its own space, after
 every world face (a ``BlasGroup``), and each instance is only a record (``Instance.blas``) that
 the renderer moves at render time (pyopencl_rt/accel/instances.py).  A group stays flattened
@@ -104,14 +104,17 @@ def add_instance(builder, group: ShapeGroup, matrix, position: str) -> Instance:
 
 def place(builder) -> list:
     """At the end of loading: each group whose instances wait (add_instance) is flattened or, if
-    its copies would exceed FLATTEN_MAX_TRIANGLES (or $PYOPENCL_RT_INSTANCING=two-level),
+    its two or more copies would exceed FLATTEN_MAX_TRIANGLES (or $PYOPENCL_RT_INSTANCING=two-level),
     added once in its own space after every world face, its instances pointing at it.  Returns
     the BlasGroup records (their face ranges in the builder's faces)."""
     mode = instancing_mode()
     groups, waiting = [], []
     for name, (group, insts) in builder.pending.items():
         copies = len(insts) * sum(len(mesh[1]) for mesh in group.meshes)
-        two_level = not (builder.media or builder.interfaces) and (mode == "two-level" or copies > FLATTEN_MAX_TRIANGLES)
+        # a group drawn once is flattened whatever its size: its own space saves nothing there, and one
+        # level is the faster BVH (pbrt exporters wrap every mesh in ObjectBegin / ObjectInstance)
+        shared = len(insts) > 1 and copies > FLATTEN_MAX_TRIANGLES
+        two_level = not (builder.media or builder.interfaces) and (mode == "two-level" or (mode == "auto" and shared))
         (waiting if two_level else groups).append((group, insts))
     # each waiting record's place in builder.instances, found once (by identity: records compare
     # by value), not searched for per instance: tens of thousands of small copies stay linear
