@@ -23,16 +23,18 @@ import numpy as np
 def face_normal_sum(v, f) -> np.ndarray:
     """Per-vertex normals: the normalised sum of the unit normals of the faces around each vertex
     (faces of zero area add nothing; a vertex with none keeps a zero normal), float64."""
-    v = np.asarray(v, np.float64)
-    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 1]])
-    length = np.linalg.norm(fn, axis=1)
-    fn = np.divide(fn, length[:, None], out=np.zeros_like(fn), where=length[:, None] > 0)
-    n = np.zeros_like(v)
-    for k in range(3):
-        for c in range(3):
-            n[:, c] += np.bincount(f[:, k], weights=fn[:, c], minlength=len(v))
-    length = np.linalg.norm(n, axis=1)
-    return np.divide(n, length[:, None], out=np.zeros_like(n), where=length[:, None] > 0)
+    n = np.zeros((len(v), 3))
+    step = 1 << 22  # faces a chunk (float64 temporaries of a whole 54M-face mesh took gigabytes)
+    for lo in range(0, len(f), step):
+        tri = np.asarray(v)[np.asarray(f[lo:lo + step])].astype(np.float64)
+        fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 1])
+        length = np.linalg.norm(fn, axis=1, keepdims=True)
+        fn = np.divide(fn, length, out=np.zeros_like(fn), where=length > 0)
+        for k in range(3):
+            for c in range(3):
+                n[:, c] += np.bincount(f[lo:lo + step, k], weights=fn[:, c], minlength=len(v))
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
 
 
 def refine(v, f, uv, n, linear, max_edge, max_triangles=200_000_000):
@@ -78,9 +80,8 @@ def refine(v, f, uv, n, linear, max_edge, max_triangles=200_000_000):
             mids[known] = edge_mids[at[known]]
         fresh = unique[~known]
         mids[~known] = grow.add_midpoints(fresh >> 32, fresh & 0xFFFFFFFF)
-        order = np.argsort(np.concatenate([edge_keys, fresh]), kind="stable")
-        edge_keys = np.concatenate([edge_keys, fresh])[order]
-        edge_mids = np.concatenate([edge_mids, mids[~known]])[order]
+        at = np.searchsorted(edge_keys, fresh)  # both sorted, none shared: a merge, not a sort
+        edge_keys, edge_mids = np.insert(edge_keys, at, fresh), np.insert(edge_mids, at, mids[~known])
         m = mids[inverse]
         f = np.concatenate([np.stack([a, m, c], 1), np.stack([m, b, c], 1)])
     out = np.concatenate(done) if done else np.zeros((0, 3), np.int32)

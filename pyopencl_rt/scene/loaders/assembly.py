@@ -101,14 +101,19 @@ def transform_normals(matrix, normals, unit: bool = True):
     kernels' normalised interpolation gives the moved interpolated normal: an instance's)."""
     if normals is None:
         return None
-    n = np.asarray(normals, np.float64).reshape(-1, 3)
-    m = np.asarray(matrix, np.float64)[:3, :3]
-    n = n @ np.linalg.inv(m)  # (M^-T n)^T = n^T M^-1
-    if not unit:
-        return np.nan_to_num(n).reshape(-1, 3, 3).astype(np.float32)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    return np.nan_to_num(n, nan=0.0, posinf=0.0, neginf=0.0).reshape(-1, 3, 3).astype(np.float32)
+    src = np.asarray(normals).reshape(-1, 3)
+    inv = np.linalg.inv(np.asarray(matrix, np.float64)[:3, :3])
+    out = np.empty(src.shape, np.float32)
+    step = 1 << 20  # in float64 a chunk at a time: a whole 54M-triangle mesh's copies took 12 GB
+    for lo in range(0, len(src), step):
+        n = src[lo:lo + step].astype(np.float64) @ inv  # (M^-T n)^T = n^T M^-1
+        if not unit:
+            out[lo:lo + step] = np.nan_to_num(n)
+            continue
+        with np.errstate(invalid="ignore", divide="ignore"):
+            n = n / np.linalg.norm(n, axis=1, keepdims=True)
+        out[lo:lo + step] = np.nan_to_num(n, nan=0.0, posinf=0.0, neginf=0.0)
+    return out.reshape(-1, 3, 3)
 
 
 def angle_weighted_normals(vertices, faces, keys=None) -> np.ndarray:
