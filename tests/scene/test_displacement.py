@@ -55,6 +55,66 @@ def test_refinement_keeps_the_surface_and_bounds_world_edges():
     assert np.allclose(ruv, rv[:, :2] / [2.0, 3.0]) and np.allclose(rn, [0.0, 0.0, 1.0])
 
 
+def test_recomputed_normals_weigh_every_face_alike():
+    """pbrt's ComputeNormals: a vertex's normal is the normalised sum of its faces' unit normals, not
+    weighted by area or angle: a fold of a large face (normal +z) and a thin one tilted to +x."""
+    v = np.array([[0, 0, 0], [0, 1, 0], [-5, 0, 0], [0.1, 0.5, -0.1]], np.float64)
+    f = np.array([[0, 1, 2], [0, 3, 1]])  # (0, 1) the shared edge
+    n1 = np.cross(v[1] - v[0], v[2] - v[1])
+    n2 = np.cross(v[3] - v[0], v[1] - v[3])
+    want = n1 / np.linalg.norm(n1) + n2 / np.linalg.norm(n2)
+    got = face_normal_sum(v, f)
+    assert np.allclose(got[0], want / np.linalg.norm(want)) and np.allclose(got[2], n1 / np.linalg.norm(n1))
+    assert np.linalg.norm(n1) > 10 * np.linalg.norm(n2)  # an area-weighted sum would differ
+
+
+def reference_refine(v, f, linear, max_edge):
+    """The refinement in rounds over every triangle still too long (numpy, float64): each split at the
+    midpoint of its longest edge (pbrt's comparisons), a midpoint shared through a dict.  The triangles
+    as corner positions (T, 3, 3); pbrt's order of splits does not change which triangles come out."""
+    v, f = [tuple(p) for p in np.asarray(v, np.float64)], [tuple(t) for t in f]
+    mids, done = {}, []
+    while f:
+        p = np.asarray(v) @ np.asarray(linear).T
+        nxt = []
+        for a, b, c in f:
+            d01, d12, d20 = (np.linalg.norm(p[j] - p[i]) for i, j in ((a, b), (b, c), (c, a)))
+            if d01 < max_edge and d12 < max_edge and d20 < max_edge:
+                done.append((a, b, c))
+                continue
+            if d01 > d12:
+                x, y, z = (a, b, c) if d01 > d20 else (c, a, b)
+            else:
+                x, y, z = (b, c, a) if d12 > d20 else (c, a, b)
+            key = (min(x, y), max(x, y))
+            if key not in mids:
+                mids[key] = len(v)
+                v.append(tuple((np.asarray(v[x]) + np.asarray(v[y])) / 2))
+            m = mids[key]
+            nxt += [(x, m, z), (m, y, z)]
+        f = nxt
+    return np.asarray(v)[np.asarray(done)]
+
+
+def test_refinement_is_the_reference_in_pbrts_order_of_splits():
+    """An uneven mesh (a grid with moved vertices) under a rotation and a non-uniform scale: the same
+    triangles, each with its corners in the same order, as the reference (to 1e-6: float32 midpoints)."""
+    rng = np.random.default_rng(7)
+    v, f, uv, n = grid(3, 2, 1.0, 1.0)
+    v[:, :2] += rng.uniform(-0.1, 0.1, (len(v), 2))
+    c, s = np.cos(0.4), np.sin(0.4)
+    linear = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ np.diag([1.0, 1.7, 1.0])
+    rv, rf, _, _ = refine(v, f, uv, n, linear, 0.1)
+    want = reference_refine(v, f, linear, 0.1)
+    got = np.asarray(rv, np.float64)[rf]
+    def by_centroid(tris):  # each triangle keeps its corners' order; the list ordered by where it lies
+        c = np.round(tris.mean(axis=1), 4)
+        return tris[np.lexsort((c[:, 2], c[:, 1], c[:, 0]))]
+
+    assert len(got) == len(want) > 40 * len(f)
+    assert np.allclose(by_centroid(got), by_centroid(want), atol=1e-6)  # float32 midpoints
+
+
 def _ply(path, v, f, uv):
     lines = ["ply", "format ascii 1.0", f"element vertex {len(v)}", "property float x", "property float y",
              "property float z", "property float u", "property float v", f"element face {len(f)}",
