@@ -28,11 +28,31 @@ RT_INLINE float3 xf_vector1(__global const float *m, float3 d)
                     m[8] * d.x + m[9] * d.y + m[10] * d.z);
 }
 
+/* Motion blur (HAS_MOTION, pbrt-v4's ActiveTransform): an instance moves by a translation over the
+ * shutter, s dw at the ray's time sample u (s = clamp(a + b u, 0, 1): abi.INSTANCE), its 3x3 part
+ * fixed, so that M(s)^-1 is M^-1 with the origin moved back by s M^-1 dw.  The TLAS boxes hold the
+ * whole sweep (pyopencl_rt/accel/instances.py); the time is each ray's, passed as `time`. */
+#ifdef HAS_MOTION
+#define MOTION_TIME_PARAM , float time
+#define MOTION_TIME_ARG(u) , u
+RT_INLINE float instance_motion_share(__global const Instance *in, float u)
+{
+    return clamp(in->motion_world[3] + in->motion_object[3] * u, 0.0f, 1.0f);
+}
+/* the ray's origin in the group's space at its time */
+#define OBJECT_ORIGIN(in, o) \
+    (xf_point1((in)->world_to_object, o) - instance_motion_share(in, time) * vload3(0, (in)->motion_object))
+#else
+#define MOTION_TIME_PARAM
+#define MOTION_TIME_ARG(u)
+#define OBJECT_ORIGIN(in, o) xf_point1((in)->world_to_object, o)
+#endif
+
 /* The instances' closest hit in (tmin, hit->t): on a closer one *hit (prim: the triangle in tris)
  * and *inst (its index in `instances`) are replaced. */
 RT_INLINE void instances_closest_hit(__global const BVHNode *tlas, __global const Instance *instances,
                                      __global const BVHNode *blas, __global const float4 *tris, float3 o, float3 d,
-                                     float tmin, Hit *hit, int *inst)
+                                     float tmin, Hit *hit, int *inst MOTION_TIME_PARAM)
 {
     const BinaryRay r = binary_ray(o, d); /* the slab test's part: each instance's BLAS shears its own ray */
     int stack_node[BVH_STACK_SIZE];
@@ -50,8 +70,7 @@ RT_INLINE void instances_closest_hit(__global const BVHNode *tlas, __global cons
             for (int i = first; i < first + cnt; ++i) {
                 __global const Instance *in = instances + i;
                 Hit h = bvh_closest_hit(BLAS_ROOT(blas, in->blas_offset), tris + 3 * in->tri_offset,
-                                        xf_point1(in->world_to_object, o), xf_vector1(in->world_to_object, d), tmin,
-                                        hit->t);
+                                        OBJECT_ORIGIN(in, o), xf_vector1(in->world_to_object, d), tmin, hit->t);
                 if (h.prim != PRIM_MISS) {
                     *hit = h;
                     hit->prim += in->tri_offset;
@@ -67,7 +86,7 @@ RT_INLINE void instances_closest_hit(__global const BVHNode *tlas, __global cons
 /* Whether some instance blocks (tmin, tmax). */
 RT_INLINE int instances_any_hit(__global const BVHNode *tlas, __global const Instance *instances,
                                 __global const BVHNode *blas, __global const float4 *tris, float3 o, float3 d,
-                                float tmin, float tmax)
+                                float tmin, float tmax MOTION_TIME_PARAM)
 {
     const BinaryRay r = binary_ray(o, d); /* the slab test's part: each instance's BLAS shears its own ray */
     int stack_node[BVH_STACK_SIZE];
@@ -84,7 +103,7 @@ RT_INLINE int instances_any_hit(__global const BVHNode *tlas, __global const Ins
             for (int i = first; i < first + cnt; ++i) {
                 __global const Instance *in = instances + i;
                 if (bvh_any_hit(BLAS_ROOT(blas, in->blas_offset), tris + 3 * in->tri_offset,
-                                xf_point1(in->world_to_object, o), xf_vector1(in->world_to_object, d), tmin, tmax))
+                                OBJECT_ORIGIN(in, o), xf_vector1(in->world_to_object, d), tmin, tmax))
                     return 1;
             }
             go[side] = 0;
@@ -139,13 +158,41 @@ RT_INLINE pvec3 xf_abs_lanes(__global const Instance *instances, pint inst, int 
  * moved to the world.  The bound grows as pbrt-v4's Transform of a Point3fi does, (1 + g3)|M| err
  * + g3 (|M||p| + |t|), plus what the ray's move into the group's space rounded, g3 |M| (|M^-1||p_w|
  * + |t'|) mapped back: a spawned ray's origin, moved there again, stays on its side. */
-RT_INLINE void instance_point_to_world(__global const Instance *instances, pint inst, pint on, pvec3 *p, pvec3 *err)
+#ifdef HAS_MOTION
+/* the lanes' motion at their time samples u: s dw (world) and s M^-1 dw (the group's space) */
+RT_INLINE void instance_motion_lanes(__global const Instance *instances, pint inst, pfloat u, pvec3 *world,
+                                     pvec3 *object)
+{
+    __global const float *f = (__global const float *)instances;
+    const pint w = inst * STRIDE_INDEX(Instance) + FIELD_INDEX(Instance, motion_world);
+    const pint o = inst * STRIDE_INDEX(Instance) + FIELD_INDEX(Instance, motion_object);
+    const pfloat s = pclamp(pgather(f, w + 3) + pgather(f, o + 3) * u, 0.0f, 1.0f);
+    *world = pv3_scale(pv3(pgather(f, w), pgather(f, w + 1), pgather(f, w + 2)), s);
+    *object = pv3_scale(pv3(pgather(f, o), pgather(f, o + 1), pgather(f, o + 2)), s);
+}
+#define MOTION_LANES_PARAM , pfloat time
+#define MOTION_LANES_ARG(u) , u
+#else
+#define MOTION_LANES_PARAM
+#define MOTION_LANES_ARG(u)
+#endif
+
+RT_INLINE void instance_point_to_world(__global const Instance *instances, pint inst, pint on, pvec3 *p,
+                                       pvec3 *err MOTION_LANES_PARAM)
 {
     const int O2W = FIELD_INDEX(Instance, object_to_world), W2O = FIELD_INDEX(Instance, world_to_object);
-    const pvec3 pw = xf_lanes(instances, inst, O2W, *p, PFLOAT(1.0f));
-    const pvec3 e1 = pv3_add(pv3_scale(xf_abs_lanes(instances, inst, O2W, *err, PFLOAT(0.0f)), PFLOAT(1.0f + XF_GAMMA3)),
-                             pv3_scale(xf_abs_lanes(instances, inst, O2W, pv3_abs(*p), PFLOAT(1.0f)), PFLOAT(XF_GAMMA3)));
-    const pvec3 back = pv3_scale(xf_abs_lanes(instances, inst, W2O, pv3_abs(pw), PFLOAT(1.0f)), PFLOAT(XF_GAMMA3));
+    pvec3 pw = xf_lanes(instances, inst, O2W, *p, PFLOAT(1.0f));
+    pvec3 e1 = pv3_add(pv3_scale(xf_abs_lanes(instances, inst, O2W, *err, PFLOAT(0.0f)), PFLOAT(1.0f + XF_GAMMA3)),
+                       pv3_scale(xf_abs_lanes(instances, inst, O2W, pv3_abs(*p), PFLOAT(1.0f)), PFLOAT(XF_GAMMA3)));
+    pvec3 back = pv3_scale(xf_abs_lanes(instances, inst, W2O, pv3_abs(pw), PFLOAT(1.0f)), PFLOAT(XF_GAMMA3));
+#ifdef HAS_MOTION
+    /* moved by s dw, one more rounding each way (here, and the ray's origin moved back by s M^-1 dw) */
+    pvec3 dw, dobj;
+    instance_motion_lanes(instances, inst, time, &dw, &dobj);
+    pw = pv3_add(pw, dw);
+    e1 = pv3_add(e1, pv3_scale(pv3_add(pv3_abs(pw), pv3_abs(dw)), PFLOAT(XF_GAMMA3)));
+    back = pv3_add(back, pv3_scale(pv3_abs(dobj), PFLOAT(2.0f * XF_GAMMA3)));
+#endif
     const pvec3 e2 = xf_abs_lanes(instances, inst, O2W, back, PFLOAT(0.0f));
     *p = pv3_sel(*p, pw, on);
     *err = pv3_sel(*err, pv3_add(e1, e2), on);

@@ -340,7 +340,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     if (pany(in_inst)) {
         wo_obj = pv3_sel(wo, xf_lanes(instances, xi, FIELD_INDEX(Instance, world_to_object), wo, PFLOAT(0.0f)),
                          in_inst);
-        instance_point_to_world(instances, xi, in_inst, &p, &p_err);
+        instance_point_to_world(instances, xi, in_inst, &p, &p_err MOTION_LANES_ARG(time_sample(key)));
         ng = pv3_sel(ng, pv3_normalize(xf_normal_lanes(instances, xi, ng), in_inst), in_inst);
     }
 #endif

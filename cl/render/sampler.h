@@ -57,6 +57,7 @@
  * Every 1D or 2D sample is scrambled on its own, so the ids only need to differ. */
 #define DIM_PIXEL 0
 #define DIM_LENS 0xFFFFFFF0u /* and + 1: the thin lens, far from every bounce's dimensions */
+#define DIM_TIME 0xFFFFFFF2u /* the path's time in the shutter (motion blur: cl/accel/instances.h) */
 #define DIMS_PER_BOUNCE 8
 #define DIM_LIGHT_PICK 0
 #define DIM_LIGHT_POINT 1 /* and 2 */
@@ -201,6 +202,9 @@ RT_INLINE pfloat sample_1d(SampleKey k, puint dim)
     const puint index = shuffled_index(k, s0);
     return u32_to_unit_float(reverse_bits32(lk_permute(index, hash_u32(s0 ^ 1u))));
 }
+
+/* The path's time sample u in [0, 1): every ray of the path is traced at it (motion blur) */
+RT_INLINE pfloat time_sample(SampleKey k) { return sample_1d(k, PUINT(DIM_TIME)); }
 
 /* The 2D sample dim (ids dim and dim + 1) */
 RT_INLINE void sample_2d(SampleKey k, puint dim, pfloat *u, pfloat *v)

@@ -116,22 +116,24 @@ RT_INLINE pint cutout_lanes(__global const int *tri_material, __global const Mat
     __global const BVHNode *blas_nodes
 #define INSTANCE_PARAMS , INSTANCE_PARAMS_NOCOMMA
 #define INSTANCE_ARGS , tlas, instances, blas_nodes
-#define INSTANCE_HIT_PARAMS INSTANCE_PARAMS, pint *inst
+#define INSTANCE_HIT_PARAMS INSTANCE_PARAMS, pint *inst MOTION_LANES_PARAM
 #define INSTANCE_HIT_ARGS(inst) INSTANCE_ARGS, inst
+/* scene_occluded's; with motion blur both also take the lanes' time samples (MOTION_LANES_ARG) */
+#define INSTANCE_OCCLUDED_PARAMS INSTANCE_PARAMS MOTION_LANES_PARAM
 /* path_shade's: the instance records (through PATH_PARAMS) and the lanes' instances */
 #define INSTANCE_SHADE_PARAMS , pint inst
 #define INSTANCE_SHADE_ARGS(inst) , inst
 
 /* the lanes of `live`: a closer hit among the instances than *t (updated with the rest) */
 RT_INLINE void instance_lanes_hit(INSTANCE_PARAMS_NOCOMMA, __global const float4 *tris, pvec3 o, pvec3 d,
-                                  pint live, pfloat *t, pint *prim, pfloat *u, pfloat *v, pint *inst)
+                                  pint live, pfloat *t, pint *prim, pfloat *u, pfloat *v, pint *inst MOTION_LANES_PARAM)
 {
     *inst = PINT(-1);
 #if PACKET_WIDTH == 1
     if (live) {
         Hit h; h.t = *t; h.u = *u; h.v = *v; h.prim = *prim;
         instances_closest_hit(tlas, instances, blas_nodes, tris, (float3)(o.x, o.y, o.z), (float3)(d.x, d.y, d.z),
-                              0.0f, &h, inst);
+                              0.0f, &h, inst MOTION_TIME_ARG(time));
         *t = h.t; *prim = h.prim; *u = h.u; *v = h.v;
     }
 #else
@@ -139,7 +141,8 @@ RT_INLINE void instance_lanes_hit(INSTANCE_PARAMS_NOCOMMA, __global const float4
         if (!PLANE_I(live, k)) continue;
         Hit h; h.t = PLANE(*t, k); h.u = PLANE(*u, k); h.v = PLANE(*v, k); h.prim = PLANE_I(*prim, k);
         int in = -1;
-        instances_closest_hit(tlas, instances, blas_nodes, tris, pv3_lane(o, k), pv3_lane(d, k), 0.0f, &h, &in);
+        instances_closest_hit(tlas, instances, blas_nodes, tris, pv3_lane(o, k), pv3_lane(d, k), 0.0f, &h, &in
+                              MOTION_TIME_ARG(PLANE(time, k)));
         PLANE(*t, k) = h.t; PLANE_I(*prim, k) = h.prim; PLANE(*u, k) = h.u; PLANE(*v, k) = h.v;
         PLANE_I(*inst, k) = in;
     }
@@ -148,16 +151,16 @@ RT_INLINE void instance_lanes_hit(INSTANCE_PARAMS_NOCOMMA, __global const float4
 
 /* the lanes of `live` that an instance blocks in (0, tmax) */
 RT_INLINE pint instance_lanes_occluded(INSTANCE_PARAMS_NOCOMMA, __global const float4 *tris, pvec3 o, pvec3 d,
-                                       pint live, pfloat tmax)
+                                       pint live, pfloat tmax MOTION_LANES_PARAM)
 {
 #if PACKET_WIDTH == 1
     return live && instances_any_hit(tlas, instances, blas_nodes, tris, (float3)(o.x, o.y, o.z),
-                                     (float3)(d.x, d.y, d.z), 0.0f, tmax);
+                                     (float3)(d.x, d.y, d.z), 0.0f, tmax MOTION_TIME_ARG(time));
 #else
     int bits = 0;
     for (int k = 0; k < PACKET_WIDTH; ++k)
         if (PLANE_I(live, k) && instances_any_hit(tlas, instances, blas_nodes, tris, pv3_lane(o, k), pv3_lane(d, k),
-                                                  0.0f, PLANE(tmax, k)))
+                                                  0.0f, PLANE(tmax, k) MOTION_TIME_ARG(PLANE(time, k))))
             bits |= 1 << k;
     return pmask(bits);
 #endif
@@ -167,6 +170,8 @@ RT_INLINE pint instance_lanes_occluded(INSTANCE_PARAMS_NOCOMMA, __global const f
 #define INSTANCE_ARGS
 #define INSTANCE_HIT_PARAMS
 #define INSTANCE_HIT_ARGS(inst)
+#define INSTANCE_OCCLUDED_PARAMS
+#define MOTION_LANES_ARG(u)
 #define INSTANCE_SHADE_PARAMS
 #define INSTANCE_SHADE_ARGS(inst)
 #endif
@@ -218,7 +223,7 @@ RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const f
 #endif
 #endif
 #ifdef HAS_INSTANCES
-    instance_lanes_hit(tlas, instances, blas_nodes, tris, o, d, live, t, prim, u, v, inst);
+    instance_lanes_hit(tlas, instances, blas_nodes, tris, o, d, live, t, prim, u, v, inst MOTION_LANES_ARG(time));
 #endif
 #ifdef HAS_SPHERES
     for (int s = 0; s < n_spheres; ++s) {
@@ -237,7 +242,7 @@ RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const f
 /* The lanes of `live` whose segment o + t d, t in (0, tmax), is blocked. */
 RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const float4 *tris,
                               __global const Sphere *spheres, int n_spheres, pvec3 o, pvec3 d, pint live,
-                              pfloat tmax CUTOUT_PARAMS INSTANCE_PARAMS)
+                              pfloat tmax CUTOUT_PARAMS INSTANCE_OCCLUDED_PARAMS)
 {
     pint blocked = PINT(0);
 #ifdef HAS_SPHERES
@@ -290,7 +295,8 @@ RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const floa
 #endif
 #endif
 #ifdef HAS_INSTANCES
-    blocked |= instance_lanes_occluded(tlas, instances, blas_nodes, tris, o, d, live & pnot(blocked), tmax);
+    blocked |= instance_lanes_occluded(tlas, instances, blas_nodes, tris, o, d, live & pnot(blocked), tmax
+                                       MOTION_LANES_ARG(time));
 #endif
     return blocked & live;
 }

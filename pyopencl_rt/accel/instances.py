@@ -6,7 +6,7 @@ a top-level BVH (TLAS, binary nodes) over the instances' world boxes; the instan
 faces keep their BVH (``world``).  ``triangles`` and ``prim_ids`` are those of every BVH one after
 another (the world's first), so the per-triangle buffers the renderer makes by ``prim_ids`` (materials,
 UVs, normals) serve the groups' triangles as they serve the world's.  Device memory grows with the
-instances (112 bytes a record, about 32 bytes of TLAS nodes), not with their triangles.
+instances (144 bytes a record, about 32 bytes of TLAS nodes), not with their triangles.
 """
 from __future__ import annotations
 
@@ -26,9 +26,12 @@ class TwoLevelBVH:
     ``tlas`` over the instances, ``records`` (abi.INSTANCE, in the TLAS's leaf order) and
     ``order`` (the Scene.instances index of each record)."""
 
-    def __init__(self, vertices, faces, n_world: int, groups: list, instances: list, threads=None):
+    def __init__(self, vertices, faces, n_world: int, groups: list, instances: list, threads=None,
+                 ends=None, motion_time=(0.0, 1.0)):
         """``faces[:n_world]`` in world space; ``groups`` (first_face, n_faces) ranges of ``faces``
-        in their groups' spaces; ``instances`` (4x4 to_world, group index) pairs."""
+        in their groups' spaces; ``instances`` (4x4 to_world, group index) pairs; ``ends``: per
+        instance its to_world at the end of its motion (a translation away; None: it does not
+        move), ``motion_time`` Scene.motion_time."""
         t0 = time.perf_counter()
         faces = np.asarray(faces)
         self.world = build_bvh(vertices, faces[:n_world], threads=threads)
@@ -45,12 +48,24 @@ class TwoLevelBVH:
         self.tri_offsets = first_tri[:-1]
         self.to_world = np.asarray([m for m, _ in instances], np.float64).reshape(-1, 4, 4)
         self.group = np.asarray([g for _, g in instances], np.int64)
+        ends = [None] * len(instances) if ends is None else list(ends)
+        # each instance's motion, a translation (zero: it stays)
+        self.motion = np.asarray([np.zeros(3) if e is None else np.asarray(e, np.float64)[:3, 3] - m[:3, 3]
+                                  for e, (m, _) in zip(ends, instances)], np.float64).reshape(-1, 3)
+        self.motion_time = tuple(float(x) for x in motion_time)
         # a group without faces gets a zero box (its instances get no record below)
         group_boxes = np.array([b.bounds if len(b.prim_ids) else np.zeros((2, 3)) for b in self.blas],
                                np.float64).reshape(-1, 2, 3)
         # an instance of a group without faces draws nothing: no record (no TLAS, even, without any)
         drawn = np.flatnonzero([len(self.blas[g].prim_ids) > 0 for g in self.group])
         boxes = world_boxes(group_boxes[self.group[drawn]], self.to_world[drawn])
+        moving = np.flatnonzero((self.motion[drawn] != 0).any(axis=1))
+        if len(moving):  # a translation's sweep: the box around both ends' boxes
+            end = self.to_world[drawn[moving]].copy()
+            end[:, :3, 3] += self.motion[drawn[moving]]
+            at_end = world_boxes(group_boxes[self.group[drawn[moving]]], end)
+            boxes[moving, 0] = np.minimum(boxes[moving, 0], at_end[:, 0])
+            boxes[moving, 1] = np.maximum(boxes[moving, 1], at_end[:, 1])
         # the TLAS: a BVH over one degenerate triangle per instance (lo, hi, centre): its box is the
         # instance's box, its centroid the box's centre
         corners = np.stack([boxes[:, 0], boxes[:, 1], boxes.mean(axis=1)], axis=1).reshape(-1, 3)
@@ -69,7 +84,12 @@ class TwoLevelBVH:
             return recs
         m, g = self.to_world[self.order], self.group[self.order]
         recs["object_to_world"] = m[:, :3, :].reshape(-1, 12)
-        recs["world_to_object"] = np.linalg.inv(m)[:, :3, :].reshape(-1, 12)
+        inverse = np.linalg.inv(m)
+        recs["world_to_object"] = inverse[:, :3, :].reshape(-1, 12)
+        dw = self.motion[self.order]
+        recs["motion_world"][:, :3] = dw
+        recs["motion_object"][:, :3] = np.einsum("nij,nj->ni", inverse[:, :3, :3], dw)
+        recs["motion_world"][:, 3], recs["motion_object"][:, 3] = self.motion_time
         recs["blas_offset"] = np.asarray(blas_offsets, np.int64)[g]
         recs["tri_offset"] = np.asarray(self.tri_offsets, np.int64)[g]
         return recs

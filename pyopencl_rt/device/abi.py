@@ -340,12 +340,16 @@ assert WIDE8_NODE.itemsize == 256
 TRI8 = _tri_packet(8)
 assert TRI8.itemsize == 320
 
-# An instance of a shape group in the two-level BVH (112 bytes; cl/accel/instances.h): its
-# world-to-object and object-to-world transforms as 3x4 row-major matrices, where its group's BVH
-# starts in the blas_nodes buffer (bytes) and its group's first triangle in tris.
+# An instance of a shape group in the two-level BVH (144 bytes; cl/accel/instances.h): its
+# world-to-object and object-to-world transforms as 3x4 row-major matrices (at the shutter's
+# opening), where its group's BVH starts in the blas_nodes buffer (bytes) and its group's first
+# triangle in tris.  Motion blur (HAS_MOTION): at the camera's time sample u the instance has moved
+# by s dw, s = clamp(a + b u, 0, 1), dw = motion_world.xyz, a = motion_world.w; motion_object.xyz is
+# M^-1 dw (the ray's origin moves back by s of it in the group's space), b = motion_object.w.
 INSTANCE = np.dtype([("world_to_object", np.float32, 12), ("object_to_world", np.float32, 12),
+                     ("motion_world", np.float32, 4), ("motion_object", np.float32, 4),
                      ("blas_offset", np.int32), ("tri_offset", np.int32), ("pad", np.int32, 2)])
-assert INSTANCE.itemsize == 112
+assert INSTANCE.itemsize == 144
 
 from .light_node import LIGHT_NODE  # noqa: E402  (the light BVH's node record, documented there)
 # Registry of every shared struct: name -> dtype.  Add new shared structs here.

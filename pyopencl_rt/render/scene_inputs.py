@@ -29,8 +29,9 @@ def _geometry(scene) -> dict:
 
 
 def _instances(scene) -> dict:
-    """tlas, instances, blas_nodes: each two-level instance's transform and group, and the groups'
-    ranges of faces (none without two-level instances)."""
+    """tlas, instances, blas_nodes: each two-level instance's transform (and, where it moves, its
+    transform at the end of the motion and the time mapping) and group, and the groups' ranges of
+    faces (none without two-level instances)."""
     if not getattr(scene, "blas_groups", None):
         return {}
     from ..scene.instances import two_level
@@ -38,7 +39,10 @@ def _instances(scene) -> dict:
     insts = two_level(scene)
     return {"instance_to_world": np.asarray([i.to_world for i in insts], np.float64).reshape(-1, 4, 4),
             "instance_blas": np.asarray([i.blas for i in insts], np.int64),
-            "blas_groups": np.asarray([(g.first_face, g.n_faces) for g in scene.blas_groups], np.int64)}
+            "blas_groups": np.asarray([(g.first_face, g.n_faces) for g in scene.blas_groups], np.int64),
+            "instance_motion": np.asarray([(i.to_world_end if i.moves else i.to_world)[:3, 3] - i.to_world[:3, 3]
+                                           for i in insts], np.float64).reshape(-1, 3),
+            "motion_time": np.asarray(getattr(scene, "motion_time", (0.0, 1.0)), np.float64)}
 
 
 class _FaceCorners:

@@ -39,13 +39,14 @@ def group_vertices(scene) -> np.ndarray:
 def instance_bounds(scene):
     """(lo, hi) float64 corners of the box around the two-level instances' moved group vertices
     (each group's used vertices through each of its instances' M, exactly, a chunk of instances at
-    a time: 10^6 instances of a small group never make 10^6 copies at once); None without any."""
+    a time: 10^6 instances of a small group never make 10^6 copies at once); None without any.
+    A moving instance counts at both ends of its motion (a translation: the box holds the way)."""
     insts = two_level(scene)
     if not insts:
         return None
     v64 = np.asarray(scene.vertices, np.float64)
-    m_all = np.asarray([i.to_world for i in insts], np.float64)
-    g_all = np.asarray([i.blas for i in insts])
+    m_all = np.asarray([i.to_world for i in insts] + [i.to_world_end for i in insts if i.moves], np.float64)
+    g_all = np.asarray([i.blas for i in insts] + [i.blas for i in insts if i.moves])
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     for k, g in enumerate(scene.blas_groups):
         faces = np.asarray(scene.faces[g.first_face:g.first_face + g.n_faces])
@@ -64,7 +65,9 @@ def camera_shifted(scene, eye) -> list:
     """The instance records with the world moved by -eye (the groups' own spaces stay)."""
     shift = np.eye(4)
     shift[:3, 3] = -np.asarray(eye, np.float64)
-    return [dataclasses.replace(i, to_world=shift @ i.to_world) if i.blas >= 0 else i for i in scene.instances]
+    return [dataclasses.replace(i, to_world=shift @ i.to_world,
+                                to_world_end=None if i.to_world_end is None else shift @ i.to_world_end)
+            if i.blas >= 0 else i for i in scene.instances]
 
 
 def flattened(scene):
@@ -73,6 +76,11 @@ def flattened(scene):
     insts = two_level(scene)
     if not insts:
         return scene
+    if any(i.moves for i in insts):
+        from ..errors import UserError
+
+        raise UserError(f"{scene.source}: motion blur (moving instances) is rendered by our own traversal only, "
+                        "not with the Embree intersector nor in an export")
     n_world = n_world_faces(scene)
     faces = np.asarray(scene.faces, np.int64)
     v64 = np.asarray(scene.vertices, np.float64)
@@ -141,4 +149,5 @@ def scene_bvh(scene, threads=None):
         return build_bvh(scene.vertices, scene.faces, threads=threads)
     return TwoLevelBVH(scene.vertices, scene.faces, n_world_faces(scene),
                        [(g.first_face, g.n_faces) for g in scene.blas_groups],
-                       [(i.to_world, i.blas) for i in two_level(scene)], threads=threads)
+                       [(i.to_world, i.blas) for i in two_level(scene)], threads=threads,
+                       ends=[i.to_world_end for i in two_level(scene)], motion_time=scene.motion_time)

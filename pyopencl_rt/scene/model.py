@@ -298,7 +298,9 @@ class Instance:
     its own moved copy of the group's shapes to the Scene's arrays (faces[first_face:first_face +
     n_faces], spheres likewise); a two-level one (blas >= 0) adds nothing: it draws
     Scene.blas_groups[blas], whose faces are in the group's own space, moved by to_world at
-    render time (pyopencl_rt/accel/instances.py)."""
+    render time (pyopencl_rt/accel/instances.py).  A moving one (pbrt-v4's ActiveTransform; two-level
+    always) has ``to_world_end``, its to_world at the end of the motion (Scene.motion_time), which
+    differs from to_world by a translation; None: it does not move."""
 
     group: str
     to_world: np.ndarray
@@ -307,6 +309,11 @@ class Instance:
     first_sphere: int = 0
     n_spheres: int = 0
     blas: int = -1
+    to_world_end: np.ndarray | None = None
+
+    @property
+    def moves(self) -> bool:
+        return self.to_world_end is not None
 
 
 @dataclass
@@ -362,6 +369,9 @@ class Scene:
     # in their group's own space)
     instances: list = field(default_factory=list)
     blas_groups: list = field(default_factory=list)
+    # motion blur: each ray's time sample u in [0, 1) (uniform over the shutter) puts a moving
+    # instance at s = clamp(a + b u, 0, 1) of its way from to_world to to_world_end, (a, b) this
+    motion_time: tuple = (0.0, 1.0)
     # True: the corner normals are used as given, not each made unit length: their lengths weigh the
     # interpolation (which the kernels normalise), as an unevenly scaled instance's normals need
     normals_as_given: bool = False

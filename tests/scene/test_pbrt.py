@@ -437,7 +437,6 @@ TransformTimes 0 1
               ("Attribute", 'Attribute "shape": default parameters are not supported; ignored'),
               ("sigma", '"float sigma" of Material "diffuse": not supported; ignored'),
               ("goniometric", 'LightSource "goniometric": not supported; ignored'),
-              ("TransformTimes", "TransformTimes: motion blur is not supported; ignored"),
               ("realistic", 'Camera "realistic": not supported; using a camera that frames the scene')]
     assert len(w) == len(expect), w
     for message, (needle, what) in zip(w, expect):

@@ -221,6 +221,7 @@ class SceneBuilder:
         self.groups: dict = {}
         self.instances: list = []
         self.pending: dict = {}  # group name -> (group, its instances) that place() decides on
+        self.motion_time = (0.0, 1.0)  # Scene.motion_time: the moving instances' time mapping
         self.n_faces = 0
         self.normals_as_given = False  # an unevenly scaled instance's normals (Scene.normals_as_given)
         # emitters of several primitives (Scene.face_emitters): per mesh and per sphere its emitter
@@ -396,7 +397,10 @@ class SceneBuilder:
             # a two-level group's own space was mirrored with the rest: its instances are
             # conjugated (mirror M mirror^-1 of the mirrored group is mirror M of the group)
             inverse = np.linalg.inv(mirror)
-            instances = [dataclasses.replace(i, to_world=mirror @ i.to_world @ (inverse if i.blas >= 0 else np.eye(4)))
+
+            def mirrored(i, m):
+                return None if m is None else mirror @ m @ (inverse if i.blas >= 0 else np.eye(4))
+            instances = [dataclasses.replace(i, to_world=mirrored(i, i.to_world), to_world_end=mirrored(i, i.to_world_end))
                          for i in instances]
         if not self.faces and not self.spheres:
             raise SceneFormatError(f"{self.name}: the scene has no shapes that we can render")
@@ -417,9 +421,9 @@ class SceneBuilder:
             scene.sphere_emitters = np.asarray(self.sphere_emitters, np.int32)
             scene.emitter_weights = list(self.emitter_weights)
         if instances:
-
             scene.instances, scene.blas_groups = remap_instances(instances, blas, _finite_faces(vertices, faces)
                                                                  if self.faces else None)
+        scene.motion_time = self.motion_time
         env = self.environment
         scene.environment = env.resample(mirror) if isinstance(env, EnvMap) else env
         if self.camera is None:

@@ -39,7 +39,7 @@ from ..model import BlasGroup, Instance
 from ..instances import is_similarity
 from .assembly import transform_normals
 from .geometry import sphere_mesh, transform_points
-from .values import error_at
+from .values import SceneError, error_at
 
 INSTANCING_ENV = "PYOPENCL_RT_INSTANCING"
 # auto: two-level once flattening would copy more triangles than this, the measured speed
@@ -84,22 +84,48 @@ def why_flattened(group: ShapeGroup) -> str | None:
     return None
 
 
-def add_instance(builder, group: ShapeGroup, matrix, position: str) -> Instance:
+def add_instance(builder, group: ShapeGroup, matrix, position: str, matrix_end=None, what: str = "") -> Instance:
     """Add an instance of ``group`` moved by the 4x4 ``matrix`` (None: the identity) to
     ``builder``'s scene: flattened now, or (a group that may go two-level) once :func:`place`
-    decides; returns (and records in ``builder.instances``) the Instance."""
+    decides; returns (and records in ``builder.instances``) the Instance.  ``matrix_end``: where a
+    moving instance is at the end of its motion (motion blur: always two-level; ``what`` names the
+    shape in the refusals)."""
     if builder.recording is not None:
         raise error_at(position, "an instance inside a shape group: nested instancing is not supported")
     m = np.eye(4) if matrix is None else np.asarray(matrix, np.float64)
     det = float(np.linalg.det(m[:3, :3]))
     if not abs(det) > 1e-300 or not np.isfinite(m).all():
         raise error_at(position, f"the instance of '{group.name}': its to_world is singular")
+    if matrix_end is not None:
+        return _moving_instance(builder, group, m, np.asarray(matrix_end, np.float64), position, what)
     if group.meshes and why_flattened(group) is None and instancing_mode() != "flatten":
         inst = Instance(group.name, m.copy(), blas=-2)  # -2: placed at the end (place)
         builder.instances.append(inst)
         builder.pending.setdefault(group.name, (group, []))[1].append(inst)
         return inst
     return flatten_instance(builder, group, m)
+
+
+def _moving_instance(builder, group: ShapeGroup, m, m_end, position: str, what: str) -> Instance:
+    """A moving instance (motion blur): the renderer moves a two-level instance by a translation
+    over the shutter (cl/accel/instances.h); whatever else is refused here, in one line."""
+    what = what or f"the instance of '{group.name}'"
+    if not np.isfinite(m_end).all() or not np.allclose(m_end[3], (0, 0, 0, 1)):
+        raise error_at(position, f"{what}: its transform at the end of the motion is not affine")
+    if not np.allclose(m[:3, :3], m_end[:3, :3], rtol=1e-9, atol=1e-12 * max(np.abs(m[:3, :3]).max(), 1e-300)):
+        raise error_at(position, f"{what}: motion blur of a rotation or scale (the transform's 3x3 part changes "
+                                 "over the shutter) is not supported; a translation is")
+    why = "spheres" if group.spheres else why_flattened(group)
+    if why is not None:
+        raise error_at(position, f"{what}: motion blur of a shape with {why} is not supported")
+    if builder.media or builder.interfaces:
+        raise error_at(position, f"{what}: motion blur in a scene with participating media is not supported")
+    end = m.copy()
+    end[:3, 3] = m_end[:3, 3]  # the same 3x3 part: the motion is this translation alone
+    inst = Instance(group.name, m.copy(), blas=-2, to_world_end=end)
+    builder.instances.append(inst)
+    builder.pending.setdefault(group.name, (group, []))[1].append(inst)
+    return inst
 
 
 def place(builder) -> list:
@@ -115,6 +141,10 @@ def place(builder) -> list:
         # level is the faster BVH (pbrt exporters wrap every mesh in ObjectBegin / ObjectInstance)
         shared = len(insts) > 1 and copies > FLATTEN_MAX_TRIANGLES
         two_level = not (builder.media or builder.interfaces) and (mode == "two-level" or (mode == "auto" and shared))
+        if any(inst.moves for inst in insts):
+            if builder.media or builder.interfaces:  # (media declared after the moving shape)
+                raise SceneError(f"{builder.name}: motion blur in a scene with participating media is not supported")
+            two_level = True  # the kernels move two-level instances alone
         (waiting if two_level else groups).append((group, insts))
     # each waiting record's place in builder.instances, found once (by identity: records compare
     # by value), not searched for per instance: tens of thousands of small copies stay linear
@@ -178,6 +208,7 @@ def remap_instances(instances: list, blas: list, keep: np.ndarray | None) -> tup
     out = []
     for inst in instances:
         first, n = span(inst.first_face, inst.n_faces)
-        out.append(Instance(inst.group, inst.to_world, first, n, inst.first_sphere, inst.n_spheres, inst.blas))
+        out.append(Instance(inst.group, inst.to_world, first, n, inst.first_sphere, inst.n_spheres, inst.blas,
+                            inst.to_world_end))
     return out, [BlasGroup(g.name, *span(g.first_face, g.n_faces)) for g in blas]
 

@@ -75,8 +75,12 @@ def load_pbrt(path, name: str | None = None):
 
 @dataclasses.dataclass
 class _State:
-    ctm: np.ndarray
+    ctm: np.ndarray  # the transform at the start time (TransformTimes)
     reverse: bool = False
+    # pbrt-v4's second transform, at the end time: the two differ where ActiveTransform made a
+    # directive change one of them (motion blur); None: the same as ctm
+    ctm_end: np.ndarray | None = None
+    active: tuple = (True, True)  # ActiveTransform: which of (ctm, ctm_end) the transform directives change
     material: object = None  # a Material, or ("named", name, pos)
     area: object = None  # (radiance, two_sided) of the AreaLightSource in effect
     inside: str = ""  # MediumInterface: the media inside and outside shapes ("": vacuum)
@@ -95,6 +99,9 @@ class _Importer:
         self.null_material = None  # the "interface" shapes' (they never scatter: cl/render/media.h)
         self.options: dict[str, Directive] = {}
         self.in_world = False
+        self.transform_times = (0.0, 1.0)  # TransformTimes
+        self.moving = None  # where the first moving shape or instance was (its position)
+        self.shape_groups = 0  # the one-shape groups of moving shapes
 
     def warn(self, pos, what) -> None:
         self.b.warn(pos, what)
@@ -110,7 +117,7 @@ class _Importer:
                 self.warn(d.pos, f"{d.name}: not supported; ignored")
                 continue
             if d.name == "Shape" and self._named_later() and self.b.recording is None:
-                waiting.append((d, dataclasses.replace(self.state, ctm=self.state.ctm.copy())))
+                waiting.append((d, self._saved()))
                 continue
             self._handle(handler, d)
         current = self.state
@@ -151,11 +158,30 @@ class _Importer:
 
     # -- transforms ------------------------------------------------------------------------------
 
+    def _saved(self) -> _State:
+        st = self.state
+        return dataclasses.replace(st, ctm=st.ctm.copy(), ctm_end=None if st.ctm_end is None else st.ctm_end.copy())
+
+    def end_ctm(self) -> np.ndarray:
+        """The transform at the end time (the start's where no ActiveTransform made them differ)."""
+        return self.state.ctm if self.state.ctm_end is None else self.state.ctm_end
+
+    def moves(self) -> bool:
+        """Whether the current transform changes between the start and end times."""
+        return self.state.ctm_end is not None and not np.array_equal(self.state.ctm, self.state.ctm_end)
+
+    def _set(self, start, end) -> None:
+        """The transforms after a directive: each active one becomes its new value."""
+        st = self.state
+        old_end = self.end_ctm()
+        st.ctm, new_end = (start if st.active[0] else st.ctm), (end if st.active[1] else old_end)
+        st.ctm_end = None if new_end is st.ctm else new_end
+
     def _apply(self, m) -> None:
-        self.state.ctm = self.state.ctm @ m
+        self._set(self.state.ctm @ m, self.end_ctm() @ m)
 
     def d_Identity(self, d):
-        self.state.ctm = np.eye(4)
+        self._set(np.eye(4), np.eye(4))
 
     def d_Translate(self, d):
         self._apply(translate(d.args[0]))
@@ -191,34 +217,41 @@ class _Importer:
         return np.asarray(d.args[0], np.float64).reshape(4, 4).T
 
     def d_Transform(self, d):
-        self.state.ctm = self._matrix(d)
+        m = self._matrix(d)
+        self._set(m, m.copy())
 
     def d_ConcatTransform(self, d):
         self._apply(self._matrix(d))
 
     def d_CoordinateSystem(self, d):
-        self.coords[d.args[0]] = self.state.ctm.copy()
+        self.coords[d.args[0]] = (self.state.ctm.copy(), self.end_ctm().copy())
 
     def d_CoordSysTransform(self, d):
         if d.args[0] not in self.coords:
             self.warn(d.pos, f"CoordSysTransform: no coordinate system named '{d.args[0]}'; ignored")
             return
-        self.state.ctm = self.coords[d.args[0]].copy()
+        start, end = self.coords[d.args[0]]
+        self.state.ctm, self.state.ctm_end = start.copy(), end.copy()  # both, as pbrt-v4
 
     def d_ReverseOrientation(self, d):
         self.state.reverse = not self.state.reverse
 
     def d_TransformTimes(self, d):
-        self.warn(d.pos, "TransformTimes: motion blur is not supported; ignored")
+        start, end = (float(x) for x in d.args[0])
+        if not end >= start:
+            raise error_at(d.pos, f"TransformTimes: the end time {end:g} is before the start time {start:g}")
+        self.transform_times = (start, end)
 
     def d_ActiveTransform(self, d):
-        if d.args[0] != "All":
-            self.warn(d.pos, f"ActiveTransform {d.args[0]}: motion blur is not supported; ignored")
+        which = {"StartTime": (True, False), "EndTime": (False, True), "All": (True, True)}.get(d.args[0])
+        if which is None:
+            raise error_at(d.pos, f'ActiveTransform "{d.args[0]}": expected StartTime, EndTime or All')
+        self.state.active = which
 
     # -- blocks ----------------------------------------------------------------------------------
 
     def d_AttributeBegin(self, d):
-        self.stack.append(dataclasses.replace(self.state, ctm=self.state.ctm.copy()))
+        self.stack.append(self._saved())
 
     def d_AttributeEnd(self, d):
         if not self.stack:
@@ -226,18 +259,18 @@ class _Importer:
         self.state = self.stack.pop()
 
     def d_TransformBegin(self, d):  # deprecated in pbrt-v4: saves the transform only
-        self.stack.append(dataclasses.replace(self.state, ctm=self.state.ctm.copy()))
+        self.stack.append(self._saved())
 
     def d_TransformEnd(self, d):
         if not self.stack:
             raise error_at(d.pos, "TransformEnd without a matching TransformBegin")
         saved = self.stack.pop()
-        self.state.ctm = saved.ctm
+        self.state.ctm, self.state.ctm_end = saved.ctm, saved.ctm_end
 
     def d_WorldBegin(self, d):
         self.in_world = True
-        self.state.ctm = np.eye(4)
-        self.coords["world"] = np.eye(4)
+        self.state.ctm, self.state.ctm_end = np.eye(4), None
+        self.coords["world"] = (np.eye(4), np.eye(4))
 
     def d_WorldEnd(self, d):  # pbrt-v3
         pass
@@ -264,17 +297,24 @@ class _Importer:
             raise error_at(d.pos, "ObjectInstance inside ObjectBegin")
         if d.args[0] not in self.b.groups:
             raise error_at(d.pos, f"ObjectInstance: no object named '{d.args[0]}' (ObjectBegin)")
-        if singular(self.state.ctm):  # pbrt-v4 moves rays into the instance by the inverse: NaN, no hit
+        if singular(self.state.ctm) or singular(self.end_ctm()):  # pbrt-v4 moves rays into it by the inverse: NaN
             return
-        add_instance(self.b, self.b.groups[d.args[0]], self.state.ctm, d.pos)
+        moving = self.moves()
+        if moving and self.moving is None:
+            self.moving = d.pos
+        add_instance(self.b, self.b.groups[d.args[0]], self.state.ctm, d.pos,
+                     matrix_end=self.end_ctm() if moving else None, what=f'ObjectInstance "{d.args[0]}"')
 
     # -- options ---------------------------------------------------------------------------------
 
     def d_Camera(self, d):
         if singular(self.state.ctm):
             raise error_at(d.pos, "Camera: the transform is singular (the camera needs its inverse)")
+        if self.moves():
+            raise error_at(d.pos, "Camera: a moving camera (ActiveTransform before Camera) is not supported; "
+                                  "moving shapes and object instances are")
         self.camera = (d, self.state.ctm.copy(), self.state.outside)
-        self.coords["camera"] = np.linalg.inv(self.state.ctm)
+        self.coords["camera"] = (np.linalg.inv(self.state.ctm), np.linalg.inv(self.state.ctm))
 
     def _option(self, d):
         self.options[d.name] = d
@@ -333,6 +373,23 @@ class _Importer:
         self.expose(ratio)
         if self.camera is not None:
             self.finish_camera(*self.camera)
+        self.motion_time()
+
+    def motion_time(self) -> None:
+        """The moving instances' time mapping (Scene.motion_time): a ray's time is open + u (close -
+        open) over the Camera's shutter (pbrt-v4's default [0, 1]), and an instance is at (time -
+        start) / (end - start) of its way (TransformTimes, default 0 and 1), held at its ends
+        outside them."""
+        if self.moving is None:
+            return
+        cam = self.camera[0].params if self.camera is not None else None
+        opened = cam.float("shutteropen", 0.0) if cam is not None else 0.0
+        closed = cam.float("shutterclose", 1.0) if cam is not None else 1.0
+        start, end = self.transform_times
+        if not end > start:
+            raise error_at(self.moving, f"a moving shape needs TransformTimes with the end after the start (they are "
+                                        f"{start:g} and {end:g})")
+        self.b.motion_time = ((opened - start) / (end - start), (closed - opened) / (end - start))
 
     def expose(self, ratio: float) -> None:
         """Every emitter's radiance (area lights, lights, the environment) times ``ratio``: for our
@@ -462,6 +519,8 @@ class _Importer:
         self.state.area = (tuple(c * s for c in radiance), bool(d.params.boolean("twosided", False)))
 
     def d_LightSource(self, d):
+        if self.moves():
+            raise error_at(d.pos, f'LightSource "{d.args[0]}": a moving light (ActiveTransform) is not supported')
         light_source(self, d)
 
     def d_MakeNamedMedium(self, d):
@@ -469,6 +528,8 @@ class _Importer:
 
         if d.args[0] in self.named_media:
             raise error_at(d.pos, f'MakeNamedMedium: medium "{d.args[0]}" redefined')
+        if self.moves():
+            raise error_at(d.pos, f'MakeNamedMedium "{d.args[0]}": a moving medium (ActiveTransform) is not supported')
         self.named_media[d.args[0]] = make_medium(self, d, self.state.ctm.copy())
 
     def d_MediumInterface(self, d):
@@ -567,6 +628,8 @@ class _Importer:
             mat = self.null_material
         if "alpha" in d.params:
             mat = self._alpha(d, mat)
+        if self.moves():
+            return self._moving_shape(d, mat, interface)
         geometry = shape_geometry(self, d)
         if geometry is None:
             return
@@ -585,6 +648,37 @@ class _Importer:
         v, f, uv, *rest = geometry
         normals = rest[0] if rest else None
         self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=normals, interface=interface)
+
+    def _moving_shape(self, d, mat, interface) -> None:
+        """A shape whose transform differs between the start and end times (pbrt-v4 intersects it
+        in its own space through the interpolated transform): a group of this one shape, in its own
+        space, drawn by one moving instance (loaders/instancing.py refuses what it cannot move)."""
+        from .pbrt_shapes import shape_geometry
+
+        what = f'Shape "{d.args[0]}"'
+        if self.b.recording is not None:
+            raise error_at(d.pos, f"{what}: a moving shape inside ObjectBegin is not supported (move the ObjectInstance)")
+        start, end = self.state.ctm, self.end_ctm()
+        if singular(start) or singular(end):
+            raise error_at(d.pos, f"{what}: a moving shape with a singular transform is not supported")
+        if mat.is_emissive:
+            raise error_at(d.pos, f"{what}: a moving area light (ActiveTransform) is not supported")
+        geometry = shape_geometry(self, d)
+        if geometry is None:
+            return
+        if isinstance(geometry[0], str):
+            raise error_at(d.pos, f"{what}: motion blur of an analytic sphere is not supported")
+        v, f, uv, *rest = geometry
+        self.shape_groups += 1
+        group = self.b.begin_group(f"(moving {what} #{self.shape_groups})")
+        try:
+            self.b.add_mesh(v, f, mat, uvs=uv, matrix=None, flip=self.state.reverse,
+                            normals=rest[0] if rest else None, interface=interface)
+        finally:
+            self.b.end_group()
+        if self.moving is None:
+            self.moving = d.pos
+        add_instance(self.b, group, start, d.pos, matrix_end=end, what=what)
 
     def _sphere(self, centre, radius, m, mat, pos, flip, interface=None) -> None:
         s = np.linalg.svd(m[:3, :3], compute_uv=False)
