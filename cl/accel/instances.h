@@ -28,24 +28,77 @@ RT_INLINE float3 xf_vector1(__global const float *m, float3 d)
                     m[8] * d.x + m[9] * d.y + m[10] * d.z);
 }
 
-/* Motion blur (HAS_MOTION, pbrt-v4's ActiveTransform): an instance moves by a translation over the
- * shutter, s dw at the ray's time sample u (s = clamp(a + b u, 0, 1): abi.INSTANCE), its 3x3 part
- * fixed, so that M(s)^-1 is M^-1 with the origin moved back by s M^-1 dw.  The TLAS boxes hold the
- * whole sweep (pyopencl_rt/accel/instances.py); the time is each ray's, passed as `time`. */
+/* Motion blur (HAS_MOTION, pbrt-v4's ActiveTransform): a moving instance (its record's `motion` >= 0)
+ * is at M(s) = T(s) R(s) S(s) at a ray's time sample u, s = clamp(a + b u, 0, 1): T and S
+ * interpolated linearly between the ends, R by slerp (abi.MOTION, pyopencl_rt/scene/motion.py).
+ * Each ray that enters it moves into the group's space by M(s)^-1, computed there; the TLAS boxes
+ * hold the whole way.  The time is each ray's (its path's), passed as `time`. */
 #ifdef HAS_MOTION
-#define MOTION_TIME_PARAM , float time
-#define MOTION_TIME_ARG(u) , u
-RT_INLINE float instance_motion_share(__global const Instance *in, float u)
+#define MOTION_TIME_PARAM , __global const Motion *motions, float time
+#define MOTION_TIME_ARG(u) , instance_motion, u
+
+/* m (3x4 rows: object to world) and w (its inverse) of the way `mo` at time sample u */
+RT_INLINE void motion_matrices(__global const Motion *mo, float u, float *m, float *w)
 {
-    return clamp(in->motion_world[3] + in->motion_object[3] * u, 0.0f, 1.0f);
+    const float s = clamp(mo->time[0] + mo->time[1] * u, 0.0f, 1.0f);
+    const float theta = mo->time[2];
+    const float c0 = theta > 1e-6f ? sin((1.0f - s) * theta) / mo->time[3] : 1.0f - s;
+    const float c1 = theta > 1e-6f ? sin(s * theta) / mo->time[3] : s;
+    float4 q = c0 * vload4(0, mo->q0) + c1 * vload4(0, mo->q1);
+    q *= 1.0f / sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w); /* unit up to rounding: made so */
+    const float r[9] = {1.0f - 2.0f * (q.y * q.y + q.z * q.z), 2.0f * (q.x * q.y - q.z * q.w),
+                        2.0f * (q.x * q.z + q.y * q.w), 2.0f * (q.x * q.y + q.z * q.w),
+                        1.0f - 2.0f * (q.x * q.x + q.z * q.z), 2.0f * (q.y * q.z - q.x * q.w),
+                        2.0f * (q.x * q.z - q.y * q.w), 2.0f * (q.y * q.z + q.x * q.w),
+                        1.0f - 2.0f * (q.x * q.x + q.y * q.y)};
+    float a[9]; /* R S */
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            float v = 0.0f;
+            for (int k = 0; k < 3; ++k) v += r[3 * i + k] * ((1.0f - s) * mo->s0[4 * k + j] + s * mo->s1[4 * k + j]);
+            a[3 * i + j] = v;
+        }
+    const float3 t = (1.0f - s) * vload3(0, mo->t0) + s * vload3(0, mo->t1);
+    /* the inverse by the adjugate */
+    const float c[9] = {a[4] * a[8] - a[5] * a[7], a[2] * a[7] - a[1] * a[8], a[1] * a[5] - a[2] * a[4],
+                        a[5] * a[6] - a[3] * a[8], a[0] * a[8] - a[2] * a[6], a[2] * a[3] - a[0] * a[5],
+                        a[3] * a[7] - a[4] * a[6], a[1] * a[6] - a[0] * a[7], a[0] * a[4] - a[1] * a[3]};
+    const float inv_det = 1.0f / (a[0] * c[0] + a[1] * c[3] + a[2] * c[6]);
+    const float tt[3] = {t.x, t.y, t.z};
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            m[4 * i + j] = a[3 * i + j];
+            w[4 * i + j] = c[3 * i + j] * inv_det;
+        }
+        m[4 * i + 3] = tt[i];
+    }
+    for (int i = 0; i < 3; ++i) w[4 * i + 3] = -(w[4 * i] * tt[0] + w[4 * i + 1] * tt[1] + w[4 * i + 2] * tt[2]);
 }
-/* the ray's origin in the group's space at its time */
-#define OBJECT_ORIGIN(in, o) \
-    (xf_point1((in)->world_to_object, o) - instance_motion_share(in, time) * vload3(0, (in)->motion_object))
+
+RT_INLINE float3 xf_point_private(const float *m, float3 p)
+{
+    return (float3)(m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3], m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
+                    m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]);
+}
+
+/* the ray (o, d) in the group's space of instance `in` at its time */
+#define OBJECT_RAY(in, o, d, oo, od)                                                              \
+    do {                                                                                            \
+        if ((in)->motion >= 0) {                                                                    \
+            float mm_[12], mw_[12];                                                                 \
+            motion_matrices(motions + (in)->motion, time, mm_, mw_);                                \
+            oo = xf_point_private(mw_, o);                                                          \
+            od = xf_point_private(mw_, d) - (float3)(mw_[3], mw_[7], mw_[11]);                      \
+        } else {                                                                                    \
+            oo = xf_point1((in)->world_to_object, o);                                               \
+            od = xf_vector1((in)->world_to_object, d);                                              \
+        }                                                                                           \
+    } while (0)
 #else
 #define MOTION_TIME_PARAM
 #define MOTION_TIME_ARG(u)
-#define OBJECT_ORIGIN(in, o) xf_point1((in)->world_to_object, o)
+#define OBJECT_RAY(in, o, d, oo, od) \
+    do { oo = xf_point1((in)->world_to_object, o); od = xf_vector1((in)->world_to_object, d); } while (0)
 #endif
 
 /* The instances' closest hit in (tmin, hit->t): on a closer one *hit (prim: the triangle in tris)
@@ -69,8 +122,10 @@ RT_INLINE void instances_closest_hit(__global const BVHNode *tlas, __global cons
             const int first = side ? n->child_right : n->child_left;
             for (int i = first; i < first + cnt; ++i) {
                 __global const Instance *in = instances + i;
-                Hit h = bvh_closest_hit(BLAS_ROOT(blas, in->blas_offset), tris + 3 * in->tri_offset,
-                                        OBJECT_ORIGIN(in, o), xf_vector1(in->world_to_object, d), tmin, hit->t);
+                float3 oo, od;
+                OBJECT_RAY(in, o, d, oo, od);
+                Hit h = bvh_closest_hit(BLAS_ROOT(blas, in->blas_offset), tris + 3 * in->tri_offset, oo, od, tmin,
+                                        hit->t);
                 if (h.prim != PRIM_MISS) {
                     *hit = h;
                     hit->prim += in->tri_offset;
@@ -102,8 +157,9 @@ RT_INLINE int instances_any_hit(__global const BVHNode *tlas, __global const Ins
             const int first = side ? n->child_right : n->child_left;
             for (int i = first; i < first + cnt; ++i) {
                 __global const Instance *in = instances + i;
-                if (bvh_any_hit(BLAS_ROOT(blas, in->blas_offset), tris + 3 * in->tri_offset,
-                                OBJECT_ORIGIN(in, o), xf_vector1(in->world_to_object, d), tmin, tmax))
+                float3 oo, od;
+                OBJECT_RAY(in, o, d, oo, od);
+                if (bvh_any_hit(BLAS_ROOT(blas, in->blas_offset), tris + 3 * in->tri_offset, oo, od, tmin, tmax))
                     return 1;
             }
             go[side] = 0;
@@ -114,86 +170,83 @@ RT_INLINE int instances_any_hit(__global const BVHNode *tlas, __global const Ins
 
 /* -- shading: a hit found in a group's space, moved to the world, over lanes -------------------- */
 
-/* row r of the 3x4 matrix at float `field` of the lanes' instance records, applied to (x, y, z, w) */
-RT_INLINE pfloat xf_row(__global const Instance *instances, pint inst, int field, int r, pvec3 p, pfloat w)
-{
-    __global const float *f = (__global const float *)instances;
-    const pint i = inst * STRIDE_INDEX(Instance) + field + 4 * r;
-    return pgather(f, i) * p.x + pgather(f, i + 1) * p.y + pgather(f, i + 2) * p.z + pgather(f, i + 3) * w;
-}
+/* The lanes' M (object to world) and M^-1 (world to object) as 3x4 rows, each entry over the lanes:
+ * their instance records' (gathered), or, for a moving instance, its matrices at the lane's time */
+typedef struct {
+    pfloat o2w[12], w2o[12];
+} LaneXf;
 
-/* the lanes' M (field object_to_world) or M^-1 (world_to_object) times a point (w 1) or a vector (w 0) */
-RT_INLINE pvec3 xf_lanes(__global const Instance *instances, pint inst, int field, pvec3 p, pfloat w)
-{
-    return pv3(xf_row(instances, inst, field, 0, p, w), xf_row(instances, inst, field, 1, p, w),
-               xf_row(instances, inst, field, 2, p, w));
-}
-
-/* M^-T n: column c of M^-1 dotted with n */
-RT_INLINE pvec3 xf_normal_lanes(__global const Instance *instances, pint inst, pvec3 n)
-{
-    __global const float *f = (__global const float *)instances;
-    const pint i = inst * STRIDE_INDEX(Instance) + FIELD_INDEX(Instance, world_to_object);
-    pfloat c[3];
-    for (int k = 0; k < 3; ++k)
-        c[k] = pgather(f, i + k) * n.x + pgather(f, i + 4 + k) * n.y + pgather(f, i + 8 + k) * n.z;
-    return pv3(c[0], c[1], c[2]);
-}
-
-/* |M| e + |t|: row r of the absolute 3x4 matrix at `field` times (e, w) */
-RT_INLINE pvec3 xf_abs_lanes(__global const Instance *instances, pint inst, int field, pvec3 e, pfloat w)
-{
-    __global const float *f = (__global const float *)instances;
-    const pint i = inst * STRIDE_INDEX(Instance) + field;
-    pfloat r[3];
-    for (int k = 0; k < 3; ++k)
-        r[k] = pabs(pgather(f, i + 4 * k)) * e.x + pabs(pgather(f, i + 4 * k + 1)) * e.y +
-               pabs(pgather(f, i + 4 * k + 2)) * e.z + pabs(pgather(f, i + 4 * k + 3)) * w;
-    return pv3(r[0], r[1], r[2]);
-}
-
-#define XF_GAMMA3 1.78813963e-07f /* 3 * 2^-24 / (1 - 3 * 2^-24), rounded up */
-
-/* The lanes of `on` (inst valid there): the hit point p (error *err) found in the group's space,
- * moved to the world.  The bound grows as pbrt-v4's Transform of a Point3fi does, (1 + g3)|M| err
- * + g3 (|M||p| + |t|), plus what the ray's move into the group's space rounded, g3 |M| (|M^-1||p_w|
- * + |t'|) mapped back: a spawned ray's origin, moved there again, stays on its side. */
 #ifdef HAS_MOTION
-/* the lanes' motion at their time samples u: s dw (world) and s M^-1 dw (the group's space) */
-RT_INLINE void instance_motion_lanes(__global const Instance *instances, pint inst, pfloat u, pvec3 *world,
-                                     pvec3 *object)
-{
-    __global const float *f = (__global const float *)instances;
-    const pint w = inst * STRIDE_INDEX(Instance) + FIELD_INDEX(Instance, motion_world);
-    const pint o = inst * STRIDE_INDEX(Instance) + FIELD_INDEX(Instance, motion_object);
-    const pfloat s = pclamp(pgather(f, w + 3) + pgather(f, o + 3) * u, 0.0f, 1.0f);
-    *world = pv3_scale(pv3(pgather(f, w), pgather(f, w + 1), pgather(f, w + 2)), s);
-    *object = pv3_scale(pv3(pgather(f, o), pgather(f, o + 1), pgather(f, o + 2)), s);
-}
-#define MOTION_LANES_PARAM , pfloat time
-#define MOTION_LANES_ARG(u) , u
+#define MOTION_LANES_PARAM , __global const Motion *motions, pfloat time
+#define MOTION_LANES_ARG(u) , instance_motion, u
 #else
 #define MOTION_LANES_PARAM
 #define MOTION_LANES_ARG(u)
 #endif
 
-RT_INLINE void instance_point_to_world(__global const Instance *instances, pint inst, pint on, pvec3 *p,
-                                       pvec3 *err MOTION_LANES_PARAM)
+RT_INLINE LaneXf lane_xf(__global const Instance *instances, pint inst, pint on MOTION_LANES_PARAM)
 {
-    const int O2W = FIELD_INDEX(Instance, object_to_world), W2O = FIELD_INDEX(Instance, world_to_object);
-    pvec3 pw = xf_lanes(instances, inst, O2W, *p, PFLOAT(1.0f));
-    pvec3 e1 = pv3_add(pv3_scale(xf_abs_lanes(instances, inst, O2W, *err, PFLOAT(0.0f)), PFLOAT(1.0f + XF_GAMMA3)),
-                       pv3_scale(xf_abs_lanes(instances, inst, O2W, pv3_abs(*p), PFLOAT(1.0f)), PFLOAT(XF_GAMMA3)));
-    pvec3 back = pv3_scale(xf_abs_lanes(instances, inst, W2O, pv3_abs(pw), PFLOAT(1.0f)), PFLOAT(XF_GAMMA3));
+    __global const float *f = (__global const float *)instances;
+    const pint i = inst * STRIDE_INDEX(Instance);
+    LaneXf x;
+    for (int k = 0; k < 12; ++k) {
+        x.o2w[k] = pgather(f, i + FIELD_INDEX(Instance, object_to_world) + k);
+        x.w2o[k] = pgather(f, i + FIELD_INDEX(Instance, world_to_object) + k);
+    }
 #ifdef HAS_MOTION
-    /* moved by s dw, one more rounding each way (here, and the ray's origin moved back by s M^-1 dw) */
-    pvec3 dw, dobj;
-    instance_motion_lanes(instances, inst, time, &dw, &dobj);
-    pw = pv3_add(pw, dw);
-    e1 = pv3_add(e1, pv3_scale(pv3_add(pv3_abs(pw), pv3_abs(dw)), PFLOAT(XF_GAMMA3)));
-    back = pv3_add(back, pv3_scale(pv3_abs(dobj), PFLOAT(2.0f * XF_GAMMA3)));
+    for (int l = 0; l < PACKET_WIDTH; ++l) {
+        if (!PLANE_I(on, l)) continue;
+        __global const Instance *in = instances + PLANE_I(inst, l);
+        if (in->motion < 0) continue;
+        float m[12], w[12];
+        motion_matrices(motions + in->motion, PLANE(time, l), m, w);
+        for (int k = 0; k < 12; ++k) {
+            PLANE(x.o2w[k], l) = m[k];
+            PLANE(x.w2o[k], l) = w[k];
+        }
+    }
 #endif
-    const pvec3 e2 = xf_abs_lanes(instances, inst, O2W, back, PFLOAT(0.0f));
+    return x;
+}
+
+/* the 3x4 matrix m (o2w or w2o of a LaneXf) times a point (w 1) or a vector (w 0) */
+RT_INLINE pvec3 xf_apply(const pfloat *m, pvec3 p, pfloat w)
+{
+    pfloat r[3];
+    for (int k = 0; k < 3; ++k) r[k] = m[4 * k] * p.x + m[4 * k + 1] * p.y + m[4 * k + 2] * p.z + m[4 * k + 3] * w;
+    return pv3(r[0], r[1], r[2]);
+}
+
+/* M^-T n: column c of M^-1 dotted with n */
+RT_INLINE pvec3 xf_normal(const LaneXf *x, pvec3 n)
+{
+    pfloat c[3];
+    for (int k = 0; k < 3; ++k) c[k] = x->w2o[k] * n.x + x->w2o[4 + k] * n.y + x->w2o[8 + k] * n.z;
+    return pv3(c[0], c[1], c[2]);
+}
+
+/* |m| e + |t| w: the absolute 3x4 matrix m times (e, w) */
+RT_INLINE pvec3 xf_abs(const pfloat *m, pvec3 e, pfloat w)
+{
+    pfloat r[3];
+    for (int k = 0; k < 3; ++k)
+        r[k] = pabs(m[4 * k]) * e.x + pabs(m[4 * k + 1]) * e.y + pabs(m[4 * k + 2]) * e.z + pabs(m[4 * k + 3]) * w;
+    return pv3(r[0], r[1], r[2]);
+}
+
+#define XF_GAMMA3 1.78813963e-07f /* 3 * 2^-24 / (1 - 3 * 2^-24), rounded up */
+
+/* The lanes of `on`: the hit point p (error *err) found in the group's space, moved to the world.
+ * The bound grows as pbrt-v4's Transform of a Point3fi does, (1 + g3)|M| err + g3 (|M||p| + |t|),
+ * plus what the ray's move into the group's space rounded, g3 |M| (|M^-1||p_w| + |t'|) mapped back:
+ * a spawned ray's origin, moved there again, stays on its side. */
+RT_INLINE void instance_point_to_world(const LaneXf *x, pint on, pvec3 *p, pvec3 *err)
+{
+    const pvec3 pw = xf_apply(x->o2w, *p, PFLOAT(1.0f));
+    const pvec3 e1 = pv3_add(pv3_scale(xf_abs(x->o2w, *err, PFLOAT(0.0f)), PFLOAT(1.0f + XF_GAMMA3)),
+                             pv3_scale(xf_abs(x->o2w, pv3_abs(*p), PFLOAT(1.0f)), PFLOAT(XF_GAMMA3)));
+    const pvec3 back = pv3_scale(xf_abs(x->w2o, pv3_abs(pw), PFLOAT(1.0f)), PFLOAT(XF_GAMMA3));
+    const pvec3 e2 = xf_abs(x->o2w, back, PFLOAT(0.0f));
     *p = pv3_sel(*p, pw, on);
     *err = pv3_sel(*err, pv3_add(e1, e2), on);
 }

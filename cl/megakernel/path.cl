@@ -180,7 +180,7 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
         pfloat t, u, v;
         pint prim, inst = PINT(-1);
         scene_closest_hit(nodes, tris, spheres, n_spheres, s.o, s.d, live_lanes, &t, &prim, &u, &v CUTOUT_ARGS
-                          INSTANCE_HIT_ARGS(&inst) MOTION_LANES_ARG(time_sample(key)));
+                          INSTANCE_HIT_ARGS(&inst) SCENE_TIME_ARG(time_sample(key)));
         n_extend += popcount(live);
 #ifdef HAS_MEDIA
         /* -- the media along the rays, then the surfaces or the environment (render/volpath.h) */
@@ -211,7 +211,7 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
 #else
             const pint occluded = scene_occluded(nodes, tris, spheres, n_spheres, shadow.o, shadow.d, with_shadow,
                                                  PFLOAT(1.0f) CUTOUT_ARGS INSTANCE_ARGS
-                                                 MOTION_LANES_ARG(time_sample(key)));
+                                                 SCENE_TIME_ARG(time_sample(key)));
             s.L = pv3_sel(s.L, pv3_add(s.L, shadow.contribution), with_shadow & pnot(occluded));
 #endif
         }

@@ -102,7 +102,10 @@ typedef struct {
     tris, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,          \
     light_nodes, n_lights, light_tree, env_map, env_cdf, tri_uv, textures, tex_data, tri_normal, tri_color, aov_path, max_depth, \
     rr_depth, integrator PATH_INSTANCES_ARGS
-#ifdef HAS_INSTANCES
+#if defined(HAS_INSTANCES) && defined(HAS_MOTION)
+#define PATH_INSTANCES , __global const Instance *instances, __global const Motion *instance_motion
+#define PATH_INSTANCES_ARGS , instances, instance_motion
+#elif defined(HAS_INSTANCES)
 #define PATH_INSTANCES , __global const Instance *instances
 #define PATH_INSTANCES_ARGS , instances
 #else
@@ -337,11 +340,12 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     const pint xi = in_inst ? inst : PINT(0);
     const pvec3 ng_obj = ng;
     pvec3 wo_obj = wo;
+    LaneXf xf;
     if (pany(in_inst)) {
-        wo_obj = pv3_sel(wo, xf_lanes(instances, xi, FIELD_INDEX(Instance, world_to_object), wo, PFLOAT(0.0f)),
-                         in_inst);
-        instance_point_to_world(instances, xi, in_inst, &p, &p_err MOTION_LANES_ARG(time_sample(key)));
-        ng = pv3_sel(ng, pv3_normalize(xf_normal_lanes(instances, xi, ng), in_inst), in_inst);
+        xf = lane_xf(instances, xi, in_inst MOTION_LANES_ARG(time_sample(key)));
+        wo_obj = pv3_sel(wo, xf_apply(xf.w2o, wo, PFLOAT(0.0f)), in_inst);
+        instance_point_to_world(&xf, in_inst, &p, &p_err);
+        ng = pv3_sel(ng, pv3_normalize(xf_normal(&xf, ng), in_inst), in_inst);
     }
 #endif
     const pint front = pv3_dot(ng, wo) >= 0.0f; /* the viewer is outside (dielectrics) */
@@ -378,7 +382,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
                                     pv3_sel(n, pv3_sel(pv3_neg(ng_obj), ng_obj, front), in_inst), front,
                                     pv3_sel(wo, wo_obj, in_inst), hit & ((m.flags & MATERIAL_FLAG_ANISOTROPIC) != 0));
     if (pany(in_inst)) { /* no maps nor anisotropy in instances (loaders/instancing.py): n alone moves */
-        sh.n = pv3_sel(sh.n, pv3_normalize(xf_normal_lanes(instances, xi, sh.n), in_inst), in_inst);
+        sh.n = pv3_sel(sh.n, pv3_normalize(xf_normal(&xf, sh.n), in_inst), in_inst);
 #ifdef HAS_NORMAL_MAPS
         sh.base = pv3_sel(sh.base, sh.n, in_inst);
         sh.tilt = pv3_sel(sh.tilt, sh.n, in_inst);

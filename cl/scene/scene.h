@@ -112,21 +112,35 @@ RT_INLINE pint cutout_lanes(__global const int *tri_material, __global const Mat
  * set the lane's tmax.  One ray at a time at every width: in lanes each lane walks the TLAS and
  * its instances by itself (the wide single-ray traversal inside), after the packet's world pass. */
 #ifdef HAS_INSTANCES
+#ifdef HAS_MOTION /* and the moving instances' ways (cl/accel/instances.h) */
+#define INSTANCE_PARAMS_NOCOMMA __global const BVHNode *tlas, __global const Instance *instances, \
+    __global const BVHNode *blas_nodes, __global const Motion *instance_motion
+#define INSTANCE_ARGS_NOCOMMA tlas, instances, blas_nodes, instance_motion
+#else
 #define INSTANCE_PARAMS_NOCOMMA __global const BVHNode *tlas, __global const Instance *instances, \
     __global const BVHNode *blas_nodes
+#define INSTANCE_ARGS_NOCOMMA tlas, instances, blas_nodes
+#endif
+#define INSTANCE_ARGS , INSTANCE_ARGS_NOCOMMA
 #define INSTANCE_PARAMS , INSTANCE_PARAMS_NOCOMMA
-#define INSTANCE_ARGS , tlas, instances, blas_nodes
-#define INSTANCE_HIT_PARAMS INSTANCE_PARAMS, pint *inst MOTION_LANES_PARAM
+#ifdef HAS_MOTION /* the lanes' time samples (cl/render/sampler.h time_sample) */
+#define SCENE_TIME_PARAM , pfloat time
+#define SCENE_TIME_ARG(u) , u
+#else
+#define SCENE_TIME_PARAM
+#define SCENE_TIME_ARG(u)
+#endif
+#define INSTANCE_HIT_PARAMS INSTANCE_PARAMS, pint *inst SCENE_TIME_PARAM
 #define INSTANCE_HIT_ARGS(inst) INSTANCE_ARGS, inst
-/* scene_occluded's; with motion blur both also take the lanes' time samples (MOTION_LANES_ARG) */
-#define INSTANCE_OCCLUDED_PARAMS INSTANCE_PARAMS MOTION_LANES_PARAM
+/* scene_occluded's; with motion blur both also take the lanes' time samples (SCENE_TIME_ARG) */
+#define INSTANCE_OCCLUDED_PARAMS INSTANCE_PARAMS SCENE_TIME_PARAM
 /* path_shade's: the instance records (through PATH_PARAMS) and the lanes' instances */
 #define INSTANCE_SHADE_PARAMS , pint inst
 #define INSTANCE_SHADE_ARGS(inst) , inst
 
 /* the lanes of `live`: a closer hit among the instances than *t (updated with the rest) */
 RT_INLINE void instance_lanes_hit(INSTANCE_PARAMS_NOCOMMA, __global const float4 *tris, pvec3 o, pvec3 d,
-                                  pint live, pfloat *t, pint *prim, pfloat *u, pfloat *v, pint *inst MOTION_LANES_PARAM)
+                                  pint live, pfloat *t, pint *prim, pfloat *u, pfloat *v, pint *inst SCENE_TIME_PARAM)
 {
     *inst = PINT(-1);
 #if PACKET_WIDTH == 1
@@ -151,7 +165,7 @@ RT_INLINE void instance_lanes_hit(INSTANCE_PARAMS_NOCOMMA, __global const float4
 
 /* the lanes of `live` that an instance blocks in (0, tmax) */
 RT_INLINE pint instance_lanes_occluded(INSTANCE_PARAMS_NOCOMMA, __global const float4 *tris, pvec3 o, pvec3 d,
-                                       pint live, pfloat tmax MOTION_LANES_PARAM)
+                                       pint live, pfloat tmax SCENE_TIME_PARAM)
 {
 #if PACKET_WIDTH == 1
     return live && instances_any_hit(tlas, instances, blas_nodes, tris, (float3)(o.x, o.y, o.z),
@@ -171,7 +185,7 @@ RT_INLINE pint instance_lanes_occluded(INSTANCE_PARAMS_NOCOMMA, __global const f
 #define INSTANCE_HIT_PARAMS
 #define INSTANCE_HIT_ARGS(inst)
 #define INSTANCE_OCCLUDED_PARAMS
-#define MOTION_LANES_ARG(u)
+#define SCENE_TIME_ARG(u)
 #define INSTANCE_SHADE_PARAMS
 #define INSTANCE_SHADE_ARGS(inst)
 #endif
@@ -223,7 +237,7 @@ RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const f
 #endif
 #endif
 #ifdef HAS_INSTANCES
-    instance_lanes_hit(tlas, instances, blas_nodes, tris, o, d, live, t, prim, u, v, inst MOTION_LANES_ARG(time));
+    instance_lanes_hit(INSTANCE_ARGS_NOCOMMA, tris, o, d, live, t, prim, u, v, inst SCENE_TIME_ARG(time));
 #endif
 #ifdef HAS_SPHERES
     for (int s = 0; s < n_spheres; ++s) {
@@ -295,8 +309,8 @@ RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const floa
 #endif
 #endif
 #ifdef HAS_INSTANCES
-    blocked |= instance_lanes_occluded(tlas, instances, blas_nodes, tris, o, d, live & pnot(blocked), tmax
-                                       MOTION_LANES_ARG(time));
+    blocked |= instance_lanes_occluded(INSTANCE_ARGS_NOCOMMA, tris, o, d, live & pnot(blocked), tmax
+                                       SCENE_TIME_ARG(time));
 #endif
     return blocked & live;
 }

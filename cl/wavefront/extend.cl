@@ -10,7 +10,7 @@ __kernel void wf_extend(WAVE_PARAMS)
     int prim, inst = -1;
     scene_closest_hit(nodes, tris, spheres, n_spheres, pv3_from(load3(ray_o, slot)), pv3_from(load3(ray_d, slot)),
                       PTRUE, &t, &prim, &u, &v CUTOUT_ARGS INSTANCE_HIT_ARGS(&inst)
-                      MOTION_LANES_ARG(time_sample(sampler_key(sampler, seed, (uint)path_pixel[slot],
+                      SCENE_TIME_ARG(time_sample(sampler_key(sampler, seed, (uint)path_pixel[slot],
                                                                (uint)camera->width, (uint)path_pass[slot]))));
     hit_inst[slot] = inst;
     hit_t[slot] = t;

@@ -26,7 +26,7 @@ __kernel void wf_shadow(WAVE_PARAMS)
 #else
     if (!scene_occluded(nodes, tris, spheres, n_spheres, pv3_from(load3(sh_o, slot)), pv3_from(load3(sh_d, slot)), PTRUE,
                         1.0f CUTOUT_ARGS INSTANCE_ARGS
-                        MOTION_LANES_ARG(time_sample(sampler_key(sampler, seed, (uint)path_pixel[slot],
+                        SCENE_TIME_ARG(time_sample(sampler_key(sampler, seed, (uint)path_pixel[slot],
                                                                  (uint)camera->width, (uint)path_pass[slot])))))
         store3(radiance, slot, load3(radiance, slot) + load3(sh_contrib, slot));
 #endif

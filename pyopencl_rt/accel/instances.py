@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from ..device import abi
+from ..scene.motion import Motion
 from .bvh import build_bvh
 
 BLAS_ALIGN = 64  # bytes: every group's node buffer starts on a cache line (a float8 node's alignment)
@@ -49,9 +50,8 @@ class TwoLevelBVH:
         self.to_world = np.asarray([m for m, _ in instances], np.float64).reshape(-1, 4, 4)
         self.group = np.asarray([g for _, g in instances], np.int64)
         ends = [None] * len(instances) if ends is None else list(ends)
-        # each instance's motion, a translation (zero: it stays)
-        self.motion = np.asarray([np.zeros(3) if e is None else np.asarray(e, np.float64)[:3, 3] - m[:3, 3]
-                                  for e, (m, _) in zip(ends, instances)], np.float64).reshape(-1, 3)
+        # each moving instance's way (scene/motion.py), None where it stays
+        self.motion = [None if e is None else Motion(m, e) for e, (m, _) in zip(ends, instances)]
         self.motion_time = tuple(float(x) for x in motion_time)
         # a group without faces gets a zero box (its instances get no record below)
         group_boxes = np.array([b.bounds if len(b.prim_ids) else np.zeros((2, 3)) for b in self.blas],
@@ -59,13 +59,9 @@ class TwoLevelBVH:
         # an instance of a group without faces draws nothing: no record (no TLAS, even, without any)
         drawn = np.flatnonzero([len(self.blas[g].prim_ids) > 0 for g in self.group])
         boxes = world_boxes(group_boxes[self.group[drawn]], self.to_world[drawn])
-        moving = np.flatnonzero((self.motion[drawn] != 0).any(axis=1))
-        if len(moving):  # a translation's sweep: the box around both ends' boxes
-            end = self.to_world[drawn[moving]].copy()
-            end[:, :3, 3] += self.motion[drawn[moving]]
-            at_end = world_boxes(group_boxes[self.group[drawn[moving]]], end)
-            boxes[moving, 0] = np.minimum(boxes[moving, 0], at_end[:, 0])
-            boxes[moving, 1] = np.maximum(boxes[moving, 1], at_end[:, 1])
+        for k, i in enumerate(drawn):  # a moving instance's box holds its whole way
+            if self.motion[i] is not None:
+                boxes[k] = padded_boxes(self.motion[i].bounds(group_boxes[self.group[i]])[None])[0]
         # the TLAS: a BVH over one degenerate triangle per instance (lo, hi, centre): its box is the
         # instance's box, its centroid the box's centre
         corners = np.stack([boxes[:, 0], boxes[:, 1], boxes.mean(axis=1)], axis=1).reshape(-1, 3)
@@ -84,12 +80,10 @@ class TwoLevelBVH:
             return recs
         m, g = self.to_world[self.order], self.group[self.order]
         recs["object_to_world"] = m[:, :3, :].reshape(-1, 12)
-        inverse = np.linalg.inv(m)
-        recs["world_to_object"] = inverse[:, :3, :].reshape(-1, 12)
-        dw = self.motion[self.order]
-        recs["motion_world"][:, :3] = dw
-        recs["motion_object"][:, :3] = np.einsum("nij,nj->ni", inverse[:, :3, :3], dw)
-        recs["motion_world"][:, 3], recs["motion_object"][:, 3] = self.motion_time
+        recs["world_to_object"] = np.linalg.inv(m)[:, :3, :].reshape(-1, 12)
+        recs["motion"] = -1
+        moving = [k for k, i in enumerate(self.order) if self.motion[i] is not None]
+        recs["motion"][moving] = np.arange(len(moving))
         recs["blas_offset"] = np.asarray(blas_offsets, np.int64)[g]
         recs["tri_offset"] = np.asarray(self.tri_offsets, np.int64)[g]
         return recs
@@ -110,7 +104,22 @@ class TwoLevelBVH:
 
             raise UserError(f"the instanced groups' BVHs take {at / 2**30:.1f} GiB: at most 2 GiB in all")
         blas_nodes = np.concatenate(blobs) if blobs else np.zeros(0, np.uint8)
-        return {"tlas": padded_nodes(self.tlas), "instances": self.records(offsets), "blas_nodes": blas_nodes}
+        return {"tlas": padded_nodes(self.tlas), "instances": self.records(offsets), "blas_nodes": blas_nodes,
+                "instance_motion": self.motion_records()}
+
+    def motion_records(self) -> np.ndarray:
+        """abi.MOTION of the moving instances, in the order of their records (a 16-byte dummy
+        without any: the kernels read it only with HAS_MOTION)."""
+        ways = [self.motion[i] for i in self.order if self.motion[i] is not None]
+        if not ways:
+            return np.zeros(16, np.uint8)
+        recs = np.zeros(len(ways), abi.MOTION)
+        a, b = self.motion_time
+        for r, w in zip(recs, ways):
+            r["t0"][:3], r["t1"][:3], r["q0"], r["q1"] = w.t0, w.t1, w.q0, w.q1
+            r["s0"].reshape(3, 4)[:, :3], r["s1"].reshape(3, 4)[:, :3] = w.s0, w.s1
+            r["time"] = (a, b, w.theta, np.sin(w.theta))
+        return recs
 
 
 def world_boxes(boxes, m) -> np.ndarray:
@@ -120,8 +129,14 @@ def world_boxes(boxes, m) -> np.ndarray:
     bits = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)])
     c = np.where(bits[None].astype(bool), boxes[:, 1:2, :], boxes[:, 0:1, :])  # (N, 8, 3)
     w = np.einsum("nij,nkj->nki", m[:, :3, :3], c) + m[:, None, :3, 3]
-    lo, hi = w.min(axis=1), w.max(axis=1)
-    pad = TLAS_PAD_RELATIVE * (np.abs(w).max(axis=(1, 2)) + (hi - lo).max(axis=1))[:, None]
+    return padded_boxes(np.stack([w.min(axis=1), w.max(axis=1)], axis=1))
+
+
+def padded_boxes(boxes) -> np.ndarray:
+    """(N, 2, 3) float64 world boxes grown by TLAS_PAD_RELATIVE of their size and position and
+    rounded outward to float32 (the float32 test of a ray moved into the group)."""
+    lo, hi = boxes[:, 0], boxes[:, 1]
+    pad = TLAS_PAD_RELATIVE * (np.maximum(np.abs(lo), np.abs(hi)).max(axis=1) + (hi - lo).max(axis=1))[:, None]
     lo = np.nextafter((lo - pad).astype(np.float32), np.float32(-np.inf))
     hi = np.nextafter((hi + pad).astype(np.float32), np.float32(np.inf))
     return np.stack([lo, hi], axis=1)

@@ -40,8 +40,8 @@ def _instances(scene) -> dict:
     return {"instance_to_world": np.asarray([i.to_world for i in insts], np.float64).reshape(-1, 4, 4),
             "instance_blas": np.asarray([i.blas for i in insts], np.int64),
             "blas_groups": np.asarray([(g.first_face, g.n_faces) for g in scene.blas_groups], np.int64),
-            "instance_motion": np.asarray([(i.to_world_end if i.moves else i.to_world)[:3, 3] - i.to_world[:3, 3]
-                                           for i in insts], np.float64).reshape(-1, 3),
+            "instance_to_world_end": np.asarray([i.to_world_end if i.moves else i.to_world for i in insts],
+                                                np.float64).reshape(-1, 4, 4),
             "motion_time": np.asarray(getattr(scene, "motion_time", (0.0, 1.0)), np.float64)}
 
 
@@ -144,7 +144,7 @@ def _media(scene) -> dict:
 
 SCENE_INPUTS: dict[str, Callable] = {
     "nodes": _geometry, "tris": _geometry,
-    "tlas": _instances, "instances": _instances, "blas_nodes": _instances,
+    "tlas": _instances, "instances": _instances, "blas_nodes": _instances, "instance_motion": _instances,
     "tri_material": _face_materials,
     "tri_light": _lights, "sphere_light": _lights, "lights": _lights, "n_lights": _lights, "env_light": _lights,
     "light_tree": _lights,

@@ -306,7 +306,7 @@ class Wavefront:
     def _instance_buffers(self, const) -> dict:
         """tlas, instances, blas_nodes (cl/accel/instances.h); 16-byte dummies without two-level instances."""
         if not hasattr(self.bvh, "world"):
-            return dict.fromkeys(("tlas", "instances", "blas_nodes"), const(np.zeros(16, np.uint8)))
+            return dict.fromkeys(("tlas", "instances", "blas_nodes", "instance_motion"), const(np.zeros(16, np.uint8)))
         return {k: const(a) for k, a in self.bvh.buffers(self.bvh_layout).items()}
 
     def _texture_buffers(self, const) -> dict:

@@ -40,13 +40,15 @@ def instance_bounds(scene):
     """(lo, hi) float64 corners of the box around the two-level instances' moved group vertices
     (each group's used vertices through each of its instances' M, exactly, a chunk of instances at
     a time: 10^6 instances of a small group never make 10^6 copies at once); None without any.
-    A moving instance counts at both ends of its motion (a translation: the box holds the way)."""
+    A moving instance counts by the box of its whole way (scene/motion.py)."""
+    from .motion import Motion
+
     insts = two_level(scene)
     if not insts:
         return None
     v64 = np.asarray(scene.vertices, np.float64)
-    m_all = np.asarray([i.to_world for i in insts] + [i.to_world_end for i in insts if i.moves], np.float64)
-    g_all = np.asarray([i.blas for i in insts] + [i.blas for i in insts if i.moves])
+    m_all = np.asarray([i.to_world for i in insts if not i.moves], np.float64).reshape(-1, 4, 4)
+    g_all = np.asarray([i.blas for i in insts if not i.moves])
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     for k, g in enumerate(scene.blas_groups):
         faces = np.asarray(scene.faces[g.first_face:g.first_face + g.n_faces])
@@ -58,6 +60,13 @@ def instance_bounds(scene):
         for c in range(0, len(m), step):
             w = np.einsum("nij,kj->nki", m[c:c + step, :3, :3], p) + m[c:c + step, None, :3, 3]
             lo, hi = np.minimum(lo, w.min(axis=(0, 1))), np.maximum(hi, w.max(axis=(0, 1)))
+    for inst in insts:
+        g = scene.blas_groups[inst.blas]
+        faces = np.asarray(scene.faces[g.first_face:g.first_face + g.n_faces])
+        if inst.moves and len(faces):
+            p = v64[np.unique(faces)]
+            box = Motion(inst.to_world, inst.to_world_end).bounds(np.stack([p.min(axis=0), p.max(axis=0)]))
+            lo, hi = np.minimum(lo, box[0]), np.maximum(hi, box[1])
     return (lo, hi) if np.isfinite(lo).all() else None
 
 

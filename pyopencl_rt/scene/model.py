@@ -299,8 +299,8 @@ class Instance:
     n_faces], spheres likewise); a two-level one (blas >= 0) adds nothing: it draws
     Scene.blas_groups[blas], whose faces are in the group's own space, moved by to_world at
     render time (pyopencl_rt/accel/instances.py).  A moving one (pbrt-v4's ActiveTransform; two-level
-    always) has ``to_world_end``, its to_world at the end of the motion (Scene.motion_time), which
-    differs from to_world by a translation; None: it does not move."""
+    always) has ``to_world_end``, its to_world at the end of the motion (Scene.motion_time; the way
+    between them: scene/motion.py); None: it does not move."""
 
     group: str
     to_world: np.ndarray

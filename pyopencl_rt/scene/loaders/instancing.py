@@ -107,22 +107,21 @@ def add_instance(builder, group: ShapeGroup, matrix, position: str, matrix_end=N
 
 
 def _moving_instance(builder, group: ShapeGroup, m, m_end, position: str, what: str) -> Instance:
-    """A moving instance (motion blur): the renderer moves a two-level instance by a translation
-    over the shutter (cl/accel/instances.h); whatever else is refused here, in one line."""
+    """A moving instance (motion blur): the renderer moves a two-level instance along pbrt-v4's way
+    between its two transforms (scene/motion.py, cl/accel/instances.h); what it cannot move is
+    refused here, in one line."""
     what = what or f"the instance of '{group.name}'"
-    if not np.isfinite(m_end).all() or not np.allclose(m_end[3], (0, 0, 0, 1)):
-        raise error_at(position, f"{what}: its transform at the end of the motion is not affine")
-    if not np.allclose(m[:3, :3], m_end[:3, :3], rtol=1e-9, atol=1e-12 * max(np.abs(m[:3, :3]).max(), 1e-300)):
-        raise error_at(position, f"{what}: motion blur of a rotation or scale (the transform's 3x3 part changes "
-                                 "over the shutter) is not supported; a translation is")
+    if not np.isfinite(m_end).all() or not np.allclose(m_end[3], (0, 0, 0, 1)) \
+            or not abs(np.linalg.det(m_end[:3, :3])) > 1e-300:
+        raise error_at(position, f"{what}: its transform at the end of the motion is not an invertible affine one")
+    if np.linalg.det(m[:3, :3]) * np.linalg.det(m_end[:3, :3]) < 0:
+        raise error_at(position, f"{what}: a motion from a transform to its mirror image is not supported")
     why = "spheres" if group.spheres else why_flattened(group)
     if why is not None:
         raise error_at(position, f"{what}: motion blur of a shape with {why} is not supported")
     if builder.media or builder.interfaces:
         raise error_at(position, f"{what}: motion blur in a scene with participating media is not supported")
-    end = m.copy()
-    end[:3, 3] = m_end[:3, 3]  # the same 3x3 part: the motion is this translation alone
-    inst = Instance(group.name, m.copy(), blas=-2, to_world_end=end)
+    inst = Instance(group.name, m.copy(), blas=-2, to_world_end=m_end.copy())
     builder.instances.append(inst)
     builder.pending.setdefault(group.name, (group, []))[1].append(inst)
     return inst
