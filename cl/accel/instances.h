@@ -30,7 +30,7 @@ RT_INLINE float3 xf_vector1(__global const float *m, float3 d)
 
 /* Motion blur (HAS_MOTION, pbrt-v4's ActiveTransform): a moving instance (its record's `motion` >= 0)
  * is at M(s) = T(s) R(s) S(s) at a ray's time sample u, s = clamp(a + b u, 0, 1): T and S
- * interpolated linearly between the ends, R by slerp (abi.MOTION, pyopencl_rt/scene/motion.py).
+ * interpolated linearly between the ends, R by slerp (abi.MOTION, pyopencl_rt/accel/motion.py).
  * Each ray that enters it moves into the group's space by M(s)^-1, computed there; the TLAS boxes
  * hold the whole way.  The time is each ray's (its path's), passed as `time`. */
 #ifdef HAS_MOTION

@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from ..device import abi
-from ..scene.motion import Motion
+from .motion import Motion
 from .bvh import build_bvh
 
 BLAS_ALIGN = 64  # bytes: every group's node buffer starts on a cache line (a float8 node's alignment)
@@ -50,7 +50,7 @@ class TwoLevelBVH:
         self.to_world = np.asarray([m for m, _ in instances], np.float64).reshape(-1, 4, 4)
         self.group = np.asarray([g for _, g in instances], np.int64)
         ends = [None] * len(instances) if ends is None else list(ends)
-        # each moving instance's way (scene/motion.py), None where it stays
+        # each moving instance's way (accel/motion.py), None where it stays
         self.motion = [None if e is None else Motion(m, e) for e, (m, _) in zip(ends, instances)]
         self.motion_time = tuple(float(x) for x in motion_time)
         # a group without faces gets a zero box (its instances get no record below)

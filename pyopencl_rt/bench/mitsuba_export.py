@@ -114,7 +114,7 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
         "max_depth": settings.max_depth,
         "rr_depth": settings.rr_depth,
         "eye": [float(x) for x in cam.eye], "look_at": [float(x) for x in cam.look_at],
-        "up": [float(x) for x in cam.up], "fov": float(cam.fov),
+        "up": [float(x) for x in cam.up], "fov": float(cam.vertical_fov(settings.width, settings.height)),
         "projection": getattr(cam, "projection", "perspective"), "extent": float(getattr(cam, "extent", 2.0)),
         "filter": settings.filter.as_dict(),
         "materials": materials, "lights": [_light_record(light) for light in scene.lights],

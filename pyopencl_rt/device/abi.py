@@ -340,24 +340,13 @@ assert WIDE8_NODE.itemsize == 256
 TRI8 = _tri_packet(8)
 assert TRI8.itemsize == 320
 
-# An instance of a shape group in the two-level BVH (112 bytes; cl/accel/instances.h): its
-# world-to-object and object-to-world transforms as 3x4 row-major matrices, where its group's BVH
-# starts in the blas_nodes buffer (bytes) and its group's first triangle in tris, and its record in
-# instance_motion (-1: it does not move).
+# An instance of a shape group in the two-level BVH (112 bytes; cl/accel/instances.h): world-to-object and
+# object-to-world 3x4 rows, its group's BVH (bytes into blas_nodes) and first triangle, its instance_motion (-1: none).
 INSTANCE = np.dtype([("world_to_object", np.float32, 12), ("object_to_world", np.float32, 12),
                      ("blas_offset", np.int32), ("tri_offset", np.int32), ("motion", np.int32), ("pad", np.int32)])
 assert INSTANCE.itemsize == 112
-
-# The way of a moving instance (motion blur, HAS_MOTION; pyopencl_rt/scene/motion.py): its transform
-# at the start and the end split as pbrt-v4 splits it, M = T R S (t0, t1: T; q0, q1: R as quaternions
-# (x, y, z, w), q1 on q0's side; s0, s1: S's rows as float4s), and time = (a, b, theta, sin theta): at
-# a ray's time sample u it is at s = clamp(a + b u, 0, 1) of the way, T and S interpolated linearly,
-# R by slerp over the angle theta between q0 and q1.
-MOTION = np.dtype([("t0", np.float32, 4), ("t1", np.float32, 4), ("q0", np.float32, 4), ("q1", np.float32, 4),
-                   ("s0", np.float32, 12), ("s1", np.float32, 12), ("time", np.float32, 4)])
-assert MOTION.itemsize == 176
-
 from .light_node import LIGHT_NODE  # noqa: E402  (the light BVH's node record, documented there)
+from .motion_record import MOTION  # noqa: E402  (a moving instance's way, documented there)
 # Registry of every shared struct: name -> dtype.  Add new shared structs here.
 STRUCTS: dict[str, np.dtype] = {
     "BVHNode": BVH_NODE, "Material": MATERIAL, "Sphere": SPHERE, "Instance": INSTANCE, "Motion": MOTION,

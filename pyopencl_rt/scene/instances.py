@@ -40,8 +40,8 @@ def instance_bounds(scene):
     """(lo, hi) float64 corners of the box around the two-level instances' moved group vertices
     (each group's used vertices through each of its instances' M, exactly, a chunk of instances at
     a time: 10^6 instances of a small group never make 10^6 copies at once); None without any.
-    A moving instance counts by the box of its whole way (scene/motion.py)."""
-    from .motion import Motion
+    A moving instance counts by the box of its whole way (accel/motion.py)."""
+    from ..accel.motion import Motion
 
     insts = two_level(scene)
     if not insts:

@@ -7,6 +7,7 @@ of a sphere) unless the material is two-sided, as for Mitsuba's and pbrt's area 
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -211,12 +212,36 @@ PROJECTIONS = ("perspective", "orthographic")
 assert set(PROJECTIONS) == set(abi.PROJECTIONS)
 
 
+FOV_AXES = ("x", "y", "diagonal", "smaller", "larger")
+
+
+def vertical_fov(fov_degrees: float, axis: str, width: int, height: int) -> float:
+    """The vertical field of view from a field of view along ``axis`` (FOV_AXES) of a width x
+    height image."""
+    if axis == "smaller":
+        axis = "x" if width <= height else "y"
+    elif axis == "larger":
+        axis = "x" if width > height else "y"
+    t = math.tan(math.radians(fov_degrees) / 2)
+    if axis == "x":
+        t *= height / width
+    elif axis == "diagonal":
+        t *= height / math.hypot(width, height)
+    elif axis != "y":
+        raise ValueError(f"unknown fov axis {axis!r}: use one of {', '.join(FOV_AXES)}")
+    return math.degrees(2 * math.atan(t))
+
+
 @dataclass
 class Camera:
     eye: tuple = (0.0, 0.0, 5.0)
     look_at: tuple = (0.0, 0.0, 0.0)
     up: tuple = (0.0, 1.0, 0.0)
-    fov: float = 40.0  # degrees, along the vertical axis (perspective)
+    fov: float = 40.0  # degrees (perspective), along fov_axis
+    # the image axis fov spans: "y" (vertical), "x", "diagonal", "smaller" or "larger" (the
+    # shorter or longer side: pbrt-v4's fov spans the shorter), resolved at the rendered size, so
+    # that a file rendered at another size keeps its renderer's rule (FOV_AXES)
+    fov_axis: str = "y"
     # thin lens (depth of field) when aperture_radius > 0: the lens radius, and the distance
     # along the viewing direction of the plane in focus (None: |look_at - eye|)
     aperture_radius: float = 0.0
@@ -225,6 +250,10 @@ class Camera:
     # rectangle centred on eye, `extent` high (scene units) and extent * width / height wide
     projection: str = "perspective"
     extent: float = 2.0
+
+    def vertical_fov(self, width: int, height: int) -> float:
+        """The vertical field of view (degrees) of an image of width x height."""
+        return vertical_fov(self.fov, self.fov_axis, width, height)
 
     def record(self, width: int, height: int) -> np.ndarray:
         """The CAMERA struct for an image of width x height (its filter fields a box of radius 0.5:
@@ -240,7 +269,7 @@ class Camera:
             half = float(self.extent) / 2
             rec["projection"] = abi.PROJECTION_ORTHOGRAPHIC
         elif self.projection == "perspective":
-            half = np.tan(np.radians(self.fov) / 2)
+            half = np.tan(np.radians(self.vertical_fov(width, height)) / 2)
         else:
             raise ValueError(f"unknown projection {self.projection!r}: use one of {', '.join(PROJECTIONS)}")
         rec["origin"] = eye
@@ -300,7 +329,7 @@ class Instance:
     Scene.blas_groups[blas], whose faces are in the group's own space, moved by to_world at
     render time (pyopencl_rt/accel/instances.py).  A moving one (pbrt-v4's ActiveTransform; two-level
     always) has ``to_world_end``, its to_world at the end of the motion (Scene.motion_time; the way
-    between them: scene/motion.py); None: it does not move."""
+    between them: accel/motion.py); None: it does not move."""
 
     group: str
     to_world: np.ndarray

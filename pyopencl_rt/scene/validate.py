@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from ..errors import UserError, one_line
+from .model import FOV_AXES
 
 GEOMETRY_LIMIT = float(2**40)  # ~1.1e12: a cube of it (n . a) stays below float32's 3.4e38
 RADIANCE_LIMIT = 1e30
@@ -141,6 +142,8 @@ def check_camera(scene) -> None:
         _fail(scene, "camera up must not be zero or parallel to the viewing direction")
     if not (isinstance(cam.fov, (int, float, np.number)) and 0 < cam.fov < 180):
         _fail(scene, f"camera fov must be between 0 and 180 degrees, got {cam.fov!r}")
+    if getattr(cam, "fov_axis", "y") not in FOV_AXES:
+        _fail(scene, f"camera fov_axis must be one of {', '.join(FOV_AXES)}, got {cam.fov_axis!r}")
     aperture = float(cam.aperture_radius)
     if not (math.isfinite(aperture) and aperture >= 0):
         _fail(scene, f"camera aperture_radius must be finite and >= 0, got {aperture}")

@@ -333,24 +333,29 @@ def test_lookat_and_fov_axes(tmp_path):
                 <film type="hdrfilm"><integer name="width" value="{w}"/><integer name="height" value="{h}"/></film>
             </sensor>{SPHERE}"""))[0].camera
 
+    def vfov(cam, film="100 50"):  # the vertical field of view at the film's size
+        return cam.vertical_fov(*map(int, film.split()))
+
     cam = camera('<float name="fov" value="90"/>')  # fov_axis x (Mitsuba's default)
     assert cam.eye == (1, 2, 3) and np.allclose(np.subtract(cam.look_at, cam.eye), [0, 0, 1])
-    assert np.isclose(cam.fov, 2 * math.degrees(math.atan(0.5)))  # tan(v/2) = tan(45) * 50 / 100
-    assert np.isclose(camera('<float name="fov" value="40"/><string name="fov_axis" value="y"/>').fov, 40)
-    assert np.isclose(camera('<float name="fov" value="40"/><string name="fov_axis" value="smaller"/>').fov, 40)
-    assert np.isclose(camera('<float name="fov" value="40"/><string name="fov_axis" value="larger"/>',
-                             "50 100").fov, 40)
-    diag = camera('<float name="fov" value="60"/><string name="fov_axis" value="diagonal"/>')
-    assert np.isclose(math.tan(math.radians(diag.fov) / 2), math.tan(math.radians(30)) * 50 / math.hypot(100, 50))
-    lens = camera('<string name="focal_length" value="35mm"/>')  # 35 mm film diagonal
-    assert np.isclose(math.tan(math.radians(lens.fov) / 2), math.hypot(36, 24) / 70 * 50 / math.hypot(100, 50))
+    assert np.isclose(vfov(cam), 2 * math.degrees(math.atan(0.5)))  # tan(v/2) = tan(45) * 50 / 100
+    # rendered at another size, the horizontal field of view stays the file's 90 degrees
+    assert np.isclose(vfov(cam, "50 100"), 2 * math.degrees(math.atan(2.0)))
+    assert np.isclose(vfov(camera('<float name="fov" value="40"/><string name="fov_axis" value="y"/>')), 40)
+    assert np.isclose(vfov(camera('<float name="fov" value="40"/><string name="fov_axis" value="smaller"/>')), 40)
+    assert np.isclose(vfov(camera('<float name="fov" value="40"/><string name="fov_axis" value="larger"/>',
+                                  "50 100"), "50 100"), 40)
+    diag = vfov(camera('<float name="fov" value="60"/><string name="fov_axis" value="diagonal"/>'))
+    assert np.isclose(math.tan(math.radians(diag) / 2), math.tan(math.radians(30)) * 50 / math.hypot(100, 50))
+    lens = vfov(camera('<string name="focal_length" value="35mm"/>'))  # 35 mm film diagonal
+    assert np.isclose(math.tan(math.radians(lens) / 2), math.hypot(36, 24) / 70 * 50 / math.hypot(100, 50))
     thin = load(write(tmp_path, """<sensor type="thinlens"><float name="aperture_radius" value="0.2"/>
         <float name="focus_distance" value="7"/></sensor>""" + SPHERE))[0].camera
     assert (thin.aperture_radius, thin.focus_distance) == (0.2, 7.0)
 
 
 def test_fov_conversion_agrees_with_mitsuba():
-    from pyopencl_rt.scene.loaders.builder import vertical_fov
+    from pyopencl_rt.scene.model import vertical_fov
 
     mi = mitsuba()
     for axis in ("x", "y", "diagonal", "smaller", "larger"):

@@ -1,6 +1,6 @@
 """Motion blur (pbrt-v4's TransformTimes / ActiveTransform): a moving shape or object instance is a
 two-level instance that the kernels move along pbrt-v4's way between its two transforms at each
-ray's time sample (cl/accel/instances.h, pyopencl_rt/scene/motion.py).  Checked against a float64
+ray's time sample (cl/accel/instances.h, pyopencl_rt/accel/motion.py).  Checked against a float64
 closed form of the time-averaged coverage of a black quad sliding, turning or stretching in front
 of a white sky (each sample is 0 or 1: a binomial z-test per pixel), for each mapping of the
 shutter onto the motion and both schedules; the split M = T R S and its interpolation against
@@ -161,7 +161,7 @@ def test_the_split_and_the_way_between_two_transforms():
     S the rest), against a transform built from known parts; slerp halfway between two turns about
     z is the turn by the mean angle; T and S halfway are the means; a box's bounds hold every point
     of a turning box's way."""
-    from pyopencl_rt.scene.motion import Motion, decompose, rotation
+    from pyopencl_rt.accel.motion import Motion, decompose, rotation
 
     def rz(deg):
         a = math.radians(deg)

@@ -69,7 +69,7 @@ def test_cornell_box_pbrt_is_the_toml_cornell_box():
     assert warned == [] and scene.format == "pbrt-v4"
     assert triangles_equal(triangle_records(scene), triangle_records(toml))
     assert [m.two_sided for m in scene.materials if m.is_emissive] == [False]
-    assert scene.camera.eye == toml.camera.eye and np.isclose(scene.camera.fov, toml.camera.fov)
+    assert scene.camera.eye == toml.camera.eye and np.isclose(scene.camera.vertical_fov(512, 512), toml.camera.fov)
     assert np.allclose(np.subtract(scene.camera.look_at, scene.camera.eye), [0, 0, 1])
     st = scene.settings
     assert (st.width, st.height, st.spp, st.max_depth) == (512, 512, 64, 8)
@@ -143,11 +143,13 @@ def test_camera_film_sampler_integrator(tmp_path):
                    'Film "rgb" "integer xresolution" 200 "integer yresolution" 100 "string filename" "x.exr" '
                    'Sampler "halton" "integer pixelsamples" 12 Integrator "path" "integer maxdepth" 3')
     assert w == []
-    assert np.isclose(s.camera.fov, 50)  # the shorter side is the height
+    assert np.isclose(s.camera.vertical_fov(200, 100), 50)  # the shorter side is the height
     assert (s.settings.width, s.settings.height, s.settings.spp, s.settings.max_depth) == (200, 100, 12, 4)
     s, _ = options('Camera "perspective" "float fov" 50 "float lensradius" 0.1 "float focaldistance" 3 '
                    'Film "rgb" "integer xresolution" 100 "integer yresolution" 200')
-    assert np.isclose(math.tan(math.radians(s.camera.fov) / 2), math.tan(math.radians(25)) * 2)
+    assert np.isclose(math.tan(math.radians(s.camera.vertical_fov(100, 200)) / 2), math.tan(math.radians(25)) * 2)
+    # rendered landscape (pbrt's film edited, or --width / --height), the fov spans the height again
+    assert np.isclose(s.camera.vertical_fov(200, 100), 50)
     assert (s.camera.aperture_radius, s.camera.focus_distance) == (0.1, 3)
     s, _ = options("")
     assert (s.settings.width, s.settings.height, s.settings.spp, s.settings.max_depth) == (1280, 720, 16, 6)

@@ -27,7 +27,7 @@ from typing import Callable
 import numpy as np
 
 from ..model import (Camera, DirectionalLight, Environment, Material, PointLight, ProjectorLight, RenderSettings,
-                     Scene, SpotLight)
+                     Scene, SpotLight, vertical_fov)  # noqa: F401 (vertical_fov: the loaders' import)
 from .assembly import (_finite_faces, angle_weighted_normals, frame_scene, stacked_per_face, transform_normals,
                        triangle_scene)
 # the importers take the shared geometry and errors from here too
@@ -41,28 +41,14 @@ from .values import SceneFormatError, error_at, first_use_index, one_line  # noq
 # camera
 
 
-def vertical_fov(fov_degrees: float, axis: str, width: int, height: int) -> float:
-    """Our vertical field of view from a field of view along ``axis``: 'x' (horizontal), 'y',
-    'diagonal', 'smaller' or 'larger' (the shorter or longer image side)."""
-    if axis == "smaller":
-        axis = "x" if width <= height else "y"
-    elif axis == "larger":
-        axis = "x" if width > height else "y"
-    t = math.tan(math.radians(fov_degrees) / 2)
-    if axis == "x":
-        t *= height / width
-    elif axis == "diagonal":
-        t *= height / math.hypot(width, height)
-    return math.degrees(2 * math.atan(t))
-
-
-def camera_from_matrix(camera_to_world, vfov: float, image_right_sign: float, *, aperture=0.0,
-                       focus=None, projection="perspective", extent=2.0) -> tuple:
+def camera_from_matrix(camera_to_world, fov: float, image_right_sign: float, *, aperture=0.0,
+                       focus=None, projection="perspective", extent=2.0, fov_axis: str = "y") -> tuple:
     """(Camera, mirror) of a camera that looks along its local +z with local +y up and puts
     ``image_right_sign`` * local +x on the image's right (Mitsuba: -1, pbrt: +1).  ``mirror`` is
     None, or the 4x4 reflection to apply to the whole scene so that our camera sees the image
     the file's camera sees (see the module docstring).  An orthographic camera's film is centred
-    on the matrix's origin, ``extent`` high (``vfov`` is then unused)."""
+    on the matrix's origin, ``extent`` high (``fov`` is then unused); a perspective one's ``fov``
+    spans ``fov_axis`` (Camera.fov_axis)."""
     m = np.asarray(camera_to_world, np.float64)
     eye = m[:3, 3]
     forward = m[:3, :3] @ np.array([0.0, 0.0, 1.0])
@@ -73,7 +59,7 @@ def camera_from_matrix(camera_to_world, vfov: float, image_right_sign: float, *,
     up /= np.linalg.norm(up)
     ours_right = np.cross(forward, up)
     cam = Camera(eye=tuple(map(float, eye)), look_at=tuple(map(float, eye + forward)), up=tuple(map(float, up)),
-                 fov=float(vfov), aperture_radius=float(aperture),
+                 fov=float(fov), fov_axis=fov_axis, aperture_radius=float(aperture),
                  focus_distance=None if focus is None else float(focus), projection=projection, extent=float(extent))
     if aperture > 0 and focus is None:
         cam.focus_distance = 1.0

@@ -108,7 +108,7 @@ def add_instance(builder, group: ShapeGroup, matrix, position: str, matrix_end=N
 
 def _moving_instance(builder, group: ShapeGroup, m, m_end, position: str, what: str) -> Instance:
     """A moving instance (motion blur): the renderer moves a two-level instance along pbrt-v4's way
-    between its two transforms (scene/motion.py, cl/accel/instances.h); what it cannot move is
+    between its two transforms (accel/motion.py, cl/accel/instances.h); what it cannot move is
     refused here, in one line."""
     what = what or f"the instance of '{group.name}'"
     if not np.isfinite(m_end).all() or not np.allclose(m_end[3], (0, 0, 0, 1)) \

@@ -16,7 +16,7 @@ import numpy as np
 from ..model import DirectionalLight, Environment, PointLight, ProjectorLight, RenderSettings, SpotLight
 from ..pixel_filter import PixelFilter
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cylinder_mesh, error_at, rectangle_mesh,
-                      transform_points, transform_vector, vertical_fov)
+                      transform_points, transform_vector)
 from .mitsuba_meshes import CURVED_SEGMENTS, flat, mitsuba_cube_mesh, mitsuba_disk_mesh, mitsuba_sphere_mesh
 from ..media import MediumInterface
 from .mitsuba_bsdf import BsdfMapper, color_value
@@ -181,7 +181,6 @@ class _Importer:
             return self.orthographic(obj, settings)
         self.refuse_type(obj)
         fov, axis = _mitsuba_fov(obj)
-        vfov = vertical_fov(fov, axis, settings.width, settings.height)
         aperture, focus = 0.0, None
         if obj.type == "thinlens":
             if not obj.has("aperture_radius"):
@@ -193,8 +192,8 @@ class _Importer:
         m = np.eye(4) if m is None else m
         if abs(np.linalg.det(m[:3, :3])) < 1e-300:
             raise error_at(obj.props["to_world"].node.pos, f"{obj.label()}: to_world is singular")
-        self.b.camera, self.b.mirror = camera_from_matrix(m, vfov, -1.0, aperture=aperture,
-                                                          focus=focus if aperture > 0 else None)
+        self.b.camera, self.b.mirror = camera_from_matrix(m, fov, -1.0, aperture=aperture,
+                                                          focus=focus if aperture > 0 else None, fov_axis=axis)
         self.unused(obj)
 
     def orthographic(self, obj: MiObject, settings: RenderSettings) -> None:

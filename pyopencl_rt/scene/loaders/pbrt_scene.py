@@ -10,7 +10,6 @@ file position; directives we do not render warn and are skipped.
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 
 import numpy as np
@@ -18,8 +17,7 @@ import numpy as np
 from ..media import MediumInterface
 from ..model import Material, RenderSettings
 from ..pixel_filter import PixelFilter
-from .builder import (EnvMap, SceneBuilder, camera_from_matrix, error_at, rotate, scale, sphere_mesh,
-                      transform_points, translate)
+from .builder import EnvMap, SceneBuilder, camera_from_matrix, error_at, sphere_mesh, transform_points
 from .instancing import add_instance
 from . import pbrt as _pbrt
 from .pbrt import Directive, MissingFile, Parser
@@ -27,6 +25,7 @@ from .pbrt_film import film_settings, imaging_ratio
 from .pbrt_lights import light_source
 from .pbrt_materials import MaterialMapper
 from .pbrt_spectra import spectrum_rgb
+from .pbrt_transforms import Transforms, singular
 
 SILENT = {("Film", "filename"), ("Sampler", "seed"), ("Film", "diagonal"),
           ("Film", "savefp16"), ("Integrator", "regularize"), ("Shape", "S"),
@@ -35,11 +34,6 @@ SILENT = {("Film", "filename"), ("Sampler", "seed"), ("Film", "diagonal"),
 
 # pbrt-v4's quadrics: intersected in object space, the ray moved by the shape's inverse transform
 QUADRICS = {"sphere", "disk", "cylinder"}
-
-
-def singular(m) -> bool:
-    """Whether the 4x4 transform ``m`` has no inverse (pbrt-v4 keeps it, its inverse NaN)."""
-    return not abs(np.linalg.det(np.asarray(m, np.float64)[:3, :3])) > 1e-300 or not np.isfinite(m).all()
 
 
 def _flattened(geometry, m):
@@ -87,7 +81,7 @@ class _State:
     outside: str = ""
 
 
-class _Importer:
+class _Importer(Transforms):
     def __init__(self, builder: SceneBuilder, path: Path, name: str):
         self.b, self.path, self.name = builder, path, name
         self.materials = MaterialMapper(self)
@@ -155,98 +149,6 @@ class _Importer:
                 kind = f' "{d.args[0]}"' if d.args and isinstance(d.args[0], str) else ""
                 self.warn(p.pos, f'"{p.type} {p.name}" of {d.name}{kind}: not supported; ignored')
                 p.used = True
-
-    # -- transforms ------------------------------------------------------------------------------
-
-    def _saved(self) -> _State:
-        st = self.state
-        return dataclasses.replace(st, ctm=st.ctm.copy(), ctm_end=None if st.ctm_end is None else st.ctm_end.copy())
-
-    def end_ctm(self) -> np.ndarray:
-        """The transform at the end time (the start's where no ActiveTransform made them differ)."""
-        return self.state.ctm if self.state.ctm_end is None else self.state.ctm_end
-
-    def moves(self) -> bool:
-        """Whether the current transform changes between the start and end times."""
-        return self.state.ctm_end is not None and not np.array_equal(self.state.ctm, self.state.ctm_end)
-
-    def _set(self, start, end) -> None:
-        """The transforms after a directive: each active one becomes its new value."""
-        st = self.state
-        old_end = self.end_ctm()
-        st.ctm, new_end = (start if st.active[0] else st.ctm), (end if st.active[1] else old_end)
-        st.ctm_end = None if new_end is st.ctm else new_end
-
-    def _apply(self, m) -> None:
-        self._set(self.state.ctm @ m, self.end_ctm() @ m)
-
-    def d_Identity(self, d):
-        self._set(np.eye(4), np.eye(4))
-
-    def d_Translate(self, d):
-        self._apply(translate(d.args[0]))
-
-    def d_Scale(self, d):
-        self._apply(scale(d.args[0]))
-
-    def d_Rotate(self, d):
-        angle, *axis = d.args[0]
-        if not np.linalg.norm(axis) > 0:
-            raise error_at(d.pos, "Rotate needs a non-zero axis")
-        self._apply(rotate(axis, angle))
-
-    def d_LookAt(self, d):
-        v = np.asarray(d.args[0], np.float64)
-        eye, look, up = v[:3], v[3:6], v[6:]
-        fwd = look - eye
-        if not np.linalg.norm(fwd) > 0:
-            raise error_at(d.pos, "LookAt: the eye and the point looked at are the same")
-        fwd /= np.linalg.norm(fwd)
-        right = np.cross(up / max(np.linalg.norm(up), 1e-300), fwd)
-        if not np.linalg.norm(right) > 1e-9:
-            raise error_at(d.pos, "LookAt: 'up' is zero or parallel to the viewing direction")
-        right /= np.linalg.norm(right)
-        world_from_camera = np.eye(4)
-        world_from_camera[:3, 0], world_from_camera[:3, 1] = right, np.cross(fwd, right)
-        world_from_camera[:3, 2], world_from_camera[:3, 3] = fwd, eye
-        self._apply(np.linalg.inv(world_from_camera))
-
-    def _matrix(self, d):
-        # pbrt's Transform lists the matrix column by column (the transpose of its rows); a singular
-        # one is kept, as pbrt-v4 keeps it (its inverse NaN): see singular() for what it draws
-        return np.asarray(d.args[0], np.float64).reshape(4, 4).T
-
-    def d_Transform(self, d):
-        m = self._matrix(d)
-        self._set(m, m.copy())
-
-    def d_ConcatTransform(self, d):
-        self._apply(self._matrix(d))
-
-    def d_CoordinateSystem(self, d):
-        self.coords[d.args[0]] = (self.state.ctm.copy(), self.end_ctm().copy())
-
-    def d_CoordSysTransform(self, d):
-        if d.args[0] not in self.coords:
-            self.warn(d.pos, f"CoordSysTransform: no coordinate system named '{d.args[0]}'; ignored")
-            return
-        start, end = self.coords[d.args[0]]
-        self.state.ctm, self.state.ctm_end = start.copy(), end.copy()  # both, as pbrt-v4
-
-    def d_ReverseOrientation(self, d):
-        self.state.reverse = not self.state.reverse
-
-    def d_TransformTimes(self, d):
-        start, end = (float(x) for x in d.args[0])
-        if not end >= start:
-            raise error_at(d.pos, f"TransformTimes: the end time {end:g} is before the start time {start:g}")
-        self.transform_times = (start, end)
-
-    def d_ActiveTransform(self, d):
-        which = {"StartTime": (True, False), "EndTime": (False, True), "All": (True, True)}.get(d.args[0])
-        if which is None:
-            raise error_at(d.pos, f'ActiveTransform "{d.args[0]}": expected StartTime, EndTime or All')
-        self.state.active = which
 
     # -- blocks ----------------------------------------------------------------------------------
 
@@ -375,22 +277,6 @@ class _Importer:
             self.finish_camera(*self.camera)
         self.motion_time()
 
-    def motion_time(self) -> None:
-        """The moving instances' time mapping (Scene.motion_time): a ray's time is open + u (close -
-        open) over the Camera's shutter (pbrt-v4's default [0, 1]), and an instance is at (time -
-        start) / (end - start) of its way (TransformTimes, default 0 and 1), held at its ends
-        outside them."""
-        if self.moving is None:
-            return
-        cam = self.camera[0].params if self.camera is not None else None
-        opened = cam.float("shutteropen", 0.0) if cam is not None else 0.0
-        closed = cam.float("shutterclose", 1.0) if cam is not None else 1.0
-        start, end = self.transform_times
-        if not end > start:
-            raise error_at(self.moving, f"a moving shape needs TransformTimes with the end after the start (they are "
-                                        f"{start:g} and {end:g})")
-        self.b.motion_time = ((opened - start) / (end - start), (closed - opened) / (end - start))
-
     def expose(self, ratio: float) -> None:
         """Every emitter's radiance (area lights, lights, the environment) times ``ratio``: for our
         linear renderer, the image of pbrt's film scaled by its imaging ratio."""
@@ -448,17 +334,16 @@ class _Importer:
         fov = p.float("fov", 90.0)
         if not 0 < fov < 180:
             raise error_at(d.pos, f"Camera: fov must be between 0 and 180 degrees, got {fov:g}")
-        # pbrt's fov spans the shorter image side
-        vfov = fov if st.height <= st.width else \
-            math.degrees(2 * math.atan(math.tan(math.radians(fov) / 2) * st.height / st.width))
         lens = p.float("lensradius", 0.0)
         focus = p.float("focaldistance", 1e6)
         for key in ("screenwindow", "frameaspectratio"):
             if key in p:
                 self.warn(p.items[key].pos, f'Camera "{key}": not supported; ignored')
                 p.items[key].used = True
-        self.b.camera, self.b.mirror = camera_from_matrix(np.linalg.inv(camera_from_world), vfov, 1.0,
-                                                          aperture=max(lens, 0.0), focus=focus if lens > 0 else None)
+        # pbrt's fov spans the shorter image side (of whatever size it is rendered at)
+        self.b.camera, self.b.mirror = camera_from_matrix(np.linalg.inv(camera_from_world), fov, 1.0,
+                                                          fov_axis="smaller", aperture=max(lens, 0.0),
+                                                          focus=focus if lens > 0 else None)
         self.unused(d)
 
     def orthographic(self, d: Directive, camera_from_world) -> None:
@@ -648,37 +533,6 @@ class _Importer:
         v, f, uv, *rest = geometry
         normals = rest[0] if rest else None
         self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=normals, interface=interface)
-
-    def _moving_shape(self, d, mat, interface) -> None:
-        """A shape whose transform differs between the start and end times (pbrt-v4 intersects it
-        in its own space through the interpolated transform): a group of this one shape, in its own
-        space, drawn by one moving instance (loaders/instancing.py refuses what it cannot move)."""
-        from .pbrt_shapes import shape_geometry
-
-        what = f'Shape "{d.args[0]}"'
-        if self.b.recording is not None:
-            raise error_at(d.pos, f"{what}: a moving shape inside ObjectBegin is not supported (move the ObjectInstance)")
-        start, end = self.state.ctm, self.end_ctm()
-        if singular(start) or singular(end):
-            raise error_at(d.pos, f"{what}: a moving shape with a singular transform is not supported")
-        if mat.is_emissive:
-            raise error_at(d.pos, f"{what}: a moving area light (ActiveTransform) is not supported")
-        geometry = shape_geometry(self, d)
-        if geometry is None:
-            return
-        if isinstance(geometry[0], str):
-            raise error_at(d.pos, f"{what}: motion blur of an analytic sphere is not supported")
-        v, f, uv, *rest = geometry
-        self.shape_groups += 1
-        group = self.b.begin_group(f"(moving {what} #{self.shape_groups})")
-        try:
-            self.b.add_mesh(v, f, mat, uvs=uv, matrix=None, flip=self.state.reverse,
-                            normals=rest[0] if rest else None, interface=interface)
-        finally:
-            self.b.end_group()
-        if self.moving is None:
-            self.moving = d.pos
-        add_instance(self.b, group, start, d.pos, matrix_end=end, what=what)
 
     def _sphere(self, centre, radius, m, mat, pos, flip, interface=None) -> None:
         s = np.linalg.svd(m[:3, :3], compute_uv=False)
