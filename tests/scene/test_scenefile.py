@@ -128,6 +128,20 @@ def test_cornell_box_camera_and_settings(cbox):
     assert s.integrator in ("path", "bsdf", "nee")
 
 
+def test_fov_axis_spans_its_side_at_any_size(tmp_path):
+    """fov_axis "x": the horizontal field of view is fov whatever the film's shape (the camera
+    record's right vector is tan(fov / 2) long, its up vector that times height / width)."""
+    path = tmp_path / "c.toml"
+    path.write_text('[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\nfov = 90\nfov_axis = "x"\n'
+                    '[[shape]]\ntype = "sphere"\ncenter = [0, 0, 0]\nradius = 1\n')
+    cam = load_scene(path).camera
+    for w, h in ((200, 100), (100, 200), (64, 64)):
+        rec = cam.record(w, h)
+        assert np.linalg.norm(rec["right"]) == pytest.approx(1.0, rel=1e-6), (w, h)
+        assert np.linalg.norm(rec["up"]) == pytest.approx(h / w, rel=1e-6), (w, h)
+        assert cam.vertical_fov(w, h) == pytest.approx(math.degrees(2 * math.atan(h / w)))
+
+
 def test_cornell_spheres():
     scene = load_scene(SCENES / "cornell-spheres.toml")
     assert scene.faces.shape == (12, 3)  # room + light, no blocks
@@ -456,6 +470,9 @@ def test_error_bad_vector_length(tmp_path):
     ('[camera]\neye = [0,0,1]\nlook_at = [0,0,0]\ntype = "orthographic"\nfov = 30\n',
      "'fov' is not a key of an orthographic camera"),
     ('[camera]\neye = [0,0,1]\nlook_at = [0,0,0]\nextent = 3\n', "'extent' is not a key of a perspective camera"),
+    ('[camera]\neye = [0,0,1]\nlook_at = [0,0,0]\nfov_axis = "z"\n', "unknown fov_axis 'z'"),
+    ('[camera]\neye = [0,0,1]\nlook_at = [0,0,0]\ntype = "orthographic"\nfov_axis = "x"\n',
+     "'fov_axis' is not a key of an orthographic camera"),
     ('[camera]\neye = [0,0,1]\nlook_at = [0,0,0]\ntype = "orthographic"\nextent = 0\n', "'extent' must be > 0"),
     ('[film]\nfilter = "cubic"\n', "unknown type 'cubic'"),
     ('[film]\nfilter = 3\n', "[film] filter: must be a filter's name or a table"),

@@ -136,7 +136,8 @@ class Transforms:
 
         what = f'Shape "{d.args[0]}"'
         if self.b.recording is not None:
-            raise error_at(d.pos, f"{what}: a moving shape inside ObjectBegin is not supported (move the ObjectInstance)")
+            raise error_at(d.pos, f"{what}: a moving shape inside ObjectBegin is not supported "
+                                  "(move the ObjectInstance)")
         start, end = self.state.ctm, self.end_ctm()
         if singular(start) or singular(end):
             raise error_at(d.pos, f"{what}: a moving shape with a singular transform is not supported")

@@ -74,7 +74,7 @@ from ...errors import UserError
 from ...imageio import read_exr
 from ..materials import REGISTRY
 from ..mesh import MeshError, flatten, load_trimesh
-from ..model import (AOVS, INTEGRATORS, LIGHT_SAMPLERS, SAMPLERS, Camera, Environment, Material, PROJECTIONS,
+from ..model import (AOVS, FOV_AXES, INTEGRATORS, LIGHT_SAMPLERS, SAMPLERS, Camera, Environment, Material, PROJECTIONS,
                      RenderSettings, Scene)
 from ..pixel_filter import FILTERS, PixelFilter
 from .assembly import DEFAULT_FOV, frame_scene, transform_normals, triangle_scene
@@ -98,7 +98,8 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 SHAPE_TYPES = ("mesh", "quad", "triangle", "box", "sphere")
 
 _TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environment", "media"}
-_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "aperture_radius", "focus_distance", "type", "extent", "medium"}
+_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "fov_axis", "aperture_radius", "focus_distance", "type", "extent",
+                "medium"}
 _ENVIRONMENT_KEYS = {"radiance", "file", "scale"}
 _FILM_KEYS = {"width", "height", "aovs", "filter"}
 # each pixel filter's keys, and its radius when none is given (Mitsuba 3's: gaussian 4 sigma, lanczos tau)
@@ -443,12 +444,14 @@ def _read_camera(ctx, table) -> Camera:
     look_at = check_vector(ctx, where, "look_at", table["look_at"])
     up = check_vector(ctx, where, "up", table.get("up", [0.0, 1.0, 0.0]))
     projection = check_choice(ctx, where, "type", table.get("type", "perspective"), PROJECTIONS)
-    if projection == "orthographic" and "fov" in table or projection == "perspective" and "extent" in table:
-        key = "fov" if projection == "orthographic" else "extent"
-        raise ctx.error(where, f"'{key}' is not a key of {'an' if key == 'fov' else 'a'} {projection} camera")
+    if projection == "orthographic" and ("fov" in table or "fov_axis" in table) \
+            or projection == "perspective" and "extent" in table:
+        key = ("fov" if "fov" in table else "fov_axis") if projection == "orthographic" else "extent"
+        raise ctx.error(where, f"'{key}' is not a key of {'an' if key != 'extent' else 'a'} {projection} camera")
     fov = check_number(ctx, where, "fov", table.get("fov", DEFAULT_FOV))
     if not 0 < fov < 180:
         raise ctx.error(where, f"'fov' must be between 0 and 180 degrees, got {fov:g}")
+    fov_axis = check_choice(ctx, where, "fov_axis", table.get("fov_axis", "y"), FOV_AXES)
     extent = check_number(ctx, where, "extent", table.get("extent", 2.0), positive=True)
     forward = look_at - eye
     if not np.linalg.norm(forward) > 0:
@@ -461,7 +464,8 @@ def _read_camera(ctx, table) -> Camera:
         focus = check_number(ctx, where, "focus_distance", table["focus_distance"], positive=True)
     return Camera(
         eye=tuple(float(x) for x in eye), look_at=tuple(float(x) for x in look_at),
-        up=tuple(float(x) for x in up), fov=float(fov), aperture_radius=float(aperture), focus_distance=focus,
+        up=tuple(float(x) for x in up), fov=float(fov), fov_axis=fov_axis, aperture_radius=float(aperture),
+        focus_distance=focus,
         projection=projection, extent=float(extent),
     )
 
