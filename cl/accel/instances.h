@@ -29,8 +29,8 @@ RT_INLINE float3 xf_vector1(__global const float *m, float3 d)
 }
 
 /* Motion blur (HAS_MOTION, pbrt-v4's ActiveTransform): a moving instance (its record's `motion` >= 0)
- * is at M(s) = T(s) R(s) S(s) at a ray's time sample u, s = clamp(a + b u, 0, 1): T and S
- * interpolated linearly between the ends, R by slerp (abi.MOTION, pyopencl_rt/accel/motion.py).
+ * is at M(s) = T(s) R(s) S(s) (seen from its pivot) at a ray's time sample u, s = clamp(a + b u, 0, 1):
+ * T and S interpolated linearly between the ends, R by slerp (abi.MOTION, pyopencl_rt/accel/motion.py).
  * Each ray that enters it moves into the group's space by M(s)^-1, computed there; the TLAS boxes
  * hold the whole way.  The time is each ray's (its path's), passed as `time`. */
 #ifdef HAS_MOTION
@@ -58,7 +58,11 @@ RT_INLINE void motion_matrices(__global const Motion *mo, float u, float *m, flo
             for (int k = 0; k < 3; ++k) v += r[3 * i + k] * ((1.0f - s) * mo->s0[4 * k + j] + s * mo->s1[4 * k + j]);
             a[3 * i + j] = v;
         }
-    const float3 t = (1.0f - s) * vload3(0, mo->t0) + s * vload3(0, mo->t1);
+    /* T, then the pivot (co in the instance's space, cw in the world): M x = (T R S)(x - co) + cw */
+    const float3 co = vload3(0, mo->pivot);
+    const float3 t = (1.0f - s) * vload3(0, mo->t0) + s * vload3(0, mo->t1) + vload3(0, mo->world_pivot) -
+                     (float3)(a[0] * co.x + a[1] * co.y + a[2] * co.z, a[3] * co.x + a[4] * co.y + a[5] * co.z,
+                              a[6] * co.x + a[7] * co.y + a[8] * co.z);
     /* the inverse by the adjugate */
     const float c[9] = {a[4] * a[8] - a[5] * a[7], a[2] * a[7] - a[1] * a[8], a[1] * a[5] - a[2] * a[4],
                         a[5] * a[6] - a[3] * a[8], a[0] * a[8] - a[2] * a[6], a[2] * a[3] - a[0] * a[5],

@@ -28,11 +28,12 @@ class TwoLevelBVH:
     ``order`` (the Scene.instances index of each record)."""
 
     def __init__(self, vertices, faces, n_world: int, groups: list, instances: list, threads=None,
-                 ends=None, motion_time=(0.0, 1.0)):
+                 ends=None, motion_time=(0.0, 1.0), pivots=None):
         """``faces[:n_world]`` in world space; ``groups`` (first_face, n_faces) ranges of ``faces``
         in their groups' spaces; ``instances`` (4x4 to_world, group index) pairs; ``ends``: per
         instance its to_world at the end of its motion (a translation away; None: it does not
-        move), ``motion_time`` Scene.motion_time."""
+        move), ``motion_time`` Scene.motion_time, ``pivots`` each one's (pivot, world pivot) or None
+        (Instance.motion_pivot, motion_pivot_world)."""
         t0 = time.perf_counter()
         faces = np.asarray(faces)
         self.world = build_bvh(vertices, faces[:n_world], threads=threads)
@@ -50,8 +51,10 @@ class TwoLevelBVH:
         self.to_world = np.asarray([m for m, _ in instances], np.float64).reshape(-1, 4, 4)
         self.group = np.asarray([g for _, g in instances], np.int64)
         ends = [None] * len(instances) if ends is None else list(ends)
+        pivots = [None] * len(instances) if pivots is None else list(pivots)
         # each moving instance's way (accel/motion.py), None where it stays
-        self.motion = [None if e is None else Motion(m, e) for e, (m, _) in zip(ends, instances)]
+        self.motion = [None if e is None else Motion(m, e, *((0.0, 0.0, 0.0), None) if c is None else c)
+                       for e, c, (m, _) in zip(ends, pivots, instances)]
         self.motion_time = tuple(float(x) for x in motion_time)
         # a group without faces gets a zero box (its instances get no record below)
         group_boxes = np.array([b.bounds if len(b.prim_ids) else np.zeros((2, 3)) for b in self.blas],
@@ -119,6 +122,7 @@ class TwoLevelBVH:
             r["t0"][:3], r["t1"][:3], r["q0"], r["q1"] = w.t0, w.t1, w.q0, w.q1
             r["s0"].reshape(3, 4)[:, :3], r["s1"].reshape(3, 4)[:, :3] = w.s0, w.s1
             r["time"] = (a, b, w.theta, np.sin(w.theta))
+            r["pivot"][:3], r["world_pivot"][:3] = w.pivot, w.world_pivot
         return recs
 
 

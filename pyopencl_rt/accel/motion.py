@@ -59,11 +59,24 @@ def rotation(q) -> np.ndarray:
 
 
 class Motion:
-    """The way of one instance from ``start`` to ``end`` (4x4 affine transforms)."""
+    """The way of one instance from ``start`` to ``end`` (4x4 affine transforms), interpolated
+    about a pivot: the transforms are split as seen from it, M = Cw^-1 (T R S) Co, Cw and Co the
+    moves of the pivot to the origin in the world (``world_pivot``, default ``pivot``) and in the
+    instance's own space (``pivot``).  pbrt-v4 interpolates in its render space, whose origin is
+    the camera's position: a shape's transform from render space to its own is C M, which moves
+    the same way about any pivot, but an object instance's is C M C^-1 (its object space is in
+    render space too), so that its rotation turns about the camera: its pivot (both sides at
+    first; moving the world, as camera-relative rendering does, moves the world's alone)."""
 
-    def __init__(self, start, end):
-        self.t0, self.q0, self.s0 = decompose(start)
-        self.t1, q1, self.s1 = decompose(end)
+    def __init__(self, start, end, pivot=(0.0, 0.0, 0.0), world_pivot=None):
+        self.pivot = np.asarray(pivot, np.float64).reshape(3)
+        self.world_pivot = self.pivot if world_pivot is None else np.asarray(world_pivot, np.float64).reshape(3)
+        c = np.eye(4)
+        c[:3, 3] = -self.world_pivot
+        c_inv = np.eye(4)
+        c_inv[:3, 3] = self.pivot
+        self.t0, self.q0, self.s0 = decompose(c @ np.asarray(start, np.float64) @ c_inv)
+        self.t1, q1, self.s1 = decompose(c @ np.asarray(end, np.float64) @ c_inv)
         self.q1 = -q1 if np.dot(self.q0, q1) < 0 else q1  # the shorter arc
         self.theta = float(np.arccos(np.clip(np.dot(self.q0, self.q1), -1.0, 1.0)))
 
@@ -78,7 +91,7 @@ class Motion:
         """The 4x4 transform at s in [0, 1]."""
         m = np.eye(4)
         m[:3, :3] = rotation(self.quaternion_at(s)) @ ((1 - s) * self.s0 + s * self.s1)
-        m[:3, 3] = (1 - s) * self.t0 + s * self.t1
+        m[:3, 3] = (1 - s) * self.t0 + s * self.t1 + self.world_pivot - m[:3, :3] @ self.pivot
         return m
 
     def bounds(self, box, steps: int = 64) -> np.ndarray:

@@ -42,6 +42,8 @@ def _instances(scene) -> dict:
             "blas_groups": np.asarray([(g.first_face, g.n_faces) for g in scene.blas_groups], np.int64),
             "instance_to_world_end": np.asarray([i.to_world_end if i.moves else i.to_world for i in insts],
                                                 np.float64).reshape(-1, 4, 4),
+            "instance_motion_pivot": np.asarray([i.pivots() or ((0.0, 0.0, 0.0),) * 2 for i in insts],
+                                                np.float64).reshape(-1, 2, 3),
             "motion_time": np.asarray(getattr(scene, "motion_time", (0.0, 1.0)), np.float64)}
 
 

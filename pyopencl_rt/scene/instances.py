@@ -65,7 +65,8 @@ def instance_bounds(scene):
         faces = np.asarray(scene.faces[g.first_face:g.first_face + g.n_faces])
         if inst.moves and len(faces):
             p = v64[np.unique(faces)]
-            box = Motion(inst.to_world, inst.to_world_end).bounds(np.stack([p.min(axis=0), p.max(axis=0)]))
+            box = Motion(inst.to_world, inst.to_world_end, *(inst.pivots() or ((0.0, 0.0, 0.0), None))).bounds(
+                np.stack([p.min(axis=0), p.max(axis=0)]))
             lo, hi = np.minimum(lo, box[0]), np.maximum(hi, box[1])
     return (lo, hi) if np.isfinite(lo).all() else None
 
@@ -75,7 +76,9 @@ def camera_shifted(scene, eye) -> list:
     shift = np.eye(4)
     shift[:3, 3] = -np.asarray(eye, np.float64)
     return [dataclasses.replace(i, to_world=shift @ i.to_world,
-                                to_world_end=None if i.to_world_end is None else shift @ i.to_world_end)
+                                to_world_end=None if i.to_world_end is None else shift @ i.to_world_end,
+                                motion_pivot_world=None if i.motion_pivot is None else  # the world moved alone
+                                tuple(np.asarray(i.pivots()[1], np.float64) - np.asarray(eye, np.float64)))
             if i.blas >= 0 else i for i in scene.instances]
 
 
@@ -159,4 +162,5 @@ def scene_bvh(scene, threads=None):
     return TwoLevelBVH(scene.vertices, scene.faces, n_world_faces(scene),
                        [(g.first_face, g.n_faces) for g in scene.blas_groups],
                        [(i.to_world, i.blas) for i in two_level(scene)], threads=threads,
-                       ends=[i.to_world_end for i in two_level(scene)], motion_time=scene.motion_time)
+                       ends=[i.to_world_end for i in two_level(scene)], motion_time=scene.motion_time,
+                       pivots=[i.pivots() for i in two_level(scene)])

@@ -329,7 +329,9 @@ class Instance:
     Scene.blas_groups[blas], whose faces are in the group's own space, moved by to_world at
     render time (pyopencl_rt/accel/instances.py).  A moving one (pbrt-v4's ActiveTransform; two-level
     always) has ``to_world_end``, its to_world at the end of the motion (Scene.motion_time; the way
-    between them: accel/motion.py); None: it does not move."""
+    between them: accel/motion.py, interpolated about ``motion_pivot``, None: the origin; in the
+    world about ``motion_pivot_world`` where the world has moved since, None: the same point);
+    None: it does not move."""
 
     group: str
     to_world: np.ndarray
@@ -339,6 +341,14 @@ class Instance:
     n_spheres: int = 0
     blas: int = -1
     to_world_end: np.ndarray | None = None
+    motion_pivot: tuple | None = None
+    motion_pivot_world: tuple | None = None
+
+    def pivots(self):
+        """(pivot, world pivot) of Motion, or None: about the origin."""
+        if self.motion_pivot is None:
+            return None
+        return self.motion_pivot, self.motion_pivot if self.motion_pivot_world is None else self.motion_pivot_world
 
     @property
     def moves(self) -> bool:

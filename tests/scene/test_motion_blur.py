@@ -189,6 +189,88 @@ def test_the_split_and_the_way_between_two_transforms():
         assert (p >= lo).all() and (p <= hi).all(), s_
 
 
+def test_a_pivot_moves_with_the_world_alone():
+    """About a pivot c (pbrt-v4 turns an object instance about its render space's origin, the
+    camera): the ends are the two transforms; halfway, a half turn about z maps c + r to c + r'
+    (r turned by the half angle); and moving the world by a translation W (camera-relative
+    rendering) while the instance's own space stays is the same way, moved: Motion(W M0, W M1,
+    c, W c).at(s) = W Motion(M0, M1, c).at(s)."""
+    from pyopencl_rt.accel.motion import Motion
+
+    a, b = np.eye(4), np.eye(4)
+    b[:3, :3] = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # 90 degrees about z
+    b[:3, 3] = (1.0, -1.0, 0.0)  # = turning about c = (1, 0, 0) at the end
+    c = (1.0, 0.0, 0.0)
+    way = Motion(a, b, c)
+    assert np.allclose(way.at(0.0), a) and np.allclose(way.at(1.0), b)
+    half = way.at(0.5)
+    r = np.array([2.0, 0.5, 0.3]) - c
+    turned = np.array([[math.cos(math.pi / 4), -math.sin(math.pi / 4), 0], [math.sin(math.pi / 4), math.cos(math.pi / 4), 0],
+                       [0, 0, 1]]) @ r
+    assert np.allclose(half[:3, :3] @ (r + c) + half[:3, 3], turned + c)
+    shift = np.eye(4)
+    shift[:3, 3] = (-3.0, 2.0, 7.0)
+    moved = Motion(shift @ a, shift @ b, c, np.add(c, shift[:3, 3]))
+    for s_ in (0.0, 0.3, 0.5, 1.0):
+        assert np.allclose(moved.at(s_), shift @ way.at(s_)), s_
+
+
+MOTION_KERNEL = r"""
+#include "accel/instances.h"
+__kernel void motion_at(__global const Motion *ways, __global const int *way, __global const float *u,
+                        __global float *out)
+{
+    const int i = get_global_id(0);
+    float m[12], w[12];
+    motion_matrices(ways + way[i], u[i], m, w);
+    for (int k = 0; k < 12; ++k) {
+        out[24 * i + k] = m[k];
+        out[24 * i + 12 + k] = w[k];
+    }
+}
+"""
+
+
+def test_the_kernels_way_is_the_hosts(runtime):
+    """cl/accel/instances.h motion_matrices (float32) against accel/motion.py (float64) on the
+    records of turning, stretching, sliding and pivoted ways at times across the shutter (and
+    outside the transforms' times, held at the ends): M and M^-1 within 2e-6 of their scale."""
+    import harness
+    from pyopencl_rt.accel.instances import TwoLevelBVH
+
+    rng = np.random.default_rng(7)
+
+    def affine():
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        m = np.eye(4)
+        m[:3, :3] = q * np.sign(np.linalg.det(q)) @ np.diag(rng.uniform(0.3, 2.0, 3))
+        m[:3, 3] = rng.normal(size=3) * 3
+        return m
+
+    v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    ends = [(affine(), affine(), None), (affine(), affine(), ((1.0, 2.0, 3.0), (-2.0, 0.5, 4.0))),
+            (np.eye(4), np.diag([2.0, 0.5, 1.0, 1.0]), None)]
+    slide = affine()
+    slid = slide.copy()
+    slid[:3, 3] += (0.5, -1.0, 2.0)
+    ends.append((slide, slid, None))
+    bvh = TwoLevelBVH(v, np.array([[0, 1, 2]]), 0, [(0, 1)], [(m0, 0) for m0, _, _ in ends],
+                      ends=[m1 for _, m1, _ in ends], motion_time=(-0.25, 1.5), pivots=[p for _, _, p in ends])
+    recs = bvh.motion_records()
+    ways = [bvh.motion[i] for i in bvh.order]
+    u = np.tile(np.array([0.0, 0.1, 0.4, 0.75, 0.99], np.float32), len(recs))
+    which = np.repeat(np.arange(len(recs), dtype=np.int32), 5)
+    kernels = harness.Kernels(MOTION_KERNEL, defines={"HAS_INSTANCES": 1, "HAS_MOTION": 1}, local_size=1)
+    out = kernels(runtime, "motion_at", len(u), recs, which, u, np.zeros(24 * len(u), np.float32)).reshape(-1, 2, 3, 4)
+    for k in range(len(u)):
+        s_ = min(max(-0.25 + 1.5 * float(u[k]), 0.0), 1.0)
+        want = ways[which[k]].at(s_)
+        scale = np.abs(want).max()
+        assert np.abs(out[k, 0] - want[:3]).max() < 2e-6 * scale, (k, s_)
+        inv = np.linalg.inv(want)
+        assert np.abs(out[k, 1] - inv[:3]).max() < 2e-6 * np.abs(inv).max() * np.linalg.cond(want[:3, :3]), (k, s_)
+
+
 def test_the_loader_keeps_pbrts_two_transforms(tmp_path):
     """killeroo-moving's structure: transforms before ActiveTransform apply to both times, those
     after ActiveTransform StartTime to the start alone, AttributeEnd restores both and the active
@@ -219,6 +301,13 @@ def test_the_loader_keeps_pbrts_two_transforms(tmp_path):
     assert scene.motion_time == (0.0, 1.0)
     # the quad after the block is the world's (no instance), at the identity
     assert len(scene.faces) == 6
+    assert [i.motion_pivot for i in moving] == [None, None]  # shapes: no pivot (any gives their way)
+    # an object instance turns about the camera's position (pbrt-v4's render space), the world's
+    # mirror applied (LookAt from (1, 2, 5): our camera sees pbrt's image with x mirrored)
+    scene = load_scene(write(tmp_path, scene_text("Rotate 30 0 0 1", instance=True).replace(
+        "LookAt 0 0 5", "LookAt 1 2 5"), "i.pbrt"))
+    (inst,) = [i for i in scene.instances if i.moves]
+    assert np.allclose(np.linalg.norm(np.subtract(inst.motion_pivot, scene.camera.eye)), 0.0)
 
 
 @pytest.mark.parametrize("text,message", [

@@ -386,7 +386,13 @@ class SceneBuilder:
 
             def mirrored(i, m):
                 return None if m is None else mirror @ m @ (inverse if i.blas >= 0 else np.eye(4))
-            instances = [dataclasses.replace(i, to_world=mirrored(i, i.to_world), to_world_end=mirrored(i, i.to_world_end))
+
+            def pivot(p):
+                return None if p is None else tuple(transform_points(mirror, p)[0])
+            instances = [dataclasses.replace(i, to_world=mirrored(i, i.to_world),
+                                             to_world_end=mirrored(i, i.to_world_end),
+                                             motion_pivot=pivot(i.motion_pivot),
+                                             motion_pivot_world=pivot(i.motion_pivot_world))
                          for i in instances]
         if not self.faces and not self.spheres:
             raise SceneFormatError(f"{self.name}: the scene has no shapes that we can render")

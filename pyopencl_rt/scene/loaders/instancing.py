@@ -84,12 +84,13 @@ def why_flattened(group: ShapeGroup) -> str | None:
     return None
 
 
-def add_instance(builder, group: ShapeGroup, matrix, position: str, matrix_end=None, what: str = "") -> Instance:
+def add_instance(builder, group: ShapeGroup, matrix, position: str, matrix_end=None, what: str = "",
+                 pivot=None) -> Instance:
     """Add an instance of ``group`` moved by the 4x4 ``matrix`` (None: the identity) to
     ``builder``'s scene: flattened now, or (a group that may go two-level) once :func:`place`
     decides; returns (and records in ``builder.instances``) the Instance.  ``matrix_end``: where a
     moving instance is at the end of its motion (motion blur: always two-level; ``what`` names the
-    shape in the refusals)."""
+    shape in the refusals; ``pivot``: the point its way turns about, Instance.motion_pivot)."""
     if builder.recording is not None:
         raise error_at(position, "an instance inside a shape group: nested instancing is not supported")
     m = np.eye(4) if matrix is None else np.asarray(matrix, np.float64)
@@ -97,7 +98,7 @@ def add_instance(builder, group: ShapeGroup, matrix, position: str, matrix_end=N
     if not abs(det) > 1e-300 or not np.isfinite(m).all():
         raise error_at(position, f"the instance of '{group.name}': its to_world is singular")
     if matrix_end is not None:
-        return _moving_instance(builder, group, m, np.asarray(matrix_end, np.float64), position, what)
+        return _moving_instance(builder, group, m, np.asarray(matrix_end, np.float64), position, what, pivot)
     if group.meshes and why_flattened(group) is None and instancing_mode() != "flatten":
         inst = Instance(group.name, m.copy(), blas=-2)  # -2: placed at the end (place)
         builder.instances.append(inst)
@@ -106,7 +107,7 @@ def add_instance(builder, group: ShapeGroup, matrix, position: str, matrix_end=N
     return flatten_instance(builder, group, m)
 
 
-def _moving_instance(builder, group: ShapeGroup, m, m_end, position: str, what: str) -> Instance:
+def _moving_instance(builder, group: ShapeGroup, m, m_end, position: str, what: str, pivot=None) -> Instance:
     """A moving instance (motion blur): the renderer moves a two-level instance along pbrt-v4's way
     between its two transforms (accel/motion.py, cl/accel/instances.h); what it cannot move is
     refused here, in one line."""
@@ -121,7 +122,8 @@ def _moving_instance(builder, group: ShapeGroup, m, m_end, position: str, what: 
         raise error_at(position, f"{what}: motion blur of a shape with {why} is not supported")
     if builder.media or builder.interfaces:
         raise error_at(position, f"{what}: motion blur in a scene with participating media is not supported")
-    inst = Instance(group.name, m.copy(), blas=-2, to_world_end=m_end.copy())
+    inst = Instance(group.name, m.copy(), blas=-2, to_world_end=m_end.copy(),
+                    motion_pivot=None if pivot is None else tuple(float(x) for x in pivot))
     builder.instances.append(inst)
     builder.pending.setdefault(group.name, (group, []))[1].append(inst)
     return inst
@@ -208,6 +210,6 @@ def remap_instances(instances: list, blas: list, keep: np.ndarray | None) -> tup
     for inst in instances:
         first, n = span(inst.first_face, inst.n_faces)
         out.append(Instance(inst.group, inst.to_world, first, n, inst.first_sphere, inst.n_spheres, inst.blas,
-                            inst.to_world_end))
+                            inst.to_world_end, inst.motion_pivot, inst.motion_pivot_world))
     return out, [BlasGroup(g.name, *span(g.first_face, g.n_faces)) for g in blas]
 

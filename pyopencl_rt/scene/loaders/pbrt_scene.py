@@ -204,8 +204,13 @@ class _Importer(Transforms):
         moving = self.moves()
         if moving and self.moving is None:
             self.moving = d.pos
+        # pbrt-v4 interpolates an instance's transform in its render space, the world moved so that
+        # the camera is at the origin, and conjugated by that move: it turns about the camera
+        # (accel/motion.py); without a camera yet, about the world's origin
+        pivot = np.linalg.inv(self.camera[1])[:3, 3] if self.camera is not None else None
         add_instance(self.b, self.b.groups[d.args[0]], self.state.ctm, d.pos,
-                     matrix_end=self.end_ctm() if moving else None, what=f'ObjectInstance "{d.args[0]}"')
+                     matrix_end=self.end_ctm() if moving else None, what=f'ObjectInstance "{d.args[0]}"',
+                     pivot=pivot)
 
     # -- options ---------------------------------------------------------------------------------
 
