@@ -487,6 +487,19 @@ def load_warned(path, defines=None):
     return scene, [str(w.message) for w in caught]
 
 
+def load_error(path) -> str:
+    """The message of the SceneError that loading ``path`` raises, checked to be one line."""
+    import pytest
+
+    from pyopencl_rt.scene.loaders import SceneError, load_scene
+
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    msg = str(info.value)
+    assert "\n" not in msg, msg
+    return msg
+
+
 def toml_tables(**tables) -> str:
     """The TOML text of tables of plain values (numbers, strings, booleans, lists of them), in order:
     ``toml_tables(camera=dict(eye=[0, 0, 3], look_at=[0, 0, 0], fov=45), render=dict(max_depth=4))``,
