@@ -78,7 +78,8 @@ typedef struct {
 /* Fills r with the block's next samples (up to PACKET_WIDTH): each sample's pixel and ring entry
  * as the wavefront numbers them, then on the lanes its SampleKey (sampler_key) and its camera
  * ray (camera_ray). */
-RT_INLINE void ready_fill(__global const Camera *camera, __global const float *filter_cdf, SampleCursor *cur,
+RT_INLINE void ready_fill(__global const Camera *camera, __global const float *filter_cdf CAMERA_MOTION_PARAM,
+                          SampleCursor *cur,
                           int last, int n_pixels, __global const int *pixel_list, int n_listed, int ring_size,
                           int sampler, uint seed, ReadySamples *r)
 {
@@ -104,14 +105,16 @@ RT_INLINE void ready_fill(__global const Camera *camera, __global const float *f
     r->next = 0;
     if (!n) return;
     r->key = sampler_key_xy(sampler, seed, as_puint(pixels), as_puint(px), as_puint(py), as_puint(passes));
-    camera_ray(camera, filter_cdf, r->key, px, py, pmask((int)((1u << n) - 1u)), &r->o, &r->d, &r->weight);
+    camera_ray(camera, filter_cdf, r->key, px, py, pmask((int)((1u << n) - 1u)), &r->o, &r->d, &r->weight
+               CAMERA_MOTION_ARG);
     r->out = out;
 }
 
 /* Starts the block's next samples in the lanes of `starting` (bit k: lane k), in lane order, from
  * r (refilled when it runs out).  Returns the lanes started (all of `starting`, or fewer when the
  * block runs out). */
-RT_INLINE int start_lanes(__global const Camera *camera, __global const float *filter_cdf, int starting,
+RT_INLINE int start_lanes(__global const Camera *camera, __global const float *filter_cdf CAMERA_MOTION_PARAM,
+                          int starting,
                           ReadySamples *r, SampleCursor *cur, int last, int n_pixels, __global const int *pixel_list,
                           int n_listed, int ring_size, int sampler, uint seed, int camera_medium, PathState *s,
                           SampleKey *key,
@@ -120,7 +123,8 @@ RT_INLINE int start_lanes(__global const Camera *camera, __global const float *f
     int started = 0;
     while (starting) {
         if (r->next == r->count) {
-            ready_fill(camera, filter_cdf, cur, last, n_pixels, pixel_list, n_listed, ring_size, sampler, seed, r);
+            ready_fill(camera, filter_cdf CAMERA_MOTION_ARG, cur, last, n_pixels, pixel_list, n_listed, ring_size,
+                       sampler, seed, r);
             if (!r->count) break;
         }
         pint from = PINT(0); /* each starting lane's entry of r */
@@ -172,8 +176,9 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
     pfloat weight = PFLOAT(1.0f); /* the camera samples' filter weights */
     ReadySamples ready;
     ready.count = ready.next = 0;
-    int live = start_lanes(camera, filter_cdf, (1 << PACKET_WIDTH) - 1, &ready, &cur, last, n_pixels, pixel_list,
-                           n_listed, ring_size, sampler, seed, camera_medium, &s, &key, &out, &weight); /* bit k: lane k holds a path */
+    int live = start_lanes(camera, filter_cdf CAMERA_MOTION_ARG, (1 << PACKET_WIDTH) - 1, &ready, &cur, last, n_pixels,
+                           pixel_list, n_listed, ring_size, sampler, seed, camera_medium, &s, &key, &out,
+                           &weight); /* bit k: lane k holds a path */
     while (live) {
         const pint live_lanes = pmask(live);
         /* -- extend: the live lanes' rays ------------------------------------------------------ */
@@ -228,8 +233,8 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
         }
         live &= ~ended;
         if (ended && (ready.next < ready.count || cur.j < last))
-            live |= start_lanes(camera, filter_cdf, ended, &ready, &cur, last, n_pixels, pixel_list, n_listed,
-                                ring_size, sampler, seed, camera_medium, &s, &key, &out, &weight);
+            live |= start_lanes(camera, filter_cdf CAMERA_MOTION_ARG, ended, &ready, &cur, last, n_pixels, pixel_list,
+                                n_listed, ring_size, sampler, seed, camera_medium, &s, &key, &out, &weight);
     }
     add_group_ray_counts(group_rays, LANE_GROUP, n_extend, n_shadow, counters);
 }

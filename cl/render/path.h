@@ -40,6 +40,7 @@
 
 #include "render/lights.h"
 #include "render/filter.h"
+#include "accel/motion.h"
 #ifdef LIGHT_TREE
 #include "render/light_tree.h"
 /* whether this scene's lights have a tree: the kernels' light_tree where LIGHT_TREE_RUNTIME compiles
@@ -113,11 +114,43 @@ typedef struct {
 #define PATH_INSTANCES_ARGS
 #endif
 
+/* A moving camera (HAS_CAMERA_MOTION; pbrt-v4's ActiveTransform before Camera): its way from its
+ * frame at the start to the end (camera_motion, abi.MOTION), along which each camera ray moves by
+ * M(s) M(0)^-1 at its path's time sample (the camera record is the frame at the start). */
+#ifdef HAS_CAMERA_MOTION
+#define CAMERA_MOTION_PARAM , __global const Motion *camera_motion
+#define CAMERA_MOTION_ARG , camera_motion
+
+RT_INLINE void camera_moved(__global const Motion *way, SampleKey k, pint live, pvec3 *o, pvec3 *d)
+{
+    const pfloat u = time_sample(k);
+    float m0[12], w0[12];
+    motion_matrices_at(way, 0.0f, m0, w0);
+    for (int l = 0; l < PACKET_WIDTH; ++l) {
+        if (!PLANE_I(live, l)) continue;
+        float m[12], w[12];
+        motion_matrices(way, PLANE(u, l), m, w);
+        const float3 p = xf_point_private(m, xf_point_private(w0, pv3_lane(*o, l)));
+        float3 v = pv3_lane(*d, l);
+        v = (float3)(w0[0] * v.x + w0[1] * v.y + w0[2] * v.z, w0[4] * v.x + w0[5] * v.y + w0[6] * v.z,
+                     w0[8] * v.x + w0[9] * v.y + w0[10] * v.z);
+        v = (float3)(m[0] * v.x + m[1] * v.y + m[2] * v.z, m[4] * v.x + m[5] * v.y + m[6] * v.z,
+                     m[8] * v.x + m[9] * v.y + m[10] * v.z);
+        v *= 1.0f / sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+        PLANE(o->x, l) = p.x; PLANE(o->y, l) = p.y; PLANE(o->z, l) = p.z;
+        PLANE(d->x, l) = v.x; PLANE(d->y, l) = v.y; PLANE(d->z, l) = v.z;
+    }
+}
+#else
+#define CAMERA_MOTION_PARAM
+#define CAMERA_MOTION_ARG
+#endif
+
 /* The camera rays through pixels (x, y) of the lanes, and the weight each sample carries (the
  * pixel filter's sign and normalisation, cl/render/filter.h; 1 for filters without negative
  * lobes). */
 RT_INLINE void camera_ray(__global const Camera *camera, __global const float *filter_cdf, SampleKey k, pint x,
-                          pint y, pint live, pvec3 *origin, pvec3 *direction, pfloat *weight)
+                          pint y, pint live, pvec3 *origin, pvec3 *direction, pfloat *weight CAMERA_MOTION_PARAM)
 {
     const Camera cam = *camera;
     pfloat ux, uy;
@@ -155,6 +188,9 @@ RT_INLINE void camera_ray(__global const Camera *camera, __global const float *f
         d = pv3_normalize(pv3_sub(pv3_scale(dir, PFLOAT(cam.focus_distance)), lens), live);
         o = pv3_add(o, lens);
     }
+#ifdef HAS_CAMERA_MOTION
+    camera_moved(camera_motion, k, live, &o, &d);
+#endif
     *origin = o;
     *direction = d;
 }

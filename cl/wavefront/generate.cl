@@ -24,7 +24,8 @@ __kernel void wf_generate(WAVE_PARAMS)
     const SampleKey key = sampler_key(sampler, seed, (uint)pixel, (uint)camera->width, (uint)pass);
     pvec3 o, d;
     pfloat weight;
-    camera_ray(camera, filter_cdf, key, pixel % camera->width, pixel / camera->width, PTRUE, &o, &d, &weight);
+    camera_ray(camera, filter_cdf, key, pixel % camera->width, pixel / camera->width, PTRUE, &o, &d, &weight
+               CAMERA_MOTION_ARG);
     path_weight[slot] = weight;
     store3(ray_o, slot, pv3_lane(o, 0));
     store3(ray_d, slot, pv3_lane(d, 0));

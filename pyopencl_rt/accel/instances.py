@@ -116,14 +116,7 @@ class TwoLevelBVH:
         ways = [self.motion[i] for i in self.order if self.motion[i] is not None]
         if not ways:
             return np.zeros(16, np.uint8)
-        recs = np.zeros(len(ways), abi.MOTION)
-        a, b = self.motion_time
-        for r, w in zip(recs, ways):
-            r["t0"][:3], r["t1"][:3], r["q0"], r["q1"] = w.t0, w.t1, w.q0, w.q1
-            r["s0"].reshape(3, 4)[:, :3], r["s1"].reshape(3, 4)[:, :3] = w.s0, w.s1
-            r["time"] = (a, b, w.theta, np.sin(w.theta))
-            r["pivot"][:3], r["world_pivot"][:3] = w.pivot, w.world_pivot
-        return recs
+        return np.array([w.record(self.motion_time) for w in ways], abi.MOTION)
 
 
 def world_boxes(boxes, m) -> np.ndarray:

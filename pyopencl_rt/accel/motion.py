@@ -106,6 +106,13 @@ class Motion:
         step = np.linalg.norm(np.diff(at, axis=0), axis=2).max() if steps else 0.0
         return np.stack([at.min(axis=(0, 1)) - step, at.max(axis=(0, 1)) + step])
 
-    @property
-    def translation_only(self) -> bool:
-        return self.theta == 0.0 and np.array_equal(self.s0, self.s1)
+    def record(self, motion_time) -> np.ndarray:
+        """The abi.MOTION record of this way, with Scene.motion_time (a, b)."""
+        from ..device.motion_record import MOTION
+
+        r = np.zeros(1, MOTION)[0]
+        r["t0"][:3], r["t1"][:3], r["q0"], r["q1"] = self.t0, self.t1, self.q0, self.q1
+        r["s0"].reshape(3, 4)[:, :3], r["s1"].reshape(3, 4)[:, :3] = self.s0, self.s1
+        r["time"] = (*motion_time, self.theta, np.sin(self.theta))
+        r["pivot"][:3], r["world_pivot"][:3] = self.pivot, self.world_pivot
+        return r

@@ -105,6 +105,8 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
         if getattr(scene, has, lambda: False)():
             raise ValueError(f"{what} are not exported to Mitsuba yet (the meshes are written flat, face_normals)")
     cam = scene.camera
+    if getattr(scene, "camera_motion", None) is not None or any(i.moves for i in getattr(scene, "instances", ())):
+        raise ValueError("motion blur (a moving camera or instance) is not exported to Mitsuba")
     arrays, materials = {}, []
     for index, m in enumerate(scene.materials):
         materials.append(_material_record(m, index, arrays))

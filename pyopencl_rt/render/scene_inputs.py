@@ -98,7 +98,11 @@ def _materials(scene) -> dict:
 
 
 def _camera(scene) -> dict:
-    return {"camera": scene.camera.record(1, 1)}  # the aspect ratio is a setting (width, height)
+    """camera, camera_motion (the aspect ratio is a setting: width, height)."""
+    moving = getattr(scene, "camera_motion", None)
+    return {"camera": scene.camera.record(1, 1),
+            "camera_motion": np.zeros((0, 4, 4)) if moving is None else np.asarray(moving, np.float64),
+            "motion_time": np.asarray(getattr(scene, "motion_time", (0.0, 1.0)), np.float64)}
 
 
 def _film_clamp(scene) -> dict:
@@ -153,7 +157,7 @@ SCENE_INPUTS: dict[str, Callable] = {
     "light_nodes": _lights,
     "spheres": _spheres, "sphere_material": _spheres, "n_spheres": _spheres,
     "materials": _materials,
-    "camera": _camera, "max_component": _film_clamp,
+    "camera": _camera, "camera_motion": _camera, "max_component": _film_clamp,
     "tri_uv": _textures, "textures": _textures, "tex_data": _textures,
     "tri_normal": _shading_normals,
     "tri_color": _vertex_colors,

@@ -234,6 +234,7 @@ class Wavefront:
             tri_material=tri_material, tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
+            camera_motion=const(camera_motion_record(scene)),
             light_nodes=const(light_nodes if len(light_nodes) else np.zeros(1, abi.LIGHT_NODE)),
             **self._texture_buffers(const), **self._shading_buffers(const, filled),
             **self._aov_buffers(scratch, W, P),
@@ -521,3 +522,13 @@ class Wavefront:
         self.counters_host[abi.COUNTER_NONFINITE] = nonfinite
         cl.enqueue_copy(queue, self.buffer("counters"), self.counters_host)
         self.n_active, self.n_free = 0, W
+
+
+def camera_motion_record(scene) -> np.ndarray:
+    """The abi.MOTION record of a moving camera's way (cl/render/path.h camera_moved), a 16-byte
+    dummy where the camera stays."""
+    if getattr(scene, "camera_motion", None) is None:
+        return np.zeros(16, np.uint8)
+    from ..accel.motion import Motion
+
+    return np.array([Motion(*scene.camera_motion).record(scene.motion_time)])

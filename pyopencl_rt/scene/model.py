@@ -409,8 +409,11 @@ class Scene:
     instances: list = field(default_factory=list)
     blas_groups: list = field(default_factory=list)
     # motion blur: each ray's time sample u in [0, 1) (uniform over the shutter) puts a moving
-    # instance at s = clamp(a + b u, 0, 1) of its way from to_world to to_world_end, (a, b) this
+    # instance at s = clamp(a + b u, 0, 1) of its way from to_world to to_world_end, (a, b) this;
+    # a moving camera: its frame's camera-to-world 4x4 matrices at the start and the end (the
+    # camera record is the start's; accel/motion.py interpolates), or None
     motion_time: tuple = (0.0, 1.0)
+    camera_motion: tuple | None = None
     # True: the corner normals are used as given, not each made unit length: their lengths weigh the
     # interpolation (which the kernels normalise), as an unevenly scaled instance's normals need
     normals_as_given: bool = False
@@ -496,6 +499,10 @@ class Scene:
             s.spheres = spheres.astype(np.float32)
         s.camera = dataclasses.replace(self.camera, eye=(0.0, 0.0, 0.0),
                                        look_at=tuple(np.asarray(self.camera.look_at, np.float64) - eye))
+        if self.camera_motion is not None:
+            shift = np.eye(4)
+            shift[:3, 3] = -eye
+            s.camera_motion = tuple(shift @ np.asarray(m, np.float64) for m in self.camera_motion)
         s.world_origin = tuple(float(x) for x in np.asarray(self.world_origin, np.float64) + eye)
         s.lights = [dataclasses.replace(lt, position=tuple(np.asarray(lt.position, np.float64) - eye))
                     if hasattr(lt, "position") else lt for lt in self.lights]

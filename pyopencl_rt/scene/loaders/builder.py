@@ -190,6 +190,7 @@ class SceneBuilder:
         self.lights: list = []
         self.environment: EnvMap | Environment | None = None
         self.camera: Camera | None = None
+        self.camera_motion = None  # Scene.camera_motion (in the file's world: mirrored at build)
         self.mirror = None
         self.settings = RenderSettings()
         # participating media (pyopencl_rt/scene/media.py): the media, interfaces by value, per face and
@@ -416,6 +417,9 @@ class SceneBuilder:
             scene.instances, scene.blas_groups = remap_instances(instances, blas, _finite_faces(vertices, faces)
                                                                  if self.faces else None)
         scene.motion_time = self.motion_time
+        if self.camera_motion is not None:  # the camera's frames move with the mirrored world: mirror M
+            scene.camera_motion = tuple((mirror if mirror is not None else np.eye(4)) @ np.asarray(m, np.float64)
+                                        for m in self.camera_motion)
         env = self.environment
         scene.environment = env.resample(mirror) if isinstance(env, EnvMap) else env
         if self.camera is None:

@@ -207,7 +207,11 @@ class _Importer(Transforms):
         # pbrt-v4 interpolates an instance's transform in its render space, the world moved so that
         # the camera is at the origin, and conjugated by that move: it turns about the camera
         # (accel/motion.py); without a camera yet, about the world's origin
-        pivot = np.linalg.inv(self.camera[1])[:3, 3] if self.camera is not None else None
+        pivot = None if self.camera is None else np.linalg.inv(self.camera[1])[:3, 3]
+        if self.b.camera_motion is not None:  # pbrt's render space: the camera at the middle time
+            from ...accel.motion import Motion
+
+            pivot = Motion(*self.b.camera_motion).at(0.5)[:3, 3]
         add_instance(self.b, self.b.groups[d.args[0]], self.state.ctm, d.pos,
                      matrix_end=self.end_ctm() if moving else None, what=f'ObjectInstance "{d.args[0]}"',
                      pivot=pivot)
@@ -217,11 +221,15 @@ class _Importer(Transforms):
     def d_Camera(self, d):
         if singular(self.state.ctm):
             raise error_at(d.pos, "Camera: the transform is singular (the camera needs its inverse)")
-        if self.moves():
-            raise error_at(d.pos, "Camera: a moving camera (ActiveTransform before Camera) is not supported; "
-                                  "moving shapes and object instances are")
+        end = self.end_ctm()
+        if self.moves():  # a moving camera (motion blur): its way from the start's frame to the end's
+            if singular(end):
+                raise error_at(d.pos, "Camera: the transform at the end time is singular")
+            if self.moving is None:
+                self.moving = d.pos
+            self.b.camera_motion = (np.linalg.inv(self.state.ctm), np.linalg.inv(end))
         self.camera = (d, self.state.ctm.copy(), self.state.outside)
-        self.coords["camera"] = (np.linalg.inv(self.state.ctm), np.linalg.inv(self.state.ctm))
+        self.coords["camera"] = (np.linalg.inv(self.state.ctm), np.linalg.inv(end))
 
     def _option(self, d):
         self.options[d.name] = d
