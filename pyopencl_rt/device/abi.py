@@ -491,8 +491,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _scene("sphere_light", "const", "int", "light per sphere, -1 if none"),
     _scene("materials", "const", "Material"),
     _scene("lights", "const", "Light"), _scene("light_nodes", "const", "LightNode", "the light BVH (LIGHT_TREE)"),
-    _scene("camera", "const", "Camera", "one record"),
-    _scene("camera_motion", "const", "Motion", "a moving camera's way (read with HAS_CAMERA_MOTION)"),
+    _scene("camera", "const", "Camera"), _scene("camera_motion", "const", "Motion", "its way (HAS_CAMERA_MOTION)"),
     # path state, structure of arrays indexed by wave slot
     _path("ray_o", "float", 3, "origin of the path's next ray"),
     _path("ray_d", "float", 3, "its direction"),
