@@ -123,6 +123,7 @@ typedef struct {
 
 RT_INLINE void camera_moved(__global const Motion *way, SampleKey k, pint live, pvec3 *o, pvec3 *d)
 {
+    if (way->time[1] == 0.0f) return; /* a camera that stays (every-feature programs compile this in) */
     const pfloat u = time_sample(k);
     float m0[12], w0[12];
     motion_matrices_at(way, 0.0f, m0, w0);

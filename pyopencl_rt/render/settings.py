@@ -158,7 +158,7 @@ FEATURES_ENV = "PYOPENCL_RT_KERNEL_FEATURES"
 # two-level BVH) and HAS_AOVS (a setting) stay the scene's.
 EVERY_FEATURE = ("HAS_SPHERES", "HAS_TEXTURES", "HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS",
                  "HAS_CUTOUTS", "HAS_ANISOTROPY", "HAS_DELTA_LIGHTS", "HAS_ENVIRONMENT", "HAS_INFINITE_LIGHTS",
-                 "HAS_TRIANGLES", "HAS_LIGHTS", "LIGHT_TREE")
+                 "HAS_TRIANGLES", "HAS_LIGHTS", "LIGHT_TREE", "HAS_CAMERA_MOTION")
 
 # The defines that "all" replaces by a run-time choice: every material type compiled in, and the
 # kernels' `sampler`, `max_component`, `light_tree` and `spectral_mis` arguments (cl/render/sampler.h,
@@ -254,6 +254,8 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
         defines["RT_NEE_NOINLINE"] = True  # cl/render/path.h: a shorter build of the biggest programs
         if "HAS_MEDIA" in defines:
             defines.update(SPECTRAL_MIS=True, SPECTRAL_MIS_RUNTIME=True)  # the kernels' spectral_mis
+        if "HAS_INSTANCES" in defines:
+            defines["HAS_MOTION"] = True  # an instance record's motion -1: it stays (cl/accel/instances.h)
     return defines
 
 

@@ -525,10 +525,11 @@ class Wavefront:
 
 
 def camera_motion_record(scene) -> np.ndarray:
-    """The abi.MOTION record of a moving camera's way (cl/render/path.h camera_moved), a 16-byte
-    dummy where the camera stays."""
+    """The abi.MOTION record of a moving camera's way (cl/render/path.h camera_moved); where the
+    camera stays, a record of zeros (its b 0: every-feature programs, which compile the camera's
+    motion in, leave the rays as they are)."""
     if getattr(scene, "camera_motion", None) is None:
-        return np.zeros(16, np.uint8)
+        return np.zeros(1, abi.MOTION)
     from ..accel.motion import Motion
 
     return np.array([Motion(*scene.camera_motion).record(scene.motion_time)])
