@@ -153,9 +153,10 @@ def check_run(spp=None, time_limit=None) -> None:
 # is the same bit for bit (tests/render/test_features.py); the test suite runs so.
 FEATURES_ENV = "PYOPENCL_RT_KERNEL_FEATURES"
 # The defines that only gate code the scene's data selects at run time (a material's type and
-# flags, a light's kind, n_spheres, n_lights, env_light, light_tree; the BVH of a scene without
-# triangles is one empty root).  HAS_MEDIA (the volumetric integrator), HAS_INSTANCES (the
-# two-level BVH) and HAS_AOVS (a setting) stay the scene's.
+# flags, a light's kind, n_spheres, n_lights, env_light, light_tree, the camera's motion record;
+# the BVH of a scene without triangles is one empty root).  HAS_MEDIA (the volumetric integrator),
+# HAS_INSTANCES (the two-level BVH, and with it HAS_MOTION: an instance record's motion) and
+# HAS_AOVS (a setting) stay the scene's.
 EVERY_FEATURE = ("HAS_SPHERES", "HAS_TEXTURES", "HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS",
                  "HAS_CUTOUTS", "HAS_ANISOTROPY", "HAS_DELTA_LIGHTS", "HAS_ENVIRONMENT", "HAS_INFINITE_LIGHTS",
                  "HAS_TRIANGLES", "HAS_LIGHTS", "LIGHT_TREE", "HAS_CAMERA_MOTION")
