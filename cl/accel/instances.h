@@ -45,7 +45,7 @@ RT_INLINE float3 xf_vector1(__global const float *m, float3 d)
             float mm_[12], mw_[12];                                                                 \
             motion_matrices(motions + (in)->motion, time, mm_, mw_);                                \
             oo = xf_point_private(mw_, o);                                                          \
-            od = xf_point_private(mw_, d) - (float3)(mw_[3], mw_[7], mw_[11]);                      \
+            od = xf_vector_private(mw_, d);                                                         \
         } else {                                                                                    \
             oo = xf_point1((in)->world_to_object, o);                                               \
             od = xf_vector1((in)->world_to_object, d);                                              \

@@ -57,6 +57,13 @@ RT_INLINE float3 xf_point_private(const float *m, float3 p)
                     m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]);
 }
 
+/* the 3x3 part of a 3x4 matrix (rows) times a vector */
+RT_INLINE float3 xf_vector_private(const float *m, float3 v)
+{
+    return (float3)(m[0] * v.x + m[1] * v.y + m[2] * v.z, m[4] * v.x + m[5] * v.y + m[6] * v.z,
+                    m[8] * v.x + m[9] * v.y + m[10] * v.z);
+}
+
 /* the same at a ray's time sample u */
 RT_INLINE void motion_matrices(__global const Motion *mo, float u, float *m, float *w)
 {

@@ -132,11 +132,7 @@ RT_INLINE void camera_moved(__global const Motion *way, SampleKey k, pint live, 
         float m[12], w[12];
         motion_matrices(way, PLANE(u, l), m, w);
         const float3 p = xf_point_private(m, xf_point_private(w0, pv3_lane(*o, l)));
-        float3 v = pv3_lane(*d, l);
-        v = (float3)(w0[0] * v.x + w0[1] * v.y + w0[2] * v.z, w0[4] * v.x + w0[5] * v.y + w0[6] * v.z,
-                     w0[8] * v.x + w0[9] * v.y + w0[10] * v.z);
-        v = (float3)(m[0] * v.x + m[1] * v.y + m[2] * v.z, m[4] * v.x + m[5] * v.y + m[6] * v.z,
-                     m[8] * v.x + m[9] * v.y + m[10] * v.z);
+        float3 v = xf_vector_private(m, xf_vector_private(w0, pv3_lane(*d, l)));
         v *= 1.0f / sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
         PLANE(o->x, l) = p.x; PLANE(o->y, l) = p.y; PLANE(o->z, l) = p.z;
         PLANE(d->x, l) = v.x; PLANE(d->y, l) = v.y; PLANE(d->z, l) = v.z;

@@ -6,7 +6,7 @@ a top-level BVH (TLAS, binary nodes) over the instances' world boxes; the instan
 faces keep their BVH (``world``).  ``triangles`` and ``prim_ids`` are those of every BVH one after
 another (the world's first), so the per-triangle buffers the renderer makes by ``prim_ids`` (materials,
 UVs, normals) serve the groups' triangles as they serve the world's.  Device memory grows with the
-instances (144 bytes a record, about 32 bytes of TLAS nodes), not with their triangles.
+instances (112 bytes a record, about 32 bytes of TLAS nodes), not with their triangles.
 """
 from __future__ import annotations
 
@@ -31,8 +31,7 @@ class TwoLevelBVH:
                  ends=None, motion_time=(0.0, 1.0), pivots=None):
         """``faces[:n_world]`` in world space; ``groups`` (first_face, n_faces) ranges of ``faces``
         in their groups' spaces; ``instances`` (4x4 to_world, group index) pairs; ``ends``: per
-        instance its to_world at the end of its motion (a translation away; None: it does not
-        move), ``motion_time`` Scene.motion_time, ``pivots`` each one's (pivot, world pivot) or None
+        instance its to_world at the end of its motion (None: it does not move), ``motion_time`` Scene.motion_time, ``pivots`` each one's (pivot, world pivot) or None
         (Instance.motion_pivot, motion_pivot_world)."""
         t0 = time.perf_counter()
         faces = np.asarray(faces)
@@ -53,7 +52,7 @@ class TwoLevelBVH:
         ends = [None] * len(instances) if ends is None else list(ends)
         pivots = [None] * len(instances) if pivots is None else list(pivots)
         # each moving instance's way (accel/motion.py), None where it stays
-        self.motion = [None if e is None else Motion(m, e, *((0.0, 0.0, 0.0), None) if c is None else c)
+        self.motion = [None if e is None else Motion(m, e, *(c or ()))
                        for e, c, (m, _) in zip(ends, pivots, instances)]
         self.motion_time = tuple(float(x) for x in motion_time)
         # a group without faces gets a zero box (its instances get no record below)

@@ -1,5 +1,5 @@
-"""Moving instances (motion blur): pbrt-v4's interpolation between two transforms, its bounds,
-and the records the kernels read (abi.MOTION; cl/accel/instances.h interpolates the same way).
+"""Moving instances and cameras (motion blur): pbrt-v4's interpolation between two transforms, its
+bounds, and the records the kernels read (abi.MOTION; cl/accel/motion.h interpolates the same way).
 
 A transform M is split as pbrt-v4 splits it, M = T R S: T its translation, R the rotation of
 M's 3x3 part's polar decomposition, S = R^-1 M (a stretch, symmetric up to rounding).  Between the
@@ -10,6 +10,8 @@ shorter arc; an instance is at s = clamp(a + b u, 0, 1) for a ray's time sample 
 from __future__ import annotations
 
 import numpy as np
+
+from ..device.motion_record import MOTION
 
 POLAR_ITERATIONS = 100  # pbrt-v4's limit; the iteration converges in a few steps for any invertible M
 POLAR_TOLERANCE = 1e-12  # on the largest change of an entry, relative to R's (unit) scale
@@ -102,14 +104,13 @@ class Motion:
         box = np.asarray(box, np.float64)
         bits = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)], bool)
         corners = np.where(bits, box[1], box[0])
-        at = np.array([corners @ self.at(s)[:3, :3].T + self.at(s)[:3, 3] for s in np.linspace(0, 1, steps + 1)])
+        ms = [self.at(s) for s in np.linspace(0, 1, steps + 1)]
+        at = np.array([corners @ m[:3, :3].T + m[:3, 3] for m in ms])
         step = np.linalg.norm(np.diff(at, axis=0), axis=2).max() if steps else 0.0
         return np.stack([at.min(axis=(0, 1)) - step, at.max(axis=(0, 1)) + step])
 
     def record(self, motion_time) -> np.ndarray:
         """The abi.MOTION record of this way, with Scene.motion_time (a, b)."""
-        from ..device.motion_record import MOTION
-
         r = np.zeros(1, MOTION)[0]
         r["t0"][:3], r["t1"][:3], r["q0"], r["q1"] = self.t0, self.t1, self.q0, self.q1
         r["s0"].reshape(3, 4)[:, :3], r["s1"].reshape(3, 4)[:, :3] = self.s0, self.s1

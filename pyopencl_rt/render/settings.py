@@ -221,7 +221,7 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
     if getattr(scene, "blas_groups", None):
         defines["HAS_INSTANCES"] = True  # the two-level BVH (cl/accel/instances.h): never in "all"
         if any(i.moves for i in scene.instances):
-            defines["HAS_MOTION"] = True  # moving instances (motion blur): never in "all" either
+            defines["HAS_MOTION"] = True  # moving instances (motion blur; "all" adds it with HAS_INSTANCES)
     if getattr(scene, "camera_motion", None) is not None:
         defines["HAS_CAMERA_MOTION"] = True  # a moving camera (cl/render/path.h camera_moved)
     defines.update(scene.material_defines())  # MATERIALS_SELECTED, HAS_MATERIAL_<TYPE>, HAS_TEXTURES

@@ -65,7 +65,7 @@ def instance_bounds(scene):
         faces = np.asarray(scene.faces[g.first_face:g.first_face + g.n_faces])
         if inst.moves and len(faces):
             p = v64[np.unique(faces)]
-            box = Motion(inst.to_world, inst.to_world_end, *(inst.pivots() or ((0.0, 0.0, 0.0), None))).bounds(
+            box = Motion(inst.to_world, inst.to_world_end, *(inst.pivots() or ())).bounds(
                 np.stack([p.min(axis=0), p.max(axis=0)]))
             lo, hi = np.minimum(lo, box[0]), np.maximum(hi, box[1])
     return (lo, hi) if np.isfinite(lo).all() else None

@@ -120,19 +120,26 @@ def film_settings(imp, film, st) -> None:
     imp.unused(film)
 
 
+def shutter(cam) -> tuple:
+    """(open, close) of the Camera directive ``cam`` (None: pbrt-v4's defaults, 0 and 1); a shutter
+    that does not open is an error, as in pbrt-v4."""
+    if cam is None:
+        return 0.0, 1.0
+    opened, closed = cam.params.float("shutteropen", 0.0), cam.params.float("shutterclose", 1.0)
+    if not closed - opened > 0:
+        raise error_at(cam.pos, f"Camera: shutteropen {opened:g} and shutterclose {closed:g}: the shutter "
+                                "does not open (as pbrt-v4, an error)")
+    return opened, closed
+
+
 def imaging_ratio(cam, film) -> float:
     """pbrt-v4's PixelSensor imaging ratio, exposure time x ISO / 100 (film.cpp), by which its RGB
     film scales what it records: the exposure time is the camera's shutterclose - shutteropen
     (defaults 1 and 0; scene.cpp).  pbrt-v4's film has no "exposuretime" (pbrt 5f7a606 stops at it:
     "unused parameter"), and neither has ours.  ``cam``: the Camera directive (or None), ``film``:
     the Film directive (or None)."""
-    exposure = 1.0
-    if cam is not None:
-        opened, closed = cam.params.float("shutteropen", 0.0), cam.params.float("shutterclose", 1.0)
-        exposure = closed - opened
-        if not exposure > 0:
-            raise error_at(cam.pos, f"Camera: shutteropen {opened:g} and shutterclose {closed:g}: the shutter "
-                                    "does not open (as pbrt-v4, an error)")
+    opened, closed = shutter(cam)
+    exposure = closed - opened
     if film is None:
         return exposure
     if "exposuretime" in film.params:

@@ -12,6 +12,7 @@ import numpy as np
 
 from .builder import error_at, rotate, scale, translate
 from .instancing import add_instance
+from .pbrt_film import shutter
 
 
 def singular(m) -> bool:
@@ -119,9 +120,7 @@ class Transforms:
         outside them."""
         if self.moving is None:
             return
-        cam = self.camera[0].params if self.camera is not None else None
-        opened = cam.float("shutteropen", 0.0) if cam is not None else 0.0
-        closed = cam.float("shutterclose", 1.0) if cam is not None else 1.0
+        opened, closed = shutter(self.camera[0] if self.camera is not None else None)
         start, end = self.transform_times
         if not end > start:
             raise error_at(self.moving, f"a moving shape needs TransformTimes with the end after the start (they are "
