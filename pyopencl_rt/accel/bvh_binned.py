@@ -51,6 +51,7 @@ import numpy as np
 from numba import njit
 
 from ..device import abi
+from ..device.host_memory import aligned_empty
 
 
 def _jit(inline="never"):
@@ -535,7 +536,7 @@ def build(V, F, max_leaf_size, bins, ct, ci, max_depth, median_depth, max_sah_le
             root_area = 2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
             sah = (ct * record_area + ci * leaf_area) / root_area if root_area > 0 else None
         del size, nbox      # the node table is in the records: free it before the triangles are made
-        tris = np.empty((T, 12), np.float32)
+        tris = aligned_empty((T, 12), np.float32)  # read in place by a CPU device (device/host_memory.py)
         _chunked(pool, threads, _gather_triangles, T, V, F, idx, tris)
     finally:
         if pool is not None:

@@ -59,6 +59,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..device import abi
+from ..device.host_memory import aligned_empty
 from .bvh import BVH, MAX_DEPTH
 
 STACK_SIZE = abi.WIDE_STACK_SIZE               # 4-wide: >= 3 * max_wide_depth(4) + 1 (validate_wide checks)
@@ -248,7 +249,7 @@ def _collapse(cchild, ccount, carea, width, max_depth):
                     raise AssertionError("wide BVH deeper than the binary depth bound")
                 n_nodes += 1
         head += 1
-    return slots[:n_nodes], depth[n_nodes - 1]
+    return slots[:n_nodes].copy(), depth[n_nodes - 1]  # a copy: the room for R nodes goes
 
 
 @_jit()
@@ -336,37 +337,43 @@ def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge:
         _merge_small_subtrees(cchild, ccount, clo, chi, merge)
 
     all_slots, depth = _collapse(cchild, ccount, carea, width, max_depth)
+    del carea
     n_nodes = len(all_slots)
     child, count, lane_tri = _leaf_layout(all_slots, cchild, ccount, T, packet_width, node_units, packet_units)
+    del cchild, ccount
     n_packets = len(lane_tri)
+    if n_nodes * node_units + n_packets * packet_units >= 2**31:
+        raise ValueError("wide BVH too large for 32-bit offsets")
+
+    # --- node records, then the binary child arrays go (before the blob is made: the peak memory
+    # of a scene of millions of triangles is here) ----------------------------------------------
+    nodes = np.zeros(n_nodes, node_dtype)
+    # each slot's box, (+inf, -inf) in an empty one
+    _node_boxes(all_slots, clo, chi, *(nodes[f"bmin_{c}"] for c in _COORDS),
+                *(nodes[f"bmax_{c}"] for c in _COORDS))
+    nodes["child"] = child
+    nodes["count"] = count
+    children_per_node = float((all_slots >= 0).sum() / max(n_nodes, 1))
+    del clo, chi, all_slots, child, count
+
     # the packets live at the tail of the device blob's buffer (device_blob writes the padded nodes
     # at its head), so that the blob is no second copy of them
-    storage = np.empty(n_nodes * node_dtype.itemsize + n_packets * packet_dtype.itemsize, np.uint8)
+    storage = aligned_empty(n_nodes * node_dtype.itemsize + n_packets * packet_dtype.itemsize, np.uint8)
     packets = storage[n_nodes * node_dtype.itemsize:].view(packet_dtype)
     raw = packets.view(np.float32).reshape(n_packets, 10, packet_width)
     # row 3 v + c of a packet: coordinate c of vertex v of each lane's triangle (NaN in empty lanes)
     _gather_packets(np.ascontiguousarray(bvh.triangles).view(np.float32).reshape(T, 12) if T else
                     np.zeros((1, 12), np.float32), lane_tri, raw)
     packets["tri"] = lane_tri
-
-    # --- node records -------------------------------------------------------------------
-    nodes = np.zeros(n_nodes, node_dtype)
-    # each slot's box, (+inf, -inf) in an empty one
-    _node_boxes(all_slots, clo, chi, *(nodes[f"bmin_{c}"] for c in _COORDS),
-                *(nodes[f"bmax_{c}"] for c in _COORDS))
-    if n_nodes * node_units + n_packets * packet_units >= 2**31:
-        raise ValueError("wide BVH too large for 32-bit offsets")
-    nodes["child"] = child
-    nodes["count"] = count
+    lane_fill = float((lane_tri >= 0).mean()) if n_packets else 0.0
+    del lane_tri
 
     depth = int(depth)
     wide = WideBVH(nodes=nodes, packets=packets, depth=depth, n_triangles=T, width=width, packet_width=packet_width,
                    storage=storage)
-    fill = lane_tri >= 0
     wide.stats = dict(
         width=width, packet_width=packet_width, merge=merge, nodes=n_nodes, packets=n_packets, depth=depth,
-        lane_fill=float(fill.mean()) if n_packets else 0.0,
-        children_per_node=float((all_slots >= 0).sum() / max(n_nodes, 1)),
+        lane_fill=lane_fill, children_per_node=children_per_node,
         bytes=int(nodes.nbytes + packets.nbytes),
         build_seconds=time.perf_counter() - t0,
     )

@@ -168,14 +168,24 @@ class Wavefront:
         build_stage.__exit__(None, None, None)
         self.timings["build_seconds"] = time.perf_counter() - t0
         from ..accel.device_bvh import node_buffer
+        from ..device.host_memory import aligned
 
         ctx = self.rt.context
         mf = cl.mem_flags
+        # a CPU device reads the host's arrays where they are (device/host_memory.py; the arrays
+        # are kept with the buffers); a GPU gets its own copy
+        on_host = bool(device.type & cl.device_type.CPU)
+        self._host_arrays = []
 
         def const(a):
             a = np.ascontiguousarray(a)
             if a.nbytes == 0:
                 a = np.zeros(16, np.uint8)
+            if on_host:
+                a = aligned(a)
+                a.setflags(write=False)  # the device's now: nothing on the host writes it
+                self._host_arrays.append(a)
+                return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a)
             return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
 
         def filled(shape, dtype, fill):

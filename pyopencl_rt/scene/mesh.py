@@ -125,7 +125,7 @@ def check_triangles(vertices, faces, name: str = "mesh") -> tuple[np.ndarray, np
         bad = int(np.count_nonzero((faces < 0) | (faces >= len(vertices))))
         raise MeshError(f"{name}: {bad} face indices out of range [0, {len(vertices)})")
     with np.errstate(over="ignore", invalid="ignore"):
-        v32 = vertices.astype(np.float32)
+        v32 = vertices.astype(np.float32, copy=False)  # float32 given: used as it is (nothing writes it)
     finite_vertex = np.isfinite(v32).all(axis=1)
     if not finite_vertex.all():
         bad_faces = ~finite_vertex[faces].all(axis=1) if faces.size else np.zeros(0, bool)

@@ -57,9 +57,10 @@ def _face_normals_and_cosines(v, f, n_out, cos_out):
     each corner's angle, clipped to [-1, 1] (NaN where an edge has no length)."""
     for i in prange(f.shape[0]):
         a, b, c = f[i, 0], f[i, 1], f[i, 2]
-        p0x, p0y, p0z = v[a, 0], v[a, 1], v[a, 2]
-        p1x, p1y, p1z = v[b, 0], v[b, 1], v[b, 2]
-        p2x, p2y, p2z = v[c, 0], v[c, 1], v[c, 2]
+        # float32 vertices widen exactly: the same double arithmetic as with a float64 copy
+        p0x, p0y, p0z = np.float64(v[a, 0]), np.float64(v[a, 1]), np.float64(v[a, 2])
+        p1x, p1y, p1z = np.float64(v[b, 0]), np.float64(v[b, 1]), np.float64(v[b, 2])
+        p2x, p2y, p2z = np.float64(v[c, 0]), np.float64(v[c, 1]), np.float64(v[c, 2])
         e1x, e1y, e1z = p1x - p0x, p1y - p0y, p1z - p0z
         e2x, e2y, e2z = p2x - p0x, p2y - p0y, p2z - p0z
         nx = e1y * e2z - e1z * e2y
@@ -112,12 +113,24 @@ def _gather_corners(rows, keys, out):
                 out[i, k, c] = np.float32(rows[j, c])
 
 
+def _as_float(a) -> np.ndarray:
+    """``a`` C-contiguous as float32 or float64 (as given; other types as float64)."""
+    a = np.asarray(a)
+    return np.ascontiguousarray(a if a.dtype in (np.float32, np.float64) else a.astype(np.float64))
+
+
+def _as_index(a) -> np.ndarray:
+    """``a`` C-contiguous as int32 or int64 (as given; other types as int64)."""
+    a = np.asarray(a)
+    return np.ascontiguousarray(a if a.dtype in (np.int32, np.int64) else a.astype(np.int64))
+
+
 def angle_weighted_normals(vertices, faces, keys=None) -> np.ndarray:
     """Per-corner (F, 3, 3) float32 vertex normals as Mitsuba 3 computes them for a mesh without
     any: see :func:`pyopencl_rt.scene.loaders.assembly.angle_weighted_normals`."""
-    v = np.ascontiguousarray(vertices, np.float64).reshape(-1, 3)
-    f = np.ascontiguousarray(faces, np.int64).reshape(-1, 3)
-    keys = f if keys is None else np.ascontiguousarray(keys, np.int64).reshape(-1, 3)
+    v = _as_float(vertices).reshape(-1, 3)  # float32 or float64 as given: no copy of a mesh file's
+    f = _as_index(faces).reshape(-1, 3)
+    keys = f if keys is None else _as_index(keys).reshape(-1, 3)
     if len(f) == 0:
         return np.zeros((0, 3, 3), np.float32)
     n = np.empty((len(f), 3))
@@ -179,7 +192,7 @@ def flat_where_planar(vertices, faces, normals, tolerance: float = 1e-5, inplace
         n = normals.reshape(-1, 3, 3)
     else:
         n = np.array(normals, np.float32).reshape(-1, 3, 3)
-    f = np.ascontiguousarray(faces, np.int64).reshape(-1, 3)
+    f = _as_index(faces).reshape(-1, 3)
     v = np.ascontiguousarray(vertices)
     if v.dtype not in (np.float32, np.float64):
         v = v.astype(np.float64)

@@ -114,6 +114,18 @@ def test_angle_weighted_normals_match_reference(mesh):
 
 
 @pytest.mark.parametrize("mesh", sorted(MESHES))
+def test_angle_weighted_normals_of_a_mesh_file_as_read(mesh):
+    """A mesh file's float32 vertices and int32 faces, passed as read (no float64 / int64 copy):
+    the reference's normals of the same values widened."""
+    v, f = MESHES[mesh]()
+    v32 = v.astype(np.float32)
+    _same(angle_weighted_normals(v32, f.astype(np.int32)), ref_angle_weighted_normals(v32.astype(np.float64), f))
+    keys = (np.arange(f.size).reshape(-1, 3) // 2).astype(np.int32)
+    _same(angle_weighted_normals(v32, f.astype(np.int32), keys),
+          ref_angle_weighted_normals(v32.astype(np.float64), f, keys.astype(np.int64)))
+
+
+@pytest.mark.parametrize("mesh", sorted(MESHES))
 def test_flat_where_planar_matches_reference(mesh):
     v, f = MESHES[mesh]()
     v32 = v.astype(np.float32)

@@ -55,7 +55,7 @@ def stacked_per_face(parts, faces, shape, fill) -> np.ndarray:
 
 def checked_triangles(vertices, faces, face_materials, name):
     """check_triangles, keeping face_materials aligned with the faces it may drop."""
-    faces = np.asarray(faces, np.int64)
+    faces = np.asarray(faces)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         v32, f32 = check_triangles(vertices, faces, name)
@@ -73,7 +73,7 @@ def triangle_scene(vertices, faces, face_materials, materials, name, uvs=None, n
     none), per-corner UVs, shading normals and colours, and medium interfaces (per face, or None);
     no camera yet.  ``own_normals``: ``normals`` is the caller's to give away (it may be changed
     in place and kept, not copied)."""
-    keep = _finite_faces(vertices, np.asarray(faces, np.int64))
+    keep = _finite_faces(vertices, faces)
     uvs = kept_per_face(uvs, keep, np.float32, (3, 2))
     normals = kept_per_face(normals, keep, np.float32, (3, 3), copy=not own_normals)  # ours: made flat in place
     colors = kept_per_face(colors, keep, np.float32, (3, 3))

@@ -272,8 +272,13 @@ class SceneBuilder:
         in world space, on the front side.  ``interface``: the medium interface of every face (its
         sides stay with the faces' fronts: flipping them swaps what is inside).  ``emitter``: the
         index (new_emitter) of the emitter the faces make up, -1: none (each emissive face its own)."""
-        v = np.asarray(vertices, np.float64).reshape(-1, 3)
-        f = np.asarray(faces, np.int64).reshape(-1, 3)
+        # float32 vertices and int32 faces (a mesh file's) stay as they are: a float64 / int64 copy of
+        # a mesh of millions of triangles costs a second and 300 MB (issue 35); the transform and
+        # the normals compute in float64 either way, and float32 -> float64 is exact
+        v = np.asarray(vertices)
+        v = (v if v.dtype in (np.float32, np.float64) else v.astype(np.float64)).reshape(-1, 3)
+        f = np.asarray(faces)
+        f = (f if f.dtype in (np.int32, np.int64) else f.astype(np.int64)).reshape(-1, 3)
         uv = None if uvs is None else np.asarray(uvs, np.float32).reshape(-1, 3, 2)
         nrm = None if normals is None else np.asarray(normals, np.float32).reshape(-1, 3, 3)
         col = None if colors is None else np.asarray(colors, np.float32).reshape(-1, 3, 3)
@@ -343,7 +348,9 @@ class SceneBuilder:
         blas = place(self)  # two-level groups: their faces last, in their own space
         normals = colors = None
         if self.faces:
-            vertices = np.concatenate(self.vertices)
+            with np.errstate(over="ignore", invalid="ignore"):  # beyond float32: check_triangles' warning
+                # in float32 at once, no float64 copy of the whole, unless the mirror moves them first
+                vertices = np.concatenate(self.vertices, dtype=np.float32 if mirror is None else np.float64)
             faces = np.concatenate(self.faces)
             uvs = stacked_per_face(self.uvs, self.faces, (3, 2), 0.0)
             face_materials = np.concatenate(self.face_materials)

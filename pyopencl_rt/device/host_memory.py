@@ -1,0 +1,35 @@
+"""Host arrays that a CPU device reads where they are.
+
+On a CPU device (PoCL, Intel's CPU runtime) a buffer made with CL_MEM_USE_HOST_PTR is the host
+array itself: no second copy of a scene of millions of triangles and no time spent copying it
+(issue 35).  The kernels' vector loads assume their type's alignment (a float8 is 32 bytes, and
+LLVM emits aligned AVX loads for it), which PoCL's own allocations give and numpy's do not (a large
+numpy array starts 16 bytes into a page), so such an array must start on an aligned address:
+:data:`ALIGN` is a page, which also lets Intel's runtime use it without a copy.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+ALIGN = 4096
+
+__all__ = ["ALIGN", "aligned_empty", "aligned"]
+
+
+def aligned_empty(shape, dtype) -> np.ndarray:
+    """np.empty(shape, dtype) starting on an :data:`ALIGN`-byte boundary."""
+    dtype = np.dtype(dtype)
+    nbytes = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+    raw = np.empty(nbytes + ALIGN, np.uint8)
+    start = -raw.ctypes.data % ALIGN
+    return raw[start:start + nbytes].view(dtype).reshape(shape)
+
+
+def aligned(a) -> np.ndarray:
+    """``a`` C-contiguous on an :data:`ALIGN`-byte boundary: itself where it is, else a copy."""
+    a = np.ascontiguousarray(a)
+    if a.ctypes.data % ALIGN == 0:
+        return a
+    out = aligned_empty(a.shape, a.dtype)
+    out[...] = a
+    return out
