@@ -129,12 +129,12 @@ RT_INLINE void light_sample_set(LightSample *ls, pint sel, pvec3 p, pvec3 err, p
 /* -- area lights -------------------------------------------------------------------------------- */
 
 /* The triangle lights of the lanes in `sel` (`row`: each lane's light record, in floats) */
-RT_INLINE pint light_sample_triangle(__global const float4 *tris, __global const Material *materials,
+RT_INLINE pint light_sample_triangle(MESH_PARAMS, __global const Material *materials,
                                      __global const Light *lights, pint row, pint sel, pvec3 ref, pfloat ux,
                                      pfloat uy, LightSample *ls)
 {
     const pint i = sel ? LIGHT_I(lights, row, prim) : PINT(0);
-    const pvec3 p0 = tri_vertex(tris, i, 0), p1 = tri_vertex(tris, i, 1), p2 = tri_vertex(tris, i, 2);
+    const pvec3 p0 = tri_vertex(MESH_ARGS, i, 0), p1 = tri_vertex(MESH_ARGS, i, 1), p2 = tri_vertex(MESH_ARGS, i, 2);
     const MaterialLanes m = material_lanes(materials, sel ? LIGHT_I(lights, row, material) : PINT(0));
     pfloat b1, b2;
     sample_triangle_barycentrics(ux, uy, &b1, &b2);
@@ -201,7 +201,7 @@ RT_INLINE pint light_sample_sphere(__global const Sphere *spheres, __global cons
 /* A sample of the area light (triangle or sphere) lights[light_index] of each lane in `active`
  * (light_index valid in every lane): the mask of the lanes that got one, ls filled in there (and
  * set in every lane: far 0, delta 0, the rest 0 in the lanes of other kinds). */
-RT_INLINE pint light_sample(__global const float4 *tris, __global const Sphere *spheres,
+RT_INLINE pint light_sample(MESH_PARAMS, __global const Sphere *spheres,
                             __global const Material *materials, __global const Light *lights, pint light_index,
                             pint active, pvec3 ref, pfloat ux, pfloat uy, LightSample *ls)
 {
@@ -213,7 +213,7 @@ RT_INLINE pint light_sample(__global const float4 *tris, __global const Sphere *
     ls->tex = PINT(-1);
     pint got = PINT(0);
     const pint tri = active & (kind == LIGHT_TRIANGLE);
-    if (pany(tri)) got = got | light_sample_triangle(tris, materials, lights, row, tri, ref, ux, uy, ls);
+    if (pany(tri)) got = got | light_sample_triangle(MESH_ARGS, materials, lights, row, tri, ref, ux, uy, ls);
     const pint sphere = active & (kind == LIGHT_SPHERE);
     if (pany(sphere)) got = got | light_sample_sphere(spheres, materials, lights, row, sphere, ref, ux, uy, ls);
     return got;
@@ -292,11 +292,11 @@ RT_INLINE pint light_sample_cone(__global const Light *lights, pint row, pint sp
 #endif
 
 /* Directional area lights (the lanes of `sel`): ref projected along the triangle's -n onto it. */
-RT_INLINE pint light_sample_directional_area(__global const float4 *tris, __global const Light *lights, pint row,
+RT_INLINE pint light_sample_directional_area(MESH_PARAMS, __global const Light *lights, pint row,
                                              pint sel, pvec3 ref, LightSample *ls)
 {
     const pint i = sel ? LIGHT_I(lights, row, prim) : PINT(0);
-    const pvec3 p0 = tri_vertex(tris, i, 0), p1 = tri_vertex(tris, i, 1), p2 = tri_vertex(tris, i, 2);
+    const pvec3 p0 = tri_vertex(MESH_ARGS, i, 0), p1 = tri_vertex(MESH_ARGS, i, 1), p2 = tri_vertex(MESH_ARGS, i, 2);
     const pvec3 e1 = pv3_sub(p1, p0), e2 = pv3_sub(p2, p0), to_ref = pv3_sub(ref, p0);
     const pvec3 n = pv3_normalize(pv3_cross(e1, e2), sel);
     const pfloat h = pv3_dot(to_ref, n); /* ref's height above the plane, on the emitting side */
@@ -466,12 +466,12 @@ RT_INLINE pvec3 env_sample(__global const Light *lt, __global const float *env_m
  * lane; ref, ux, uy finite in the others): the area lights (light_sample), and point, directional
  * and environment lights where compiled in.  Returns the mask of the lanes that got a sample, ls
  * filled in there (ls->far and ls->delta too: 0 for area lights). */
-RT_INLINE pint light_sample_all(__global const float4 *tris, __global const Sphere *spheres,
+RT_INLINE pint light_sample_all(MESH_PARAMS, __global const Sphere *spheres,
                                 __global const Material *materials, __global const float *env_map,
                                 __global const float *env_cdf, __global const Light *lights, pint light_index,
                                 pint active, pvec3 ref, pfloat ux, pfloat uy, LightSample *ls)
 {
-    pint got = light_sample(tris, spheres, materials, lights, light_index, active, ref, ux, uy, ls);
+    pint got = light_sample(MESH_ARGS, spheres, materials, lights, light_index, active, ref, ux, uy, ls);
 #if defined(HAS_DELTA_LIGHTS) || defined(HAS_ENVIRONMENT)
     const pint row = light_index * STRIDE_INDEX(Light);
     const pint kind = LIGHT_I(lights, row, kind);
@@ -490,7 +490,7 @@ RT_INLINE pint light_sample_all(__global const float4 *tris, __global const Sphe
     if (pany(spot | proj)) got = got | light_sample_cone(lights, row, spot, proj, ref, ls);
     const pint beam = active & (kind == LIGHT_DIRECTIONAL_AREA);
     if (pany(beam)) {
-        got = got | light_sample_directional_area(tris, lights, row, beam, ref, ls);
+        got = got | light_sample_directional_area(MESH_ARGS, lights, row, beam, ref, ls);
         ls->delta = ls->delta | beam;
     }
 #else

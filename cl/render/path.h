@@ -90,7 +90,7 @@ typedef struct {
 } ShadowRay;
 
 #define PATH_PARAMS                                                                                   \
-    __global const float4 *tris, __global const Sphere *spheres, __global const int *tri_material,   \
+    MESH_PARAMS, __global const Sphere *spheres, __global const int *tri_material,                    \
     __global const int *tri_light, __global const int *sphere_material,                              \
     __global const int *sphere_light, __global const Material *materials,                            \
     __global const Light *lights, __global const LightNode *light_nodes, const int n_lights,         \
@@ -100,7 +100,7 @@ typedef struct {
     __global const float4 *tex_data, __global const float *tri_normal, __global const float *tri_color, \
     __global float *aov_path, const int max_depth, const int rr_depth, const int integrator PATH_INSTANCES
 #define PATH_ARGS                                                                                     \
-    tris, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,          \
+    MESH_ARGS, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,     \
     light_nodes, n_lights, light_tree, env_map, env_cdf, tri_uv, textures, tex_data, tri_normal, tri_color, aov_path, max_depth, \
     rr_depth, integrator PATH_INSTANCES_ARGS
 #if defined(HAS_INSTANCES) && defined(HAS_MOTION)
@@ -331,7 +331,7 @@ pint nee_light_sample(PATH_PARAMS, SampleKey key, puint dim, pint active, pvec3 
         }
     }
     pint sampled = active & (*pick_pmf > 0.0f);
-    sampled &= light_sample_all(tris, spheres, materials, env_map, env_cdf, lights, li, sampled, ref, ulx, uly, ls);
+    sampled &= light_sample_all(MESH_ARGS, spheres, materials, env_map, env_cdf, lights, li, sampled, ref, ulx, uly, ls);
 #ifdef HAS_TEXTURES
     texture_light_emission(tri_uv, textures, tex_data, materials, lights, li, sampled, ulx, uly, ls);
 #endif
@@ -362,8 +362,8 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     prim = hit ? prim : PINT(ANY_PRIM);
     const pvec3 o = s->o, d = s->d;
     pvec3 p_err;
-    pvec3 p = hit_point(tris, spheres, prim, o, d, t, u, v, &p_err);
-    pvec3 ng = hit_normal(tris, spheres, prim, p, hit);
+    pvec3 p = hit_point(MESH_ARGS, spheres, prim, o, d, t, u, v, &p_err);
+    pvec3 ng = hit_normal(MESH_ARGS, spheres, prim, p, hit);
     const pvec3 wo = pv3_neg(d);
 #ifdef HAS_INSTANCES
     /* a hit in an instance was found in its group's space: p (its error bound grown) and ng move
@@ -396,7 +396,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     MaterialLanes m = material_lanes(materials, mat_index);
     mix_keep_top(materials, tri_uv, textures, tex_data, top_index, mat_index, prim, u, v, &m);
     /* a mix of two materials that are not mixes: the other one, evaluated beside the picked one */
-    const MixOther mo = mix_other(tris, tri_normal, materials, tri_uv, textures, tex_data, tri_color, hit, prim, u, v,
+    const MixOther mo = mix_other(MESH_ARGS, tri_normal, materials, tri_uv, textures, tex_data, tri_color, hit, prim, u, v,
                                   p, ng, n, front, wo, mix_index, mix_w);
 #else
     MaterialLanes m = material_lanes(materials, mat_index);
@@ -410,7 +410,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     /* the BSDF's frame: the shading normal (interpolated, normal- or bump-mapped) on wo's side,
      * or n (cl/scene/shading.h) */
 #ifdef HAS_INSTANCES
-    ShadingLanes sh = shading_lanes(tris, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit, prim, u,
+    ShadingLanes sh = shading_lanes(MESH_ARGS, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit, prim, u,
                                     v, pv3_sel(ng, ng_obj, in_inst),
                                     pv3_sel(n, pv3_sel(pv3_neg(ng_obj), ng_obj, front), in_inst), front,
                                     pv3_sel(wo, wo_obj, in_inst), hit & ((m.flags & MATERIAL_FLAG_ANISOTROPIC) != 0));
@@ -422,7 +422,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
 #endif
     }
 #else
-    const ShadingLanes sh = shading_lanes(tris, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit,
+    const ShadingLanes sh = shading_lanes(MESH_ARGS, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit,
                                           prim, u, v, ng, n, front, wo,
                                           hit & ((m.flags & MATERIAL_FLAG_ANISOTROPIC) != 0));
 #endif

@@ -148,7 +148,7 @@ RT_INLINE pvec3 sheet_normal(__global const float *tri_normal, pint live, pint p
  * `medium`: through media and null surfaces (crossing into the medium behind each), 0 where another
  * surface (or more than MAX_NULL_CROSSINGS null ones) blocks it.  r: the path's ratios (mean 1); the
  * result is the spectral-MIS estimate of the transmittance given them. */
-RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global const float4 *tris,
+RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global const float4 *tris, MESH_PARAMS,
                                      __global const float *tri_normal,
                                      __global const Sphere *spheres, int n_spheres, __global const int *tri_material,
                                      __global const int *sphere_material, __global const Material *materials,
@@ -180,9 +180,9 @@ RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global con
 #ifdef HAS_MATERIAL_DIELECTRIC
         {
             pvec3 p_err;
-            const pvec3 ph = hit_point(tris, spheres, at, o, seg, th, u, v, &p_err);
+            const pvec3 ph = hit_point(MESH_ARGS, spheres, at, o, seg, th, u, v, &p_err);
             pint thin;
-            const pvec3 sn = sheet_normal(tri_normal, live, at, u, v, hit_normal(tris, spheres, at, ph, live));
+            const pvec3 sn = sheet_normal(tri_normal, live, at, u, v, hit_normal(MESH_ARGS, spheres, at, ph, live));
             const pfloat tr = thin_sheet(tri_material, sphere_material, materials, at, live & pnot(null), sn, seg, &thin);
             T = pv3_sel(T, pv3_scale(T, tr), thin);
             null |= thin;
@@ -193,8 +193,8 @@ RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global con
         live = last ? PINT(0) : null;
         if (!pany(live)) break;
         pvec3 p_err;
-        const pvec3 p = hit_point(tris, spheres, at, o, seg, th, u, v, &p_err);
-        const pvec3 ng = hit_normal(tris, spheres, at, p, live);
+        const pvec3 p = hit_point(MESH_ARGS, spheres, at, o, seg, th, u, v, &p_err);
+        const pvec3 ng = hit_normal(MESH_ARGS, spheres, at, p, live);
         pint unused;
         const pint next = medium_after_crossing(medium_interfaces, ii, ng, seg, medium, &unused);
         medium = live ? next : medium;
@@ -249,8 +249,8 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
 #endif
     if (pany(boundary)) {
         pvec3 p_err;
-        const pvec3 p = hit_point(tris, spheres, at, s->o, s->d, t, u, v, &p_err);
-        *ng = hit_normal(tris, spheres, at, p, boundary);
+        const pvec3 p = hit_point(MESH_ARGS, spheres, at, s->o, s->d, t, u, v, &p_err);
+        *ng = hit_normal(MESH_ARGS, spheres, at, p, boundary);
         pint null;
         const pint next = medium_after_crossing(medium_interfaces, *iface, *ng, s->d, s->medium, &null);
         null &= boundary;

@@ -323,13 +323,17 @@ RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const floa
  * Spheres re-project o + t*d onto the surface (pbrt-v4, 6.8.5). */
 #define HIT_GAMMA5 2.98023259e-07f /* 5 * 2^-24 / (1 - 5 * 2^-24), rounded up */
 
-/* Gathers of the lanes' primitives (every index valid): vertex k of triangle prim (tris: three
- * float4 a triangle), and a sphere's centre and radius. */
-RT_INLINE pvec3 tri_vertex(__global const float4 *tris, pint prim, int k)
+/* The mesh that shading reads (the BVH keeps its own copies of the triangles for traversal: tris
+ * in the binary layout, the packets of the wide ones): the scene's vertices, 3 floats each, and
+ * each reordered triangle's three vertex indices. */
+#define MESH_PARAMS __global const float *vertices, __global const int *tri_faces
+#define MESH_ARGS vertices, tri_faces
+
+/* Gathers of the lanes' primitives (every index valid): vertex k of triangle prim, and a sphere's
+ * centre and radius. */
+RT_INLINE pvec3 tri_vertex(MESH_PARAMS, pint prim, int k)
 {
-    __global const float *f = (__global const float *)tris;
-    const pint i = prim * 12 + 4 * k;
-    return pv3_gather(f, i);
+    return pv3_gather(vertices, pgather_int(tri_faces, prim * 3 + k) * 3);
 }
 
 RT_INLINE pvec3 sphere_center(__global const Sphere *spheres, pint s)
@@ -345,7 +349,7 @@ RT_INLINE pfloat sphere_radius(__global const Sphere *spheres, pint s)
 }
 
 /* Per lane: triangles (prim >= 0) and (HAS_SPHERES) spheres; lanes of neither (PRIM_MISS) get 0. */
-RT_INLINE pvec3 hit_point(__global const float4 *tris, __global const Sphere *spheres, pint prim,
+RT_INLINE pvec3 hit_point(MESH_PARAMS, __global const Sphere *spheres, pint prim,
                           pvec3 o, pvec3 d, pfloat t, pfloat u, pfloat v, pvec3 *err)
 {
     pvec3 p = pv3_zero();
@@ -353,7 +357,7 @@ RT_INLINE pvec3 hit_point(__global const float4 *tris, __global const Sphere *sp
     const pint tri = prim >= 0;
     if (pany(tri)) {
         const pint i = tri ? prim : PINT(0);
-        p = triangle_point(tri_vertex(tris, i, 0), tri_vertex(tris, i, 1), tri_vertex(tris, i, 2), u, v, err);
+        p = triangle_point(tri_vertex(MESH_ARGS, i, 0), tri_vertex(MESH_ARGS, i, 1), tri_vertex(MESH_ARGS, i, 2), u, v, err);
     }
 #ifdef HAS_SPHERES
     const pint sphere = IS_SPHERE(prim);
@@ -371,14 +375,14 @@ RT_INLINE pvec3 hit_point(__global const float4 *tris, __global const Sphere *sp
 
 /* Unit geometric normal at a hit (triangles: (v1-v0)x(v2-v0); spheres: outward), per lane (`live`:
  * the lanes whose normal counts, for pv3_normalize's fallback; lanes of neither kind get 0). */
-RT_INLINE pvec3 hit_normal(__global const float4 *tris, __global const Sphere *spheres, pint prim, pvec3 p, pint live)
+RT_INLINE pvec3 hit_normal(MESH_PARAMS, __global const Sphere *spheres, pint prim, pvec3 p, pint live)
 {
     pvec3 n = pv3_zero();
     const pint tri = prim >= 0;
     if (pany(tri)) {
         const pint i = tri ? prim : PINT(0);
-        const pvec3 p0 = tri_vertex(tris, i, 0);
-        n = pv3_normalize(pv3_cross(pv3_sub(tri_vertex(tris, i, 1), p0), pv3_sub(tri_vertex(tris, i, 2), p0)), live & tri);
+        const pvec3 p0 = tri_vertex(MESH_ARGS, i, 0);
+        n = pv3_normalize(pv3_cross(pv3_sub(tri_vertex(MESH_ARGS, i, 1), p0), pv3_sub(tri_vertex(MESH_ARGS, i, 2), p0)), live & tri);
     }
 #ifdef HAS_SPHERES
     const pint sphere = IS_SPHERE(prim);

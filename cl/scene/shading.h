@@ -125,15 +125,14 @@ RT_INLINE void vertex_color_material(__global const float *tri_color, pint hit, 
 /* dp/du and dp/dv of the lanes' triangles (prim valid in every lane) from their vertices and UVs
  * (Mitsuba's Mesh::compute_surface_interaction), with the edge v1 - v0 (*dp0) and the UVs'
  * determinant (*det) for the callers' fallbacks where the parameterisation is degenerate. */
-RT_INLINE void triangle_uv_derivatives(__global const float4 *tris, __global const float2 *tri_uv, pint prim,
+RT_INLINE void triangle_uv_derivatives(MESH_PARAMS, __global const float2 *tri_uv, pint prim,
                                        pvec3 *dpdu, pvec3 *dpdv, pvec3 *dp0, pfloat *det)
 {
-    __global const float *P = (__global const float *)tris;
     __global const float *T = (__global const float *)tri_uv;
-    const pint i = prim * 12, j = prim * 6;
-    const pvec3 p0 = pv3_gather(P, i);
-    const pvec3 dp1 = pv3_sub(pv3_gather(P, i + 8), p0);
-    *dp0 = pv3_sub(pv3_gather(P, i + 4), p0);
+    const pint j = prim * 6;
+    const pvec3 p0 = tri_vertex(MESH_ARGS, prim, 0);
+    const pvec3 dp1 = pv3_sub(tri_vertex(MESH_ARGS, prim, 2), p0);
+    *dp0 = pv3_sub(tri_vertex(MESH_ARGS, prim, 1), p0);
     const pfloat u0 = pgather(T, j), v0 = pgather(T, j + 1);
     const pfloat du0 = pgather(T, j + 2) - u0, dv0 = pgather(T, j + 3) - v0;
     const pfloat du1 = pgather(T, j + 4) - u0, dv1 = pgather(T, j + 5) - v0;
@@ -149,12 +148,12 @@ RT_INLINE pint pv3_isfinite(pvec3 a) { return pisfinite(a.x) & pisfinite(a.y) & 
 
 /* dp/du and dp/dv for the maps; a degenerate parameterisation: the basis around ng (make_onb,
  * Mitsuba's coordinate_system). */
-RT_INLINE void triangle_dpduv(__global const float4 *tris, __global const float2 *tri_uv, pint prim, pvec3 ng,
+RT_INLINE void triangle_dpduv(MESH_PARAMS, __global const float2 *tri_uv, pint prim, pvec3 ng,
                               pvec3 *dpdu, pvec3 *dpdv)
 {
     pvec3 du, dv, dp0;
     pfloat det;
-    triangle_uv_derivatives(tris, tri_uv, prim, &du, &dv, &dp0, &det);
+    triangle_uv_derivatives(MESH_ARGS, tri_uv, prim, &du, &dv, &dp0, &det);
     make_onb(ng, dpdu, dpdv);
     const pint ok = (det != 0.0f) & pisfinite(1.0f / det) & pv3_isfinite(du) & pv3_isfinite(dv);
     *dpdu = pv3_sel(*dpdu, du, ok);
@@ -166,7 +165,7 @@ RT_INLINE void triangle_dpduv(__global const float4 *tris, __global const float2
  * viewer at wo; *a2: the shadowing term's alpha^2 (0 without it); each texture looked up over the
  * lanes that read it.  Returns the lanes with a direction (a zero texel gives none: the lane
  * keeps N). */
-RT_INLINE pint map_normal_lanes(__global const float4 *tris, __global const float2 *tri_uv,
+RT_INLINE pint map_normal_lanes(MESH_PARAMS, __global const float2 *tri_uv,
                                 __global const Texture *textures, __global const float4 *tex_data,
                                 __global const Material *materials, pint mat_index, pint tex_normal, pint flags,
                                 pint mapped, pint prim, pfloat u, pfloat v, pvec3 N, pvec3 ng, pvec3 wo, pvec3 *tilt,
@@ -176,7 +175,7 @@ RT_INLINE pint map_normal_lanes(__global const float4 *tris, __global const floa
                                  mat_index * STRIDE_INDEX(Material) + FIELD_INDEX(Material, normal_scale));
     const pint safe_prim = mapped ? prim : PINT(0);
     pvec3 dpdu, dpdv, S, S0, B;
-    triangle_dpduv(tris, tri_uv, safe_prim, ng, &dpdu, &dpdv);
+    triangle_dpduv(MESH_ARGS, tri_uv, safe_prim, ng, &dpdu, &dpdv);
     S = pv3_normalize(pv3_sub(dpdu, pv3_scale(N, pv3_dot(N, dpdu))), mapped);
     make_onb(N, &S0, &B); /* where dp/du lies along N */
     S = pv3_sel(S0, S, pv3_isfinite(S));
@@ -224,11 +223,11 @@ RT_INLINE pint map_normal_lanes(__global const float4 *tris, __global const floa
 #ifdef HAS_ANISOTROPY
 /* dp/du of the lanes' triangles (prim valid in every lane) from their vertices and UVs; the edge
  * v1 - v0 where the UVs give none (all UVs equal: a mesh without them) */
-RT_INLINE pvec3 triangle_dpdu(__global const float4 *tris, __global const float2 *tri_uv, pint prim)
+RT_INLINE pvec3 triangle_dpdu(MESH_PARAMS, __global const float2 *tri_uv, pint prim)
 {
     pvec3 dpdu, dpdv, dp0;
     pfloat det;
-    triangle_uv_derivatives(tris, tri_uv, prim, &dpdu, &dpdv, &dp0, &det);
+    triangle_uv_derivatives(MESH_ARGS, tri_uv, prim, &dpdu, &dpdv, &dp0, &det);
     const pint ok = (det != 0.0f) & pisfinite(dpdu.x + dpdu.y + dpdu.z);
     return pv3_sel(dp0, dpdu, ok);
 }
@@ -252,7 +251,7 @@ RT_INLINE pvec3 interpolated_normal(__global const float *tri_normal, pint tri, 
 }
 #endif
 
-RT_INLINE ShadingLanes shading_lanes(__global const float4 *tris, __global const float *tri_normal,
+RT_INLINE ShadingLanes shading_lanes(MESH_PARAMS, __global const float *tri_normal,
                                      __global const float2 *tri_uv, __global const Texture *textures,
                                      __global const float4 *tex_data, __global const Material *materials,
                                      pint mat_index, pint hit, pint prim, pfloat u, pfloat v, pvec3 ng, pvec3 n,
@@ -288,7 +287,7 @@ RT_INLINE ShadingLanes shading_lanes(__global const float4 *tris, __global const
         pfloat a2;
         const pint flags = pgather_int((__global const int *)materials,
                                        mat_index * STRIDE_INDEX(Material) + FIELD_INDEX(Material, flags));
-        const pint ok = map_normal_lanes(tris, tri_uv, textures, tex_data, materials, mat_index, tex_normal, flags,
+        const pint ok = map_normal_lanes(MESH_ARGS, tri_uv, textures, tex_data, materials, mat_index, tex_normal, flags,
                                          mapped, prim, u, v, ns, ng, wo, &tilt, &a2);
         sh.tilt = pv3_sel(sh.tilt, tilt, ok);
         sh.n = pv3_sel(sh.n, pv3_sel(pv3_neg(tilt), tilt, pv3_dot(wo, tilt) >= 0.0f), ok);
@@ -302,7 +301,7 @@ RT_INLINE ShadingLanes shading_lanes(__global const float4 *tris, __global const
     if (pany(aniso)) {
         const pint tri = aniso & pnot(IS_SPHERE(prim));
         pvec3 t = pv3(-ng.y, ng.x, PFLOAT(0.0f)); /* a sphere's dp/du */
-        if (pany(tri)) t = pv3_sel(t, triangle_dpdu(tris, tri_uv, tri ? prim : PINT(0)), tri);
+        if (pany(tri)) t = pv3_sel(t, triangle_dpdu(MESH_ARGS, tri_uv, tri ? prim : PINT(0)), tri);
 #ifdef HAS_NORMAL_MAPS
         /* under a map: the shading frame's tangent (dp/du orthogonal to the shading normal) */
         t = pv3_sel(t, pv3_sub(t, pv3_scale(sh.base, pv3_dot(sh.base, t))), sh.mapped);

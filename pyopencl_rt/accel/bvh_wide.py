@@ -292,16 +292,16 @@ def _leaf_layout(slots, cchild, ccount, T, packet_width, node_units, packet_unit
 
 
 @_jit(parallel=True)
-def _gather_packets(tri12, lane_tri, raw):
-    """raw[p, 3 v + c, l] = coordinate c of vertex v of triangle lane_tri[p, l] (tri12: the (T, 12)
-    float32 view of the abi.TRIANGLE records, vertex v at 4 v), NaN where lane_tri < 0."""
+def _gather_packets(V, F, prim_ids, lane_tri, raw):
+    """raw[p, 3 v + c, l] = coordinate c of vertex v of reordered triangle lane_tri[p, l] (face
+    prim_ids[t] of the mesh V, F: what its abi.TRIANGLE record holds), NaN where lane_tri < 0."""
     nan = np.float32(np.nan)
     for p in prange(lane_tri.shape[0]):
         for lane in range(lane_tri.shape[1]):
             t = lane_tri[p, lane]
             for v in range(3):
                 for c in range(3):
-                    raw[p, 3 * v + c, lane] = tri12[t, 4 * v + c] if t >= 0 else nan
+                    raw[p, 3 * v + c, lane] = V[F[prim_ids[t], v], c] if t >= 0 else nan
 
 
 @_jit(parallel=True)
@@ -331,7 +331,7 @@ def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge:
     node_dtype, packet_dtype = fmt["node"], _PACKETS[packet_width]
     node_units, packet_units = node_dtype.itemsize // fmt["unit"], packet_dtype.itemsize // fmt["unit"]
     max_depth = max_wide_depth(width)
-    T = len(bvh.triangles)
+    T = len(bvh.prim_ids)
     clo, chi, cchild, ccount, carea = _child_arrays(bvh.nodes)
     if merge > 0 and T:
         _merge_small_subtrees(cchild, ccount, clo, chi, merge)
@@ -362,8 +362,9 @@ def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge:
     packets = storage[n_nodes * node_dtype.itemsize:].view(packet_dtype)
     raw = packets.view(np.float32).reshape(n_packets, 10, packet_width)
     # row 3 v + c of a packet: coordinate c of vertex v of each lane's triangle (NaN in empty lanes)
-    _gather_packets(np.ascontiguousarray(bvh.triangles).view(np.float32).reshape(T, 12) if T else
-                    np.zeros((1, 12), np.float32), lane_tri, raw)
+    # from the mesh, not the triangle records: a renderer has no more use for those here (the
+    # packets hold the vertices) and may have freed them
+    _gather_packets(bvh.vertices, bvh.faces, bvh.prim_ids, lane_tri, raw)
     packets["tri"] = lane_tri
     lane_fill = float((lane_tri >= 0).mean()) if n_packets else 0.0
     del lane_tri

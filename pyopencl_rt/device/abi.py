@@ -483,7 +483,10 @@ def _path(name, ctype, per_slot, doc=""):
 WAVE_PARAMS: tuple[Param, ...] = (
     # the scene, uploaded once
     _scene("nodes", "const", "BVHNode", "binary BVH nodes, or the wide BVH blob with BVH_WIDE"),
-    _scene("tris", "const", "float4", "BVH-reordered triangles, 3 vertices each"),
+    _scene("tris", "const", "float4", "the binary BVH's reordered triangles, 3 vertices each (a dummy in the wide "
+           "layouts, whose packets hold them)"),
+    _scene("vertices", "const", "float", "the scene's vertices, 3 floats each: what shading reads (MESH_PARAMS)"),
+    _scene("tri_faces", "const", "int", "3 vertex indices per reordered triangle"),
     _scene("tri_material", "const", "int", "material per reordered triangle"),
     _scene("tri_light", "const", "int", "light per reordered triangle, -1 if none"),
     _scene("spheres", "const", "Sphere"),

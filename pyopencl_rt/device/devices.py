@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 from ..errors import DeviceSelectionError
+from . import icd
 
 
 def _cl():
@@ -57,7 +58,9 @@ class DeviceInfo:
 
 @lru_cache(maxsize=None)
 def all_devices() -> tuple:
-    """Every OpenCL device of every platform, as ``((platform_index, device_index, device), ...)``."""
+    """Every OpenCL device of every platform, as ``((platform_index, device_index, device), ...)``
+    (the pip-installed implementations registered first, unless :func:`resolve` has skipped them)."""
+    icd.register()
     cl = _cl()
     try:
         platforms = cl.get_platforms()
@@ -169,21 +172,13 @@ def _resolve_one(spec: str, entries) -> list:
     return [e for e in entries if low in e[2].name.lower() or low in e[2].platform.name.lower()][:1]
 
 
-def resolve(spec=None, *, allow_many: bool = True) -> list:
-    """Return the list of ``pyopencl.Device`` selected by ``spec`` (str, list of str, a Device or None).
+# device choices that never pick a pip-installed runtime (Intel's CPU one): a GPU, PoCL
+_WITHOUT_PACKAGED = ("gpu", "pocl")
 
-    Raises :class:`DeviceSelectionError` with one line that names the available devices.
-    """
-    cl = _cl()
-    if isinstance(spec, cl.Device):
-        return [spec]
-    if isinstance(spec, (list, tuple)) and spec and all(isinstance(s, cl.Device) for s in spec):
-        return list(spec)
-    entries = all_devices()
-    if not entries:
-        raise DeviceSelectionError(
-            "no OpenCL device found: install PoCL with `pip install pyopencl[pocl]` or a GPU driver's ICD"
-        )
+
+def _specs(spec) -> list[str]:
+    """The specifications of ``spec`` (a string, a list of them, or None: $PYOPENCL_CTX, or none
+    for the default choice)."""
     specs: list[str] = []
     if spec is None or spec == "" or (isinstance(spec, (list, tuple)) and not spec):
         env = os.environ.get("PYOPENCL_CTX", "").strip()
@@ -194,6 +189,27 @@ def resolve(spec=None, *, allow_many: bool = True) -> list:
     else:
         for s in spec:
             specs.extend(x for x in str(s).split(",") if x.strip())
+    return specs
+
+
+def resolve(spec=None, *, allow_many: bool = True) -> list:
+    """Return the list of ``pyopencl.Device`` selected by ``spec`` (str, list of str, a Device or None).
+
+    Raises :class:`DeviceSelectionError` with one line that names the available devices.
+    """
+    cl = _cl()
+    if isinstance(spec, cl.Device):
+        return [spec]
+    if isinstance(spec, (list, tuple)) and spec and all(isinstance(s, cl.Device) for s in spec):
+        return list(spec)
+    specs = _specs(spec)
+    if all(s.strip().lower() in _WITHOUT_PACKAGED for s in specs):
+        icd.register(packaged=False)  # this choice cannot pick a pip-installed runtime: not opened
+    entries = all_devices()
+    if not entries:
+        raise DeviceSelectionError(
+            "no OpenCL device found: install PoCL with `pip install pyopencl[pocl]` or a GPU driver's ICD"
+        )
     if not specs:
         gpus = [e for e in entries if e[2].type & cl.device_type.GPU]
         if gpus:
@@ -207,7 +223,9 @@ def resolve(spec=None, *, allow_many: bool = True) -> list:
             matched = _resolve_one(s, entries)
             if not matched:
                 available = "; ".join(describe(e).label() for e in entries)
-                raise DeviceSelectionError(f"no OpenCL device matches {s!r}; available: {available}")
+                skipped = (" (this process's first device choice left the pip-installed runtimes unopened)"
+                           if icd.skipped_packaged() else "")
+                raise DeviceSelectionError(f"no OpenCL device matches {s!r}; available: {available}{skipped}")
             for m in matched:
                 if m not in chosen:
                     chosen.append(m)

@@ -8,7 +8,9 @@ pyopencl never sees it.  :func:`register` makes a folder holding every ICD file 
 loader would have read, plus one naming the installed library, and points ``$OCL_ICD_VENDORS`` at
 it: system drivers (a GPU's) stay visible, and a runtime already registered on the system is used
 as it is.  The loader reads the variable on its first call, so this runs before
-:func:`pyopencl_rt.device.devices.all_devices` asks for platforms (the package's import does it).
+:func:`pyopencl_rt.device.devices.all_devices` asks for platforms (it calls :func:`register`);
+a device choice that cannot pick a packaged runtime (the default: the first GPU, else PoCL;
+``gpu``; ``pocl``) skips them (:func:`pyopencl_rt.device.devices.resolve`).
 
 ``$PYOPENCL_RT_PACKAGED_ICDS=0`` leaves the environment alone.
 """
@@ -70,20 +72,31 @@ def icd_folder(environ=os.environ) -> Path:
     return Path(base) / "icd"
 
 
-def register(environ=None) -> str | None:
+def register(environ=None, packaged: bool = True) -> str | None:
     """Point ``$OCL_ICD_VENDORS`` (of ``environ``, default this process's, where it is done once)
     at a folder with the loader's own ICD files and the packaged runtimes'; returns the folder,
-    or None where nothing was added."""
+    or None where nothing was added.  ``packaged`` False (this process's only): the packaged
+    runtimes stay unregistered for the rest of the process, whose device choice cannot pick
+    them: the loader opens every registered implementation on its first call, and Intel's CPU
+    runtime costs about 100 MB of memory and 0.3 s in every process that opens it."""
     global _registered
     if environ is None:
+        global _skipped
         if _registered is _UNSET:
-            _registered = _register(os.environ)
+            _registered = _register(os.environ) if packaged else None
+            _skipped = not packaged and bool(packaged_libraries())
         return _registered
     return _register(environ)
 
 
+def skipped_packaged() -> bool:
+    """This process left installed packaged runtimes unregistered (register(packaged=False))."""
+    return _registered is None and _skipped
+
+
 _UNSET = object()
 _registered = _UNSET
+_skipped = False
 
 
 def _register(environ) -> str | None:

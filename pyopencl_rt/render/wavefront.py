@@ -167,7 +167,7 @@ class Wavefront:
             self.kernels = {s: kernels[f"wf_{s}"] for s in STAGES}
         build_stage.__exit__(None, None, None)
         self.timings["build_seconds"] = time.perf_counter() - t0
-        from ..accel.device_bvh import node_buffer
+        from ..accel.device_bvh import LAYOUT_WIDTHS, node_buffer
         from ..device.host_memory import aligned
 
         ctx = self.rt.context
@@ -202,23 +202,27 @@ class Wavefront:
                 mapped.base.release(self.rt.queue)
             return buf
 
+        # the triangle records (48 bytes a triangle) are what the binary layout's traversal reads;
+        # the wide layouts' packets hold the vertices themselves (gathered from the mesh), and
+        # shading reads the mesh (vertices, tri_faces: MESH_PARAMS in cl/scene/scene.h): our own
+        # BVH's records go before the packets are made (build_lights has read them)
+        binary = LAYOUT_WIDTHS[self.bvh_layout] == 2
+        if bvh is None and not hasattr(self.bvh, "world") and not binary:
+            self.bvh.triangles = None
         with host_stage("bvh_collapse"):  # the device's node layout (8-wide on CPUs)
             nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout)
         if bvh is None:  # the wide BVH cached on a BVH of our own: in the blob now
             getattr(self.bvh, "world", self.bvh).__dict__.pop("_wide", None)
         if bvh is None and not hasattr(self.bvh, "world"):
-            # our own BVH's binary records are in the node buffer now (padded or collapsed): nothing
-            # reads them on the host again, and they go before the uploads double what they copy
+            # our own BVH's binary records are in the node buffer now (padded or collapsed), and its
+            # triangle records where the layout reads them (build_lights has read them): nothing
+            # reads them on the host again, and they go before the other buffers are made
             self.bvh.nodes = None
         upload_stage = host_stage("upload")  # every buffer made and copied (the scene's, the wave's)
         upload_stage.__enter__()
-        # the nodes first, and their host copies gone before the other buffers are made (the peak
-        # memory of a scene of millions of triangles): the wide BVH cached on a BVH of our own too
         nodes = const(nodes)
-        tris = const(self.bvh.triangles)
+        tris = const(self.bvh.triangles if binary else np.zeros(0, np.uint8))
         if bvh is None and not hasattr(self.bvh, "world"):
-            # our own BVH's triangle records (48 bytes a triangle) are on the device: nothing reads
-            # the host copy again (build_lights has; Embree uses the vertices, faces and prim_ids)
             self.bvh.triangles = None
 
         def scratch(nbytes):
@@ -240,7 +244,7 @@ class Wavefront:
         self.args = KernelArgs(self.kernels)
         self.args.bind(
             nodes=nodes,
-            tris=tris, **self._instance_buffers(const),
+            tris=tris, **self._instance_buffers(const), **self._mesh_buffers(const, filled),
             tri_material=tri_material, tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
@@ -319,6 +323,15 @@ class Wavefront:
         if not hasattr(self.bvh, "world"):
             return dict.fromkeys(("tlas", "instances", "blas_nodes", "instance_motion"), const(np.zeros(16, np.uint8)))
         return {k: const(a) for k, a in self.bvh.buffers(self.bvh_layout).items()}
+
+    def _mesh_buffers(self, const, filled) -> dict:
+        """vertices, tri_faces (MESH_PARAMS, cl/scene/scene.h): the scene's vertices and each
+        reordered triangle's vertex indices, what shading reads of a triangle."""
+        prim = self.bvh.prim_ids
+        faces = np.asarray(self.scene.faces, np.int32).reshape(-1, 3)
+        return {"vertices": const(np.asarray(self.scene.vertices, np.float32).reshape(-1)),
+                "tri_faces": filled((len(prim), 3), np.int32,
+                                    lambda out: np.take(faces, prim, axis=0, out=out, mode="clip"))}
 
     def _texture_buffers(self, const) -> dict:
         """tri_uv, textures and tex_data (cl/scene/textures.h); 16-byte dummies when the scene has

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..device import abi
+from ..device.host_memory import aligned_empty
 from .camera import FOV_AXES, PROJECTIONS, Camera, vertical_fov  # noqa: F401 (re-exported)
 from .lights import DirectionalLight, Environment, PointLight, ProjectorLight, SpotLight, look_at_frame  # noqa: F401
 from .materials import REGISTRY, MaterialType
@@ -286,6 +287,18 @@ class BlasGroup:
     n_faces: int
 
 
+def _translated(vertices, offset) -> np.ndarray:
+    """float32 (V, 3) ``vertices + offset``, computed in float64 a chunk at a time (no float64 copy
+    of a mesh of millions of vertices), into a page-aligned array that a CPU device reads in place
+    (device/host_memory.py)."""
+    v = np.asarray(vertices).reshape(-1, 3)
+    out = aligned_empty(v.shape, np.float32)
+    step = 1 << 20
+    for lo in range(0, len(v), step):
+        out[lo:lo + step] = v[lo:lo + step].astype(np.float64) + offset
+    return out
+
+
 @dataclass
 class Scene:
     vertices: np.ndarray  # (V, 3) float32, world space
@@ -407,7 +420,7 @@ class Scene:
         if not eye.any():
             return self
         s = copy.copy(self)
-        s.vertices = (np.asarray(self.vertices, np.float64) - eye).astype(np.float32)
+        s.vertices = _translated(self.vertices, -eye)
         if self.blas_groups:  # two-level groups stay in their own space; their instances move
             from .instances import camera_shifted, group_vertices
 

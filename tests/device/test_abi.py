@@ -236,16 +236,18 @@ def test_signature_checker_reports_edits(runtime, monkeypatch):
     assert signature_mismatches(probe_signature(runtime), expected) == []
     # table side: two path-state arrays swapped, one read-only buffer made writable
     params = list(abi.WAVE_PARAMS)
-    params[10], params[11] = params[11], params[10]
-    i = next(i for i, p in enumerate(params) if p.name == "materials")
-    params[i] = abi.Param("materials", "global", "Material", source="scene")
+    index = {p.name: i for i, p in enumerate(params)}
+    o, d, m = index["ray_o"], index["ray_d"], index["materials"]
+    params[o], params[d] = params[d], params[o]
+    params[m] = abi.Param("materials", "global", "Material", source="scene")
     found = signature_mismatches(probe_signature(runtime), expected_signature(params))
-    assert [f.split(":")[0] for f in found] == ["argument 7", "argument 10", "argument 11"]
+    edited = [f"argument {i}" for i in sorted((o, d, m))]
+    assert [f.split(":")[0] for f in found] == edited
     # device side: the header generated from an edited table, checked against the real one
     monkeypatch.setattr(abi, "WAVE_PARAMS", tuple(params[:-1]))
     found = signature_mismatches(probe_signature(runtime), expected)
-    assert [f.split(":")[0] for f in found] == ["argument 7", "argument 10", "argument 11",
-                                                 f"{len(expected) - 1} arguments on the device, {len(expected)} in the table"]
+    assert [f.split(":")[0] for f in found] == edited + [
+        f"{len(expected) - 1} arguments on the device, {len(expected)} in the table"]
 
 
 # ----------------------------------------------------------------------------- binding by name

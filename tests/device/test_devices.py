@@ -3,6 +3,7 @@
 PoCL's CPU device is always present (it is a dependency); a GPU may be present too, so every
 expectation is derived from the actual list rather than assuming PoCL is device 0:0.
 """
+import os
 from pathlib import Path
 
 import pyopencl as cl
@@ -258,3 +259,31 @@ def test_intel_extra_is_visible_to_a_fresh_process():
     assert out.returncode == 0, out.stderr
     listed = json.loads(out.stdout)
     assert {"pocl", "intel"} <= {d["implementation"] for d in listed}
+
+
+_PLATFORMS_AFTER = """
+import sys
+from pyopencl_rt.device import devices
+devices.resolve(sys.argv[1] or None)
+import pyopencl as cl
+print("|".join(p.name for p in cl.get_platforms()))
+"""
+
+
+@pytest.mark.parametrize("spec, opens_packaged", [("", False), ("pocl", False),
+                                                  ("cpu", True), ("intel", True), ("all", True)])
+def test_a_choice_that_cannot_pick_a_packaged_runtime_leaves_it_unopened(spec, opens_packaged):
+    """A fresh process whose first device choice cannot pick the pip-installed Intel runtime (the
+    default, gpu, pocl) never opens it (its libraries cost about 100 MB and 0.3 s); one that can
+    (cpu, intel, all) does."""
+    import subprocess
+    import sys
+
+    from pyopencl_rt.device import icd
+
+    if not icd.packaged_libraries() or icd.SWITCH_ENV in os.environ:
+        pytest.skip("no pip-installed OpenCL runtime here")
+    env = {k: v for k, v in os.environ.items() if k not in ("PYOPENCL_CTX", icd.ENV)}
+    out = subprocess.run([sys.executable, "-c", _PLATFORMS_AFTER, spec], capture_output=True, text=True, env=env,
+                         check=True).stdout.strip().split("|")
+    assert ("Intel(R) OpenCL" in out) == opens_packaged and "Portable Computing Language" in out

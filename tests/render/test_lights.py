@@ -63,7 +63,7 @@ LANE_SOURCE = r"""
 #define L_OUT 24 /* per lane: got, ls.p (3), ls.err (3), ls.n (3), ls.Le (3), ls.pdf, ls.far, ls.delta,
                   * light_pdf(p, ng), env_pdf(w), env_radiance(w) (3), ls.tex, ls.tu, ls.tv */
 /* index: (light, active) per lane; env_light: the environment light's index */
-__kernel void h_lights(__global const float4 *tris, __global const Sphere *spheres,
+__kernel void h_lights(__global const float *vertices, __global const int *tri_faces, __global const Sphere *spheres,
                        __global const Material *materials, __global const float *env_map,
                        __global const float *env_cdf, __global const Light *lights, int env_light,
                        __global const int *index, __global const float *in, __global float *out)
@@ -86,7 +86,7 @@ __kernel void h_lights(__global const float4 *tris, __global const Sphere *spher
     }
     act = act != 0; /* a mask */
     LightSample ls;
-    const pint got = light_sample_all(tris, spheres, materials, env_map, env_cdf, lights, li, act, ref, ux, uy, &ls);
+    const pint got = light_sample_all(MESH_ARGS, spheres, materials, env_map, env_cdf, lights, li, act, ref, ux, uy, &ls);
     const pfloat lpdf = light_pdf(spheres, lights, li, ref, p, ng);
     const pfloat epdf = env_pdf(lights + env_light, env_map, env_cdf, w);
     const pvec3 eL = env_radiance(lights + env_light, env_map, w);
@@ -109,7 +109,8 @@ __kernel void h_lights(__global const float4 *tris, __global const Sphere *spher
 
 #define H_IN 9  /* per lane: o (3), d (3), t, u, v */
 #define H_OUT 9 /* per lane: hit_point (3), its error bound (3), hit_normal (3) */
-__kernel void h_hits(__global const float4 *tris, __global const Sphere *spheres, __global const int *prims,
+__kernel void h_hits(__global const float *vertices, __global const int *tri_faces, __global const Sphere *spheres,
+                     __global const int *prims,
                      __global const float *in, __global float *out)
 {
     const int base = get_global_id(0) * PACKET_WIDTH;
@@ -127,8 +128,8 @@ __kernel void h_hits(__global const float4 *tris, __global const Sphere *spheres
         PLANE(v, k) = a[8];
     }
     pvec3 err;
-    const pvec3 p = hit_point(tris, spheres, prim, o, d, t, u, v, &err);
-    const pvec3 n = hit_normal(tris, spheres, prim, p, prim != PRIM_MISS);
+    const pvec3 p = hit_point(MESH_ARGS, spheres, prim, o, d, t, u, v, &err);
+    const pvec3 n = hit_normal(MESH_ARGS, spheres, prim, p, prim != PRIM_MISS);
     for (int k = 0; k < PACKET_WIDTH; ++k) {
         __global float *r = out + H_OUT * (base + k);
         vstore3(pv3_lane(p, k), 0, r);
@@ -347,6 +348,11 @@ def lights_setup(rng, env_image):
     tri = (rng.normal(size=(n_tri, 1, 3)) * 3 + rng.normal(size=(n_tri, 3, 3))).astype(np.float32)
     tris = np.zeros((3 * n_tri, 4), np.float32)
     tris[:, :3] = tri.reshape(-1, 3)
+    # what the kernels read (MESH_PARAMS): the corners as vertices in a shuffled order, and the
+    # indices that find them
+    order = rng.permutation(3 * n_tri)
+    vertices = np.ascontiguousarray(tri.reshape(-1, 3)[order]).reshape(-1)
+    tri_faces = np.argsort(order).astype(np.int32)
     spheres = np.zeros(3, abi.SPHERE)
     spheres["center"] = rng.normal(size=(3, 3)) * 3
     spheres["radius"] = (0.5, 1.0, 2.0)
@@ -376,7 +382,7 @@ def lights_setup(rng, env_image):
     area["material"][n_tri:] = np.arange(3) % 2
     area["area"][n_tri:] = 4 * np.pi * spheres["radius"].astype(np.float64) ** 2
     lights = np.concatenate([area, others])
-    return dict(tris=tris, spheres=spheres, materials=materials, env_map=tm, env_cdf=cdf, lights=lights,
+    return dict(tris=tris, vertices=vertices, tri_faces=tri_faces, spheres=spheres, materials=materials, env_map=tm, env_cdf=cdf, lights=lights,
                 env_light=len(lights) - 1)
 
 
@@ -421,7 +427,7 @@ def lane_inputs(rng, setup, n):
 
 def run_lights(runtime, width, setup, index, ins):
     n = len(index)
-    return lane_kernels(width)(runtime, "h_lights", n // width, setup["tris"], setup["spheres"], setup["materials"],
+    return lane_kernels(width)(runtime, "h_lights", n // width, setup["vertices"], setup["tri_faces"], setup["spheres"], setup["materials"],
                                setup["env_map"], setup["env_cdf"], setup["lights"], setup["env_light"], index, ins,
                                (n, 24))
 
@@ -542,8 +548,9 @@ def test_lights_lanes_equal_one_lane(device, runtime, rng, width):
     t = rng.uniform(0, 3, n)
     uv = rng.uniform(-0.1, 0.7, (n, 2))
     hin = np.concatenate([o, d, t[:, None], uv], axis=1).astype(np.float32)
-    one = lane_kernels(1)(runtime, "h_hits", n, tris, spheres, prims, hin, (n, 9))
-    lanes = lane_kernels(width)(runtime, "h_hits", n // width, tris, spheres, prims, hin, (n, 9))
+    mesh = setup["vertices"], setup["tri_faces"]
+    one = lane_kernels(1)(runtime, "h_hits", n, *mesh, spheres, prims, hin, (n, 9))
+    lanes = lane_kernels(width)(runtime, "h_hits", n // width, *mesh, spheres, prims, hin, (n, 9))
     hit = prims != abi.PRIM_MISS
     assert np.array_equal(one[hit].view(np.uint32), lanes[hit].view(np.uint32)), "hit_point, hit_normal"
 
@@ -563,7 +570,8 @@ def test_hit_point_and_normal(runtime, rng):
     t = rng.uniform(0.1, 3, n)
     uv = rng.dirichlet((1, 1, 1), n)[:, 1:]
     hin = np.concatenate([o, d, t[:, None], uv], axis=1).astype(np.float32)
-    out = lane_kernels(1)(runtime, "h_hits", n, tris, spheres, prims, hin, (n, 9)).astype(np.float64)
+    mesh = setup["vertices"], setup["tri_faces"]
+    out = lane_kernels(1)(runtime, "h_hits", n, *mesh, spheres, prims, hin, (n, 9)).astype(np.float64)
     p, err, nrm = out[:, :3], out[:, 3:6], out[:, 6:]
     v = tris[:, :3].astype(np.float64).reshape(-1, 3, 3)
     tr = ~sph
