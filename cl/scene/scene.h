@@ -324,16 +324,16 @@ RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const floa
 #define HIT_GAMMA5 2.98023259e-07f /* 5 * 2^-24 / (1 - 5 * 2^-24), rounded up */
 
 /* The mesh that shading reads (the BVH keeps its own copies of the triangles for traversal: tris
- * in the binary layout, the packets of the wide ones): the scene's vertices, 3 floats each, and
- * each reordered triangle's three vertex indices. */
-#define MESH_PARAMS __global const float *vertices, __global const int *tri_faces
-#define MESH_ARGS vertices, tri_faces
+ * in the binary layout, the packets of the wide ones): the scene's vertices (3 floats each) and
+ * faces (3 vertex indices each), and the face of each reordered triangle. */
+#define MESH_PARAMS __global const float *vertices, __global const int *faces, __global const int *prim_ids
+#define MESH_ARGS vertices, faces, prim_ids
 
 /* Gathers of the lanes' primitives (every index valid): vertex k of triangle prim, and a sphere's
  * centre and radius. */
 RT_INLINE pvec3 tri_vertex(MESH_PARAMS, pint prim, int k)
 {
-    return pv3_gather(vertices, pgather_int(tri_faces, prim * 3 + k) * 3);
+    return pv3_gather(vertices, pgather_int(faces, pgather_int(prim_ids, prim) * 3 + k) * 3);
 }
 
 RT_INLINE pvec3 sphere_center(__global const Sphere *spheres, pint s)

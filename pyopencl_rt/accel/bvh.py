@@ -39,6 +39,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..device import abi
+from ..device.host_memory import aligned_empty
 from ..errors import UsageError
 
 MAX_DEPTH = 60          # deepest leaf (root = 0); one traversal stack entry per level
@@ -385,7 +386,9 @@ def build_bvh(vertices, faces, *, method="binned", max_leaf_size=4, bins=16,
             _, count, ldepth = _leaf_stats(nodes)
             depth = int(ldepth.max())
     build_seconds = time.perf_counter() - t0
-    bvh = BVH(nodes=nodes, triangles=tris, prim_ids=order.astype(np.int32), vertices=V, faces=F)
+    prim_ids = aligned_empty(len(order), np.int32)  # read in place by a CPU device (device/host_memory.py)
+    prim_ids[:] = order
+    bvh = BVH(nodes=nodes, triangles=tris, prim_ids=prim_ids, vertices=V, faces=F)
     freq = np.bincount(count)
     bvh.stats = dict(
         method=method,

@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from ..device import abi
+from ..device.host_memory import aligned
 from .motion import Motion
 from .bvh import build_bvh
 
@@ -44,7 +45,7 @@ class TwoLevelBVH:
             self.blas.append(b)
             prim_ids.append(b.prim_ids + np.int32(first))
             first_tri.append(first_tri[-1] + len(b.prim_ids))
-        self.prim_ids = np.concatenate(prim_ids).astype(np.int32)
+        self.prim_ids = aligned(np.concatenate(prim_ids).astype(np.int32))  # read in place (host_memory.py)
         self.triangles = np.concatenate([self.world.triangles] + [b.triangles for b in self.blas])
         self.tri_offsets = first_tri[:-1]
         self.to_world = np.asarray([m for m, _ in instances], np.float64).reshape(-1, 4, 4)

@@ -486,7 +486,8 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _scene("tris", "const", "float4", "the binary BVH's reordered triangles, 3 vertices each (a dummy in the wide "
            "layouts, whose packets hold them)"),
     _scene("vertices", "const", "float", "the scene's vertices, 3 floats each: what shading reads (MESH_PARAMS)"),
-    _scene("tri_faces", "const", "int", "3 vertex indices per reordered triangle"),
+    _scene("faces", "const", "int", "the scene's faces, 3 vertex indices each"),
+    _scene("prim_ids", "const", "int", "the face of each reordered triangle"),
     _scene("tri_material", "const", "int", "material per reordered triangle"),
     _scene("tri_light", "const", "int", "light per reordered triangle, -1 if none"),
     _scene("spheres", "const", "Sphere"),

@@ -24,7 +24,7 @@ from .settings import max_component_value
 
 
 def _geometry(scene) -> dict:
-    """nodes, tris, vertices, tri_faces: the triangles the BVH is built over."""
+    """nodes, tris, vertices, faces, prim_ids: the triangles the BVH is built over."""
     return {"vertices": scene.vertices, "faces": scene.faces}
 
 
@@ -149,7 +149,8 @@ def _media(scene) -> dict:
 
 
 SCENE_INPUTS: dict[str, Callable] = {
-    "nodes": _geometry, "tris": _geometry, "vertices": _geometry, "tri_faces": _geometry,
+    "nodes": _geometry, "tris": _geometry, "vertices": _geometry, "faces": _geometry,
+    "prim_ids": _geometry,
     "tlas": _instances, "instances": _instances, "blas_nodes": _instances, "instance_motion": _instances,
     "tri_material": _face_materials,
     "tri_light": _lights, "sphere_light": _lights, "lights": _lights, "n_lights": _lights, "env_light": _lights,

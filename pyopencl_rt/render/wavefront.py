@@ -181,9 +181,8 @@ class Wavefront:
             a = np.ascontiguousarray(a)
             if a.nbytes == 0:
                 a = np.zeros(16, np.uint8)
-            if on_host:
+            if on_host:  # the scene's own arrays among them: a scene is not changed under a render
                 a = aligned(a)
-                a.setflags(write=False)  # the device's now: nothing on the host writes it
                 self._host_arrays.append(a)
                 return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a)
             return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
@@ -204,7 +203,7 @@ class Wavefront:
 
         # the triangle records (48 bytes a triangle) are what the binary layout's traversal reads;
         # the wide layouts' packets hold the vertices themselves (gathered from the mesh), and
-        # shading reads the mesh (vertices, tri_faces: MESH_PARAMS in cl/scene/scene.h): our own
+        # shading reads the mesh (vertices, faces, prim_ids: MESH_PARAMS in cl/scene/scene.h): our own
         # BVH's records go before the packets are made (build_lights has read them)
         binary = LAYOUT_WIDTHS[self.bvh_layout] == 2
         if bvh is None and not hasattr(self.bvh, "world") and not binary:
@@ -244,7 +243,7 @@ class Wavefront:
         self.args = KernelArgs(self.kernels)
         self.args.bind(
             nodes=nodes,
-            tris=tris, **self._instance_buffers(const), **self._mesh_buffers(const, filled),
+            tris=tris, **self._instance_buffers(const), **self._mesh_buffers(const),
             tri_material=tri_material, tri_light=const(tri_light), spheres=const(scene.sphere_records()),
             sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
@@ -324,14 +323,12 @@ class Wavefront:
             return dict.fromkeys(("tlas", "instances", "blas_nodes", "instance_motion"), const(np.zeros(16, np.uint8)))
         return {k: const(a) for k, a in self.bvh.buffers(self.bvh_layout).items()}
 
-    def _mesh_buffers(self, const, filled) -> dict:
-        """vertices, tri_faces (MESH_PARAMS, cl/scene/scene.h): the scene's vertices and each
-        reordered triangle's vertex indices, what shading reads of a triangle."""
-        prim = self.bvh.prim_ids
-        faces = np.asarray(self.scene.faces, np.int32).reshape(-1, 3)
+    def _mesh_buffers(self, const) -> dict:
+        """vertices, faces, prim_ids (MESH_PARAMS, cl/scene/scene.h): what shading reads of a
+        triangle, the scene's own arrays (read in place by a CPU device)."""
         return {"vertices": const(np.asarray(self.scene.vertices, np.float32).reshape(-1)),
-                "tri_faces": filled((len(prim), 3), np.int32,
-                                    lambda out: np.take(faces, prim, axis=0, out=out, mode="clip"))}
+                "faces": const(np.asarray(self.scene.faces, np.int32).reshape(-1)),
+                "prim_ids": const(np.asarray(self.bvh.prim_ids, np.int32))}
 
     def _texture_buffers(self, const) -> dict:
         """tri_uv, textures and tex_data (cl/scene/textures.h); 16-byte dummies when the scene has

@@ -12,6 +12,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ..device.host_memory import aligned
 from ..errors import UserError
 
 
@@ -137,7 +138,8 @@ def check_triangles(vertices, faces, name: str = "mesh") -> tuple[np.ndarray, np
         )
         faces = faces[~bad_faces]
         v32 = np.where(finite_vertex[:, None], v32, 0.0).astype(np.float32)
-    return np.ascontiguousarray(v32), np.ascontiguousarray(faces, np.int32)
+    # page-aligned: a CPU device reads the scene's arrays in place (device/host_memory.py)
+    return aligned(v32), aligned(np.ascontiguousarray(faces, np.int32))
 
 
 def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:

@@ -26,7 +26,7 @@ def test_aligned_arrays(shape, dtype):
 
 def test_cpu_scene_buffers_are_the_aligned_host_arrays(device):
     """Every scene buffer of a render on a CPU device is a host array (CL_MEM_USE_HOST_PTR) on an
-    ALIGN boundary, kept read-only; the render runs (a misaligned wide BVH blob faulted)."""
+    ALIGN boundary; the render runs (a misaligned wide BVH blob faulted)."""
     if not device.type & cl.device_type.CPU:
         pytest.skip("a GPU gets its own copy of the scene")
     cbox = rt.load_scene(Path(__file__).resolve().parents[2] / "scenes" / "mitsuba-cbox.toml")
@@ -36,7 +36,7 @@ def test_cpu_scene_buffers_are_the_aligned_host_arrays(device):
     hosts = {a.ctypes.data: a for a in wf._host_arrays}
     for buf in buffers:
         address = buf.get_host_array((buf.size,), np.uint8).ctypes.data  # CL_MEM_HOST_PTR
-        assert address % ALIGN == 0 and address in hosts and not hosts[address].flags.writeable
+        assert address % ALIGN == 0 and address in hosts
     film = Film(16, 16)
     wf.run(film, passes=2)
     assert np.isfinite(film.sum).all() and film.sum.sum() > 0

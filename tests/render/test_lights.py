@@ -63,7 +63,8 @@ LANE_SOURCE = r"""
 #define L_OUT 24 /* per lane: got, ls.p (3), ls.err (3), ls.n (3), ls.Le (3), ls.pdf, ls.far, ls.delta,
                   * light_pdf(p, ng), env_pdf(w), env_radiance(w) (3), ls.tex, ls.tu, ls.tv */
 /* index: (light, active) per lane; env_light: the environment light's index */
-__kernel void h_lights(__global const float *vertices, __global const int *tri_faces, __global const Sphere *spheres,
+__kernel void h_lights(__global const float *vertices, __global const int *faces, __global const int *prim_ids,
+                       __global const Sphere *spheres,
                        __global const Material *materials, __global const float *env_map,
                        __global const float *env_cdf, __global const Light *lights, int env_light,
                        __global const int *index, __global const float *in, __global float *out)
@@ -109,7 +110,8 @@ __kernel void h_lights(__global const float *vertices, __global const int *tri_f
 
 #define H_IN 9  /* per lane: o (3), d (3), t, u, v */
 #define H_OUT 9 /* per lane: hit_point (3), its error bound (3), hit_normal (3) */
-__kernel void h_hits(__global const float *vertices, __global const int *tri_faces, __global const Sphere *spheres,
+__kernel void h_hits(__global const float *vertices, __global const int *faces, __global const int *prim_ids,
+                     __global const Sphere *spheres,
                      __global const int *prims,
                      __global const float *in, __global float *out)
 {
@@ -348,11 +350,13 @@ def lights_setup(rng, env_image):
     tri = (rng.normal(size=(n_tri, 1, 3)) * 3 + rng.normal(size=(n_tri, 3, 3))).astype(np.float32)
     tris = np.zeros((3 * n_tri, 4), np.float32)
     tris[:, :3] = tri.reshape(-1, 3)
-    # what the kernels read (MESH_PARAMS): the corners as vertices in a shuffled order, and the
-    # indices that find them
+    # what the kernels read (MESH_PARAMS): the corners as vertices in a shuffled order, the faces
+    # that index them in another, and each (reordered) triangle's face
     order = rng.permutation(3 * n_tri)
     vertices = np.ascontiguousarray(tri.reshape(-1, 3)[order]).reshape(-1)
-    tri_faces = np.argsort(order).astype(np.int32)
+    prim_ids = rng.permutation(n_tri).astype(np.int32)
+    faces = np.zeros((n_tri, 3), np.int32)
+    faces[prim_ids] = np.argsort(order).reshape(n_tri, 3)
     spheres = np.zeros(3, abi.SPHERE)
     spheres["center"] = rng.normal(size=(3, 3)) * 3
     spheres["radius"] = (0.5, 1.0, 2.0)
@@ -382,7 +386,7 @@ def lights_setup(rng, env_image):
     area["material"][n_tri:] = np.arange(3) % 2
     area["area"][n_tri:] = 4 * np.pi * spheres["radius"].astype(np.float64) ** 2
     lights = np.concatenate([area, others])
-    return dict(tris=tris, vertices=vertices, tri_faces=tri_faces, spheres=spheres, materials=materials, env_map=tm, env_cdf=cdf, lights=lights,
+    return dict(tris=tris, mesh=(vertices, faces.reshape(-1), prim_ids), spheres=spheres, materials=materials, env_map=tm, env_cdf=cdf, lights=lights,
                 env_light=len(lights) - 1)
 
 
@@ -427,7 +431,7 @@ def lane_inputs(rng, setup, n):
 
 def run_lights(runtime, width, setup, index, ins):
     n = len(index)
-    return lane_kernels(width)(runtime, "h_lights", n // width, setup["vertices"], setup["tri_faces"], setup["spheres"], setup["materials"],
+    return lane_kernels(width)(runtime, "h_lights", n // width, *setup["mesh"], setup["spheres"], setup["materials"],
                                setup["env_map"], setup["env_cdf"], setup["lights"], setup["env_light"], index, ins,
                                (n, 24))
 
@@ -548,7 +552,7 @@ def test_lights_lanes_equal_one_lane(device, runtime, rng, width):
     t = rng.uniform(0, 3, n)
     uv = rng.uniform(-0.1, 0.7, (n, 2))
     hin = np.concatenate([o, d, t[:, None], uv], axis=1).astype(np.float32)
-    mesh = setup["vertices"], setup["tri_faces"]
+    mesh = setup["mesh"]
     one = lane_kernels(1)(runtime, "h_hits", n, *mesh, spheres, prims, hin, (n, 9))
     lanes = lane_kernels(width)(runtime, "h_hits", n // width, *mesh, spheres, prims, hin, (n, 9))
     hit = prims != abi.PRIM_MISS
@@ -570,7 +574,7 @@ def test_hit_point_and_normal(runtime, rng):
     t = rng.uniform(0.1, 3, n)
     uv = rng.dirichlet((1, 1, 1), n)[:, 1:]
     hin = np.concatenate([o, d, t[:, None], uv], axis=1).astype(np.float32)
-    mesh = setup["vertices"], setup["tri_faces"]
+    mesh = setup["mesh"]
     out = lane_kernels(1)(runtime, "h_hits", n, *mesh, spheres, prims, hin, (n, 9)).astype(np.float64)
     p, err, nrm = out[:, :3], out[:, 3:6], out[:, 6:]
     v = tris[:, :3].astype(np.float64).reshape(-1, 3, 3)
