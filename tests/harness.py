@@ -401,14 +401,16 @@ def assert_same_lanes(results):
         assert (r.stats.rays_extend, r.stats.rays_shadow) == (base.stats.rays_extend, base.stats.rays_shadow), width
 
 
-def mitsuba_sensor(origin, fov, width, height, max_depth=3, spp=64, target="0, 0, 0", integrator=None) -> str:
+def mitsuba_sensor(origin, fov, width, height, max_depth=3, spp=64, target="0, 0, 0", integrator=None,
+                   up="0, 1, 0") -> str:
     """The path integrator (or the ``integrator`` XML given) and a perspective sensor (box filter,
-    independent sampler) of a small Mitsuba 3 test scene, as XML."""
+    independent sampler) of a small Mitsuba 3 test scene, as XML (width, height, spp: numbers or
+    ``$name`` references to the file's defaults)."""
     integrator = integrator or f'<integrator type="path"><integer name="max_depth" value="{max_depth}"/></integrator>'
     return f"""
 {integrator}
 <sensor type="perspective"><float name="fov" value="{fov}"/>
-  <transform name="to_world"><lookat origin="{origin}" target="{target}" up="0, 1, 0"/></transform>
+  <transform name="to_world"><lookat origin="{origin}" target="{target}" up="{up}"/></transform>
   <sampler type="independent"><integer name="sample_count" value="{spp}"/></sampler>
   <film type="hdrfilm"><integer name="width" value="{width}"/><integer name="height" value="{height}"/>
     <rfilter type="box"/></film>

@@ -8,6 +8,7 @@ import pytest
 
 from pyopencl_rt import render_full
 
+import harness
 from test_materials import bsdf_eval
 from test_mitsuba_xml import _mitsuba_image, load, mitsuba, write
 
@@ -137,15 +138,8 @@ def _well_conditioned(wo, wi, eta):
 
 RENDER_SCENE = """
 <default name="resx" value="32"/><default name="resy" value="32"/><default name="spp" value="64"/>
-<integrator type="path"><integer name="max_depth" value="6"/></integrator>
-<sensor type="perspective">
-    <float name="fov" value="40"/>
-    <transform name="to_world"><lookat origin="0, -5.5, 4" target="0, 0, 0.2" up="0, 0, 1"/></transform>
-    <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
-    <film type="hdrfilm"><integer name="width" value="$resx"/><integer name="height" value="$resy"/>
-        <rfilter type="box"/></film>
-</sensor>
-<emitter type="constant"><rgb name="radiance" value="0.4, 0.5, 0.6"/></emitter>
+""" + harness.mitsuba_sensor("0, -5.5, 4", 40, "$resx", "$resy", max_depth=6, spp="$spp", target="0, 0, 0.2",
+                             up="0, 0, 1") + """<emitter type="constant"><rgb name="radiance" value="0.4, 0.5, 0.6"/></emitter>
 <emitter type="point"><point name="position" x="3" y="-4" z="5"/><rgb name="intensity" value="40"/></emitter>
 <shape type="sphere"><point name="center" x="-1.1" y="0" z="0.6"/><float name="radius" value="0.5"/>{0}</shape>
 <shape type="sphere"><point name="center" x="0" y="0" z="0.6"/><float name="radius" value="0.5"/>{1}</shape>
