@@ -116,7 +116,7 @@ typedef struct {
     pfloat wc, wo;
 } MixOther;
 
-RT_INLINE MixOther mix_other(MESH_PARAMS, __global const float *tri_normal,
+RT_INLINE MixOther mix_other(MESH_PARAMS, __global const float *face_normal,
                              __global const Material *materials, __global const float2 *tri_uv,
                              __global const Texture *textures, __global const float4 *tex_data,
                              __global const float *tri_color, pint hit, pint prim, pfloat u, pfloat v, pvec3 p,
@@ -139,7 +139,7 @@ RT_INLINE MixOther mix_other(MESH_PARAMS, __global const float *tri_normal,
 #ifdef HAS_VERTEX_COLORS
     vertex_color_material(tri_color, x.blended, prim, u, v, &x.m);
 #endif
-    x.sh = shading_lanes(MESH_ARGS, tri_normal, tri_uv, textures, tex_data, materials, index, x.blended, prim, u, v, ng, n,
+    x.sh = shading_lanes(MESH_ARGS, face_normal, tri_uv, textures, tex_data, materials, index, x.blended, prim, u, v, ng, n,
                          front, wo, x.blended & ((x.m.flags & MATERIAL_FLAG_ANISOTROPIC) != 0));
     x.surface = x.blended & pnot(((x.m.flags & MATERIAL_FLAG_ONE_SIDED) != 0) & pnot(x.sh.front));
     return x;

@@ -209,7 +209,7 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
             n_shadow += popcount(pbits(with_shadow));
 #ifdef HAS_MEDIA
             /* through media and null boundaries: the transmittance, 0 where a surface blocks */
-            const pvec3 tr = shadow_transmittance(nodes, tris, MESH_ARGS, tri_normal, spheres, n_spheres, tri_material,
+            const pvec3 tr = shadow_transmittance(nodes, tris, MESH_ARGS, face_normal, spheres, n_spheres, tri_material,
                                                   sphere_material, materials, MEDIA_PATH_ARGS, shadow.o, shadow.d,
                                                   shadow_medium, s.channel, &s.rng, s.r, with_shadow);
             s.L = pv3_sel(s.L, pv3_add(s.L, pv3_mul(shadow.contribution, tr)), with_shadow);

@@ -97,11 +97,11 @@ typedef struct {
     const int light_tree,                                                                            \
     __global const float *env_map,                                                                   \
     __global const float *env_cdf, __global const float2 *tri_uv, __global const Texture *textures,  \
-    __global const float4 *tex_data, __global const float *tri_normal, __global const float *tri_color, \
+    __global const float4 *tex_data, __global const float *face_normal, __global const float *tri_color, \
     __global float *aov_path, const int max_depth, const int rr_depth, const int integrator PATH_INSTANCES
 #define PATH_ARGS                                                                                     \
     MESH_ARGS, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,     \
-    light_nodes, n_lights, light_tree, env_map, env_cdf, tri_uv, textures, tex_data, tri_normal, tri_color, aov_path, max_depth, \
+    light_nodes, n_lights, light_tree, env_map, env_cdf, tri_uv, textures, tex_data, face_normal, tri_color, aov_path, max_depth, \
     rr_depth, integrator PATH_INSTANCES_ARGS
 #if defined(HAS_INSTANCES) && defined(HAS_MOTION)
 #define PATH_INSTANCES , __global const Instance *instances, __global const Motion *instance_motion
@@ -396,7 +396,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     MaterialLanes m = material_lanes(materials, mat_index);
     mix_keep_top(materials, tri_uv, textures, tex_data, top_index, mat_index, prim, u, v, &m);
     /* a mix of two materials that are not mixes: the other one, evaluated beside the picked one */
-    const MixOther mo = mix_other(MESH_ARGS, tri_normal, materials, tri_uv, textures, tex_data, tri_color, hit, prim, u, v,
+    const MixOther mo = mix_other(MESH_ARGS, face_normal, materials, tri_uv, textures, tex_data, tri_color, hit, prim, u, v,
                                   p, ng, n, front, wo, mix_index, mix_w);
 #else
     MaterialLanes m = material_lanes(materials, mat_index);
@@ -410,7 +410,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     /* the BSDF's frame: the shading normal (interpolated, normal- or bump-mapped) on wo's side,
      * or n (cl/scene/shading.h) */
 #ifdef HAS_INSTANCES
-    ShadingLanes sh = shading_lanes(MESH_ARGS, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit, prim, u,
+    ShadingLanes sh = shading_lanes(MESH_ARGS, face_normal, tri_uv, textures, tex_data, materials, mat_index, hit, prim, u,
                                     v, pv3_sel(ng, ng_obj, in_inst),
                                     pv3_sel(n, pv3_sel(pv3_neg(ng_obj), ng_obj, front), in_inst), front,
                                     pv3_sel(wo, wo_obj, in_inst), hit & ((m.flags & MATERIAL_FLAG_ANISOTROPIC) != 0));
@@ -422,7 +422,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
 #endif
     }
 #else
-    const ShadingLanes sh = shading_lanes(MESH_ARGS, tri_normal, tri_uv, textures, tex_data, materials, mat_index, hit,
+    const ShadingLanes sh = shading_lanes(MESH_ARGS, face_normal, tri_uv, textures, tex_data, materials, mat_index, hit,
                                           prim, u, v, ng, n, front, wo,
                                           hit & ((m.flags & MATERIAL_FLAG_ANISOTROPIC) != 0));
 #endif

@@ -134,11 +134,12 @@ RT_INLINE pfloat thin_sheet(__global const int *tri_material, __global const int
 
 /* The normal a thin sheet's BSDF sees at the lanes' hits: the interpolated vertex normal of a
  * smooth mesh, else the geometric normal ng. */
-RT_INLINE pvec3 sheet_normal(__global const float *tri_normal, pint live, pint prim, pfloat u, pfloat v, pvec3 ng)
+RT_INLINE pvec3 sheet_normal(__global const float *face_normal, __global const int *prim_ids, pint live, pint prim,
+                             pfloat u, pfloat v, pvec3 ng)
 {
 #ifdef HAS_SHADING_NORMALS
     pint has;
-    return interpolated_normal(tri_normal, live & (prim >= 0), prim, u, v, ng, &has);
+    return interpolated_normal(face_normal, prim_ids, live & (prim >= 0), prim, u, v, ng, &has);
 #else
     return ng;
 #endif
@@ -149,7 +150,7 @@ RT_INLINE pvec3 sheet_normal(__global const float *tri_normal, pint live, pint p
  * surface (or more than MAX_NULL_CROSSINGS null ones) blocks it.  r: the path's ratios (mean 1); the
  * result is the spectral-MIS estimate of the transmittance given them. */
 RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global const float4 *tris, MESH_PARAMS,
-                                     __global const float *tri_normal,
+                                     __global const float *face_normal,
                                      __global const Sphere *spheres, int n_spheres, __global const int *tri_material,
                                      __global const int *sphere_material, __global const Material *materials,
                                      MEDIA_PATH_PARAMS, pvec3 o, pvec3 d,
@@ -182,7 +183,7 @@ RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global con
             pvec3 p_err;
             const pvec3 ph = hit_point(MESH_ARGS, spheres, at, o, seg, th, u, v, &p_err);
             pint thin;
-            const pvec3 sn = sheet_normal(tri_normal, live, at, u, v, hit_normal(MESH_ARGS, spheres, at, ph, live));
+            const pvec3 sn = sheet_normal(face_normal, prim_ids, live, at, u, v, hit_normal(MESH_ARGS, spheres, at, ph, live));
             const pfloat tr = thin_sheet(tri_material, sphere_material, materials, at, live & pnot(null), sn, seg, &thin);
             T = pv3_sel(T, pv3_scale(T, tr), thin);
             null |= thin;
@@ -259,7 +260,7 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
          * (a bounce) about the shading normal, as Mitsuba's thindielectric reflects in its shading
          * frame; the choice from the tracking stream (a crossing takes no sampler dimension) */
         pint thin;
-        const pvec3 sn = sheet_normal(tri_normal, boundary, at, u, v, *ng);
+        const pvec3 sn = sheet_normal(face_normal, prim_ids, boundary, at, u, v, *ng);
         const pfloat tr = thin_sheet(tri_material, sphere_material, materials, at, boundary & pnot(null), sn, s->d, &thin);
         if (pany(thin)) {
             const pint pass = thin & (medium_uniform(&s->rng, thin) < tr);

@@ -7,8 +7,8 @@
  * where noted):
  *
  *   shading normal  the unit barycentric interpolation of the triangle's three vertex normals,
- *                   tri_normal: 9 floats per BVH-reordered triangle, its corners' normals in
- *                   world space (Mesh::compute_surface_interaction); a face whose corners hold
+ *                   face_normal: 9 floats per face of the scene (a reordered triangle's is
+ *                   its face prim_ids[prim]'s), its corners' unit normals in world space (Mesh::compute_surface_interaction); a face whose corners hold
  *                   0 is shaded flat (the geometric normal).  Spheres keep their exact normal.
  *                   The interpolated normal is not turned to the geometric normal's side
  *                   (Mitsuba turns neither; pbrt-v4 turns the geometric normal to the shading
@@ -239,19 +239,19 @@ RT_INLINE pvec3 triangle_dpdu(MESH_PARAMS, __global const float2 *tri_uv, pint p
 #ifdef HAS_SHADING_NORMALS
 /* The unit barycentric interpolation of the vertex normals of the lanes of `tri` (triangle hits):
  * *has where the face has normals (its corners not 0) and their sum is finite, else ng. */
-RT_INLINE pvec3 interpolated_normal(__global const float *tri_normal, pint tri, pint prim, pfloat u, pfloat v,
-                                    pvec3 ng, pint *has)
+RT_INLINE pvec3 interpolated_normal(__global const float *face_normal, __global const int *prim_ids, pint tri,
+                                    pint prim, pfloat u, pfloat v, pvec3 ng, pint *has)
 {
-    const pint i = tri ? prim * 9 : PINT(0);
-    const pvec3 s = barycentric3(gather9_corner(tri_normal, i, 0), gather9_corner(tri_normal, i, 1),
-                                 gather9_corner(tri_normal, i, 2), u, v);
+    const pint i = tri ? pgather_int(prim_ids, prim) * 9 : PINT(0);
+    const pvec3 s = barycentric3(gather9_corner(face_normal, i, 0), gather9_corner(face_normal, i, 1),
+                                 gather9_corner(face_normal, i, 2), u, v);
     const pfloat d = pv3_dot(s, s);
     *has = tri & (d > 0.0f) & pisfinite(d);
     return pv3_sel(ng, pv3_normalize(s, *has), *has);
 }
 #endif
 
-RT_INLINE ShadingLanes shading_lanes(MESH_PARAMS, __global const float *tri_normal,
+RT_INLINE ShadingLanes shading_lanes(MESH_PARAMS, __global const float *face_normal,
                                      __global const float2 *tri_uv, __global const Texture *textures,
                                      __global const float4 *tex_data, __global const Material *materials,
                                      pint mat_index, pint hit, pint prim, pfloat u, pfloat v, pvec3 ng, pvec3 n,
@@ -268,7 +268,7 @@ RT_INLINE ShadingLanes shading_lanes(MESH_PARAMS, __global const float *tri_norm
     const pint tri = hit & (prim >= 0);
     if (pany(tri)) {
         pint has;
-        ns = interpolated_normal(tri_normal, tri, prim, u, v, ns, &has);
+        ns = interpolated_normal(face_normal, prim_ids, tri, prim, u, v, ns, &has);
         const pint sfront = pv3_dot(ns, wo) >= 0.0f;
         sh.front = has ? sfront : front;
         sh.n = pv3_sel(n, pv3_sel(pv3_neg(ns), ns, sfront), has);

@@ -16,7 +16,7 @@ __kernel void wf_shadow(WAVE_PARAMS)
     const int slot = shadow_q[i];
 #ifdef HAS_MEDIA
     puint rng = vol_rng[slot];
-    const pvec3 tr = shadow_transmittance(nodes, tris, MESH_ARGS, tri_normal, spheres, n_spheres, tri_material, sphere_material,
+    const pvec3 tr = shadow_transmittance(nodes, tris, MESH_ARGS, face_normal, spheres, n_spheres, tri_material, sphere_material,
                                           materials, MEDIA_PATH_ARGS, pv3_from(load3(sh_o, slot)),
                                           pv3_from(load3(sh_d, slot)), sh_medium[slot], vol_channel[slot], &rng,
                                           pv3_from(load3(vol_r, slot)), PTRUE);

@@ -522,7 +522,8 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _scene("tex_data", "const", "float4", "texels of every texture"),
     # shading normals and vertex colours (cl/scene/shading.h); 16-byte dummies without
     # HAS_SHADING_NORMALS / HAS_VERTEX_COLORS
-    _scene("tri_normal", "const", "float", "9 per reordered triangle: its corners' unit normals (0: flat)"),
+    _scene("face_normal", "const", "float", "9 per face (prim_ids finds a reordered triangle's): its corners' "
+           "unit normals (0: flat)"),
     _scene("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours"),
     # queues of slot indices and their counters
     Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True, source="run"),

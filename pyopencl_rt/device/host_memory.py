@@ -13,16 +13,22 @@ import numpy as np
 
 ALIGN = 4096
 
-__all__ = ["ALIGN", "aligned_empty", "aligned"]
+__all__ = ["ALIGN", "aligned_empty", "aligned_zeros", "aligned"]
 
 
-def aligned_empty(shape, dtype) -> np.ndarray:
-    """np.empty(shape, dtype) starting on an :data:`ALIGN`-byte boundary."""
+def aligned_empty(shape, dtype, zeros: bool = False) -> np.ndarray:
+    """np.empty(shape, dtype) starting on an :data:`ALIGN`-byte boundary (``zeros``: np.zeros'
+    calloc, whose pages nothing has written stay out of memory)."""
     dtype = np.dtype(dtype)
     nbytes = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
-    raw = np.empty(nbytes + ALIGN, np.uint8)
+    raw = (np.zeros if zeros else np.empty)(nbytes + ALIGN, np.uint8)
     start = -raw.ctypes.data % ALIGN
     return raw[start:start + nbytes].view(dtype).reshape(shape)
+
+
+def aligned_zeros(shape, dtype) -> np.ndarray:
+    """np.zeros(shape, dtype) starting on an :data:`ALIGN`-byte boundary."""
+    return aligned_empty(shape, dtype, zeros=True)
 
 
 def aligned(a) -> np.ndarray:

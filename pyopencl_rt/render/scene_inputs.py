@@ -123,7 +123,7 @@ def _textures(scene) -> dict:
 
 
 def _shading_normals(scene) -> dict:
-    """tri_normal: the corners' shading normals (none without per-vertex normals)."""
+    """face_normal: the corners' shading normals (none without per-vertex normals)."""
     return {} if getattr(scene, "normals", None) is None else {"face_normals": scene.face_normals()}
 
 
@@ -160,7 +160,7 @@ SCENE_INPUTS: dict[str, Callable] = {
     "materials": _materials,
     "camera": _camera, "camera_motion": _camera, "max_component": _film_clamp,
     "tri_uv": _textures, "textures": _textures, "tex_data": _textures,
-    "tri_normal": _shading_normals,
+    "face_normal": _shading_normals,
     "tri_color": _vertex_colors,
     "env_map": _environment, "env_cdf": _environment,
     **{p.name: _media for p in abi.MEDIA_PARAMS if p.source == "scene"},

@@ -346,15 +346,21 @@ class Wavefront:
         return {"tri_uv": const(uv), "textures": const(table), "tex_data": const(texels)}
 
     def _shading_buffers(self, const, filled) -> dict:
-        """tri_normal and tri_color (cl/scene/shading.h): each reordered triangle's three corner
-        normals and colours, 9 floats; 16-byte dummies when no kernel reads them."""
+        """face_normal (cl/scene/shading.h): each face's three unit corner normals in the scene's
+        order (the scene's own array where it holds them already: Scene.normals_unit), and
+        tri_color: each reordered triangle's corner colours, 9 floats each; 16-byte dummies when no
+        kernel reads them."""
         dummy = const(np.zeros(0, np.uint8))
         prim = self.bvh.prim_ids
         normals = dummy
         if "HAS_SHADING_NORMALS" in self.features:
-            normals = filled((len(prim), 3, 3), np.float32, lambda out: self.scene.face_normals(prim, out=out))
+            scene = self.scene
+            if scene.normals_unit and not scene.normals_as_given:
+                normals = const(np.asarray(scene.normals, np.float32).reshape(-1))
+            else:
+                normals = filled((len(scene.faces), 3, 3), np.float32, lambda out: scene.face_normals(out=out))
         colors = const(self.scene.face_colors()[prim]) if "HAS_VERTEX_COLORS" in self.features else dummy
-        return {"tri_normal": normals, "tri_color": colors}
+        return {"face_normal": normals, "tri_color": colors}
 
     def _media_buffers(self, const) -> dict:
         """abi.MEDIA_PARAMS' scene buffers (scene/media.py:pack_media, tri_interface in the BVH's triangle

@@ -147,6 +147,7 @@ def flattened(scene):
         if getattr(scene, name) is not None:
             setattr(s, name, np.concatenate([np.asarray(getattr(scene, name))[keep]] + parts[key]).astype(np.int32))
     s.normals_as_given = bool(as_given)
+    s.normals_unit = False  # the instances' moved normals are not unit (see above)
     s.instances, s.blas_groups = records, []
     return s
 

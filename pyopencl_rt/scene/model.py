@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..device import abi
-from ..device.host_memory import aligned_empty
+from ..device.host_memory import aligned, aligned_empty
 from .camera import FOV_AXES, PROJECTIONS, Camera, vertical_fov  # noqa: F401 (re-exported)
 from .lights import DirectionalLight, Environment, PointLight, ProjectorLight, SpotLight, look_at_frame  # noqa: F401
 from .materials import REGISTRY, MaterialType
@@ -350,6 +350,11 @@ class Scene:
     # True: the corner normals are used as given, not each made unit length: their lengths weigh the
     # interpolation (which the kernels normalise), as an unevenly scaled instance's normals need
     normals_as_given: bool = False
+    # True: the normals hold face_normals()'s values already (unit corners, 0 where a face is flat),
+    # made so once where the scene is assembled (Scene.make_normals_unit), and used as they are by
+    # face_normals() and, in place, by a CPU device's render (a second normalisation of a unit
+    # float32 vector may move its last bit: it is not idempotent, so it is done once)
+    normals_unit: bool = False
     # emitters made of several primitives (a Mitsuba shape with an area emitter): per face and per
     # sphere the index of its emitter (-1: none; None: all -1), and each emitter's sampling_weight
     # (Mitsuba's).  With light_sampler "uniform" an emitter's faces share its pick probability by
@@ -487,8 +492,32 @@ class Scene:
         from ..host_stages import host_stage
         from .meshops import unit_corner_normals
 
+        if self.normals_unit and not self.normals_as_given:
+            n = np.asarray(self.normals, np.float32).reshape(len(self.faces), 3, 3)
+            if prim is None and out is None:
+                view = n.view()
+                view.flags.writeable = False  # the scene's own array
+                return view
+            if prim is None:
+                out[...] = n
+                return out
+            return np.take(n, prim, axis=0, out=out)
         with host_stage("normals"):
             return unit_corner_normals(self.normals, len(self.faces), self.normals_as_given, prim, out)
+
+    def make_normals_unit(self) -> None:
+        """Write face_normals()'s values into the scene's own normals (float32, C-contiguous, in
+        place: no second array of a big mesh's) and set normals_unit; nothing with normals_as_given."""
+        from .meshops import unit_corner_normals
+
+        if self.normals is None or self.normals_as_given or self.normals_unit:
+            return
+        n = self.normals
+        if not (isinstance(n, np.ndarray) and n.dtype == np.float32 and n.flags.c_contiguous and n.flags.writeable):
+            n = self.normals = aligned(np.asarray(n, np.float32))
+        n = n.reshape(len(self.faces), 3, 3)
+        unit_corner_normals(n, len(self.faces), False, out=n)
+        self.normals_unit = True
 
     def face_colors(self) -> np.ndarray:
         """(F, 3, 3) float32 linear RGB per corner (1 where the scene has none; NaN as 0)."""

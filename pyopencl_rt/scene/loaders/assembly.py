@@ -9,6 +9,7 @@ import warnings
 
 import numpy as np
 
+from ...device.host_memory import aligned_empty
 from ...host_stages import host_stage
 from .. import meshops
 from ..instances import instance_bounds, n_world_faces
@@ -39,8 +40,9 @@ def kept_per_face(values, keep, dtype, shape=(), copy: bool = False):
 def stacked_per_face(parts, faces, shape, fill) -> np.ndarray:
     """The per-face arrays ``parts`` (one per mesh, None: ``fill`` for each of its faces) in one
     float32 (F, *shape) array, written once (np.concatenate of the parts and placeholders)."""
-    # zeros from calloc: the pages of the meshes without such values are never written
-    out = (np.zeros if fill == 0 else np.empty)((sum(len(f) for f in faces), *shape), np.float32)
+    # zeros from calloc: the pages of the meshes without such values are never written; page-aligned,
+    # so a CPU device reads the normals in place (device/host_memory.py)
+    out = aligned_empty((sum(len(f) for f in faces), *shape), np.float32, zeros=fill == 0)
     at = 0
     for part, f in zip(parts, faces):
         n = len(f)

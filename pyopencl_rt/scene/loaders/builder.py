@@ -413,6 +413,7 @@ class SceneBuilder:
                                face_emitters=(np.concatenate(self.face_emitters)
                                               if self.emitter_weights and self.faces else None))
         scene.normals_as_given = bool(self.normals_as_given)
+        scene.make_normals_unit()  # once, in place: the kernels read them as they are
         if self.interfaces or media:
             scene.media, scene.interfaces, scene.camera_medium = media, list(self.interfaces), int(self.camera_medium)
             scene.sphere_interfaces = np.asarray(self.sphere_interfaces, np.int32)
