@@ -483,15 +483,13 @@ def _path(name, ctype, per_slot, doc=""):
 WAVE_PARAMS: tuple[Param, ...] = (
     # the scene, uploaded once
     _scene("nodes", "const", "BVHNode", "binary BVH nodes, or the wide BVH blob with BVH_WIDE"),
-    _scene("tris", "const", "float4", "the binary BVH's reordered triangles, 3 vertices each (a dummy in the wide "
-           "layouts, whose packets hold them)"),
-    _scene("vertices", "const", "float", "the scene's vertices, 3 floats each: what shading reads (MESH_PARAMS)"),
-    _scene("faces", "const", "int", "the scene's faces, 3 vertex indices each"),
+    _scene("tris", "const", "float4", "the binary layout's reordered triangles, 3 vertices each (wide: a dummy)"),
+    # what shading reads of a triangle (MESH_PARAMS): the scene's vertices (3 floats) and faces (3 indices)
+    _scene("vertices", "const", "float"), _scene("faces", "const", "int"),
     _scene("prim_ids", "const", "int", "the face of each reordered triangle"),
     _scene("tri_material", "const", "int", "material per reordered triangle"),
     _scene("tri_light", "const", "int", "light per reordered triangle, -1 if none"),
-    _scene("spheres", "const", "Sphere"),
-    _scene("sphere_material", "const", "int"),
+    _scene("spheres", "const", "Sphere"), _scene("sphere_material", "const", "int"),
     _scene("sphere_light", "const", "int", "light per sphere, -1 if none"),
     _scene("materials", "const", "Material"),
     _scene("lights", "const", "Light"), _scene("light_nodes", "const", "LightNode", "the light BVH (LIGHT_TREE)"),
@@ -510,20 +508,17 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _path("path_weight", "float", 1, "the camera sample's filter weight (+-filter_weight), applied at accumulate"),
     _path("hit_t", "float", 1, "closest hit of ray_o/ray_d (extend)"),
     _path("hit_prim", "int", 1, "its primitive (PRIM_MISS, triangle or SPHERE_PRIM)"),
-    _path("hit_u", "float", 1, "its barycentrics"),
-    _path("hit_v", "float", 1),
+    _path("hit_u", "float", 1, "its barycentrics"), _path("hit_v", "float", 1),
     _path("hit_inst", "int", 1, "the instance of a triangle hit in a two-level group (reordered), -1 if none"),
     _path("sh_o", "float", 3, "shadow ray origin (shade -> shadow)"),
     _path("sh_d", "float", 3, "shadow ray, t in (0, 1)"),
     _path("sh_contrib", "float", 3, "radiance the light sample adds if unoccluded"),
     # textures (cl/scene/textures.h); 16-byte dummies without HAS_TEXTURES
     _scene("tri_uv", "const", "float2", "3 UVs per reordered triangle"),
-    _scene("textures", "const", "Texture"),
-    _scene("tex_data", "const", "float4", "texels of every texture"),
+    _scene("textures", "const", "Texture"), _scene("tex_data", "const", "float4", "texels of every texture"),
     # shading normals and vertex colours (cl/scene/shading.h); 16-byte dummies without
     # HAS_SHADING_NORMALS / HAS_VERTEX_COLORS
-    _scene("face_normal", "const", "float", "9 per face (prim_ids finds a reordered triangle's): its corners' "
-           "unit normals (0: flat)"),
+    _scene("face_normal", "const", "float", "9 per face (through prim_ids): its corners' unit normals (0: flat)"),
     _scene("tri_color", "const", "float", "9 per reordered triangle: its corners' linear RGB colours"),
     # queues of slot indices and their counters
     Param("queue_in", "global", "int", "active paths of this iteration", per_slot=1, launch=True, source="run"),

@@ -297,6 +297,38 @@ def any_shading_normal(normals, n_faces: int, as_given: bool = False) -> bool:
     return bool(flags.any())
 
 
+@_jit(parallel=True)
+def _used_reach(v, f):
+    """Over every corner of every face: how many coordinates are not finite, and the largest
+    absolute finite one (0.0 for none)."""
+    bad = 0
+    reach = 0.0
+    for i in prange(f.shape[0]):
+        for k in range(3):
+            j = f[i, k]
+            for c in range(3):
+                x = abs(np.float64(v[j, c]))
+                if math.isfinite(x):
+                    reach = max(reach, x)
+                else:
+                    bad += 1
+    return bad, reach
+
+
+def used_vertex_reach(vertices, faces) -> tuple[bool, float]:
+    """(all the vertices some face uses are finite, the largest absolute coordinate among them):
+    the validation's question of the vertices of np.unique(faces), in one parallel pass over the
+    faces without the mask (faces must hold indices in [0, len(vertices)))."""
+    v = np.asarray(vertices)
+    v = np.ascontiguousarray(v if v.dtype in (np.float32, np.float64) else v.astype(np.float64)).reshape(-1, 3)
+    f = _as_index(faces).reshape(-1, 3)
+    if len(f) == 0:
+        return True, 0.0
+    with np.errstate(invalid="ignore", over="ignore"):
+        bad, reach = _used_reach(v, f)
+    return bad == 0, float(reach)
+
+
 def used_vertices(faces, n_vertices: int) -> np.ndarray:
     """(V,) bool: the vertices some face uses (the set np.unique(faces) gives, as a mask; faces
     must hold indices in [0, n_vertices))."""

@@ -88,15 +88,13 @@ def check_geometry(scene) -> None:
         _fail(scene, f"face_materials has {len(fm)} entries for {len(f)} faces")
     _indices(scene, fm, "face material indices", n_mat)
     if len(f):
-        from .meshops import used_vertices
+        from .meshops import used_vertex_reach, used_vertices
 
-        used = np.asarray(v)[used_vertices(f, len(v))]  # the vertices of np.unique(f), in one pass
-        if used.dtype.kind != "f":
-            used = used.astype(np.float64)
-        bad = ~np.isfinite(used).all(axis=1)
-        if bad.any():
+        finite, reach = used_vertex_reach(v, f)  # the vertices of np.unique(f), one parallel pass
+        if not finite:  # how many: the used vertices themselves
+            used = np.asarray(v)[used_vertices(f, len(v))]
+            bad = ~np.isfinite(used.astype(np.float64)).all(axis=1)
             _fail(scene, f"{int(bad.sum())} vertices used by faces are not finite (NaN, Inf or beyond float32)")
-        reach = float(np.abs(used).max())
         if reach > GEOMETRY_LIMIT:
             _fail(scene, f"triangle vertices reach {reach:.3g} from the origin, beyond {GEOMETRY_LIMIT:.3g}: the float32 "
                          "kernels cannot intersect them (scale the scene down)")

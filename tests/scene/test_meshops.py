@@ -197,6 +197,23 @@ def test_finite_faces_and_used_vertices_match_reference(mesh):
     assert np.array_equal(np.flatnonzero(used), np.unique(f))
 
 
+@pytest.mark.parametrize("mesh", sorted(MESHES))
+def test_used_vertex_reach_matches_reference(mesh):
+    """The validation's one pass: all used vertices finite, and their largest |coordinate|, as
+    np.unique(faces) gives them; a non-finite vertex no face uses does not count."""
+    v, f = MESHES[mesh]()
+    f = f[f.max(axis=1) < len(v) - 1]  # the last vertex unused
+    for vertices in (v, v.astype(np.float32)):
+        for faces in (f, f.astype(np.int32)):
+            used = np.asarray(vertices, np.float64)[np.unique(faces)]
+            assert meshops.used_vertex_reach(vertices, faces) == (True, float(np.abs(used).max()))
+    v = v.copy()
+    v[-1] = np.nan
+    assert meshops.used_vertex_reach(v, f)[0]
+    v[f[5, 1], 2] = np.inf
+    assert not meshops.used_vertex_reach(v, f)[0] and not meshops.used_vertex_reach(v.astype(np.float32), f)[0]
+
+
 def test_scene_bounds_of_used_vertices():
     v, f = _heightfield()
     v = v.astype(np.float32)
