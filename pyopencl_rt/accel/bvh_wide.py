@@ -320,10 +320,14 @@ def _node_boxes(slots, clo, chi, lx, ly, lz, hx, hy, hz):
                 hx[i, s], hy[i, s], hz[i, s] = -inf, -inf, -inf
 
 
-def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge: int | None = None) -> WideBVH:
+def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge: int | None = None,
+               consume: bool = False) -> WideBVH:
     """Collapse a binary BVH into a ``width``-wide BVH (4 or 8) with packets of ``packet_width``
     triangles (default: the width), binary subtrees of at most ``merge`` triangles (default: 0 for
-    width 4, 8 for width 8) made single leaves (see the module docstring)."""
+    width 4, 8 for width 8) made single leaves (see the module docstring).  ``consume`` (a
+    renderer's own BVH, whose blob is all it needs): the binary records are dropped from ``bvh``
+    once read, and the nodes are made in the blob's head (``nodes`` is that view: device_blob
+    pads it in place), so that neither has a second copy at the peak of a big scene's memory."""
     t0 = time.perf_counter()
     fmt = _FORMATS[width]
     packet_width = width if packet_width is None else packet_width
@@ -333,6 +337,8 @@ def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge:
     max_depth = max_wide_depth(width)
     T = len(bvh.prim_ids)
     clo, chi, cchild, ccount, carea = _child_arrays(bvh.nodes)
+    if consume:
+        bvh.nodes = None
     if merge > 0 and T:
         _merge_small_subtrees(cchild, ccount, clo, chi, merge)
 
@@ -345,9 +351,15 @@ def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge:
     if n_nodes * node_units + n_packets * packet_units >= 2**31:
         raise ValueError("wide BVH too large for 32-bit offsets")
 
-    # --- node records, then the binary child arrays go (before the blob is made: the peak memory
-    # of a scene of millions of triangles is here) ----------------------------------------------
-    nodes = np.zeros(n_nodes, node_dtype)
+    # --- node records, then the binary child arrays go (before the packets are made: the peak
+    # memory of a scene of millions of triangles is here) ---------------------------------------
+    head = n_nodes * node_dtype.itemsize
+    storage = aligned_empty(head + n_packets * packet_dtype.itemsize, np.uint8)  # pages made as written
+    if consume:
+        nodes = storage[:head].view(node_dtype)
+        nodes.view(np.uint8)[...] = 0
+    else:
+        nodes = np.zeros(n_nodes, node_dtype)
     # each slot's box, (+inf, -inf) in an empty one
     _node_boxes(all_slots, clo, chi, *(nodes[f"bmin_{c}"] for c in _COORDS),
                 *(nodes[f"bmax_{c}"] for c in _COORDS))
@@ -358,8 +370,7 @@ def build_wide(bvh: BVH, width: int = 4, packet_width: int | None = None, merge:
 
     # the packets live at the tail of the device blob's buffer (device_blob writes the padded nodes
     # at its head), so that the blob is no second copy of them
-    storage = aligned_empty(n_nodes * node_dtype.itemsize + n_packets * packet_dtype.itemsize, np.uint8)
-    packets = storage[n_nodes * node_dtype.itemsize:].view(packet_dtype)
+    packets = storage[head:].view(packet_dtype)
     raw = packets.view(np.float32).reshape(n_packets, 10, packet_width)
     # row 3 v + c of a packet: coordinate c of vertex v of each lane's triangle (NaN in empty lanes)
     # from the mesh, not the triangle records: a renderer has no more use for those here (the

@@ -114,13 +114,15 @@ def layout_defines(layout: str) -> dict:
     return {"wide": {"BVH_WIDE": True}, "wide8": {"BVH_WIDE8": True}}.get(layout, {})
 
 
-def node_buffer(bvh: BVH, layout: str) -> np.ndarray:
-    """What the kernels' first (nodes) buffer holds for ``layout``, boxes padded either way."""
+def node_buffer(bvh: BVH, layout: str, consume: bool = False) -> np.ndarray:
+    """What the kernels' first (nodes) buffer holds for ``layout``, boxes padded either way.
+    ``consume`` (a renderer's own BVH): a wide layout is built for this buffer alone, not cached,
+    and takes the binary records from ``bvh`` (bvh_wide.build_wide)."""
     width = LAYOUT_WIDTHS[layout]
     if width > 2:
-        from .bvh_wide import device_blob, wide_bvh
+        from .bvh_wide import build_wide, device_blob, wide_bvh
 
-        return device_blob(wide_bvh(bvh, width))
+        return device_blob(build_wide(bvh, width, consume=True) if consume else wide_bvh(bvh, width))
     return padded_nodes(bvh)
 
 

@@ -206,10 +206,12 @@ class Wavefront:
         # shading reads the mesh (vertices, faces, prim_ids: MESH_PARAMS in cl/scene/scene.h): our own
         # BVH's records go before the packets are made (build_lights has read them)
         binary = LAYOUT_WIDTHS[self.bvh_layout] == 2
-        if bvh is None and not hasattr(self.bvh, "world") and not binary:
+        own = bvh is None and not hasattr(self.bvh, "world")
+        if own and not binary:
             self.bvh.triangles = None
         with host_stage("bvh_collapse"):  # the device's node layout (8-wide on CPUs)
-            nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout)
+            # our own BVH's binary records go as the collapse reads them (consume)
+            nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout, consume=own)
         if bvh is None:  # the wide BVH cached on a BVH of our own: in the blob now
             getattr(self.bvh, "world", self.bvh).__dict__.pop("_wide", None)
         if bvh is None and not hasattr(self.bvh, "world"):
