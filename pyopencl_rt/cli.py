@@ -549,10 +549,12 @@ def main(argv=None):
     """Entry point: user errors become one line on stderr and a non-zero exit code (1 for bad
     input, 2 for a wrong command line, 130 when interrupted); warnings (e.g. a scene file's
     unsupported elements) one line each, all through one logger (errors.report_to_stderr)."""
+    from .device.host_memory import return_freed_memory
     from .errors import report_to_stderr, watch_sigint
 
     watch_sigint()
     report_to_stderr()
+    return_freed_memory()  # a big scene's freed arrays go back to the system, not to a heap kept
     try:
         cli.main(args=argv, prog_name="pyopencl-rt", standalone_mode=False)
     except UserError as exc:

@@ -13,7 +13,11 @@ import numpy as np
 
 ALIGN = 4096
 
-__all__ = ["ALIGN", "aligned_empty", "aligned_zeros", "aligned"]
+__all__ = ["ALIGN", "aligned_empty", "aligned_zeros", "aligned", "return_freed_memory"]
+
+# glibc's mallopt parameter and the size from which every allocation is its own mapping
+_M_MMAP_THRESHOLD = -3
+MMAP_THRESHOLD = 1 << 20
 
 
 def aligned_empty(shape, dtype, zeros: bool = False) -> np.ndarray:
@@ -39,3 +43,23 @@ def aligned(a) -> np.ndarray:
     out = aligned_empty(a.shape, a.dtype)
     out[...] = a
     return out
+
+
+def return_freed_memory() -> bool:
+    """Make every allocation of :data:`MMAP_THRESHOLD` bytes or more its own mapping, returned to
+    the system when freed (glibc's ``mallopt(M_MMAP_THRESHOLD)``); False where the C library has no
+    such call.  glibc raises that threshold to the size of each mapped block freed, so that a
+    process which frees a large array serves the next ones of that size from its heap, which it
+    keeps: after a big mesh's passes (numba's own arrays among them) that heap held 60-80 MB at 2M
+    triangles (issue 35).  The CLI sets it for its process; a program using the API decides for its
+    own."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or None)
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+    return bool(mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD))
