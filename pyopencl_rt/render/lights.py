@@ -14,6 +14,7 @@ import warnings
 import numpy as np
 
 from ..device import abi
+from ..device.host_memory import aligned_empty
 from ..scene.model import LIGHT_SAMPLERS
 from .sampling import fill_light_table
 
@@ -55,7 +56,8 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     n = len(tri_idx) + len(sph_idx)
     lights = np.zeros(n, abi.LIGHT)
     lights["texture"] = -1
-    tri_light = np.full(len(bvh.prim_ids), -1, np.int32)
+    tri_light = aligned_empty(len(bvh.prim_ids), np.int32)  # read in place by a CPU device (host_memory.py)
+    tri_light[:] = -1
     sphere_light = np.full(len(scene.spheres), -1, np.int32)
     k = len(tri_idx)
     lights["kind"][:k] = abi.LIGHT_TRIANGLE
