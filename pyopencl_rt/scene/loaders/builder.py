@@ -26,6 +26,7 @@ from typing import Callable
 
 import numpy as np
 
+from ...device.host_memory import aligned_empty
 from ..model import (Camera, DirectionalLight, Environment, Material, PointLight, ProjectorLight, RenderSettings,
                      Scene, SpotLight, vertical_fov)  # noqa: F401 (vertical_fov: the loaders' import)
 from .assembly import (_finite_faces, angle_weighted_normals, frame_scene, stacked_per_face, transform_normals,
@@ -348,10 +349,14 @@ class SceneBuilder:
         blas = place(self)  # two-level groups: their faces last, in their own space
         normals = colors = None
         if self.faces:
+            # in float32 at once, no float64 copy of the whole, unless the mirror moves them first;
+            # page-aligned, as check_triangles keeps them (a CPU device reads them in place)
+            vertices = aligned_empty((sum(len(v) for v in self.vertices), 3),
+                                     np.float32 if mirror is None else np.float64)
             with np.errstate(over="ignore", invalid="ignore"):  # beyond float32: check_triangles' warning
-                # in float32 at once, no float64 copy of the whole, unless the mirror moves them first
-                vertices = np.concatenate(self.vertices, dtype=np.float32 if mirror is None else np.float64)
-            faces = np.concatenate(self.faces)
+                np.concatenate(self.vertices, out=vertices)
+            faces = np.concatenate(self.faces, out=aligned_empty((sum(len(f) for f in self.faces), 3),
+                                                                  np.result_type(*self.faces)))
             uvs = stacked_per_face(self.uvs, self.faces, (3, 2), 0.0)
             face_materials = np.concatenate(self.face_materials)
             if self.any_normals:
