@@ -214,16 +214,13 @@ class Wavefront:
             nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout, consume=own)
         if bvh is None:  # the wide BVH cached on a BVH of our own: in the blob now
             getattr(self.bvh, "world", self.bvh).__dict__.pop("_wide", None)
-        if bvh is None and not hasattr(self.bvh, "world"):
-            # our own BVH's binary records are in the node buffer now (padded or collapsed), and its
-            # triangle records where the layout reads them (build_lights has read them): nothing
-            # reads them on the host again, and they go before the other buffers are made
+        if own:  # its binary records are in the node buffer now (padded or collapsed): not read again
             self.bvh.nodes = None
         upload_stage = host_stage("upload")  # every buffer made and copied (the scene's, the wave's)
         upload_stage.__enter__()
         nodes = const(nodes)
         tris = const(self.bvh.triangles if binary else np.zeros(0, np.uint8))
-        if bvh is None and not hasattr(self.bvh, "world"):
+        if own:  # the records (binary) are the device's now: the host does not read them again
             self.bvh.triangles = None
 
         def scratch(nbytes):
