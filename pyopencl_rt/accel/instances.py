@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from ..device import abi
-from ..device.host_memory import aligned
+from ..device.host_memory import aligned_empty
 from .motion import Motion
 from .bvh import build_bvh
 
@@ -45,7 +45,8 @@ class TwoLevelBVH:
             self.blas.append(b)
             prim_ids.append(b.prim_ids + np.int32(first))
             first_tri.append(first_tri[-1] + len(b.prim_ids))
-        self.prim_ids = aligned(np.concatenate(prim_ids).astype(np.int32))  # read in place (host_memory.py)
+        # page-aligned: a CPU device reads it in place (device/host_memory.py)
+        self.prim_ids = np.concatenate(prim_ids, out=aligned_empty(first_tri[-1], np.int32))
         self.triangles = np.concatenate([self.world.triangles] + [b.triangles for b in self.blas])
         self.tri_offsets = first_tri[:-1]
         self.to_world = np.asarray([m for m, _ in instances], np.float64).reshape(-1, 4, 4)

@@ -9,11 +9,14 @@ numpy array starts 16 bytes into a page), so such an array must start on an alig
 """
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
+
 import numpy as np
 
 ALIGN = 4096
 
-__all__ = ["ALIGN", "aligned_empty", "aligned_zeros", "aligned", "return_freed_memory"]
+__all__ = ["ALIGN", "aligned_empty", "aligned", "return_freed_memory"]
 
 # glibc's mallopt parameter and the size from which every allocation is its own mapping
 _M_MMAP_THRESHOLD = -3
@@ -28,11 +31,6 @@ def aligned_empty(shape, dtype, zeros: bool = False) -> np.ndarray:
     raw = (np.zeros if zeros else np.empty)(nbytes + ALIGN, np.uint8)
     start = -raw.ctypes.data % ALIGN
     return raw[start:start + nbytes].view(dtype).reshape(shape)
-
-
-def aligned_zeros(shape, dtype) -> np.ndarray:
-    """np.zeros(shape, dtype) starting on an :data:`ALIGN`-byte boundary."""
-    return aligned_empty(shape, dtype, zeros=True)
 
 
 def aligned(a) -> np.ndarray:
@@ -53,9 +51,6 @@ def return_freed_memory() -> bool:
     keeps: after a big mesh's passes (numba's own arrays among them) that heap held 60-80 MB at 2M
     triangles (issue 35).  The CLI sets it for its process; a program using the API decides for its
     own."""
-    import ctypes
-    import ctypes.util
-
     try:
         libc = ctypes.CDLL(ctypes.util.find_library("c") or None)
         mallopt = libc.mallopt

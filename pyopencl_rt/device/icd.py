@@ -79,9 +79,8 @@ def register(environ=None, packaged: bool = True) -> str | None:
     runtimes stay unregistered for the rest of the process, whose device choice cannot pick
     them: the loader opens every registered implementation on its first call, and Intel's CPU
     runtime costs about 100 MB of memory and 0.3 s in every process that opens it."""
-    global _registered
+    global _registered, _skipped
     if environ is None:
-        global _skipped
         if _registered is _UNSET:
             _registered = _register(os.environ) if packaged else None
             _skipped = not packaged and bool(packaged_libraries())
@@ -91,7 +90,7 @@ def register(environ=None, packaged: bool = True) -> str | None:
 
 def skipped_packaged() -> bool:
     """This process left installed packaged runtimes unregistered (register(packaged=False))."""
-    return _registered is None and _skipped
+    return _skipped
 
 
 _UNSET = object()

@@ -17,6 +17,7 @@ import numpy as np
 from .. import validate
 from ..errors import UsageError
 from ..device import abi
+from ..device.host_memory import aligned
 from ..host_stages import host_stage
 from ..scene.instances import scene_bvh
 from . import filters
@@ -168,7 +169,6 @@ class Wavefront:
         build_stage.__exit__(None, None, None)
         self.timings["build_seconds"] = time.perf_counter() - t0
         from ..accel.device_bvh import LAYOUT_WIDTHS, node_buffer
-        from ..device.host_memory import aligned
 
         ctx = self.rt.context
         mf = cl.mem_flags

@@ -193,9 +193,7 @@ def flat_where_planar(vertices, faces, normals, tolerance: float = 1e-5, inplace
     else:
         n = np.array(normals, np.float32).reshape(-1, 3, 3)
     f = _as_index(faces).reshape(-1, 3)
-    v = np.ascontiguousarray(vertices)
-    if v.dtype not in (np.float32, np.float64):
-        v = v.astype(np.float64)
+    v = _as_float(vertices)
     flat = np.empty(len(f), np.bool_)
     with np.errstate(invalid="ignore", divide="ignore"):
         _flat_faces(v, f, n, float(tolerance), flat)
@@ -246,10 +244,7 @@ def _unit_corner_normals(n, prim, as_given, out, nonzero):
 
 
 def _as_normals(normals, n_faces):
-    n = np.asarray(normals).reshape(n_faces, 3, 3)
-    if n.dtype not in (np.float32, np.float64):
-        n = n.astype(np.float64)
-    return np.ascontiguousarray(n)
+    return _as_float(np.asarray(normals).reshape(n_faces, 3, 3))
 
 
 def unit_corner_normals(normals, n_faces: int, as_given: bool = False, prim=None, out=None) -> np.ndarray:
@@ -319,8 +314,7 @@ def used_vertex_reach(vertices, faces) -> tuple[bool, float]:
     """(all the vertices some face uses are finite, the largest absolute coordinate among them):
     the validation's question of the vertices of np.unique(faces), in one parallel pass over the
     faces without the mask (faces must hold indices in [0, len(vertices)))."""
-    v = np.asarray(vertices)
-    v = np.ascontiguousarray(v if v.dtype in (np.float32, np.float64) else v.astype(np.float64)).reshape(-1, 3)
+    v = _as_float(vertices).reshape(-1, 3)
     f = _as_index(faces).reshape(-1, 3)
     if len(f) == 0:
         return True, 0.0

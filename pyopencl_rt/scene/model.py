@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..device import abi
-from ..device.host_memory import aligned, aligned_empty
+from ..device.host_memory import aligned_empty
 from .camera import FOV_AXES, PROJECTIONS, Camera, vertical_fov  # noqa: F401 (re-exported)
 from .lights import DirectionalLight, Environment, PointLight, ProjectorLight, SpotLight, look_at_frame  # noqa: F401
 from .materials import REGISTRY, MaterialType
@@ -514,7 +514,9 @@ class Scene:
             return
         n = self.normals
         if not (isinstance(n, np.ndarray) and n.dtype == np.float32 and n.flags.c_contiguous and n.flags.writeable):
-            n = self.normals = aligned(np.asarray(n, np.float32))
+            own = aligned_empty(np.shape(n), np.float32)  # a copy of its own to write (aligned() may return n)
+            own[...] = n
+            n = self.normals = own
         n = n.reshape(len(self.faces), 3, 3)
         unit_corner_normals(n, len(self.faces), False, out=n)
         self.normals_unit = True
