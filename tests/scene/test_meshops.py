@@ -321,3 +321,28 @@ def test_binary_ply_fast_path_declines_what_it_does_not_read(tmp_path):
     assert read_binary_ply(two) is None  # which pair trimesh takes is its business
     lone = _write_ply(tmp_path / "lone.ply", xyz + [("float", "u")], list(v.T) + [v[:, 0]], f)
     assert read_binary_ply(lone) is None
+
+
+def test_a_loaded_mesh_keeps_the_unit_normals_the_kernels_read(tmp_path):
+    """A Mitsuba XML's PLY without normals, loaded: the scene's own normals are face_normals()'s
+    values of the angle-weighted, flattened normals (the numpy reference), written once in place
+    (normals_unit), so the kernels read them as they are; face_normals() and its BVH-order gather
+    give those values, bit for bit, and making them unit again changes nothing."""
+    from pyopencl_rt.bench.scale_scene import write_ply
+    from pyopencl_rt.scene.loaders import load_scene
+
+    v, f = heightfield(24)
+    write_ply(tmp_path / "mesh.ply", v, f)
+    (tmp_path / "scene.xml").write_text(
+        '<scene version="3.0.0"><shape type="ply"><string name="filename" value="mesh.ply"/></shape>'
+        '<emitter type="constant"/></scene>')
+    scene = load_scene(tmp_path / "scene.xml")
+    raw = flat_where_planar(v, f, ref_angle_weighted_normals(v, f))
+    expected = meshops.unit_corner_normals(raw, len(f))
+    assert scene.normals_unit and not scene.normals_as_given
+    _same(np.asarray(scene.normals).reshape(-1, 3, 3), expected)
+    _same(scene.face_normals(), expected)
+    prim = np.random.default_rng(0).permutation(len(f))
+    _same(scene.face_normals(prim), expected[prim])
+    scene.make_normals_unit()  # already unit: left as it is
+    _same(np.asarray(scene.normals).reshape(-1, 3, 3), expected)
