@@ -237,26 +237,13 @@ def _material_record(m, index: int, arrays: dict) -> dict:
 
 
 def _light_record(light) -> dict:
-    name = type(light).__name__
-    if name == "PointLight":
-        return {"type": "point", "position": [float(x) for x in light.position],
-                "intensity": [float(x) for x in light.intensity]}
-    if name == "DirectionalLight":
-        return {"type": "directional", "direction": [float(x) for x in light.direction],
-                "irradiance": [float(x) for x in light.irradiance]}
-    if name in ("SpotLight", "ProjectorLight"):
-        if light.texture is not None or getattr(light, "falloff", "mitsuba") != "mitsuba" or \
-                getattr(light, "convention", "mitsuba") != "mitsuba":
-            raise ValueError(f"a textured {name}, or one with pbrt-v4's conventions, is not exported to Mitsuba")
-        to_world = np.eye(4)
-        to_world[:3, :3] = light.frame()
-        to_world[:3, 3] = light.position
-        if name == "SpotLight":
-            return {"type": "spot", "to_world": to_world.tolist(), "intensity": [float(x) for x in light.intensity],
-                    "cutoff_angle": float(light.cutoff_angle), "beam_width": light.beam()}
-        return {"type": "projector", "to_world": to_world.tolist(), "irradiance": [float(x) for x in light.irradiance],
-                "scale": float(light.scale), "fov": float(light.fov)}
-    raise ValueError(f"a {name} is not exported to Mitsuba")
+    from ..scene.lights import light_type  # here: the Mitsuba runner loads this module without the package
+
+    try:
+        kind = light_type(light)
+    except TypeError:
+        raise ValueError(f"a {type(light).__name__} is not exported to Mitsuba") from None
+    return kind.to_mitsuba(light)
 
 
 def _environment_record(environment, arrays: dict) -> dict | None:

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
 # Every #define of the generated header (name -> int or float), in declaration order.
 DEFINES: dict[str, int | float] = {}
 # Defines a build may override with -D (the value here is the default): the header guards them.
@@ -260,9 +259,10 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 # the row coordinate of v: y = v * v_scale + v_offset (H, -0.5: rows centred in [0, 1]; H - 1, 0:
 # the first and last rows on the poles, Mitsuba's envmap); the texels are interpolated bilinearly.
 ENV_MAP_HEADER = define("ENV_MAP_HEADER", 16)
+LIGHT_TYPES = define_enum("LIGHT_", ("triangle", "sphere",  # surfaces (cl/render/lights.h), then a unit each: cl/lights/
+                                     "point", "directional", "environment", "spot", "projector", "directional_area"))
 (LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_ENVIRONMENT, LIGHT_SPOT, LIGHT_PROJECTOR,
- LIGHT_DIRECTIONAL_AREA) = define_enum("LIGHT_", ("triangle", "sphere", "point", "directional", "environment", "spot",
-                                                  "projector", "directional_area")).values()
+ LIGHT_DIRECTIONAL_AREA) = LIGHT_TYPES.values()
 TRIANGLE_LIGHTS = (LIGHT_TRIANGLE, LIGHT_DIRECTIONAL_AREA)  # their prim is a triangle
 DELTA_LIGHTS = (LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT, LIGHT_PROJECTOR, LIGHT_DIRECTIONAL_AREA)  # never hit
 LIGHT_SPOT_SMOOTHSTEP = define("LIGHT_SPOT_SMOOTHSTEP", 1)

@@ -76,6 +76,20 @@ def bsdf_includes(material_types) -> str:
     return f"#ifndef PYOPENCL_RT_BSDFS_H\n#define PYOPENCL_RT_BSDFS_H\n{includes}#endif\n"
 
 
+def light_units(light_types) -> str:
+    """The generated header "lights/units.h": each light type's cl/lights/<name>.h (every type but the
+    surfaces', which cl/render/lights.h samples) and LIGHT_CASES(X), their cases in the enum's order
+    (each header defines LIGHT_CASE_<NAME>(X), empty where its type is not compiled in)."""
+    units = [name for name in light_types if name not in SURFACE_LIGHTS]
+    includes = "".join(f'#include "lights/{name}.h"\n' for name in units)
+    cases = " ".join(f"LIGHT_CASE_{name.upper()}(X)" for name in units)
+    return (f"#ifndef PYOPENCL_RT_LIGHT_UNITS_H\n#define PYOPENCL_RT_LIGHT_UNITS_H\n{includes}"
+            f"#define LIGHT_CASES(X) {cases}\n#endif\n")
+
+
+SURFACE_LIGHTS = ("triangle", "sphere")  # the emissive surfaces, sampled by cl/render/lights.h itself
+
+
 def material_cases(material_types) -> str:
     """MATERIAL_CASES(X), every BSDF type's case (cl/materials/dispatch.h), and the switch of every
     type but the one always compiled, all on where a scene does not select them (MATERIALS_SELECTED)."""

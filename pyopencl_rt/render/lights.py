@@ -8,17 +8,19 @@ over its triangles by area (:func:`uniform_weights`: Mitsuba 3's rule).  The tab
 the kernels divide by and weigh MIS with (cl/render/path.h), so either choice is unbiased."""
 from __future__ import annotations
 
-import math
 import warnings
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
 from ..device import abi
 from ..device.host_memory import aligned_empty
+from ..scene.lights import LUMINANCE, REGISTRY, light_type
+from ..scene.lights.frames import record_rgb
 from ..scene.model import LIGHT_SAMPLERS
 from .sampling import fill_light_table
 
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 / sRGB primaries
 
 
 def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -159,7 +161,8 @@ def uniform_weights(scene, bvh, lights, power) -> np.ndarray:
     return weights
 
 
-INFINITE_LIGHTS = (abi.LIGHT_DIRECTIONAL, abi.LIGHT_ENVIRONMENT)
+# infinitely far: the environment and the registered types that say so (directional)
+INFINITE_LIGHTS = (abi.LIGHT_ENVIRONMENT, *(t.kind for t in REGISTRY.values() if t.infinite))
 
 
 def selection_weights(kinds, power) -> np.ndarray:
@@ -205,9 +208,16 @@ def scene_bounding_sphere(scene) -> tuple[np.ndarray, float]:
     return 0.5 * (lo + hi), float(0.5 * np.linalg.norm(hi - lo))
 
 
-def _rgb(x) -> np.ndarray:
-    a = np.broadcast_to(np.asarray(x, np.float64), (3,))
-    return np.where(np.isfinite(a), np.maximum(a, 0.0), 0.0)
+_rgb = record_rgb
+
+
+@dataclass(frozen=True)
+class LightPlace:
+    """What a light type's ``pack`` reads of the scene (scene/lights/__init__.py)."""
+
+    centre: np.ndarray  # the scene's bounding sphere
+    radius: float
+    texture_index: Callable  # a Texture (or None) -> its index in the kernels' textures (-1)
 
 
 ENV_ROWS = {"centred": lambda h: (float(h), -0.5), "poles": lambda h: (float(max(h - 1, 1)), 0.0)}
@@ -367,135 +377,35 @@ def environment_buffers(scene, compensated=False) -> tuple[np.ndarray, np.ndarra
     return tables[0], tables[1]
 
 
-def _cone_integral(f, cos_min: float) -> float:
-    """The integral of f(theta) over the solid angle of the cone of directions within
-    arccos(cos_min) of its axis (midpoint rule in theta, 2048 steps)."""
-    top = math.acos(min(1.0, max(-1.0, cos_min)))
-    theta = (np.arange(2048) + 0.5) / 2048 * top
-    return float(2 * np.pi * np.sum(f(theta) * np.sin(theta)) * top / 2048)
-
-
-def spot_record(r, spec, texture_index) -> float:
-    """Fill the LIGHT record r of a SpotLight; its power (luminance) for the light sampler."""
-    cutoff = math.radians(float(spec.cutoff_angle))
-    beam = math.radians(spec.beam())
-    if not 0 < cutoff <= math.pi or not 0 <= beam <= cutoff:
-        raise ValueError(f"a spot light needs 0 < beam_width <= cutoff_angle <= 180 degrees, got "
-                         f"{spec.beam():g} and {float(spec.cutoff_angle):g}")
-    if spec.falloff not in ("mitsuba", "smoothstep"):
-        raise ValueError(f"unknown spot falloff {spec.falloff!r}: use mitsuba or smoothstep")
-    m = spec.frame()
-    r["kind"] = abi.LIGHT_SPOT
-    r["p"] = spec.position
-    r["frame"] = np.linalg.inv(m).reshape(-1)
-    r["rgb"] = _rgb(spec.intensity)
-    cc, cb = math.cos(cutoff), math.cos(beam)
-    with np.errstate(divide="ignore"):
-        r["cone"] = (cc, cb, cutoff, np.float64(1.0) / (cutoff - beam) if cutoff > beam else np.inf)
-    tan = math.tan(cutoff)
-    r["uv_scale"] = (0.5 / tan, 0.5 / tan) if cutoff < math.pi / 2 else (0.0, 0.0)
-    r["texture"] = texture_index(spec.texture)
-    if spec.falloff == "smoothstep":
-        r["flags"] = abi.LIGHT_SPOT_SMOOTHSTEP
-
-        def f(theta):
-            t = np.clip((np.cos(theta) - cc) / (cb - cc), 0, 1) if cb > cc else (np.cos(theta) >= cc) * 1.0
-            return t * t * (3 - 2 * t)
-    else:
-        def f(theta):
-            return np.where(theta <= beam, 1.0, np.clip((cutoff - theta) / max(cutoff - beam, 1e-30), 0, 1))
-    mean = 1.0 if spec.texture is None else float(spec.texture.mean_rgb() @ LUMINANCE)
-    return _cone_integral(f, cc) * float(r["rgb"] @ LUMINANCE) * mean
-
-
-def projector_record(r, spec, texture_index) -> float:
-    """Fill the LIGHT record r of a ProjectorLight; its power (luminance) for the light sampler."""
-    fov = float(spec.fov)
-    if not 0 < fov < 180:
-        raise ValueError(f"a projector's fov must be between 0 and 180 degrees, got {fov:g}")
-    if spec.convention not in ("mitsuba", "pbrt"):
-        raise ValueError(f"unknown projector convention {spec.convention!r}: use mitsuba or pbrt")
-    m = spec.frame()
-    t, aspect = math.tan(math.radians(fov) / 2), spec.aspect()
-    r["kind"] = abi.LIGHT_PROJECTOR
-    r["p"] = spec.position
-    r["frame"] = np.linalg.inv(m).reshape(-1)
-    r["dir"] = m[:, 2]
-    rgb = np.asarray(_rgb(spec.irradiance), np.float64) * float(spec.scale)
-    # v grows toward local -y (the image upright); u toward -x in Mitsuba (its camera frame: +x on
-    # the image's left), toward +x in pbrt-v4
-    r["uv_scale"] = ((-0.5 if spec.convention == "mitsuba" else 0.5) / t, -0.5 * aspect / t)
-    r["texture"] = texture_index(spec.texture)
-    mean = 1.0 if spec.texture is None else float(spec.texture.mean_rgb() @ LUMINANCE)
-    area = 4 * t * t / aspect  # of the image on the plane z = 1
-    if spec.convention == "mitsuba":
-        r["flags"] = abi.LIGHT_PROJECTOR_COS3
-        rgb = rgb * np.pi
-        power = float(rgb @ LUMINANCE) * mean * area
-    else:  # intensity I over the image's solid angle: integral of dA cos^3 over z = 1
-        xs = (np.arange(256) + 0.5) / 256 * 2 - 1
-        x, y = np.meshgrid(xs * t, xs * t / aspect)
-        power = float(rgb @ LUMINANCE) * mean * float(np.mean((1 + x * x + y * y) ** -1.5)) * area
-    r["rgb"] = rgb
-    return power
-
-
 def other_lights(scene) -> tuple[np.ndarray, np.ndarray]:
-    """LIGHT records and powers of the scene's point, directional, spot, projector and environment
-    lights."""
-    from ..scene.model import DirectionalLight, Environment, PointLight, ProjectorLight, SpotLight
-
+    """LIGHT records and powers of the scene's lights of registered types (scene/lights/: point,
+    directional, spot, projector) and its environment."""
     specs = list(getattr(scene, "lights", []) or [])
     env = getattr(scene, "environment", None)
-    if env is not None:
-        specs.append(env)
-    recs = np.zeros(len(specs), abi.LIGHT)
-    power = np.zeros(len(specs))
-    if not specs:
+    recs = np.zeros(len(specs) + (env is not None), abi.LIGHT)
+    power = np.zeros(len(recs))
+    if not len(recs):
         return recs, power
     centre, radius = scene_bounding_sphere(scene)
     recs["texture"] = -1
     index = {id(t): i for i, t in enumerate(scene.textures())} if hasattr(scene, "textures") else {}
-
-    def texture_index(t) -> int:
-        return -1 if t is None else index[id(t)]
-
+    place = LightPlace(centre, radius, lambda t: -1 if t is None else index[id(t)])
     for i, spec in enumerate(specs):
-        r = recs[i]
-        r["material"] = 0
-        if isinstance(spec, SpotLight):
-            power[i] = spot_record(r, spec, texture_index)
-            continue
-        if isinstance(spec, ProjectorLight):
-            power[i] = projector_record(r, spec, texture_index)
-            continue
-        if isinstance(spec, PointLight):
-            r["kind"] = abi.LIGHT_POINT
-            r["p"] = spec.position
-            r["rgb"] = _rgb(spec.intensity)
-            power[i] = 4 * np.pi * float(r["rgb"] @ LUMINANCE)
-        elif isinstance(spec, DirectionalLight):
-            d = np.asarray(spec.direction, np.float64)
-            norm = np.linalg.norm(d)
-            if not norm > 0:
-                raise ValueError("a directional light needs a non-zero direction")
-            r["kind"] = abi.LIGHT_DIRECTIONAL
-            r["dir"] = d / norm
-            r["p"], r["radius"] = centre, radius
-            r["rgb"] = _rgb(spec.irradiance)
-            power[i] = np.pi * radius**2 * float(r["rgb"] @ LUMINANCE)
-        elif isinstance(spec, Environment):
-            r["kind"] = abi.LIGHT_ENVIRONMENT
-            r["p"], r["radius"] = centre, radius
-            r["rgb"] = _rgb(spec.radiance)
-            tables = _env_tables(spec)
-            mean = 1.0
-            if tables is not None:
-                h, w = np.asarray(spec.image).shape[:2]
-                r["prim"], r["material"], r["cells"] = w, h, tables[3]
-                mean = tables[2]
-            power[i] = 4 * np.pi * np.pi * radius**2 * float(r["rgb"] @ LUMINANCE) * mean
-        else:
-            raise TypeError(f"unknown light {spec!r}")
+        kind = light_type(spec)
+        recs[i]["material"] = 0
+        recs[i]["kind"] = kind.kind
+        power[i] = kind.pack(spec, recs[i], place)
+    if env is not None:
+        r = recs[-1]
+        r["kind"] = abi.LIGHT_ENVIRONMENT
+        r["p"], r["radius"] = centre, radius
+        r["rgb"] = _rgb(env.radiance)
+        tables = _env_tables(env)
+        mean = 1.0
+        if tables is not None:
+            h, w = np.asarray(env.image).shape[:2]
+            r["prim"], r["material"], r["cells"] = w, h, tables[3]
+            mean = tables[2]
+        power[-1] = 4 * np.pi * np.pi * radius**2 * float(r["rgb"] @ LUMINANCE) * mean
     power = np.where(np.isfinite(power), power, np.finfo(np.float64).max / (len(power) + 1))
     return recs, power

@@ -24,6 +24,7 @@ from ..errors import UsageError, UserError
 from ..scene.media import uses_spectral_mis
 from ..scene.model import INTEGRATORS, SAMPLERS  # MIS path, BSDF only, light only; cl/render/sampler.h
 from ..scene.pixel_filter import PixelFilter
+from .lights import INFINITE_LIGHTS
 
 MAX_PIXELS = 1 << 26  # 8192 x 8192
 
@@ -232,7 +233,7 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
         defines["HAS_DELTA_LIGHTS"] = True
     if environment_row(lights) >= 0:
         defines["HAS_ENVIRONMENT"] = True
-    if np.isin(kinds, (abi.LIGHT_DIRECTIONAL, abi.LIGHT_ENVIRONMENT)).any():
+    if np.isin(kinds, INFINITE_LIGHTS).any():
         defines["HAS_INFINITE_LIGHTS"] = True
     if has_light_tree(lights):
         defines["LIGHT_TREE"] = True  # light_sampler "bvh" (cl/render/light_tree.h)

@@ -27,8 +27,8 @@ from typing import Callable
 import numpy as np
 
 from ...device.host_memory import aligned_empty
-from ..model import (Camera, DirectionalLight, Environment, Material, PointLight, ProjectorLight, RenderSettings,
-                     Scene, SpotLight, vertical_fov)  # noqa: F401 (vertical_fov: the loaders' import)
+from ..lights import light_type
+from ..model import Camera, Environment, Material, RenderSettings, Scene, vertical_fov  # noqa: F401 (vertical_fov: the loaders' import)
 from .assembly import (_finite_faces, angle_weighted_normals, frame_scene, stacked_per_face, transform_normals,
                        triangle_scene)
 # the importers take the shared geometry and errors from here too
@@ -382,13 +382,7 @@ class SceneBuilder:
             colors = colors[:, ::-1] if colors is not None else None
             if len(spheres):
                 spheres[:, :3] = transform_points(mirror, spheres[:, :3])
-            lights = [dataclasses.replace(lt, position=tuple(transform_points(mirror, lt.position)[0]),
-                                          to_world=mirror[:3, :3] @ lt.frame())
-                      if isinstance(lt, (SpotLight, ProjectorLight)) else
-                      dataclasses.replace(lt, position=tuple(transform_points(mirror, lt.position)[0]))
-                      if isinstance(lt, PointLight) else
-                      dataclasses.replace(lt, direction=tuple(transform_vector(mirror, lt.direction)))
-                      if isinstance(lt, DirectionalLight) else lt for lt in lights]
+            lights = [light_type(lt).mirrored(lt, mirror) for lt in lights]
             media = [m.transformed(mirror) for m in media]
             mirror_texture_spaces(self.materials, mirror)
         instances = self.instances

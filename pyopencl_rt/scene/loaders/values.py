@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import UserError
+from ..lights.frames import look_at_frame
 
 
 class SceneError(UserError):
@@ -207,6 +208,24 @@ class TableReader:
         if key not in self.table:
             return None
         return read_texture(self.ctx, self.where, key, self.table[key], srgb=srgb)
+
+    def color(self, key, default) -> tuple:
+        """An RGB colour (a number or three), finite and non-negative."""
+        return check_color(self.ctx, self.where, key, self.table.get(key, default))
+
+    def aimed(self) -> tuple:
+        """(position, 3x3 local-to-world frame, texture) of a light at ``position`` aimed at ``look_at``
+        (its local +z), its local +y nearest ``up`` (default +y); ``texture``: an sRGB image or None."""
+        for key in ("position", "look_at"):
+            if key not in self:
+                raise self.error(f"missing '{key}'")
+        position, target = self.vector("position"), self.vector("look_at")
+        up = self.vector("up") if "up" in self else np.array([0.0, 1.0, 0.0])
+        try:
+            frame = look_at_frame(position, target, up)
+        except ValueError as exc:
+            raise self.error(str(exc)) from None
+        return tuple(float(x) for x in position), frame, self.texture("texture", srgb=True)
 
 
 class SceneFormatError(SceneError):

@@ -1,0 +1,49 @@
+"""``point``: an isotropic point light of radiant intensity ``intensity`` [W/sr] (RGB) at
+``position`` (cl/lights/point.h samples it).
+
+TOML: ``[[light]] type = "point"``, ``position`` (required), ``intensity`` (default 1).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .frames import LUMINANCE, mirrored_point, record_rgb
+
+INFINITE = False  # at a place in the scene (the light BVH bounds it)
+TOML_KEYS = frozenset({"position", "intensity"})
+
+
+@dataclass
+class PointLight:
+    """An isotropic point light of radiant intensity ``intensity`` [W/sr] (RGB)."""
+
+    position: tuple = (0.0, 0.0, 0.0)
+    intensity: tuple = (1.0, 1.0, 1.0)
+    sampling_weight: float = 1.0  # its share of the picks with RenderSettings.light_sampler "uniform"
+
+
+LIGHT = PointLight
+
+
+def read_toml(t) -> PointLight:
+    if "position" not in t:
+        raise t.error("missing 'position'")
+    return PointLight(position=tuple(float(x) for x in t.vector("position")), intensity=t.color("intensity", 1.0))
+
+
+def pack(light: PointLight, r, place) -> float:
+    """Fill the LIGHT record r; its power (luminance) for the light sampler: 4 pi I."""
+    r["p"] = light.position
+    r["rgb"] = record_rgb(light.intensity)
+    return 4 * np.pi * float(r["rgb"] @ LUMINANCE)
+
+
+def mirrored(light: PointLight, mirror) -> PointLight:
+    return replace(light, position=mirrored_point(mirror, light.position))
+
+
+def to_mitsuba(light: PointLight) -> dict:
+    return {"type": "point", "position": [float(x) for x in light.position],
+            "intensity": [float(x) for x in light.intensity]}

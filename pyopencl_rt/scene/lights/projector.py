@@ -1,0 +1,101 @@
+"""``projector``: a pinhole at ``position`` projecting an image along its local +z (``to_world`` as
+for the spot; local +y is the image's up), ``fov`` degrees wide along the image's width, the image
+``texture`` (None: constant) times ``irradiance`` (RGB) times ``scale``.  ``convention``
+"mitsuba": the irradiance on the plane at z = 1 is pi scale irradiance texture, local +x on the
+image's left (projector.cpp, its camera frame); "pbrt": the intensity toward a texel is scale
+irradiance texture, local +x on the image's right (pbrt-v4's "projection" light)
+(cl/lights/projector.h samples it).
+
+TOML: ``[[light]] type = "projector"``, ``position`` and ``look_at`` (required), ``up`` (default
++y), ``irradiance`` (default 1), ``scale`` (default 1), ``fov`` (default 45), ``texture`` (an sRGB
+image); Mitsuba's convention.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .frames import LUMINANCE, checked_frame, mirrored_point, record_rgb
+from ...device import abi
+
+INFINITE = False
+TOML_KEYS = frozenset({"irradiance", "scale", "fov", "texture", "position", "look_at", "up"})
+
+
+@dataclass
+class ProjectorLight:
+    """A projector (this module's docstring)."""
+
+    position: tuple = (0.0, 0.0, 0.0)
+    irradiance: tuple = (1.0, 1.0, 1.0)
+    texture: object = None
+    scale: float = 1.0
+    fov: float = 45.0
+    convention: str = "mitsuba"
+    to_world: np.ndarray | None = None
+    sampling_weight: float = 1.0
+
+    def frame(self) -> np.ndarray:
+        return checked_frame(self.to_world)
+
+    def aspect(self) -> float:
+        """Width over height of the projected image (1 without a texture)."""
+        return 1.0 if self.texture is None else self.texture.width / self.texture.height
+
+
+LIGHT = ProjectorLight
+
+
+def read_toml(t) -> ProjectorLight:
+    position, frame, texture = t.aimed()
+    fov = t.number("fov", 45.0, positive=True, maximum=179.999)
+    return ProjectorLight(position=position, irradiance=t.color("irradiance", 1.0), texture=texture,
+                          scale=t.number("scale", 1.0, minimum=0.0), fov=fov, to_world=frame)
+
+
+def pack(light: ProjectorLight, r, place) -> float:
+    """Fill the LIGHT record r; its power (luminance) for the light sampler."""
+    fov = float(light.fov)
+    if not 0 < fov < 180:
+        raise ValueError(f"a projector's fov must be between 0 and 180 degrees, got {fov:g}")
+    if light.convention not in ("mitsuba", "pbrt"):
+        raise ValueError(f"unknown projector convention {light.convention!r}: use mitsuba or pbrt")
+    m = light.frame()
+    t, aspect = math.tan(math.radians(fov) / 2), light.aspect()
+    r["p"] = light.position
+    r["frame"] = np.linalg.inv(m).reshape(-1)
+    r["dir"] = m[:, 2]
+    rgb = np.asarray(record_rgb(light.irradiance), np.float64) * float(light.scale)
+    # v grows toward local -y (the image upright); u toward -x in Mitsuba (its camera frame: +x on
+    # the image's left), toward +x in pbrt-v4
+    r["uv_scale"] = ((-0.5 if light.convention == "mitsuba" else 0.5) / t, -0.5 * aspect / t)
+    r["texture"] = place.texture_index(light.texture)
+    mean = 1.0 if light.texture is None else float(light.texture.mean_rgb() @ LUMINANCE)
+    area = 4 * t * t / aspect  # of the image on the plane z = 1
+    if light.convention == "mitsuba":
+        r["flags"] = abi.LIGHT_PROJECTOR_COS3
+        rgb = rgb * np.pi
+        power = float(rgb @ LUMINANCE) * mean * area
+    else:  # intensity I over the image's solid angle: integral of dA cos^3 over z = 1
+        xs = (np.arange(256) + 0.5) / 256 * 2 - 1
+        x, y = np.meshgrid(xs * t, xs * t / aspect)
+        power = float(rgb @ LUMINANCE) * mean * float(np.mean((1 + x * x + y * y) ** -1.5)) * area
+    r["rgb"] = rgb
+    return power
+
+
+def mirrored(light: ProjectorLight, mirror) -> ProjectorLight:
+    return replace(light, position=mirrored_point(mirror, light.position),
+                   to_world=np.asarray(mirror)[:3, :3] @ light.frame())
+
+
+def to_mitsuba(light: ProjectorLight) -> dict:
+    if light.texture is not None or light.convention != "mitsuba":
+        raise ValueError("a textured ProjectorLight, or one with pbrt-v4's conventions, is not exported to Mitsuba")
+    to_world = np.eye(4)
+    to_world[:3, :3] = light.frame()
+    to_world[:3, 3] = light.position
+    return {"type": "projector", "to_world": to_world.tolist(), "irradiance": [float(x) for x in light.irradiance],
+            "scale": float(light.scale), "fov": float(light.fov)}

@@ -1,0 +1,101 @@
+"""The light types as units (pyopencl_rt/scene/lights/, cl/lights/): the kernel's light enum, the
+headers that sample each type and the host modules agree; the generated "lights/units.h" lists
+every unit; each registered type reads its TOML table, packs its record (the kind the kernels
+dispatch on) and survives a mirror and the Mitsuba export as a light of its type.  The images these
+units make are checked elsewhere (test_lights.py: closed forms and every lane width alike;
+test_features.py: bit for bit against each scene's own kernel).  Host-only."""
+import importlib
+import pkgutil
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pyopencl_rt.device import abi
+from pyopencl_rt.device.cl_header import SURFACE_LIGHTS, light_units
+from pyopencl_rt.device.kernels import assemble
+from pyopencl_rt.render.lights import INFINITE_LIGHTS, other_lights
+from pyopencl_rt.scene import lights
+from pyopencl_rt.scene.lights import REGISTRY, UNREGISTERED, light_type
+from pyopencl_rt.scene.loaders.values import ErrorContext, TableReader
+from pyopencl_rt.scene.model import Material, Scene
+
+REPO = Path(__file__).resolve().parents[2]
+CL_LIGHTS = REPO / "cl" / "lights"
+
+# one TOML table per registered type (the required keys and one more)
+TABLES = {
+    "point": {"position": [1.0, 2.0, 3.0], "intensity": [4.0, 5.0, 6.0]},
+    "directional": {"direction": [0.0, -2.0, 0.0], "irradiance": 2.0},
+    "spot": {"position": [0.0, 1.0, 0.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 0.0, 1.0], "cutoff_angle": 30.0},
+    "projector": {"position": [0.0, 1.0, 0.0], "look_at": [0.0, 0.0, 1.0], "fov": 40.0},
+}
+
+
+def unit_headers() -> set:
+    """Headers of cl/lights/ that define a type's sampling, ``light_sample_<name>(``, and its case."""
+    return {h.stem for h in CL_LIGHTS.glob("*.h")
+            if re.search(rf"\blight_sample_{h.stem}\s*\(", h.read_text())
+            and f"#define LIGHT_CASE_{h.stem.upper()}(X) X({h.stem}, {h.stem.upper()})" in h.read_text()}
+
+
+def host_modules() -> set:
+    return {info.name for info in pkgutil.iter_modules(lights.__path__)
+            if hasattr(importlib.import_module(f"{lights.__name__}.{info.name}"), "pack")}
+
+
+def one_triangle(lights_) -> Scene:
+    return Scene(vertices=np.array([[-1.0, 0, -1], [1, 0, -1], [0, 0, 1]], np.float32),
+                 faces=np.array([[0, 1, 2]], np.int32), face_materials=np.zeros(1, np.int32),
+                 materials=[Material(name="white")], lights=lights_)
+
+
+def test_enum_kernel_units_and_host_modules_agree():
+    kernel_units = set(abi.LIGHT_TYPES) - set(SURFACE_LIGHTS)
+    assert unit_headers() == kernel_units
+    assert host_modules() == set(REGISTRY) == set(abi.LIGHT_TYPES) - set(UNREGISTERED)
+    assert {name: t.kind for name, t in REGISTRY.items()} == {n: abi.LIGHT_TYPES[n] for n in REGISTRY}
+    assert set(TABLES) == set(REGISTRY), "a new type needs its table here"
+
+
+def test_the_generated_header_lists_every_unit_in_the_enums_order():
+    text = light_units(abi.LIGHT_TYPES)
+    units = [n for n in abi.LIGHT_TYPES if n not in SURFACE_LIGHTS]
+    assert re.findall(r'#include "lights/(\w+)\.h"', text) == units
+    assert re.findall(r"LIGHT_CASE_(\w+)\(X\)", text) == [n.upper() for n in units]
+    source = assemble("megakernel/path.cl")  # the dispatch reaches each unit through the cases
+    assert "LIGHT_CASES(LIGHT_SAMPLE_CASE)" in source
+    for name in units:
+        assert f"light_sample_{name}(LIGHT_UNIT_PARAMS)" in source
+
+
+def test_infinitely_far_kinds_come_from_the_types():
+    assert set(INFINITE_LIGHTS) == {abi.LIGHT_ENVIRONMENT} | {t.kind for t in REGISTRY.values() if t.infinite}
+    assert abi.LIGHT_DIRECTIONAL in INFINITE_LIGHTS and abi.LIGHT_POINT not in INFINITE_LIGHTS
+
+
+@pytest.mark.parametrize("name", sorted(TABLES))
+def test_each_type_reads_packs_mirrors_and_exports(name):
+    t = REGISTRY[name]
+    light = t.read_toml(TableReader(ErrorContext("test.toml"), f"[[light]] ({name})", TABLES[name]))
+    assert isinstance(light, t.light) and light_type(light) is t
+    scene = one_triangle([light])
+    recs, power = other_lights(scene)
+    assert recs["kind"].tolist() == [t.kind] and np.isfinite(power).all() and power[0] > 0
+    flip = np.diag([-1.0, 1.0, 1.0, 1.0])  # a mirror in x
+    mirrored = t.mirrored(light, flip)
+    assert type(mirrored) is t.light
+    twice = t.mirrored(mirrored, flip)
+    for field in ("position", "direction"):
+        if hasattr(light, field):
+            assert np.allclose(getattr(twice, field), getattr(light, field))
+            assert np.allclose(getattr(mirrored, field), np.asarray(getattr(light, field)) * [-1, 1, 1])
+    assert t.to_mitsuba(light)["type"] == name
+
+
+def test_an_object_of_no_registered_type_is_refused():
+    with pytest.raises(TypeError, match="unknown light"):
+        light_type(object())
+    with pytest.raises(TypeError, match="unknown light"):
+        other_lights(one_triangle([object()]))
