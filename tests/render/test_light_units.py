@@ -99,3 +99,37 @@ def test_an_object_of_no_registered_type_is_refused():
         light_type(object())
     with pytest.raises(TypeError, match="unknown light"):
         other_lights(one_triangle([object()]))
+
+
+MITSUBA = {"point": '<emitter type="point"><point name="position" value="1, 2, 3"/></emitter>',
+           "directional": '<emitter type="directional"><vector name="direction" value="0, -1, 0"/></emitter>',
+           "spot": '<emitter type="spot"><float name="cutoff_angle" value="30"/></emitter>',
+           "projector": '<emitter type="projector"><float name="fov" value="40"/></emitter>'}
+PBRT = {"point": 'LightSource "point" "point3 from" [1 2 3]',
+        "distant": 'LightSource "distant" "point3 from" [0 1 0] "point3 to" [0 0 0]',
+        "spot": 'LightSource "spot" "point3 from" [0 1 0] "point3 to" [0 0 0] "float coneangle" 25'}
+
+
+def test_the_file_formats_reach_each_type_through_the_registry(tmp_path):
+    """Each Mitsuba emitter plugin and pbrt-v4 LightSource type a registered type claims is read by
+    that type (its dataclass in Scene.lights), and the Mitsuba parameters it honours are the
+    plugin table's; pbrt's "projection" needs an image file (tests/scene/test_pbrt.py reads one)."""
+    from pyopencl_rt import load_scene
+    from pyopencl_rt.scene.lights import MITSUBA_TYPES, PBRT_TYPES
+    from pyopencl_rt.scene.loaders.mitsuba_plugins import HONOURED
+
+    assert set(MITSUBA_TYPES) == set(MITSUBA) and set(PBRT_TYPES) == set(PBRT) | {"projection"}
+    for plugin, t in MITSUBA_TYPES.items():
+        assert HONOURED["emitter"][plugin] == t.mitsuba_plugins[plugin]
+        path = tmp_path / f"{plugin}.xml"
+        path.write_text(f'<scene version="3.0.0"><shape type="rectangle"/>{MITSUBA[plugin]}</scene>')
+        (light,) = load_scene(path).lights
+        assert light_type(light) is t, plugin
+    for name, t in PBRT_TYPES.items():
+        if name not in PBRT:
+            continue
+        path = tmp_path / f"{name}.pbrt"
+        path.write_text('LookAt 0 0 5  0 0 0  0 1 0\nCamera "perspective"\nWorldBegin\n'
+                        f'{PBRT[name]}\nShape "sphere" "float radius" 1\n')
+        (light,) = load_scene(path).lights
+        assert light_type(light) is t, name

@@ -17,13 +17,16 @@ Its docstring documents the type for scene files, and it defines:
   gives the scene's bounding sphere (``centre``, ``radius``) and ``texture_index(texture)``;
 * ``mirrored(light, m)``: the light under the 4x4 map ``m`` of a scene's mirror;
 * ``to_mitsuba(light) -> dict``: its Mitsuba 3 emitter, as ``mi.load_dict`` takes it (ValueError
-  where it has none).
+  where it has none);
+* ``MITSUBA_PLUGINS`` ({plugin: the parameters it renders as Mitsuba does}) and
+  ``from_mitsuba(obj, read)``: a Mitsuba XML emitter (``obj``; ``read``: the XML loader's
+  ``EmitterReading``: ``color``, ``placed``, ``fov_x``, ``to_world``, ``sampling_weight``, ``error``);
+* ``PBRT_TYPES`` and ``from_pbrt(params, read)``: a pbrt-v4 ``LightSource`` (``read``: pbrt_lights.py's
+  ``LightReading``: ``ctm``, ``scale``, ``spectrum``, ``image``, ``warn``, ``error``).
 
 Adding a type: ``<name>.py`` here, its entry of ``abi.LIGHT_TYPES`` and its kernel
 ``cl/lights/<name>.h`` (``light_sample_<name>`` and its ``LIGHT_CASE_<NAME>``); docs/ARCHITECTURE.md
-has the recipe and tests/render/test_light_units.py checks that the three agree.  The Mitsuba XML
-and pbrt-v4 readers of the types are still the loaders' (scene/loaders/mitsuba_scene.py,
-pbrt_lights.py).  The environment (:mod:`.environment`) is one per scene with tables of its own,
+has the recipe and tests/render/test_light_units.py checks that the three agree.  The environment (:mod:`.environment`) is one per scene with tables of its own,
 and the emissive surfaces are materials' emission: neither is a registered type here, though both
 sample through kernel units.
 """
@@ -42,7 +45,7 @@ from .point import PointLight
 from .projector import ProjectorLight
 from .spot import SpotLight
 
-__all__ = ["REGISTRY", "LightType", "DirectionalLight", "Environment", "PointLight", "ProjectorLight", "SpotLight",
+__all__ = ["REGISTRY", "MITSUBA_TYPES", "PBRT_TYPES", "LightType", "DirectionalLight", "Environment", "PointLight", "ProjectorLight", "SpotLight",
            "LUMINANCE", "look_at_frame", "light_type"]
 
 
@@ -60,12 +63,18 @@ class LightType:
     pack: Callable
     mirrored: Callable
     to_mitsuba: Callable
+    mitsuba_plugins: dict
+    from_mitsuba: Callable
+    pbrt_types: tuple
+    from_pbrt: Callable
 
     @classmethod
     def from_module(cls, name: str, kind: int, module) -> "LightType":
         return cls(name=name, kind=kind, documentation=inspect.cleandoc(module.__doc__), light=module.LIGHT,
                    infinite=module.INFINITE, toml_keys=frozenset(module.TOML_KEYS), read_toml=module.read_toml,
-                   pack=module.pack, mirrored=module.mirrored, to_mitsuba=module.to_mitsuba)
+                   pack=module.pack, mirrored=module.mirrored, to_mitsuba=module.to_mitsuba,
+                   mitsuba_plugins=dict(module.MITSUBA_PLUGINS), from_mitsuba=module.from_mitsuba,
+                   pbrt_types=tuple(module.PBRT_TYPES), from_pbrt=module.from_pbrt)
 
 
 # kernel units without a host module here (lights.py's docstring says why)
@@ -79,6 +88,9 @@ def _registry() -> dict[str, LightType]:
 
 REGISTRY: dict[str, LightType] = _registry()
 _BY_CLASS = {t.light: t for t in REGISTRY.values()}
+# the Mitsuba 3 emitter plugins and the pbrt-v4 LightSource types that the registered types read
+MITSUBA_TYPES: dict[str, LightType] = {plugin: t for t in REGISTRY.values() for plugin in t.mitsuba_plugins}
+PBRT_TYPES: dict[str, LightType] = {name: t for t in REGISTRY.values() for name in t.pbrt_types}
 
 
 def light_type(light) -> LightType:

@@ -2,7 +2,8 @@
 surface facing it the irradiance ``irradiance`` (RGB) (cl/lights/directional.h samples it).
 
 TOML: ``[[light]] type = "directional"``, ``direction`` (required: the way the light travels, not
-zero), ``irradiance`` (default 1).
+zero), ``irradiance`` (default 1).  Mitsuba 3: ``directional`` (``direction``, else to_world's +z).
+pbrt-v4: ``distant`` (from ``from`` to ``to``, ``L`` times ``scale``).
 """
 from __future__ import annotations
 
@@ -10,10 +11,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .frames import LUMINANCE, record_rgb
+from .frames import LUMINANCE, affine_vector, record_rgb
 
 INFINITE = True  # picked as pbrt-v4's BVH light sampler picks infinitely distant lights
 TOML_KEYS = frozenset({"direction", "irradiance"})
+MITSUBA_PLUGINS = {"directional": ("irradiance", "direction", "to_world", "sampling_weight")}
+PBRT_TYPES = ("distant",)
 
 
 @dataclass
@@ -53,10 +56,32 @@ def pack(light: DirectionalLight, r, place) -> float:
 
 
 def mirrored(light: DirectionalLight, mirror) -> DirectionalLight:
-    direction = np.asarray(mirror, np.float64)[:3, :3] @ np.asarray(light.direction, np.float64)
-    return replace(light, direction=tuple(np.asarray(direction, np.float64)))
+    return replace(light, direction=tuple(affine_vector(mirror, light.direction)))
 
 
 def to_mitsuba(light: DirectionalLight) -> dict:
     return {"type": "directional", "direction": [float(x) for x in light.direction],
             "irradiance": [float(x) for x in light.irradiance]}
+
+
+def from_mitsuba(obj, read) -> DirectionalLight:
+    d = obj.point("direction", None)
+    if d is None:
+        d = affine_vector(read.to_world, [0.0, 0.0, 1.0]) if read.to_world is not None else np.array([0.0, 0.0, 1.0])
+    if not np.linalg.norm(d) > 0:
+        raise read.error("the direction is zero")
+    irradiance, _ = read.color("irradiance", (1.0, 1.0, 1.0))
+    return DirectionalLight(direction=tuple(map(float, d / np.linalg.norm(d))), irradiance=irradiance,
+                            sampling_weight=read.sampling_weight)
+
+
+def from_pbrt(p, read) -> DirectionalLight:
+    src = np.asarray(p.numbers("from", ("point3", "point"), 3, [0.0, 0.0, 0.0]), np.float64)
+    dst = np.asarray(p.numbers("to", ("point3", "point"), 3, [0.0, 0.0, 1.0]), np.float64)
+    direction = affine_vector(read.ctm, dst - src)
+    if not np.linalg.norm(direction) > 0:
+        raise read.error('"from" and "to" are the same point' if not np.linalg.norm(dst - src) > 0 else
+                         "the transform is singular (it takes the direction to zero)")
+    radiance = read.spectrum("L", (1.0, 1.0, 1.0))
+    return DirectionalLight(direction=tuple(map(float, direction / np.linalg.norm(direction))),
+                            irradiance=tuple(c * read.scale for c in radiance))

@@ -35,8 +35,14 @@ def record_rgb(x) -> np.ndarray:
     return np.where(np.isfinite(a), np.maximum(a, 0.0), 0.0)
 
 
-def mirrored_point(mirror, p) -> tuple:
-    """The point p under the 4x4 affine map ``mirror`` (as the loaders' transform_points)."""
-    m = np.asarray(mirror, np.float64)
+def affine_point(m, p) -> tuple:
+    """The point p under the 4x4 affine map ``m`` (a scene's mirror, a file's transform), as the
+    loaders' transform_points computes it."""
+    m = np.asarray(m, np.float64)
     q = np.asarray(p, np.float64).reshape(1, 3) @ m[:3, :3].T + m[:3, 3]
     return tuple(q[0])
+
+
+def affine_vector(m, v) -> np.ndarray:
+    """The vector v under the 4x4 affine map ``m`` (its linear part), as transform_vector."""
+    return np.asarray(np.asarray(m, np.float64)[:3, :3] @ np.asarray(v, np.float64), np.float64)

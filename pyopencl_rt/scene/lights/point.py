@@ -1,7 +1,8 @@
 """``point``: an isotropic point light of radiant intensity ``intensity`` [W/sr] (RGB) at
 ``position`` (cl/lights/point.h samples it).
 
-TOML: ``[[light]] type = "point"``, ``position`` (required), ``intensity`` (default 1).
+TOML: ``[[light]] type = "point"``, ``position`` (required), ``intensity`` (default 1).  Mitsuba 3:
+``point`` (``position``, else to_world's origin).  pbrt-v4: ``point`` (``from``, ``I`` times ``scale``).
 """
 from __future__ import annotations
 
@@ -9,10 +10,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .frames import LUMINANCE, mirrored_point, record_rgb
+from .frames import LUMINANCE, affine_point, record_rgb
 
 INFINITE = False  # at a place in the scene (the light BVH bounds it)
 TOML_KEYS = frozenset({"position", "intensity"})
+MITSUBA_PLUGINS = {"point": ("intensity", "position", "to_world", "sampling_weight")}
+PBRT_TYPES = ("point",)
 
 
 @dataclass
@@ -41,9 +44,23 @@ def pack(light: PointLight, r, place) -> float:
 
 
 def mirrored(light: PointLight, mirror) -> PointLight:
-    return replace(light, position=mirrored_point(mirror, light.position))
+    return replace(light, position=affine_point(mirror, light.position))
 
 
 def to_mitsuba(light: PointLight) -> dict:
     return {"type": "point", "position": [float(x) for x in light.position],
             "intensity": [float(x) for x in light.intensity]}
+
+
+def from_mitsuba(obj, read) -> PointLight:
+    pos = obj.point("position", None)
+    if pos is None:
+        pos = read.to_world[:3, 3] if read.to_world is not None else np.zeros(3)
+    intensity, _ = read.color("intensity", (1.0, 1.0, 1.0))
+    return PointLight(position=tuple(map(float, pos)), intensity=intensity, sampling_weight=read.sampling_weight)
+
+
+def from_pbrt(p, read) -> PointLight:
+    pos = affine_point(read.ctm, p.numbers("from", ("point3", "point"), 3, [0.0, 0.0, 0.0]))
+    intensity = read.spectrum("I", (1.0, 1.0, 1.0))
+    return PointLight(position=tuple(map(float, pos)), intensity=tuple(c * read.scale for c in intensity))

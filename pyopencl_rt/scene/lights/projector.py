@@ -8,7 +8,9 @@ irradiance texture, local +x on the image's right (pbrt-v4's "projection" light)
 
 TOML: ``[[light]] type = "projector"``, ``position`` and ``look_at`` (required), ``up`` (default
 +y), ``irradiance`` (default 1), ``scale`` (default 1), ``fov`` (default 45), ``texture`` (an sRGB
-image); Mitsuba's convention.
+image); Mitsuba's convention.  Mitsuba 3: ``projector`` (``fov``/``fov_axis`` or ``focal_length``
+over its image).  pbrt-v4: ``projection`` (the image ``filename`` from the CTM's origin along its +z,
+``fov`` (default 90) across the image's shorter side, intensity ``scale`` x the texel).
 """
 from __future__ import annotations
 
@@ -17,11 +19,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .frames import LUMINANCE, checked_frame, mirrored_point, record_rgb
+from .frames import LUMINANCE, affine_point, checked_frame, record_rgb
 from ...device import abi
 
 INFINITE = False
 TOML_KEYS = frozenset({"irradiance", "scale", "fov", "texture", "position", "look_at", "up"})
+MITSUBA_PLUGINS = {"projector": ("irradiance", "scale", "fov", "fov_axis", "focal_length", "to_world", "sampling_weight")}
+PBRT_TYPES = ("projection",)
 
 
 @dataclass
@@ -87,7 +91,7 @@ def pack(light: ProjectorLight, r, place) -> float:
 
 
 def mirrored(light: ProjectorLight, mirror) -> ProjectorLight:
-    return replace(light, position=mirrored_point(mirror, light.position),
+    return replace(light, position=affine_point(mirror, light.position),
                    to_world=np.asarray(mirror)[:3, :3] @ light.frame())
 
 
@@ -99,3 +103,28 @@ def to_mitsuba(light: ProjectorLight) -> dict:
     to_world[:3, 3] = light.position
     return {"type": "projector", "to_world": to_world.tolist(), "irradiance": [float(x) for x in light.irradiance],
             "scale": float(light.scale), "fov": float(light.fov)}
+
+
+def from_mitsuba(obj, read) -> ProjectorLight:
+    irradiance, texture = read.color("irradiance", (1.0, 1.0, 1.0), texture_ok=True)
+    scale = obj.float("scale", 1.0)
+    aspect = 1.0 if texture is None else texture.width / texture.height
+    fov = read.fov_x(aspect)
+    position, frame = read.placed()
+    return ProjectorLight(position=position, irradiance=irradiance, texture=texture, scale=scale, fov=fov,
+                          to_world=frame, sampling_weight=read.sampling_weight)
+
+
+def from_pbrt(p, read) -> ProjectorLight:
+    texture = read.image()
+    fov = p.float("fov", 90.0)
+    if not 0 < fov < 180:
+        raise read.error(f"fov must be between 0 and 180 degrees, got {fov:g}")
+    aspect = texture.width / texture.height
+    fov_x = fov if aspect <= 1 else float(np.degrees(2 * np.arctan(np.tan(np.radians(fov) / 2) * aspect)))
+    m = read.ctm
+    if abs(np.linalg.det(m[:3, :3])) < 1e-300:
+        raise read.error("the transform is singular")
+    read.warn("the image is interpolated bilinearly (pbrt-v4 takes the nearest texel)")
+    return ProjectorLight(position=tuple(map(float, m[:3, 3])), texture=texture, scale=read.scale, fov=fov_x,
+                          convention="pbrt", to_world=m[:3, :3].copy())

@@ -10,7 +10,8 @@ direction (x, y, z), as Mitsuba projects it over the cone (cl/lights/spot.h samp
 TOML: ``[[light]] type = "spot"``, ``position`` and ``look_at`` (required), ``up`` (default +y),
 ``intensity`` (default 1), ``cutoff_angle`` (default 20, at most 180), ``beam_width`` (default 3/4
 of the cutoff, at most the cutoff), ``falloff`` ("mitsuba" or "smoothstep"), ``texture`` (an sRGB
-image).
+image).  Mitsuba 3: ``spot`` (its ``texture`` times ``intensity``).  pbrt-v4: ``spot`` (``from``,
+``to``, ``coneangle``, ``conedeltaangle``: the smoothstep falloff, ``I`` times ``scale``).
 """
 from __future__ import annotations
 
@@ -19,11 +20,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .frames import LUMINANCE, checked_frame, mirrored_point, record_rgb
+from .frames import LUMINANCE, affine_point, checked_frame, look_at_frame, record_rgb
 from ...device import abi
 
 INFINITE = False
 TOML_KEYS = frozenset({"intensity", "cutoff_angle", "beam_width", "falloff", "texture", "position", "look_at", "up"})
+MITSUBA_PLUGINS = {"spot": ("intensity", "texture", "cutoff_angle", "beam_width", "to_world", "sampling_weight")}
+PBRT_TYPES = ("spot",)
 
 
 @dataclass
@@ -100,7 +103,7 @@ def pack(light: SpotLight, r, place) -> float:
 
 
 def mirrored(light: SpotLight, mirror) -> SpotLight:
-    return replace(light, position=mirrored_point(mirror, light.position),
+    return replace(light, position=affine_point(mirror, light.position),
                    to_world=np.asarray(mirror)[:3, :3] @ light.frame())
 
 
@@ -112,3 +115,35 @@ def to_mitsuba(light: SpotLight) -> dict:
     to_world[:3, 3] = light.position
     return {"type": "spot", "to_world": to_world.tolist(), "intensity": [float(x) for x in light.intensity],
             "cutoff_angle": float(light.cutoff_angle), "beam_width": light.beam()}
+
+
+def from_mitsuba(obj, read) -> SpotLight:
+    intensity, _ = read.color("intensity", (1.0, 1.0, 1.0))
+    tint, texture = read.color("texture", (1.0, 1.0, 1.0), texture_ok=True)
+    cutoff = obj.float("cutoff_angle", 20.0, positive=True)
+    beam = obj.float("beam_width", 0.75 * cutoff, minimum=0.0)
+    if beam > cutoff or cutoff > 180:
+        raise read.error(f"needs beam_width <= cutoff_angle <= 180, got {beam:g} and {cutoff:g}")
+    position, frame = read.placed()
+    return SpotLight(position=position, intensity=tuple(a * b for a, b in zip(intensity, tint)), cutoff_angle=cutoff,
+                     beam_width=beam, texture=texture, to_world=frame, sampling_weight=read.sampling_weight)
+
+
+def from_pbrt(p, read) -> SpotLight:
+    src = np.asarray(p.numbers("from", ("point3", "point"), 3, [0.0, 0.0, 0.0]), np.float64)
+    dst = np.asarray(p.numbers("to", ("point3", "point"), 3, [0.0, 0.0, 1.0]), np.float64)
+    axis = dst - src
+    if not np.linalg.norm(axis) > 0:
+        raise read.error('"from" and "to" are the same point')
+    cone = p.float("coneangle", 30.0)
+    delta = p.float("conedeltaangle", 5.0)
+    if not 0 < cone <= 180 or not 0 <= delta <= cone:
+        raise read.error(f"needs 0 < coneangle <= 180 and 0 <= conedeltaangle <= coneangle, got {cone:g} and {delta:g}")
+    # a frame whose +z is the axis (its x and y do not matter: no texture), then the CTM
+    up = np.array([0.0, 1.0, 0.0]) if abs(axis[1]) < 0.9 * np.linalg.norm(axis) else np.array([1.0, 0.0, 0.0])
+    frame = read.ctm[:3, :3] @ look_at_frame(src, dst, up)
+    if abs(np.linalg.det(frame)) < 1e-300:
+        raise read.error("the transform is singular")
+    intensity = read.spectrum("I", (1.0, 1.0, 1.0))
+    return SpotLight(position=tuple(map(float, affine_point(read.ctm, src))), intensity=tuple(c * read.scale for c in intensity),
+                     cutoff_angle=cone, beam_width=cone - delta, falloff="smoothstep", to_world=frame)

@@ -11,6 +11,7 @@ parameter, as Mitsuba itself refuses a property that no plugin queries ("Unrefer
 """
 from __future__ import annotations
 
+from ..lights import MITSUBA_TYPES as MITSUBA_LIGHTS
 from ..materials import MITSUBA_TYPES
 
 _SAMPLER = ("sample_count", "seed")
@@ -69,12 +70,8 @@ HONOURED: dict[str, dict[str, tuple[str, ...]]] = {
     "emitter": {
         "area": ("radiance", "sampling_weight"),
         "directionalarea": ("radiance", "sampling_weight"),
-        "point": ("intensity", "position", "to_world", "sampling_weight"),
-        "directional": ("irradiance", "direction", "to_world", "sampling_weight"),
         "constant": ("radiance", "sampling_weight"),
         "envmap": ("filename", "scale", "to_world", "sampling_weight"),
-        "spot": ("intensity", "texture", "cutoff_angle", "beam_width", "to_world", "sampling_weight"),
-        "projector": ("irradiance", "scale", "fov", "fov_axis", "focal_length", "to_world", "sampling_weight"),
     },
     "texture": {
         "bitmap": ("filename", "filter_type", "wrap_mode", "raw", "to_uv"),
@@ -92,6 +89,8 @@ HONOURED: dict[str, dict[str, tuple[str, ...]]] = {
 }
 # the BSDF plugins that material types read themselves (scene/materials/<name>.py, MITSUBA_PLUGINS)
 HONOURED["bsdf"].update({plugin: t.mitsuba_plugins[plugin] for plugin, t in MITSUBA_TYPES.items()})
+# the emitter plugins that light types read themselves (scene/lights/<name>.py, MITSUBA_PLUGINS)
+HONOURED["emitter"].update({plugin: t.mitsuba_plugins[plugin] for plugin, t in MITSUBA_LIGHTS.items()})
 
 NEUTRAL: dict[str, dict[str, tuple[str, ...]]] = {
     "integrator": {"direct": ("emitter_samples", "bsdf_samples", "shading_samples", "max_depth", "rr_depth"),

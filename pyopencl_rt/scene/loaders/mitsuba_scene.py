@@ -13,10 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model import DirectionalLight, Environment, PointLight, ProjectorLight, RenderSettings, SpotLight
+from ..lights import MITSUBA_TYPES as MITSUBA_LIGHTS
+from ..model import Environment, RenderSettings
 from ..pixel_filter import PixelFilter
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cylinder_mesh, error_at, rectangle_mesh,
-                      transform_points, transform_vector)
+                      transform_points)
 from .mitsuba_meshes import CURVED_SEGMENTS, flat, mitsuba_cube_mesh, mitsuba_disk_mesh, mitsuba_sphere_mesh
 from ..media import MediumInterface
 from .mitsuba_bsdf import BsdfMapper, color_value
@@ -444,26 +445,8 @@ class _Importer:
     def emitter(self, obj: MiObject) -> None:
         t = obj.type
         m = obj.transform("to_world")
-        if t == "point":
-            pos = obj.point("position", None)
-            if pos is None:
-                pos = m[:3, 3] if m is not None else np.zeros(3)
-            intensity, _ = color_value(self, obj, "intensity", (1.0, 1.0, 1.0))
-            self.b.add_light(PointLight(position=tuple(map(float, pos)), intensity=intensity,
-                                        sampling_weight=sampling_weight(obj)))
-        elif t == "directional":
-            d = obj.point("direction", None)
-            if d is None:
-                d = transform_vector(m, [0.0, 0.0, 1.0]) if m is not None else np.array([0.0, 0.0, 1.0])
-            if not np.linalg.norm(d) > 0:
-                raise error_at(obj.node.pos, f"{obj.label()}: the direction is zero")
-            irradiance, _ = color_value(self, obj, "irradiance", (1.0, 1.0, 1.0))
-            self.b.add_light(DirectionalLight(direction=tuple(map(float, d / np.linalg.norm(d))),
-                                              irradiance=irradiance, sampling_weight=sampling_weight(obj)))
-        elif t == "spot":
-            return self.spot(obj, m)
-        elif t == "projector":
-            return self.projector(obj, m)
+        if t in MITSUBA_LIGHTS:  # a registered light type reads its own (scene/lights/)
+            self.b.add_light(MITSUBA_LIGHTS[t].from_mitsuba(obj, EmitterReading(self, obj, m)))
         elif t == "constant":
             radiance, _ = color_value(self, obj, "radiance", (1.0, 1.0, 1.0))
             self.b.set_environment(Environment(radiance=radiance, sampling_weight=sampling_weight(obj)), obj.node.pos)
@@ -473,38 +456,6 @@ class _Importer:
             raise error_at(obj.node.pos, f"{obj.label()}: an area emitter must be attached to a shape")
         else:
             raise error_at(obj.node.pos, refusal(obj))
-        self.unused(obj)
-
-    def _light_frame(self, obj: MiObject, m):
-        """(position, 3x3 local-to-world) of a spot's or projector's to_world (None: the identity)."""
-        if m is None:
-            return (0.0, 0.0, 0.0), None
-        if abs(np.linalg.det(m[:3, :3])) < 1e-300:
-            raise error_at(obj.props["to_world"].node.pos, f"{obj.label()}: to_world is singular")
-        return tuple(map(float, m[:3, 3])), m[:3, :3].copy()
-
-    def spot(self, obj: MiObject, m) -> None:
-        intensity, _ = color_value(self, obj, "intensity", (1.0, 1.0, 1.0))
-        tint, texture = color_value(self, obj, "texture", (1.0, 1.0, 1.0), texture_ok=True)
-        cutoff = obj.float("cutoff_angle", 20.0, positive=True)
-        beam = obj.float("beam_width", 0.75 * cutoff, minimum=0.0)
-        if beam > cutoff or cutoff > 180:
-            raise error_at(obj.node.pos, f"{obj.label()}: needs beam_width <= cutoff_angle <= 180, got "
-                                         f"{beam:g} and {cutoff:g}")
-        position, frame = self._light_frame(obj, m)
-        self.b.add_light(SpotLight(position=position, intensity=tuple(a * b for a, b in zip(intensity, tint)),
-                                   cutoff_angle=cutoff, beam_width=beam, texture=texture, to_world=frame,
-                                   sampling_weight=sampling_weight(obj)))
-        self.unused(obj)
-
-    def projector(self, obj: MiObject, m) -> None:
-        irradiance, texture = color_value(self, obj, "irradiance", (1.0, 1.0, 1.0), texture_ok=True)
-        scale = obj.float("scale", 1.0)
-        aspect = 1.0 if texture is None else texture.width / texture.height
-        fov = _mitsuba_fov_x(obj, aspect)
-        position, frame = self._light_frame(obj, m)
-        self.b.add_light(ProjectorLight(position=position, irradiance=irradiance, texture=texture, scale=scale,
-                                        fov=fov, to_world=frame, sampling_weight=sampling_weight(obj)))
         self.unused(obj)
 
     def envmap(self, obj: MiObject, m) -> None:
@@ -520,6 +471,34 @@ class _Importer:
         self.b.set_environment(EnvMap(image=image, lookup=_mitsuba_env_uv, to_world=rot, scale=(s, s, s),
                                       source=str(fname), out_shape=(h, w), rows="poles",
                                       sampling_weight=sampling_weight(obj)), obj.node.pos)
+
+
+class EmitterReading:
+    """What a light type's ``from_mitsuba`` reads of an emitter besides its own numbers
+    (scene/lights/__init__.py): colours and textures, its to_world (4x4 or None) as a position and
+    a frame, a field of view, its sampling_weight, and errors at its place in the file."""
+
+    def __init__(self, loader, obj: MiObject, to_world):
+        self.loader, self.obj, self.to_world = loader, obj, to_world
+        self.sampling_weight = sampling_weight(obj)
+
+    def color(self, name, default, texture_ok=False):
+        return color_value(self.loader, self.obj, name, default, texture_ok=texture_ok)
+
+    def placed(self) -> tuple:
+        """(position, 3x3 local-to-world) of a spot's or projector's to_world (None: the identity)."""
+        m = self.to_world
+        if m is None:
+            return (0.0, 0.0, 0.0), None
+        if abs(np.linalg.det(m[:3, :3])) < 1e-300:
+            raise error_at(self.obj.props["to_world"].node.pos, f"{self.obj.label()}: to_world is singular")
+        return tuple(map(float, m[:3, 3])), m[:3, :3].copy()
+
+    def fov_x(self, aspect: float) -> float:
+        return _mitsuba_fov_x(self.obj, aspect)
+
+    def error(self, what: str):
+        return error_at(self.obj.node.pos, f"{self.obj.label()}: {what}")
 
 
 def sampling_weight(emitter: MiObject) -> float:
