@@ -14,7 +14,8 @@ import numpy as np
 from ..device import abi
 from ..device.host_memory import aligned_empty
 from .camera import FOV_AXES, PROJECTIONS, Camera, vertical_fov  # noqa: F401 (re-exported)
-from .lights import DirectionalLight, Environment, PointLight, ProjectorLight, SpotLight, look_at_frame  # noqa: F401
+from .lights import (DirectionalLight, Environment, PointLight, ProjectorLight, SpotLight,  # noqa: F401
+                     light_type, look_at_frame)
 from .materials import REGISTRY, MaterialType
 from .pixel_filter import PixelFilter
 
@@ -442,11 +443,10 @@ class Scene:
             shift[:3, 3] = -eye
             s.camera_motion = tuple(shift @ np.asarray(m, np.float64) for m in self.camera_motion)
         s.world_origin = tuple(float(x) for x in np.asarray(self.world_origin, np.float64) + eye)
-        s.lights = [dataclasses.replace(lt, position=tuple(np.asarray(lt.position, np.float64) - eye))
-                    if hasattr(lt, "position") else lt for lt in self.lights]
+        shift = np.eye(4)
+        shift[:3, 3] = -eye
+        s.lights = [light_type(lt).transformed(lt, shift) for lt in self.lights]
         if self.media:
-            shift = np.eye(4)
-            shift[:3, 3] = -eye
             s.media = [m.transformed(shift) for m in self.media]
         return s
 

@@ -84,9 +84,9 @@ def test_each_type_reads_packs_mirrors_and_exports(name):
     recs, power = other_lights(scene)
     assert recs["kind"].tolist() == [t.kind] and np.isfinite(power).all() and power[0] > 0
     flip = np.diag([-1.0, 1.0, 1.0, 1.0])  # a mirror in x
-    mirrored = t.mirrored(light, flip)
+    mirrored = t.transformed(light, flip)
     assert type(mirrored) is t.light
-    twice = t.mirrored(mirrored, flip)
+    twice = t.transformed(mirrored, flip)
     for field in ("position", "direction"):
         if hasattr(light, field):
             assert np.allclose(getattr(twice, field), getattr(light, field))

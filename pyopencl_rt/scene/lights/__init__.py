@@ -15,7 +15,7 @@ Its docstring documents the type for scene files, and it defines:
 * ``pack(light, record, place) -> power``: write its ``abi.LIGHT`` record (whose kind and
   material the caller sets) and return its power's luminance for the light sampler; ``place``
   gives the scene's bounding sphere (``centre``, ``radius``) and ``texture_index(texture)``;
-* ``mirrored(light, m)``: the light under the 4x4 map ``m`` of a scene's mirror;
+* ``transformed(light, m)``: the light under the 4x4 affine map ``m`` (a scene's mirror, the camera-relative shift);
 * ``to_mitsuba(light) -> dict``: its Mitsuba 3 emitter, as ``mi.load_dict`` takes it (ValueError
   where it has none);
 * ``MITSUBA_PLUGINS`` ({plugin: the parameters it renders as Mitsuba does}) and
@@ -61,7 +61,7 @@ class LightType:
     toml_keys: frozenset
     read_toml: Callable
     pack: Callable
-    mirrored: Callable
+    transformed: Callable
     to_mitsuba: Callable
     mitsuba_plugins: dict
     from_mitsuba: Callable
@@ -72,7 +72,7 @@ class LightType:
     def from_module(cls, name: str, kind: int, module) -> "LightType":
         return cls(name=name, kind=kind, documentation=inspect.cleandoc(module.__doc__), light=module.LIGHT,
                    infinite=module.INFINITE, toml_keys=frozenset(module.TOML_KEYS), read_toml=module.read_toml,
-                   pack=module.pack, mirrored=module.mirrored, to_mitsuba=module.to_mitsuba,
+                   pack=module.pack, transformed=module.transformed, to_mitsuba=module.to_mitsuba,
                    mitsuba_plugins=dict(module.MITSUBA_PLUGINS), from_mitsuba=module.from_mitsuba,
                    pbrt_types=tuple(module.PBRT_TYPES), from_pbrt=module.from_pbrt)
 

@@ -55,8 +55,8 @@ def pack(light: DirectionalLight, r, place) -> float:
     return np.pi * place.radius**2 * float(r["rgb"] @ LUMINANCE)
 
 
-def mirrored(light: DirectionalLight, mirror) -> DirectionalLight:
-    return replace(light, direction=tuple(affine_vector(mirror, light.direction)))
+def transformed(light: DirectionalLight, m) -> DirectionalLight:
+    return replace(light, direction=tuple(affine_vector(m, light.direction)))
 
 
 def to_mitsuba(light: DirectionalLight) -> dict:

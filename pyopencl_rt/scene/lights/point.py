@@ -43,8 +43,8 @@ def pack(light: PointLight, r, place) -> float:
     return 4 * np.pi * float(r["rgb"] @ LUMINANCE)
 
 
-def mirrored(light: PointLight, mirror) -> PointLight:
-    return replace(light, position=affine_point(mirror, light.position))
+def transformed(light: PointLight, m) -> PointLight:
+    return replace(light, position=affine_point(m, light.position))
 
 
 def to_mitsuba(light: PointLight) -> dict:

@@ -90,9 +90,9 @@ def pack(light: ProjectorLight, r, place) -> float:
     return power
 
 
-def mirrored(light: ProjectorLight, mirror) -> ProjectorLight:
-    return replace(light, position=affine_point(mirror, light.position),
-                   to_world=np.asarray(mirror)[:3, :3] @ light.frame())
+def transformed(light: ProjectorLight, m) -> ProjectorLight:
+    return replace(light, position=affine_point(m, light.position),
+                   to_world=np.asarray(m)[:3, :3] @ light.frame())
 
 
 def to_mitsuba(light: ProjectorLight) -> dict:

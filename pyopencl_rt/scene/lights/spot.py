@@ -102,9 +102,9 @@ def pack(light: SpotLight, r, place) -> float:
     return _cone_integral(f, cc) * float(r["rgb"] @ LUMINANCE) * mean
 
 
-def mirrored(light: SpotLight, mirror) -> SpotLight:
-    return replace(light, position=affine_point(mirror, light.position),
-                   to_world=np.asarray(mirror)[:3, :3] @ light.frame())
+def transformed(light: SpotLight, m) -> SpotLight:
+    return replace(light, position=affine_point(m, light.position),
+                   to_world=np.asarray(m)[:3, :3] @ light.frame())
 
 
 def to_mitsuba(light: SpotLight) -> dict:

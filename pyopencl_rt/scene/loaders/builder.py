@@ -382,7 +382,7 @@ class SceneBuilder:
             colors = colors[:, ::-1] if colors is not None else None
             if len(spheres):
                 spheres[:, :3] = transform_points(mirror, spheres[:, :3])
-            lights = [light_type(lt).mirrored(lt, mirror) for lt in lights]
+            lights = [light_type(lt).transformed(lt, mirror) for lt in lights]
             media = [m.transformed(mirror) for m in media]
             mirror_texture_spaces(self.materials, mirror)
         instances = self.instances
