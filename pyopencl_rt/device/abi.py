@@ -259,12 +259,12 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 # the row coordinate of v: y = v * v_scale + v_offset (H, -0.5: rows centred in [0, 1]; H - 1, 0:
 # the first and last rows on the poles, Mitsuba's envmap); the texels are interpolated bilinearly.
 ENV_MAP_HEADER = define("ENV_MAP_HEADER", 16)
-LIGHT_TYPES = define_enum("LIGHT_", ("triangle", "sphere",  # surfaces (cl/render/lights.h), then a unit each: cl/lights/
-                                     "point", "directional", "environment", "spot", "projector", "directional_area"))
+LIGHT_TYPES = define_enum("LIGHT_", ("triangle", "sphere", "point", "directional", "environment", "spot", "projector",
+                                     "directional_area", "goniometric"))  # cl/lights/<name>.h each, but the surfaces
 (LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_ENVIRONMENT, LIGHT_SPOT, LIGHT_PROJECTOR,
- LIGHT_DIRECTIONAL_AREA) = LIGHT_TYPES.values()
+ LIGHT_DIRECTIONAL_AREA, LIGHT_GONIOMETRIC) = LIGHT_TYPES.values()
 TRIANGLE_LIGHTS = (LIGHT_TRIANGLE, LIGHT_DIRECTIONAL_AREA)  # their prim is a triangle
-DELTA_LIGHTS = (LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT, LIGHT_PROJECTOR, LIGHT_DIRECTIONAL_AREA)  # never hit
+DELTA_LIGHTS = (LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT, LIGHT_PROJECTOR, LIGHT_DIRECTIONAL_AREA, LIGHT_GONIOMETRIC)
 LIGHT_SPOT_SMOOTHSTEP = define("LIGHT_SPOT_SMOOTHSTEP", 1)
 LIGHT_PROJECTOR_COS3 = define("LIGHT_PROJECTOR_COS3", 1)
 LIGHT = np.dtype([("kind", np.int32), ("prim", np.int32), ("pmf", np.float32), ("alias_prob", np.float32),

@@ -685,6 +685,45 @@ def test_spot_and_projector_over_plane(device):
         assert_pixels(r, expect, type(light).__name__)
 
 
+def test_goniometric_light_over_plane(device):
+    """pbrt-v4's goniometric light: radiance rho / pi * I Y(w) cos(theta) / r^2 on the plane, Y the
+    profile's nearest texel at the equal-area square point (pbrt_materials.equal_area_sphere_to_square,
+    the map pbrt's infinite lights are read with) of w, the direction from the light in its frame
+    with y and z swapped (the profile's pole along local +y), at the pixels whose 8 x 8 quadrature
+    points all see one texel (pixel averages by quadrature).  A random profile of 8 x 8 texels, a
+    tilted frame, light sampling alone (a delta light)."""
+    from pyopencl_rt.scene.lights.goniometric import GoniometricLight, profile_texture
+    from pyopencl_rt.scene.loaders.pbrt_materials import equal_area_sphere_to_square
+    from pyopencl_rt.scene.textures import texture_from_array
+
+    rho, size, n = 0.5, 16, 8
+    profile = profile_texture(texture_from_array(np.random.default_rng(5).uniform(0.1, 2.0, (n, n, 3)).astype(np.float32)))
+    lp, intensity = np.array([0.3, 1.5, -0.2]), np.array([2.0, 3.0, 4.0])
+    frame = look_at_frame(lp, (1.0, 0.0, 0.5), (0.0, 1.0, 0.3))
+    sc = plane_scene([GoniometricLight(position=tuple(lp), intensity=tuple(intensity), texture=profile,
+                                       to_world=frame)], rho, size=size)
+    rec = sc.camera.record(size, size)
+    d = pixel_points(rec, size, size)
+    eye = np.asarray(rec["origin"], np.float64)
+    p = (eye + d * (-eye[1] / d[..., 1:2])).reshape(-1, 3)
+    w = (p - lp) @ np.linalg.inv(frame).T  # in the light's frame
+    w = w[:, [0, 2, 1]] / np.linalg.norm(w, axis=1, keepdims=True)  # y and z swapped, as pbrt-v4
+    u, v = equal_area_sphere_to_square(w)
+    texel = np.clip((v * n).astype(int), 0, n - 1) * n + np.clip((u * n).astype(int), 0, n - 1)
+    y = profile.texels[..., 0].astype(np.float64).reshape(-1)[texel]
+    to_l = lp - p
+    r2 = (to_l**2).sum(1)
+    e = intensity[None, :] * (y * to_l[:, 1] / np.sqrt(r2) / r2)[:, None]
+    expect = (rho / np.pi * e).reshape(size, size, -1, 3).mean(2)
+    texel = texel.reshape(size, size, -1)
+    keep = (texel == texel[..., :1]).all(2)  # one texel over the whole pixel
+    assert keep.mean() > 0.3 and len(np.unique(texel[keep][:, 0])) >= 8
+    r = render_full(sc, spp=8, device=device, seed=2, integrator="nee")
+    assert r.info["nonfinite_samples"] == 0
+    expect, r.image[~keep] = np.where(keep[..., None], expect, 0), 0
+    assert_pixels(r, expect, "goniometric")
+
+
 def test_directional_light_over_plane(device):
     """Radiance rho / pi * E cos(theta), the same at every pixel (no noise)."""
     dirn, irr, rho = np.array([0.3, -1.0, 0.2]), 2.0, 0.6
