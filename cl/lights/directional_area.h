@@ -31,12 +31,9 @@ RT_INLINE pint light_sample_directional_area(LIGHT_UNIT_PARAMS)
     pvec3 err;
     const pvec3 p = triangle_point(p0, p1, p2, b1, b2, &err);
     light_sample_set(ls, sel, p, err, n, LIGHT_V3(lights, row, rgb), PFLOAT(1.0f));
-    ls->delta = ls->delta | sel;
     return inside;
 }
 #define LIGHT_CASE_DIRECTIONAL_AREA(X) X(directional_area, DIRECTIONAL_AREA)
-#else
-#define LIGHT_CASE_DIRECTIONAL_AREA(X)
 #endif
 
 #endif

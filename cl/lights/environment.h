@@ -171,8 +171,6 @@ RT_INLINE pint light_sample_environment(LIGHT_UNIT_PARAMS)
     return sel & (pdf > 0.0f);
 }
 #define LIGHT_CASE_ENVIRONMENT(X) X(environment, ENVIRONMENT)
-#else
-#define LIGHT_CASE_ENVIRONMENT(X)
 #endif
 
 #endif

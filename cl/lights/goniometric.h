@@ -38,15 +38,11 @@ RT_INLINE void equal_area_sphere_to_square(pvec3 d, pfloat *u, pfloat *v)
 
 RT_INLINE pint light_sample_goniometric(LIGHT_UNIT_PARAMS)
 {
-    pvec3 to_ref, l;
-    pfloat dist2, dist, u, v;
-    light_frame_point(lights, row, ref, &to_ref, &dist2, &dist, &l, &u, &v);
-    equal_area_sphere_to_square(pv3_normalize(l, sel), &u, &v);
-    return light_sample_framed(ls, lights, row, sel, to_ref, dist2, dist, 1.0f / dist2, u, v);
+    FramedPoint q = light_frame_point(lights, row, ref);
+    equal_area_sphere_to_square(pv3_normalize(q.l, sel), &q.u, &q.v);
+    return light_sample_framed(ls, lights, row, sel, &q, 1.0f / q.dist2);
 }
 #define LIGHT_CASE_GONIOMETRIC(X) X(goniometric, GONIOMETRIC)
-#else
-#define LIGHT_CASE_GONIOMETRIC(X)
 #endif
 
 #endif

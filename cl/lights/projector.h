@@ -13,18 +13,14 @@
 #ifdef HAS_DELTA_LIGHTS
 RT_INLINE pint light_sample_projector(LIGHT_UNIT_PARAMS)
 {
-    pvec3 to_ref, l;
-    pfloat dist2, dist, u, v;
-    light_frame_point(lights, row, ref, &to_ref, &dist2, &dist, &l, &u, &v);
-    const pint flags = LIGHT_I(lights, row, flags);
-    const pint inside = (l.z > 0.0f) & (u >= 0.0f) & (u <= 1.0f) & (v >= 0.0f) & (v <= 1.0f);
-    const pfloat cos_n = pv3_dot(LIGHT_V3(lights, row, dir), to_ref) / dist;
-    const pfloat fp = ((flags & LIGHT_PROJECTOR_COS3) != 0) ? 1.0f / (l.z * l.z * cos_n) : 1.0f / dist2;
-    return light_sample_framed(ls, lights, row, sel, to_ref, dist2, dist, inside ? fp : PFLOAT(0.0f), u, v);
+    const FramedPoint q = light_frame_point(lights, row, ref);
+    const pint inside = (q.l.z > 0.0f) & (q.u >= 0.0f) & (q.u <= 1.0f) & (q.v >= 0.0f) & (q.v <= 1.0f);
+    const pfloat cos_n = pv3_dot(LIGHT_V3(lights, row, dir), q.to_ref) / q.dist;
+    const pfloat fp = ((LIGHT_I(lights, row, flags) & LIGHT_PROJECTOR_COS3) != 0) ? 1.0f / (q.l.z * q.l.z * cos_n)
+                                                                                   : 1.0f / q.dist2;
+    return light_sample_framed(ls, lights, row, sel, &q, inside ? fp : PFLOAT(0.0f));
 }
 #define LIGHT_CASE_PROJECTOR(X) X(projector, PROJECTOR)
-#else
-#define LIGHT_CASE_PROJECTOR(X)
 #endif
 
 #endif

@@ -14,11 +14,8 @@
 #ifdef HAS_DELTA_LIGHTS
 RT_INLINE pint light_sample_spot(LIGHT_UNIT_PARAMS)
 {
-    pvec3 to_ref, l;
-    pfloat dist2, dist, u, v;
-    light_frame_point(lights, row, ref, &to_ref, &dist2, &dist, &l, &u, &v);
-    const pint flags = LIGHT_I(lights, row, flags);
-    const pfloat cos_t = l.z / pv3_length(l, sel);
+    const FramedPoint q = light_frame_point(lights, row, ref);
+    const pfloat cos_t = q.l.z / pv3_length(q.l, sel);
     const pfloat cos_cut = LIGHT_F(lights, row, cone), cos_beam = LIGHT_F(lights, row + 1, cone);
     /* Mitsuba: linear in the angle between the beam width and the cutoff */
     const pfloat ramp = (LIGHT_F(lights, row + 2, cone) - pacos(pclamp(cos_t, -1.0f, 1.0f))) *
@@ -29,12 +26,10 @@ RT_INLINE pint light_sample_spot(LIGHT_UNIT_PARAMS)
     const pfloat t = cos_beam == cos_cut ? (cos_t < cos_cut ? PFLOAT(0.0f) : PFLOAT(1.0f))
                                          : pclamp((cos_t - cos_cut) / (cos_beam - cos_cut), 0.0f, 1.0f);
     const pfloat fs = t * t * (3.0f - 2.0f * t);
-    const pfloat f = ((flags & LIGHT_SPOT_SMOOTHSTEP) != 0) ? fs : fm;
-    return light_sample_framed(ls, lights, row, sel, to_ref, dist2, dist, f / dist2, u, v);
+    const pfloat f = ((LIGHT_I(lights, row, flags) & LIGHT_SPOT_SMOOTHSTEP) != 0) ? fs : fm;
+    return light_sample_framed(ls, lights, row, sel, &q, f / q.dist2);
 }
 #define LIGHT_CASE_SPOT(X) X(spot, SPOT)
-#else
-#define LIGHT_CASE_SPOT(X)
 #endif
 
 #endif

@@ -6,7 +6,8 @@
  * name with pyopencl_rt/scene/lights/<name>.py where the host has a module for it): it fills ls in
  * the lanes of `sel` (its kind's lanes among the active ones; `row` each lane's record, in floats,
  * valid in every lane) and returns the lanes that got a sample.  Over the lanes each computes what
- * the one-path code computes for its lane, so every width gives the same bits.
+ * the one-path code computes for its lane, so every width gives the same bits.  ls->delta is the
+ * dispatch's (cl/render/lights.h), from the ABI's DELTA_LIGHTS.
  */
 #ifndef PYOPENCL_RT_LIGHT_SAMPLE_H
 #define PYOPENCL_RT_LIGHT_SAMPLE_H
@@ -69,35 +70,39 @@ RT_INLINE void light_sample_far(LightSample *ls, __global const Light *lights, p
     ls->far = sel ? far_t : ls->far;
 }
 
-/* A light at the record's p with a frame (spot, projector): ref - p (*to_ref), its squared length
- * and length, ref in the light's frame (*l: the rows of `frame` applied) and the texture
- * coordinates 0.5 + uv_scale (l.x / l.z, l.y / l.z). */
-RT_INLINE void light_frame_point(__global const Light *lights, pint row, pvec3 ref, pvec3 *to_ref, pfloat *dist2,
-                                 pfloat *dist, pvec3 *l, pfloat *u, pfloat *v)
+/* A light at the record's p with a frame (spot, projector, goniometric), seen from ref: ref - p,
+ * its squared length and length, ref in the light's frame (l: the rows of `frame` applied) and the
+ * texture coordinates 0.5 + uv_scale (l.x / l.z, l.y / l.z). */
+typedef struct {
+    pvec3 to_ref, l;
+    pfloat dist2, dist, u, v;
+} FramedPoint;
+
+RT_INLINE FramedPoint light_frame_point(__global const Light *lights, pint row, pvec3 ref)
 {
-    const pvec3 p = LIGHT_V3(lights, row, p);
-    *to_ref = pv3_sub(ref, p);
-    *dist2 = pv3_dot(*to_ref, *to_ref);
-    *dist = psqrt(*dist2);
-    *l = pv3(pv3_dot(LIGHT_V3(lights, row, frame), *to_ref), pv3_dot(LIGHT_V3(lights, row + 3, frame), *to_ref),
-             pv3_dot(LIGHT_V3(lights, row + 6, frame), *to_ref));
-    const pfloat inv_z = 1.0f / l->z;
-    *u = 0.5f + LIGHT_F(lights, row, uv_scale) * (l->x * inv_z);
-    *v = 0.5f + LIGHT_F(lights, row + 1, uv_scale) * (l->y * inv_z);
+    FramedPoint q;
+    q.to_ref = pv3_sub(ref, LIGHT_V3(lights, row, p));
+    q.dist2 = pv3_dot(q.to_ref, q.to_ref);
+    q.dist = psqrt(q.dist2);
+    q.l = pv3(pv3_dot(LIGHT_V3(lights, row, frame), q.to_ref), pv3_dot(LIGHT_V3(lights, row + 3, frame), q.to_ref),
+              pv3_dot(LIGHT_V3(lights, row + 6, frame), q.to_ref));
+    const pfloat inv_z = 1.0f / q.l.z;
+    q.u = 0.5f + LIGHT_F(lights, row, uv_scale) * (q.l.x * inv_z);
+    q.v = 0.5f + LIGHT_F(lights, row + 1, uv_scale) * (q.l.y * inv_z);
+    return q;
 }
 
-/* A spot's or projector's sample (the lanes of `sel`): Le = rgb f from p toward ref, and its
- * texture at (u, v). */
-RT_INLINE pint light_sample_framed(LightSample *ls, __global const Light *lights, pint row, pint sel, pvec3 to_ref,
-                                   pfloat dist2, pfloat dist, pfloat f, pfloat u, pfloat v)
+/* A framed light's sample (the lanes of `sel`): Le = rgb f from p toward ref, and its texture at
+ * (q->u, q->v). */
+RT_INLINE pint light_sample_framed(LightSample *ls, __global const Light *lights, pint row, pint sel,
+                                   const FramedPoint *q, pfloat f)
 {
-    light_sample_set(ls, sel, LIGHT_V3(lights, row, p), pv3_zero(), pv3_scale(to_ref, 1.0f / dist),
+    light_sample_set(ls, sel, LIGHT_V3(lights, row, p), pv3_zero(), pv3_scale(q->to_ref, 1.0f / q->dist),
                      pv3_scale(LIGHT_V3(lights, row, rgb), f), PFLOAT(1.0f));
-    ls->delta = ls->delta | sel;
     ls->tex = sel ? LIGHT_I(lights, row, texture) : ls->tex;
-    ls->tu = sel ? u : ls->tu;
-    ls->tv = sel ? v : ls->tv;
-    return sel & (dist2 > 0.0f);
+    ls->tu = sel ? q->u : ls->tu;
+    ls->tv = sel ? q->v : ls->tv;
+    return sel & (q->dist2 > 0.0f);
 }
 
 #endif

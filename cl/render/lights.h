@@ -190,11 +190,15 @@ RT_INLINE pint light_sample_all(MESH_PARAMS, __global const Sphere *spheres,
 #if defined(HAS_DELTA_LIGHTS) || defined(HAS_ENVIRONMENT)
     const pint row = light_index * STRIDE_INDEX(Light);
     const pint kind = LIGHT_I(lights, row, kind);
-    /* each type's lanes (disjoint), where some active lane has that type */
+    /* each type's lanes (disjoint), where some active lane has that type; a delta light's lanes are
+     * marked (LIGHT_DELTA_<NAME>: the ABI's DELTA_LIGHTS) */
 #define LIGHT_SAMPLE_CASE(name, NAME)                                                               \
     {                                                                                               \
         const pint sel = active & (kind == LIGHT_##NAME);                                           \
-        if (pany(sel)) got = got | light_sample_##name(LIGHT_UNIT_ARGS);                           \
+        if (pany(sel)) {                                                                            \
+            got = got | light_sample_##name(LIGHT_UNIT_ARGS);                                       \
+            if (LIGHT_DELTA_##NAME) ls->delta = ls->delta | sel;                                    \
+        }                                                                                           \
     }
     LIGHT_CASES(LIGHT_SAMPLE_CASE)
 #undef LIGHT_SAMPLE_CASE

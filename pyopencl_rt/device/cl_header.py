@@ -76,14 +76,16 @@ def bsdf_includes(material_types) -> str:
     return f"#ifndef PYOPENCL_RT_BSDFS_H\n#define PYOPENCL_RT_BSDFS_H\n{includes}#endif\n"
 
 
-def light_units(light_types) -> str:
+def light_units(light_types, delta_kinds) -> str:
     """The generated header "lights/units.h": each light type's cl/lights/<name>.h (every type but the
-    surfaces', which cl/render/lights.h samples) and LIGHT_CASES(X), their cases in the enum's order
-    (each header defines LIGHT_CASE_<NAME>(X), empty where its type is not compiled in)."""
+    surfaces', which cl/render/lights.h samples), an empty LIGHT_CASE_<NAME>(X) where its header did
+    not define one (its type not compiled in), LIGHT_DELTA_<NAME> (1 for a delta light, ``delta_kinds``:
+    ls->delta is set for its lanes) and LIGHT_CASES(X), their cases in the enum's order."""
     units = [name for name in light_types if name not in SURFACE_LIGHTS]
-    includes = "".join(f'#include "lights/{name}.h"\n' for name in units)
+    parts = [f'#include "lights/{n}.h"\n#ifndef LIGHT_CASE_{n.upper()}\n#define LIGHT_CASE_{n.upper()}(X)\n#endif\n'
+             f"#define LIGHT_DELTA_{n.upper()} {int(light_types[n] in delta_kinds)}\n" for n in units]
     cases = " ".join(f"LIGHT_CASE_{name.upper()}(X)" for name in units)
-    return (f"#ifndef PYOPENCL_RT_LIGHT_UNITS_H\n#define PYOPENCL_RT_LIGHT_UNITS_H\n{includes}"
+    return (f"#ifndef PYOPENCL_RT_LIGHT_UNITS_H\n#define PYOPENCL_RT_LIGHT_UNITS_H\n{''.join(parts)}"
             f"#define LIGHT_CASES(X) {cases}\n#endif\n")
 
 

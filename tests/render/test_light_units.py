@@ -38,7 +38,8 @@ def unit_headers() -> set:
     """Headers of cl/lights/ that define a type's sampling, ``light_sample_<name>(``, and its case."""
     return {h.stem for h in CL_LIGHTS.glob("*.h")
             if re.search(rf"\blight_sample_{h.stem}\s*\(", h.read_text())
-            and f"#define LIGHT_CASE_{h.stem.upper()}(X) X({h.stem}, {h.stem.upper()})" in h.read_text()}
+            and f"#define LIGHT_CASE_{h.stem.upper()}(X) X({h.stem}, {h.stem.upper()})" in h.read_text()
+            and "ls->delta" not in h.read_text()}  # the dispatch's, from abi.DELTA_LIGHTS
 
 
 def host_modules() -> set:
@@ -61,10 +62,12 @@ def test_enum_kernel_units_and_host_modules_agree():
 
 
 def test_the_generated_header_lists_every_unit_in_the_enums_order():
-    text = light_units(abi.LIGHT_TYPES)
+    text = light_units(abi.LIGHT_TYPES, abi.DELTA_LIGHTS)
     units = [n for n in abi.LIGHT_TYPES if n not in SURFACE_LIGHTS]
     assert re.findall(r'#include "lights/(\w+)\.h"', text) == units
-    assert re.findall(r"LIGHT_CASE_(\w+)\(X\)", text) == [n.upper() for n in units]
+    assert re.findall(r"LIGHT_CASES\(X\) (.*)", text)[0].split() == [f"LIGHT_CASE_{n.upper()}(X)" for n in units]
+    delta = dict(re.findall(r"#define LIGHT_DELTA_(\w+) (\d)", text))
+    assert delta == {n.upper(): str(int(abi.LIGHT_TYPES[n] in abi.DELTA_LIGHTS)) for n in units}
     source = assemble("megakernel/path.cl")  # the dispatch reaches each unit through the cases
     assert "LIGHT_CASES(LIGHT_SAMPLE_CASE)" in source
     for name in units:

@@ -947,7 +947,7 @@ scale = 0.5
     (tmp_path / "b.toml").write_text(base + "[environment]\nradiance = [0.2, 0.3, 0.4]\n")
     assert load_scene(tmp_path / "b.toml").environment.radiance == (0.2, 0.3, 0.4)
     spot = '[[light]]\ntype = "spot"\nposition = [0, 2, 0]\nlook_at = [0, 0, 0]\nup = [0, 0, 1]\n'
-    for bad, msg in (('[[light]]\ntype = "goniometric"\n', "unknown type"),
+    for bad, msg in (('[[light]]\ntype = "laser"\n', "unknown type"),
                      ('[[light]]\ntype = "spot"\nposition = [0, 2, 0]\n', "missing 'look_at'"),
                      (spot.replace("[0, 0, 1]", "[0, 1, 0]"), "parallel"),
                      (spot + "cutoff_angle = 20\nbeam_width = 25\n", "beam_width"),

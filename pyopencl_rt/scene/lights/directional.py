@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .frames import LUMINANCE, affine_vector, record_rgb
+from .frames import LUMINANCE, affine_vector, floats, record_rgb
 
 INFINITE = True  # picked as pbrt-v4's BVH light sampler picks infinitely distant lights
 TOML_KEYS = frozenset({"direction", "irradiance"})
@@ -60,8 +60,7 @@ def transformed(light: DirectionalLight, m) -> DirectionalLight:
 
 
 def to_mitsuba(light: DirectionalLight) -> dict:
-    return {"type": "directional", "direction": [float(x) for x in light.direction],
-            "irradiance": [float(x) for x in light.irradiance]}
+    return {"type": "directional", "direction": floats(light.direction), "irradiance": floats(light.irradiance)}
 
 
 def from_mitsuba(obj, read) -> DirectionalLight:

@@ -2,6 +2,8 @@
 the RGB of a record, and the luminance weights of light power."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 / sRGB primaries
@@ -46,3 +48,21 @@ def affine_point(m, p) -> tuple:
 def affine_vector(m, v) -> np.ndarray:
     """The vector v under the 4x4 affine map ``m`` (its linear part), as transform_vector."""
     return np.asarray(np.asarray(m, np.float64)[:3, :3] @ np.asarray(v, np.float64), np.float64)
+
+
+def floats(values) -> list:
+    """Numbers as a list of Python floats (what an exported record holds)."""
+    return [float(x) for x in values]
+
+
+def transformed_framed(light, m):
+    """A light with a position and a frame (spot, projector, goniometric) under the 4x4 affine map m."""
+    return replace(light, position=affine_point(m, light.position), to_world=np.asarray(m)[:3, :3] @ light.frame())
+
+
+def to_world_4x4(light) -> list:
+    """A framed light's 4x4 local-to-world (its frame and position), as Mitsuba's to_world."""
+    m = np.eye(4)
+    m[:3, :3] = light.frame()
+    m[:3, 3] = light.position
+    return m.tolist()

@@ -13,12 +13,12 @@ frame, ``I`` times ``scale``, the square image ``filename``).  Mitsuba 3 has non
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..textures import texture_from_array
-from .frames import LUMINANCE, affine_point, checked_frame, record_rgb
+from .frames import LUMINANCE, checked_frame, record_rgb, transformed_framed
 
 INFINITE = False
 TOML_KEYS = frozenset({"intensity", "texture", "position", "look_at", "up"})
@@ -79,8 +79,7 @@ def pack(light: GoniometricLight, r, place) -> float:
     return 4 * np.pi * float(r["rgb"] @ LUMINANCE) * mean
 
 
-def transformed(light: GoniometricLight, m) -> GoniometricLight:
-    return replace(light, position=affine_point(m, light.position), to_world=np.asarray(m)[:3, :3] @ light.frame())
+transformed = transformed_framed
 
 
 def to_mitsuba(light: GoniometricLight) -> dict:

@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .frames import LUMINANCE, affine_point, record_rgb
+from .frames import LUMINANCE, affine_point, floats, record_rgb
 
 INFINITE = False  # at a place in the scene (the light BVH bounds it)
 TOML_KEYS = frozenset({"position", "intensity"})
@@ -48,8 +48,7 @@ def transformed(light: PointLight, m) -> PointLight:
 
 
 def to_mitsuba(light: PointLight) -> dict:
-    return {"type": "point", "position": [float(x) for x in light.position],
-            "intensity": [float(x) for x in light.intensity]}
+    return {"type": "point", "position": floats(light.position), "intensity": floats(light.intensity)}
 
 
 def from_mitsuba(obj, read) -> PointLight:

@@ -15,11 +15,11 @@ over its image).  pbrt-v4: ``projection`` (the image ``filename`` from the CTM's
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from .frames import LUMINANCE, affine_point, checked_frame, record_rgb
+from .frames import LUMINANCE, checked_frame, floats, record_rgb, to_world_4x4, transformed_framed
 from ...device import abi
 
 INFINITE = False
@@ -90,18 +90,13 @@ def pack(light: ProjectorLight, r, place) -> float:
     return power
 
 
-def transformed(light: ProjectorLight, m) -> ProjectorLight:
-    return replace(light, position=affine_point(m, light.position),
-                   to_world=np.asarray(m)[:3, :3] @ light.frame())
+transformed = transformed_framed
 
 
 def to_mitsuba(light: ProjectorLight) -> dict:
     if light.texture is not None or light.convention != "mitsuba":
         raise ValueError("a textured ProjectorLight, or one with pbrt-v4's conventions, is not exported to Mitsuba")
-    to_world = np.eye(4)
-    to_world[:3, :3] = light.frame()
-    to_world[:3, 3] = light.position
-    return {"type": "projector", "to_world": to_world.tolist(), "irradiance": [float(x) for x in light.irradiance],
+    return {"type": "projector", "to_world": to_world_4x4(light), "irradiance": floats(light.irradiance),
             "scale": float(light.scale), "fov": float(light.fov)}
 
 

@@ -16,11 +16,12 @@ image).  Mitsuba 3: ``spot`` (its ``texture`` times ``intensity``).  pbrt-v4: ``
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from .frames import LUMINANCE, affine_point, checked_frame, look_at_frame, record_rgb
+from .frames import (LUMINANCE, affine_point, checked_frame, floats, look_at_frame, record_rgb, to_world_4x4,
+                     transformed_framed)
 from ...device import abi
 
 INFINITE = False
@@ -102,18 +103,13 @@ def pack(light: SpotLight, r, place) -> float:
     return _cone_integral(f, cc) * float(r["rgb"] @ LUMINANCE) * mean
 
 
-def transformed(light: SpotLight, m) -> SpotLight:
-    return replace(light, position=affine_point(m, light.position),
-                   to_world=np.asarray(m)[:3, :3] @ light.frame())
+transformed = transformed_framed
 
 
 def to_mitsuba(light: SpotLight) -> dict:
     if light.texture is not None or light.falloff != "mitsuba":
         raise ValueError("a textured SpotLight, or one with pbrt-v4's conventions, is not exported to Mitsuba")
-    to_world = np.eye(4)
-    to_world[:3, :3] = light.frame()
-    to_world[:3, 3] = light.position
-    return {"type": "spot", "to_world": to_world.tolist(), "intensity": [float(x) for x in light.intensity],
+    return {"type": "spot", "to_world": to_world_4x4(light), "intensity": floats(light.intensity),
             "cutoff_angle": float(light.cutoff_angle), "beam_width": light.beam()}
 
 
