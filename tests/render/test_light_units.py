@@ -144,3 +144,29 @@ def test_the_file_formats_reach_each_type_through_the_registry(tmp_path):
                         f'{PBRT[name]}\nShape "sphere" "float radius" 1\n')
         (light,) = load_scene(path).lights
         assert light_type(light) is t, name
+
+
+def test_a_goniometric_profile_must_be_square_and_finite(tmp_path):
+    """pbrt-v4 refuses a profile that is not square (not an equal-area map) or not finite: so do we,
+    in one line naming the file's place, from TOML and from pbrt-v4."""
+    from PIL import Image
+
+    from pyopencl_rt import load_scene
+    from pyopencl_rt.imageio import write_exr
+    from pyopencl_rt.scene.loaders.values import SceneError
+
+    Image.fromarray(np.full((4, 8, 3), 200, np.uint8)).save(tmp_path / "wide.png")
+    bad = np.ones((4, 4, 3), np.float32)
+    bad[1, 2] = np.inf
+    write_exr(tmp_path / "inf.exr", bad)
+    toml = tmp_path / "g.toml"
+    toml.write_text('[[shape]]\ntype = "sphere"\ncenter = [0, 0, 0]\nradius = 1\n\n[[light]]\ntype = "goniometric"\n'
+                    'position = [0, 3, 0]\nlook_at = [0, 0, 0]\nup = [0, 0, 1]\ntexture = "wide.png"\n')
+    with pytest.raises(SceneError, match=r"g\.toml: \[\[light\]\] #1 \(goniometric\): the profile image is 8 x 4, not square"):
+        load_scene(toml)
+    for image, what in (("wide.png", "not square"), ("inf.exr", "infinite or NaN")):
+        path = tmp_path / "g.pbrt"
+        path.write_text('LookAt 0 0 5  0 0 0  0 1 0\nCamera "perspective"\nWorldBegin\n'
+                        f'LightSource "goniometric" "string filename" "{image}"\nShape "sphere" "float radius" 1\n')
+        with pytest.raises(SceneError, match=rf'g\.pbrt:4: LightSource "goniometric": .*{what}'):
+            load_scene(path)

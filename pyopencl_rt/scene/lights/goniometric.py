@@ -98,9 +98,7 @@ def from_pbrt(p, read) -> GoniometricLight:
     if p.string("filename") is None:  # pbrt-v4 warns and its empty image emits nothing
         read.warn('no "filename": the light emits nothing, as in pbrt-v4')
         return GoniometricLight(position=tuple(map(float, m[:3, 3])), intensity=(0.0, 0.0, 0.0), to_world=m[:3, :3].copy())
-    texture = read.image()
-    if not np.isfinite(texture.texels).all():
-        raise read.error(f"'{p.string('filename')}' has infinite or NaN texels (pbrt-v4 refuses them)")
+    texture = read.image(finite=True)  # pbrt-v4 refuses infinite or NaN texels
     try:
         profile = profile_texture(texture)
     except ValueError as exc:

@@ -24,8 +24,9 @@ class LightReading:
     def spectrum(self, name, default) -> tuple:
         return spectrum_rgb(self.imp, self.d.params, name, default)
 
-    def image(self):
-        """The Texture of the ``filename`` image (an EXR / PFM as it is, others as sRGB)."""
+    def image(self, finite: bool = False):
+        """The Texture of the ``filename`` image (an EXR / PFM as it is, others as sRGB); ``finite``:
+        an HDR image with an infinite or NaN texel is refused (else those become 0)."""
         from ..textures import texture_from_array, texture_from_image
 
         fname, path = pbrt_file(self.d, self.imp.path.parent, self.label)
@@ -33,7 +34,10 @@ class LightReading:
         if path.suffix.lower() in (".exr", ".pfm"):
             from .images import read_hdr_image
 
-            return texture_from_array(read_hdr_image(path, where), name=fname)
+            texels = read_hdr_image(path, where)
+            if finite and not np.isfinite(texels).all():
+                raise self.error(f"'{fname}' has infinite or NaN texels (pbrt-v4 refuses them)")
+            return texture_from_array(texels, name=fname)
         try:
             return texture_from_image(path, srgb=True)
         except Exception as exc:
