@@ -18,6 +18,7 @@ from ..device import abi
 from ..device.host_memory import aligned_empty
 from ..scene.lights import LUMINANCE, REGISTRY, light_type
 from ..scene.lights.frames import record_rgb
+from ..scene.meshops import bounds
 from ..scene.model import LIGHT_SAMPLERS
 from .sampling import fill_light_table
 
@@ -197,8 +198,8 @@ def scene_bounding_sphere(scene) -> tuple[np.ndarray, float]:
     """Centre and radius of the sphere around the bounding box of the triangles and spheres."""
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     if len(scene.vertices):
-        v = np.asarray(scene.vertices, np.float64)
-        lo, hi = np.minimum(lo, v.min(0)), np.maximum(hi, v.max(0))
+        vlo, vhi = bounds(scene.vertices)
+        lo, hi = np.minimum(lo, vlo), np.maximum(hi, vhi)
     if len(scene.spheres):
         s = np.asarray(scene.spheres, np.float64)
         lo = np.minimum(lo, (s[:, :3] - s[:, 3:4]).min(0))

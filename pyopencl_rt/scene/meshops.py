@@ -363,3 +363,15 @@ def finite_faces(vertices, faces) -> np.ndarray:
     if finite.all():
         return np.ones(len(f), bool)
     return finite[f].all(axis=1)
+
+
+def bounds(points) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi): the float64 corners of the box around (N, 3) ``points`` (N = 0: +inf, -inf).  One
+    column at a time: numpy reduces an (N, 3) array along axis 0 some 20 times slower than its three
+    strided columns (0.21 against 0.01 s for 4M float32 points), and min and max are exact in the
+    points' own type, so no float64 copy is made.  NaN propagates, as np.min's."""
+    p = np.asarray(points)
+    if not len(p):
+        return np.full(3, np.inf), np.full(3, -np.inf)
+    return (np.array([p[:, k].min() for k in range(3)], np.float64),
+            np.array([p[:, k].max() for k in range(3)], np.float64))

@@ -346,3 +346,19 @@ def test_a_loaded_mesh_keeps_the_unit_normals_the_kernels_read(tmp_path):
     _same(scene.face_normals(prim), expected[prim])
     scene.make_normals_unit()  # already unit: left as it is
     _same(np.asarray(scene.normals).reshape(-1, 3, 3), expected)
+
+
+def test_bounds_are_the_float64_reduction_of_the_points():
+    """meshops.bounds (one column at a time, no float64 copy) against the float64 axis-0 reduction
+    it replaced: the same corners bit for bit, NaN propagated, an empty set inverted."""
+    rng = np.random.default_rng(11)
+    for dtype in (np.float32, np.float64):
+        p = (rng.standard_normal((10_001, 3)) * [1e-3, 1.0, 1e6]).astype(dtype)
+        lo, hi = meshops.bounds(p)
+        assert lo.dtype == hi.dtype == np.float64
+        assert np.array_equal(lo, p.astype(np.float64).min(axis=0)) and np.array_equal(hi, p.astype(np.float64).max(axis=0))
+    p[5, 1] = np.nan
+    lo, hi = meshops.bounds(p)
+    assert np.isnan(lo[1]) and np.isnan(hi[1]) and np.isfinite(lo[[0, 2]]).all()
+    lo, hi = meshops.bounds(np.zeros((0, 3), np.float32))
+    assert (lo == np.inf).all() and (hi == -np.inf).all()

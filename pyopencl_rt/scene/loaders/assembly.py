@@ -137,9 +137,8 @@ def scene_bounds(scene: Scene):
     hi = np.full(3, -np.inf)
     world = np.asarray(scene.faces)[:n_world_faces(scene)]
     if len(world):
-        used = np.asarray(scene.vertices)[meshops.used_vertices(world, len(scene.vertices))].astype(np.float64)
-        lo = np.minimum(lo, used.min(axis=0))
-        hi = np.maximum(hi, used.max(axis=0))
+        used_lo, used_hi = meshops.bounds(np.asarray(scene.vertices)[meshops.used_vertices(world, len(scene.vertices))])
+        lo, hi = np.minimum(lo, used_lo), np.maximum(hi, used_hi)
     moved = instance_bounds(scene)
     if moved is not None:
         lo, hi = np.minimum(lo, moved[0]), np.maximum(hi, moved[1])
