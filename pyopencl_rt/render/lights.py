@@ -135,7 +135,7 @@ def uniform_weights(scene, bvh, lights, power) -> np.ndarray:
     sph = np.nonzero(kind == abi.LIGHT_SPHERE)[0]
     face_emitters = getattr(scene, "face_emitters", None)
     if face_emitters is not None and len(tri):
-        group[tri] = np.asarray(face_emitters, np.int64)[np.asarray(bvh.prim_ids, np.int64)[prim[tri]]]
+        group[tri] = np.asarray(face_emitters)[np.asarray(bvh.prim_ids)[prim[tri]]]  # the rows', no int64 copy of all
     sphere_emitters = getattr(scene, "sphere_emitters", None)
     if sphere_emitters is not None and len(sph):
         group[sph] = np.asarray(sphere_emitters, np.int64)[prim[sph]]

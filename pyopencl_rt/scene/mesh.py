@@ -12,8 +12,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..device.host_memory import aligned
+from ..device.host_memory import aligned, aligned_empty
 from ..errors import UserError
+from .meshops import finite_rows
 
 
 class MeshError(UserError):
@@ -127,7 +128,7 @@ def check_triangles(vertices, faces, name: str = "mesh") -> tuple[np.ndarray, np
         raise MeshError(f"{name}: {bad} face indices out of range [0, {len(vertices)})")
     with np.errstate(over="ignore", invalid="ignore"):
         v32 = vertices.astype(np.float32, copy=False)  # float32 given: used as it is (nothing writes it)
-    finite_vertex = np.isfinite(v32).all(axis=1)
+    finite_vertex = finite_rows(v32)
     if not finite_vertex.all():
         bad_faces = ~finite_vertex[faces].all(axis=1) if faces.size else np.zeros(0, bool)
         n_bad_v = int(np.count_nonzero(~finite_vertex))
@@ -241,12 +242,13 @@ def read_binary_ply(path) -> PlyMesh | None:
     if nf and index_t[0] == "u" and fdata["i"].max() > np.iinfo(np.int32).max:
         return None
     if vdtype["x"] == vdtype["y"] == vdtype["z"] and vdtype["x"].kind == "f":
-        vertices = np.empty((nv, 3), vdtype["x"].newbyteorder("="))
-        for k, c in enumerate("xyz"):
+        vertices = aligned_empty((nv, 3), vdtype["x"].newbyteorder("="))  # page-aligned: check_triangles
+        for k, c in enumerate("xyz"):                                      # keeps float32 ones as they are
             vertices[:, k] = vdata[c]
     else:
         vertices = np.stack([vdata[c].astype(np.float64) for c in "xyz"], 1)
-    faces = np.ascontiguousarray(fdata["i"], np.int32)
+    faces = aligned_empty((nf, 3), np.int32)
+    faces[...] = fdata["i"]
     del fdata
     uv = np.stack([vdata[c].astype(np.float64) for c in pairs[0]], 1) if pairs else None
     return PlyMesh(vertices, faces, vdata, uv)

@@ -362,3 +362,15 @@ def test_bounds_are_the_float64_reduction_of_the_points():
     assert np.isnan(lo[1]) and np.isnan(hi[1]) and np.isfinite(lo[[0, 2]]).all()
     lo, hi = meshops.bounds(np.zeros((0, 3), np.float32))
     assert (lo == np.inf).all() and (hi == -np.inf).all()
+
+
+def test_finite_rows_are_the_rows_all_finite():
+    """meshops.finite_rows (column by column) against np.isfinite(points).all(axis=1), with NaN,
+    +-inf in each column and float64 values beyond float32's range kept as they are (finite)."""
+    rng = np.random.default_rng(12)
+    p = rng.standard_normal((1000, 3))
+    p[rng.integers(0, 1000, 60), rng.integers(0, 3, 60)] = rng.choice([np.nan, np.inf, -np.inf], 60)
+    p[7] = (1e300, 0.0, 0.0)
+    for a in (p, p.astype(np.float32)):
+        with np.errstate(over="ignore"):
+            assert np.array_equal(meshops.finite_rows(a), np.isfinite(a).all(axis=1))
