@@ -23,9 +23,9 @@ typedef struct {
     pfloat pdf;  /* solid-angle density at the reference point (not including the pick pmf) */
     pfloat far;  /* > 0 for an infinitely distant light (directional, environment): n is then the
                   * unit direction toward it, far the shadow ray's length; 0 otherwise */
-    pint delta;  /* mask of the delta lights' lanes (point, directional, spot, projector): Le is the
+    pint delta;  /* mask of the delta lights' lanes (abi.DELTA_LIGHTS): Le is the
                   * contribution over pdf = 1, no MIS (BSDF sampling cannot hit it) */
-    pint tex;    /* spot, projector: the texture that multiplies Le at uv (textures.h), else -1 */
+    pint tex;    /* spot, projector, goniometric: the texture that multiplies Le at uv (textures.h), else -1 */
     pfloat tu, tv;
 } LightSample;
 

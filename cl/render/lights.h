@@ -19,8 +19,8 @@
  * The lights that are not surfaces follow pbrt-v4's conventions; each type is a unit of its own,
  * cl/lights/<name>.h (its formulas on top), paired by name with the Light record's kind
  * (LIGHT_<NAME>, the enum of pyopencl_rt/device/abi.py, whose fields are documented there):
- * point, directional, spot, projector and directional_area (HAS_DELTA_LIGHTS: delta lights,
- * ls->delta set, pdf 1 and MIS weight 1, BSDF sampling never hits them), environment
+ * point, directional, spot, projector, directional_area and goniometric (HAS_DELTA_LIGHTS: delta
+ * lights, ls->delta set, pdf 1 and MIS weight 1, BSDF sampling never hits them), environment
  * (HAS_ENVIRONMENT).  The generated header "lights/units.h" includes them and lists their cases
  * (LIGHT_CASES), which light_sample_all() dispatches to; cl/render/light_sample.h holds what they
  * share.

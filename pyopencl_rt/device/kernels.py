@@ -41,7 +41,8 @@ def _generated_headers() -> dict:
     """Headers written from the ABI's tables, not read from cl/: their include path -> text."""
     from .cl_header import bsdf_includes, light_units
 
-    return {"materials/bsdfs.h": bsdf_includes(abi.MATERIAL_TYPES), "lights/units.h": light_units(abi.LIGHT_TYPES, abi.DELTA_LIGHTS)}
+    return {"materials/bsdfs.h": bsdf_includes(abi.MATERIAL_TYPES),
+            "lights/units.h": light_units(abi.LIGHT_TYPES, abi.DELTA_LIGHTS)}
 
 
 def assemble(*names: str, extra: str = "") -> str:

@@ -23,7 +23,6 @@ from ..scene.model import LIGHT_SAMPLERS
 from .sampling import fill_light_table
 
 
-
 def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (lights, tri_light, sphere_light, light_nodes): the LIGHT records, per reordered
     triangle and per sphere the index of its light record (-1 when it does not emit), and the
@@ -207,9 +206,6 @@ def scene_bounding_sphere(scene) -> tuple[np.ndarray, float]:
     if not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)):
         return np.zeros(3), 0.0
     return 0.5 * (lo + hi), float(0.5 * np.linalg.norm(hi - lo))
-
-
-_rgb = record_rgb
 
 
 @dataclass(frozen=True)
@@ -400,7 +396,7 @@ def other_lights(scene) -> tuple[np.ndarray, np.ndarray]:
         r = recs[-1]
         r["kind"] = abi.LIGHT_ENVIRONMENT
         r["p"], r["radius"] = centre, radius
-        r["rgb"] = _rgb(env.radiance)
+        r["rgb"] = record_rgb(env.radiance)
         tables = _env_tables(env)
         mean = 1.0
         if tables is not None:

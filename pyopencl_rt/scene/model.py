@@ -438,13 +438,11 @@ class Scene:
             s.spheres = spheres.astype(np.float32)
         s.camera = dataclasses.replace(self.camera, eye=(0.0, 0.0, 0.0),
                                        look_at=tuple(np.asarray(self.camera.look_at, np.float64) - eye))
+        shift = np.eye(4)  # the move as a 4x4 map, for what moves by one (camera motion, lights, media)
+        shift[:3, 3] = -eye
         if self.camera_motion is not None:
-            shift = np.eye(4)
-            shift[:3, 3] = -eye
             s.camera_motion = tuple(shift @ np.asarray(m, np.float64) for m in self.camera_motion)
         s.world_origin = tuple(float(x) for x in np.asarray(self.world_origin, np.float64) + eye)
-        shift = np.eye(4)
-        shift[:3, 3] = -eye
         s.lights = [light_type(lt).transformed(lt, shift) for lt in self.lights]
         if self.media:
             s.media = [m.transformed(shift) for m in self.media]

@@ -15,20 +15,21 @@ Its docstring documents the type for scene files, and it defines:
 * ``pack(light, record, place) -> power``: write its ``abi.LIGHT`` record (whose kind and
   material the caller sets) and return its power's luminance for the light sampler; ``place``
   gives the scene's bounding sphere (``centre``, ``radius``) and ``texture_index(texture)``;
-* ``transformed(light, m)``: the light under the 4x4 affine map ``m`` (a scene's mirror, the camera-relative shift);
+* ``transformed(light, m)``: the light under the 4x4 affine map ``m`` (a scene's mirror, the
+  camera-relative shift);
 * ``to_mitsuba(light) -> dict``: its Mitsuba 3 emitter, as ``mi.load_dict`` takes it (ValueError
   where it has none);
-* ``MITSUBA_PLUGINS`` ({plugin: the parameters it renders as Mitsuba does}) and
-  ``from_mitsuba(obj, read)``: a Mitsuba XML emitter (``obj``; ``read``: the XML loader's
+* ``MITSUBA_PLUGINS`` ({plugin: the parameters it renders as Mitsuba does}; empty where Mitsuba has
+  no such emitter) and ``from_mitsuba(obj, read)`` (only with plugins): a Mitsuba XML emitter (``obj``; ``read``: the XML loader's
   ``EmitterReading``: ``color``, ``placed``, ``fov_x``, ``to_world``, ``sampling_weight``, ``error``);
 * ``PBRT_TYPES`` and ``from_pbrt(params, read)``: a pbrt-v4 ``LightSource`` (``read``: pbrt_lights.py's
   ``LightReading``: ``ctm``, ``scale``, ``spectrum``, ``image``, ``warn``, ``error``).
 
 Adding a type: ``<name>.py`` here, its entry of ``abi.LIGHT_TYPES`` and its kernel
 ``cl/lights/<name>.h`` (``light_sample_<name>`` and its ``LIGHT_CASE_<NAME>``); docs/ARCHITECTURE.md
-has the recipe and tests/render/test_light_units.py checks that the three agree.  The environment (:mod:`.environment`) is one per scene with tables of its own,
-and the emissive surfaces are materials' emission: neither is a registered type here, though both
-sample through kernel units.
+has the recipe and tests/render/test_light_units.py checks that the three agree.  The environment
+(:mod:`.environment`) is one per scene with tables of its own, and the emissive surfaces are
+materials' emission: neither is a registered type here, though both sample through kernel units.
 """
 from __future__ import annotations
 
@@ -45,8 +46,8 @@ from .point import PointLight
 from .projector import ProjectorLight
 from .spot import SpotLight
 
-__all__ = ["REGISTRY", "MITSUBA_TYPES", "PBRT_TYPES", "LightType", "DirectionalLight", "Environment", "PointLight", "ProjectorLight", "SpotLight",
-           "LUMINANCE", "look_at_frame", "light_type"]
+__all__ = ["REGISTRY", "MITSUBA_TYPES", "PBRT_TYPES", "LightType", "light_type", "DirectionalLight", "Environment",
+           "PointLight", "ProjectorLight", "SpotLight", "LUMINANCE", "look_at_frame"]
 
 
 @dataclass(frozen=True)
@@ -64,7 +65,7 @@ class LightType:
     transformed: Callable
     to_mitsuba: Callable
     mitsuba_plugins: dict
-    from_mitsuba: Callable
+    from_mitsuba: Callable | None  # None: no Mitsuba plugin (MITSUBA_PLUGINS empty)
     pbrt_types: tuple
     from_pbrt: Callable
 
@@ -73,11 +74,11 @@ class LightType:
         return cls(name=name, kind=kind, documentation=inspect.cleandoc(module.__doc__), light=module.LIGHT,
                    infinite=module.INFINITE, toml_keys=frozenset(module.TOML_KEYS), read_toml=module.read_toml,
                    pack=module.pack, transformed=module.transformed, to_mitsuba=module.to_mitsuba,
-                   mitsuba_plugins=dict(module.MITSUBA_PLUGINS), from_mitsuba=module.from_mitsuba,
+                   mitsuba_plugins=dict(module.MITSUBA_PLUGINS), from_mitsuba=getattr(module, "from_mitsuba", None),
                    pbrt_types=tuple(module.PBRT_TYPES), from_pbrt=module.from_pbrt)
 
 
-# kernel units without a host module here (lights.py's docstring says why)
+# kernel units without a host module here (this package's docstring says why)
 UNREGISTERED = ("triangle", "sphere", "environment", "directional_area")
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .frames import LUMINANCE, affine_vector, floats, record_rgb
+from .frames import LUMINANCE, floats, record_rgb, transform_vector
 
 INFINITE = True  # picked as pbrt-v4's BVH light sampler picks infinitely distant lights
 TOML_KEYS = frozenset({"direction", "irradiance"})
@@ -56,7 +56,7 @@ def pack(light: DirectionalLight, r, place) -> float:
 
 
 def transformed(light: DirectionalLight, m) -> DirectionalLight:
-    return replace(light, direction=tuple(affine_vector(m, light.direction)))
+    return replace(light, direction=tuple(transform_vector(m, light.direction)))
 
 
 def to_mitsuba(light: DirectionalLight) -> dict:
@@ -66,7 +66,7 @@ def to_mitsuba(light: DirectionalLight) -> dict:
 def from_mitsuba(obj, read) -> DirectionalLight:
     d = obj.point("direction", None)
     if d is None:
-        d = affine_vector(read.to_world, [0.0, 0.0, 1.0]) if read.to_world is not None else np.array([0.0, 0.0, 1.0])
+        d = transform_vector(read.to_world, [0.0, 0.0, 1.0]) if read.to_world is not None else np.array([0.0, 0.0, 1.0])
     if not np.linalg.norm(d) > 0:
         raise read.error("the direction is zero")
     irradiance, _ = read.color("irradiance", (1.0, 1.0, 1.0))
@@ -77,7 +77,7 @@ def from_mitsuba(obj, read) -> DirectionalLight:
 def from_pbrt(p, read) -> DirectionalLight:
     src = np.asarray(p.numbers("from", ("point3", "point"), 3, [0.0, 0.0, 0.0]), np.float64)
     dst = np.asarray(p.numbers("to", ("point3", "point"), 3, [0.0, 0.0, 1.0]), np.float64)
-    direction = affine_vector(read.ctm, dst - src)
+    direction = transform_vector(read.ctm, dst - src)
     if not np.linalg.norm(direction) > 0:
         raise read.error('"from" and "to" are the same point' if not np.linalg.norm(dst - src) > 0 else
                          "the transform is singular (it takes the direction to zero)")

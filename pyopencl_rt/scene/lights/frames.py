@@ -37,17 +37,21 @@ def record_rgb(x) -> np.ndarray:
     return np.where(np.isfinite(a), np.maximum(a, 0.0), 0.0)
 
 
+def transform_points(m, p) -> np.ndarray:
+    """(N, 3) float64 points ``p`` under the 4x4 affine map ``m`` (the importers' transform, here
+    for the light types and scene/loaders/geometry.py alike)."""
+    p = np.asarray(p, np.float64).reshape(-1, 3)
+    return p @ m[:3, :3].T + m[:3, 3]
+
+
+def transform_vector(m, v) -> np.ndarray:
+    """The vector ``v`` under the linear part of the 4x4 map ``m``."""
+    return np.asarray(m[:3, :3] @ np.asarray(v, np.float64), np.float64)
+
+
 def affine_point(m, p) -> tuple:
-    """The point p under the 4x4 affine map ``m`` (a scene's mirror, a file's transform), as the
-    loaders' transform_points computes it."""
-    m = np.asarray(m, np.float64)
-    q = np.asarray(p, np.float64).reshape(1, 3) @ m[:3, :3].T + m[:3, 3]
-    return tuple(q[0])
-
-
-def affine_vector(m, v) -> np.ndarray:
-    """The vector v under the 4x4 affine map ``m`` (its linear part), as transform_vector."""
-    return np.asarray(np.asarray(m, np.float64)[:3, :3] @ np.asarray(v, np.float64), np.float64)
+    """One point under the 4x4 affine map ``m`` (a scene's mirror, a file's transform), as a tuple."""
+    return tuple(transform_points(m, p)[0])
 
 
 def floats(values) -> list:

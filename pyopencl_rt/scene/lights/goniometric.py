@@ -22,7 +22,7 @@ from .frames import LUMINANCE, checked_frame, record_rgb, transformed_framed
 
 INFINITE = False
 TOML_KEYS = frozenset({"intensity", "texture", "position", "look_at", "up"})
-MITSUBA_PLUGINS: dict = {}
+MITSUBA_PLUGINS: dict = {}  # Mitsuba 3 has no goniometric emitter
 PBRT_TYPES = ("goniometric",)
 # pbrt-v4's swapYZ: its light space is the frame with y and z exchanged
 SWAP_YZ = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
@@ -84,10 +84,6 @@ transformed = transformed_framed
 
 def to_mitsuba(light: GoniometricLight) -> dict:
     raise ValueError("a GoniometricLight is not exported to Mitsuba (Mitsuba 3 has no such emitter)")
-
-
-def from_mitsuba(obj, read):
-    raise read.error("no goniometric emitter in Mitsuba 3")  # never called: MITSUBA_PLUGINS is empty
 
 
 def from_pbrt(p, read) -> GoniometricLight:

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from ..lights.frames import transform_points, transform_vector  # noqa: F401 (the importers' own)
+
 
 # transforms
 
@@ -46,15 +48,6 @@ def look_at_camera_to_world(origin, target, up) -> np.ndarray:
     m = np.eye(4)
     m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, new_up, d, origin
     return m
-
-
-def transform_points(m, p) -> np.ndarray:
-    p = np.asarray(p, np.float64).reshape(-1, 3)
-    return p @ m[:3, :3].T + m[:3, 3]
-
-
-def transform_vector(m, v) -> np.ndarray:
-    return np.asarray(m[:3, :3] @ np.asarray(v, np.float64), np.float64)
 
 
 # --------------------------------------------------------------------------------------------
