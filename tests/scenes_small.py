@@ -3,6 +3,7 @@ and a ball under an emissive sky sphere (every path does something; 48 x 32 pixe
 import numpy as np
 
 from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
+from pyopencl_rt.scene.shapes.sphere import records as sphere_records
 
 
 def small_scene(width=48, height=32, seed=7, max_depth=4, ball=(0.3, 0.6, 0.8)):
@@ -12,8 +13,8 @@ def small_scene(width=48, height=32, seed=7, max_depth=4, ball=(0.3, 0.6, 0.8)):
             Material("sky", albedo=(0, 0, 0), emission=(1.5, 1.5, 1.5), two_sided=True)]
     return Scene(vertices=v, faces=f, face_materials=np.zeros(2, np.int32), materials=mats,
                  camera=Camera(eye=(0, 2, 6), look_at=(0, 0.8, 0), up=(0, 1, 0), fov=45),
-                 spheres=np.array([[0, 1, 0, 1], [0, 0, 0, 1000]], np.float32),
-                 sphere_materials=np.array([1, 2], np.int32),
+                 shapes=sphere_records(np.array([[0, 1, 0, 1], [0, 0, 0, 1000]], np.float32)),
+                 shape_materials=np.array([1, 2], np.int32),
                  settings=RenderSettings(width=width, height=height, max_depth=max_depth, seed=seed, spp=8))
 
 

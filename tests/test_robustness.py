@@ -27,6 +27,7 @@ from pyopencl_rt.errors import UserError
 from pyopencl_rt.scene.mesh import load_mesh
 from pyopencl_rt.render.api import render_full
 from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
+from pyopencl_rt.scene.shapes.sphere import records as sphere_records, of as sphere_of
 
 # ---- sizes: quick (make test) / long (marked stress: make stress) -----------------------------
 @dataclass(frozen=True)
@@ -466,11 +467,11 @@ def transformed(scene: Scene, scale: float, shift: float) -> Scene:
     v = (scene.vertices.astype(np.float64) * scale + shift).astype(np.float32)
     cam = scene.camera
     f = lambda p: tuple(float(x) for x in (np.asarray(p, np.float64) * scale + shift))  # noqa: E731
-    sph = scene.spheres.astype(np.float64).copy()
+    sph = sphere_of(scene.shapes).astype(np.float64).copy()
     if len(sph):
         sph[:, :3] = sph[:, :3] * scale + shift
         sph[:, 3] *= scale
-    return dataclasses.replace(scene, vertices=v, spheres=sph.astype(np.float32),
+    return dataclasses.replace(scene, vertices=v, shapes=sphere_records(sph.astype(np.float32)),
                                camera=Camera(eye=f(cam.eye), look_at=f(cam.look_at), up=cam.up, fov=cam.fov))
 
 
@@ -515,8 +516,8 @@ def far_camera_plane(camera_distance):
                  materials=[Material("plane", albedo=(0.3,) * 3),
                             Material("sky", albedo=(0, 0, 0), emission=(2.0,) * 3, two_sided=True)],
                  camera=Camera(eye=tuple(eye), look_at=(0, 0, 0), up=(0, 1, 0), fov=fov),
-                 spheres=np.array([[0, 0, 0, 100 * camera_distance]], np.float32),
-                 sphere_materials=np.array([1], np.int32),
+                 shapes=sphere_records(np.array([[0, 0, 0, 100 * camera_distance]], np.float32)),
+                 shape_materials=np.array([1], np.int32),
                  settings=RenderSettings(width=16, height=16, max_depth=3))
 
 

@@ -28,7 +28,7 @@
 
 typedef struct {
     float t, u, v;
-    int prim; /* reordered triangle index, PRIM_MISS; scene.h adds spheres */
+    int prim; /* reordered triangle index, PRIM_MISS; scene.h adds shapes */
 } Hit;
 
 

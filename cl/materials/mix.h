@@ -44,7 +44,7 @@ RT_INLINE pfloat mix_eval(__global const Material *materials, __global const flo
     __global const int *ints = (__global const int *)materials;
     pfloat w = pgather(f, i + FIELD_INDEX(Material, metallic));
 #ifdef HAS_TEXTURES
-    const pint tri = active & pnot(IS_SPHERE(prim));
+    const pint tri = active & pnot(IS_SHAPE(prim));
     const pint textured = tri & (pgather_int(ints, i + FIELD_INDEX(Material, tex_scalar)) >= 0);
     if (pany(textured)) {
         for (int k = 0; k < PACKET_WIDTH; ++k) {
@@ -134,7 +134,7 @@ RT_INLINE MixOther mix_other(MESH_PARAMS, __global const float *face_normal,
         return x;
     }
 #ifdef HAS_TEXTURES
-    texture_material(tri_uv, textures, tex_data, x.blended & pnot(IS_SPHERE(prim)), prim, u, v, p, ng, &x.m);
+    texture_material(tri_uv, textures, tex_data, x.blended & pnot(IS_SHAPE(prim)), prim, u, v, p, ng, &x.m);
 #endif
 #ifdef HAS_VERTEX_COLORS
     vertex_color_material(tri_color, x.blended, prim, u, v, &x.m);
@@ -192,7 +192,7 @@ RT_INLINE void mix_keep_top(__global const Material *materials, __global const f
     m->flags = moved ? ((m->flags & ~kept) | (t.flags & kept)) : m->flags;
     m->opacity = moved ? t.opacity : m->opacity;
 #ifdef HAS_TEXTURES
-    const pint masked = moved & pnot(IS_SPHERE(prim)) & ((t.flags & MATERIAL_FLAG_MASK) != 0);
+    const pint masked = moved & pnot(IS_SHAPE(prim)) & ((t.flags & MATERIAL_FLAG_MASK) != 0);
     if (!pany(masked)) return;
     __global const int *ints = (__global const int *)materials;
     for (int k = 0; k < PACKET_WIDTH; ++k) {

@@ -184,7 +184,7 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
         /* -- extend: the live lanes' rays ------------------------------------------------------ */
         pfloat t, u, v;
         pint prim, inst = PINT(-1);
-        scene_closest_hit(nodes, tris, spheres, n_spheres, s.o, s.d, live_lanes, &t, &prim, &u, &v CUTOUT_ARGS
+        scene_closest_hit(nodes, tris, shape_nodes, shapes, s.o, s.d, live_lanes, &t, &prim, &u, &v CUTOUT_ARGS
                           INSTANCE_HIT_ARGS(&inst) SCENE_TIME_ARG(time_sample(key)));
         n_extend += popcount(live);
 #ifdef HAS_MEDIA
@@ -209,12 +209,12 @@ __kernel LANE_KERNEL void mk_path(WAVE_PARAMS)
             n_shadow += popcount(pbits(with_shadow));
 #ifdef HAS_MEDIA
             /* through media and null boundaries: the transmittance, 0 where a surface blocks */
-            const pvec3 tr = shadow_transmittance(nodes, tris, MESH_ARGS, face_normal, spheres, n_spheres, tri_material,
-                                                  sphere_material, materials, MEDIA_PATH_ARGS, shadow.o, shadow.d,
+            const pvec3 tr = shadow_transmittance(nodes, tris, MESH_ARGS, face_normal, shape_nodes, shapes, tri_material,
+                                                  shape_material, materials, MEDIA_PATH_ARGS, shadow.o, shadow.d,
                                                   shadow_medium, s.channel, &s.rng, s.r, with_shadow);
             s.L = pv3_sel(s.L, pv3_add(s.L, pv3_mul(shadow.contribution, tr)), with_shadow);
 #else
-            const pint occluded = scene_occluded(nodes, tris, spheres, n_spheres, shadow.o, shadow.d, with_shadow,
+            const pint occluded = scene_occluded(nodes, tris, shape_nodes, shapes, shadow.o, shadow.d, with_shadow,
                                                  PFLOAT(1.0f) CUTOUT_ARGS INSTANCE_ARGS
                                                  SCENE_TIME_ARG(time_sample(key)));
             s.L = pv3_sel(s.L, pv3_add(s.L, shadow.contribution), with_shadow & pnot(occluded));

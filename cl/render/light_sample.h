@@ -14,20 +14,8 @@
 
 #include "scene/scene.h"
 #include "render/sampling.h"
+#include "render/emission.h"
 
-typedef struct {
-    pvec3 p;     /* point on the light */
-    pvec3 err;   /* bound on the rounding error of p, per coordinate (for the shadow ray's end) */
-    pvec3 n;     /* unit normal of the light at p, on the emitting side facing the reference */
-    pvec3 Le;    /* emitted radiance toward the reference point */
-    pfloat pdf;  /* solid-angle density at the reference point (not including the pick pmf) */
-    pfloat far;  /* > 0 for an infinitely distant light (directional, environment): n is then the
-                  * unit direction toward it, far the shadow ray's length; 0 otherwise */
-    pint delta;  /* mask of the delta lights' lanes (abi.DELTA_LIGHTS): Le is the
-                  * contribution over pdf = 1, no MIS (BSDF sampling cannot hit it) */
-    pint tex;    /* spot, projector, goniometric: the texture that multiplies Le at uv (textures.h), else -1 */
-    pfloat tu, tv;
-} LightSample;
 
 /* The parameters of every light type's sampling, and the arguments that pass them on. */
 #define LIGHT_UNIT_PARAMS                                                                           \
@@ -43,15 +31,6 @@ typedef struct {
 #define LIGHT_V3(lights, row, field)                                                                \
     pv3(LIGHT_F(lights, row, field), LIGHT_F(lights, (row) + 1, field), LIGHT_F(lights, (row) + 2, field))
 
-/* ls's fields in the lanes of `sel` */
-RT_INLINE void light_sample_set(LightSample *ls, pint sel, pvec3 p, pvec3 err, pvec3 n, pvec3 Le, pfloat pdf)
-{
-    ls->p = pv3_sel(ls->p, p, sel);
-    ls->err = pv3_sel(ls->err, err, sel);
-    ls->n = pv3_sel(ls->n, n, sel);
-    ls->Le = pv3_sel(ls->Le, Le, sel);
-    ls->pdf = sel ? pdf : ls->pdf;
-}
 
 /* Length of a shadow ray from ref that leaves the scene's bounding sphere (centre, radius: the
  * record's p and radius) of a directional or environment light. */

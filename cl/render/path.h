@@ -90,9 +90,9 @@ typedef struct {
 } ShadowRay;
 
 #define PATH_PARAMS                                                                                   \
-    MESH_PARAMS, __global const Sphere *spheres, __global const int *tri_material,                    \
-    __global const int *tri_light, __global const int *sphere_material,                              \
-    __global const int *sphere_light, __global const Material *materials,                            \
+    MESH_PARAMS, __global const Shape *shapes, __global const int *tri_material,                    \
+    __global const int *tri_light, __global const int *shape_material,                              \
+    __global const int *shape_light, __global const Material *materials,                            \
     __global const Light *lights, __global const LightNode *light_nodes, const int n_lights,         \
     const int light_tree,                                                                            \
     __global const float *env_map,                                                                   \
@@ -100,7 +100,7 @@ typedef struct {
     __global const float4 *tex_data, __global const float *face_normal, __global const float *tri_color, \
     __global float *aov_path, const int max_depth, const int rr_depth, const int integrator PATH_INSTANCES
 #define PATH_ARGS                                                                                     \
-    MESH_ARGS, spheres, tri_material, tri_light, sphere_material, sphere_light, materials, lights,     \
+    MESH_ARGS, shapes, tri_material, tri_light, shape_material, shape_light, materials, lights,     \
     light_nodes, n_lights, light_tree, env_map, env_cdf, tri_uv, textures, tex_data, face_normal, tri_color, aov_path, max_depth, \
     rr_depth, integrator PATH_INSTANCES_ARGS
 #if defined(HAS_INSTANCES) && defined(HAS_MOTION)
@@ -230,17 +230,17 @@ RT_INLINE void path_escape(__global const Light *lights, int env_light, __global
 
 /* The material and emitter of the lanes' primitives (index valid in every lane). */
 RT_INLINE void hit_records(__global const int *tri_material, __global const int *tri_light,
-                           __global const int *sphere_material, __global const int *sphere_light, pint prim,
+                           __global const int *shape_material, __global const int *shape_light, pint prim,
                            pint *mat_index, pint *light_index)
 {
-#if defined(HAS_SPHERES) && defined(HAS_TRIANGLES)
-    const pint sphere = IS_SPHERE(prim);
-    const pint si = sphere ? SPHERE_INDEX(prim) : PINT(0), ti = sphere ? PINT(0) : prim;
-    *mat_index = sphere ? pgather_int(sphere_material, si) : pgather_int(tri_material, ti);
-    *light_index = sphere ? pgather_int(sphere_light, si) : pgather_int(tri_light, ti);
-#elif defined(HAS_SPHERES)
-    *mat_index = pgather_int(sphere_material, SPHERE_INDEX(prim));
-    *light_index = pgather_int(sphere_light, SPHERE_INDEX(prim));
+#if defined(HAS_SHAPES) && defined(HAS_TRIANGLES)
+    const pint shape = IS_SHAPE(prim);
+    const pint si = shape ? SHAPE_INDEX(prim) : PINT(0), ti = shape ? PINT(0) : prim;
+    *mat_index = shape ? pgather_int(shape_material, si) : pgather_int(tri_material, ti);
+    *light_index = shape ? pgather_int(shape_light, si) : pgather_int(tri_light, ti);
+#elif defined(HAS_SHAPES)
+    *mat_index = pgather_int(shape_material, SHAPE_INDEX(prim));
+    *light_index = pgather_int(shape_light, SHAPE_INDEX(prim));
 #else
     *mat_index = pgather_int(tri_material, prim);
     *light_index = pgather_int(tri_light, prim);
@@ -251,7 +251,7 @@ RT_INLINE void hit_records(__global const int *tri_material, __global const int 
 #ifdef HAS_TRIANGLES
 #define ANY_PRIM 0
 #else
-#define ANY_PRIM SPHERE_PRIM(0)
+#define ANY_PRIM SHAPE_PRIM(0)
 #endif
 
 #ifdef HAS_LIGHTS
@@ -331,7 +331,7 @@ pint nee_light_sample(PATH_PARAMS, SampleKey key, puint dim, pint active, pvec3 
         }
     }
     pint sampled = active & (*pick_pmf > 0.0f);
-    sampled &= light_sample_all(MESH_ARGS, spheres, materials, env_map, env_cdf, lights, li, sampled, ref, ulx, uly, ls);
+    sampled &= light_sample_all(MESH_ARGS, shapes, materials, env_map, env_cdf, lights, li, sampled, ref, ulx, uly, ls);
 #ifdef HAS_TEXTURES
     texture_light_emission(tri_uv, textures, tex_data, materials, lights, li, sampled, ulx, uly, ls);
 #endif
@@ -362,8 +362,8 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     prim = hit ? prim : PINT(ANY_PRIM);
     const pvec3 o = s->o, d = s->d;
     pvec3 p_err;
-    pvec3 p = hit_point(MESH_ARGS, spheres, prim, o, d, t, u, v, &p_err);
-    pvec3 ng = hit_normal(MESH_ARGS, spheres, prim, p, hit);
+    pvec3 p = hit_point(MESH_ARGS, shapes, prim, o, d, t, u, v, &p_err);
+    pvec3 ng = hit_normal(MESH_ARGS, shapes, prim, p, hit);
     const pvec3 wo = pv3_neg(d);
 #ifdef HAS_INSTANCES
     /* a hit in an instance was found in its group's space: p (its error bound grown) and ng move
@@ -384,7 +384,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     const pint front = pv3_dot(ng, wo) >= 0.0f; /* the viewer is outside (dielectrics) */
     const pvec3 n = pv3_sel(pv3_neg(ng), ng, front); /* normal on the viewer's side */
     pint mat_index, light_index;
-    hit_records(tri_material, tri_light, sphere_material, sphere_light, prim, &mat_index, &light_index);
+    hit_records(tri_material, tri_light, shape_material, shape_light, prim, &mat_index, &light_index);
     const puint dim = convert_puint(2 + DIMS_PER_BOUNCE * s->depth);
 #ifdef HAS_MATERIAL_MIX
     /* a mix is shaded as one of its materials, picked by its weight (cl/materials/mix.h) */
@@ -402,7 +402,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
     MaterialLanes m = material_lanes(materials, mat_index);
 #endif
 #ifdef HAS_TEXTURES
-    texture_material(tri_uv, textures, tex_data, hit & pnot(IS_SPHERE(prim)), prim, u, v, p, ng, &m);
+    texture_material(tri_uv, textures, tex_data, hit & pnot(IS_SHAPE(prim)), prim, u, v, p, ng, &m);
 #endif
 #ifdef HAS_VERTEX_COLORS
     vertex_color_material(tri_color, hit, prim, u, v, &m);
@@ -456,7 +456,7 @@ RT_INLINE void path_shade(PATH_PARAMS, pint slot, SampleKey key, pint hit, pint 
 #else
             const pfloat pmf = light_pick_pmf(lights, light_nodes, mis, li, from, pv3_zero());
 #endif
-            w = mis ? power_heuristic(s->pdf, pmf * light_pdf(spheres, lights, li, from, p, ng)) : w;
+            w = mis ? power_heuristic(s->pdf, pmf * light_pdf(shapes, lights, li, from, p, ng)) : w;
         }
 #endif
         s->L = pv3_sel(s->L, pv3_add(s->L, pv3_scale(pv3_mul(s->beta, Le), w)), glows);

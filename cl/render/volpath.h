@@ -41,8 +41,8 @@
 #define MEDIA_PATH_PARAMS                                                                                   \
     __global const Medium *media, __global const MediumGrid *medium_grids, __global const float *grid_data, \
         __global const MediumInterface *medium_interfaces, __global const int *tri_interface,               \
-        __global const int *sphere_interface, const int spectral_mis
-#define MEDIA_PATH_ARGS media, medium_grids, grid_data, medium_interfaces, tri_interface, sphere_interface, spectral_mis
+        __global const int *shape_interface, const int spectral_mis
+#define MEDIA_PATH_ARGS media, medium_grids, grid_data, medium_interfaces, tri_interface, shape_interface, spectral_mis
 
 /* Whether the channels are combined by spectral MIS: always where SPECTRAL_MIS is the scene's; the
  * kernels' spectral_mis where SPECTRAL_MIS_RUNTIME compiles it in for every scene with media
@@ -69,14 +69,14 @@ RT_INLINE void path_start_media(PathState *s, pint m, int camera_medium, SampleK
 }
 
 /* The medium interface of each lane's primitive (-1: none; prim valid in every lane) */
-RT_INLINE pint hit_interface(__global const int *tri_interface, __global const int *sphere_interface, pint prim)
+RT_INLINE pint hit_interface(__global const int *tri_interface, __global const int *shape_interface, pint prim)
 {
-#if defined(HAS_SPHERES) && defined(HAS_TRIANGLES)
-    const pint sphere = IS_SPHERE(prim);
-    const pint si = sphere ? SPHERE_INDEX(prim) : PINT(0), ti = sphere ? PINT(0) : prim;
-    return sphere ? pgather_int(sphere_interface, si) : pgather_int(tri_interface, ti);
-#elif defined(HAS_SPHERES)
-    return pgather_int(sphere_interface, SPHERE_INDEX(prim));
+#if defined(HAS_SHAPES) && defined(HAS_TRIANGLES)
+    const pint shape = IS_SHAPE(prim);
+    const pint si = shape ? SHAPE_INDEX(prim) : PINT(0), ti = shape ? PINT(0) : prim;
+    return shape ? pgather_int(shape_interface, si) : pgather_int(tri_interface, ti);
+#elif defined(HAS_SHAPES)
+    return pgather_int(shape_interface, SHAPE_INDEX(prim));
 #else
     return pgather_int(tri_interface, prim);
 #endif
@@ -112,11 +112,11 @@ RT_INLINE void spectral_normalise(pvec3 *beta, pvec3 *r, pint m, int on)
  * its shadow rays pass them with the transmission 1 - R (R = 2F / (1 + F), F = Fr(|cos|, eta)), cos
  * in the shading frame (n: the interpolated normal where the mesh has one, as Mitsuba's BSDFs see
  * it).  The lanes of `live` whose primitive's material is one: *thin, with the transmission along d. */
-RT_INLINE pfloat thin_sheet(__global const int *tri_material, __global const int *sphere_material,
+RT_INLINE pfloat thin_sheet(__global const int *tri_material, __global const int *shape_material,
                             __global const Material *materials, pint prim, pint live, pvec3 ng, pvec3 d, pint *thin)
 {
     pint mi, li_unused;
-    hit_records(tri_material, tri_material, sphere_material, sphere_material, prim, &mi, &li_unused);
+    hit_records(tri_material, tri_material, shape_material, shape_material, prim, &mi, &li_unused);
     __global const int *n = (__global const int *)materials;
     const pint base = mi * STRIDE_INDEX(Material);
     const pint type = pgather_int(n, base + FIELD_INDEX(Material, type));
@@ -151,8 +151,8 @@ RT_INLINE pvec3 sheet_normal(__global const float *face_normal, __global const i
  * result is the spectral-MIS estimate of the transmittance given them. */
 RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global const float4 *tris, MESH_PARAMS,
                                      __global const float *face_normal,
-                                     __global const Sphere *spheres, int n_spheres, __global const int *tri_material,
-                                     __global const int *sphere_material, __global const Material *materials,
+                                     __global const BVHNode *shape_nodes, __global const Shape *shapes, __global const int *tri_material,
+                                     __global const int *shape_material, __global const Material *materials,
                                      MEDIA_PATH_PARAMS, pvec3 o, pvec3 d,
                                      pint medium, pint channel, puint *rng, pvec3 r, pint active)
 {
@@ -163,7 +163,7 @@ RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global con
         const pvec3 seg = pv3_sub(end, o);
         pfloat th, u, v;
         pint prim;
-        scene_closest_hit(nodes, tris, spheres, n_spheres, o, seg, live, &th, &prim, &u, &v);
+        scene_closest_hit(nodes, tris, shape_nodes, shapes, o, seg, live, &th, &prim, &u, &v);
         const pint blocked = live & (prim != PRIM_MISS) & (th < 1.0f);
         const pint inside = live & (medium >= 0);
         if (pany(inside)) {
@@ -176,15 +176,15 @@ RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global con
         live = blocked & (pv3_max3(T) > 0.0f);
         if (!pany(live)) break;
         const pint at = live ? prim : PINT(ANY_PRIM);
-        const pint ii = hit_interface(tri_interface, sphere_interface, at);
+        const pint ii = hit_interface(tri_interface, shape_interface, at);
         pint null = live & ((interface_flags(medium_interfaces, ii) & MEDIUM_IF_NULL) != 0);
 #ifdef HAS_MATERIAL_DIELECTRIC
         {
             pvec3 p_err;
-            const pvec3 ph = hit_point(MESH_ARGS, spheres, at, o, seg, th, u, v, &p_err);
+            const pvec3 ph = hit_point(MESH_ARGS, shapes, at, o, seg, th, u, v, &p_err);
             pint thin;
-            const pvec3 sn = sheet_normal(face_normal, prim_ids, live, at, u, v, hit_normal(MESH_ARGS, spheres, at, ph, live));
-            const pfloat tr = thin_sheet(tri_material, sphere_material, materials, at, live & pnot(null), sn, seg, &thin);
+            const pvec3 sn = sheet_normal(face_normal, prim_ids, live, at, u, v, hit_normal(MESH_ARGS, shapes, at, ph, live));
+            const pfloat tr = thin_sheet(tri_material, shape_material, materials, at, live & pnot(null), sn, seg, &thin);
             T = pv3_sel(T, pv3_scale(T, tr), thin);
             null |= thin;
         }
@@ -194,8 +194,8 @@ RT_INLINE pvec3 shadow_transmittance(__global const BVHNode *nodes, __global con
         live = last ? PINT(0) : null;
         if (!pany(live)) break;
         pvec3 p_err;
-        const pvec3 p = hit_point(MESH_ARGS, spheres, at, o, seg, th, u, v, &p_err);
-        const pvec3 ng = hit_normal(MESH_ARGS, spheres, at, p, live);
+        const pvec3 p = hit_point(MESH_ARGS, shapes, at, o, seg, th, u, v, &p_err);
+        const pvec3 ng = hit_normal(MESH_ARGS, shapes, at, p, live);
         pint unused;
         const pint next = medium_after_crossing(medium_interfaces, ii, ng, seg, medium, &unused);
         medium = live ? next : medium;
@@ -222,7 +222,7 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
     *shadow_medium = PINT(MEDIUM_VACUUM);
     shadow->o = shadow->d = shadow->contribution = pv3_zero();
     const pint at = hit ? prim : PINT(ANY_PRIM);
-    *iface = hit ? hit_interface(tri_interface, sphere_interface, at) : PINT(-1);
+    *iface = hit ? hit_interface(tri_interface, shape_interface, at) : PINT(-1);
     *ng = pv3_zero();
 
     /* -- the free flight ------------------------------------------------------------------------ */
@@ -250,8 +250,8 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
 #endif
     if (pany(boundary)) {
         pvec3 p_err;
-        const pvec3 p = hit_point(MESH_ARGS, spheres, at, s->o, s->d, t, u, v, &p_err);
-        *ng = hit_normal(MESH_ARGS, spheres, at, p, boundary);
+        const pvec3 p = hit_point(MESH_ARGS, shapes, at, s->o, s->d, t, u, v, &p_err);
+        *ng = hit_normal(MESH_ARGS, shapes, at, p, boundary);
         pint null;
         const pint next = medium_after_crossing(medium_interfaces, *iface, *ng, s->d, s->medium, &null);
         null &= boundary;
@@ -261,7 +261,7 @@ RT_INLINE void path_medium(PATH_PARAMS, MEDIA_PATH_PARAMS, SampleKey key, pint l
          * frame; the choice from the tracking stream (a crossing takes no sampler dimension) */
         pint thin;
         const pvec3 sn = sheet_normal(face_normal, prim_ids, boundary, at, u, v, *ng);
-        const pfloat tr = thin_sheet(tri_material, sphere_material, materials, at, boundary & pnot(null), sn, s->d, &thin);
+        const pfloat tr = thin_sheet(tri_material, shape_material, materials, at, boundary & pnot(null), sn, s->d, &thin);
         if (pany(thin)) {
             const pint pass = thin & (medium_uniform(&s->rng, thin) < tr);
             null |= pass;

@@ -1,9 +1,9 @@
-/* The scene as the wavefront kernels see it: triangles in a BVH, spheres in a short list,
- * materials, emitters.  The parameter list every wavefront kernel shares (WAVE_PARAMS), the
- * COUNTER_* slots and the hit encoding (PRIM_MISS, PRIM_SPHERE_FIRST) are generated from
- * pyopencl_rt/device/abi.py.
+/* The scene as the wavefront kernels see it: triangles in a BVH, analytic shapes in a BVH of
+ * their own (scene/shapes.h), materials, emitters.  The parameter list every wavefront kernel
+ * shares (WAVE_PARAMS), the COUNTER_* slots and the hit encoding (PRIM_MISS, PRIM_SHAPE_FIRST) are
+ * generated from pyopencl_rt/device/abi.py.
  *
- * Features are compiled in only when the scene uses them: HAS_TRIANGLES, HAS_SPHERES,
+ * Features are compiled in only when the scene uses them: HAS_TRIANGLES, HAS_SHAPES,
  * HAS_LIGHTS (next-event estimation); the estimator (MIS path, BSDF sampling only, light sampling
  * only) is the kernel argument `integrator`.
  */
@@ -25,9 +25,11 @@
 /* the alpha cut-outs below look textures up */
 #include "scene/textures.h"
 
-#define SPHERE_PRIM(s) (PRIM_SPHERE_FIRST - (s))
-#define IS_SPHERE(prim) ((prim) <= PRIM_SPHERE_FIRST)
-#define SPHERE_INDEX(prim) (PRIM_SPHERE_FIRST - (prim))
+/* the hit encoding of shapes (SHAPE_PRIM), and with HAS_SHAPES their BVH and dispatch */
+#include "scene/shape_lanes.h"
+#ifdef HAS_SHAPES
+#include "scene/shapes.h"
+#endif
 
 /* Alpha cut-outs in the intersection (MATERIAL_FLAG_CUTOUT: pbrt-v4's shape alpha, glTF's
  * alphaMode; not in scenes with media): a triangle hit whose alpha fails the test is no hit, so
@@ -35,8 +37,8 @@
  * MAX_CUTOUT_SKIPS times (then the hit stands).  The test, at the hit's uv, lane by lane: alpha =
  * opacity times the R of its TEXP_OPACITY texture; alpha_cutoff > 0: alpha < alpha_cutoff fails
  * (glTF MASK); else alpha <= 0 fails, alpha >= 1 passes, and otherwise a hash of the ray's origin
- * and direction in [0, 1) above alpha fails (pbrt-v4's HashFloat(o, d) > alpha).  Spheres (no
- * uv) are opaque.  CUTOUT_PARAMS / CUTOUT_ARGS add the buffers the test reads to
+ * and direction in [0, 1) above alpha fails (pbrt-v4's HashFloat(o, d) > alpha).  Analytic shapes
+ * (no uv) are opaque.  CUTOUT_PARAMS / CUTOUT_ARGS add the buffers the test reads to
  * scene_closest_hit and scene_occluded; the kernels' WAVE_PARAMS name them. */
 #if defined(HAS_CUTOUTS) && !defined(HAS_MEDIA) && defined(HAS_TRIANGLES)
 #define CUTOUTS_ON
@@ -68,7 +70,7 @@ RT_INLINE int cutout_skips(__global const int *tri_material, __global const Mate
                            __global const float2 *tri_uv, __global const Texture *textures,
                            __global const float4 *tex_data, int prim, float u, float v, float3 o, float3 d)
 {
-    if (prim < 0) return 0; /* a miss or a sphere */
+    if (prim < 0) return 0; /* a miss or a shape */
     __global const Material *m = materials + tri_material[prim];
     if ((m->flags & MATERIAL_FLAG_CUTOUT) == 0) return 0;
     float a = m->opacity;
@@ -192,9 +194,9 @@ RT_INLINE pint instance_lanes_occluded(INSTANCE_PARAMS_NOCOMMA, __global const f
 
 /* The closest hits of the lanes of `live` (t in (0, inf)): *prim (PRIM_MISS for none), *t, and
  * the barycentrics *u, *v of a triangle.  One ray through the BVH layout of traverse.h at width 1,
- * a packet (cl/accel/bvh_packet.h) in lanes; spheres one after the other, over the lanes. */
+ * a packet (cl/accel/bvh_packet.h) in lanes; then the shapes' BVH, over the lanes (scene/shapes.h). */
 RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const float4 *tris,
-                                 __global const Sphere *spheres, int n_spheres, pvec3 o, pvec3 d, pint live,
+                                 __global const BVHNode *shape_nodes, __global const Shape *shapes, pvec3 o, pvec3 d, pint live,
                                  pfloat *t, pint *prim, pfloat *u, pfloat *v CUTOUT_PARAMS INSTANCE_HIT_PARAMS)
 {
     *prim = PINT(PRIM_MISS);
@@ -239,32 +241,24 @@ RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const f
 #ifdef HAS_INSTANCES
     instance_lanes_hit(INSTANCE_ARGS_NOCOMMA, tris, o, d, live, t, prim, u, v, inst SCENE_TIME_ARG(time));
 #endif
-#ifdef HAS_SPHERES
-    for (int s = 0; s < n_spheres; ++s) {
-        const pint h = intersect_sphere(o, d, pv3_splat(vload3(0, spheres[s].center)), PFLOAT(spheres[s].radius),
-                                        PFLOAT(0.0f), *t, t, live);
+#ifdef HAS_SHAPES
+    const pint h = shapes_closest_hit(shape_nodes, shapes, o, d, live, t, prim);
 #ifdef HAS_INSTANCES
-        *inst = h ? PINT(-1) : *inst;
+    *inst = h ? PINT(-1) : *inst;
 #endif
-        *prim = h ? PINT(SPHERE_PRIM(s)) : *prim;
-        *u = h ? PFLOAT(0.0f) : *u;
-        *v = h ? PFLOAT(0.0f) : *v;
-    }
+    *u = h ? PFLOAT(0.0f) : *u;
+    *v = h ? PFLOAT(0.0f) : *v;
 #endif
 }
 
 /* The lanes of `live` whose segment o + t d, t in (0, tmax), is blocked. */
 RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const float4 *tris,
-                              __global const Sphere *spheres, int n_spheres, pvec3 o, pvec3 d, pint live,
+                              __global const BVHNode *shape_nodes, __global const Shape *shapes, pvec3 o, pvec3 d, pint live,
                               pfloat tmax CUTOUT_PARAMS INSTANCE_OCCLUDED_PARAMS)
 {
     pint blocked = PINT(0);
-#ifdef HAS_SPHERES
-    for (int s = 0; s < n_spheres; ++s) {
-        pfloat t;
-        blocked |= intersect_sphere(o, d, pv3_splat(vload3(0, spheres[s].center)), PFLOAT(spheres[s].radius),
-                                    PFLOAT(0.0f), tmax, &t, live & pnot(blocked));
-    }
+#ifdef HAS_SHAPES
+    blocked = shapes_occluded(shape_nodes, shapes, o, d, live, tmax);
 #endif
 #ifdef HAS_TRIANGLES
     const pint rest = live & pnot(blocked);
@@ -320,8 +314,7 @@ RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const floa
  * o + t*d, whose error is a few ulps of |o| + t|d|: that can exceed the spawn offset near a
  * coordinate plane far from the ray's origin, so rays would re-hit their own surface (the bias
  * this caused is described in docs/CONVERGENCE.md).
- * Spheres re-project o + t*d onto the surface (pbrt-v4, 6.8.5). */
-#define HIT_GAMMA5 2.98023259e-07f /* 5 * 2^-24 / (1 - 5 * 2^-24), rounded up */
+ * Analytic shapes bound their own (cl/shapes/<name>.h). */
 
 /* The mesh that shading reads (the BVH keeps its own copies of the triangles for traversal: tris
  * in the binary layout, the packets of the wide ones): the scene's vertices (3 floats each) and
@@ -329,27 +322,14 @@ RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const floa
 #define MESH_PARAMS __global const float *vertices, __global const int *faces, __global const int *prim_ids
 #define MESH_ARGS vertices, faces, prim_ids
 
-/* Gathers of the lanes' primitives (every index valid): vertex k of triangle prim, and a sphere's
- * centre and radius. */
+/* Gathers of the lanes' primitives (every index valid): vertex k of triangle prim. */
 RT_INLINE pvec3 tri_vertex(MESH_PARAMS, pint prim, int k)
 {
     return pv3_gather(vertices, pgather_int(faces, pgather_int(prim_ids, prim) * 3 + k) * 3);
 }
 
-RT_INLINE pvec3 sphere_center(__global const Sphere *spheres, pint s)
-{
-    __global const float *f = (__global const float *)spheres;
-    const pint i = s * STRIDE_INDEX(Sphere) + FIELD_INDEX(Sphere, center);
-    return pv3_gather(f, i);
-}
-
-RT_INLINE pfloat sphere_radius(__global const Sphere *spheres, pint s)
-{
-    return pgather((__global const float *)spheres, s * STRIDE_INDEX(Sphere) + FIELD_INDEX(Sphere, radius));
-}
-
-/* Per lane: triangles (prim >= 0) and (HAS_SPHERES) spheres; lanes of neither (PRIM_MISS) get 0. */
-RT_INLINE pvec3 hit_point(MESH_PARAMS, __global const Sphere *spheres, pint prim,
+/* Per lane: triangles (prim >= 0) and (HAS_SHAPES) analytic shapes; lanes of neither (PRIM_MISS) get 0. */
+RT_INLINE pvec3 hit_point(MESH_PARAMS, __global const Shape *shapes, pint prim,
                           pvec3 o, pvec3 d, pfloat t, pfloat u, pfloat v, pvec3 *err)
 {
     pvec3 p = pv3_zero();
@@ -359,23 +339,15 @@ RT_INLINE pvec3 hit_point(MESH_PARAMS, __global const Sphere *spheres, pint prim
         const pint i = tri ? prim : PINT(0);
         p = triangle_point(tri_vertex(MESH_ARGS, i, 0), tri_vertex(MESH_ARGS, i, 1), tri_vertex(MESH_ARGS, i, 2), u, v, err);
     }
-#ifdef HAS_SPHERES
-    const pint sphere = IS_SPHERE(prim);
-    if (pany(sphere)) {
-        const pint s = sphere ? SPHERE_INDEX(prim) : PINT(0);
-        const pvec3 c = sphere_center(spheres, s);
-        const pvec3 ps = pv3_add(c, pv3_scale(pv3_normalize(pv3_sub(pv3_add(o, pv3_scale(d, t)), c), sphere),
-                                              sphere_radius(spheres, s)));
-        *err = pv3_sel(*err, pv3_scale(pv3_add(pv3_abs(ps), pv3_abs(c)), PFLOAT(HIT_GAMMA5)), sphere);
-        p = pv3_sel(p, ps, sphere);
-    }
+#ifdef HAS_SHAPES
+    shape_hit_point(shapes, prim, o, d, t, &p, err);
 #endif
     return p;
 }
 
-/* Unit geometric normal at a hit (triangles: (v1-v0)x(v2-v0); spheres: outward), per lane (`live`:
- * the lanes whose normal counts, for pv3_normalize's fallback; lanes of neither kind get 0). */
-RT_INLINE pvec3 hit_normal(MESH_PARAMS, __global const Sphere *spheres, pint prim, pvec3 p, pint live)
+/* Unit geometric normal at a hit (triangles: (v1-v0)x(v2-v0); shapes: their front side's), per lane
+ * (`live`: the lanes whose normal counts, for pv3_normalize's fallback; lanes of neither kind get 0). */
+RT_INLINE pvec3 hit_normal(MESH_PARAMS, __global const Shape *shapes, pint prim, pvec3 p, pint live)
 {
     pvec3 n = pv3_zero();
     const pint tri = prim >= 0;
@@ -384,12 +356,8 @@ RT_INLINE pvec3 hit_normal(MESH_PARAMS, __global const Sphere *spheres, pint pri
         const pvec3 p0 = tri_vertex(MESH_ARGS, i, 0);
         n = pv3_normalize(pv3_cross(pv3_sub(tri_vertex(MESH_ARGS, i, 1), p0), pv3_sub(tri_vertex(MESH_ARGS, i, 2), p0)), live & tri);
     }
-#ifdef HAS_SPHERES
-    const pint sphere = IS_SPHERE(prim);
-    if (pany(sphere)) {
-        const pint s = sphere ? SPHERE_INDEX(prim) : PINT(0);
-        n = pv3_sel(n, pv3_div(pv3_sub(p, sphere_center(spheres, s)), sphere_radius(spheres, s)), sphere);
-    }
+#ifdef HAS_SHAPES
+    shape_hit_normal(shapes, prim, p, &n);
 #endif
     return n;
 }

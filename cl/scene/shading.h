@@ -9,7 +9,7 @@
  *   shading normal  the unit barycentric interpolation of the triangle's three vertex normals,
  *                   face_normal: 9 floats per face of the scene (a reordered triangle's is
  *                   its face prim_ids[prim]'s), its corners' unit normals in world space (Mesh::compute_surface_interaction); a face whose corners hold
- *                   0 is shaded flat (the geometric normal).  Spheres keep their exact normal.
+ *                   0 is shaded flat (the geometric normal).  Analytic shapes keep their exact normal.
  *                   The interpolated normal is not turned to the geometric normal's side
  *                   (Mitsuba turns neither; pbrt-v4 turns the geometric normal to the shading
  *                   normal's side): its orientation decides the BSDF's sides, so a dielectric's
@@ -54,8 +54,9 @@
  *   tangent         (HAS_ANISOTROPY: the lanes of MATERIAL_FLAG_ANISOTROPIC) the direction of the
  *                   BSDF frame's x axis, as Mitsuba's sh_frame.s: dp/du of the triangle from its
  *                   vertices and UVs (a triangle without a UV parameterisation: its edge v1 - v0,
- *                   Mitsuba's barycentric dp/du), of a sphere (-n.y, n.x, 0) (Mitsuba's sphere
- *                   in its own unrotated frame); under a normal or bump map, dp/du made
+ *                   Mitsuba's barycentric dp/du), of an analytic shape (-n.y, n.x, 0) (Mitsuba's
+ *                   sphere in its own unrotated frame; the loaders give a shape whose material
+ *                   reads dp/du as triangles); under a normal or bump map, dp/du made
  *                   orthogonal to the shading normal, which the BSDF's frame then makes
  *                   orthogonal to the mapped normal (Mitsuba's normalmap frame).  dispatch.h's
  *                   bsdf_frame() makes it orthogonal to the BSDF's normal.
@@ -299,8 +300,8 @@ RT_INLINE ShadingLanes shading_lanes(MESH_PARAMS, __global const float *face_nor
 #ifdef HAS_ANISOTROPY
     aniso &= hit;
     if (pany(aniso)) {
-        const pint tri = aniso & pnot(IS_SPHERE(prim));
-        pvec3 t = pv3(-ng.y, ng.x, PFLOAT(0.0f)); /* a sphere's dp/du */
+        const pint tri = aniso & pnot(IS_SHAPE(prim));
+        pvec3 t = pv3(-ng.y, ng.x, PFLOAT(0.0f)); /* a sphere's dp/du (above) */
         if (pany(tri)) t = pv3_sel(t, triangle_dpdu(MESH_ARGS, tri_uv, tri ? prim : PINT(0)), tri);
 #ifdef HAS_NORMAL_MAPS
         /* under a map: the shading frame's tangent (dp/du orthogonal to the shading normal) */

@@ -8,7 +8,7 @@ __kernel void wf_extend(WAVE_PARAMS)
     const int slot = queue_in[i];
     float t, u, v;
     int prim, inst = -1;
-    scene_closest_hit(nodes, tris, spheres, n_spheres, pv3_from(load3(ray_o, slot)), pv3_from(load3(ray_d, slot)),
+    scene_closest_hit(nodes, tris, shape_nodes, shapes, pv3_from(load3(ray_o, slot)), pv3_from(load3(ray_d, slot)),
                       PTRUE, &t, &prim, &u, &v CUTOUT_ARGS INSTANCE_HIT_ARGS(&inst)
                       SCENE_TIME_ARG(time_sample(sampler_key(sampler, seed, (uint)path_pixel[slot],
                                                                (uint)camera->width, (uint)path_pass[slot]))));

@@ -16,7 +16,7 @@ __kernel void wf_shadow(WAVE_PARAMS)
     const int slot = shadow_q[i];
 #ifdef HAS_MEDIA
     puint rng = vol_rng[slot];
-    const pvec3 tr = shadow_transmittance(nodes, tris, MESH_ARGS, face_normal, spheres, n_spheres, tri_material, sphere_material,
+    const pvec3 tr = shadow_transmittance(nodes, tris, MESH_ARGS, face_normal, shape_nodes, shapes, tri_material, shape_material,
                                           materials, MEDIA_PATH_ARGS, pv3_from(load3(sh_o, slot)),
                                           pv3_from(load3(sh_d, slot)), sh_medium[slot], vol_channel[slot], &rng,
                                           pv3_from(load3(vol_r, slot)), PTRUE);
@@ -24,7 +24,7 @@ __kernel void wf_shadow(WAVE_PARAMS)
     store3(radiance, slot,
            pv3_lane(pv3_add(pv3_from(load3(radiance, slot)), pv3_mul(pv3_from(load3(sh_contrib, slot)), tr)), 0));
 #else
-    if (!scene_occluded(nodes, tris, spheres, n_spheres, pv3_from(load3(sh_o, slot)), pv3_from(load3(sh_d, slot)), PTRUE,
+    if (!scene_occluded(nodes, tris, shape_nodes, shapes, pv3_from(load3(sh_o, slot)), pv3_from(load3(sh_d, slot)), PTRUE,
                         1.0f CUTOUT_ARGS INSTANCE_ARGS
                         SCENE_TIME_ARG(time_sample(sampler_key(sampler, seed, (uint)path_pixel[slot],
                                                                  (uint)camera->width, (uint)path_pass[slot])))))

@@ -23,7 +23,7 @@ environments, participating media and the scenes of ``bench set``, tests/bench/t
   (v1 - v0) x (v2 - v0); Mitsuba's area emitter emits on the side of the mesh normal, which for
   a PLY without normals is the same cross product (same winding): verified with a one-quad
   scene.  Mitsuba has no two-sided area emitter: a two-sided emissive material is refused;
-* spheres: ``sphere`` shapes (emitting outwards, as ours);
+* analytic shapes: Mitsuba's own (``sphere``, ``disk``: each type's ``to_mitsuba``);
 * image textures (a diffuse albedo, a dielectric tint, an emission texture): ``bitmap`` textures of
   the texels times their factor, written as float OpenEXR and read ``raw`` (our texels are
   already linear), bilinear and repeating as ours; both renderers put texture coordinate (0, 0) at
@@ -85,6 +85,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..device import abi
+from ..scene.shapes import bounds as shape_bounds, shape_type
+
 if TYPE_CHECKING:
     from ..render.settings import ImageSettings
 
@@ -130,8 +133,9 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
         "vertices": np.asarray(scene.vertices, np.float32),
         "faces": np.asarray(scene.faces, np.int32),
         "face_materials": np.asarray(scene.face_materials, np.int32),
-        "spheres": np.asarray(scene.spheres, np.float32).reshape(-1, 4),
-        "sphere_materials": np.asarray(scene.sphere_materials, np.int32),
+        "shape_params": np.asarray(scene.shapes["params"], np.float32).reshape(-1, 28),
+        "shape_types": np.asarray(scene.shapes["type"], np.int32),
+        "shape_materials": np.asarray(scene.shape_materials, np.int32),
         "settings": json.dumps(record),
         **arrays,
     }
@@ -139,7 +143,7 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
 
 def _media_record(scene, arrays: dict) -> dict | None:
     """The media (grids into ``arrays``), the interfaces, the camera's medium and the integrator;
-    with each face's and sphere's interface index in ``arrays``.  None without media."""
+    with each face's and analytic shape's interface index in ``arrays``.  None without media."""
     if not scene.has_media():
         return None
     media = [_medium_record(m, i, arrays) for i, m in enumerate(scene.media)]
@@ -150,7 +154,7 @@ def _media_record(scene, arrays: dict) -> dict | None:
             raise ValueError(f"medium interface {k}: a transition to vacuum on both sides has no Mitsuba form")
         interfaces.append({"interior": sides[0], "exterior": sides[1], "null": bool(itf.null)})
     arrays["face_interfaces"] = np.asarray(scene.face_interface_array(), np.int32)
-    arrays["sphere_interfaces"] = np.asarray(scene.sphere_interface_array(), np.int32)
+    arrays["shape_interfaces"] = np.asarray(scene.shape_interface_array(), np.int32)
     spectral_mis = bool(getattr(scene.settings, "spectral_mis", True)) and any(m.chromatic() for m in scene.media)
     return {"media": media, "interfaces": interfaces, "camera_medium": int(scene.camera_medium),
             "integrator": "volpathmis" if spectral_mis else "volpath"}
@@ -397,14 +401,14 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
         if max(m["emission"]) > 0:
             shape["emitter"] = emitter(m)
         d[name] = with_interface(shape, int(k))
-    sif = arrays.get("sphere_interfaces", np.full(len(arrays["sphere_materials"]), -1, np.int32))
-    for i, (sp, mi_index) in enumerate(zip(arrays["spheres"], arrays["sphere_materials"])):
-        m = mats[int(mi_index)]  # no texture coordinates on our spheres: the factors alone
-        shape = {"type": "sphere", "center": [float(x) for x in sp[:3]], "radius": float(sp[3]),
-                 "bsdf": m.get("bsdf_plain", m["bsdf"])}
+    sif = arrays.get("shape_interfaces", np.full(len(arrays["shape_materials"]), -1, np.int32))
+    for i, (p, code, mi_index) in enumerate(zip(arrays["shape_params"], arrays["shape_types"],
+                                                arrays["shape_materials"])):
+        m = mats[int(mi_index)]  # no texture coordinates on our analytic shapes: the factors alone
+        shape = {**shape_type(code).to_mitsuba(p), "bsdf": m.get("bsdf_plain", m["bsdf"])}
         if max(m["emission"]) > 0:
             shape["emitter"] = emitter(m, textured=False)
-        d[f"sphere_{i}"] = with_interface(shape, int(sif[i]))
+        d[f"shape_{i}"] = with_interface(shape, int(sif[i]))
     for i, light in enumerate(s.get("lights", [])):
         if light["type"] == "point":
             d[f"light_{i}"] = {"type": "point", "position": light["position"],
@@ -490,10 +494,10 @@ def _orthographic_to_world(s: dict, near: float) -> np.ndarray:
 
 def _scene_scale(arrays) -> float:
     pts = [np.asarray(arrays["vertices"], np.float64).reshape(-1, 3)]
-    sp = np.asarray(arrays["spheres"], np.float64).reshape(-1, 4)
-    if len(sp):
-        pts.append(sp[:, :3] + sp[:, 3:])
-        pts.append(sp[:, :3] - sp[:, 3:])
+    if len(arrays["shape_types"]):
+        records = np.zeros(len(arrays["shape_types"]), abi.SHAPE)
+        records["params"], records["type"] = arrays["shape_params"], arrays["shape_types"]
+        pts.extend(shape_bounds(records))
     pts.append(np.asarray([json.loads(arrays["settings"])["eye"]], np.float64))
     allp = np.concatenate(pts)
     return float(max(np.ptp(allp, axis=0).max(), 1e-6))

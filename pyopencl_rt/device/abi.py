@@ -221,7 +221,7 @@ MEDIUM_GRID = np.dtype([("offset", np.int32), ("nx", np.int32), ("ny", np.int32)
                         ("channels", np.int32), ("filter", np.int32), ("outside", np.int32), ("max_value", np.float32),
                         ("to_local", np.float32, 12)])
 assert MEDIUM_GRID.itemsize == 80
-# How a surface bounds media (16 bytes; tri_interface / sphere_interface index it, -1: an ordinary surface in
+# How a surface bounds media (16 bytes; tri_interface / shape_interface index it, -1: an ordinary surface in
 # whatever medium the ray is in).  interior, exterior: media (MEDIUM_VACUUM: none); flags:
 #   MEDIUM_IF_TRANSITION  crossing the surface enters `exterior` along the front side's normal (dot(d, ng) > 0),
 #                         else `interior` (Mitsuba's target_medium); without it the ray keeps its medium
@@ -233,17 +233,17 @@ MEDIUM_IF_NULL = define("MEDIUM_IF_NULL", 2)
 MEDIUM_INTERFACE = np.dtype([("interior", np.int32), ("exterior", np.int32), ("flags", np.int32), ("pad", np.int32)])
 assert MEDIUM_INTERFACE.itemsize == 16
 
-# A sphere (16 bytes): centre and radius.
-SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
+# An analytic shape (128 bytes): its type (cl/shapes/<name>.h, scene/shapes/<name>.py), the parameters it names.
+SHAPE_TYPES = define_enum("SHAPE_", ("sphere", "disk"))
+SHAPE = np.dtype([("params", np.float32, 28), ("type", np.int32), ("pad", np.int32, 3)])
 
 # An emitter that next-event estimation samples (144 bytes; cl/render/lights.h documents each kind).
-#   kind: LIGHT_TRIANGLE (prim = original face index) or LIGHT_SPHERE (prim = sphere index),
+#   kind: LIGHT_TRIANGLE (prim = original face index) or LIGHT_SHAPE (prim = shape index),
 #         LIGHT_DIRECTIONAL_AREA (prim as a triangle's, rgb its radiance, emitted along its normal alone),
 #         LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT, LIGHT_PROJECTOR (delta lights: sampled, never
 #         hit) or LIGHT_ENVIRONMENT (prim = the map's width, material = its height; 0 x 0 = constant
 #         radiance; cells: its sampling cells per texel along each axis)
-#   pmf: probability that the light sampler picks this light (by power; a light in the BVH: the tree's share)
-#   alias, alias_prob: Walker/Vose alias table entry for O(1) sampling
+#   pmf: the light sampler's probability of it (a light in the BVH: the tree's); alias, alias_prob: its alias entry
 #   p:      point, spot, projector: position; directional, environment: the scene's bounding sphere's centre
 #   radius: directional, environment: radius of the scene's bounding sphere (shadow-ray length)
 #   dir:    directional: unit direction of travel; projector: to_world's image of local +z
@@ -259,9 +259,9 @@ SPHERE = np.dtype([("center", np.float32, 3), ("radius", np.float32)])
 # the row coordinate of v: y = v * v_scale + v_offset (H, -0.5: rows centred in [0, 1]; H - 1, 0:
 # the first and last rows on the poles, Mitsuba's envmap); the texels are interpolated bilinearly.
 ENV_MAP_HEADER = define("ENV_MAP_HEADER", 16)
-LIGHT_TYPES = define_enum("LIGHT_", ("triangle", "sphere", "point", "directional", "environment", "spot", "projector",
+LIGHT_TYPES = define_enum("LIGHT_", ("triangle", "shape", "point", "directional", "environment", "spot", "projector",
                                      "directional_area", "goniometric"))  # cl/lights/<name>.h each, but the surfaces
-(LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_ENVIRONMENT, LIGHT_SPOT, LIGHT_PROJECTOR,
+(LIGHT_TRIANGLE, LIGHT_SHAPE, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_ENVIRONMENT, LIGHT_SPOT, LIGHT_PROJECTOR,
  LIGHT_DIRECTIONAL_AREA, LIGHT_GONIOMETRIC) = LIGHT_TYPES.values()
 TRIANGLE_LIGHTS = (LIGHT_TRIANGLE, LIGHT_DIRECTIONAL_AREA)  # their prim is a triangle
 DELTA_LIGHTS = (LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT, LIGHT_PROJECTOR, LIGHT_DIRECTIONAL_AREA, LIGHT_GONIOMETRIC)
@@ -349,7 +349,7 @@ from .light_node import LIGHT_NODE  # noqa: E402  (the light BVH's node record, 
 from .motion_record import MOTION  # noqa: E402  (a moving instance's way, documented there)
 # Registry of every shared struct: name -> dtype.  Add new shared structs here.
 STRUCTS: dict[str, np.dtype] = {
-    "BVHNode": BVH_NODE, "Material": MATERIAL, "Sphere": SPHERE, "Instance": INSTANCE, "Motion": MOTION,
+    "BVHNode": BVH_NODE, "Material": MATERIAL, "Shape": SHAPE, "Instance": INSTANCE, "Motion": MOTION,
     "Light": LIGHT, "LightNode": LIGHT_NODE, "Camera": CAMERA,
     "WideNode": WIDE_NODE, "Tri4": TRI4, "Wide8Node": WIDE8_NODE, "Tri8": TRI8, "Texture": TEXTURE,
     "Medium": MEDIUM, "MediumGrid": MEDIUM_GRID, "MediumInterface": MEDIUM_INTERFACE,
@@ -358,9 +358,9 @@ STRUCTS: dict[str, np.dtype] = {
 
 # ---------------------------------------------------------------------------------------------
 # The hit encoding (Hit.prim, hit_prim[]): prim >= 0 is a triangle (index into the BVH-reordered
-# triangle array), PRIM_MISS a miss, and sphere s is PRIM_SPHERE_FIRST - s (cl/scene/scene.h).
+# triangle array), PRIM_MISS a miss, and shape s is PRIM_SHAPE_FIRST - s (cl/scene/shapes.h).
 PRIM_MISS = define("PRIM_MISS", -1)
-PRIM_SPHERE_FIRST = define("PRIM_SPHERE_FIRST", -2)
+PRIM_SHAPE_FIRST = define("PRIM_SHAPE_FIRST", -2)
 
 # Sizes.  The stacks are bounded by the builders' depth limits (accel/bvh.py, accel/bvh_wide.py
 # check them), and kept small because PoCL holds a private copy per work-item of a work-group.
@@ -489,8 +489,9 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _scene("prim_ids", "const", "int", "the face of each reordered triangle"),
     _scene("tri_material", "const", "int", "material per reordered triangle"),
     _scene("tri_light", "const", "int", "light per reordered triangle, -1 if none"),
-    _scene("spheres", "const", "Sphere"), _scene("sphere_material", "const", "int"),
-    _scene("sphere_light", "const", "int", "light per sphere, -1 if none"),
+    _scene("shape_nodes", "const", "BVHNode", "the analytic shapes' BVH (leaves: one shape each)"),
+    _scene("shapes", "const", "Shape"), _scene("shape_material", "const", "int"),
+    _scene("shape_light", "const", "int", "light per shape, -1 if none"),
     _scene("materials", "const", "Material"),
     _scene("lights", "const", "Light"), _scene("light_nodes", "const", "LightNode", "the light BVH (LIGHT_TREE)"),
     _scene("camera", "const", "Camera"), _scene("camera_motion", "const", "Motion", "its way (HAS_CAMERA_MOTION)"),
@@ -507,7 +508,7 @@ WAVE_PARAMS: tuple[Param, ...] = (
     _path("path_nref", "float", 3, "the normal at the last scattering vertex (LIGHT_TREE: the light pmf at a hit)"),
     _path("path_weight", "float", 1, "the camera sample's filter weight (+-filter_weight), applied at accumulate"),
     _path("hit_t", "float", 1, "closest hit of ray_o/ray_d (extend)"),
-    _path("hit_prim", "int", 1, "its primitive (PRIM_MISS, triangle or SPHERE_PRIM)"),
+    _path("hit_prim", "int", 1, "its primitive (PRIM_MISS, triangle or SHAPE_PRIM)"),
     _path("hit_u", "float", 1, "its barycentrics"), _path("hit_v", "float", 1),
     _path("hit_inst", "int", 1, "the instance of a triangle hit in a two-level group (reordered), -1 if none"),
     _path("sh_o", "float", 3, "shadow ray origin (shade -> shadow)"),
@@ -539,7 +540,6 @@ WAVE_PARAMS: tuple[Param, ...] = (
     # the pixel filter's tables (FILTER_TABULATED, cl/render/filter.h); a dummy otherwise
     Param("filter_cdf", "const", "float", "per axis: the segments, then filter_knots (x, f) pairs", source="settings"),
     # fixed scalars
-    _scene("n_spheres", "scalar", "int"),
     _scene("n_lights", "scalar", "int"),
     _scene("light_tree", "scalar", "int", "1: lights of trail >= 0 are in the light BVH (read with LIGHT_TREE_RUNTIME)"),
     Param("n_pixels", "scalar", "int", source="settings"),
@@ -569,7 +569,7 @@ MEDIA_PARAMS: tuple[Param, ...] = (
     _scene("grid_data", "const", "float", "the grids' values"),
     _scene("medium_interfaces", "const", "MediumInterface", "how surfaces bound media"),
     _scene("tri_interface", "const", "int", "medium interface per reordered triangle, -1 if none"),
-    _scene("sphere_interface", "const", "int", "medium interface per sphere, -1 if none"),
+    _scene("shape_interface", "const", "int", "medium interface per shape, -1 if none"),
     _scene("camera_medium", "scalar", "int", "the medium the camera is in, MEDIUM_VACUUM if none"),
     _scene("spectral_mis", "scalar", "int", "1: spectral MIS over the channels (read with SPECTRAL_MIS_RUNTIME)"),
     # the wavefront's per-path media state (PathState's HAS_MEDIA fields): allocated with HAS_MEDIA in the

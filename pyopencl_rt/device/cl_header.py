@@ -89,7 +89,23 @@ def light_units(light_types, delta_kinds) -> str:
             f"#define LIGHT_CASES(X) {cases}\n#endif\n")
 
 
-SURFACE_LIGHTS = ("triangle", "sphere")  # the emissive surfaces, sampled by cl/render/lights.h itself
+SURFACE_LIGHTS = ("triangle", "shape")  # the emissive surfaces, sampled by cl/render/lights.h itself
+
+
+def shape_units(shape_types) -> str:
+    """The generated header "shapes/units.h": each analytic shape type's cl/shapes/<name>.h, empty
+    SHAPE_CASE_<NAME>(X) and SHAPE_PDF_CASE_<NAME>(X) where its header did not define them (its type
+    not compiled in, or sampled by the area density), and SHAPE_CASES(X) / SHAPE_PDF_CASES(X), their
+    cases in the enum's order (cl/scene/shapes.h dispatches through them)."""
+    parts, cases, pdf_cases = [], [], []
+    for name in shape_types:
+        n = name.upper()
+        parts.append(f'#include "shapes/{name}.h"\n'
+                     + "".join(f"#ifndef SHAPE_{k}CASE_{n}\n#define SHAPE_{k}CASE_{n}(X)\n#endif\n" for k in ("", "PDF_")))
+        cases.append(f"SHAPE_CASE_{n}(X)")
+        pdf_cases.append(f"SHAPE_PDF_CASE_{n}(X)")
+    return (f"#ifndef PYOPENCL_RT_SHAPE_UNITS_H\n#define PYOPENCL_RT_SHAPE_UNITS_H\n{''.join(parts)}"
+            f"#define SHAPE_CASES(X) {' '.join(cases)}\n#define SHAPE_PDF_CASES(X) {' '.join(pdf_cases)}\n#endif\n")
 
 
 def material_cases(material_types) -> str:

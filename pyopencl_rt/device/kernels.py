@@ -39,10 +39,11 @@ _GUARD = re.compile(r"\A(?:\s*(?:/\*.*?\*/|//[^\n]*))*\s*#\s*ifndef\s+(\w+)\s*\n
 
 def _generated_headers() -> dict:
     """Headers written from the ABI's tables, not read from cl/: their include path -> text."""
-    from .cl_header import bsdf_includes, light_units
+    from .cl_header import bsdf_includes, light_units, shape_units
 
     return {"materials/bsdfs.h": bsdf_includes(abi.MATERIAL_TYPES),
-            "lights/units.h": light_units(abi.LIGHT_TYPES, abi.DELTA_LIGHTS)}
+            "lights/units.h": light_units(abi.LIGHT_TYPES, abi.DELTA_LIGHTS),
+            "shapes/units.h": shape_units(abi.SHAPE_TYPES)}
 
 
 def assemble(*names: str, extra: str = "") -> str:

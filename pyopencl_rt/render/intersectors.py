@@ -12,8 +12,8 @@ integrator: the two ray-casting stages behind one interface, so that the rest of
   back.  Comparing its samples/s with the default shows what our traversal costs inside a full
   render; the transfers are included on purpose (on PoCL they are memcpys, on a GPU they would
   dominate).  Embree returns original face ids, and the kernels expect BVH-reordered triangle
-  indices, so hits are mapped through the inverse of ``bvh.prim_ids``.  Spheres are not in the
-  Embree scene: scenes with spheres are refused, and so are scenes with participating media (their
+  indices, so hits are mapped through the inverse of ``bvh.prim_ids``.  Analytic shapes are not in the
+  Embree scene: scenes with them are refused, and so are scenes with participating media (their
   shadow rays need transmittance, cl/render/volpath.h, not an any-hit test).
 
 Each intersector keeps ``host_seconds`` per stage (time spent on the host, transfers included);
@@ -70,8 +70,9 @@ class EmbreeIntersector(Intersector):
         self.wavefront = None
 
     def check(self, scene) -> None:
-        if len(scene.spheres):
-            raise UserError("--intersector embree: scenes with spheres are not supported (Embree gets triangles only)")
+        if len(scene.shapes):
+            raise UserError("--intersector embree: scenes with analytic shapes (spheres, disks) are not supported "
+                            "(Embree gets triangles only)")
         if scene.has_media():
             raise UserError("--intersector embree: scenes with participating media or index-matched shapes are not "
                             "supported (their shadow rays need the transmittance through media and null boundaries, "

@@ -20,15 +20,17 @@ import math
 import numpy as np
 
 from ..device import abi
+from ..scene.shapes import bounds as shape_bounds, unit_rows as shape_unit_rows
 
 BUCKETS = 12  # split candidates per axis (pbrt-v4's count)
 MAX_DEPTH = 30  # Light.trail holds a leaf's path in the bits of an int32 (depth 0..30)
 SAOH_MIN = 16  # fewer lights than this are split at the median (the heuristic's cost, in numpy, is per node)
 
 
-def light_bounds(lights, triangles, spheres, two_sided_material, power) -> dict:
+def light_bounds(lights, triangles, shapes, two_sided_material, power) -> dict:
     """Per light (float64): lo, hi (its box), axis, cos_o, cos_e, phi, two_sided.  Triangles emit
-    around their geometric normal cross(v1 - v0, v2 - v0) (cos_o 1, cos_e 0: a hemisphere); spheres,
+    around their geometric normal cross(v1 - v0, v2 - v0) (cos_o 1, cos_e 0: a hemisphere); an
+    analytic shape in the cone its type gives (a disk as a triangle, a sphere every direction);
     point, spot and projector lights in every direction (cos_o -1; a spot's cone is not used: its
     frame may be sheared, and a looser bound costs efficiency, not correctness)."""
     n = len(lights)
@@ -49,10 +51,13 @@ def light_bounds(lights, triangles, spheres, two_sided_material, power) -> dict:
         axis[tri] = ng / np.linalg.norm(ng, axis=1, keepdims=True)
         cos_o[tri] = 1.0
         two_sided[tri] = two_sided_material[lights["material"][tri]]
-    sph = np.flatnonzero(kind == abi.LIGHT_SPHERE)
+    sph = np.flatnonzero(kind == abi.LIGHT_SHAPE)
     if len(sph):
-        s = np.asarray(spheres, np.float64)[lights["prim"][sph]]
-        lo[sph], hi[sph] = s[:, :3] - s[:, 3:4], s[:, :3] + s[:, 3:4]
+        emitting = np.asarray(shapes)[lights["prim"][sph]]
+        lo[sph], hi[sph] = shape_bounds(emitting)
+        for t, idx, p in shape_unit_rows(emitting):
+            axis[sph[idx]], cos_o[sph[idx]] = t.emission_cone(p)
+        two_sided[sph] = two_sided_material[lights["material"][sph]] & (cos_o[sph] > -1)
     return {"lo": lo, "hi": hi, "axis": axis, "cos_o": cos_o, "cos_e": cos_e,
             "phi": np.asarray(power, np.float64), "two_sided": two_sided}
 

@@ -1,4 +1,4 @@
-"""The emitter table for next-event estimation: every emissive triangle and sphere, and the point,
+"""The emitter table for next-event estimation: every emissive triangle and analytic shape, and the point,
 spot, projector, directional and environment lights.  RenderSettings.light_sampler chooses how a
 light is picked: "power" in proportion to its power (emitted radiance luminance x area x pi, x2
 when two-sided), infinitely distant lights as pbrt-v4's BVH light sampler picks them
@@ -20,12 +20,13 @@ from ..scene.lights import LUMINANCE, REGISTRY, light_type
 from ..scene.lights.frames import record_rgb
 from ..scene.meshops import bounds
 from ..scene.model import LIGHT_SAMPLERS
+from ..scene.shapes import bounds as shape_bounds, per_shape
 from .sampling import fill_light_table
 
 
 def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Return (lights, tri_light, sphere_light, light_nodes): the LIGHT records, per reordered
-    triangle and per sphere the index of its light record (-1 when it does not emit), and the
+    """Return (lights, tri_light, shape_light, light_nodes): the LIGHT records, per reordered
+    triangle and per analytic shape the index of its light record (-1 when it does not emit), and the
     light BVH's LIGHT_NODE records (render/light_tree.py; none unless light_sampler is "bvh")."""
     mats = scene.materials
     emissive = np.array([m.is_emissive for m in mats] or [False])
@@ -51,27 +52,27 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
         keep &= ~too_big
     tri_idx, tri_area = tri_idx[keep], tri_area[keep]
 
-    sph_mat = scene.sphere_materials
+    sph_mat = scene.shape_materials
     sph_idx = np.nonzero(emissive[sph_mat])[0] if len(sph_mat) else np.zeros(0, np.int64)
-    sph_area = 4 * np.pi * scene.spheres[sph_idx, 3].astype(np.float64) ** 2 if len(sph_idx) else np.zeros(0)
+    sph_area = per_shape(scene.shapes[sph_idx], "area") if len(sph_idx) else np.zeros(0)
 
     n = len(tri_idx) + len(sph_idx)
     lights = np.zeros(n, abi.LIGHT)
     lights["texture"] = -1
     tri_light = aligned_empty(len(bvh.prim_ids), np.int32)  # read in place by a CPU device (host_memory.py)
     tri_light[:] = -1
-    sphere_light = np.full(len(scene.spheres), -1, np.int32)
+    shape_light = np.full(len(scene.shapes), -1, np.int32)
     k = len(tri_idx)
     lights["kind"][:k] = abi.LIGHT_TRIANGLE
     lights["prim"][:k] = tri_idx
     lights["material"][:k] = tri_mat[tri_idx]
     lights["area"][:k] = tri_area
-    lights["kind"][k:] = abi.LIGHT_SPHERE
+    lights["kind"][k:] = abi.LIGHT_SHAPE
     lights["prim"][k:] = sph_idx
     lights["material"][k:] = sph_mat[sph_idx]
     lights["area"][k:] = sph_area
     tri_light[tri_idx] = np.arange(k, dtype=np.int32)
-    sphere_light[sph_idx] = np.arange(k, n, dtype=np.int32)
+    shape_light[sph_idx] = np.arange(k, n, dtype=np.int32)
     mat = lights["material"]
     power = luminance[mat] * lights["area"].astype(np.float64) * np.pi * sides[mat] if n else np.zeros(0)
     beam = np.flatnonzero(directional[mat]) if n else np.zeros(0, np.int64)
@@ -90,7 +91,7 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     no_tree = np.zeros(0, abi.LIGHT_NODE)
     lights["trail"] = -1
     if len(lights) == 0:
-        return lights, tri_light, sphere_light, no_tree
+        return lights, tri_light, shape_light, no_tree
     if not (power > 0).any():  # only black lights (an environment map of zeros): any valid table
         power = np.ones(len(lights))
     sampler = getattr(getattr(scene, "settings", None), "light_sampler", "power")
@@ -102,24 +103,24 @@ def build_lights(scene, bvh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
         weights = selection_weights(lights["kind"], power)
     fill_light_table(lights, weights)
     if sampler != "bvh":
-        return lights, tri_light, sphere_light, no_tree
+        return lights, tri_light, shape_light, no_tree
     # the lights not infinitely far go in the tree, which the alias table's picks of any of them
     # enter (pbrt-v4's share for the infinite lights: selection_weights); their pmf: that share
     from .light_tree import build_light_tree, light_bounds
 
     bounded = np.flatnonzero(~np.isin(lights["kind"], INFINITE_LIGHTS) & (weights > 0))
-    bounds = light_bounds(lights, bvh.triangles, scene.spheres, sides == 2.0, weights)  # phi: power, scaled
+    bounds = light_bounds(lights, bvh.triangles, scene.shapes, sides == 2.0, weights)  # phi: power, scaled
     nodes, lights["trail"] = build_light_tree(bounds, bounded)
     lights["pmf"][bounded] = np.float32(lights["pmf"][bounded].astype(np.float64).sum())
-    return lights, tri_light, sphere_light, nodes
+    return lights, tri_light, shape_light, nodes
 
 
 def uniform_weights(scene, bvh, lights, power) -> np.ndarray:
     """Mitsuba 3's light picking (scene.cpp: an emitter by its sampling_weight; area.cpp and the
     shape's sample_position: a point uniformly by area): each emitter gets weight sampling_weight,
     shared by its triangles in proportion to their area.  An emitter is a Scene.face_emitters /
-    sphere_emitters index (a Mitsuba shape with an area emitter; weight Scene.emitter_weights), an
-    emissive triangle or sphere without one (each is an emitter, weight 1: pbrt-v4's "uniform"
+    shape_emitters index (a Mitsuba shape with an area emitter; weight Scene.emitter_weights), an
+    emissive triangle or analytic shape without one (each is an emitter, weight 1: pbrt-v4's "uniform"
     sampler, whose triangles are lights one by one), or a point, spot, projector, directional or
     environment light (its sampling_weight).  Lights that emit nothing (power 0) get weight 0:
     unlike Mitsuba, no pick is spent on them (the estimate is the same, its variance lower)."""
@@ -131,13 +132,13 @@ def uniform_weights(scene, bvh, lights, power) -> np.ndarray:
     prim = lights["prim"].astype(np.int64)
     group = np.full(n, -1, np.int64)  # the emitter index of each row (-1: a row by itself)
     tri = np.nonzero(np.isin(kind, abi.TRIANGLE_LIGHTS))[0]
-    sph = np.nonzero(kind == abi.LIGHT_SPHERE)[0]
+    sph = np.nonzero(kind == abi.LIGHT_SHAPE)[0]
     face_emitters = getattr(scene, "face_emitters", None)
     if face_emitters is not None and len(tri):
         group[tri] = np.asarray(face_emitters)[np.asarray(bvh.prim_ids)[prim[tri]]]  # the rows', no int64 copy of all
-    sphere_emitters = getattr(scene, "sphere_emitters", None)
-    if sphere_emitters is not None and len(sph):
-        group[sph] = np.asarray(sphere_emitters, np.int64)[prim[sph]]
+    shape_emitters = getattr(scene, "shape_emitters", None)
+    if shape_emitters is not None and len(sph):
+        group[sph] = np.asarray(shape_emitters, np.int64)[prim[sph]]
     table = np.asarray(list(getattr(scene, "emitter_weights", []) or []), np.float64)
     weight = np.ones(n)
     grouped = group >= 0
@@ -194,15 +195,14 @@ def selection_weights(kinds, power) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 
 def scene_bounding_sphere(scene) -> tuple[np.ndarray, float]:
-    """Centre and radius of the sphere around the bounding box of the triangles and spheres."""
+    """Centre and radius of the sphere around the bounding box of the triangles and analytic shapes."""
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     if len(scene.vertices):
         vlo, vhi = bounds(scene.vertices)
         lo, hi = np.minimum(lo, vlo), np.maximum(hi, vhi)
-    if len(scene.spheres):
-        s = np.asarray(scene.spheres, np.float64)
-        lo = np.minimum(lo, (s[:, :3] - s[:, 3:4]).min(0))
-        hi = np.maximum(hi, (s[:, :3] + s[:, 3:4]).max(0))
+    if len(scene.shapes):
+        s_lo, s_hi = shape_bounds(scene.shapes)
+        lo, hi = np.minimum(lo, s_lo.min(0)), np.maximum(hi, s_hi.max(0))
     if not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)):
         return np.zeros(3), 0.0
     return 0.5 * (lo + hi), float(0.5 * np.linalg.norm(hi - lo))

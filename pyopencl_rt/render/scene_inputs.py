@@ -8,7 +8,7 @@ returns the arrays that buffer is made of, before the device's layout applies: t
 triangle records come from the vertices and faces (their layout and order are the device's choice,
 so a checkpoint resumes on a CPU's 8-wide BVH and a GPU's binary one alike), per-triangle buffers
 are in the scene's face order, the light table is built in that order too.  Parameters that share a
-function (the light table, the emitter of each triangle and sphere, the light count) name the same
+function (the light table, the emitter of each triangle and shape, the light count) name the same
 one, which is called once.  ``tests/render/test_scene_inputs.py`` checks that this table and the
 ABI's agree, so a new scene buffer is in the key as soon as it is in the ABI.
 """
@@ -72,21 +72,21 @@ class _CornerRows:
 
 
 def _lights(scene) -> dict:
-    """lights, tri_light, sphere_light, n_lights, env_light, light_nodes: the light table (and the
+    """lights, tri_light, shape_light, n_lights, env_light, light_nodes: the light table (and the
     light BVH) as render/lights.py builds it, over the faces in the scene's order."""
     from .lights import build_lights
     from .settings import environment_row, has_light_tree
 
     identity = SimpleNamespace(prim_ids=np.arange(len(scene.faces)), triangles=_FaceCorners(scene))
-    lights, tri_light, sphere_light, light_nodes = build_lights(scene, identity)
-    return {"lights": lights, "tri_light": tri_light, "sphere_light": sphere_light,
+    lights, tri_light, shape_light, light_nodes = build_lights(scene, identity)
+    return {"lights": lights, "tri_light": tri_light, "shape_light": shape_light,
             "env_light": np.int64(environment_row(lights)), "light_nodes": light_nodes,
             "light_tree": np.int64(has_light_tree(lights))}
 
 
-def _spheres(scene) -> dict:
-    """spheres, sphere_material, n_spheres."""
-    return {"spheres": scene.sphere_records(), "sphere_material": scene.sphere_materials}
+def _shapes(scene) -> dict:
+    """shapes, shape_material, shape_nodes (the BVH comes from the records)."""
+    return {"shapes": np.asarray(scene.shapes), "shape_material": scene.shape_materials}
 
 
 def _face_materials(scene) -> dict:
@@ -142,7 +142,7 @@ def _environment(scene) -> dict:
 
 def _media(scene) -> dict:
     """abi.MEDIA_PARAMS' scene buffers: media, their grids, the medium interfaces, each face's and
-    sphere's interface and the camera's medium."""
+    shape's interface and the camera's medium."""
     from ..scene.media import pack_media
 
     return {k: np.asarray(v) for k, v in pack_media(scene).items()}
@@ -153,10 +153,10 @@ SCENE_INPUTS: dict[str, Callable] = {
     "prim_ids": _geometry,
     "tlas": _instances, "instances": _instances, "blas_nodes": _instances, "instance_motion": _instances,
     "tri_material": _face_materials,
-    "tri_light": _lights, "sphere_light": _lights, "lights": _lights, "n_lights": _lights, "env_light": _lights,
+    "tri_light": _lights, "shape_light": _lights, "lights": _lights, "n_lights": _lights, "env_light": _lights,
     "light_tree": _lights,
     "light_nodes": _lights,
-    "spheres": _spheres, "sphere_material": _spheres, "n_spheres": _spheres,
+    "shapes": _shapes, "shape_material": _shapes, "shape_nodes": _shapes,
     "materials": _materials,
     "camera": _camera, "camera_motion": _camera, "max_component": _film_clamp,
     "tri_uv": _textures, "textures": _textures, "tex_data": _textures,

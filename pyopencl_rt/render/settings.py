@@ -24,6 +24,7 @@ from ..errors import UsageError, UserError
 from ..scene.media import uses_spectral_mis
 from ..scene.model import INTEGRATORS, SAMPLERS  # MIS path, BSDF only, light only; cl/render/sampler.h
 from ..scene.pixel_filter import PixelFilter
+from ..scene.shapes import shape_type
 from .lights import INFINITE_LIGHTS
 
 MAX_PIXELS = 1 << 26  # 8192 x 8192
@@ -154,11 +155,11 @@ def check_run(spp=None, time_limit=None) -> None:
 # is the same bit for bit (tests/render/test_features.py); the test suite runs so.
 FEATURES_ENV = "PYOPENCL_RT_KERNEL_FEATURES"
 # The defines that only gate code the scene's data selects at run time (a material's type and
-# flags, a light's kind, n_spheres, n_lights, env_light, light_tree, the camera's motion record;
+# flags, a light's kind, the shapes' BVH (an empty root without shapes), n_lights, env_light, light_tree, the camera's motion record;
 # the BVH of a scene without triangles is one empty root).  HAS_MEDIA (the volumetric integrator),
 # HAS_INSTANCES (the two-level BVH, and with it HAS_MOTION: an instance record's motion) and
 # HAS_AOVS (a setting) stay the scene's.
-EVERY_FEATURE = ("HAS_SPHERES", "HAS_TEXTURES", "HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS",
+EVERY_FEATURE = ("HAS_SHAPES", *(f"HAS_SHAPE_{name.upper()}" for name in abi.SHAPE_TYPES), "HAS_TEXTURES", "HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS",
                  "HAS_CUTOUTS", "HAS_ANISOTROPY", "HAS_DELTA_LIGHTS", "HAS_ENVIRONMENT", "HAS_INFINITE_LIGHTS",
                  "HAS_TRIANGLES", "HAS_LIGHTS", "LIGHT_TREE", "HAS_CAMERA_MOTION")
 
@@ -217,8 +218,10 @@ def kernel_features(scene, settings: ImageSettings, lights: np.ndarray, bvh_layo
     defines = {"SAMPLER": abi.SAMPLERS[settings.sampler]}  # the integrator: a kernel argument
     if len(scene.faces):
         defines["HAS_TRIANGLES"] = True
-    if len(scene.spheres):
-        defines["HAS_SPHERES"] = True
+    if len(scene.shapes):
+        defines["HAS_SHAPES"] = True  # cl/scene/shapes.h, and each type's unit (cl/shapes/)
+        for code in np.unique(scene.shapes["type"]):
+            defines[f"HAS_SHAPE_{shape_type(code).name.upper()}"] = True
     if getattr(scene, "blas_groups", None):
         defines["HAS_INSTANCES"] = True  # the two-level BVH (cl/accel/instances.h): never in "all"
         if any(i.moves for i in scene.instances):

@@ -20,6 +20,8 @@ from ..device import abi
 from ..device.host_memory import aligned
 from ..host_stages import host_stage
 from ..scene.instances import scene_bvh
+from ..accel.shape_bvh import build_shape_bvh
+from ..scene.shapes import bounds as shape_bounds
 from . import filters
 from .film import Film, RunStats
 from .lights import build_lights, environment_buffers
@@ -129,7 +131,7 @@ class Wavefront:
             self.bvh = bvh if bvh is not None else scene_bvh(scene)  # two-level with blas_groups
         self.timings["bvh_seconds"] = time.perf_counter() - t0
         with host_stage("lights"):
-            lights, tri_light, sphere_light, light_nodes = build_lights(scene, self.bvh)
+            lights, tri_light, shape_light, light_nodes = build_lights(scene, self.bvh)
         self.n_lights = len(lights)
         self.light_tree = has_light_tree(lights)
         if self.n_lights == 0:
@@ -243,8 +245,9 @@ class Wavefront:
         self.args.bind(
             nodes=nodes,
             tris=tris, **self._instance_buffers(const), **self._mesh_buffers(const),
-            tri_material=tri_material, tri_light=const(tri_light), spheres=const(scene.sphere_records()),
-            sphere_material=const(scene.sphere_materials.astype(np.int32)), sphere_light=const(sphere_light),
+            tri_material=tri_material, tri_light=const(tri_light), shapes=const(scene.shapes),
+            shape_nodes=const(build_shape_bvh(*shape_bounds(scene.shapes))),
+            shape_material=const(scene.shape_materials.astype(np.int32)), shape_light=const(shape_light),
             materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
             camera_motion=const(camera_motion_record(scene)),
             light_nodes=const(light_nodes if len(light_nodes) else np.zeros(1, abi.LIGHT_NODE)),
@@ -256,7 +259,7 @@ class Wavefront:
             pass_ring=scratch(3 * 4 * P * self.ring_size), env_map=const(env_map), env_cdf=const(env_cdf),
             filter_cdf=const(filter_cdf),
             pixel_list=scratch(4 * P),  # filled by run(pixels=) (adaptive sampling)
-            n_spheres=len(scene.spheres), n_lights=self.n_lights, n_pixels=P, ring_size=self.ring_size,
+            n_lights=self.n_lights, n_pixels=P, ring_size=self.ring_size,
             max_depth=self.settings.max_depth, rr_depth=self.settings.rr_depth, seed=self.settings.seed,
             integrator=INTEGRATORS.index(self.settings.integrator), env_light=environment_row(lights),
             sampler=abi.SAMPLERS[self.settings.sampler], max_component=max_component_value(scene),

@@ -253,7 +253,7 @@ def pack_media(scene) -> dict:
     """The kernel buffers of the scene's media, by their abi.MEDIA_PARAMS names (not the per-path
     state): media, medium_grids, grid_data, medium_interfaces (one record at least each),
     tri_interface (per face, in the scene's face order: the renderer reorders it as tri_material),
-    sphere_interface, camera_medium and spectral_mis."""
+    shape_interface, camera_medium and spectral_mis."""
     table, data, index = pack_grids(scene.media)
     media = np.zeros(max(1, len(scene.media)), abi.MEDIUM)
     for i, m in enumerate(scene.media):
@@ -262,5 +262,5 @@ def pack_media(scene) -> dict:
     for i, mi in enumerate(scene.interfaces):
         interfaces[i] = mi.record()
     return {"media": media, "medium_grids": table, "grid_data": data, "medium_interfaces": interfaces,
-            "tri_interface": scene.face_interface_array(), "sphere_interface": scene.sphere_interface_array(),
+            "tri_interface": scene.face_interface_array(), "shape_interface": scene.shape_interface_array(),
             "camera_medium": int(scene.camera_medium), "spectral_mis": int(uses_spectral_mis(scene))}

@@ -2,7 +2,7 @@
 
 Units are whatever the scene file uses; radiance and albedo are linear RGB.  Emission is
 one-sided (the side the triangle's geometric normal (v1 - v0) x (v2 - v0) faces, or the outside
-of a sphere) unless the material is two-sided, as for Mitsuba's and pbrt's area lights.
+of a sphere, a disk's front) unless the material is two-sided, as for Mitsuba's and pbrt's area lights.
 """
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ from .lights import (DirectionalLight, Environment, PointLight, ProjectorLight, 
                      light_type, look_at_frame)
 from .materials import REGISTRY, MaterialType
 from .pixel_filter import PixelFilter
+from .shapes import transformed as shapes_moved
 
 INTEGRATORS = ("path", "bsdf", "nee")
 assert [INTEGRATORS.index(k) for k in ("path", "bsdf", "nee")] == [abi.INTEGRATOR_MIS, abi.INTEGRATOR_BSDF,
@@ -56,7 +57,7 @@ class Material:
     k: tuple | None = None
     tint: tuple = (1.0, 1.0, 1.0)
     # Image textures (pyopencl_rt.scene.textures.Texture; None = none), looked up at the hit's UV on
-    # triangles (spheres have no UVs and use the factors alone).  base_texture multiplies albedo
+    # triangles (analytic shapes have no UVs and use the factors alone).  base_texture multiplies albedo
     # (diffuse, gltf) or tint (dielectric); mr_texture is glTF's metallicRoughness (G scales the
     # roughness, B the metallic); emission_texture multiplies emission.
     base_texture: object = None
@@ -107,7 +108,7 @@ class Material:
     # An alpha cut-out in the intersection (pbrt-v4's shape "alpha", glTF's alphaMode MASK /
     # BLEND): a triangle hit whose alpha (``opacity`` times scalar_textures["opacity"]'s R) is below
     # ``alpha_cutoff`` (> 0, glTF's MASK) or, with alpha_cutoff 0, below a hash of the ray (pbrt-v4's
-    # stochastic alpha) is no hit, for paths and shadow rays alike (cl/scene/scene.h); spheres
+    # stochastic alpha) is no hit, for paths and shadow rays alike (cl/scene/scene.h); analytic shapes
     # are opaque.  Not with participating media (the scene warns).
     cutout: bool = False
     alpha_cutoff: float = 0.0
@@ -247,7 +248,7 @@ class Instance:
     """One instance of a shape group (Mitsuba's shapegroup / instance, pbrt-v4's ObjectBegin /
     ObjectInstance): the group's name and its 4x4 to_world.  A flattened instance (blas -1) added
     its own moved copy of the group's shapes to the Scene's arrays (faces[first_face:first_face +
-    n_faces], spheres likewise); a two-level one (blas >= 0) adds nothing: it draws
+    n_faces], the analytic shapes likewise); a two-level one (blas >= 0) adds nothing: it draws
     Scene.blas_groups[blas], whose faces are in the group's own space, moved by to_world at
     render time (pyopencl_rt/accel/instances.py).  A moving one (pbrt-v4's ActiveTransform; two-level
     always) has ``to_world_end``, its to_world at the end of the motion (Scene.motion_time; the way
@@ -259,8 +260,8 @@ class Instance:
     to_world: np.ndarray
     first_face: int = 0
     n_faces: int = 0
-    first_sphere: int = 0
-    n_spheres: int = 0
+    first_shape: int = 0
+    n_shapes: int = 0
     blas: int = -1
     to_world_end: np.ndarray | None = None
     motion_pivot: tuple | None = None
@@ -307,8 +308,10 @@ class Scene:
     face_materials: np.ndarray  # (F,) int32 index into materials
     materials: list  # list[Material]
     camera: Camera = field(default_factory=Camera)
-    spheres: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))  # (S, 4) centre xyz, radius
-    sphere_materials: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    # the analytic shapes (spheres, disks: pyopencl_rt/scene/shapes/): (S,) abi.SHAPE records, their type
+    # and parameters in float32, as the kernels read them; and the material of each
+    shapes: np.ndarray = field(default_factory=lambda: np.zeros(0, abi.SHAPE))
+    shape_materials: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     settings: RenderSettings = field(default_factory=RenderSettings)
     source: str = "<memory>"
     # lights besides emissive surfaces: PointLight / DirectionalLight / SpotLight / ProjectorLight,
@@ -330,13 +333,13 @@ class Scene:
     format: str | None = None
     warnings: list = field(default_factory=list)
     # participating media (pyopencl_rt.scene.media): the media, the one the camera is in (an index
-    # into media, -1: vacuum), the medium interfaces, and the interface of each face and sphere
+    # into media, -1: vacuum), the medium interfaces, and the interface of each face and shape
     # ((F,) and (S,) int32 indices into interfaces, -1: an ordinary surface; None: all -1)
     media: list = field(default_factory=list)
     camera_medium: int = -1
     interfaces: list = field(default_factory=list)
     face_interfaces: np.ndarray | None = None
-    sphere_interfaces: np.ndarray | None = None
+    shape_interfaces: np.ndarray | None = None
     # the shape-group instances the file had (Instance records): flattened ones are in the arrays
     # above; two-level ones draw the blas_groups (BlasGroup records: faces at the end of the arrays,
     # in their group's own space)
@@ -357,11 +360,11 @@ class Scene:
     # float32 vector may move its last bit: it is not idempotent, so it is done once)
     normals_unit: bool = False
     # emitters made of several primitives (a Mitsuba shape with an area emitter): per face and per
-    # sphere the index of its emitter (-1: none; None: all -1), and each emitter's sampling_weight
+    # shape the index of its emitter (-1: none; None: all -1), and each emitter's sampling_weight
     # (Mitsuba's).  With light_sampler "uniform" an emitter's faces share its pick probability by
-    # area; an emissive face or sphere without an emitter index is an emitter by itself, weight 1
+    # area; an emissive face or shape without an emitter index is an emitter by itself, weight 1
     face_emitters: np.ndarray | None = None
-    sphere_emitters: np.ndarray | None = None
+    shape_emitters: np.ndarray | None = None
     emitter_weights: list = field(default_factory=list)
 
     def __post_init__(self):
@@ -432,14 +435,12 @@ class Scene:
 
             g = group_vertices(self)
             s.vertices[g], s.instances = self.vertices[g], camera_shifted(self, eye)
-        if len(self.spheres):
-            spheres = np.asarray(self.spheres, np.float64).copy()
-            spheres[:, :3] -= eye
-            s.spheres = spheres.astype(np.float32)
+        shift = np.eye(4)  # the move as a 4x4 map, for what moves by one (shapes, camera motion, lights, media)
+        shift[:3, 3] = -eye
+        if len(self.shapes):
+            s.shapes = shapes_moved(self.shapes, shift)
         s.camera = dataclasses.replace(self.camera, eye=(0.0, 0.0, 0.0),
                                        look_at=tuple(np.asarray(self.camera.look_at, np.float64) - eye))
-        shift = np.eye(4)  # the move as a 4x4 map, for what moves by one (camera motion, lights, media)
-        shift[:3, 3] = -eye
         if self.camera_motion is not None:
             s.camera_motion = tuple(shift @ np.asarray(m, np.float64) for m in self.camera_motion)
         s.world_origin = tuple(float(x) for x in np.asarray(self.world_origin, np.float64) + eye)
@@ -458,11 +459,11 @@ class Scene:
             return np.full(len(self.faces), -1, np.int32)
         return np.asarray(self.face_interfaces, np.int32).reshape(len(self.faces))
 
-    def sphere_interface_array(self) -> np.ndarray:
-        """(S,) int32 interface index per sphere (-1: none)."""
-        if self.sphere_interfaces is None:
-            return np.full(len(self.spheres), -1, np.int32)
-        return np.asarray(self.sphere_interfaces, np.int32).reshape(len(self.spheres))
+    def shape_interface_array(self) -> np.ndarray:
+        """(S,) int32 interface index per analytic shape (-1: none)."""
+        if self.shape_interfaces is None:
+            return np.full(len(self.shapes), -1, np.int32)
+        return np.asarray(self.shape_interfaces, np.int32).reshape(len(self.shapes))
 
     def _per_corner(self, values, k: int, missing: float) -> np.ndarray:
         """(F, 3, k) float32 per-corner values (``missing`` where the scene has none; NaN as 0)."""
@@ -559,10 +560,3 @@ class Scene:
         if self.has_anisotropy():
             defines["HAS_ANISOTROPY"] = True  # cl/scene/shading.h: the frame's tangent
         return defines
-
-    def sphere_records(self) -> np.ndarray:
-        recs = np.zeros(len(self.spheres), abi.SPHERE)
-        if len(self.spheres):
-            recs["center"] = self.spheres[:, :3]
-            recs["radius"] = self.spheres[:, 3]
-        return recs

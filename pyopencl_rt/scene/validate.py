@@ -10,7 +10,8 @@ anything is built.  It refuses, with one line naming the scene:
 * geometry that is not finite, or beyond ``GEOMETRY_LIMIT`` from the origin: values finite in
   float64 can overflow in float32 (1e39), and the triangle test forms products of three
   coordinates (``n . a``, with n a cross product), which overflow float32 beyond ~7e12;
-* a sphere whose radius float32 rounds to 0, a camera that sees nothing;
+* an analytic shape its type's check refuses (a sphere whose radius float32 rounds to 0), a
+  camera that sees nothing;
 * radiance (emission, light intensity, irradiance, environment) that is negative, NaN, or finite
   but above ``RADIANCE_LIMIT``, where a path's products overflow float32.  An infinite emission
   is left to the kernels, which count such samples as non-finite and discard them.
@@ -21,7 +22,9 @@ import math
 
 import numpy as np
 
+from ..device import abi
 from ..errors import UserError, one_line
+from . import shapes as SHAPES
 from .model import FOV_AXES
 
 GEOMETRY_LIMIT = float(2**40)  # ~1.1e12: a cube of it (n . a) stays below float32's 3.4e38
@@ -78,7 +81,7 @@ def _radiance(scene, value, what, allow_inf=False):
 
 
 def check_geometry(scene) -> None:
-    """Triangles and spheres: shapes, indices, finite and within GEOMETRY_LIMIT."""
+    """Triangles and analytic shapes: shapes, indices, finite and within GEOMETRY_LIMIT."""
     n_mat = len(scene.materials)
     v = _array(scene, scene.vertices, "vertices", 3, "fiu")
     f = _array(scene, scene.faces, "faces", 3, "iu")
@@ -108,24 +111,23 @@ def check_geometry(scene) -> None:
             _fail(scene, f"{name} must be {len(f)} faces x 3 corners x {width} numbers, got shape {tuple(a.shape)}")
         if name == "colors" and not (np.isfinite(a).all() and (a >= 0).all()):
             _fail(scene, "colors must be finite and >= 0")
-    s = _array(scene, scene.spheres, "spheres", 4, "fiu")
-    sm = _array(scene, scene.sphere_materials, "sphere_materials", 0, "iu")
-    if len(sm) != len(s):
-        _fail(scene, f"sphere_materials has {len(sm)} entries for {len(s)} spheres")
-    _indices(scene, sm, "sphere material indices", n_mat)
-    if len(s):
-        s64 = np.asarray(s, np.float64)
-        with np.errstate(over="ignore"):
-            r32 = s64[:, 3].astype(np.float32)
-        for i in range(len(s64)):
-            c, r = s64[i, :3], s64[i, 3]
-            if not (np.isfinite(c).all() and math.isfinite(r)):
-                _fail(scene, f"sphere #{i + 1}: centre and radius must be finite, got {s64[i].tolist()}")
-            if not (r > 0 and r32[i] > 0):
-                _fail(scene, f"sphere #{i + 1}: radius {r:g} is not positive in float32")
-            if np.abs(c).max() + r > GEOMETRY_LIMIT:
-                _fail(scene, f"sphere #{i + 1} (centre {c.tolist()}, radius {r:g}) reaches beyond {GEOMETRY_LIMIT:.3g} "
-                             "from the origin: the float32 kernels cannot intersect it (scale the scene down)")
+    shapes = np.asarray(scene.shapes)
+    if shapes.dtype != abi.SHAPE or shapes.ndim != 1:
+        _fail(scene, f"shapes must be a 1-d array of abi.SHAPE records, got {shapes.dtype} of shape {shapes.shape}")
+    sm = _array(scene, scene.shape_materials, "shape_materials", 0, "iu")
+    if len(sm) != len(shapes):
+        _fail(scene, f"shape_materials has {len(sm)} entries for {len(shapes)} shapes")
+    _indices(scene, sm, "shape material indices", n_mat)
+    if np.isin(shapes["type"], list(SHAPES.BY_CODE), invert=True).any():
+        _fail(scene, f"shapes: unknown type {shapes['type'][~np.isin(shapes['type'], list(SHAPES.BY_CODE))][0]}")
+    for t, idx, p in SHAPES.unit_rows(shapes):
+        for row, what in t.check(p):
+            _fail(scene, f"{t.name} #{idx[row] + 1}: {what}")
+        reach = t.reach(p)
+        far = np.flatnonzero(reach > GEOMETRY_LIMIT)
+        if len(far):
+            _fail(scene, f"{t.name} #{idx[far[0]] + 1} reaches {reach[far[0]]:.3g} from the origin, beyond "
+                         f"{GEOMETRY_LIMIT:.3g}: the float32 kernels cannot intersect it (scale the scene down)")
 
 
 def check_camera(scene) -> None:
@@ -183,7 +185,7 @@ def check_lights(scene) -> None:
 
 
 def check_emitters(scene) -> None:
-    """Light picking (render/lights.py): the emitter indices of faces and spheres, the weights."""
+    """Light picking (render/lights.py): the emitter indices of faces and shapes, the weights."""
     weights = list(getattr(scene, "emitter_weights", None) or [])
     lights = list(scene.lights or []) + ([scene.environment] if scene.environment is not None else [])
     for what, w in [*((f"emitter_weights[{i}]", w) for i, w in enumerate(weights)),
@@ -195,7 +197,6 @@ def check_emitters(scene) -> None:
 
 
 def check_settings(scene) -> None:
-    from ..device import abi
     from ..validate import integer
 
     st = scene.settings
@@ -269,17 +270,18 @@ def check_textures(scene) -> None:
 
 def check_directional_emitters(scene) -> None:
     """Material.emission_directional (Mitsuba's directionalarea) on flat faces alone: one-sided,
-    untextured, not on a sphere (cl/render/lights.h projects onto a triangle)."""
+    untextured, not on an analytic shape (cl/render/lights.h projects onto a triangle)."""
     directional = [m for m in scene.materials if m.emission_directional and m.is_emissive]
     for m in directional:
         if m.two_sided or m.emission_texture is not None:
             _fail(scene, f"material {m.name!r}: a directional emission is one-sided and untextured")
-    if directional and len(scene.spheres):
-        used = {id(scene.materials[i]) for i in np.unique(np.asarray(scene.sphere_materials, np.int64))}
-        for m in directional:
-            if id(m) in used:
-                _fail(scene, f"material {m.name!r}: a directional emission on a sphere is not supported "
-                             "(only on flat faces)")
+    shapes = np.asarray(scene.shapes)
+    for m in directional:
+        on = [i for i, k in enumerate(np.asarray(scene.shape_materials, np.int64)) if scene.materials[k] is m]
+        if on:
+            name = SHAPES.shape_type(shapes["type"][on[0]]).name
+            _fail(scene, f"material {m.name!r}: a directional emission on a {name} is not supported "
+                         "(only on flat faces)")
 
 
 def check_scene(scene) -> None:
@@ -301,9 +303,9 @@ def check_scene(scene) -> None:
 
 
 def _shape_indices(scene, kind: str, n: int, of: str = "") -> None:
-    """face_<kind> and sphere_<kind> (where the scene has them): one index per shape, -1 or an
+    """face_<kind> and shape_<kind> (where the scene has them): one index per shape, -1 or an
     index below n."""
-    for what, count in ((f"face_{kind}", len(scene.faces)), (f"sphere_{kind}", len(scene.spheres))):
+    for what, count in ((f"face_{kind}", len(scene.faces)), (f"shape_{kind}", len(scene.shapes))):
         arr = getattr(scene, what, None)
         if arr is None:
             continue

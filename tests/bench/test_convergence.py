@@ -18,6 +18,7 @@ from pyopencl_rt.bench import convergence as cv
 from pyopencl_rt import load_scene
 from pyopencl_rt.cli import main
 from pyopencl_rt.render.api import render_full
+from pyopencl_rt.scene.shapes.sphere import of as sphere_of
 
 CORNELL = "scenes/cornell-box.toml"
 
@@ -270,7 +271,7 @@ def test_embree_backend_refuses_spheres(device):
     from pyopencl_rt.errors import UserError
 
     scene = load_scene("scenes/cornell-spheres.toml")
-    if not len(scene.spheres):
+    if not len(sphere_of(scene.shapes)):
         pytest.skip("cornell-spheres.toml has no spheres")
     with pytest.raises(UserError, match="spheres"):
         Wavefront(scene, device, width=8, height=8, intersector="embree")

@@ -171,11 +171,13 @@ def test_wavefront_kernels_take_the_table(runtime):
 
 
 def test_python_constants_are_the_defines():
-    types = {f"MATERIAL_{k.upper()}" for k in abi.MATERIAL_TYPES}  # named by the enum (below), not each a constant
+    # named by the enums (below), not each a constant
+    types = {f"MATERIAL_{k.upper()}" for k in abi.MATERIAL_TYPES} | {f"SHAPE_{k.upper()}" for k in abi.SHAPE_TYPES}
     for name, value in abi.DEFINES.items():
         assert name in types and not hasattr(abi, name) or getattr(abi, name) == value, name
     assert all(abi.DEFINES[f"COUNTER_{k.upper()}"] == v for k, v in abi.COUNTERS.items())
     assert all(abi.DEFINES[f"MATERIAL_{k.upper()}"] == v for k, v in abi.MATERIAL_TYPES.items())
+    assert all(abi.DEFINES[f"SHAPE_{k.upper()}"] == v for k, v in abi.SHAPE_TYPES.items())
 
 
 def test_no_hand_written_copies_in_kernel_sources():

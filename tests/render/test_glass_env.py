@@ -18,6 +18,7 @@ from pyopencl_rt import load_scene
 from pyopencl_rt.render.api import render_full
 from pyopencl_rt.render.lights import environment_tables
 from pyopencl_rt.scene.model import Camera, Environment, Material, RenderSettings, Scene
+from pyopencl_rt.scene.shapes.sphere import records as sphere_records
 
 ROOT = Path(__file__).resolve().parents[2]
 PREVIEW = ROOT / "scenes" / "glass-env-preview.xml"
@@ -40,8 +41,8 @@ def delta_scene(integrator, max_depth):
     glass = Material("glass", type="dielectric", ior=1.5)
     thin = Material("thin", type="dielectric", ior=1.5, thin=True)
     return Scene(**empty, materials=[glass, thin], camera=Camera(eye=(0, 0.3, 5), look_at=(0, 0, 0), fov=40),
-                 spheres=np.array([[-0.6, 0, 0, 0.55], [0.6, 0, 0, 0.55]], np.float32),
-                 sphere_materials=np.array([0, 1], np.int32),
+                 shapes=sphere_records(np.array([[-0.6, 0, 0, 0.55], [0.6, 0, 0, 0.55]], np.float32)),
+                 shape_materials=np.array([0, 1], np.int32),
                  settings=RenderSettings(width=24, height=24, max_depth=max_depth, rr_depth=3,
                                          integrator=integrator),
                  environment=Environment(radiance=(1.0, 1.0, 1.0), image=sky_image()))

@@ -11,6 +11,7 @@ import pyopencl_rt as rt
 from pyopencl_rt.scene.loaders import load_scene
 
 import harness
+from pyopencl_rt.scene.shapes.sphere import of as sphere_of
 
 W, H, TILE = 48, 32, 8
 
@@ -67,7 +68,7 @@ def test_instances_match_mitsuba(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # every element is read without a word
         scene = load_scene(path)
-    assert len(scene.instances) == 3 and len(scene.spheres) == 2
+    assert len(scene.instances) == 3 and len(sphere_of(scene.shapes)) == 2
     r = rt.render_full(scene, spp=256, device="cpu", seed=3)
     ours, var = r.image.astype(np.float64), r.film.variance_of_mean()
     z = harness.tile_z(ours, var, theirs, their_var, TILE)

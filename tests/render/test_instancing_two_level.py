@@ -71,7 +71,8 @@ def as_two_level(scene):
 
 SOURCE = r"""
 #include "scene/scene.h"
-__kernel void hits(__global const BVHNode *nodes, __global const float4 *tris, __global const Sphere *spheres,
+__kernel void hits(__global const BVHNode *nodes, __global const float4 *tris,
+                   __global const BVHNode *shape_nodes, __global const Shape *shapes,
                    __global const BVHNode *tlas, __global const Instance *instances,
                    __global const BVHNode *blas_nodes, __global const float *ro, __global const float *rd,
                    __global const float *rmax, __global float *t_out, __global int *prim_out,
@@ -87,8 +88,8 @@ __kernel void hits(__global const BVHNode *nodes, __global const float4 *tris, _
     }
     pfloat t, u, v;
     pint prim, inst = PINT(-1);
-    scene_closest_hit(nodes, tris, spheres, 0, o, d, PTRUE, &t, &prim, &u, &v INSTANCE_HIT_ARGS(&inst));
-    const pint occ = scene_occluded(nodes, tris, spheres, 0, o, d, PTRUE, tmax INSTANCE_ARGS);
+    scene_closest_hit(nodes, tris, shape_nodes, shapes, o, d, PTRUE, &t, &prim, &u, &v INSTANCE_HIT_ARGS(&inst));
+    const pint occ = scene_occluded(nodes, tris, shape_nodes, shapes, o, d, PTRUE, tmax INSTANCE_ARGS);
     for (int k = 0; k < PACKET_WIDTH; ++k) {
         t_out[i0 + k] = PLANE(t, k); prim_out[i0 + k] = PLANE_I(prim, k);
         inst_out[i0 + k] = PLANE_I(inst, k); occ_out[i0 + k] = PLANE_I(occ, k) != 0;
@@ -113,7 +114,8 @@ def trace(runtime, scene, width, layout, o, d, tmax):
     blas = extra["blas_nodes"]
     n = len(o)
     t, prim, inst, occ = k(runtime, "hits", n // width, nodes=np.frombuffer(nodes.tobytes(), abi.BVH_NODE),
-                           tris=bvh.triangles.view(np.float32).reshape(-1, 4), spheres=np.zeros(1, abi.SPHERE),
+                           tris=bvh.triangles.view(np.float32).reshape(-1, 4), shape_nodes=np.zeros(1, abi.BVH_NODE),
+                           shapes=np.zeros(1, abi.SHAPE),
                            tlas=extra["tlas"], instances=extra["instances"],
                            blas_nodes=np.frombuffer(blas.tobytes() + bytes(-len(blas.tobytes()) % 64 or 64), abi.BVH_NODE),
                            ro=o, rd=d, rmax=tmax, t_out=n, prim_out=n, inst_out=n, occ_out=n)

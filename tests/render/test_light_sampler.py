@@ -57,7 +57,7 @@ def test_mitsuba_picks_emitters_by_sampling_weight_then_area(tmp_path):
     kind = lights["kind"]
     assert np.isclose(pmf.sum(), 1.0, rtol=1e-6)
     assert np.allclose(pmf[kind == abi.LIGHT_POINT], [2 / 5], rtol=1e-6)
-    assert np.allclose(pmf[kind == abi.LIGHT_SPHERE], [1 / 5], rtol=1e-6)
+    assert np.allclose(pmf[kind == abi.LIGHT_SHAPE], [1 / 5], rtol=1e-6)
     tri = np.nonzero(kind == abi.LIGHT_TRIANGLE)[0]
     emitter = scene.face_emitters[bvh.prim_ids[lights["prim"][tri]]]
     a, b, c = 1.0, 2.0, 3.0

@@ -19,6 +19,7 @@ from pyopencl_rt.scene.model import Camera, Environment, Material, PointLight, R
 
 import harness
 from harness import assert_chi2, tile_z
+from pyopencl_rt.scene.shapes.sphere import records as sphere_records
 
 ALPHA = 1e-4
 
@@ -97,7 +98,7 @@ def lamps_scene(light_sampler="bvh", n_lamps=120, seed=7, environment=False, siz
                   camera=Camera(eye=(0, 7, 6), look_at=(0, 0, 0), up=(0, 1, 0), fov=60),
                   settings=RenderSettings(width=size, height=size, max_depth=3, integrator="path",
                                           light_sampler=light_sampler),
-                  spheres=spheres, sphere_materials=np.array([1, 3], np.int32),
+                  shapes=sphere_records(spheres), shape_materials=np.array([1, 3], np.int32),
                   lights=[PointLight(position=(1.0, 1.5, 1.0), intensity=(3, 3, 3))],
                   environment=Environment(radiance=(0.2, 0.3, 0.5)) if environment else None)
     return scene
@@ -153,7 +154,7 @@ def test_tree_holds_every_light_once_and_bounds_what_can_light():
     lit = (side > 1e-6 * np.linalg.norm(ng, axis=1)) | (two[None, :] & (np.abs(side) > 1e-6))
     assert lit.sum() > 1000
     assert (pmf[:, tri][lit] > 0).all()
-    sph = np.flatnonzero((kind == abi.LIGHT_SPHERE) | (kind == abi.LIGHT_POINT))
+    sph = np.flatnonzero((kind == abi.LIGHT_SHAPE) | (kind == abi.LIGHT_POINT))
     assert len(sph) == 3
     assert (pmf[:, sph] > 0).all()
 

@@ -20,6 +20,7 @@ from pyopencl_rt.scene.model import (Camera, DirectionalLight, Environment, Mate
                                      RenderSettings, Scene, SpotLight, look_at_frame)
 
 import harness
+from pyopencl_rt.scene.shapes.sphere import records as sphere_records
 
 ALPHA = 1e-4
 
@@ -64,7 +65,7 @@ LANE_SOURCE = r"""
                   * light_pdf(p, ng), env_pdf(w), env_radiance(w) (3), ls.tex, ls.tu, ls.tv */
 /* index: (light, active) per lane; env_light: the environment light's index */
 __kernel void h_lights(__global const float *vertices, __global const int *faces, __global const int *prim_ids,
-                       __global const Sphere *spheres,
+                       __global const Shape *spheres,
                        __global const Material *materials, __global const float *env_map,
                        __global const float *env_cdf, __global const Light *lights, int env_light,
                        __global const int *index, __global const float *in, __global float *out)
@@ -111,7 +112,7 @@ __kernel void h_lights(__global const float *vertices, __global const int *faces
 #define H_IN 9  /* per lane: o (3), d (3), t, u, v */
 #define H_OUT 9 /* per lane: hit_point (3), its error bound (3), hit_normal (3) */
 __kernel void h_hits(__global const float *vertices, __global const int *faces, __global const int *prim_ids,
-                     __global const Sphere *spheres,
+                     __global const Shape *spheres,
                      __global const int *prims,
                      __global const float *in, __global float *out)
 {
@@ -140,7 +141,8 @@ __kernel void h_hits(__global const float *vertices, __global const int *faces, 
     }
 }
 """
-LANE_DEFINES = {"HAS_ENVIRONMENT": True, "HAS_DELTA_LIGHTS": True, "HAS_SPHERES": True, "HAS_TRIANGLES": True}
+LANE_DEFINES = {"HAS_ENVIRONMENT": True, "HAS_DELTA_LIGHTS": True, "HAS_SHAPES": True, "HAS_SHAPE_SPHERE": True,
+                "HAS_TRIANGLES": True}
 
 
 def lane_kernels(width):
@@ -165,8 +167,8 @@ def env_map_image():
 
 
 def _env_light(img, scale=(1.0, 1.0, 1.0)):
-    sc = Scene(**empty_mesh(), materials=[Material()], spheres=np.array([[0, 0, 0, 1]], np.float32),
-               sphere_materials=np.array([0], np.int32), environment=Environment(radiance=scale, image=img))
+    sc = Scene(**empty_mesh(), materials=[Material()], shapes=sphere_records(np.array([[0, 0, 0, 1]], np.float32)),
+               shape_materials=np.array([0], np.int32), environment=Environment(radiance=scale, image=img))
     recs, _ = other_lights(sc)
     return sc, recs
 
@@ -357,9 +359,8 @@ def lights_setup(rng, env_image):
     prim_ids = rng.permutation(n_tri).astype(np.int32)
     faces = np.zeros((n_tri, 3), np.int32)
     faces[prim_ids] = np.argsort(order).reshape(n_tri, 3)
-    spheres = np.zeros(3, abi.SPHERE)
-    spheres["center"] = rng.normal(size=(3, 3)) * 3
-    spheres["radius"] = (0.5, 1.0, 2.0)
+    centres = rng.normal(size=(3, 3)) * 3
+    spheres = sphere_records(np.column_stack([centres, [0.5, 1.0, 2.0]]).astype(np.float32))
     materials = np.stack([Material("one-sided", emission=(1.0, 2.0, 3.0)).record(),
                           Material("two-sided", emission=(4.0, 0.5, 1.0), two_sided=True).record()])
     if env_image is None:
@@ -368,8 +369,8 @@ def lights_setup(rng, env_image):
     else:
         env = Environment(radiance=(0.5, 1.0, 2.0), image=env_image)
         tm, cdf, _, _ = environment_tables(env_image)
-    sc = Scene(**empty_mesh(), materials=[Material()], spheres=np.array([[0, 0, 0, 4]], np.float32),
-               sphere_materials=np.array([0], np.int32),
+    sc = Scene(**empty_mesh(), materials=[Material()], shapes=sphere_records(np.array([[0, 0, 0, 4]], np.float32)),
+               shape_materials=np.array([0], np.int32),
                lights=[PointLight(position=(0.5, 1.0, -0.3), intensity=(2.0, 3.0, 4.0)),
                        DirectionalLight(direction=(0.3, -1.0, 0.2), irradiance=(1.0, 2.0, 0.5)),
                        *SPOTS],
@@ -381,10 +382,10 @@ def lights_setup(rng, env_image):
     area["material"][:n_tri] = np.arange(n_tri) % 2
     p = tri.astype(np.float64)
     area["area"][:n_tri] = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
-    area["kind"][n_tri:] = abi.LIGHT_SPHERE
+    area["kind"][n_tri:] = abi.LIGHT_SHAPE
     area["prim"][n_tri:] = np.arange(3)
     area["material"][n_tri:] = np.arange(3) % 2
-    area["area"][n_tri:] = 4 * np.pi * spheres["radius"].astype(np.float64) ** 2
+    area["area"][n_tri:] = 4 * np.pi * spheres["params"][:, 3].astype(np.float64) ** 2
     lights = np.concatenate([area, others])
     return dict(tris=tris, mesh=(vertices, faces.reshape(-1), prim_ids), spheres=spheres, materials=materials, env_map=tm, env_cdf=cdf, lights=lights,
                 env_light=len(lights) - 1)
@@ -413,8 +414,8 @@ def lane_inputs(rng, setup, n):
     ab = rng.uniform(-3, 3, (t.sum(), 2))
     inplane = v[:, 0] + ab[:, :1] * (v[:, 1] - v[:, 0]) + ab[:, 1:] * (v[:, 2] - v[:, 0])
     ref[np.flatnonzero(t)[plane]] = inplane[plane]
-    s = kind == abi.LIGHT_SPHERE
-    c, r = spheres["center"][prim[s]].astype(np.float64), spheres["radius"][prim[s]].astype(np.float64)
+    s = kind == abi.LIGHT_SHAPE
+    c, r = spheres["params"][prim[s], :3].astype(np.float64), spheres["params"][prim[s], 3].astype(np.float64)
     dirs = rng.normal(size=(s.sum(), 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     p[s] = c + r[:, None] * dirs
@@ -484,7 +485,7 @@ def test_light_sample_all_one_lane(runtime, rng):
         ep = HARNESS(runtime, "h_env_eval", int(e.sum()), lights[setup["env_light"]:], setup["env_map"],
                      setup["env_cdf"], n_[e].astype(np.float32), (int(e.sum()), 2))
         assert np.mean(np.isclose(ep[:, 0], pdf[e], rtol=2e-3)) > 0.99  # texel borders aside
-        area = act & ((kind == abi.LIGHT_TRIANGLE) | (kind == abi.LIGHT_SPHERE))
+        area = act & ((kind == abi.LIGHT_TRIANGLE) | (kind == abi.LIGHT_SHAPE))
         assert not delta[area].any() and np.all(far[area] == 0)
         a = area & got
         assert a.sum() > 0.9 * area.sum() and np.all(pdf[a] > 0)
@@ -496,10 +497,10 @@ def test_light_sample_all_one_lane(runtime, rng):
         cos = np.abs((to_ref * n_).sum(1)) / np.linalg.norm(to_ref, axis=1)
         clear = a & (cos > 1e-3)  # not (nearly) in the light's plane: cos_l's rounding, relative, is small
         assert clear.sum() > 0.9 * a.sum() and np.allclose(out2[clear, 16], pdf[clear], rtol=1e-3)
-        cone = a & (kind == abi.LIGHT_SPHERE)
-        si = np.where(kind == abi.LIGHT_SPHERE, rec["prim"], 0)
-        c = setup["spheres"]["center"][si].astype(np.float64)
-        cone &= ((ref - c) ** 2).sum(1) > setup["spheres"]["radius"][si].astype(np.float64) ** 2
+        cone = a & (kind == abi.LIGHT_SHAPE)
+        si = np.where(kind == abi.LIGHT_SHAPE, rec["prim"], 0)
+        c = setup["spheres"]["params"][si, :3].astype(np.float64)
+        cone &= ((ref - c) ** 2).sum(1) > setup["spheres"]["params"][si, 3].astype(np.float64) ** 2
         assert cone.sum() > 0 and np.array_equal(out2[cone, 16], pdf[cone])
         # n faces ref; emission: the material's where it faces ref (or two-sided), else 0
         mat = setup["materials"][np.where(area, rec["material"], 0)]
@@ -512,7 +513,7 @@ def test_light_sample_all_one_lane(runtime, rng):
         lit = two | front
         assert np.all(le[tri_a & lit] == mat["emission"][tri_a & lit]) and np.all(le[tri_a & ~lit] == 0)
         # a sphere's outside emits toward a reference point outside; seen from inside, only two-sided
-        sph_in = a & (kind == abi.LIGHT_SPHERE) & ~cone
+        sph_in = a & (kind == abi.LIGHT_SHAPE) & ~cone
         assert sph_in.sum() > 0 and np.all(le[sph_in & ~two] == 0)
         assert np.all(le[sph_in & two] == mat["emission"][sph_in & two])
         assert np.mean(np.all(le[cone] == mat["emission"][cone], axis=1)) > 0.99
@@ -538,14 +539,14 @@ def test_lights_lanes_equal_one_lane(device, runtime, rng, width):
         assert np.array_equal(bits1[got, :16], bitsw[got, :16]), "light_sample_all"
         assert np.array_equal(bits1[got, 21:], bitsw[got, 21:]), "light_sample_all: a texture's (u, v)"
         assert {abi.LIGHT_SPOT, abi.LIGHT_PROJECTOR} <= set(kind[got].tolist())
-        area = (kind == abi.LIGHT_TRIANGLE) | (kind == abi.LIGHT_SPHERE)
+        area = (kind == abi.LIGHT_TRIANGLE) | (kind == abi.LIGHT_SHAPE)
         assert np.array_equal(bits1[area, 16], bitsw[area, 16]), "light_pdf"
         assert np.array_equal(bits1[:, 17:21], bitsw[:, 17:21]), "env_pdf, env_radiance"
     # hits: triangles (barycentrics inside and a little outside), spheres from outside and inside, misses
     tris, spheres = setup["tris"], setup["spheres"]
     prims = rng.integers(0, len(tris) // 3, n).astype(np.int32)
     sph = rng.random(n) < 0.4
-    prims[sph] = abi.PRIM_SPHERE_FIRST - rng.integers(0, len(spheres), sph.sum())
+    prims[sph] = abi.PRIM_SHAPE_FIRST - rng.integers(0, len(spheres), sph.sum())
     prims[rng.random(n) < 0.05] = abi.PRIM_MISS
     o = rng.normal(size=(n, 3)) * 5
     d = rng.normal(size=(n, 3))
@@ -568,7 +569,7 @@ def test_hit_point_and_normal(runtime, rng):
     n = 2048
     prims = rng.integers(0, len(tris) // 3, n).astype(np.int32)
     sph = np.arange(n) % 2 == 1
-    prims[sph] = abi.PRIM_SPHERE_FIRST - rng.integers(0, len(spheres), sph.sum())
+    prims[sph] = abi.PRIM_SHAPE_FIRST - rng.integers(0, len(spheres), sph.sum())
     o = rng.normal(size=(n, 3)) * 5
     d = rng.normal(size=(n, 3))
     t = rng.uniform(0.1, 3, n)
@@ -585,8 +586,8 @@ def test_hit_point_and_normal(runtime, rng):
     assert np.all(np.abs(p[tr] - exact) <= err[tr] + 1e-12)
     ng = np.cross(vt[:, 1] - vt[:, 0], vt[:, 2] - vt[:, 0])
     assert np.allclose(nrm[tr], ng / np.linalg.norm(ng, axis=1, keepdims=True), atol=1e-5)
-    s = abi.PRIM_SPHERE_FIRST - prims[sph]
-    c, r = spheres["center"][s].astype(np.float64), spheres["radius"][s].astype(np.float64)
+    s = abi.PRIM_SHAPE_FIRST - prims[sph]
+    c, r = spheres["params"][s, :3].astype(np.float64), spheres["params"][s, 3].astype(np.float64)
     q = hin[sph, :3].astype(np.float64) + hin[sph, 6:7] * hin[sph, 3:6].astype(np.float64) - c
     expect = c + r[:, None] * q / np.linalg.norm(q, axis=1, keepdims=True)
     assert np.all(np.abs(np.linalg.norm(p[sph] - c, axis=1) - r) <= np.linalg.norm(err[sph], axis=1))
@@ -736,7 +737,7 @@ def test_directional_light_over_plane(device):
 def sphere_under(env, integrator, albedo=1.0, size=16, max_depth=4, material=None):
     return Scene(**empty_mesh(), materials=[material or Material("ball", albedo=(albedo,) * 3)],
                  camera=Camera(eye=(0, 0, 5), look_at=(0, 0, 0), fov=30),
-                 spheres=np.array([[0, 0, 0, 1]], np.float32), sphere_materials=np.array([0], np.int32),
+                 shapes=sphere_records(np.array([[0, 0, 0, 1]], np.float32)), shape_materials=np.array([0], np.int32),
                  settings=RenderSettings(width=size, height=size, max_depth=max_depth, integrator=integrator),
                  environment=env)
 
@@ -842,8 +843,8 @@ def test_extreme_parameters_finite(device):
             Material("mirror", type="conductor", alpha=0.0), Material("glass", type="dielectric", ior=1.5),
             Material("plastic", type="gltf", metallic=0.0, alpha=0.01)]
     sc = Scene(vertices=v, faces=f, face_materials=np.zeros(2, np.int32), materials=mats,
-               spheres=np.array([[-2, 1, 0, 1], [0, 1, 0, 0.8], [2, 1, 0, 1], [0, 1, 2.5, 0.7]], np.float32),
-               sphere_materials=np.array([1, 2, 3, 4], np.int32),
+               shapes=sphere_records(np.array([[-2, 1, 0, 1], [0, 1, 0, 0.8], [2, 1, 0, 1], [0, 1, 2.5, 0.7]], np.float32)),
+               shape_materials=np.array([1, 2, 3, 4], np.int32),
                camera=Camera(eye=(0, 3, 8), look_at=(0, 1, 0), fov=50, aperture_radius=100.0, focus_distance=1e-4),
                settings=RenderSettings(width=16, height=16, max_depth=6),
                lights=[PointLight(position=(0, 3, 1), intensity=(1e20,) * 3),
@@ -874,7 +875,7 @@ def test_no_lights_warns(device):
     ball = sphere_under(None, "path", size=4)
     sc = Scene(vertices=np.array([[-1, -1, -2], [1, -1, -2], [0, 1, -2]], np.float32),
                faces=np.array([[0, 1, 2]], np.int32), face_materials=np.array([0], np.int32),
-               **{k: getattr(ball, k) for k in ("materials", "camera", "spheres", "sphere_materials", "settings")})
+               **{k: getattr(ball, k) for k in ("materials", "camera", "shapes", "shape_materials", "settings")})
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         render_full(sc, spp=1, device=device, seed=1)

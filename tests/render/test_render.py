@@ -10,6 +10,7 @@ import pytest
 from pyopencl_rt import load_scene
 from pyopencl_rt.render.api import render_full
 from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
+from pyopencl_rt.scene.shapes.sphere import records as sphere_records
 
 CORNELL = "scenes/cornell-box.toml"
 FLOAT_TOL = 2e-5  # relative: float32 arithmetic floor for near-zero-variance cases
@@ -32,7 +33,7 @@ def furnace_scene(shell_albedo, shell_emission, max_depth, integrator, inner_alb
         sphere_mats.append(1)
     return Scene(**empty_mesh(), materials=mats,
                  camera=Camera(eye=(0, 0, 0), look_at=(0, 0, -1), up=(0, 1, 0), fov=60),
-                 spheres=np.array(spheres, np.float32), sphere_materials=np.array(sphere_mats, np.int32),
+                 shapes=sphere_records(np.array(spheres, np.float32)), shape_materials=np.array(sphere_mats, np.int32),
                  settings=RenderSettings(width=32, height=32, max_depth=max_depth, integrator=integrator))
 
 
@@ -78,7 +79,7 @@ def test_plane_under_uniform_sky(device):
                materials=[Material("plane", albedo=(rho,) * 3), Material("sky", albedo=(0, 0, 0), emission=(sky,) * 3,
                                                                         two_sided=True)],
                camera=Camera(eye=(0, 1, 0), look_at=(0, 0, 0.001), up=(0, 0, 1), fov=30),
-               spheres=np.array([[0, 0, 0, 1000]], np.float32), sphere_materials=np.array([1], np.int32),
+               shapes=sphere_records(np.array([[0, 0, 0, 1000]], np.float32)), shape_materials=np.array([1], np.int32),
                settings=RenderSettings(width=32, height=32, max_depth=3))
     for integrator in ("path", "bsdf", "nee"):
         r = render_full(sc, spp=32, device=device, seed=7, integrator=integrator)
@@ -155,7 +156,7 @@ def test_wave_size_does_not_change_the_image(device, cornell):
 def test_only_used_features_are_compiled(device, cornell, own_features):
     r = render_full(cornell, spp=1, device=device, width=8, height=8)
     assert "HAS_TRIANGLES" in r.info["features"] and "HAS_LIGHTS" in r.info["features"]
-    assert "HAS_SPHERES" not in r.info["features"]
+    assert "HAS_SHAPES" not in r.info["features"]
     dark = Scene(vertices=cornell.vertices, faces=cornell.faces, face_materials=np.zeros_like(cornell.face_materials),
                  materials=[Material("grey")], camera=cornell.camera)
     r = render_full(dark, spp=1, device=device, width=8, height=8)
@@ -163,7 +164,7 @@ def test_only_used_features_are_compiled(device, cornell, own_features):
     assert (r.image == 0).all()  # nothing emits: exactly black
     balls = furnace_scene(0.0, 1.0, 3, "bsdf")
     r = render_full(balls, spp=1, device=device, width=8, height=8)
-    assert "HAS_SPHERES" in r.info["features"] and "HAS_TRIANGLES" not in r.info["features"]
+    assert "HAS_SHAPES" in r.info["features"] and "HAS_TRIANGLES" not in r.info["features"]
     assert not any(f.startswith("INTEGRATOR") for f in r.info["features"])  # a kernel argument
 
 

@@ -14,6 +14,7 @@ from pyopencl_rt.scene.loaders import SceneError
 from pyopencl_rt.scene.loaders.builder import sphere_mesh
 
 import harness
+from pyopencl_rt.scene.shapes.sphere import of as sphere_of
 
 OBJ = """v 0 0 0
 v 1 0 0
@@ -73,12 +74,12 @@ def test_mitsuba_instances_closed_form(tmp_path):
     scene, warned = harness.load_warned(_xml(tmp_path, body))
     assert warned == [] and scene.normals_as_given  # the uneven instance's normals keep their lengths
     n_ellipsoid = len(sphere_mesh(0.25)[1])
-    assert len(scene.faces) == 3 + n_ellipsoid and len(scene.spheres) == 2
+    assert len(scene.faces) == 3 + n_ellipsoid and len(sphere_of(scene.shapes)) == 2
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float64)
     n = np.array([[0.3, 0, 1], [0, 0.3, 1], [-0.2, -0.2, 1]])
     records = scene.instances
     assert [r.group for r in records] == ["g"] * 3
-    assert [(r.n_faces, r.n_spheres) for r in records] == [(1, 1), (1 + n_ellipsoid, 0), (1, 1)]
+    assert [(r.n_faces, r.n_shapes) for r in records] == [(1, 1), (1 + n_ellipsoid, 0), (1, 1)]
     for k, (m, rec) in enumerate(zip(INSTANCES, records)):
         assert np.allclose(rec.to_world, m)
         full = m @ SHAPE
@@ -97,10 +98,10 @@ def test_mitsuba_instances_closed_form(tmp_path):
         assert np.array_equal(scene.uvs[face], direct.uvs[0]), k
         assert np.allclose(scene.vertices[scene.faces[face]], direct.vertices[direct.faces[0]]), k
         assert scene.materials[scene.face_materials[face]].albedo == pytest.approx((0.2, 0.4, 0.6))
-        if rec.n_spheres:
+        if rec.n_shapes:
             centre = m[:3, :3] @ [1.0, 0.0, 0.0] + m[:3, 3]
             scale = abs(np.linalg.det(m[:3, :3])) ** (1 / 3)
-            assert np.allclose(scene.spheres[rec.first_sphere], [*centre, 0.5 * scale], atol=1e-6), k
+            assert np.allclose(sphere_of(scene.shapes)[rec.first_shape], [*centre, 0.5 * scale], atol=1e-6), k
     # the ellipsoid: its triangles on M2 applied to the sphere of centre (1, 0, 0), radius 0.5
     m = INSTANCES[1]
     tris = scene.vertices[scene.faces[records[1].first_face + 1:records[1].first_face + 1 + n_ellipsoid]]
@@ -148,11 +149,11 @@ def test_pbrt_objects_share_the_instancing(tmp_path):
                     'AttributeBegin Scale 1 1 3 ObjectInstance "o" AttributeEnd\n')
     scene, warned = harness.load_warned(path)
     assert len(warned) == 1 and "area lights are not supported with object instancing" in warned[0]
-    assert np.allclose(scene.spheres, [[5.0, 0.0, 0.0, 1.0]])
+    assert np.allclose(sphere_of(scene.shapes), [[5.0, 0.0, 0.0, 1.0]])
     assert len(scene.faces) == len(sphere_mesh(0.5)[1]) and not any(m.is_emissive for m in scene.materials)
     z = scene.vertices[:, 2]
     assert z.max() == pytest.approx(3.0, rel=1e-5) and np.abs(scene.vertices[:, 0]).max() == pytest.approx(1.0, rel=1e-5)
-    assert [(r.group, r.n_faces, r.n_spheres) for r in scene.instances] == [("o", 0, 1), ("o", len(scene.faces), 0)]
+    assert [(r.group, r.n_faces, r.n_shapes) for r in scene.instances] == [("o", 0, 1), ("o", len(scene.faces), 0)]
     path.write_text('WorldBegin\nObjectBegin "o"\nObjectEnd\nObjectBegin "o"\nObjectEnd\n')
     with pytest.raises(SceneError, match=r":4: ObjectBegin: object 'o' is already defined"):
         harness.load_warned(path)

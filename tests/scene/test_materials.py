@@ -25,6 +25,7 @@ from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
 
 import harness
 from harness import assert_chi2, uniforms
+from pyopencl_rt.scene.shapes.sphere import records as sphere_records
 
 ALPHA = 1e-4
 Z_MAX = 4.5
@@ -797,8 +798,8 @@ def furnace(ball, max_depth=-1, integrator="path", size=32):
     return Scene(vertices=np.zeros((0, 3), np.float32), faces=np.zeros((0, 3), np.int32),
                  face_materials=np.zeros(0, np.int32), materials=mats,
                  camera=Camera(eye=(0, 0, 0), look_at=(0, 0, -1), up=(0, 1, 0), fov=60),
-                 spheres=np.array([[0, 0, 0, 10], [0, 0, -5, 2]], np.float32),
-                 sphere_materials=np.array([0, 1], np.int32),
+                 shapes=sphere_records(np.array([[0, 0, 0, 10], [0, 0, -5, 2]], np.float32)),
+                 shape_materials=np.array([0, 1], np.int32),
                  settings=RenderSettings(width=size, height=size, max_depth=max_depth, integrator=integrator))
 
 

@@ -127,7 +127,7 @@ def test_mitsuba_media_model(tmp_path, rng):
     fog_i, smoke_i, box_i = 0, 1, 2
     assert scene.interfaces == [MediumInterface(fog_i, -1, True, True), MediumInterface(fog_i, smoke_i, True, False),
                                 MediumInterface(-1, -1, False, True), MediumInterface(-1, box_i, True, False)]
-    assert scene.sphere_interfaces.tolist() == [1, -1]  # flip_normals: smoke is outside the outward normal
+    assert scene.shape_interfaces.tolist() == [1, -1]  # flip_normals: smoke is outside the outward normal
     assert sorted(set(scene.face_interfaces.tolist())) == [0, 2, 3]
     st = scene.settings
     assert (st.spectral_mis, st.max_depth, st.rr_depth) == (True, 12, 3)
@@ -289,7 +289,7 @@ AttributeBegin AreaLightSource "diffuse" Shape "sphere" "float radius" 0.1 Attri
     assert scene.interfaces == [MediumInterface(0, 1, True, True), MediumInterface(-1, 2, True, False),
                                 MediumInterface(-1, 1, True, False)]
     assert scene.face_interfaces.tolist() == [0, -1, 2]
-    assert scene.sphere_interfaces.tolist() == [1, 2]
+    assert scene.shape_interfaces.tolist() == [1, 2]
     assert scene.settings.spectral_mis is False
     milk = pbrt(tmp_path, 'MakeNamedMedium "m" "string type" "homogeneous" "string preset" "Wholemilk" '
                           f'MediumInterface "m" "" {TRI}', "milk.pbrt")
@@ -373,7 +373,7 @@ def test_toml_media(tmp_path):
     assert np.allclose(air.extinction(), 0.02) and scene.camera_medium == 1
     assert smoke.density.data[1, 0, :, 0].tolist() == [2, 3] and np.allclose(smoke.density.to_world[:3, 3], [-1, 0, -1])
     assert scene.interfaces == [MediumInterface(0, 1, True, True), MediumInterface(2, -1, True, False)]
-    assert scene.face_interfaces.tolist() == [0] * 12 + [-1, -1] and scene.sphere_interfaces.tolist() == [1]
+    assert scene.face_interfaces.tolist() == [0] * 12 + [-1, -1] and scene.shape_interfaces.tolist() == [1]
     assert scene.materials[scene.face_materials[0]].albedo == (0.0, 0.0, 0.0)
     b = pack_media(scene)
     assert [p.name for p in abi.MEDIA_PARAMS if not p.per_slot] == list(b)  # the per-path state is the renderer's

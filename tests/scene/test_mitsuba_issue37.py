@@ -87,10 +87,10 @@ def test_forward_references_load_as_if_declared_first(tmp_path):
     assert np.array_equal(panel.base_texture.texels, back.materials[back.face_materials[0]].base_texture.texels)
     # one emitter, on the panel: the top-level area emitter is not a light of its own
     assert sum(m.is_emissive for m in fwd.materials) == 1
-    assert [fwd.materials[i].albedo for i in fwd.sphere_materials] == [(0.7, 0.2, 0.2)]
+    assert [fwd.materials[i].albedo for i in fwd.shape_materials] == [(0.7, 0.2, 0.2)]
     # "red", referenced twice before and after its declaration: one material
     wall = fwd.face_materials[-1]
-    assert fwd.sphere_materials[0] == wall
+    assert fwd.shape_materials[0] == wall
 
 
 def test_forward_references_render_as_mitsuba_does(tmp_path):

@@ -21,6 +21,7 @@ from pyopencl_rt.scene.pixel_filter import PixelFilter
 from scene_compare import render_pair_z, triangle_records, triangles_equal, write_exr_image, write_png_image
 from harness import load_warned as load, mitsuba
 from pyopencl_rt.render.lights import environment_radiance
+from pyopencl_rt.scene.shapes.sphere import of as sphere_of
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 CORNELL_XML = SCENES / "cornell-box.xml"
@@ -130,9 +131,9 @@ def test_defaults_substitution_and_defines(tmp_path):
     with pytest.raises(SceneError, match=rf"s\.xml:{n}: <integer name=\"width\">: undefined parameter \$w "):
         load_scene(path)
     scene, _ = load(path, {"w": 40})
-    assert (scene.settings.spp, scene.settings.width, scene.spheres[0, 3]) == (16, 40, 0.25)
+    assert (scene.settings.spp, scene.settings.width, sphere_of(scene.shapes)[0, 3]) == (16, 40, 0.25)
     scene, _ = load(path, {"w": "8", "spp": "3", "r": "2"})  # a define beats the <default>
-    assert (scene.settings.spp, scene.settings.width, scene.spheres[0, 3]) == (3, 8, 2.0)
+    assert (scene.settings.spp, scene.settings.width, sphere_of(scene.shapes)[0, 3]) == (3, 8, 2.0)
 
 
 def test_include_ref_alias_and_nested_ids(tmp_path):
@@ -150,10 +151,10 @@ def test_include_ref_alias_and_nested_ids(tmp_path):
         <shape type="sphere"><point name="center" x="9"/><ref name="bsdf" id="grey"/></shape>""")
     scene, warned = load(path)
     assert warned == []
-    albedo = [scene.materials[i].albedo for i in scene.sphere_materials]
+    albedo = [scene.materials[i].albedo for i in scene.shape_materials]
     assert albedo == [(0.5, 0.1, 0.1), (0.5, 0.1, 0.1), (0.3, 0.3, 0.3), (0.3, 0.3, 0.3)]
-    assert scene.sphere_materials[0] == scene.sphere_materials[1]  # one material, referenced twice
-    assert scene.materials[scene.sphere_materials[0]].name == "red"
+    assert scene.shape_materials[0] == scene.shape_materials[1]  # one material, referenced twice
+    assert scene.materials[scene.shape_materials[0]].name == "red"
 
 
 # -- files: Mitsuba's FileResolver -------------------------------------------------------------------
@@ -190,7 +191,7 @@ def test_included_files_name_files_through_the_main_files_search_path(tmp_path, 
     main = write(a, '<include filename="B/inc.xml"/>', name="main.xml")
     monkeypatch.chdir(tmp_path)  # nothing to find in the current directory
     scene, warned = load(main)
-    assert (len(scene.faces), len(scene.spheres), warned) == (1, 1, [])
+    assert (len(scene.faces), len(sphere_of(scene.shapes)), warned) == (1, 1, [])
     _obj(a / "B" / "meshes" / "x.obj", 2)  # beside the included file: not looked at
     assert _triangles_read(main) == [1]
     try:
@@ -230,7 +231,7 @@ def test_path_folders_come_first_latest_first(tmp_path, monkeypatch):
     write(a / "inc" / "only", SPHERE, name="deep.xml")
     main = write(a, "<include filename='inc/inc.xml'/>", name="incmain.xml")
     scene, _ = load(main)
-    assert len(scene.spheres) == 1
+    assert len(sphere_of(scene.shapes)) == 1
     write(a, "<path value='only'/>" + _mesh_shape("m.obj"), name="inc/inc2.xml")
     main2 = write(a, "<include filename='inc/inc2.xml'/>", name="incmain2.xml")
     assert _triangles_read(main2) == [1]
@@ -284,9 +285,9 @@ def test_values(tmp_path):
         <emitter type="directional"><vector name="direction" value="0 -2 0"/><rgb name="irradiance" value="2"/></emitter>
         <emitter type="point"><point name="position" value="0,5,0"/></emitter>""")
     scene, warned = load(path)
-    assert np.allclose(scene.spheres, [[1, 2, 3, 2], [-1, 0, 4, 1], [5, 0, 0, 1]])
+    assert np.allclose(sphere_of(scene.shapes), [[1, 2, 3, 2], [-1, 0, 4, 1], [5, 0, 0, 1]])
     # the sampled spectrum: Mitsuba 3.9.1 scalar_rgb's reflectance (no light above 600 nm: no red)
-    assert [scene.materials[i].albedo for i in scene.sphere_materials] == [
+    assert [scene.materials[i].albedo for i in scene.shape_materials] == [
         (0.25, 0.25, 0.25), (0.1, 0.2, 0.3), pytest.approx((0.134932, 0.511488, 0.288456), rel=1e-5)]
     assert scene.settings.spp == 7 and (scene.settings.width, scene.settings.height) == (20, 10)
     d, p = scene.lights
@@ -450,7 +451,7 @@ def test_emitter_without_bsdf_is_black_and_checkerboard_to_uv(tmp_path):
 
     scene, w = load(write(tmp_path, '<shape type="sphere"><emitter type="area"/></shape>'
                                     '<shape type="sphere"><point name="center" x="3"/></shape>'))
-    assert w == [] and [scene.materials[i].albedo for i in scene.sphere_materials] == [(0, 0, 0), (0.5, 0.5, 0.5)]
+    assert w == [] and [scene.materials[i].albedo for i in scene.shape_materials] == [(0, 0, 0), (0.5, 0.5, 0.5)]
 
     def checker(to_uv):
         scene, w = load(write(tmp_path, '<shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" '
@@ -543,6 +544,11 @@ def test_shapes_closed_form(tmp_path):
             fl = '<boolean name="flip_normals" value="true"/>' if flip else ""
             scene, w = load(write(tmp_path, f'<shape type="{stype}">{params}{fl}</shape>'))
             assert w == [], (stype, w)
+            if stype == "disk":  # analytic (scene/shapes/disk.py): its record's area and front
+                p = scene.shapes["params"][0].astype(np.float64)
+                assert len(scene.faces) == 0 and np.isclose(p[27], area, rtol=1e-6)
+                assert np.allclose(p[24:27], -np.asarray(normal) if flip else normal, atol=1e-6), flip
+                continue
             v = scene.vertices.astype(np.float64)[scene.faces]
             n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
             assert np.isclose(0.5 * np.linalg.norm(n, axis=1).sum(), area, rtol=1e-6), stype
@@ -558,7 +564,7 @@ def test_shapes_closed_form(tmp_path):
     scene, _ = load(write(tmp_path, """<shape type="sphere"><point name="center" value="1 0 0"/>
         <float name="radius" value="2"/><transform name="to_world"><scale value="3"/><translate x="1"/></transform>
         </shape>"""))
-    assert np.allclose(scene.spheres, [[4, 0, 0, 6]])
+    assert np.allclose(sphere_of(scene.shapes), [[4, 0, 0, 6]])
 
 
 def test_serialized_reads_what_mitsuba_reads(tmp_path):
@@ -786,7 +792,7 @@ def test_spectra_in_scenes(tmp_path):
             <float name="scale" value="2"/></spectrum></emitter>
         <emitter type="constant"><spectrum name="radiance" value="0.5"/></emitter>""")
     scene, warned = load(path)
-    red, metal, band = (scene.materials[i] for i in scene.sphere_materials)
+    red, metal, band = (scene.materials[i] for i in scene.shape_materials)
     assert red.albedo == spectrum_rgb(parse_pairs("400:0.1, 550:0.2, 700:0.8"), "reflectance")[0]
     assert red.albedo[0] > red.albedo[1] > red.albedo[2]
     assert metal.eta == spectrum_rgb(parse_pairs("400:0.5, 500:2, 700:3"), "unbounded")[0]
@@ -826,7 +832,7 @@ def test_spectra_agree_with_mitsuba(tmp_path):
             <emitter type="point">{spec.replace("NAME", "intensity")}</emitter>
             <emitter type="constant">{spec.replace("NAME", "radiance")}</emitter>""")
         scene, _ = load(ours_path)
-        diffuse, conductor = (scene.materials[i] for i in scene.sphere_materials)
+        diffuse, conductor = (scene.materials[i] for i in scene.shape_materials)
         area = next(m for m in scene.materials if m.is_emissive)
         v3 = 'version="3.0.0"'
         pairs = [
@@ -930,7 +936,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
         <rgb name="stray" value="1"/>
         <unknown/>""")
     scene, warned = load(path)
-    assert len(scene.spheres) == 1 and scene.materials[0].albedo == (0.5, 0.5, 0.5)
+    assert len(sphere_of(scene.shapes)) == 1 and scene.materials[0].albedo == (0.5, 0.5, 0.5)
     assert warned == [f"{path}:{line_of(path, 'stray')}: <rgb name=\"stray\">: a property of the scene itself; ignored",
                       f"{path}:{line_of(path, 'unknown')}: <unknown>: unknown element; ignored"]
     assert scene.warnings == warned
@@ -1104,9 +1110,9 @@ def test_exporter_output_reimported_equals_the_original(tmp_path, real_mitsuba):
     back, warned = load(tmp_path / "exported.xml")
     assert warned == []
     assert triangles_equal(triangle_records(back), triangle_records(original))
-    assert np.allclose(back.spheres, original.spheres)
-    assert [back.materials[i].albedo for i in back.sphere_materials] == \
-        [original.materials[i].albedo for i in original.sphere_materials]
+    assert np.allclose(sphere_of(back.shapes), sphere_of(original.shapes))
+    assert [back.materials[i].albedo for i in back.shape_materials] == \
+        [original.materials[i].albedo for i in original.shape_materials]
     c, o = back.camera, original.camera
     assert np.allclose(c.eye, o.eye) and np.isclose(c.fov, o.fov) and np.allclose(c.up, o.up)
     fwd = np.subtract(o.look_at, o.eye)

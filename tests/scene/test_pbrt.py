@@ -18,6 +18,7 @@ from pyopencl_rt.scene.loaders.pbrt_materials import equal_area_sphere_to_square
 
 from harness import load_warned as load
 from scene_compare import render_pair_z, triangle_records, triangles_equal, write_exr_image, write_png_image
+from pyopencl_rt.scene.shapes.sphere import of as sphere_of
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 CORNELL_PBRT = SCENES / "cornell-box.pbrt"
@@ -224,9 +225,9 @@ def test_shapes(tmp_path):
     s, w = world(tmp_path, 'Shape "plymesh" "string filename" "tri.ply"')
     assert np.isclose(area(s), 2)
     s, w = world(tmp_path, 'Translate 1 2 3 Scale 2 2 2 Shape "sphere" "float radius" 1.5')
-    assert np.allclose(s.spheres, [[1, 2, 3, 3]]) and len(s.faces) == 0
+    assert np.allclose(sphere_of(s.shapes), [[1, 2, 3, 3]]) and len(s.faces) == 0
     s, w = world(tmp_path, 'Scale 1 1 2 Shape "sphere"')  # an ellipsoid: triangles
-    assert len(s.spheres) == 0 and np.allclose(s.vertices.max(0), [1, 1, 2], atol=1e-3)
+    assert len(sphere_of(s.shapes)) == 0 and np.allclose(s.vertices.max(0), [1, 1, 2], atol=1e-3)
     s, w = world(tmp_path, 'Shape "sphere" "float radius" 2 "float zmin" 0')  # a hemisphere
     assert np.isclose(area(s), 2 * math.pi * 4, rtol=0.01) and s.vertices[:, 2].min() >= -1e-6
     s, w = world(tmp_path, 'Shape "disk" "float radius" 2 "float height" 1')

@@ -15,6 +15,7 @@ from pyopencl_rt.scene.loaders import SceneError, load_scene
 
 from harness import load_error, load_warned as load
 from scene_compare import triangle_records, triangles_equal
+from pyopencl_rt.scene.shapes.sphere import of as sphere_of
 
 TRIANGLE = 'Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0]'
 
@@ -155,7 +156,7 @@ AttributeBegin
 AttributeEnd
 """))
     assert warned == []
-    assert len(s.spheres) == 0
+    assert len(sphere_of(s.shapes)) == 0
     v = s.vertices.astype(np.float64)[s.faces]
     # the cube's bottom and top (4 triangles) flattened onto z = 5, x in [0, 2], y in [0, 3]; its
     # 8 side triangles have no area left; then the regular instance's triangle at z = 9

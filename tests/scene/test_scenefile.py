@@ -11,6 +11,7 @@ from pyopencl_rt.scene.loaders import load_scene
 from pyopencl_rt.scene.pixel_filter import PixelFilter
 
 import harness
+from pyopencl_rt.scene.shapes.sphere import of as sphere_of
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 BOX_CENTRE = np.array([278.0, 274.4, 279.6])
@@ -43,7 +44,7 @@ def test_cornell_box_counts(cbox):
     assert cbox.faces.shape == (32, 3)
     assert cbox.vertices.dtype == np.float32 and cbox.faces.dtype == np.int32
     assert cbox.face_materials.dtype == np.int32 and cbox.face_materials.shape == (32,)
-    assert len(cbox.spheres) == 0
+    assert len(sphere_of(cbox.shapes)) == 0
 
 
 def test_cornell_box_bounds(cbox):
@@ -145,11 +146,11 @@ def test_fov_axis_spans_its_side_at_any_size(tmp_path):
 def test_cornell_spheres():
     scene = load_scene(SCENES / "cornell-spheres.toml")
     assert scene.faces.shape == (12, 3)  # room + light, no blocks
-    np.testing.assert_allclose(scene.spheres, [[185, 100, 169, 100], [370, 100, 351, 100]])
-    assert scene.spheres.dtype == np.float32 and scene.sphere_materials.dtype == np.int32
-    assert [scene.materials[i].name for i in scene.sphere_materials] == ["white", "white"]
+    np.testing.assert_allclose(sphere_of(scene.shapes), [[185, 100, 169, 100], [370, 100, 351, 100]])
+    assert sphere_of(scene.shapes).dtype == np.float32 and scene.shape_materials.dtype == np.int32
+    assert [scene.materials[i].name for i in scene.shape_materials] == ["white", "white"]
     # the spheres rest on the floor and lie inside the room
-    assert np.all(scene.spheres[:, 1] - scene.spheres[:, 3] >= 0)
+    assert np.all(sphere_of(scene.shapes)[:, 1] - sphere_of(scene.shapes)[:, 3] >= 0)
     n = face_normals(scene)
     c = centroids(scene)
     assert np.all(np.einsum("ij,ij->i", n, BOX_CENTRE - c) > 0)
@@ -360,15 +361,15 @@ radius = 0.5
     c = centroids(scene)[box]
     assert np.all(np.einsum("ij,ij->i", n[box], c - [10, 0, 0]) > 0)  # box faces point outwards
     assert mat_name(scene, 0) == "default" and mat_name(scene, 2) == "glow"
-    np.testing.assert_allclose(scene.spheres, [[0, 0, -5, 0.5]])
-    assert scene.materials[scene.sphere_materials[0]].emission == (5.0, 5.0, 5.0)
+    np.testing.assert_allclose(sphere_of(scene.shapes), [[0, 0, -5, 0.5]])
+    assert scene.materials[scene.shape_materials[0]].emission == (5.0, 5.0, 5.0)
     assert_camera_frames_spheres(scene)
 
 
 def assert_camera_frames_spheres(scene):
     # no [camera]: the framing camera looks at the centre of everything, spheres included
-    lo = np.minimum(scene.vertices.min(axis=0), (scene.spheres[:, :3] - scene.spheres[:, 3:]).min(axis=0))
-    hi = np.maximum(scene.vertices.max(axis=0), (scene.spheres[:, :3] + scene.spheres[:, 3:]).max(axis=0))
+    lo = np.minimum(scene.vertices.min(axis=0), (sphere_of(scene.shapes)[:, :3] - sphere_of(scene.shapes)[:, 3:]).min(axis=0))
+    hi = np.maximum(scene.vertices.max(axis=0), (sphere_of(scene.shapes)[:, :3] + sphere_of(scene.shapes)[:, 3:]).max(axis=0))
     np.testing.assert_allclose(scene.camera.look_at, (lo + hi) / 2, atol=1e-5)
 
 

@@ -17,6 +17,7 @@ from pyopencl_rt.scene.model import Camera, Material, RenderSettings, Scene
 from pyopencl_rt.scene.textures import bilinear, lookup, pack_textures, srgb_to_linear, texture_from_array
 
 import harness
+from pyopencl_rt.scene.shapes.sphere import records as sphere_records
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -180,7 +181,7 @@ def checker_plane_scene(rho, sky, tex, uv_scale=1.0, max_depth=3):
                  materials=[Material("plane", albedo=(1, 1, 1), base_texture=tex),
                             Material("sky", albedo=(0, 0, 0), emission=(sky,) * 3, two_sided=True)],
                  camera=Camera(eye=(0, 2, 0), look_at=(0, 0, 0.001), up=(0, 0, 1), fov=45),
-                 spheres=np.array([[0, 0, 0, 1000]], np.float32), sphere_materials=np.array([1], np.int32),
+                 shapes=sphere_records(np.array([[0, 0, 0, 1000]], np.float32)), shape_materials=np.array([1], np.int32),
                  settings=RenderSettings(width=32, height=32, max_depth=max_depth), uvs=uv)
 
 

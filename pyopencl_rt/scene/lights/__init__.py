@@ -79,7 +79,7 @@ class LightType:
 
 
 # kernel units without a host module here (this package's docstring says why)
-UNREGISTERED = ("triangle", "sphere", "environment", "directional_area")
+UNREGISTERED = ("triangle", "shape", "environment", "directional_area")
 
 
 def _registry() -> dict[str, LightType]:

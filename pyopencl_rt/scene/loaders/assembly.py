@@ -16,6 +16,7 @@ from ..instances import instance_bounds, n_world_faces
 from ..meshops import finite_faces
 from ..mesh import check_triangles
 from ..model import Camera, Material, Scene
+from ..shapes import bounds as shape_bounds
 
 DEFAULT_FOV = 40.0
 
@@ -131,7 +132,7 @@ def angle_weighted_normals(vertices, faces, keys=None) -> np.ndarray:
 
 
 def scene_bounds(scene: Scene):
-    """(lo, hi) corners of the box around the scene's used vertices and its spheres, in world
+    """(lo, hi) corners of the box around the scene's used vertices and its analytic shapes, in world
     space: a two-level group's vertices where its instances move them (scene/instances.py)."""
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
@@ -142,10 +143,9 @@ def scene_bounds(scene: Scene):
     moved = instance_bounds(scene)
     if moved is not None:
         lo, hi = np.minimum(lo, moved[0]), np.maximum(hi, moved[1])
-    if len(scene.spheres):
-        s = scene.spheres.astype(np.float64)
-        lo = np.minimum(lo, (s[:, :3] - s[:, 3:4]).min(axis=0))
-        hi = np.maximum(hi, (s[:, :3] + s[:, 3:4]).max(axis=0))
+    if len(scene.shapes):
+        s_lo, s_hi = shape_bounds(scene.shapes)
+        lo, hi = np.minimum(lo, s_lo.min(axis=0)), np.maximum(hi, s_hi.max(axis=0))
     if not np.isfinite(lo).all():
         lo = hi = np.zeros(3)
     return lo, hi

@@ -1,5 +1,5 @@
 """What the Mitsuba 3 XML and pbrt-v4 importers share: a :class:`SceneBuilder` that collects
-triangles, spheres, materials, lights, an environment map and the warnings of one import, and
+triangles, analytic shapes, materials, lights, an environment map and the warnings of one import, and
 turns them into the same :class:`~pyopencl_rt.scene.model.Scene` the TOML loader makes.
 
 Conventions both importers rely on:
@@ -26,8 +26,10 @@ from typing import Callable
 
 import numpy as np
 
+from ...device import abi
 from ...device.host_memory import aligned_empty
 from ..lights import light_type
+from ..shapes import REGISTRY as SHAPES, records as shape_records, transformed as shapes_moved
 from ..model import Camera, Environment, Material, RenderSettings, Scene, vertical_fov  # noqa: F401 (vertical_fov: the loaders' import)
 from .assembly import (_finite_faces, angle_weighted_normals, frame_scene, stacked_per_face, transform_normals,
                        triangle_scene)
@@ -187,7 +189,8 @@ class SceneBuilder:
         self.normals, self.colors = [], []
         self.any_normals = self.any_colors = False
         self.n_vertices = 0
-        self.spheres, self.sphere_materials = [], []
+        # the analytic shapes (scene/shapes/): their abi.SHAPE records, per shape its material
+        self.shapes, self.shape_materials = [], []
         self.lights: list = []
         self.environment: EnvMap | Environment | None = None
         self.camera: Camera | None = None
@@ -195,13 +198,13 @@ class SceneBuilder:
         self.mirror = None
         self.settings = RenderSettings()
         # participating media (pyopencl_rt/scene/media.py): the media, interfaces by value, per face and
-        # sphere the interface index (-1: none), and the camera's medium
+        # shape the interface index (-1: none), and the camera's medium
         self.media: list = []
         self._medium_index: dict[int, int] = {}
         self.interfaces: list = []
         self._interface_index: dict = {}
         self.face_interfaces: list = []
-        self.sphere_interfaces: list = []
+        self.shape_interfaces: list = []
         self.camera_medium = -1
         # shape groups and instances (loaders/instancing.py): the group being recorded (None: shapes
         # go to the scene), the groups by name, the Instance records, and the faces added so far
@@ -212,14 +215,14 @@ class SceneBuilder:
         self.motion_time = (0.0, 1.0)  # Scene.motion_time: the moving instances' time mapping
         self.n_faces = 0
         self.normals_as_given = False  # an unevenly scaled instance's normals (Scene.normals_as_given)
-        # emitters of several primitives (Scene.face_emitters): per mesh and per sphere its emitter
+        # emitters of several primitives (Scene.face_emitters): per mesh and per shape its emitter
         # index (-1: none), and each emitter's sampling weight
         self.face_emitters: list = []
-        self.sphere_emitters: list = []
+        self.shape_emitters: list = []
         self.emitter_weights: list = []
 
     def new_emitter(self, sampling_weight: float = 1.0) -> int:
-        """The index of a new emitter (a shape's area emitter) to pass to add_mesh / add_sphere."""
+        """The index of a new emitter (a shape's area emitter) to pass to add_mesh / add_shape."""
         self.emitter_weights.append(float(sampling_weight))
         return len(self.emitter_weights) - 1
 
@@ -323,16 +326,20 @@ class SceneBuilder:
         self.any_normals |= nrm is not None
         self.any_colors |= col is not None
 
+    def add_shape(self, shape, p, material: Material, interface=None, emitter: int = -1) -> None:
+        """An analytic shape: its type (a ShapeType or its name) and its (1, 28) parameter row."""
+        shape = SHAPES[shape] if isinstance(shape, str) else shape
+        if self.recording is not None:
+            self.recording.shapes.append((shape, np.asarray(p, np.float64).reshape(28), material, interface))
+            return
+        self.shapes.append(shape_records(shape, p))
+        self.shape_materials.append(self.material_index(material))
+        self.shape_interfaces.append(self.interface_index(interface))
+        self.shape_emitters.append(int(emitter))
+
     def add_sphere(self, centre, radius: float, material: Material, interface=None, emitter: int = -1) -> None:
         """A sphere, its front outside (an interface given for an inward-facing one must be flipped)."""
-        if self.recording is not None:
-            self.recording.spheres.append((np.asarray(centre, np.float64).reshape(3), float(radius), material,
-                                           interface))
-            return
-        self.spheres.append([*map(float, centre), float(radius)])
-        self.sphere_materials.append(self.material_index(material))
-        self.sphere_interfaces.append(self.interface_index(interface))
-        self.sphere_emitters.append(int(emitter))
+        self.add_shape("sphere", SHAPES["sphere"].params(centre, radius), material, interface, emitter)
 
     def add_light(self, light) -> None:
         self.lights.append(light)
@@ -371,7 +378,7 @@ class SceneBuilder:
             vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
             uvs, face_materials = None, np.zeros(0, np.int32)
         face_interfaces = np.concatenate(self.face_interfaces) if self.faces else np.zeros(0, np.int32)
-        spheres = np.asarray(self.spheres, np.float64).reshape(-1, 4)
+        shapes = np.concatenate(self.shapes) if self.shapes else np.zeros(0, abi.SHAPE)
         media = list(self.media)
         lights = list(self.lights)
         if mirror is not None:
@@ -380,8 +387,8 @@ class SceneBuilder:
             uvs = uvs[:, ::-1] if uvs is not None else None
             normals = transform_normals(mirror, normals, unit=False)[:, ::-1] if normals is not None else None
             colors = colors[:, ::-1] if colors is not None else None
-            if len(spheres):
-                spheres[:, :3] = transform_points(mirror, spheres[:, :3])
+            if len(shapes):
+                shapes = shapes_moved(shapes, mirror)
             lights = [light_type(lt).transformed(lt, mirror) for lt in lights]
             media = [m.transformed(mirror) for m in media]
             mirror_texture_spaces(self.materials, mirror)
@@ -401,12 +408,11 @@ class SceneBuilder:
                                              motion_pivot=pivot(i.motion_pivot),
                                              motion_pivot_world=pivot(i.motion_pivot_world))
                          for i in instances]
-        if not self.faces and not self.spheres:
+        if not self.faces and not self.shapes:
             raise SceneFormatError(f"{self.name}: the scene has no shapes that we can render")
         scene = triangle_scene(vertices, faces, face_materials, self.materials, self.name, uvs=uvs, normals=normals,
                                colors=colors, own_normals=True,
-                               spheres=spheres.astype(np.float32),
-                               sphere_materials=np.asarray(self.sphere_materials, np.int32),
+                               shapes=shapes, shape_materials=np.asarray(self.shape_materials, np.int32),
                                settings=self.settings,
                                face_interfaces=face_interfaces if self.interfaces else None,
                                face_emitters=(np.concatenate(self.face_emitters)
@@ -415,10 +421,10 @@ class SceneBuilder:
         scene.make_normals_unit()  # once, in place: the kernels read them as they are
         if self.interfaces or media:
             scene.media, scene.interfaces, scene.camera_medium = media, list(self.interfaces), int(self.camera_medium)
-            scene.sphere_interfaces = np.asarray(self.sphere_interfaces, np.int32)
+            scene.shape_interfaces = np.asarray(self.shape_interfaces, np.int32)
         scene.lights = lights
         if self.emitter_weights:
-            scene.sphere_emitters = np.asarray(self.sphere_emitters, np.int32)
+            scene.shape_emitters = np.asarray(self.shape_emitters, np.int32)
             scene.emitter_weights = list(self.emitter_weights)
         if instances:
             scene.instances, scene.blas_groups = remap_instances(instances, blas, _finite_faces(vertices, faces)

@@ -2,7 +2,7 @@
 ``instance``) and the pbrt-v4 one (``ObjectBegin``/``ObjectEnd`` / ``ObjectInstance``).
 
 While a group is open (:meth:`SceneBuilder.begin_group`), the builder's ``add_mesh`` and
-``add_sphere`` record each shape in the group's own space, as they would have added it: moved by
+``add_shape`` record each shape in the group's own space, as they would have added it: moved by
 the shape's own transform, flipped, its shading normals (given or computed) and its material and
 medium interface resolved.  Each instance (:func:`add_instance`) then adds the group's shapes moved
 by its ``to_world`` M, so a shape lands at M @ (its own to_world), as in Mitsuba and pbrt-v4:
@@ -11,16 +11,17 @@ by its ``to_world`` M, so a shape lands at M @ (its own to_world), as in Mitsuba
   kernels interpolate, then normalise, so an unevenly scaled instance is shaded as Mitsuba shades
   it, with the group's interpolated normal moved), UVs and vertex colours kept; an M that
   mirrors (det < 0) reverses the corners, so the front stays on the side of the moved normal;
-* a sphere stays a sphere (centre moved, radius scaled) when M is a similarity; otherwise it is the
-  ellipsoid M makes of it, as triangles with its exact normals.
+* an analytic shape by its type's ``transformed`` (scene/shapes/): a disk stays a disk, a sphere a
+  sphere when M is a similarity; otherwise the sphere is the ellipsoid M makes of it, as triangles
+  with its exact normals (its type's ``mesh``).
 
 Flattening is exact but its memory grows with the instances.  So a group of two or more instances
 that would flatten to more than :data:`FLATTEN_MAX_TRIANGLES` triangles is drawn through a two-level BVH
 instead (:func:`place`, at the end of loading): its faces are added once, in its own space, after
 every world face (a ``BlasGroup``), and each instance is only a record (``Instance.blas``) that
 the renderer moves at render time (pyopencl_rt/accel/instances.py).  A group stays flattened
-whatever its size where the renderer's instances do not reach (:func:`why_flattened`): spheres
-(stay spheres under a similarity), emitters (Mitsuba and pbrt-v4 allow none in instances; we
+whatever its size where the renderer's instances do not reach (:func:`why_flattened`): analytic
+shapes (in the shapes' own BVH), emitters (Mitsuba and pbrt-v4 allow none in instances; we
 warn and let each copy emit), medium interfaces, normal or bump maps, anisotropy (their frames
 need the world dp/du), intersection cut-outs and mixes; so does every group of a scene with
 participating media.  ``$PYOPENCL_RT_INSTANCING``: ``auto`` (the default), ``flatten`` (every
@@ -38,7 +39,7 @@ from ...errors import UserError
 from ..model import BlasGroup, Instance
 from ..instances import is_similarity
 from .assembly import transform_normals
-from .geometry import sphere_mesh, transform_points
+from .geometry import transform_points
 from .values import SceneError, error_at
 
 INSTANCING_ENV = "PYOPENCL_RT_INSTANCING"
@@ -52,16 +53,16 @@ FLATTEN_MAX_TRIANGLES = 1 << 18
 @dataclass(eq=False)
 class ShapeGroup:
     """The shapes of one group in its own space: meshes as (vertices, faces, uvs, normals, colors,
-    material, interface), as the builder would append them, and spheres as (centre, radius,
-    material, interface)."""
+    material, interface), as the builder would append them, and analytic shapes as (ShapeType,
+    parameter row, material, interface)."""
 
     name: str
     meshes: list = field(default_factory=list)
-    spheres: list = field(default_factory=list)
+    shapes: list = field(default_factory=list)
 
     @property
     def empty(self) -> bool:
-        return not self.meshes and not self.spheres
+        return not self.meshes and not self.shapes
 
 
 def instancing_mode() -> str:
@@ -74,8 +75,8 @@ def instancing_mode() -> str:
 
 def why_flattened(group: ShapeGroup) -> str | None:
     """Why ``group`` cannot be drawn through the two-level BVH (None: it can)."""
-    if group.spheres:
-        return "spheres"
+    if group.shapes:
+        return "analytic shapes"
     for v, f, uv, nrm, col, material, interface in group.meshes:
         if material.is_emissive or interface is not None:
             return "an emitter" if material.is_emissive else "a medium interface"
@@ -117,7 +118,7 @@ def _moving_instance(builder, group: ShapeGroup, m, m_end, position: str, what: 
         raise error_at(position, f"{what}: its transform at the end of the motion is not an invertible affine one")
     if np.linalg.det(m[:3, :3]) * np.linalg.det(m_end[:3, :3]) < 0:
         raise error_at(position, f"{what}: a motion from a transform to its mirror image is not supported")
-    why = "spheres" if group.spheres else why_flattened(group)
+    why = "analytic shapes" if group.shapes else why_flattened(group)
     if why is not None:
         raise error_at(position, f"{what}: motion blur of a shape with {why} is not supported")
     if builder.media or builder.interfaces:
@@ -169,11 +170,11 @@ def flatten_instance(builder, group: ShapeGroup, m, record: bool = True) -> Inst
     """Add ``group``'s shapes moved by ``m`` to the builder's arrays (recorded in
     builder.instances with ``record``); the Instance."""
     det = float(np.linalg.det(m[:3, :3]))
-    first_face, first_sphere = builder.n_faces, len(builder.spheres)
+    first_face, first_shape = builder.n_faces, len(builder.shapes)
     # shading normals by the inverse transpose, not made unit length again, all divided by its
     # largest stretch: the kernels' normalised interpolation then gives normalize(M^-T (the group's
     # interpolated normal)), as Mitsuba's instance computes it, also where M scales unevenly
-    similar, s = is_similarity(m)
+    similar, _ = is_similarity(m)
     stretch = np.linalg.svd(m[:3, :3], compute_uv=False).min()
     if not similar and any(mesh[3] is not None for mesh in group.meshes):
         builder.normals_as_given = True  # every other normal is unit already (add_mesh)
@@ -182,15 +183,15 @@ def flatten_instance(builder, group: ShapeGroup, m, record: bool = True) -> Inst
         if det < 0:  # mirrored: reverse the corners, the front follows the moved normal
             f, uv, nrm, col = (None if a is None else a[:, ::-1] for a in (f, uv, nrm, col))
         builder.append_mesh(v, f, uv, nrm, col, material, interface)
-    for centre, radius, material, interface in group.spheres:
-        if similar:
-            builder.add_sphere(transform_points(m, centre)[0], radius * s, material, interface=interface)
+    for shape, p, material, interface in group.shapes:
+        moved = shape.transformed(p, m)
+        if moved is not None:
+            builder.add_shape(shape, moved, material, interface=interface)
             continue
-        v, f, uv = sphere_mesh(radius)  # an ellipsoid: as triangles with its exact normals
-        moved = m @ np.block([[np.eye(3), np.reshape(centre, (3, 1))], [np.zeros((1, 3)), np.ones((1, 1))]])
-        builder.add_mesh(v, f, material, uvs=uv, matrix=moved, normals=(v / radius)[f], interface=interface)
-    inst = Instance(group.name, m.copy(), first_face, builder.n_faces - first_face, first_sphere,
-                    len(builder.spheres) - first_sphere)
+        v, f, uv, nrm, matrix = shape.mesh(p, m)  # (a sphere made an ellipsoid): triangles, its exact normals
+        builder.add_mesh(v, f, material, uvs=uv, matrix=matrix, normals=nrm, interface=interface)
+    inst = Instance(group.name, m.copy(), first_face, builder.n_faces - first_face, first_shape,
+                    len(builder.shapes) - first_shape)
     if record:
         builder.instances.append(inst)
     return inst
@@ -209,7 +210,7 @@ def remap_instances(instances: list, blas: list, keep: np.ndarray | None) -> tup
     out = []
     for inst in instances:
         first, n = span(inst.first_face, inst.n_faces)
-        out.append(Instance(inst.group, inst.to_world, first, n, inst.first_sphere, inst.n_spheres, inst.blas,
+        out.append(Instance(inst.group, inst.to_world, first, n, inst.first_shape, inst.n_shapes, inst.blas,
                             inst.to_world_end, inst.motion_pivot, inst.motion_pivot_world))
     return out, [BlasGroup(g.name, *span(g.first_face, g.n_faces)) for g in blas]
 

@@ -8,7 +8,6 @@ warning naming the element and its file position.
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +15,8 @@ import numpy as np
 from ..lights import MITSUBA_TYPES as MITSUBA_LIGHTS
 from ..model import Environment, RenderSettings
 from ..pixel_filter import PixelFilter
+from ..shapes import MITSUBA_TYPES as MITSUBA_SHAPES
+from ..shapes.frames import ShapeMitsubaReading, coordinate_system
 from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cylinder_mesh, error_at, rectangle_mesh,
                       transform_points)
 from .mitsuba_meshes import CURVED_SEGMENTS, flat, mitsuba_cube_mesh, mitsuba_disk_mesh, mitsuba_sphere_mesh
@@ -29,17 +30,6 @@ from .mitsuba_xml import Document, MiObject
 
 # hdrfilm's filter when it names none (and the film's when there is no film)
 MITSUBA_DEFAULT_FILTER = PixelFilter("gaussian", (2.0, 2.0), sigma=0.5)
-
-
-def coordinate_system(n) -> tuple:
-    """Mitsuba's coordinate_system (include/mitsuba/core/vector.h, Duff et al. 2017): two unit
-    vectors s, t that make (s, t, n) a right-handed orthonormal frame; (x, y) for n = +z."""
-    n = np.asarray(n, np.float64)
-    sign = math.copysign(1.0, n[2])
-    a = -1.0 / (sign + n[2])
-    b = n[0] * n[1] * a
-    return (np.array([n[0] * n[0] * a * sign + 1.0, b * sign, -n[0] * sign]),
-            np.array([b, n[1] * n[1] * a + sign, -n[1]]))
 
 
 def reads_uv(material) -> bool:
@@ -323,8 +313,9 @@ class _Importer:
         if material.emission_directional and t in ("sphere", "cylinder"):  # (no plane to project onto)
             raise error_at(obj.node.pos, f"{obj.label()}: a directionalarea emitter on a curved shape is not "
                                          "supported (only on flat faces: meshes, rectangles, disks, cubes)")
-        if t == "sphere":
-            return self.sphere(obj, material, m, flip, emitters, interface, emitter)
+        shape = MITSUBA_SHAPES.get(t)
+        if shape is not None and not reads_uv(material) and not material.emission_directional:
+            return self.analytic(obj, shape, material, m, flip, emitters, interface, emitter)
         normals = compute = extras = None
         if t in ("obj", "ply", "serialized"):
             v, f, uv, normals, keys, extras = self.mesh_file(obj)
@@ -332,6 +323,11 @@ class _Importer:
                 normals = None
             elif normals is None:  # Mitsuba computes them
                 compute = keys
+        elif t == "sphere":  # its material reads the uv: Mitsuba's uv and exact normals (ours have no uv)
+            v, f, uv, normals = mitsuba_sphere_mesh()
+            local = np.diag([*[obj.float("radius", 1.0, positive=True)] * 3, 1.0])
+            local[:3, 3] = obj.point("center", np.zeros(3))
+            m = local if m is None else m @ local
         elif t == "rectangle":
             v, f, uv = rectangle_mesh()
         elif t == "cube":
@@ -375,36 +371,19 @@ class _Importer:
         radial /= np.linalg.norm(radial, axis=1, keepdims=True)
         return v @ frame.T + p0, f, uv, (radial @ frame.T)[f]
 
-    def sphere(self, obj, material, m, flip, emitters, interface=None, emitter: int = -1) -> None:
-        """Mitsuba's sphere: one of our spheres, or, where its material reads the uv (a texture, a
-        normal or bump map, an anisotropic frame along dp/du), triangles with Mitsuba's uv and
-        exact normals (mitsuba_sphere_mesh), for ours have no uv: Mitsuba's uv is that of the
-        object-space direction, so it turns with to_world's rotation."""
-        centre = obj.point("center", np.zeros(3))
-        radius = obj.float("radius", 1.0, positive=True)
-        uneven = False
-        if m is not None:
-            s = np.linalg.svd(m[:3, :3], compute_uv=False)
-            uneven = s.max() - s.min() > 1e-6 * s.max()
-            if uneven:
-                self.warn(obj.props["to_world"].node.pos, f"{obj.label()}: to_world scales unevenly "
-                                                          "(Mitsuba does not allow it); using the mean scale")
-        if reads_uv(material) and not uneven:
-            v, f, uv, normals = mitsuba_sphere_mesh()
-            local = np.diag([radius, radius, radius, 1.0])
-            local[:3, 3] = centre
-            self.b.add_mesh(v, f, material, uvs=uv, matrix=local if m is None else m @ local, flip=flip,
-                            normals=normals, interface=interface, emitter=emitter)
-            self.unused(obj)
-            return
-        if m is not None:
-            centre = transform_points(m, centre)[0]
-            radius *= float(s.mean())
-        if flip and emitters:
-            self.warn(obj.node.pos, f"{obj.label()}: flip_normals: our spheres emit outwards only")
-        if flip and interface is not None:  # its normal points inwards: interior and exterior trade places
-            interface = interface.flipped()
-        self.b.add_sphere(centre, radius, material, interface=interface, emitter=emitter)
+    def analytic(self, obj, shape, material, m, flip, emitters, interface=None, emitter: int = -1) -> None:
+        """One of our analytic shapes (scene/shapes/: Mitsuba's sphere, disk), read by its type; a
+        shape whose material reads the uv or dp/du (a texture, a normal or bump map, anisotropy) is
+        Mitsuba's triangles with its uv instead (reads_uv), for ours have none.  A type that does not
+        flip (a sphere faces outwards) gets its medium interface's sides swapped for flip_normals."""
+        pos = obj.props["to_world"].node.pos if "to_world" in obj.props else obj.node.pos
+        p = shape.from_mitsuba(obj, ShapeMitsubaReading(m, flip, lambda what: self.warn(pos, f"{obj.label()}: {what}")))
+        if flip and not shape.flips:
+            if emitters:
+                self.warn(obj.node.pos, f"{obj.label()}: flip_normals: our {shape.name}s emit outwards only")
+            if interface is not None:  # its normal points inwards: interior and exterior trade places
+                interface = interface.flipped()
+        self.b.add_shape(shape, p, material, interface=interface, emitter=emitter)
         self.unused(obj)
 
     def mesh_file(self, obj: MiObject):

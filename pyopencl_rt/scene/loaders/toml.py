@@ -38,7 +38,7 @@
     sigma_t = [0.5, 1.0, 2.0]     #   from shapes' interior / exterior and [camera] medium
 
     [[shape]]                     # one table per shape, numbered #1, #2, ... in messages
-    type = "quad"                 # "mesh" | "quad" | "triangle" | "box" | "sphere"
+    type = "quad"                 # "mesh" | "quad" | "triangle" | "box" | "sphere" | "disk"
     material = "white"            # default: the built-in "default" material (albedo 0.8)
     points = [[0,0,0], [1,0,0], [1,1,0], [0,1,0]]
 
@@ -54,6 +54,8 @@ Shape keys:
 * ``box``: ``size`` (3-vector or number, default 1) centred on ``center`` (default origin);
   faces point outwards.
 * ``sphere``: ``center``, ``radius``; emits outwards. No transforms.
+* ``disk``: ``center``, ``normal`` (its front), ``radius`` (default 1), ``flip_normals``; emits
+  on its front.  No transforms.  (The analytic shapes: each type's module in scene/shapes/.)
 
 Triangle shapes (mesh, quad, triangle, box) take an optional transform: ``scale`` (number or
 3-vector), ``rotate`` (``{axis = [x, y, z], angle = DEGREES}`` or a list of them, applied in
@@ -70,6 +72,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...device import abi
 from ...errors import UserError
 from ...imageio import read_exr
 from ..materials import REGISTRY
@@ -77,6 +80,7 @@ from ..mesh import MeshError, flatten, load_trimesh
 from ..model import (AOVS, FOV_AXES, INTEGRATORS, LIGHT_SAMPLERS, SAMPLERS, Camera, Environment, Material, PROJECTIONS,
                      RenderSettings, Scene)
 from ..pixel_filter import FILTERS, PixelFilter
+from ..shapes import REGISTRY as ANALYTIC_SHAPES, records as shape_records
 from .assembly import DEFAULT_FOV, frame_scene, transform_normals, triangle_scene
 from .gltf import read_gltf
 from .meshfile import ply_extras, trimesh_uvs
@@ -95,7 +99,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     except ModuleNotFoundError:
         tomllib = None
 
-SHAPE_TYPES = ("mesh", "quad", "triangle", "box", "sphere")
+SHAPE_TYPES = ("mesh", "quad", "triangle", "box", *ANALYTIC_SHAPES)  # the analytic ones: scene/shapes/
 
 _TOP_KEYS = {"camera", "film", "render", "materials", "shape", "light", "environment", "media"}
 _CAMERA_KEYS = {"eye", "look_at", "up", "fov", "fov_axis", "aperture_radius", "focus_distance", "type", "extent",
@@ -116,7 +120,7 @@ _SHAPE_KEYS = {
     "quad": {"type", "material", "points"} | _TRANSFORM_KEYS,
     "triangle": {"type", "material", "points"} | _TRANSFORM_KEYS,
     "box": {"type", "material", "size", "center"} | _TRANSFORM_KEYS,
-    "sphere": {"type", "material", "center", "radius"},
+    **{name: {"type", "material"} | t.toml_keys for name, t in ANALYTIC_SHAPES.items()},
 }
 _SHAPE_KEYS = {k: v | SHAPE_KEYS for k, v in _SHAPE_KEYS.items()}  # participating media (toml_media.py)
 
@@ -218,7 +222,7 @@ def load_toml_scene(path: Path, name: str) -> Scene:
 
     tri_vertices, tri_faces, tri_mats, tri_uvs, tri_normals, tri_colors, tri_ifaces = [], [], [], [], [], [], []
     n_vertices = 0
-    spheres, sphere_mats, sphere_ifaces = [], [], []
+    analytic, shape_mats, shape_ifaces = [], [], []  # the analytic shapes (scene/shapes/)
     for number, table in enumerate(shapes, 1):
         where = f"[[shape]] #{number}"
         if not isinstance(table, dict):
@@ -230,18 +234,13 @@ def load_toml_scene(path: Path, name: str) -> Scene:
         where = f"[[shape]] #{number} ({stype})"
         check_keys(ctx, where, table, _SHAPE_KEYS[stype])
 
-        if stype == "sphere":
-            for req in ("center", "radius"):
-                if req not in table:
-                    raise ctx.error(where, f"missing '{req}'")
-            centre = check_vector(ctx, where, "center", table["center"])
-            radius = check_number(ctx, where, "radius", table["radius"], positive=True)
-            _check_reach(ctx, where, np.abs(centre).max() + radius, "it reaches")
-            if not np.float32(radius) > 0:
-                raise ctx.error(where, f"'radius' {radius:g} is 0 in float32")
-            spheres.append([*centre, radius])
-            sphere_mats.append(material_for(where, table))
-            sphere_ifaces.append(interface_for(where, table))
+        if stype in ANALYTIC_SHAPES:
+            shape = ANALYTIC_SHAPES[stype]
+            p = shape.read_toml(TableReader(ctx, where, table))
+            _check_reach(ctx, where, float(shape.reach(p)[0]), "it reaches")
+            analytic.append(shape_records(shape, p))
+            shape_mats.append(material_for(where, table))
+            shape_ifaces.append(interface_for(where, table))
             continue
 
         face_mat = None
@@ -319,12 +318,13 @@ def load_toml_scene(path: Path, name: str) -> Scene:
         face_ifaces = np.zeros(0, np.int32)
     scene = triangle_scene(
         vertices, faces, face_mat, materials, name, uvs, normals=normals, colors=colors, settings=settings,
-        spheres=np.asarray(spheres, np.float32).reshape(-1, 4), sphere_materials=np.asarray(sphere_mats, np.int32),
+        shapes=np.concatenate(analytic) if analytic else np.zeros(0, abi.SHAPE),
+        shape_materials=np.asarray(shape_mats, np.int32),
         face_interfaces=face_ifaces if interfaces.list else None,
     )
     if media or interfaces.list:
         scene.media, scene.interfaces = media, interfaces.list
-        scene.sphere_interfaces = np.asarray(sphere_ifaces, np.int32)
+        scene.shape_interfaces = np.asarray(shape_ifaces, np.int32)
     if "camera" in doc:
         scene.camera = _read_camera(ctx, doc["camera"])
         scene.camera_medium = camera_medium(ctx, doc["camera"], media_index)
