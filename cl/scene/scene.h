@@ -242,7 +242,7 @@ RT_INLINE void scene_closest_hit(__global const BVHNode *nodes, __global const f
     instance_lanes_hit(INSTANCE_ARGS_NOCOMMA, tris, o, d, live, t, prim, u, v, inst SCENE_TIME_ARG(time));
 #endif
 #ifdef HAS_SHAPES
-    const pint h = shapes_closest_hit(shape_nodes, shapes, o, d, live, t, prim);
+    const pint h = shapes_walk(shape_nodes, shapes, o, d, live, t, prim, 0);
 #ifdef HAS_INSTANCES
     *inst = h ? PINT(-1) : *inst;
 #endif
@@ -258,7 +258,9 @@ RT_INLINE pint scene_occluded(__global const BVHNode *nodes, __global const floa
 {
     pint blocked = PINT(0);
 #ifdef HAS_SHAPES
-    blocked = shapes_occluded(shape_nodes, shapes, o, d, live, tmax);
+    pfloat t_shapes = tmax;
+    pint prim_unused = PINT(PRIM_MISS);
+    blocked = shapes_walk(shape_nodes, shapes, o, d, live, &t_shapes, &prim_unused, 1);
 #endif
 #ifdef HAS_TRIANGLES
     const pint rest = live & pnot(blocked);

@@ -58,94 +58,83 @@ RT_INLINE int shape_next(__global const BVHNode *n, int go, int *stack, int *sp,
     return 1;
 }
 
-/* The closest shape hits of the lanes of `live` nearer than *t: *t and *prim set where one is
- * (the mask returned).  The builder keeps the depth under BVH_STACK_SIZE (accel/shape_bvh.py). */
-RT_INLINE pint shapes_closest_hit(__global const BVHNode *shape_nodes, __global const Shape *shapes, pvec3 o, pvec3 d,
-                                  pint live, pfloat *t, pint *prim)
+/* The shapes' BVH walked for the lanes of `live`: with any_hit 0 their closest hits nearer than *t
+ * (*t and *prim set where one is), with 1 whether some shape lies before *t (the walk ends when every
+ * lane is blocked); returns the lanes that found one.  The builder keeps the depth under
+ * BVH_STACK_SIZE (accel/shape_bvh.py). */
+RT_INLINE pint shapes_walk(__global const BVHNode *shape_nodes, __global const Shape *shapes, pvec3 o, pvec3 d,
+                           pint live, pfloat *t, pint *prim, const int any_hit)
 {
     const pvec3 inv = pv3(shape_rcp(d.x), shape_rcp(d.y), shape_rcp(d.z));
     int stack[BVH_STACK_SIZE], sp = 0, idx = 0;
-    pint hit = PINT(0);
+    pint found = PINT(0);
     for (;;) {
         __global const BVHNode *n = shape_nodes + idx;
         __global const float4 *q = (__global const float4 *)n;
+        const pint open = any_hit ? live & pnot(found) : live;
+        if (any_hit && !pany(open)) return found;
         int go = 0;
         for (int side = 0; side < 2; ++side) {
             const int count = side ? n->count_right : n->count_left;
-            if (count < 0 || !pany(shape_box(q + 2 * side, o, inv, live ? *t : PFLOAT(-1.0f)))) continue;
+            if (count < 0 || !pany(shape_box(q + 2 * side, o, inv, open ? *t : PFLOAT(-1.0f)))) continue;
             if (count == 0) { go |= 1 << side; continue; }
             const int s = side ? n->child_right : n->child_left;
-            const pint h = shape_intersect(shapes, s, o, d, PFLOAT(0.0f), *t, t, live);
-            *prim = h ? PINT(SHAPE_PRIM(s)) : *prim;
-            hit |= h;
+            pfloat th = *t;
+            const pint h = shape_intersect(shapes, s, o, d, PFLOAT(0.0f), *t, &th, open);
+            if (!any_hit) {
+                *t = h ? th : *t;
+                *prim = h ? PINT(SHAPE_PRIM(s)) : *prim;
+            }
+            found |= h;
         }
-        if (!shape_next(n, go, stack, &sp, &idx)) return hit;
+        if (!shape_next(n, go, stack, &sp, &idx)) return found;
     }
 }
 
-/* The lanes of `live` whose segment o + t d, t in (0, tmax), meets a shape. */
-RT_INLINE pint shapes_occluded(__global const BVHNode *shape_nodes, __global const Shape *shapes, pvec3 o, pvec3 d,
-                               pint live, pfloat tmax)
+/* The lanes of prim on a shape (the mask returned), each one's shape *s and its type *type (no
+ * gather where no lane is on one) */
+RT_INLINE pint shape_lanes(__global const Shape *shapes, pint prim, pint *s, pint *type)
 {
-    const pvec3 inv = pv3(shape_rcp(d.x), shape_rcp(d.y), shape_rcp(d.z));
-    int stack[BVH_STACK_SIZE], sp = 0, idx = 0;
-    pint blocked = PINT(0);
-    for (;;) {
-        __global const BVHNode *n = shape_nodes + idx;
-        __global const float4 *q = (__global const float4 *)n;
-        const pint open = live & pnot(blocked);
-        if (!pany(open)) return blocked;
-        int go = 0;
-        for (int side = 0; side < 2; ++side) {
-            const int count = side ? n->count_right : n->count_left;
-            if (count < 0 || !pany(shape_box(q + 2 * side, o, inv, open ? tmax : PFLOAT(-1.0f)))) continue;
-            if (count == 0) { go |= 1 << side; continue; }
-            pfloat th = tmax;
-            blocked |= shape_intersect(shapes, side ? n->child_right : n->child_left, o, d, PFLOAT(0.0f), tmax, &th,
-                                       live & pnot(blocked));
-        }
-        if (!shape_next(n, go, stack, &sp, &idx)) return blocked;
+    const pint shape = IS_SHAPE(prim);
+    *s = PINT(0);
+    *type = PINT(-1);
+    if (pany(shape)) {
+        *s = shape ? SHAPE_INDEX(prim) : PINT(0);
+        *type = SHAPE_TYPE(shapes, *s);
     }
+    return shape;
 }
 
 /* The lanes' hit points on shapes (prim: IS_SHAPE lanes; others keep *p, *err) */
 RT_INLINE void shape_hit_point(__global const Shape *shapes, pint prim, pvec3 o, pvec3 d, pfloat t, pvec3 *p,
                                pvec3 *err)
 {
-    const pint shape = IS_SHAPE(prim);
-    if (!pany(shape)) return;
-    const pint s = shape ? SHAPE_INDEX(prim) : PINT(0);
-    const pint type = SHAPE_TYPE(shapes, s);
+    pint s, type;
+    const pint shape = shape_lanes(shapes, prim, &s, &type);
 #define SHAPE_POINT_CASE(name, NAME)                                                                \
-    {                                                                                               \
+    if (pany(shape & (type == SHAPE_##NAME))) {                                                     \
         const pint sel = shape & (type == SHAPE_##NAME);                                            \
-        if (pany(sel)) {                                                                            \
-            pvec3 e;                                                                                \
-            const pvec3 q = shape_point_##name(shapes, s, sel, o, d, t, &e);                        \
-            *err = pv3_sel(*err, e, sel);                                                           \
-            *p = pv3_sel(*p, q, sel);                                                               \
-        }                                                                                           \
+        pvec3 e;                                                                                    \
+        const pvec3 q = shape_point_##name(shapes, s, sel, o, d, t, &e);                            \
+        *err = pv3_sel(*err, e, sel);                                                               \
+        *p = pv3_sel(*p, q, sel);                                                                   \
     }
     SHAPE_CASES(SHAPE_POINT_CASE)
 #undef SHAPE_POINT_CASE
-    (void)type;
+    (void)s;
 }
 
 /* The lanes' unit geometric normals on shapes at p (others keep *n) */
 RT_INLINE void shape_hit_normal(__global const Shape *shapes, pint prim, pvec3 p, pvec3 *n)
 {
-    const pint shape = IS_SHAPE(prim);
-    if (!pany(shape)) return;
-    const pint s = shape ? SHAPE_INDEX(prim) : PINT(0);
-    const pint type = SHAPE_TYPE(shapes, s);
+    pint s, type;
+    const pint shape = shape_lanes(shapes, prim, &s, &type);
 #define SHAPE_NORMAL_CASE(name, NAME)                                                               \
-    {                                                                                               \
-        const pint sel = shape & (type == SHAPE_##NAME);                                            \
-        if (pany(sel)) *n = pv3_sel(*n, shape_normal_##name(shapes, s, sel, p), sel);               \
-    }
+    if (pany(shape & (type == SHAPE_##NAME)))                                                       \
+        *n = pv3_sel(*n, shape_normal_##name(shapes, s, shape & (type == SHAPE_##NAME), p), shape & (type == SHAPE_##NAME));
     SHAPE_CASES(SHAPE_NORMAL_CASE)
 #undef SHAPE_NORMAL_CASE
-    (void)type;
+    (void)s;
 }
 
 /* A sample of the emissive shapes s of the lanes of `sel` seen from ref (m: their materials, area:

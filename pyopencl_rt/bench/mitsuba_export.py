@@ -85,9 +85,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..device import abi
-from ..scene.shapes import bounds as shape_bounds, shape_type
-
 if TYPE_CHECKING:
     from ..render.settings import ImageSettings
 
@@ -97,6 +94,7 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
     scene's own) and ``spp`` samples per pixel, for :func:`dict_from_arrays`."""
     from ..render.settings import ImageSettings  # here, not at the top: see the module docstring
     from ..scene.instances import flattened
+    from ..scene.shapes import bounds as shape_bounds, shape_type
 
     settings = settings or ImageSettings.resolve(scene)
     scene = flattened(scene)  # two-level instances: the moved copies the kernels draw
@@ -126,6 +124,11 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
         "environment": _environment_record(scene.environment, arrays),
         "media": _media_record(scene, arrays),
     }
+    if len(scene.shapes):  # each analytic shape as its type writes it for Mitsuba, and their box
+        lo, hi = shape_bounds(scene.shapes)
+        record["shapes"] = [shape_type(code).to_mitsuba(p) for p, code in zip(scene.shapes["params"],
+                                                                             scene.shapes["type"])]
+        record["shape_box"] = [lo.min(0).tolist(), hi.max(0).tolist()]
     if any(m.get("textured") for m in materials):  # per-corner (u, v); none given: all 0, as ours
         arrays["uvs"] = (np.zeros((len(scene.faces), 3, 2), np.float32) if scene.uvs is None
                          else np.asarray(scene.uvs, np.float32).reshape(-1, 3, 2))
@@ -133,8 +136,6 @@ def scene_arrays(scene, settings: ImageSettings | None = None, spp=None) -> dict
         "vertices": np.asarray(scene.vertices, np.float32),
         "faces": np.asarray(scene.faces, np.int32),
         "face_materials": np.asarray(scene.face_materials, np.int32),
-        "shape_params": np.asarray(scene.shapes["params"], np.float32).reshape(-1, 28),
-        "shape_types": np.asarray(scene.shapes["type"], np.int32),
         "shape_materials": np.asarray(scene.shape_materials, np.int32),
         "settings": json.dumps(record),
         **arrays,
@@ -402,10 +403,11 @@ def dict_from_arrays(arrays: dict, mi, tmpdir=None) -> dict:
             shape["emitter"] = emitter(m)
         d[name] = with_interface(shape, int(k))
     sif = arrays.get("shape_interfaces", np.full(len(arrays["shape_materials"]), -1, np.int32))
-    for i, (p, code, mi_index) in enumerate(zip(arrays["shape_params"], arrays["shape_types"],
-                                                arrays["shape_materials"])):
+    for i, (mitsuba_shape, mi_index) in enumerate(zip(s.get("shapes", []), arrays["shape_materials"])):
         m = mats[int(mi_index)]  # no texture coordinates on our analytic shapes: the factors alone
-        shape = {**shape_type(code).to_mitsuba(p), "bsdf": m.get("bsdf_plain", m["bsdf"])}
+        shape = {**mitsuba_shape, "bsdf": m.get("bsdf_plain", m["bsdf"])}
+        if "to_world" in shape:  # rows of a 4 x 4 matrix (a disk's)
+            shape["to_world"] = T(shape["to_world"])
         if max(m["emission"]) > 0:
             shape["emitter"] = emitter(m, textured=False)
         d[f"shape_{i}"] = with_interface(shape, int(sif[i]))
@@ -494,10 +496,9 @@ def _orthographic_to_world(s: dict, near: float) -> np.ndarray:
 
 def _scene_scale(arrays) -> float:
     pts = [np.asarray(arrays["vertices"], np.float64).reshape(-1, 3)]
-    if len(arrays["shape_types"]):
-        records = np.zeros(len(arrays["shape_types"]), abi.SHAPE)
-        records["params"], records["type"] = arrays["shape_params"], arrays["shape_types"]
-        pts.extend(shape_bounds(records))
+    box = json.loads(arrays["settings"]).get("shape_box")
+    if box is not None:
+        pts.append(np.asarray(box, np.float64))
     pts.append(np.asarray([json.loads(arrays["settings"])["eye"]], np.float64))
     allp = np.concatenate(pts)
     return float(max(np.ptp(allp, axis=0).max(), 1e-6))

@@ -215,7 +215,7 @@ def test_media_export_maps_every_part(tmp_path):
     itfs = [(i["interior"], i["exterior"], i["null"]) for i in s["interfaces"]]
     h, f, m, k = (names.index(n) for n in ("haze", "fog", "marble", "smoke"))
     assert itfs == [(h, -1, True), (f, h, True), (m, h, False), (k, h, True)]
-    assert arrays["sphere_interfaces"].tolist() == [0, 2] and set(arrays["face_interfaces"].tolist()) == {-1, 1, 3}
+    assert arrays["shape_interfaces"].tolist() == [0, 2] and set(arrays["face_interfaces"].tolist()) == {-1, 1, 3}
     scene.settings.spectral_mis = False
     assert json.loads(scene_arrays(scene)["settings"])["media"]["integrator"] == "volpath"
     scene.settings.spectral_mis = True

@@ -6,6 +6,7 @@ XML at test time (scalar_rgb)."""
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -119,3 +120,53 @@ def test_back_sides_are_black_as_mitsubas(tmp_path):
     ours, var = renders[False][:2]
     other, other_var = renders[True][2:]
     assert harness.tile_z(ours, var, other, other_var).max() > 10
+
+
+def _disk_light_scene(tmp_path) -> str:
+    """Lit by analytic disks alone: an emissive ellipse (a disk scaled 1.2 x 0.6 and tilted) over a
+    floor, a second emitter flipped (flip_normals: it emits upwards, onto a panel above it), a
+    diffuse disk tilted between them that casts a shadow, and a small sphere."""
+    lamp = ('<emitter type="area"><rgb name="radiance" value="{}"/></emitter>'
+            '<bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>')
+    body = f"""{harness.mitsuba_sensor("0, 3.5, 4.5", 45, W, H, max_depth=4, spp=32, target="0, 0.3, 0")}
+<shape type="disk">{lamp.format("6, 5, 4")}
+  <transform name="to_world"><scale x="1.2" y="0.6"/><rotate x="1" angle="110"/><translate x="-0.6" y="2.2" z="0.3"/></transform></shape>
+<shape type="disk">{lamp.format("2, 3, 6")}<boolean name="flip_normals" value="true"/>
+  <transform name="to_world"><scale value="0.35"/><rotate x="1" angle="90"/><translate x="1.6" y="0.4" z="-0.4"/></transform></shape>
+<shape type="rectangle"><bsdf type="diffuse"><rgb name="reflectance" value="0.6"/></bsdf>
+  <transform name="to_world"><scale value="0.8"/><rotate x="1" angle="90"/><translate x="1.6" y="1.6" z="-0.4"/></transform></shape>
+<shape type="disk"><bsdf type="twosided"><bsdf type="diffuse"><rgb name="reflectance" value="0.7, 0.4, 0.3"/></bsdf></bsdf>
+  <transform name="to_world"><scale value="0.5"/><rotate x="1" angle="-60"/><rotate y="1" angle="30"/><translate x="-0.4" y="0.9" z="0.5"/></transform></shape>
+<shape type="sphere"><point name="center" x="0.6" y="0.35" z="0.8"/><float name="radius" value="0.35"/>
+  <bsdf type="diffuse"><rgb name="reflectance" value="0.3, 0.6, 0.4"/></bsdf></shape>
+<shape type="rectangle"><bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>
+  <transform name="to_world"><scale value="4"/><rotate x="1" angle="-90"/></transform></shape>
+"""
+    return harness.write_mitsuba_scene(tmp_path / "disk_lights.xml", body)
+
+
+def test_disk_lights_as_mitsubas(tmp_path):
+    """96 x 64: the scene above, every disk analytic here (scene/shapes/disk.py), against Mitsuba's
+    render (8 batches of 32 spp; ours 256 spp), every 8 x 8 tile within 4.5 sigma (measured: 1.9;
+    the mean 0.9997 of Mitsuba's).
+    The same scene with the lamps turned over (flip_normals toggled on both) differs by more than
+    10 sigma in some tile (measured: 606): the comparison sees the sides that emit."""
+    mi = harness.mitsuba()
+    path = _disk_light_scene(tmp_path)
+    theirs, their_var = harness.mitsuba_batches(mi, path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        scene = load_scene(path)
+    assert len(scene.shapes) == 4 and len(scene.faces) == 4  # three disks and a sphere; two rectangles
+    r = rt.render_full(scene, spp=256, device="cpu", seed=5)
+    ours, var = r.image.astype(np.float64), r.film.variance_of_mean()
+    z = harness.tile_z(ours, var, theirs, their_var)
+    assert z.max() < 4.5, np.round(z.max(-1), 1)
+    text = Path(path).read_text()
+    turned = text.replace('<rotate x="1" angle="110"/>', '<rotate x="1" angle="-70"/>').replace(
+        '<boolean name="flip_normals" value="true"/>', "")
+    body = turned[len('<scene version="3.0.0">'):-len("</scene>\n")]
+    flipped = rt.render_full(load_scene(harness.write_mitsuba_scene(tmp_path / "turned.xml", body)), spp=256,
+                             device="cpu", seed=5)
+    z_flipped = harness.tile_z(flipped.image.astype(np.float64), flipped.film.variance_of_mean(), theirs, their_var)
+    assert z_flipped.max() > 10

@@ -230,9 +230,22 @@ def test_shapes(tmp_path):
     assert len(sphere_of(s.shapes)) == 0 and np.allclose(s.vertices.max(0), [1, 1, 2], atol=1e-3)
     s, w = world(tmp_path, 'Shape "sphere" "float radius" 2 "float zmin" 0')  # a hemisphere
     assert np.isclose(area(s), 2 * math.pi * 4, rtol=0.01) and s.vertices[:, 2].min() >= -1e-6
-    s, w = world(tmp_path, 'Shape "disk" "float radius" 2 "float height" 1')
-    assert np.isclose(area(s), 4 * math.pi) and np.allclose(front_normals(s), [0, 0, 1])
-    assert np.allclose(s.vertices[:, 2], 1)
+    s, w = world(tmp_path, 'Shape "disk" "float radius" 2 "float height" 1')  # analytic (scene/shapes/disk.py)
+    p = s.shapes["params"][0].astype(np.float64)
+    assert len(s.faces) == 0 and np.isclose(p[27], 4 * math.pi) and np.allclose(p[24:27], [0, 0, 1])
+    assert np.allclose(p[:12].reshape(3, 4)[:, 3], [0, 0, 1])
+    textured = ('Texture "c" "spectrum" "checkerboard" "float uscale" 2 '
+                'Material "diffuse" "texture reflectance" "c" ')
+    for prefix in ("", "ReverseOrientation ", "Scale 1 1 -1 ", "ReverseOrientation Scale 1 -1 1 Rotate 30 1 0 0 "):
+        disk = 'Shape "disk" "float radius" 2 "float height" 1'
+        analytic = world(tmp_path, prefix + disk)[0].shapes["params"][0].astype(np.float64)
+        mesh = world(tmp_path, textured + prefix + disk)[0]  # a textured disk: pbrt's triangles with its uv
+        assert len(mesh.faces) >= 64 and np.isclose(area(mesh), analytic[27], rtol=1e-6), prefix
+        assert np.allclose(front_normals(mesh), analytic[24:27], atol=1e-6), prefix  # the same front
+        box_centre = (mesh.vertices.min(0) + mesh.vertices.max(0)) / 2
+        assert np.allclose(box_centre, analytic[:12].reshape(3, 4)[:, 3], atol=1e-5), prefix
+    s, w = world(tmp_path, 'Shape "disk" "float radius" 2 "float innerradius" 1')  # an annulus: triangles
+    assert len(s.shapes) == 0 and np.isclose(area(s), 3 * math.pi)
     s, w = world(tmp_path, 'Shape "cylinder" "float radius" 0.5 "float zmin" 0 "float zmax" 2')
     assert np.isclose(area(s), 2 * math.pi * 0.5 * 2)
     s, w = world(tmp_path, 'Shape "loopsubdiv" "integer levels" 2 "point3 P" [0 0 0 1 0 0 0 1 0] '

@@ -17,7 +17,8 @@ import numpy as np
 from ..media import MediumInterface
 from ..model import Material, RenderSettings
 from ..pixel_filter import PixelFilter
-from .builder import EnvMap, SceneBuilder, camera_from_matrix, error_at, sphere_mesh, transform_points
+from .builder import EnvMap, SceneBuilder, camera_from_matrix, disk_mesh, error_at, sphere_mesh, transform_points
+from ..shapes import REGISTRY as SHAPES
 from .instancing import add_instance
 from . import pbrt as _pbrt
 from .pbrt import Directive, MissingFile, Parser
@@ -539,10 +540,18 @@ class _Importer(Transforms):
             if geometry is None:
                 return
             m = None
-        if isinstance(geometry[0], str):  # ("sphere", radius)
+        quadric = geometry[0] if isinstance(geometry[0], str) else None
+        if quadric == "sphere":  # ("sphere", radius)
             _, radius = geometry
             self._sphere(transform_points(m, [0, 0, 0])[0], radius, m, mat, d.pos, flip, interface)
             return
+        if quadric == "disk":  # ("disk", radius, height): analytic, its front as a mesh's would be
+            to_world = m @ np.diag([geometry[1], geometry[1], 1.0, 1.0])
+            to_world[:3, 3] += m[:3, 2] * geometry[2]
+            if not mat.textures():  # ours have no uv: a textured one is pbrt's triangles (disk_mesh)
+                self.b.add_shape("disk", SHAPES["disk"].params(to_world, flip), mat, interface=interface)
+                return
+            geometry = disk_mesh(geometry[1], 0.0, geometry[2], 360.0)
         v, f, uv, *rest = geometry
         normals = rest[0] if rest else None
         self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=normals, interface=interface)

@@ -1,6 +1,7 @@
 """pbrt-v4 shapes in object space: ``trianglemesh``, ``bilinearmesh`` (as triangles), ``plymesh``,
 ``loopsubdiv`` (Loop subdivision: subdivision.py), ``sphere`` (ours when whole and evenly scaled,
-else triangles), ``disk`` and ``cylinder`` (triangles).
+else triangles), ``disk`` (ours, scene/shapes/disk.py, when whole, else triangles) and ``cylinder``
+(triangles).
 
 Texture coordinates become ours as (u, 1 - v): pbrt-v4's image textures look up (s, 1 - t) with
 row 0 at the top of the image, ours (u, v) with row 0 at the top.
@@ -97,9 +98,11 @@ def shape_geometry(imp, d):
             return v, f, uv, _unit(np.asarray(v, np.float64))[f]
         return ("sphere", radius)
     if t == "disk":
-        radius = p.float("radius", 1.0)
-        return disk_mesh(radius, p.float("innerradius", 0.0), p.float("height", 0.0),
-                         min(p.float("phimax", 360.0), 360.0))
+        radius, inner, height = p.float("radius", 1.0), p.float("innerradius", 0.0), p.float("height", 0.0)
+        phimax = min(p.float("phimax", 360.0), 360.0)
+        if inner <= 0 and phimax >= 360 and radius > 0:
+            return ("disk", radius, height)  # a full disk: our analytic one (scene/shapes/disk.py)
+        return disk_mesh(radius, inner, height, phimax)
     if t == "cylinder":
         v, f, uv = cylinder_mesh(p.float("radius", 1.0), p.float("zmin", -1.0), p.float("zmax", 1.0),
                                  min(p.float("phimax", 360.0), 360.0))

@@ -10,7 +10,7 @@ import dataclasses
 
 import numpy as np
 
-from .builder import error_at, rotate, scale, translate
+from .builder import disk_mesh, error_at, rotate, scale, translate
 from .instancing import add_instance
 from .pbrt_film import shutter
 
@@ -145,6 +145,8 @@ class Transforms:
         geometry = shape_geometry(self, d)
         if geometry is None:
             return
+        if isinstance(geometry[0], str) and geometry[0] == "disk":  # moved as its triangles (a moving instance draws triangles)
+            geometry = disk_mesh(geometry[1], 0.0, geometry[2], 360.0)
         if isinstance(geometry[0], str):
             raise error_at(d.pos, f"{what}: motion blur of an analytic sphere is not supported")
         v, f, uv, *rest = geometry
