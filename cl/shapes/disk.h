@@ -8,8 +8,8 @@
  * the transform's rounding, whose bound is the error (a few ulps of |M| |(x, y, 0)| + |translation|).
  * As an emitter it is sampled uniformly in area (the concentric map), pdf dist^2 / (area |cos|),
  * one-sided unless its material is two-sided.  Compiled with HAS_SHAPE_DISK. */
-#ifndef PYOPENCL_RT_SHAPE_DISK_H
-#define PYOPENCL_RT_SHAPE_DISK_H
+#ifndef PYOPENCL_RT_DISK_H
+#define PYOPENCL_RT_DISK_H
 
 #include "scene/shape_lanes.h"
 

@@ -5,8 +5,8 @@
  * point outside, with p the ray's hit toward that direction (the cone keeps precision for small,
  * far spheres), and uniformly in area from a point inside (pdf by the area, as a triangle's).
  * Compiled with HAS_SHAPE_SPHERE. */
-#ifndef PYOPENCL_RT_SHAPE_SPHERE_H
-#define PYOPENCL_RT_SHAPE_SPHERE_H
+#ifndef PYOPENCL_RT_SPHERE_H
+#define PYOPENCL_RT_SPHERE_H
 
 #include "scene/shape_lanes.h"
 
