@@ -17,8 +17,9 @@
  * out up to 10% darker than picking alone gives; tests/render/test_mix.py checks ours against picks).
  * Nested mixes are resolved by picks alone (pbrt-v4's way), which is unbiased too.
  *
- * Record (abi.MATERIAL): metallic the weight w, rates[0] / rates[1] the indices of a and b (floats);
- * tex_scalar's TEXP_METALLIC slot a texture whose R multiplies w (triangles: its luminance, as
+ * Record (abi.MATERIAL): its block in `table` (pyopencl_rt/scene/materials/mix.py), MIX_WEIGHT the
+ * weight w, MIX_FIRST / MIX_SECOND the indices of a and b (floats);
+ * tex_scalar's TEXP_MIX_WEIGHT slot a texture whose R multiplies w (triangles: its luminance, as
  * Mitsuba's eval_1); with MATERIAL_FLAG_VERTEX_COLOR the luminance of the triangle's interpolated
  * colours multiplies it (Mitsuba's mesh_attribute as the weight).  w is clamped to [0, 1].
  *
@@ -34,6 +35,9 @@
 #ifdef HAS_MATERIAL_MIX
 
 #define MIX_MAX_DEPTH 8
+#define MIX_WEIGHT 0 /* Material.table entries */
+#define MIX_FIRST 1
+#define MIX_SECOND 2
 
 /* w of the lanes' mix records (float index i of each record) at their hits (lanes of `active`) */
 RT_INLINE pfloat mix_eval(__global const Material *materials, __global const float2 *tri_uv,
@@ -42,14 +46,14 @@ RT_INLINE pfloat mix_eval(__global const Material *materials, __global const flo
 {
     __global const float *f = (__global const float *)materials;
     __global const int *ints = (__global const int *)materials;
-    pfloat w = pgather(f, i + FIELD_INDEX(Material, metallic));
+    pfloat w = pgather(f, i + FIELD_INDEX(Material, table) + MIX_WEIGHT);
 #ifdef HAS_TEXTURES
     const pint tri = active & pnot(IS_SHAPE(prim));
     const pint textured = tri & (pgather_int(ints, i + FIELD_INDEX(Material, tex_scalar)) >= 0);
     if (pany(textured)) {
         for (int k = 0; k < PACKET_WIDTH; ++k) {
             if (PLANE_I(textured, k))
-                PLANE(w, k) = tex_scalar_times(PLANE(w, k), ints + PLANE_I(i, k), TEXP_METALLIC, tri_uv, textures,
+                PLANE(w, k) = tex_scalar_times(PLANE(w, k), ints + PLANE_I(i, k), TEXP_MIX_WEIGHT, tri_uv, textures,
                                                tex_data, PLANE_I(prim, k), PLANE(u, k), PLANE(v, k));
         }
     }
@@ -89,8 +93,8 @@ RT_INLINE pint mix_sample(__global const Material *materials, __global const flo
         /* the part um fell in, stretched back to [0, 1) */
         const pfloat rest = second ? um / w : (um - w) / (1.0f - w);
         um = mixed ? pfmin(rest, PFLOAT(0x1.fffffep-1f)) : um;
-        const pint ia = convert_pint(pgather(f, i + FIELD_INDEX(Material, rates)));
-        const pint ib = convert_pint(pgather(f, i + FIELD_INDEX(Material, rates) + 1));
+        const pint ia = convert_pint(pgather(f, i + FIELD_INDEX(Material, table) + MIX_FIRST));
+        const pint ib = convert_pint(pgather(f, i + FIELD_INDEX(Material, table) + MIX_SECOND));
         const pint child = second ? ib : ia;
         if (level == 0) {
             const pint ok = mixed & (ia >= 0) & (ib >= 0);

@@ -103,10 +103,9 @@ assert TRIANGLE.itemsize == 48
 #   rates        principled: the sampling rates of the main specular lobe, the clearcoat and
 #                the diffuse reflection (4th unused); principledthin: of the specular
 #                reflection, specular transmission, diffuse transmission and diffuse reflection
-#   table        roughplastic: the rough interface's external transmittance at cos(theta) =
-#                k / 63, k = 0..63 (Mitsuba's table, interpolated linearly); coatedconductor: its
-#                layer's parameter block, COATED_* of cl/materials/coatedconductor.h
-#   (mix: metallic the blend weight, rates[0..1] the blended records' indices as floats; cl/materials/mix.h)
+#   table        a type's own block: roughplastic's external transmittance at cos(theta) = k / 63, k = 0..63
+#                (Mitsuba's table, interpolated linearly); coatedconductor's layer (COATED_* of its header);
+#                mix's weight and blended records' indices (MIX_* of cl/materials/mix.h)
 MATERIAL_TYPES = define_enum("MATERIAL_", ("diffuse", "conductor", "dielectric", "gltf", "plastic", "roughplastic",
                                            "principled", "principledthin", "mix", "roughdiffuse", "coatedconductor",
                                            "diffusetransmission"))
@@ -162,6 +161,7 @@ _TEXP = define_enum("TEXP_", ("alpha", "roughness", "metallic", "anisotropic", "
  TEXP_SHEEN_TINT, TEXP_CLEARCOAT, TEXP_CLEARCOAT_GLOSS, TEXP_FLATNESS, TEXP_DIFF_TRANS, TEXP_ETA, TEXP_ALPHA_V) = \
     _TEXP.values()
 _TEXP["opacity"] = TEXP_OPACITY = define("TEXP_OPACITY", len(_TEXP))  # Material.opacity (mask, cut-out)
+_TEXP["mix_weight"] = TEXP_MIX_WEIGHT = define("TEXP_MIX_WEIGHT", len(_TEXP))  # a mix's weight (in its table)
 TEXTURE_PARAMS = {k: "ior" if name == "eta" else name for name, k in _TEXP.items()}
 #   tex_normal    a tangent-space normal map (RGB = (n + 1) / 2, relative to the shading frame), or
 #                 with MATERIAL_FLAG_BUMP_MAP a height map (its luminance), perturbing the

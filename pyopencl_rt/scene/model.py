@@ -113,9 +113,10 @@ class Material:
     cutout: bool = False
     alpha_cutoff: float = 0.0
     # mix (Mitsuba's blendbsdf, pbrt's mix): the two blended Materials (each also in Scene.materials,
-    # which Scene adds); the weight is ``metallic`` (times scalar_textures["metallic"], or with
+    # which Scene adds) and the weight of the second (times scalar_textures["mix_weight"], or with
     # vertex_colors the interpolated colours' luminance)
     blend: tuple = ()
+    mix_weight: float = 0.5
 
 
     def textures(self) -> list:
@@ -196,9 +197,11 @@ class Material:
         rec["normal_scale"] = self.normal_scale
         rec["opacity"] = min(max(float(self.opacity), 0.0), 1.0) if self.masked or self.cutout else 0.0  # with a flag only
         rec["alpha_cutoff"] = float(self.alpha_cutoff) if self.cutout else 0.0
-        if self.type == "mix":
-            rec["rates"][:2] = [(material_index or {}).get(id(m), -1) for m in self.blend]
-            if material_index is not None and min(rec["rates"][:2]) < 0:
+        if self.type == "mix":  # the blended records' indices in its block (scene/materials/mix.py)
+            from .materials.mix import BLENDED
+
+            rec["table"][BLENDED] = [(material_index or {}).get(id(m), -1) for m in self.blend]
+            if material_index is not None and min(rec["table"][BLENDED]) < 0:
                 raise ValueError(f"material {self.name!r}: a material it blends is not among the scene's materials")
         flags = int(rec["flags"]) | (abi.MATERIAL_FLAG_VERTEX_COLOR if self.vertex_colors else 0)
         flags |= (abi.MATERIAL_FLAG_MASK if self.masked else 0) | (abi.MATERIAL_FLAG_ONE_SIDED if self.one_sided else 0)

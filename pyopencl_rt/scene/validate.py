@@ -261,7 +261,7 @@ def check_textures(scene) -> None:
         uv_only = [("emission", m.emission_texture), ("normal or bump map", m.normal_texture),
                    ("opacity", m.scalar_textures.get("opacity"))]
         if m.type == "mix":
-            uv_only.append(("blend weight", m.scalar_textures.get("metallic")))
+            uv_only.append(("blend weight", m.scalar_textures.get("mix_weight")))
         for what, t in uv_only:
             if t is not None and getattr(t, "mapping", "uv") != "uv":
                 _fail(scene, f"material {m.name!r}: a {t.mapping.replace('_', '')} texture ({t.name}) as its {what} "

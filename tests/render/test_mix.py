@@ -162,8 +162,8 @@ radius = 1
     scene = rt.load_scene(tmp_path / "m.toml")
     recs, names = _records(scene)
     ab = recs[names.index("ab")]
-    assert ab["type"] == abi.MATERIAL_MIX and np.isclose(ab["metallic"], 0.25)
-    assert list(ab["rates"][:2]) == [names.index("a"), names.index("b")]
+    assert ab["type"] == abi.MATERIAL_MIX and np.isclose(ab["table"][0], 0.25)  # its block: weight, a, b
+    assert list(ab["table"][1:3]) == [names.index("a"), names.index("b")]
     assert scene.material_defines().get("HAS_MATERIAL_MIX")
     bsdf = scene.materials[names.index("ab")].mitsuba_bsdf()  # the export (bench compare)
     assert (bsdf["type"], bsdf["weight"], bsdf["bsdf_1"]["type"]) == ("blendbsdf", 0.25, "roughconductor")
@@ -190,5 +190,5 @@ Shape "sphere" "float radius" 1
     mix = [i for i, m in enumerate(scene.materials) if m.type == "mix"]
     assert len(mix) == 1
     rec = recs[mix[0]]
-    assert np.isclose(rec["metallic"], 0.7)
-    assert [scene.materials[int(i)].name for i in rec["rates"][:2]] == ["red", "metal"]
+    assert np.isclose(rec["table"][0], 0.7)
+    assert [scene.materials[int(i)].name for i in rec["table"][1:3]] == ["red", "metal"]

@@ -117,7 +117,12 @@ def rough(distribution, alpha, eta):
 def coated(metal, ior, layer):
     """coatedconductor's metal (eta, k in air) under a coating of index ior, and its layer's block"""
     eta, k = (tuple(float(x) / ior for x in v) for v in metal)
-    return {"eta": eta, "k": k, "table": tuple(layer) + (0,) * (abi.ROUGH_TRANSMITTANCE_RES - len(layer))}
+    return {"eta": eta, "k": k, "table": block(*layer)}
+
+
+def block(*values):
+    """A type's own block in ``table`` (coatedconductor's layer, a mix's weight and blended records)"""
+    return tuple(values) + (0,) * (abi.ROUGH_TRANSMITTANCE_RES - len(values))
 
 
 def texp(*names):
@@ -213,9 +218,9 @@ CASES = [  # (type, TOML keys, expected record fields)
     ("diffusetransmission", {}, {"albedo": (0.25, 0.25, 0.25), "specular": (0.25, 0.25, 0.25)}),
     ("diffusetransmission", {"reflectance": [0.5, 0.25, 0.125], "reflectance_texture": "t.png", "transmittance": 0.75},
      {"albedo": (0.5, 0.25, 0.125), "tex_base": 0, "specular": (0.75, 0.75, 0.75)}),
-    ("mix", {}, {"metallic": 0.5, "rates": (1, 2, 0, 0)}),
+    ("mix", {}, {"table": block(0.5, 1, 2)}),
     ("mix", {"materials": ["b", "a"], "weight": 0.25, "weight_texture": "t.png"},
-     {"metallic": 0.25, "rates": (2, 1, 0, 0), "tex_scalar": (0, -1, -1, -1, -1, -1), "tex_params": texp("metallic")}),
+     {"table": block(0.25, 2, 1), "tex_scalar": (0, -1, -1, -1, -1, -1), "tex_params": texp("mix_weight")}),
 ]
 # the keys every type takes, and what they do to the record
 # (emission_directional true packs emission 0 and makes the light a directional area one, which

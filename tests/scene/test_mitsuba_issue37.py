@@ -184,8 +184,8 @@ def test_blend_bitmap_weight_is_mitsubas_eval_1(tmp_path, raw):
         scene, warned = load(path)
         assert warned == []
         mat = next(m for m in scene.materials if m.type == "mix")
-        tex = mat.scalar_textures["metallic"]
-        ours = mat.metallic * lookup(tex.texels, uv, tex.wrap, tex.filter, tex.to_uv)[:, 0]
+        tex = mat.scalar_textures["mix_weight"]
+        ours = mat.mix_weight * lookup(tex.texels, uv, tex.wrap, tex.filter, tex.to_uv)[:, 0]
         bitmap = mi.load_dict({"type": "bitmap", "filename": str(tmp_path / fname), "raw": raw})
         theirs = []
         for u, v in uv:

@@ -411,13 +411,13 @@ class BsdfMapper:
         attribute = None
         if p is not None and p.kind == "object" and p.value.tag == "texture" and p.value.type == "mesh_attribute":
             attr = self.texture(p.value, scalar=True)
-            attribute, mat.vertex_colors, mat.metallic = attr.name, True, float(attr.scale)
+            attribute, mat.vertex_colors, mat.mix_weight = attr.name, True, float(attr.scale)
             obj.used.add("weight")
         else:
-            mat.metallic = float(self._scalar(obj, mat, "weight", 0.5, field="metallic"))
-        if not 0.0 <= mat.metallic <= 1.0 and "metallic" not in mat.scalar_textures:
-            self.imp.warn(obj.node.pos, f"{obj.label()}: weight {mat.metallic:g} clamped to [0, 1]")
-            mat.metallic = min(max(mat.metallic, 0.0), 1.0)
+            mat.mix_weight = float(self._scalar(obj, mat, "weight", 0.5, field="mix_weight"))
+        if not 0.0 <= mat.mix_weight <= 1.0 and "mix_weight" not in mat.scalar_textures:
+            self.imp.warn(obj.node.pos, f"{obj.label()}: weight {mat.mix_weight:g} clamped to [0, 1]")
+            mat.mix_weight = min(max(mat.mix_weight, 0.0), 1.0)
         # the shape's colours: the weight's attribute, else a blended BSDF's (one attribute per shape)
         wanted = {a for a in [attribute] + [self.attribute(m) for m in mat.blend] if a is not None}
         if len(wanted) > 1:

@@ -498,14 +498,14 @@ class MaterialMapper:
         amount = p.get("amount")
         if amount is not None and amount.type == "texture":
             rgb, texture = self.color(p, "amount", (0.5, 0.5, 0.5))
-            mat.metallic = float(np.dot(rgb, (0.212671, 0.715160, 0.072169)))
+            mat.mix_weight = float(np.dot(rgb, (0.212671, 0.715160, 0.072169)))
             if texture is not None:
-                mat.scalar_textures["metallic"] = scalar_texture(texture)
+                mat.scalar_textures["mix_weight"] = scalar_texture(texture)
         else:
-            mat.metallic = p.float("amount", 0.5)
-        if not 0.0 <= mat.metallic <= 1.0:
-            self.imp.warn(pos, f"{what}: amount {mat.metallic:g} clamped to [0, 1]")
-            mat.metallic = min(max(mat.metallic, 0.0), 1.0)
+            mat.mix_weight = p.float("amount", 0.5)
+        if not 0.0 <= mat.mix_weight <= 1.0:
+            self.imp.warn(pos, f"{what}: amount {mat.mix_weight:g} clamped to [0, 1]")
+            mat.mix_weight = min(max(mat.mix_weight, 0.0), 1.0)
         return mat
 
     def _eta(self, p, what, key="eta") -> float:

@@ -28,27 +28,31 @@ def read_toml(material, table) -> None:
     if not (isinstance(names, list) and len(names) == 2 and all(isinstance(n, str) for n in names)):
         raise table.error(f"'materials' must name the two blended materials, as [\"a\", \"b\"], got {names!r}")
     material.params["materials"] = tuple(names)
-    material.metallic = table.number("weight", 0.5, minimum=0.0, maximum=1.0)
+    material.mix_weight = table.number("weight", 0.5, minimum=0.0, maximum=1.0)
     texture = table.texture("weight_texture", srgb=False)
     if texture is not None:
-        material.scalar_textures["metallic"] = scalar_texture(texture)
+        material.scalar_textures["mix_weight"] = scalar_texture(texture)
+
+
+# its block in Material.table, in cl/materials/mix.h's MIX_* order: the weight, then the two blended
+# records' indices (floats, exact below 2^24), which Material.record writes (it knows the scene's materials)
+WEIGHT, BLENDED = 0, slice(1, 3)
 
 
 def pack(material, record) -> None:
-    """The weight in ``metallic``; the blended records' indices (``rates``) are written by
-    :meth:`Material.record`, which knows the scene's materials."""
+    """The weight in its block (``table``)."""
     if len(material.blend) != 2:
         raise ValueError(f"material {material.name!r}: a mix needs its two materials (Material.blend)")
-    record["metallic"] = min(max(float(material.metallic), 0.0), 1.0)
+    record["table"][WEIGHT] = min(max(float(material.mix_weight), 0.0), 1.0)
 
 
 def to_mitsuba(material) -> dict:
     """Mitsuba's blendbsdf of the two materials' BSDFs (a constant weight only)."""
-    if "metallic" in material.scalar_textures or material.vertex_colors:
+    if "mix_weight" in material.scalar_textures or material.vertex_colors:
         raise ValueError(f"material {material.name!r}: a textured mix weight is not exported to Mitsuba")
     for m in material.blend:
         if m.textures() or m.masked or m.one_sided or m.vertex_colors:
             raise ValueError(f"material {material.name!r}: a textured, masked or one-sided material in a mix "
                              "is not exported to Mitsuba")
-    return {"type": "blendbsdf", "weight": float(material.metallic),
+    return {"type": "blendbsdf", "weight": float(material.mix_weight),
             "bsdf_0": material.blend[0].mitsuba_bsdf(), "bsdf_1": material.blend[1].mitsuba_bsdf()}
