@@ -1,8 +1,8 @@
 /* Diffuse reflection and transmission ("diffusetransmission"): pbrt-v4's DiffuseTransmissionBxDF, a
  * thin sheet (paper, a lampshade, leaves) that scatters Lambertian on both sides.
  *
- * Parameters (Material fields): albedo the reflectance R, specular the transmittance T (linear RGB
- * in [0, 1]).
+ * Parameters (Material fields): albedo the reflectance R, and T, the transmittance, at DT_TRANSMITTANCE
+ * of its block in `table` (pyopencl_rt/scene/materials/diffusetransmission.py; linear RGB in [0, 1]).
  *
  *   f(wo, wi) = R / pi with wo and wi on the same side, T / pi on opposite sides (no refraction: the
  *   relative index is 1)
@@ -23,10 +23,13 @@ typedef struct {
     pfloat pr; /* the probability of sampling reflection; -1 where R and T are 0 */
 } DiffuseTransmissionParams;
 
+#define DT_TRANSMITTANCE 0 /* Material.table entries 0, 1, 2 */
+
 RT_INLINE DiffuseTransmissionParams diffusetransmission_params(const MaterialLanes *m)
 {
-    DiffuseTransmissionParams p = {.r = m->albedo, .t = m->specular};
-    const pfloat mr = pv3_max3(m->albedo), mt = pv3_max3(m->specular);
+    DiffuseTransmissionParams p = {.r = m->albedo,
+                                   .t = pv3_gather(m->records, m->rec + FIELD_INDEX(Material, table) + DT_TRANSMITTANCE)};
+    const pfloat mr = pv3_max3(p.r), mt = pv3_max3(p.t);
     p.pr = mr + mt > 0.0f ? mr / (mr + mt) : PFLOAT(-1.0f);
     return p;
 }

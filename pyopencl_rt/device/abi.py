@@ -82,7 +82,7 @@ assert TRIANGLE.itemsize == 48
 #             it, alpha_v along the bitangent; bit 13 (MATERIAL_FLAG_SEPARABLE): conductor, dielectric:
 #             Mitsuba's separable shadowing-masking G1(wo) G1(wi) (else height-correlated)
 #   specular  conductor: F0 (with MATERIAL_FLAG_CONDUCTOR_F0); dielectric: tint of both lobes;
-#             plastic, roughplastic: specular_reflectance; diffusetransmission: transmittance
+#             plastic, roughplastic: specular_reflectance
 #   alpha     microfacet roughness alpha (conductor, dielectric: alpha_u with
 #             MATERIAL_FLAG_ANISOTROPIC; gltf: GGX; < 1e-3 is perfectly smooth);
 #             roughplastic: the distribution's alpha (clamped to >= 1e-4, as Mitsuba's)
@@ -104,8 +104,8 @@ assert TRIANGLE.itemsize == 48
 #                the diffuse reflection (4th unused); principledthin: of the specular
 #                reflection, specular transmission, diffuse transmission and diffuse reflection
 #   table        a type's own block: roughplastic's external transmittance at cos(theta) = k / 63, k = 0..63
-#                (Mitsuba's table, interpolated linearly); coatedconductor's layer (COATED_* of its header);
-#                mix's weight and blended records' indices (MIX_* of cl/materials/mix.h)
+#                (Mitsuba's table, linearly interpolated); the COATED_*, MIX_*, DT_* entries of its header for
+#                coatedconductor's layer, mix's weight and blended records, diffusetransmission's transmittance
 MATERIAL_TYPES = define_enum("MATERIAL_", ("diffuse", "conductor", "dielectric", "gltf", "plastic", "roughplastic",
                                            "principled", "principledthin", "mix", "roughdiffuse", "coatedconductor",
                                            "diffusetransmission"))

@@ -15,7 +15,7 @@ R, T = (0.2, 0.5, 0.1), (0.6, 0.3, 0.9)
 
 
 def sheet(r=R, t=T):
-    return Material("dt", type="diffusetransmission", albedo=r, tint=t)
+    return Material("dt", type="diffusetransmission", albedo=r, params={"transmittance": t})
 
 
 def _sphere(rng, n):
@@ -62,12 +62,13 @@ def test_pbrt_front_end(tmp_path):
         return load_scene(tmp_path / "d.pbrt")
 
     m = load('Material "diffusetransmission"').materials[0]
-    assert m.type == "diffusetransmission" and m.albedo == (0.25,) * 3 and m.tint == (0.25,) * 3  # pbrt's defaults
+    assert m.type == "diffusetransmission" and m.albedo == (0.25,) * 3 and m.params["transmittance"] == (0.25,) * 3  # pbrt's
     m = load('Material "diffusetransmission" "rgb reflectance" [0.5 0.2 0.9] "rgb transmittance" [0.1 0.6 0.3] '
              '"float scale" 1.5').materials[0]
-    assert np.allclose(m.albedo, (0.75, 0.3, 1.0)) and np.allclose(m.tint, (0.15, 0.9, 0.45))  # scaled, clamped
+    assert np.allclose(m.albedo, (0.75, 0.3, 1.0)) and np.allclose(m.params["transmittance"], (0.15, 0.9, 0.45))
     rec = m.record()
-    assert np.allclose(rec["albedo"], m.albedo) and np.allclose(rec["specular"], m.tint) and rec["ior"] == 0
+    assert np.allclose(rec["albedo"], m.albedo) and np.allclose(rec["table"][:3], m.params["transmittance"])
+    assert rec["ior"] == 0 and not rec["specular"].any()  # the transmittance in its block, no other field
     with pytest.raises(SceneError, match="texture transmittance"):
         load('Texture "t" "spectrum" "constant" "rgb value" [0.5 0.5 0.5]\n'
              'Material "diffusetransmission" "texture transmittance" "t"')

@@ -215,9 +215,9 @@ CASES = [  # (type, TOML keys, expected record fields)
       **coated(((0.2, 0.4, 1.4), (3.0, 2.0, 1.5)), 1.5, (0.3, 0.4, 0.01, 10, 1))}),
     ("coatedconductor", {"alpha": 0.3, "reflectance": 0.5, "conductor_alpha": 0.2},  # pbrt's k = 2 sqrt(r / (1 - r))
      {"alpha": 0.3, "ior": 1.5, **coated(((1, 1, 1), (2, 2, 2)), 1.5, (0.2, 0.2, 0.01, 10, 1))}),
-    ("diffusetransmission", {}, {"albedo": (0.25, 0.25, 0.25), "specular": (0.25, 0.25, 0.25)}),
+    ("diffusetransmission", {}, {"albedo": (0.25, 0.25, 0.25), "table": block(0.25, 0.25, 0.25)}),
     ("diffusetransmission", {"reflectance": [0.5, 0.25, 0.125], "reflectance_texture": "t.png", "transmittance": 0.75},
-     {"albedo": (0.5, 0.25, 0.125), "tex_base": 0, "specular": (0.75, 0.75, 0.75)}),
+     {"albedo": (0.5, 0.25, 0.125), "tex_base": 0, "table": block(0.75, 0.75, 0.75)}),
     ("mix", {}, {"table": block(0.5, 1, 2)}),
     ("mix", {"materials": ["b", "a"], "weight": 0.25, "weight_texture": "t.png"},
      {"table": block(0.25, 2, 1), "tex_scalar": (0, -1, -1, -1, -1, -1), "tex_params": texp("mix_weight")}),

@@ -429,7 +429,8 @@ class MaterialMapper:
             if mat.base_texture is not None and scale > 1:
                 raise error_at(pos, f"{what}: a reflectance texture with scale > 1 is not supported")
             t = spectrum_rgb(imp, p, "transmittance", (0.25, 0.25, 0.25))
-            mat.albedo, mat.tint = (tuple(min(max(scale * c, 0.0), 1.0) for c in v) for v in (rgb, t))
+            mat.albedo, mat.params["transmittance"] = (tuple(min(max(scale * c, 0.0), 1.0) for c in v)
+                                                       for v in (rgb, t))
         elif mtype in ("interface", "", "none"):  # pbrt-v4's Material::Create: "" and "none" are "interface"
             return None
         elif mtype == "mix":

@@ -17,13 +17,17 @@ TOML_KEYS = frozenset({"reflectance", "reflectance_texture", "transmittance"})
 KERNEL_DEFINE = "HAS_MATERIAL_DIFFUSETRANSMISSION"
 
 
+# its block in Material.table (cl/materials/diffusetransmission.h's DT_TRANSMITTANCE): the transmittance's RGB
+TRANSMITTANCE = slice(0, 3)
+
+
 def read_toml(material, table) -> None:
     material.albedo = table.rgb01("reflectance", 0.25)
     material.base_texture = table.texture("reflectance_texture", srgb=True)
-    material.tint = table.rgb01("transmittance", 0.25)
+    material.params["transmittance"] = table.rgb01("transmittance", 0.25)
 
 
 def pack(material, record) -> None:
-    """reflectance in albedo (its texture in tex_base, as every type's), transmittance in specular"""
+    """reflectance in albedo (its texture in tex_base, as every type's), transmittance in its block"""
     record["albedo"] = material.albedo
-    record["specular"] = material.tint
+    record["table"][TRANSMITTANCE] = material.params.get("transmittance", (0.25, 0.25, 0.25))
