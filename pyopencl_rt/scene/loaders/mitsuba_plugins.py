@@ -50,6 +50,7 @@ HONOURED: dict[str, dict[str, tuple[str, ...]]] = {
         "sphere": _SHAPE + ("center", "radius"),
         "cylinder": _SHAPE + ("p0", "p1", "radius"),
         "rectangle": _SHAPE, "cube": _SHAPE, "disk": _SHAPE,
+        "sdfgrid": _SHAPE + ("filename", "normals"),
         "shapegroup": (), "instance": ("to_world",),
     },
     "bsdf": {

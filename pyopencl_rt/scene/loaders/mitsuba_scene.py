@@ -336,6 +336,8 @@ class _Importer:
             v, f, uv = mitsuba_disk_mesh()
         elif t == "cylinder":
             v, f, uv, normals = self.cylinder(obj)
+        elif t == "sdfgrid":
+            v, f, uv, normals = self.sdfgrid(obj, emitters)
         else:
             raise error_at(obj.node.pos, refusal(obj))
         if material.emission_directional and (normals is not None or compute is not None) and not flat(v, f):
@@ -370,6 +372,28 @@ class _Importer:
         radial = v * [1.0, 1.0, 0.0]  # Mitsuba's cylinder shades with its exact (radial) normal
         radial /= np.linalg.norm(radial, axis=1, keepdims=True)
         return v @ frame.T + p0, f, uv, (radial @ frame.T)[f]
+
+    def sdfgrid(self, obj: MiObject, emitters):
+        """Mitsuba's sdfgrid: the zero level set of its .vol grid of signed distances over the unit
+        cube, as triangles with the field's gradient as their shading normals (loaders/sdfgrid.py;
+        ``normals`` smooth or analytic alike).  Mitsuba refuses it as an area emitter, and so do we."""
+        from .mitsuba_vol import read_vol
+        from .sdfgrid import sdf_mesh
+
+        if emitters:
+            raise error_at(emitters[0].node.pos, f"{obj.label()}: an sdfgrid cannot be an area emitter (as in Mitsuba)")
+        fname = obj.string("filename")
+        if fname is None:
+            raise error_at(obj.node.pos, f'{obj.label()} needs <string name="filename"> (a .vol grid)')
+        obj.choice("normals", ("smooth", "analytic"))  # both: the field's gradient at the vertices, interpolated
+        data, _box = read_vol(self.resolve(fname, obj), f"{obj.node.pos}: {obj.label()}")
+        if data.shape[-1] != 1:
+            raise error_at(obj.node.pos, f"{obj.label()}: '{fname}' has {data.shape[-1]} channels; an SDF grid has one")
+        v, f, normals = sdf_mesh(data[..., 0])
+        if not len(f):
+            raise error_at(obj.node.pos, f"{obj.label()}: '{fname}' has no zero crossing: no surface (Mitsuba refuses "
+                                         "a grid without one too)")
+        return v, f, None, normals
 
     def analytic(self, obj, shape, material, m, flip, emitters, interface=None, emitter: int = -1) -> None:
         """One of our analytic shapes (scene/shapes/: Mitsuba's sphere, disk), read by its type; a
