@@ -943,7 +943,7 @@ def test_unsupported_elements_warn_and_the_render_goes_on(tmp_path):
     refused = [('<sensor type="radiancemeter"/>', '<sensor type="radiancemeter">: sensor type "radiancemeter"'),
                ('<medium type="homogeneous" id="fog"><phase type="rayleigh"/></medium>'
                 '<shape type="sphere"><ref name="interior" id="fog"/></shape>', '<phase type="rayleigh">: phase type'),
-               ('<shape type="sdfgrid" id="g"/>', '<shape type="sdfgrid" id="g">: shape type "sdfgrid"'),
+               ('<shape type="ellipsoids" id="g"/>', '<shape type="ellipsoids" id="g">: shape type "ellipsoids"'),
                ('<shape type="sphere"><bsdf type="hair"/></shape>', '<bsdf type="hair">: bsdf type "hair"'),
                ('<shape type="sphere"><emitter type="point"/></shape>',
                 '<emitter type="point"> in <shape type="sphere">: only area and directionalarea emitters attach to shapes'),
