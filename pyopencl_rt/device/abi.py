@@ -234,7 +234,7 @@ MEDIUM_INTERFACE = np.dtype([("interior", np.int32), ("exterior", np.int32), ("f
 assert MEDIUM_INTERFACE.itemsize == 16
 
 # An analytic shape (128 bytes): its type (cl/shapes/<name>.h, scene/shapes/<name>.py), the parameters it names.
-SHAPE_TYPES = define_enum("SHAPE_", ("sphere", "disk"))
+SHAPE_TYPES = define_enum("SHAPE_", ("sphere", "disk", "cylinder"))
 SHAPE = np.dtype([("params", np.float32, 28), ("type", np.int32), ("pad", np.int32, 3)])
 
 # An emitter that next-event estimation samples (144 bytes; cl/render/lights.h documents each kind).

@@ -246,8 +246,21 @@ def test_shapes(tmp_path):
         assert np.allclose(box_centre, analytic[:12].reshape(3, 4)[:, 3], atol=1e-5), prefix
     s, w = world(tmp_path, 'Shape "disk" "float radius" 2 "float innerradius" 1')  # an annulus: triangles
     assert len(s.shapes) == 0 and np.isclose(area(s), 3 * math.pi)
-    s, w = world(tmp_path, 'Shape "cylinder" "float radius" 0.5 "float zmin" 0 "float zmax" 2')
-    assert np.isclose(area(s), 2 * math.pi * 0.5 * 2)
+    s, w = world(tmp_path, 'Shape "cylinder" "float radius" 0.5 "float zmin" 0 "float zmax" 2')  # analytic
+    p = s.shapes["params"][0].astype(np.float64)
+    assert len(s.faces) == 0 and np.isclose(p[25], 2 * math.pi * 0.5 * 2) and p[24] == 1  # outside its front
+    for prefix in ("", "ReverseOrientation ", "Scale 1 1 -1 ", "ReverseOrientation Scale 1 -1 1 Rotate 30 1 0 0 "):
+        tube = 'Shape "cylinder" "float radius" 0.5 "float zmin" -1 "float zmax" 2'
+        analytic = world(tmp_path, prefix + tube)[0].shapes["params"][0].astype(np.float64)
+        mesh = world(tmp_path, textured + prefix + tube)[0]  # a textured tube: pbrt's triangles
+        m = analytic[:12].reshape(3, 4)
+        v = mesh.vertices.astype(np.float64)[mesh.faces].mean(1)
+        axis_point = m[:, 3] + np.outer(((v - m[:, 3]) @ m[:, 2]) / (m[:, 2] @ m[:, 2]), m[:, 2])
+        outward = np.einsum("ij,ij->i", front_normals(mesh), v - axis_point) > 0
+        assert outward.all() if analytic[24] > 0 else not outward.any(), prefix  # the same front
+        assert np.isclose(area(mesh), analytic[25], rtol=1e-3), prefix
+    s, w = world(tmp_path, 'Scale 1 2 1 Shape "cylinder"')  # an elliptic tube: triangles
+    assert len(s.shapes) == 0 and len(s.faces) > 64
     s, w = world(tmp_path, 'Shape "loopsubdiv" "integer levels" 2 "point3 P" [0 0 0 1 0 0 0 1 0] '
                            '"integer indices" [0 1 2]\n' + TRIANGLE)
     assert w == [] and len(s.faces) == 16 + 1  # 4^2 triangles of the subdivided one

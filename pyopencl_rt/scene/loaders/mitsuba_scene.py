@@ -314,8 +314,9 @@ class _Importer:
             raise error_at(obj.node.pos, f"{obj.label()}: a directionalarea emitter on a curved shape is not "
                                          "supported (only on flat faces: meshes, rectangles, disks, cubes)")
         shape = MITSUBA_SHAPES.get(t)
-        if shape is not None and not reads_uv(material) and not material.emission_directional:
-            return self.analytic(obj, shape, material, m, flip, emitters, interface, emitter)
+        if shape is not None and not reads_uv(material) and not material.emission_directional and \
+                self.analytic(obj, shape, material, m, flip, emitters, interface, emitter):
+            return
         normals = compute = extras = None
         if t in ("obj", "ply", "serialized"):
             v, f, uv, normals, keys, extras = self.mesh_file(obj)
@@ -395,13 +396,17 @@ class _Importer:
                                          "a grid without one too)")
         return v, f, None, normals
 
-    def analytic(self, obj, shape, material, m, flip, emitters, interface=None, emitter: int = -1) -> None:
+    def analytic(self, obj, shape, material, m, flip, emitters, interface=None, emitter: int = -1) -> bool:
         """One of our analytic shapes (scene/shapes/: Mitsuba's sphere, disk), read by its type; a
         shape whose material reads the uv or dp/du (a texture, a normal or bump map, anisotropy) is
         Mitsuba's triangles with its uv instead (reads_uv), for ours have none.  A type that does not
-        flip (a sphere faces outwards) gets its medium interface's sides swapped for flip_normals."""
+        flip (a sphere faces outwards) gets its medium interface's sides swapped for flip_normals.
+        False: the file's shape is not one of ours (an elliptic tube), the caller makes triangles."""
         pos = obj.props["to_world"].node.pos if "to_world" in obj.props else obj.node.pos
-        p = shape.from_mitsuba(obj, ShapeMitsubaReading(m, flip, lambda what: self.warn(pos, f"{obj.label()}: {what}")))
+        p = shape.from_mitsuba(obj, ShapeMitsubaReading(m, flip, lambda what: self.warn(pos, f"{obj.label()}: {what}"),
+                                                        lambda what: error_at(obj.node.pos, f"{obj.label()}: {what}")))
+        if p is None:
+            return False
         if flip and not shape.flips:
             if emitters:
                 self.warn(obj.node.pos, f"{obj.label()}: flip_normals: our {shape.name}s emit outwards only")
@@ -409,6 +414,7 @@ class _Importer:
                 interface = interface.flipped()
         self.b.add_shape(shape, p, material, interface=interface, emitter=emitter)
         self.unused(obj)
+        return True
 
     def mesh_file(self, obj: MiObject):
         """(vertices, faces, per-corner uvs, normals (or None) and the keys of the corners that

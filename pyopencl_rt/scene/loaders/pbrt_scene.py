@@ -517,7 +517,7 @@ class _Importer(Transforms):
         return cache[key][0]
 
     def d_Shape(self, d):
-        from .pbrt_shapes import shape_geometry
+        from .pbrt_shapes import cylinder_triangles, shape_geometry
 
         mat = self._material(d.pos)
         interface = self._interface(mat is None, d.pos)
@@ -552,6 +552,15 @@ class _Importer(Transforms):
                 self.b.add_shape("disk", SHAPES["disk"].params(to_world, flip), mat, interface=interface)
                 return
             geometry = disk_mesh(geometry[1], 0.0, geometry[2], 360.0)
+        if quadric == "cylinder":  # ("cylinder", radius, zmin, zmax): analytic under a similarity
+            _, radius, zmin, zmax = geometry
+            to_world = m @ np.diag([radius, radius, zmax - zmin, 1.0])
+            to_world[:3, 3] += m[:3, 2] * zmin
+            p = None if mat.textures() else SHAPES["cylinder"].params(to_world, flip)
+            if p is not None:
+                self.b.add_shape("cylinder", p, mat, interface=interface)
+                return
+            geometry = cylinder_triangles(radius, zmin, zmax)  # textured or elliptic: pbrt's triangles
         v, f, uv, *rest = geometry
         normals = rest[0] if rest else None
         self.b.add_mesh(v, f, mat, uvs=uv, matrix=m, flip=flip, normals=normals, interface=interface)

@@ -1,7 +1,6 @@
 """pbrt-v4 shapes in object space: ``trianglemesh``, ``bilinearmesh`` (as triangles), ``plymesh``,
 ``loopsubdiv`` (Loop subdivision: subdivision.py), ``sphere`` (ours when whole and evenly scaled,
-else triangles), ``disk`` (ours, scene/shapes/disk.py, when whole, else triangles) and ``cylinder``
-(triangles).
+else triangles), ``disk`` and ``cylinder`` (ours, scene/shapes/, when whole, else triangles).
 
 Texture coordinates become ours as (u, 1 - v): pbrt-v4's image textures look up (s, 1 - t) with
 row 0 at the top of the image, ours (u, v) with row 0 at the top.
@@ -104,10 +103,18 @@ def shape_geometry(imp, d):
             return ("disk", radius, height)  # a full disk: our analytic one (scene/shapes/disk.py)
         return disk_mesh(radius, inner, height, phimax)
     if t == "cylinder":
-        v, f, uv = cylinder_mesh(p.float("radius", 1.0), p.float("zmin", -1.0), p.float("zmax", 1.0),
-                                 min(p.float("phimax", 360.0), 360.0))
-        return v, f, uv, _unit(np.asarray(v, np.float64) * [1.0, 1.0, 0.0])[f]
+        radius, zmin, zmax = p.float("radius", 1.0), p.float("zmin", -1.0), p.float("zmax", 1.0)
+        phimax = min(p.float("phimax", 360.0), 360.0)
+        if phimax >= 360 and radius > 0 and zmax > zmin:
+            return ("cylinder", radius, zmin, zmax)  # a full tube: our analytic one (scene/shapes/cylinder.py)
+        return cylinder_triangles(radius, zmin, zmax, phimax)
     raise error_at(d.pos, f'Shape "{t}": shape type "{t}" is not supported')
+
+
+def cylinder_triangles(radius, zmin, zmax, phimax=360.0):
+    """pbrt's cylinder as triangles with their exact radial normals (the geometry of shape_geometry)."""
+    v, f, uv = cylinder_mesh(radius, zmin, zmax, phimax)
+    return v, f, uv, _unit(np.asarray(v, np.float64) * [1.0, 1.0, 0.0])[f]
 
 
 def _loopsubdiv(d):

@@ -131,7 +131,7 @@ class Transforms:
         """A shape whose transform differs between the start and end times (pbrt-v4 intersects it
         in its own space through the interpolated transform): a group of this one shape, in its own
         space, drawn by one moving instance (loaders/instancing.py refuses what it cannot move)."""
-        from .pbrt_shapes import shape_geometry
+        from .pbrt_shapes import cylinder_triangles, shape_geometry
 
         what = f'Shape "{d.args[0]}"'
         if self.b.recording is not None:
@@ -147,6 +147,8 @@ class Transforms:
             return
         if isinstance(geometry[0], str) and geometry[0] == "disk":  # moved as its triangles (a moving instance draws triangles)
             geometry = disk_mesh(geometry[1], 0.0, geometry[2], 360.0)
+        if isinstance(geometry[0], str) and geometry[0] == "cylinder":
+            geometry = cylinder_triangles(*geometry[1:])
         if isinstance(geometry[0], str):
             raise error_at(d.pos, f"{what}: motion blur of an analytic sphere is not supported")
         v, f, uv, *rest = geometry

@@ -38,7 +38,7 @@
     sigma_t = [0.5, 1.0, 2.0]     #   from shapes' interior / exterior and [camera] medium
 
     [[shape]]                     # one table per shape, numbered #1, #2, ... in messages
-    type = "quad"                 # "mesh" | "quad" | "triangle" | "box" | "sphere" | "disk"
+    type = "quad"                 # "mesh" | "quad" | "triangle" | "box" | "sphere" | "disk" | "cylinder"
     material = "white"            # default: the built-in "default" material (albedo 0.8)
     points = [[0,0,0], [1,0,0], [1,1,0], [0,1,0]]
 
@@ -55,7 +55,9 @@ Shape keys:
   faces point outwards.
 * ``sphere``: ``center``, ``radius``; emits outwards. No transforms.
 * ``disk``: ``center``, ``normal`` (its front), ``radius`` (default 1), ``flip_normals``; emits
-  on its front.  No transforms.  (The analytic shapes: each type's module in scene/shapes/.)
+  on its front.  No transforms.
+* ``cylinder``: ``p0``, ``p1``, ``radius`` (default 1), ``flip_normals``: an open tube, emitting
+  outwards (inwards flipped).  No transforms.  (The analytic shapes: each type's module in scene/shapes/.)
 
 Triangle shapes (mesh, quad, triangle, box) take an optional transform: ``scale`` (number or
 3-vector), ``rotate`` (``{axis = [x, y, z], angle = DEGREES}`` or a list of them, applied in

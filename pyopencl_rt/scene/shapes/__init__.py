@@ -17,7 +17,8 @@ the type for scene files, and it defines, over (n, 28) float64 parameter rows:
 * ``to_mitsuba(p) -> dict``: one shape as Mitsuba 3's ``mi.load_dict`` takes it;
 * ``TOML_KEYS`` and ``read_toml(t)``: a ``[[shape]]`` table of this type (its ``type`` and
   ``material`` aside), through a :class:`~pyopencl_rt.scene.loaders.values.TableReader`;
-* ``MITSUBA_PLUGINS`` and ``from_mitsuba(obj, read)`` (``read``: :class:`.frames.ShapeMitsubaReading`),
+* ``MITSUBA_PLUGINS`` and ``from_mitsuba(obj, read)`` (``read``: :class:`.frames.ShapeMitsubaReading`;
+  None where the file's shape is not one of ours, an elliptic tube: the loader makes its triangles),
   and ``FLIPS``: whether flip_normals turns it over (else the loader flips its medium interface).
 
 Adding a type: ``<name>.py`` here, its entry of ``abi.SHAPE_TYPES`` and ``cl/shapes/<name>.h``

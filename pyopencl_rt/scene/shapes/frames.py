@@ -45,8 +45,10 @@ def coordinate_system(n) -> tuple:
 @dataclass
 class ShapeMitsubaReading:
     """A Mitsuba XML shape as its type's ``from_mitsuba(obj, read)`` gets it: its 4 x 4 to_world
-    (None: the identity), its flip_normals, and ``warn(what)``: one warning at the shape's line."""
+    (None: the identity), its flip_normals, ``warn(what)``: one warning at the shape's line, and
+    ``error(what)``: the error to raise, at that line."""
 
     to_world: np.ndarray | None
     flip: bool
     warn: Callable
+    error: Callable
