@@ -454,6 +454,25 @@ def mitsuba_batches(mi, path, batches=8):
     return images.mean(0), images.var(0, ddof=1) / batches
 
 
+def against_mitsuba(mi, path, spp=256, seed=0):
+    """Mitsuba's render of the XML file ``path`` (:func:`mitsuba_batches`) and ours of the same file,
+    loaded without a warning (``spp``, ``seed``): (z per 8 x 8 tile (:func:`tile_z`), our image and
+    the variance of its mean, theirs and the variance of theirs)."""
+    import warnings
+
+    import numpy as np
+
+    import pyopencl_rt as rt
+
+    theirs, their_var = mitsuba_batches(mi, path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        scene = rt.load_scene(path)
+    r = rt.render_full(scene, spp=spp, device="cpu", seed=seed)
+    ours, var = r.image.astype(np.float64), r.film.variance_of_mean()
+    return tile_z(ours, var, theirs, their_var), ours, var, theirs, their_var
+
+
 def tiles(a, tile=8):
     """The means of the tile x tile blocks of an H x W x 3 image (H, W multiples of tile)."""
     h, w = a.shape[:2]

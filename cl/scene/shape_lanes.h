@@ -36,6 +36,52 @@
 #define SHAPE_V3(shapes, s, k) \
     pv3_gather((__global const float *)(shapes), (s) * STRIDE_INDEX(Shape) + FIELD_INDEX(Shape, params) + (k))
 
+/* row r of the 3 x 4 affine map m (private) applied to the lanes' point (w 1) or vector (w 0) v */
+RT_INLINE pfloat shape_affine_row(const float *m, int r, pvec3 v, float w)
+{
+    return v.x * m[4 * r] + v.y * m[4 * r + 1] + v.z * m[4 * r + 2] + m[4 * r + 3] * w;
+}
+
+/* The lanes' rays (o, d) in a lane-uniform shape's object space: its to_object's rows at prm[at] */
+RT_INLINE void shape_object_ray(__global const float *prm, int at, pvec3 o, pvec3 d, pvec3 *ol, pvec3 *dl)
+{
+    float m[12];
+    for (int k = 0; k < 12; ++k) m[k] = prm[at + k];
+    *ol = pv3(shape_affine_row(m, 0, o, 1.0f), shape_affine_row(m, 1, o, 1.0f), shape_affine_row(m, 2, o, 1.0f));
+    *dl = pv3(shape_affine_row(m, 0, d, 0.0f), shape_affine_row(m, 1, d, 0.0f), shape_affine_row(m, 2, d, 0.0f));
+}
+
+/* The map at parameter k of the lanes' shapes s applied to their points q, and a bound on its
+ * rounding per coordinate (a few ulps of |M| |q| + |translation|) */
+RT_INLINE pvec3 shape_affine_point(__global const Shape *shapes, pint s, int k, pvec3 q, pvec3 *err)
+{
+    const pvec3 aq = pv3_abs(q);
+    pvec3 p, e;
+#define SHAPE_AFFINE_ROW(c, r)                                                                      \
+    p.c = pv3_dot(SHAPE_V3(shapes, s, k + 4 * r), q) + SHAPE_F(shapes, s, k + 4 * r + 3);           \
+    e.c = pv3_dot(pv3_abs(SHAPE_V3(shapes, s, k + 4 * r)), aq) + pabs(SHAPE_F(shapes, s, k + 4 * r + 3));
+    SHAPE_AFFINE_ROW(x, 0)
+    SHAPE_AFFINE_ROW(y, 1)
+    SHAPE_AFFINE_ROW(z, 2)
+#undef SHAPE_AFFINE_ROW
+    *err = pv3_scale(e, PFLOAT(HIT_GAMMA5));
+    return p;
+}
+
+/* ls in the lanes of `sel` for the point p (error err, geometric normal ng: the front's) of an emitter
+ * of `area` sampled uniformly in area, seen from ref: pdf dist^2 / (area |cos|), the normal turned
+ * toward ref, the radiance m emits that way; the lanes that got a sample */
+RT_INLINE pint shape_area_sample(LightSample *ls, pint sel, const MaterialLanes *m, pfloat area, pvec3 ref, pvec3 p,
+                                 pvec3 err, pvec3 ng)
+{
+    const pvec3 to_ref = pv3_sub(ref, p);
+    const pfloat dist2 = pv3_dot(to_ref, to_ref);
+    const pfloat cos_l = pv3_dot(ng, to_ref) * (1.0f / psqrt(dist2));
+    const pvec3 n = pv3_sel(pv3_neg(ng), ng, cos_l > 0.0f);
+    light_sample_set(ls, sel, p, err, n, emitted(m, ng, n), dist2 / (area * pabs(cos_l)));
+    return sel & (cos_l != 0.0f) & (dist2 != 0.0f);
+}
+
 #define SHAPE_INTERSECT_PARAMS \
     __global const float *prm, pvec3 o, pvec3 d, pfloat tmin, pfloat tmax, pfloat *t, pint live
 #define SHAPE_POINT_PARAMS \

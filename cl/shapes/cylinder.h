@@ -7,7 +7,7 @@
  * Intersection in object space with the stable quadratic of the sphere's (accel/intersect.h) in x
  * and y: the nearer root in (tmin, tmax) whose z lies in [0, 1], else the farther.  The hit point
  * is the object-space point moved back onto the tube (x, y scaled to radius 1) and to the world,
- * its error a few ulps of |M| |q| + |translation|; the normal is M^-T (x, y, 0) (to_object's rows),
+ * with its error (shape_affine_point); the normal is M^-T (x, y, 0) (to_object's rows),
  * times the front's sign.  As an emitter it is sampled uniformly in area (phi and z uniform: a
  * right circular tube keeps areas in proportion), pdf dist^2 / (area |cos|).  Compiled with HAS_SHAPE_CYLINDER. */
 #ifndef PYOPENCL_RT_CYLINDER_H
@@ -20,18 +20,11 @@
 #define CYLINDER_TO_OBJECT 12
 #define CYLINDER_SIDE 24
 
-/* row r of the 3x4 affine map m (private copy) applied to the point (w 1) or vector (w 0) v */
-RT_INLINE pfloat cylinder_row(const float *m, int r, pvec3 v, float w)
-{
-    return v.x * m[4 * r] + v.y * m[4 * r + 1] + v.z * m[4 * r + 2] + m[4 * r + 3] * w;
-}
-
 RT_INLINE pint shape_intersect_cylinder(SHAPE_INTERSECT_PARAMS)
 {
-    float m[12];
-    for (int k = 0; k < 12; ++k) m[k] = prm[CYLINDER_TO_OBJECT + k];
-    const pfloat ox = cylinder_row(m, 0, o, 1.0f), oy = cylinder_row(m, 1, o, 1.0f), oz = cylinder_row(m, 2, o, 1.0f);
-    const pfloat dx = cylinder_row(m, 0, d, 0.0f), dy = cylinder_row(m, 1, d, 0.0f), dz = cylinder_row(m, 2, d, 0.0f);
+    pvec3 ol, dl;
+    shape_object_ray(prm, CYLINDER_TO_OBJECT, o, d, &ol, &dl);
+    const pfloat ox = ol.x, oy = ol.y, oz = ol.z, dx = dl.x, dy = dl.y, dz = dl.z;
     const pfloat a = dx * dx + dy * dy;
     const pint moving = a > 0.0f; /* a ray along the axis never meets the tube */
     const pfloat a_safe = moving ? a : PFLOAT(1.0f);
@@ -67,21 +60,6 @@ RT_INLINE pvec3 cylinder_local(__global const Shape *shapes, pint s, pvec3 o, pv
     return q;
 }
 
-/* to_world of the object-space point q, and a bound on its rounding error */
-RT_INLINE pvec3 cylinder_world(__global const Shape *shapes, pint s, pvec3 q, pvec3 *err)
-{
-    pvec3 p, e;
-    p.x = pv3_dot(SHAPE_V3(shapes, s, CYLINDER_TO_WORLD), q) + SHAPE_F(shapes, s, CYLINDER_TO_WORLD + 3);
-    p.y = pv3_dot(SHAPE_V3(shapes, s, CYLINDER_TO_WORLD + 4), q) + SHAPE_F(shapes, s, CYLINDER_TO_WORLD + 7);
-    p.z = pv3_dot(SHAPE_V3(shapes, s, CYLINDER_TO_WORLD + 8), q) + SHAPE_F(shapes, s, CYLINDER_TO_WORLD + 11);
-    const pvec3 aq = pv3_abs(q);
-    e.x = pv3_dot(pv3_abs(SHAPE_V3(shapes, s, CYLINDER_TO_WORLD)), aq) + pabs(SHAPE_F(shapes, s, CYLINDER_TO_WORLD + 3));
-    e.y = pv3_dot(pv3_abs(SHAPE_V3(shapes, s, CYLINDER_TO_WORLD + 4)), aq) + pabs(SHAPE_F(shapes, s, CYLINDER_TO_WORLD + 7));
-    e.z = pv3_dot(pv3_abs(SHAPE_V3(shapes, s, CYLINDER_TO_WORLD + 8)), aq) + pabs(SHAPE_F(shapes, s, CYLINDER_TO_WORLD + 11));
-    *err = pv3_scale(e, PFLOAT(HIT_GAMMA5));
-    return p;
-}
-
 /* the front's unit normal at object-space q: M^-T (x, y, 0), whose world component i is
  * M^-1[0][i] x + M^-1[1][i] y (to_object's rows), signed */
 RT_INLINE pvec3 cylinder_normal(__global const Shape *shapes, pint s, pvec3 q, pint sel)
@@ -93,7 +71,7 @@ RT_INLINE pvec3 cylinder_normal(__global const Shape *shapes, pint s, pvec3 q, p
 
 RT_INLINE pvec3 shape_point_cylinder(SHAPE_POINT_PARAMS)
 {
-    return cylinder_world(shapes, s, cylinder_local(shapes, s, o, d, t, sel), err);
+    return shape_affine_point(shapes, s, CYLINDER_TO_WORLD, cylinder_local(shapes, s, o, d, t, sel), err);
 }
 
 RT_INLINE pvec3 shape_normal_cylinder(SHAPE_NORMAL_PARAMS)
@@ -109,14 +87,8 @@ RT_INLINE pint shape_sample_cylinder(SHAPE_SAMPLE_PARAMS)
     psincos(2.0f * PI_F * ux, &sin_phi, &cos_phi);
     const pvec3 q = pv3(cos_phi, sin_phi, uy);
     pvec3 err;
-    const pvec3 p = cylinder_world(shapes, s, q, &err);
-    const pvec3 ng = cylinder_normal(shapes, s, q, sel);
-    const pvec3 to_ref = pv3_sub(ref, p);
-    const pfloat dist2 = pv3_dot(to_ref, to_ref);
-    const pfloat cos_l = pv3_dot(ng, to_ref) * (1.0f / psqrt(dist2));
-    const pvec3 n = pv3_sel(pv3_neg(ng), ng, cos_l > 0.0f);
-    light_sample_set(ls, sel, p, err, n, emitted(m, ng, n), dist2 / (area * pabs(cos_l)));
-    return sel & (cos_l != 0.0f) & (dist2 != 0.0f);
+    const pvec3 p = shape_affine_point(shapes, s, CYLINDER_TO_WORLD, q, &err);
+    return shape_area_sample(ls, sel, m, area, ref, p, err, cylinder_normal(shapes, s, q, sel));
 }
 
 #define SHAPE_CASE_CYLINDER(X) X(cylinder, CYLINDER)

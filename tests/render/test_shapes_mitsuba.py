@@ -107,14 +107,7 @@ def test_back_sides_are_black_as_mitsubas(tmp_path):
     mi = harness.mitsuba()
     renders = {}
     for twosided in (False, True):
-        path = _sided_scene(tmp_path, twosided)
-        theirs, their_var = harness.mitsuba_batches(mi, path)
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            scene = load_scene(path)
-        r = rt.render_full(scene, spp=256, device="cpu", seed=3)
-        ours, var = r.image.astype(np.float64), r.film.variance_of_mean()
-        z = harness.tile_z(ours, var, theirs, their_var)
+        z, ours, var, theirs, their_var = harness.against_mitsuba(mi, _sided_scene(tmp_path, twosided), seed=3)
         assert z.max() < 4.5, (twosided, np.round(z.max(-1), 1))
         renders[twosided] = (ours, var, theirs, their_var)
     ours, var = renders[False][:2]
@@ -151,16 +144,10 @@ def test_disk_lights_as_mitsubas(tmp_path):
     the mean 0.9997 of Mitsuba's).
     The same scene with the lamps turned over (flip_normals toggled on both) differs by more than
     10 sigma in some tile (measured: 606): the comparison sees the sides that emit."""
-    mi = harness.mitsuba()
     path = _disk_light_scene(tmp_path)
-    theirs, their_var = harness.mitsuba_batches(mi, path)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        scene = load_scene(path)
+    scene = load_scene(path)
     assert len(scene.shapes) == 4 and len(scene.faces) == 4  # three disks and a sphere; two rectangles
-    r = rt.render_full(scene, spp=256, device="cpu", seed=5)
-    ours, var = r.image.astype(np.float64), r.film.variance_of_mean()
-    z = harness.tile_z(ours, var, theirs, their_var)
+    z, _ours, _var, theirs, their_var = harness.against_mitsuba(harness.mitsuba(), path, seed=5)
     assert z.max() < 4.5, np.round(z.max(-1), 1)
     text = Path(path).read_text()
     turned = text.replace('<rotate x="1" angle="110"/>', '<rotate x="1" angle="-70"/>').replace(
@@ -192,11 +179,6 @@ def test_tubes_as_mitsubas(tmp_path):
   <transform name="to_world"><scale value="4"/><rotate x="1" angle="-90"/></transform></shape>
 """
     path = harness.write_mitsuba_scene(tmp_path / "tubes.xml", body)
-    theirs, their_var = harness.mitsuba_batches(mi, path)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        scene = load_scene(path)
-    assert len(scene.shapes) == 3
-    r = rt.render_full(scene, spp=256, device="cpu", seed=6)
-    z = harness.tile_z(r.image.astype(np.float64), r.film.variance_of_mean(), theirs, their_var)
+    assert len(load_scene(path).shapes) == 3
+    z = harness.against_mitsuba(mi, path, seed=6)[0]
     assert z.max() < 4.5, np.round(z.max(-1), 1)

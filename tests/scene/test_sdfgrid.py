@@ -91,14 +91,7 @@ def test_sdfgrids_as_mitsubas(tmp_path):
   <transform name="to_world"><scale value="3"/><rotate x="1" angle="-90"/><translate y="0.1"/></transform></shape>
 """
     path = harness.write_mitsuba_scene(tmp_path / "sdf.xml", body)
-    mi = harness.mitsuba()
-    theirs, their_var = harness.mitsuba_batches(mi, path)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        scene = load_scene(path)
-    r = rt.render_full(scene, spp=256, device="cpu", seed=2)
-    ours, var = r.image.astype(np.float64), r.film.variance_of_mean()
-    z = harness.tile_z(ours, var, theirs, their_var)
+    z, _ours, _var, theirs, their_var = harness.against_mitsuba(harness.mitsuba(), path, seed=2)
     assert z.max() < 4.5, np.round(z.max(-1), 1)
     no_torus = harness.write_mitsuba_scene(tmp_path / "no_torus.xml", body.replace(torus, sphere).replace(
         '<scale value="0.8"/><translate x="0.65" y="0.1" z="0.3"/>', '<translate x="9"/>'))

@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .frames import ShapeMitsubaReading, affine_rows, coordinate_system, inverse_rows, rows
+from .frames import (ShapeMitsubaReading, affine_rows, coordinate_system, inverse_rows, mapped_checks, ring_box, rows,
+                     to_world_maps)
 
 TOML_KEYS = frozenset({"p0", "p1", "radius", "flip_normals"})
 MITSUBA_PLUGINS = ("cylinder",)
@@ -57,21 +58,9 @@ def axis_to_world(p0, p1, radius) -> np.ndarray:
     return m
 
 
-def _to_world(p) -> np.ndarray:
-    p = rows(p)
-    m = np.zeros((len(p), 4, 4))
-    m[:, :3, :] = p[:, :12].reshape(-1, 3, 4)
-    m[:, 3, 3] = 1.0
-    return m
-
-
 def bounds(p) -> tuple:
-    """The box of the tube: its two end circles' boxes (the centre plus or minus the length of each
-    row of their two axes)."""
-    m = _to_world(p)
-    half = np.sqrt(m[:, :3, 0] ** 2 + m[:, :3, 1] ** 2)
-    c0, c1 = m[:, :3, 3], m[:, :3, 3] + m[:, :3, 2]
-    return np.minimum(c0, c1) - half, np.maximum(c0, c1) + half
+    """The box of the tube: its two end circles'."""
+    return ring_box(to_world_maps(p), along_z=True)
 
 
 def area(p) -> np.ndarray:
@@ -93,7 +82,7 @@ def transformed(p, m) -> np.ndarray | None:
     """Moved by the 4 x 4 affine m: a tube where it stays a right circular one (a similarity keeps it
     so; its front kept), None otherwise."""
     out = []
-    for row, tw in zip(rows(p), _to_world(p)):
+    for row, tw in zip(rows(p), to_world_maps(p)):
         moved = params(np.asarray(m, np.float64) @ tw, row[24] < 0)
         if moved is None:
             return None
@@ -112,22 +101,17 @@ def mesh(p, m):
     radial /= np.linalg.norm(radial, axis=1, keepdims=True)
     if row[24] < 0:
         f, radial = f[:, ::-1], -radial
-    return v, f, uv, radial[f], np.asarray(m, np.float64) @ _to_world(row)[0]
+    return v, f, uv, radial[f], np.asarray(m, np.float64) @ to_world_maps(row)[0]
 
 
 def check(p) -> list:
-    out = []
-    for i, row in enumerate(rows(p)):
-        if not np.isfinite(row).all():
-            out.append((i, "its to_world is not finite"))
-        elif not np.float32(row[25]) > 0:
-            out.append((i, f"its area {row[25]:g} is not positive in float32"))
-    return out
+    """(row, what is wrong) for each tube the kernels cannot take."""
+    return mapped_checks(p, 25)
 
 
 def to_mitsuba(p) -> dict:
     row = rows(p)[0]
-    m = _to_world(row)[0]
+    m = to_world_maps(row)[0]
     return {"type": "cylinder", "p0": [0.0, 0.0, 0.0], "p1": [0.0, 0.0, 1.0], "radius": 1.0,
             "to_world": [list(map(float, r)) for r in m], "flip_normals": bool(row[24] < 0)}
 

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .frames import ShapeMitsubaReading, affine_rows, coordinate_system, inverse_rows, rows
+from .frames import (ShapeMitsubaReading, affine_rows, coordinate_system, inverse_rows, mapped_checks, ring_box, rows,
+                     to_world_maps)
 
 TOML_KEYS = frozenset({"center", "normal", "radius", "flip_normals"})
 MITSUBA_PLUGINS = ("disk",)
@@ -31,20 +32,9 @@ def params(to_world, flip: bool = False) -> np.ndarray:
     return p
 
 
-def _to_world(p) -> np.ndarray:
-    """(n, 4, 4) to_world maps."""
-    p = rows(p)
-    m = np.zeros((len(p), 4, 4))
-    m[:, :3, :] = p[:, :12].reshape(-1, 3, 4)
-    m[:, 3, 3] = 1.0
-    return m
-
-
 def bounds(p) -> tuple:
-    """The box of the ellipse: the centre plus or minus the length of each row of its two axes."""
-    m = _to_world(p)
-    half = np.sqrt(m[:, :3, 0] ** 2 + m[:, :3, 1] ** 2)
-    return m[:, :3, 3] - half, m[:, :3, 3] + half
+    """The box of the ellipse."""
+    return ring_box(to_world_maps(p))
 
 
 def area(p) -> np.ndarray:
@@ -59,7 +49,7 @@ def emission_cone(p) -> tuple:
 def transformed(p, m) -> np.ndarray:
     """Moved by the 4 x 4 affine m: still a disk (its to_world composed; the front follows the moved normal)."""
     out = []
-    for row, tw in zip(rows(p), _to_world(p)):
+    for row, tw in zip(rows(p), to_world_maps(p)):
         flip = float(np.dot(row[24:27], params(tw)[0, 24:27])) < 0
         out.append(params(np.asarray(m, np.float64) @ tw, flip)[0])
     return np.asarray(out).reshape(-1, 28)
@@ -67,13 +57,7 @@ def transformed(p, m) -> np.ndarray:
 
 def check(p) -> list:
     """(row, what is wrong) for each disk the kernels cannot take."""
-    out = []
-    for i, row in enumerate(rows(p)):
-        if not np.isfinite(row).all():
-            out.append((i, "its to_world is not finite"))
-        elif not np.float32(row[27]) > 0:
-            out.append((i, f"its area {row[27]:g} is not positive in float32 (a to_world that flattens it)"))
-    return out
+    return mapped_checks(p, 27)
 
 
 def reach(p) -> np.ndarray:
@@ -83,7 +67,7 @@ def reach(p) -> np.ndarray:
 
 def to_mitsuba(p) -> dict:
     row = rows(p)[0]
-    m = _to_world(row)[0]
+    m = to_world_maps(row)[0]
     flip = float(np.dot(row[24:27], params(m)[0, 24:27])) < 0
     return {"type": "disk", "to_world": [list(map(float, r)) for r in m], "flip_normals": bool(flip)}
 
