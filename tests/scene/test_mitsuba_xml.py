@@ -549,6 +549,10 @@ def test_shapes_closed_form(tmp_path):
                 assert len(scene.faces) == 0 and np.isclose(p[27], area, rtol=1e-6)
                 assert np.allclose(p[24:27], -np.asarray(normal) if flip else normal, atol=1e-6), flip
                 continue
+            if stype == "cylinder":  # analytic (scene/shapes/cylinder.py): its area, its front outside or in
+                p = scene.shapes["params"][0].astype(np.float64)
+                assert len(scene.faces) == 0 and np.isclose(p[25], area, rtol=1e-6) and p[24] == (-1 if flip else 1)
+                continue
             v = scene.vertices.astype(np.float64)[scene.faces]
             n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
             assert np.isclose(0.5 * np.linalg.norm(n, axis=1).sum(), area, rtol=1e-6), stype
