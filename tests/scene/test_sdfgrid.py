@@ -4,7 +4,6 @@ Mitsuba's own render of the same file."""
 from __future__ import annotations
 
 import struct
-import warnings
 
 import numpy as np
 import pytest

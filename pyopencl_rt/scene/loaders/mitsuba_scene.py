@@ -17,8 +17,7 @@ from ..model import Environment, RenderSettings
 from ..pixel_filter import PixelFilter
 from ..shapes import MITSUBA_TYPES as MITSUBA_SHAPES
 from ..shapes.frames import ShapeMitsubaReading, coordinate_system
-from .builder import (EnvMap, SceneBuilder, camera_from_matrix, cylinder_mesh, error_at, rectangle_mesh,
-                      transform_points)
+from .builder import EnvMap, SceneBuilder, camera_from_matrix, cylinder_mesh, error_at, rectangle_mesh
 from .mitsuba_meshes import CURVED_SEGMENTS, flat, mitsuba_cube_mesh, mitsuba_disk_mesh, mitsuba_sphere_mesh
 from ..media import MediumInterface
 from .mitsuba_bsdf import BsdfMapper, color_value
