@@ -68,17 +68,12 @@ RT_INLINE void packet_set_ray(PacketRay *p, int k, float3 o, float3 d)
 
 /* The packet of rays (o, d) per lane: packet_set_ray for every lane at once, with wide_ray's
  * arithmetic (safe reciprocals, the permutation and shear of ray_shear) done on the lanes. */
-RT_INLINE pfloat packet_rcp(pfloat x)
-{
-    return 1.0f / (pabs(x) < RCP_MIN_INPUT ? pcopysign(PFLOAT(RCP_MIN_INPUT), x) : x);
-}
-
 RT_INLINE PacketRay packet_rays(pvec3 o, pvec3 d)
 {
     PacketRay r;
     r.ox = o.x; r.oy = o.y; r.oz = o.z;
     r.dx = d.x; r.dy = d.y; r.dz = d.z;
-    r.ix = packet_rcp(d.x); r.iy = packet_rcp(d.y); r.iz = packet_rcp(d.z);
+    r.ix = psafe_rcp(d.x); r.iy = psafe_rcp(d.y); r.iz = psafe_rcp(d.z);
     const pfloat ax = pabs(d.x), ay = pabs(d.y), az = pabs(d.z);
     /* kz: the dominant axis, as ray_shear picks it (ties and NaN to z) */
     const pint kz0 = (ax > ay) & (ax > az), kz1 = ~(ax > ay) & (ay > az), kz2 = ~kz0 & ~kz1;

@@ -135,6 +135,13 @@ RT_INLINE int intersect_triangle(float3 o, float3 d, RayShear s, float3 p0, floa
     return 1;
 }
 
+/* safe_rcp (common.h) over the lanes: 1 / x with |x| below RCP_MIN_INPUT clamped to it (the packets',
+ * the shapes' and the media grids' slab tests) */
+RT_INLINE pfloat psafe_rcp(pfloat x)
+{
+    return 1.0f / (pabs(x) < RCP_MIN_INPUT ? pcopysign(PFLOAT(RCP_MIN_INPUT), x) : x);
+}
+
 /* ---------------------------------------------------------------------------------------------
  * Ray/box slab test.  inv_d = safe_rcp3(d) (finite, so no 0*inf = NaN for a ray in the plane of
  * a face: such a ray is inside that slab).  Returns the entry distance, or INFINITY on a miss.

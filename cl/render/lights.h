@@ -44,7 +44,6 @@
 
 #include "render/light_sample.h"
 
-
 /* -- area lights -------------------------------------------------------------------------------- */
 
 /* The triangle lights of the lanes in `sel` (`row`: each lane's light record, in floats) */

@@ -38,6 +38,7 @@
 #ifndef PYOPENCL_RT_MEDIA_H
 #define PYOPENCL_RT_MEDIA_H
 
+#include "accel/intersect.h"
 #include "render/phase.h"
 #include "render/rng.h"
 #include "render/sampling.h"
@@ -128,8 +129,6 @@ RT_INLINE pvec3 grid_dir_to_local(const GridLanes *g, pvec3 d)
                g->m[8] * d.x + g->m[9] * d.y + g->m[10] * d.z);
 }
 
-/* 1 / x with |x| below RCP_MIN_INPUT clamped to it (common.h's safe_rcp) */
-RT_INLINE pfloat psafe_rcp(pfloat x) { return 1.0f / (pabs(x) < RCP_MIN_INPUT ? pcopysign(PFLOAT(RCP_MIN_INPUT), x) : x); }
 
 /* The part [*t0, *t1] of the ray o + t d, t in [tmin, tmax], inside the grid's box (the unit cube of its
  * local space; t stays the world ray's parameter, the map being affine).  Returns the lanes (of

@@ -1,4 +1,4 @@
-/* The analytic shapes (spheres, disks: cl/shapes/<name>.h each) as the kernels see them: their own
+/* The analytic shapes (spheres, disks, tubes: cl/shapes/<name>.h each) as the kernels see them: their own
  * BVH (shape_nodes, accel/bvh.h's node layout; a leaf holds one shape, child its index), traversed
  * after the triangles' for the lanes of a packet, and the dispatch of a hit's point, normal and
  * emitter sample to each lane's type.  One BVH per kind of primitive, as Embree's scenes keep one
@@ -7,6 +7,7 @@
 #ifndef PYOPENCL_RT_SHAPES_H
 #define PYOPENCL_RT_SHAPES_H
 
+#include "accel/bvh.h"
 #include "scene/shape_lanes.h"
 #include "shapes/units.h"
 
@@ -28,11 +29,6 @@ RT_INLINE pint shape_intersect(__global const Shape *shapes, int s, pvec3 o, pve
     return h;
 }
 
-RT_INLINE pfloat shape_rcp(pfloat x)
-{
-    return 1.0f / (pabs(x) < RCP_MIN_INPUT ? pcopysign(PFLOAT(RCP_MIN_INPUT), x) : x);
-}
-
 /* The lanes whose ray enters the box (lo, hi) in (0, tmax) (tmax < 0: an idle lane); inv the safe
  * reciprocal of the direction, so no operand is NaN; the far side grows as the triangles' test does */
 RT_INLINE pint shape_box(__global const float4 *box, pvec3 o, pvec3 inv, pfloat tmax)
@@ -46,18 +42,6 @@ RT_INLINE pint shape_box(__global const float4 *box, pvec3 o, pvec3 inv, pfloat 
     return enter <= pfmin(leave, tmax);
 }
 
-/* The next node of a walk once node n's children are tested: `go` the children some lane enters
- * (bit 0 left, bit 1 right; leaves already done), the right one pushed when both are.  0: the end. */
-RT_INLINE int shape_next(__global const BVHNode *n, int go, int *stack, int *sp, int *idx)
-{
-    if (go == 3) { stack[(*sp)++] = n->child_right; *idx = n->child_left; return 1; }
-    if (go == 1) { *idx = n->child_left; return 1; }
-    if (go == 2) { *idx = n->child_right; return 1; }
-    if (*sp == 0) return 0;
-    *idx = stack[--*sp];
-    return 1;
-}
-
 /* The shapes' BVH walked for the lanes of `live`: with any_hit 0 their closest hits nearer than *t
  * (*t and *prim set where one is), with 1 whether some shape lies before *t (the walk ends when every
  * lane is blocked); returns the lanes that found one.  The builder keeps the depth under
@@ -65,7 +49,7 @@ RT_INLINE int shape_next(__global const BVHNode *n, int go, int *stack, int *sp,
 RT_INLINE pint shapes_walk(__global const BVHNode *shape_nodes, __global const Shape *shapes, pvec3 o, pvec3 d,
                            pint live, pfloat *t, pint *prim, const int any_hit)
 {
-    const pvec3 inv = pv3(shape_rcp(d.x), shape_rcp(d.y), shape_rcp(d.z));
+    const pvec3 inv = pv3(psafe_rcp(d.x), psafe_rcp(d.y), psafe_rcp(d.z));
     int stack[BVH_STACK_SIZE], sp = 0, idx = 0;
     pint found = PINT(0);
     for (;;) {
@@ -73,11 +57,11 @@ RT_INLINE pint shapes_walk(__global const BVHNode *shape_nodes, __global const S
         __global const float4 *q = (__global const float4 *)n;
         const pint open = any_hit ? live & pnot(found) : live;
         if (any_hit && !pany(open)) return found;
-        int go = 0;
+        int go[2] = {0, 0}; /* the inner children some lane enters (leaves are done here) */
         for (int side = 0; side < 2; ++side) {
             const int count = side ? n->count_right : n->count_left;
             if (count < 0 || !pany(shape_box(q + 2 * side, o, inv, open ? *t : PFLOAT(-1.0f)))) continue;
-            if (count == 0) { go |= 1 << side; continue; }
+            if (count == 0) { go[side] = 1; continue; }
             const int s = side ? n->child_right : n->child_left;
             pfloat th = *t;
             const pint h = shape_intersect(shapes, s, o, d, PFLOAT(0.0f), *t, &th, open);
@@ -87,7 +71,7 @@ RT_INLINE pint shapes_walk(__global const BVHNode *shape_nodes, __global const S
             }
             found |= h;
         }
-        if (!shape_next(n, go, stack, &sp, &idx)) return found;
+        if (!bvh_next_any(n->child_left, n->child_right, go[0], go[1], stack, &sp, &idx)) return found;
     }
 }
 

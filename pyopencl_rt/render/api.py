@@ -307,7 +307,7 @@ def sidecar(scene: Scene, settings: ImageSettings, film: Film, run: _Run, *, spp
         "wave_size": engine.get("wave_size"),
         "features": engine.get("features"),
         "triangles": int(len(scene.faces)),
-        "shapes": int(len(scene.shapes)),  # the analytic ones (spheres, disks)
+        "shapes": int(len(scene.shapes)),  # the analytic ones (spheres, disks, tubes)
         "lights": engine.get("lights"),
         "light_tree": engine.get("light_tree"),
         "bvh_seconds": engine.get("bvh_seconds"),

@@ -71,7 +71,7 @@ class EmbreeIntersector(Intersector):
 
     def check(self, scene) -> None:
         if len(scene.shapes):
-            raise UserError("--intersector embree: scenes with analytic shapes (spheres, disks) are not supported "
+            raise UserError("--intersector embree: scenes with analytic shapes (spheres, disks, tubes) are not supported "
                             "(Embree gets triangles only)")
         if scene.has_media():
             raise UserError("--intersector embree: scenes with participating media or index-matched shapes are not "

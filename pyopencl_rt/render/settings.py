@@ -155,12 +155,12 @@ def check_run(spp=None, time_limit=None) -> None:
 # is the same bit for bit (tests/render/test_features.py); the test suite runs so.
 FEATURES_ENV = "PYOPENCL_RT_KERNEL_FEATURES"
 # The defines that only gate code the scene's data selects at run time (a material's type and
-# flags, a light's kind, the shapes' BVH (an empty root without shapes), n_lights, env_light, light_tree, the camera's motion record;
-# the BVH of a scene without triangles is one empty root).  HAS_MEDIA (the volumetric integrator),
+# flags, a light's kind, a shape's type, n_lights, env_light, light_tree, the camera's motion
+# record; the BVH of a scene without triangles, and the shapes' BVH without shapes, is one empty root).  HAS_MEDIA (the volumetric integrator),
 # HAS_INSTANCES (the two-level BVH, and with it HAS_MOTION: an instance record's motion) and
 # HAS_AOVS (a setting) stay the scene's.
-EVERY_FEATURE = ("HAS_SHAPES", *(f"HAS_SHAPE_{name.upper()}" for name in abi.SHAPE_TYPES), "HAS_TEXTURES", "HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS",
-                 "HAS_CUTOUTS", "HAS_ANISOTROPY", "HAS_DELTA_LIGHTS", "HAS_ENVIRONMENT", "HAS_INFINITE_LIGHTS",
+EVERY_FEATURE = ("HAS_SHAPES", *(f"HAS_SHAPE_{name.upper()}" for name in abi.SHAPE_TYPES), "HAS_TEXTURES",
+                 "HAS_SHADING_NORMALS", "HAS_NORMAL_MAPS", "HAS_VERTEX_COLORS", "HAS_CUTOUTS", "HAS_ANISOTROPY", "HAS_DELTA_LIGHTS", "HAS_ENVIRONMENT", "HAS_INFINITE_LIGHTS",
                  "HAS_TRIANGLES", "HAS_LIGHTS", "LIGHT_TREE", "HAS_CAMERA_MOTION")
 
 # The defines that "all" replaces by a run-time choice: every material type compiled in, and the

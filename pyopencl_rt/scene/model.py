@@ -17,6 +17,7 @@ from .camera import FOV_AXES, PROJECTIONS, Camera, vertical_fov  # noqa: F401 (r
 from .lights import (DirectionalLight, Environment, PointLight, ProjectorLight, SpotLight,  # noqa: F401
                      light_type, look_at_frame)
 from .materials import REGISTRY, MaterialType
+from .materials.mix import BLENDED
 from .pixel_filter import PixelFilter
 from .shapes import transformed as shapes_moved
 
@@ -198,8 +199,6 @@ class Material:
         rec["opacity"] = min(max(float(self.opacity), 0.0), 1.0) if self.masked or self.cutout else 0.0  # with a flag only
         rec["alpha_cutoff"] = float(self.alpha_cutoff) if self.cutout else 0.0
         if self.type == "mix":  # the blended records' indices in its block (scene/materials/mix.py)
-            from .materials.mix import BLENDED
-
             rec["table"][BLENDED] = [(material_index or {}).get(id(m), -1) for m in self.blend]
             if material_index is not None and min(rec["table"][BLENDED]) < 0:
                 raise ValueError(f"material {self.name!r}: a material it blends is not among the scene's materials")
@@ -311,7 +310,7 @@ class Scene:
     face_materials: np.ndarray  # (F,) int32 index into materials
     materials: list  # list[Material]
     camera: Camera = field(default_factory=Camera)
-    # the analytic shapes (spheres, disks: pyopencl_rt/scene/shapes/): (S,) abi.SHAPE records, their type
+    # the analytic shapes (spheres, disks, tubes: pyopencl_rt/scene/shapes/): (S,) abi.SHAPE records, their type
     # and parameters in float32, as the kernels read them; and the material of each
     shapes: np.ndarray = field(default_factory=lambda: np.zeros(0, abi.SHAPE))
     shape_materials: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))

@@ -25,6 +25,7 @@ _TET_EDGES = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
 _EDGE_ID = np.full((4, 4), -1, np.int64)  # the index in _TET_EDGES of the edge between two corners
 for _k, (_a, _b) in enumerate(_TET_EDGES):
     _EDGE_ID[_a, _b] = _EDGE_ID[_b, _a] = _k
+_EDGES_OF = np.array([[k for k, e in enumerate(_TET_EDGES) if c in e] for c in range(4)])  # each corner's three
 
 
 def trilinear(values, p) -> tuple[np.ndarray, np.ndarray]:
@@ -113,8 +114,7 @@ def sdf_mesh(values, refine: int | None = None) -> tuple[np.ndarray, np.ndarray,
     for count in (1, 3):
         sel = n_in == count
         lone = np.argmax(inside[sel] if count == 1 else ~inside[sel], axis=1)  # the corner alone on its side
-        edges_of = np.array([[k for k, e in enumerate(_TET_EDGES) if c in e] for c in range(4)])  # (4, 3)
-        tri = np.take_along_axis(edge_vertex[sel], edges_of[lone], axis=1)
+        tri = np.take_along_axis(edge_vertex[sel], _EDGES_OF[lone], axis=1)
         faces.append(tri)
     sel = n_in == 2
     if sel.any():

@@ -102,10 +102,10 @@ def unit_rows(shapes) -> list:
     return out
 
 
-def per_shape(shapes, fn: str, width: int = 0) -> np.ndarray:
-    """Each type's ``fn`` (bounds' halves aside: "area", "reach") over the records, in their order."""
+def per_shape(shapes, fn: str) -> np.ndarray:
+    """Each type's scalar ``fn`` ("area", "reach") over the records, in their order."""
     shapes = np.asarray(shapes, abi.SHAPE)
-    out = np.zeros((len(shapes), width) if width else len(shapes))
+    out = np.zeros(len(shapes))
     for t, idx, p in unit_rows(shapes):
         out[idx] = getattr(t, fn)(p)
     return out

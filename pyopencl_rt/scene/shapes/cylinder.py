@@ -93,7 +93,7 @@ def transformed(p, m) -> np.ndarray | None:
 def mesh(p, m):
     """One tube moved by a map that keeps it not a tube of ours (an elliptic or slanted one): triangles with its
     exact radial normals (v, f, uv, normals, matrix), the inside's where it faces in."""
-    from ..loaders.geometry import cylinder_mesh
+    from ..loaders.geometry import cylinder_mesh  # here: the loaders (their builder) import this package
 
     row = rows(p)[0]
     v, f, uv = cylinder_mesh(1.0, 0.0, 1.0)

@@ -52,7 +52,7 @@ def transformed(p, m) -> np.ndarray | None:
 
 def mesh(p, m):
     """One sphere moved by a map that keeps it not: triangles with its exact normals (v, f, uv, normals)."""
-    from ..loaders.geometry import sphere_mesh
+    from ..loaders.geometry import sphere_mesh  # here: the loaders (their builder) import this package
 
     centre, radius = rows(p)[0, :3], float(rows(p)[0, 3])
     v, f, uv = sphere_mesh(radius)
