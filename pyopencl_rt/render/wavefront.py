@@ -84,6 +84,72 @@ def check_wave_memory(device, wave_size: int) -> None:
                          f"(at most {alloc / 2**30:.2f} GiB per buffer): use a smaller wave")
 
 
+class _KernelBuild:
+    """The build of a Wavefront's kernels on a thread (the lane width's choice, the kernels, the
+    defines they were built with); :meth:`join` sets them on the Wavefront, or raises what the
+    build raised.  A lane kernel that fails falls back to one path per work-item, with a warning."""
+
+    def __init__(self, wf, device):
+        import threading
+
+        self._wf, self._device = wf, device
+        self._result = self._error = None
+        self._thread = threading.Thread(target=self._run, name="pyopencl-rt kernel build", daemon=True)
+        self._thread.start()
+
+    def _run(self):
+        try:
+            t0 = time.perf_counter()
+            with host_stage("kernel_build"):
+                self._result = self._build()
+            self._result["build_seconds"] = time.perf_counter() - t0
+        except BaseException as exc:  # re-raised by join(), in the thread that renders
+            self._error = exc
+
+    def _build(self) -> dict:
+        import pyopencl as cl
+
+        from . import megakernel
+
+        wf, device = self._wf, self._device
+        features, kernel_mode, rt = dict(wf.features), wf.kernel_mode, wf.rt
+        lane_width, lane_reason = megakernel.lane_choice(kernel_mode, device, features)
+        kernels = None
+        if lane_width:
+            try:
+                # the scene's defines last: a benchmark variant (tools/kernel_ab.py) may set LANE_GROUP
+                lane_features = {**megakernel.lane_features(lane_width), **features}
+                kernels = {"path": rt.new_kernels(megakernel.SOURCES, ("mk_path",), lane_features)["mk_path"]}
+                features = lane_features
+            except cl.Error as exc:  # a kernel of ours that fails never ends the render
+                import warnings
+
+                failure = f"the {lane_width}-lane kernel failed ({str(exc).splitlines()[0]})"
+                warnings.warn(f"{failure}: rendering with one path per work-item", stacklevel=2)
+                lane_width, lane_reason = 0, f"one path per work-item: {failure}"
+        if not lane_width and kernel_mode == "megakernel":
+            features = {**megakernel.group_features(device, 0), **features}
+            kernels = {"path": rt.new_kernels(megakernel.SOURCES, ("mk_path",), features)["mk_path"]}
+        elif not lane_width:
+            built = rt.new_kernels(SOURCES, [f"wf_{s}" for s in STAGES], features)
+            kernels = {s: built[f"wf_{s}"] for s in STAGES}
+        return {"lane_width": lane_width, "lane_reason": lane_reason, "kernels": kernels, "features": features}
+
+    def wait(self) -> None:
+        """Until the build has ended (whatever its outcome): a render that fails before join()
+        does not leave PoCL compiling while the process exits."""
+        self._thread.join()
+
+    def join(self) -> None:
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        wf, r = self._wf, self._result
+        wf.lane_width, wf.lane_reason, wf.kernels, wf.features = (r["lane_width"], r["lane_reason"],
+                                                                  r["kernels"], r["features"])
+        wf.timings["build_seconds"] = r["build_seconds"]
+
+
 class Wavefront:
     """A scene loaded on one device, ready to render passes.
 
@@ -145,126 +211,115 @@ class Wavefront:
         self.wave_size = int(wave_size or default_wave_size(device, self.kernel_mode))
 
         self.rt = runtime(device)
-        t0 = time.perf_counter()
-        build_stage = host_stage("kernel_build")
-        build_stage.__enter__()
-        self.lane_width, self.lane_reason = megakernel.lane_choice(self.kernel_mode, device, self.features)
-        if self.lane_width:
-            try:
-                # the scene's defines last: a benchmark variant (tools/kernel_ab.py) may set LANE_GROUP
-                lane_features = {**megakernel.lane_features(self.lane_width), **self.features}
-                self.kernels = {"path": self.rt.new_kernels(megakernel.SOURCES, ("mk_path",),
-                                                            lane_features)["mk_path"]}
-                self.features = lane_features
-            except cl.Error as exc:  # a kernel of ours that fails never ends the render
-                import warnings
+        # the kernels build (or come from PoCL's cache) on a thread of their own while this one
+        # collapses the BVH and makes the buffers: PoCL's compiler releases the GIL (issue 35)
+        building = _KernelBuild(self, device)
+        try:
+            from ..accel.device_bvh import LAYOUT_WIDTHS, node_buffer
 
-                failure = f"the {self.lane_width}-lane kernel failed ({str(exc).splitlines()[0]})"
-                warnings.warn(f"{failure}: rendering with one path per work-item", stacklevel=2)
-                self.lane_width, self.lane_reason = 0, f"one path per work-item: {failure}"
-        if not self.lane_width and self.kernel_mode == "megakernel":
-            self.features = {**megakernel.group_features(device, 0), **self.features}
-            self.kernels = {"path": self.rt.new_kernels(megakernel.SOURCES, ("mk_path",), self.features)["mk_path"]}
-        elif not self.lane_width:
-            kernels = self.rt.new_kernels(SOURCES, [f"wf_{s}" for s in STAGES], self.features)
-            self.kernels = {s: kernels[f"wf_{s}"] for s in STAGES}
-        build_stage.__exit__(None, None, None)
-        self.timings["build_seconds"] = time.perf_counter() - t0
-        from ..accel.device_bvh import LAYOUT_WIDTHS, node_buffer
+            ctx = self.rt.context
+            mf = cl.mem_flags
+            # a CPU device reads the host's arrays where they are (device/host_memory.py; the arrays
+            # are kept with the buffers); a GPU gets its own copy
+            on_host = bool(device.type & cl.device_type.CPU)
+            self._host_arrays = []
 
-        ctx = self.rt.context
-        mf = cl.mem_flags
-        # a CPU device reads the host's arrays where they are (device/host_memory.py; the arrays
-        # are kept with the buffers); a GPU gets its own copy
-        on_host = bool(device.type & cl.device_type.CPU)
-        self._host_arrays = []
+            def const(a):
+                a = np.ascontiguousarray(a)
+                if a.nbytes == 0:
+                    a = np.zeros(16, np.uint8)
+                if on_host:  # the scene's own arrays among them: a scene is not changed under a render
+                    a = aligned(a)
+                    self._host_arrays.append(a)
+                    return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a)
+                return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
 
-        def const(a):
-            a = np.ascontiguousarray(a)
-            if a.nbytes == 0:
-                a = np.zeros(16, np.uint8)
-            if on_host:  # the scene's own arrays among them: a scene is not changed under a render
-                a = aligned(a)
-                self._host_arrays.append(a)
-                return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a)
-            return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
+            def filled(shape, dtype, fill):
+                """A read-only buffer of ``shape``, written by ``fill(array)`` through a mapping: no host
+                array beside the device's (the largest per-triangle buffers of a big scene)."""
+                nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
+                if nbytes == 0:
+                    return const(np.zeros(0, np.uint8))
+                buf = cl.Buffer(ctx, mf.READ_ONLY, nbytes)
+                mapped, _ = cl.enqueue_map_buffer(self.rt.queue, buf, cl.map_flags.WRITE_INVALIDATE_REGION, 0, shape,
+                                                  dtype)
+                try:
+                    fill(mapped)
+                finally:
+                    mapped.base.release(self.rt.queue)
+                return buf
 
-        def filled(shape, dtype, fill):
-            """A read-only buffer of ``shape``, written by ``fill(array)`` through a mapping: no host
-            array beside the device's (the largest per-triangle buffers of a big scene)."""
-            nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
-            if nbytes == 0:
-                return const(np.zeros(0, np.uint8))
-            buf = cl.Buffer(ctx, mf.READ_ONLY, nbytes)
-            mapped, _ = cl.enqueue_map_buffer(self.rt.queue, buf, cl.map_flags.WRITE_INVALIDATE_REGION, 0, shape, dtype)
-            try:
-                fill(mapped)
-            finally:
-                mapped.base.release(self.rt.queue)
-            return buf
+            # the triangle records (48 bytes a triangle) are what the binary layout's traversal reads;
+            # the wide layouts' packets hold the vertices themselves (gathered from the mesh), and
+            # shading reads the mesh (vertices, faces, prim_ids: MESH_PARAMS in cl/scene/scene.h): our own
+            # BVH's records go before the packets are made (build_lights has read them)
+            binary = LAYOUT_WIDTHS[self.bvh_layout] == 2
+            own = bvh is None and not hasattr(self.bvh, "world")
+            if own and not binary:
+                self.bvh.triangles = None
+            with host_stage("bvh_collapse"):  # the device's node layout (8-wide on CPUs)
+                # our own BVH's binary records go as the collapse reads them (consume)
+                nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout, consume=own)
+            if bvh is None:  # the wide BVH cached on a BVH of our own: in the blob now
+                getattr(self.bvh, "world", self.bvh).__dict__.pop("_wide", None)
+            if own:  # its binary records are in the node buffer now (padded or collapsed): not read again
+                self.bvh.nodes = None
+            upload_stage = host_stage("upload")  # every buffer made and copied (the scene's, the wave's)
+            upload_stage.__enter__()
+            nodes = const(nodes)
+            tris = const(self.bvh.triangles if binary else np.zeros(0, np.uint8))
+            if own:  # the records (binary) are the device's now: the host does not read them again
+                self.bvh.triangles = None
 
-        # the triangle records (48 bytes a triangle) are what the binary layout's traversal reads;
-        # the wide layouts' packets hold the vertices themselves (gathered from the mesh), and
-        # shading reads the mesh (vertices, faces, prim_ids: MESH_PARAMS in cl/scene/scene.h): our own
-        # BVH's records go before the packets are made (build_lights has read them)
-        binary = LAYOUT_WIDTHS[self.bvh_layout] == 2
-        own = bvh is None and not hasattr(self.bvh, "world")
-        if own and not binary:
-            self.bvh.triangles = None
-        with host_stage("bvh_collapse"):  # the device's node layout (8-wide on CPUs)
-            # our own BVH's binary records go as the collapse reads them (consume)
-            nodes = node_buffer(getattr(self.bvh, "world", self.bvh), self.bvh_layout, consume=own)
-        if bvh is None:  # the wide BVH cached on a BVH of our own: in the blob now
-            getattr(self.bvh, "world", self.bvh).__dict__.pop("_wide", None)
-        if own:  # its binary records are in the node buffer now (padded or collapsed): not read again
-            self.bvh.nodes = None
-        upload_stage = host_stage("upload")  # every buffer made and copied (the scene's, the wave's)
+            def scratch(nbytes):
+                return cl.Buffer(ctx, mf.READ_WRITE, max(int(nbytes), 16))
+
+            prim = self.bvh.prim_ids
+            face_materials = np.asarray(scene.face_materials, np.int32)
+            tri_material = filled(prim.shape, np.int32, lambda out: np.take(face_materials, prim, out=out, mode="clip"))
+            cam = scene.camera.record(self.width, self.height)
+            filter_cdf = filters.apply(cam, settings.filter)  # the pixel filter's fields and tables
+            W, P = self.wave_size, self.n_pixels
+            # enough ring slots for every pass a full wave can span, plus the one draining
+            self.ring_size = int(min(max(2, math.ceil(W / P) + 2), 1 << 12))
+            self.counters_host = np.zeros(abi.COUNTER_PASS_DONE + self.ring_size, np.int32)
+            # MIS compensation of the environment's light sampling where MIS combines it with BSDF
+            # sampling: light sampling alone ("nee") needs the complete density
+            env_map, env_cdf = environment_buffers(scene, compensated=self.settings.integrator == "path")
+            buffers = dict(
+                nodes=nodes,
+                tris=tris, **self._instance_buffers(const), **self._mesh_buffers(const),
+                tri_material=tri_material, tri_light=const(tri_light), shapes=const(scene.shapes),
+                shape_nodes=const(build_shape_bvh(*shape_bounds(scene.shapes))),
+                shape_material=const(scene.shape_materials.astype(np.int32)), shape_light=const(shape_light),
+                materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
+                camera_motion=const(camera_motion_record(scene)),
+                light_nodes=const(light_nodes if len(light_nodes) else np.zeros(1, abi.LIGHT_NODE)),
+                **self._texture_buffers(const), **self._shading_buffers(const, filled),
+                **self._aov_buffers(scratch, W, P),
+                **self._media_buffers(const), **self._media_path_buffers(const),
+                free_q=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32)),
+                counters=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host),
+                pass_ring=scratch(3 * 4 * P * self.ring_size), env_map=const(env_map), env_cdf=const(env_cdf),
+                filter_cdf=const(filter_cdf),
+                pixel_list=scratch(4 * P),  # filled by run(pixels=) (adaptive sampling)
+                n_lights=self.n_lights, n_pixels=P, ring_size=self.ring_size,
+                max_depth=self.settings.max_depth, rr_depth=self.settings.rr_depth, seed=self.settings.seed,
+                integrator=INTEGRATORS.index(self.settings.integrator), env_light=environment_row(lights),
+                sampler=abi.SAMPLERS[self.settings.sampler], max_component=max_component_value(scene),
+                light_tree=int(self.light_tree),
+            )
+        except BaseException:
+            building.wait()  # PoCL is not left compiling under a failed render
+            raise
+        upload_stage.__exit__(None, None, None)
+        with host_stage("kernel_wait"):  # what of the build the collapse and the buffers did not hide
+            building.join()  # the kernels, their width and their defines
+        upload_stage = host_stage("upload")
         upload_stage.__enter__()
-        nodes = const(nodes)
-        tris = const(self.bvh.triangles if binary else np.zeros(0, np.uint8))
-        if own:  # the records (binary) are the device's now: the host does not read them again
-            self.bvh.triangles = None
-
-        def scratch(nbytes):
-            return cl.Buffer(ctx, mf.READ_WRITE, max(int(nbytes), 16))
-
-        prim = self.bvh.prim_ids
-        face_materials = np.asarray(scene.face_materials, np.int32)
-        tri_material = filled(prim.shape, np.int32, lambda out: np.take(face_materials, prim, out=out, mode="clip"))
-        cam = scene.camera.record(self.width, self.height)
-        filter_cdf = filters.apply(cam, settings.filter)  # the pixel filter's fields and tables
-        W, P = self.wave_size, self.n_pixels
-        # enough ring slots for every pass a full wave can span, plus the one draining
-        self.ring_size = int(min(max(2, math.ceil(W / P) + 2), 1 << 12))
-        self.counters_host = np.zeros(abi.COUNTER_PASS_DONE + self.ring_size, np.int32)
-        # MIS compensation of the environment's light sampling where MIS combines it with BSDF
-        # sampling: light sampling alone ("nee") needs the complete density
-        env_map, env_cdf = environment_buffers(scene, compensated=self.settings.integrator == "path")
         # arguments by parameter name (abi.WAVE_PARAMS), set once on every stage
         self.args = KernelArgs(self.kernels)
-        self.args.bind(
-            nodes=nodes,
-            tris=tris, **self._instance_buffers(const), **self._mesh_buffers(const),
-            tri_material=tri_material, tri_light=const(tri_light), shapes=const(scene.shapes),
-            shape_nodes=const(build_shape_bvh(*shape_bounds(scene.shapes))),
-            shape_material=const(scene.shape_materials.astype(np.int32)), shape_light=const(shape_light),
-            materials=const(scene.material_records()), lights=const(lights), camera=const(cam),
-            camera_motion=const(camera_motion_record(scene)),
-            light_nodes=const(light_nodes if len(light_nodes) else np.zeros(1, abi.LIGHT_NODE)),
-            **self._texture_buffers(const), **self._shading_buffers(const, filled),
-            **self._aov_buffers(scratch, W, P),
-            **self._media_buffers(const), **self._media_path_buffers(const),
-            free_q=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.arange(W, dtype=np.int32)),
-            counters=cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=self.counters_host),
-            pass_ring=scratch(3 * 4 * P * self.ring_size), env_map=const(env_map), env_cdf=const(env_cdf),
-            filter_cdf=const(filter_cdf),
-            pixel_list=scratch(4 * P),  # filled by run(pixels=) (adaptive sampling)
-            n_lights=self.n_lights, n_pixels=P, ring_size=self.ring_size,
-            max_depth=self.settings.max_depth, rr_depth=self.settings.rr_depth, seed=self.settings.seed,
-            integrator=INTEGRATORS.index(self.settings.integrator), env_light=environment_row(lights),
-            sampler=abi.SAMPLERS[self.settings.sampler], max_component=max_component_value(scene),
-            light_tree=int(self.light_tree),
-        )
+        self.args.bind(**buffers)
         # the rest of the path state and queues, sized by the table, written by the kernels first
         # (the megakernel keeps them in registers: it gets placeholders)
         per_slot = 0 if self.kernel_mode == "megakernel" else W

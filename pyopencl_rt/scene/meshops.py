@@ -125,14 +125,17 @@ def _as_index(a) -> np.ndarray:
     return np.ascontiguousarray(a if a.dtype in (np.int32, np.int64) else a.astype(np.int64))
 
 
-def angle_weighted_normals(vertices, faces, keys=None) -> np.ndarray:
+def angle_weighted_normals(vertices, faces, keys=None, out=None) -> np.ndarray:
     """Per-corner (F, 3, 3) float32 vertex normals as Mitsuba 3 computes them for a mesh without
-    any: see :func:`pyopencl_rt.scene.loaders.assembly.angle_weighted_normals`."""
+    any: see :func:`pyopencl_rt.scene.loaders.assembly.angle_weighted_normals`; written into
+    ``out`` (C-contiguous float32 (F, 3, 3): a part of the scene's stacked array) if given."""
     v = _as_float(vertices).reshape(-1, 3)  # float32 or float64 as given: no copy of a mesh file's
     f = _as_index(faces).reshape(-1, 3)
     keys = f if keys is None else _as_index(keys).reshape(-1, 3)
+    if out is not None and (out.shape != (len(f), 3, 3) or out.dtype != np.float32 or not out.flags.c_contiguous):
+        raise ValueError(f"out must be a C-contiguous float32 ({len(f)}, 3, 3) array")
     if len(f) == 0:
-        return np.zeros((0, 3, 3), np.float32)
+        return np.zeros((0, 3, 3), np.float32) if out is None else out
     n = np.empty((len(f), 3))
     cosines = np.empty((len(f), 3))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -142,7 +145,8 @@ def angle_weighted_normals(vertices, faces, keys=None) -> np.ndarray:
     _accumulate(n, angle, keys, sums)
     del n, angle, cosines
     _normalise_rows(sums)
-    out = np.empty((len(f), 3, 3), np.float32)
+    if out is None:
+        out = np.empty((len(f), 3, 3), np.float32)
     _gather_corners(sums, keys, out)
     return out
 

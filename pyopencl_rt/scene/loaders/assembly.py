@@ -39,8 +39,9 @@ def kept_per_face(values, keep, dtype, shape=(), copy: bool = False):
 
 
 def stacked_per_face(parts, faces, shape, fill) -> np.ndarray:
-    """The per-face arrays ``parts`` (one per mesh, None: ``fill`` for each of its faces) in one
-    float32 (F, *shape) array, written once (np.concatenate of the parts and placeholders)."""
+    """The per-face arrays ``parts`` (one per mesh, None: ``fill`` for each of its faces; a
+    :class:`PendingNormals`: computed in place) in one float32 (F, *shape) array, written once
+    (np.concatenate of the parts and placeholders)."""
     # zeros from calloc: the pages of the meshes without such values are never written; page-aligned,
     # so a CPU device reads the normals in place (device/host_memory.py)
     out = aligned_empty((sum(len(f) for f in faces), *shape), np.float32, zeros=fill == 0)
@@ -50,6 +51,8 @@ def stacked_per_face(parts, faces, shape, fill) -> np.ndarray:
         if part is None:
             if fill != 0:
                 out[at:at + n] = fill
+        elif isinstance(part, PendingNormals):
+            part.write_into(out[at:at + n])
         else:
             out[at:at + n] = np.asarray(part).reshape(n, *shape)
         at += n
@@ -119,16 +122,33 @@ def transform_normals(matrix, normals, unit: bool = True):
     return out.reshape(-1, 3, 3)
 
 
-def angle_weighted_normals(vertices, faces, keys=None) -> np.ndarray:
+def angle_weighted_normals(vertices, faces, keys=None, out=None) -> np.ndarray:
     """Per-corner (F, 3, 3) vertex normals as Mitsuba 3 computes them for a mesh without any
     (``Mesh::recompute_vertex_normals``: Thuermer and Wuethrich 1998): each face's unit normal
     weighted by its angle at the vertex, summed over the faces that share the vertex, normalised
     ((1, 0, 0) for a vertex whose sum is 0, as Mitsuba's).  ``keys`` (F, 3) int: which corners are
     one vertex (default: the face indices; Mitsuba's OBJ reader makes one vertex per distinct
     position and texture coordinate).  In float64, one parallel pass over the faces
-    (scene/meshops.py; tests/scene/test_meshops.py holds the numpy reference it matches)."""
+    (scene/meshops.py; tests/scene/test_meshops.py holds the numpy reference it matches).
+    ``out``: where to write them (:class:`PendingNormals`)."""
     with host_stage("normals"):
-        return meshops.angle_weighted_normals(vertices, faces, keys)
+        return meshops.angle_weighted_normals(vertices, faces, keys, out)
+
+
+class PendingNormals:
+    """A mesh's angle-weighted normals, computed when the scene's per-corner normals are stacked
+    (:func:`stacked_per_face`), straight into their place there: no per-mesh (F, 3, 3) array
+    and no copy of it (288 MB each at 8M triangles; issue 35).  Holds the mesh's own vertices,
+    faces and corner keys, so the normals are those :func:`angle_weighted_normals` gives them."""
+
+    def __init__(self, vertices, faces, keys):
+        self.vertices, self.faces, self.keys = vertices, faces, keys
+
+    def __len__(self):
+        return len(self.faces)
+
+    def write_into(self, out) -> None:
+        angle_weighted_normals(self.vertices, self.faces, self.keys, out=out)
 
 
 def scene_bounds(scene: Scene):

@@ -31,8 +31,8 @@ from ...device.host_memory import aligned_empty
 from ..lights import light_type
 from ..shapes import REGISTRY as SHAPES, records as shape_records, transformed as shapes_moved
 from ..model import Camera, Environment, Material, RenderSettings, Scene, vertical_fov  # noqa: F401 (vertical_fov: the loaders' import)
-from .assembly import (_finite_faces, angle_weighted_normals, frame_scene, stacked_per_face, transform_normals,
-                       triangle_scene)
+from .assembly import (PendingNormals, _finite_faces, angle_weighted_normals, frame_scene, stacked_per_face,
+                       transform_normals, triangle_scene)
 # the importers take the shared geometry and errors from here too
 from .geometry import (cylinder_mesh, disk_mesh, grid_mesh, look_at_camera_to_world, quad_mesh,  # noqa: F401
                        rectangle_mesh, rotate, scale, sphere_mesh, transform_points, transform_vector, translate)
@@ -304,8 +304,8 @@ class SceneBuilder:
             keys = keys[:, ::-1] if keys is not None else None
         if len(f) == 0:
             return
-        if keys is not None:
-            nrm = angle_weighted_normals(v, f, keys)
+        if keys is not None:  # a group's recorded meshes need them now; the scene's, when stacked
+            nrm = angle_weighted_normals(v, f, keys) if self.recording is not None else PendingNormals(v, f, keys)
         if self.recording is not None:
             self.recording.meshes.append((v, f, uv, nrm, col, material, interface))
             return
