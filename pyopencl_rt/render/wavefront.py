@@ -24,6 +24,7 @@ from ..accel.shape_bvh import build_shape_bvh
 from ..scene.shapes import bounds as shape_bounds
 from . import filters
 from .film import Film, RunStats
+from .kernel_build import KernelBuild
 from .lights import build_lights, environment_buffers
 from .settings import (ImageSettings, environment_row, feature_names, has_light_tree, kernel_features,
                        max_component_value)
@@ -82,72 +83,6 @@ def check_wave_memory(device, wave_size: int) -> None:
         raise UsageError(f"--wave-size {wave_size} needs {total / 2**30:.2f} GiB of path state; "
                          f"{device_label(device)} has {mem / 2**30:.2f} GiB "
                          f"(at most {alloc / 2**30:.2f} GiB per buffer): use a smaller wave")
-
-
-class _KernelBuild:
-    """The build of a Wavefront's kernels on a thread (the lane width's choice, the kernels, the
-    defines they were built with); :meth:`join` sets them on the Wavefront, or raises what the
-    build raised.  A lane kernel that fails falls back to one path per work-item, with a warning."""
-
-    def __init__(self, wf, device):
-        import threading
-
-        self._wf, self._device = wf, device
-        self._result = self._error = None
-        self._thread = threading.Thread(target=self._run, name="pyopencl-rt kernel build", daemon=True)
-        self._thread.start()
-
-    def _run(self):
-        try:
-            t0 = time.perf_counter()
-            with host_stage("kernel_build"):
-                self._result = self._build()
-            self._result["build_seconds"] = time.perf_counter() - t0
-        except BaseException as exc:  # re-raised by join(), in the thread that renders
-            self._error = exc
-
-    def _build(self) -> dict:
-        import pyopencl as cl
-
-        from . import megakernel
-
-        wf, device = self._wf, self._device
-        features, kernel_mode, rt = dict(wf.features), wf.kernel_mode, wf.rt
-        lane_width, lane_reason = megakernel.lane_choice(kernel_mode, device, features)
-        kernels = None
-        if lane_width:
-            try:
-                # the scene's defines last: a benchmark variant (tools/kernel_ab.py) may set LANE_GROUP
-                lane_features = {**megakernel.lane_features(lane_width), **features}
-                kernels = {"path": rt.new_kernels(megakernel.SOURCES, ("mk_path",), lane_features)["mk_path"]}
-                features = lane_features
-            except cl.Error as exc:  # a kernel of ours that fails never ends the render
-                import warnings
-
-                failure = f"the {lane_width}-lane kernel failed ({str(exc).splitlines()[0]})"
-                warnings.warn(f"{failure}: rendering with one path per work-item", stacklevel=2)
-                lane_width, lane_reason = 0, f"one path per work-item: {failure}"
-        if not lane_width and kernel_mode == "megakernel":
-            features = {**megakernel.group_features(device, 0), **features}
-            kernels = {"path": rt.new_kernels(megakernel.SOURCES, ("mk_path",), features)["mk_path"]}
-        elif not lane_width:
-            built = rt.new_kernels(SOURCES, [f"wf_{s}" for s in STAGES], features)
-            kernels = {s: built[f"wf_{s}"] for s in STAGES}
-        return {"lane_width": lane_width, "lane_reason": lane_reason, "kernels": kernels, "features": features}
-
-    def wait(self) -> None:
-        """Until the build has ended (whatever its outcome): a render that fails before join()
-        does not leave PoCL compiling while the process exits."""
-        self._thread.join()
-
-    def join(self) -> None:
-        self._thread.join()
-        if self._error is not None:
-            raise self._error
-        wf, r = self._wf, self._result
-        wf.lane_width, wf.lane_reason, wf.kernels, wf.features = (r["lane_width"], r["lane_reason"],
-                                                                  r["kernels"], r["features"])
-        wf.timings["build_seconds"] = r["build_seconds"]
 
 
 class Wavefront:
@@ -213,7 +148,7 @@ class Wavefront:
         self.rt = runtime(device)
         # the kernels build (or come from PoCL's cache) on a thread of their own while this one
         # collapses the BVH and makes the buffers: PoCL's compiler releases the GIL (issue 35)
-        building = _KernelBuild(self, device)
+        building = KernelBuild(self, device, SOURCES, STAGES)
         try:
             from ..accel.device_bvh import LAYOUT_WIDTHS, node_buffer
 
