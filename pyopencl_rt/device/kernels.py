@@ -134,71 +134,6 @@ def _log_build(device, names, options, seconds: float) -> None:
         log.write(line + "\n")
 
 
-class MachineLock:
-    """An exclusive lock that this machine's processes share (``flock`` on a file of a per-user
-    folder in the temporary directory): two processes that need the same new program compile it
-    once, the second one waiting and then reading PoCL's cache (PoCL's cache has no lock of its
-    own, so two cold builds side by side each paid the whole compilation: docs/BENCHMARKS.md,
-    "Kernel builds").  Where no such file can be made (no ``fcntl``, a read-only folder) it locks
-    nothing.  Released when the process ends, whatever the way."""
-
-    def __init__(self, name: str):
-        self.name, self._fd = name, None
-
-    def __enter__(self):
-        try:
-            import fcntl
-            import tempfile
-
-            folder = Path(tempfile.gettempdir()) / f"pyopencl-rt-locks-{os.getuid()}"
-            folder.mkdir(mode=0o700, exist_ok=True)
-            fd = os.open(folder / f"{self.name}.lock", os.O_CREAT | os.O_RDWR, 0o600)
-        except (ImportError, AttributeError, OSError):
-            return self
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-        except OSError:
-            os.close(fd)
-            return self
-        self._fd = fd
-        return self
-
-    @property
-    def held(self) -> bool:
-        return self._fd is not None
-
-    def __exit__(self, *exc):
-        if self._fd is not None:
-            os.close(self._fd)  # closing the file releases its lock
-            self._fd = None
-
-
-class _FirstLaunch(MachineLock):
-    """:meth:`DeviceRuntime.first_launch`: PoCL compiles a kernel's work-group function at its first
-    launch, in its own thread; the lock is held until that launch has run (:meth:`done`)."""
-
-    def __init__(self, name, runtime, key):
-        super().__init__(name)
-        self._runtime, self._key = runtime, key
-
-    def done(self, event) -> None:
-        """The launch ``event`` (enqueued inside the lock): waited for where the lock is held."""
-        if self.held:
-            event.wait()
-        self._runtime._launched.add(self._key)
-
-
-class _NoLock:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        pass
-
-    def done(self, event) -> None:
-        pass
-
-
 class DeviceRuntime:
     """A context and an in-order queue for one device (profiling enabled, for per-stage timings)."""
 
@@ -213,26 +148,6 @@ class DeviceRuntime:
         self.lock = threading.Lock()
         self._programs: dict = {}
         self._kernels: dict = {}
-        self._program_hash: dict = {}  # program (by its handle) -> the hash of its device, source, options
-        self._launched: set = set()  # (program hash, kernel name) of the kernels launched in this process
-
-    def _hash(self, source: str, options: list) -> str:
-        import hashlib
-
-        d = self.device
-        text = "\0".join([d.platform.name, d.platform.version, d.name, d.version, d.driver_version, *options, source])
-        return hashlib.sha1(text.encode()).hexdigest()
-
-    def first_launch(self, kernel):
-        """A context for launching ``kernel``: its first launch in this process is made under a
-        :class:`MachineLock` of its program and name (enqueue inside, then ``done(event)``), so
-        another process's first launch of the same program waits and finds the work-group function
-        in PoCL's cache; later launches take no lock."""
-        h = self._program_hash.get(kernel.program.int_ptr)
-        key = (h, kernel.function_name)
-        if h is None or key in self._launched:
-            return _NoLock()
-        return _FirstLaunch(f"launch-{h}-{kernel.function_name}", self, key)
 
     @property
     def has_fp64(self) -> bool:
@@ -253,14 +168,12 @@ class DeviceRuntime:
                 source = assemble(*names, extra=extra)
                 options = []  # no fast-relaxed-math: watertightness relies on IEEE rounding
                 options += define_options(defines)
-                h = self._hash(source, options)
                 started = time.perf_counter()
-                with warnings.catch_warnings(), MachineLock(f"build-{h}"):  # a compiler's remarks (Intel's
-                    warnings.simplefilter("ignore", cl.CompilerWarning)  # runtime logs its vectoriser's)
-                    prog = cl.Program(self.context, source).build(options=options)  # are not the user's
+                with warnings.catch_warnings():  # a compiler's remarks (Intel's runtime logs its
+                    warnings.simplefilter("ignore", cl.CompilerWarning)  # vectoriser's) are not the user's
+                    prog = cl.Program(self.context, source).build(options=options)
                 _log_build(self.device, names, options, time.perf_counter() - started)
                 self._programs[key] = prog
-                self._program_hash[prog.int_ptr] = h
             return prog
 
     def new_kernels(self, names: tuple[str, ...], kernel_names, defines: dict | None = None, extra: str = "") -> dict:

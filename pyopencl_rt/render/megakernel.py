@@ -143,9 +143,7 @@ def run(wf, film: Film, passes=None, time_limit=None, progress=None, profile=Fal
                         queue_in=wf.queue_a, queue_out=wf.queue_b, queue_base=0, free_base=0,
                         n_listed=0 if pixels is None else n_pixels)
             items = -(-n // block)
-            with wf.rt.first_launch(kernel) as launch:  # a cold program is compiled once per machine
-                event = cl.enqueue_nd_range_kernel(queue, kernel, (-(-items // local) * local,), (local,))
-                launch.done(event)
+            event = cl.enqueue_nd_range_kernel(queue, kernel, (-(-items // local) * local,), (local,))
             if profile:
                 event.wait()
                 stats.stage_seconds["path"] = stats.stage_seconds.get("path", 0.0) + \

@@ -400,10 +400,7 @@ class Wavefront:
         # A fixed work-group size: PoCL compiles a work-group function per local size, so letting
         # it choose one per launch (global sizes vary every iteration) recompiled constantly.
         size = max(LOCAL_SIZE, (count + LOCAL_SIZE - 1) // LOCAL_SIZE * LOCAL_SIZE)
-        with self.rt.first_launch(self.kernels[stage]) as launch:  # a cold program: compiled once per machine
-            event = cl.enqueue_nd_range_kernel(self.rt.queue, self.kernels[stage], (size,), (LOCAL_SIZE,))
-            launch.done(event)
-        return event
+        return cl.enqueue_nd_range_kernel(self.rt.queue, self.kernels[stage], (size,), (LOCAL_SIZE,))
 
     def run(self, film: Film, passes: int | None = None, time_limit: float | None = None,
             progress=None, profile: bool = False, first_pass: int = 0, cancel=None, pixels=None) -> RunStats:
