@@ -16,10 +16,16 @@ class KernelBuild:
 
     def __init__(self, wf, device, sources, stages):
         """``sources``, ``stages``: the wavefront program's files and stage names (one path per
-        work-item, where the megakernel does not run)."""
+        work-item, where the megakernel does not run).  The thread only builds (clBuildProgram,
+        clCreateKernel): no command of it goes to a queue."""
         import threading
 
+        from . import megakernel
+
         self._wf, self._device, self._sources, self._stages = wf, device, sources, stages
+        # the width's choice runs the ISA probe, a kernel on the device's queue: here, on the
+        # calling thread, so that the build thread never uses the queue the caller fills
+        self._lanes = megakernel.lane_choice(wf.kernel_mode, device, dict(wf.features))
         self._result = self._error = None
         self._thread = threading.Thread(target=self._run, name="pyopencl-rt kernel build", daemon=True)
         self._thread.start()
@@ -40,7 +46,7 @@ class KernelBuild:
 
         wf, device = self._wf, self._device
         features, kernel_mode, rt = dict(wf.features), wf.kernel_mode, wf.rt
-        lane_width, lane_reason = megakernel.lane_choice(kernel_mode, device, features)
+        lane_width, lane_reason = self._lanes
         kernels = None
         if lane_width:
             try:
