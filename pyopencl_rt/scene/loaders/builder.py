@@ -174,6 +174,12 @@ class EnvMap:
 # the scene under construction
 
 
+def _per_face(parts) -> np.ndarray:
+    """The int32 per-face array of ``parts``, (face count, value) per mesh in order."""
+    counts = np.array([n for n, _ in parts], np.int64)
+    return np.repeat(np.array([value for _, value in parts], np.int32), counts)
+
+
 class SceneBuilder:
     """One import: geometry and lights in world space, materials by identity, warnings."""
 
@@ -314,13 +320,14 @@ class SceneBuilder:
     def append_mesh(self, v, f, uv, nrm, col, material: Material, interface, emitter: int = -1) -> None:
         """Triangles already in world space, their fronts set (what add_mesh leaves)."""
         self.vertices.append(v)
-        self.faces.append(f + self.n_vertices)
+        self.faces.append(f + self.n_vertices if self.n_vertices else f)  # the first mesh's as they are
         self.uvs.append(uv)
         self.normals.append(nrm)
         self.colors.append(col)
-        self.face_materials.append(np.full(len(f), self.material_index(material), np.int32))
-        self.face_interfaces.append(np.full(len(f), self.interface_index(interface), np.int32))
-        self.face_emitters.append(np.full(len(f), int(emitter), np.int32))
+        # one value for all the mesh's faces: the per-face arrays are made once, in build()
+        self.face_materials.append((len(f), self.material_index(material)))
+        self.face_interfaces.append((len(f), self.interface_index(interface)))
+        self.face_emitters.append((len(f), int(emitter)))
         self.n_vertices += len(v)
         self.n_faces += len(f)
         self.any_normals |= nrm is not None
@@ -365,7 +372,7 @@ class SceneBuilder:
             faces = np.concatenate(self.faces, out=aligned_empty((sum(len(f) for f in self.faces), 3),
                                                                   np.result_type(*self.faces)))
             uvs = stacked_per_face(self.uvs, self.faces, (3, 2), 0.0)
-            face_materials = np.concatenate(self.face_materials)
+            face_materials = _per_face(self.face_materials)
             if self.any_normals:
                 normals = stacked_per_face(self.normals, self.faces, (3, 3), 0.0)
             if self.any_colors:
@@ -377,7 +384,7 @@ class SceneBuilder:
         else:
             vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
             uvs, face_materials = None, np.zeros(0, np.int32)
-        face_interfaces = np.concatenate(self.face_interfaces) if self.faces else np.zeros(0, np.int32)
+        face_interfaces = _per_face(self.face_interfaces)
         shapes = np.concatenate(self.shapes) if self.shapes else np.zeros(0, abi.SHAPE)
         media = list(self.media)
         lights = list(self.lights)
@@ -415,7 +422,7 @@ class SceneBuilder:
                                shapes=shapes, shape_materials=np.asarray(self.shape_materials, np.int32),
                                settings=self.settings,
                                face_interfaces=face_interfaces if self.interfaces else None,
-                               face_emitters=(np.concatenate(self.face_emitters)
+                               face_emitters=(_per_face(self.face_emitters)
                                               if self.emitter_weights and self.faces else None))
         scene.normals_as_given = bool(self.normals_as_given)
         scene.make_normals_unit()  # once, in place: the kernels read them as they are
