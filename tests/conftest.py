@@ -131,6 +131,12 @@ def secondary_implementation(spec: str) -> bool:
     return bool(entry.type & cl.device_type.CPU) and entry != dv.resolve("cpu")[0]
 
 
+@pytest.fixture
+def second_implementation(request) -> bool:
+    """Whether this device test runs on a second CPU implementation (:func:`secondary_implementation`)."""
+    return secondary_implementation(request.node.callspec.params["device"])
+
+
 def mark_second_implementation_subsets(items):
     """A test module's ``SECOND_IMPLEMENTATION = {test name: keep(params, device)}`` names the
     cases that a second implementation runs in ``make test`` (one per code path, where the first

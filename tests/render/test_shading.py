@@ -24,16 +24,13 @@ LIGHT = np.array([0.3, -0.4, -1.0])
 
 
 @pytest.fixture
-def shading_device(device, monkeypatch):
+def shading_device(device, second_implementation, monkeypatch):
     """``device``; on a second CPU implementation (Intel's runtime beside PoCL) with the scenes'
     own kernels: the suite's every-feature 16-lane megakernel was built on Intel's compiler for
     these two tests alone (45.7 CPU s cold for both; their own two programs 27.1 s)."""
-    import pyopencl as cl
-
-    from pyopencl_rt.device import devices
     from pyopencl_rt.render.settings import FEATURES_ENV
 
-    if device.type & cl.device_type.CPU and device != devices.select_device("cpu"):
+    if second_implementation:
         monkeypatch.setenv(FEATURES_ENV, "scene")
     return device
 

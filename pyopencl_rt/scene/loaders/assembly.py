@@ -144,9 +144,6 @@ class PendingNormals:
     def __init__(self, vertices, faces, keys):
         self.vertices, self.faces, self.keys = vertices, faces, keys
 
-    def __len__(self):
-        return len(self.faces)
-
     def write_into(self, out) -> None:
         angle_weighted_normals(self.vertices, self.faces, self.keys, out=out)
 
